@@ -1,0 +1,269 @@
+"""OpenGL contexts: headless EGL (default), headless OSMesa, and a glfw window.
+
+Every context is OpenGL 4.3 core or newer (compute shaders, SSBOs, layered rendering).
+`create_context()` tries the headless backends in order and, when none works, raises one
+`ContextError` that lists each backend tried and why it failed.
+
+moderngl covers almost everything; the few calls it lacks (glClipControl for reversed-Z,
+layered depth attachments) go through `RawGL`, which resolves entry points with the
+backend's own GetProcAddress.
+"""
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+from dataclasses import dataclass, field
+from typing import Callable
+
+import moderngl
+
+REQUIRED_GL = 430
+HEADLESS_BACKENDS = ("egl", "osmesa")
+
+# Extensions rayvr looks for; `rayvr info` reports each one.
+EXTENSIONS_OF_INTEREST = (
+    "GL_ARB_clip_control",
+    "GL_ARB_shader_viewport_layer_array",
+    "GL_AMD_vertex_shader_layer",
+    "GL_OVR_multiview",
+    "GL_OVR_multiview2",
+    "GL_NV_stereo_view_rendering",
+    "GL_ARB_gpu_shader_int64",
+    "GL_KHR_shader_subgroup",
+    "GL_ARB_shader_ballot",
+    "GL_NV_shader_atomic_float",
+    "GL_ARB_bindless_texture",
+)
+
+
+class ContextError(RuntimeError):
+    """No OpenGL context could be made (or it is too old)."""
+
+
+# Raw GL entry points rayvr needs beyond moderngl: name -> (restype, argtypes).
+_u, _i, _p = ctypes.c_uint, ctypes.c_int, ctypes.c_void_p
+_RAW_SIGNATURES: dict[str, tuple] = {
+    "glClipControl": (None, (_u, _u)),
+    "glGenTextures": (None, (_i, ctypes.POINTER(_u))),
+    "glDeleteTextures": (None, (_i, ctypes.POINTER(_u))),
+    "glBindTexture": (None, (_u, _u)),
+    "glActiveTexture": (None, (_u,)),
+    "glTexStorage3D": (None, (_u, _i, _u, _i, _i, _i)),
+    "glTexParameteri": (None, (_u, _u, _i)),
+    "glGetTexImage": (None, (_u, _i, _u, _u, _p)),
+    "glBindFramebuffer": (None, (_u, _u)),
+    "glFramebufferTexture": (None, (_u, _u, _u, _i)),
+    "glCheckFramebufferStatus": (_u, (_u,)),
+    "glBindImageTexture": (None, (_u, _u, _i, ctypes.c_ubyte, _i, _u, _u)),
+    "glClearTexImage": (None, (_u, _i, _u, _u, _p)),
+    "glGetError": (_u, ()),
+}
+
+
+class RawGL:
+    """Entry points moderngl does not wrap, resolved once through GetProcAddress."""
+
+    def __init__(self, get_proc_address: Callable[[str], int | None]):
+        self._get = get_proc_address
+        self._cache: dict[str, Callable] = {}
+
+    def __getattr__(self, name: str) -> Callable:
+        if name.startswith("_"):
+            raise AttributeError(name)
+        fn = self._cache.get(name)
+        if fn is None:
+            if name not in _RAW_SIGNATURES:
+                raise AttributeError(f"RawGL has no signature for {name}")
+            address = self._get(name)
+            if not address:
+                raise ContextError(f"the OpenGL driver does not provide {name}")
+            restype, argtypes = _RAW_SIGNATURES[name]
+            fn = ctypes.CFUNCTYPE(restype, *argtypes)(address)
+            self._cache[name] = fn
+        return fn
+
+    def has(self, name: str) -> bool:
+        try:
+            getattr(self, name)
+            return True
+        except ContextError:
+            return False
+
+
+@dataclass
+class GLContext:
+    """A moderngl context plus what rayvr needs to know about it."""
+
+    ctx: moderngl.Context
+    backend: str
+    raw: RawGL
+    _release: Callable[[], None] = field(default=lambda: None, repr=False)
+
+    @property
+    def extensions(self) -> set[str]:
+        return self.ctx.extensions
+
+    def has_extension(self, name: str) -> bool:
+        return name in self.ctx.extensions
+
+    def info(self) -> dict:
+        """Vendor, renderer, version, limits and the extensions rayvr uses."""
+        i = self.ctx.info
+        limits = {k: i.get(k) for k in (
+            "GL_MAX_TEXTURE_SIZE", "GL_MAX_ARRAY_TEXTURE_LAYERS", "GL_MAX_SHADER_STORAGE_BLOCK_SIZE",
+            "GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS", "GL_MAX_COMPUTE_SHARED_MEMORY_SIZE",
+            "GL_MAX_COLOR_ATTACHMENTS", "GL_MAX_SAMPLES",
+        )}
+        return {
+            "backend": self.backend,
+            "vendor": i.get("GL_VENDOR"),
+            "renderer": i.get("GL_RENDERER"),
+            "version": i.get("GL_VERSION"),
+            "glsl": i.get("GL_SHADING_LANGUAGE_VERSION"),
+            "version_code": self.ctx.version_code,
+            "limits": limits,
+            "extensions": {e: (e in self.ctx.extensions) for e in EXTENSIONS_OF_INTEREST},
+        }
+
+    @property
+    def max_ssbo_bytes(self) -> int:
+        return int(self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0)
+
+    def release(self) -> None:
+        try:
+            self.ctx.release()
+        finally:
+            self._release()
+
+
+def _check_version(ctx: moderngl.Context, backend: str) -> None:
+    if ctx.version_code < REQUIRED_GL:
+        version = ctx.info.get("GL_VERSION")
+        ctx.release()
+        raise ContextError(f"{backend}: OpenGL {version} is older than the required 4.3 core")
+
+
+def _egl_proc_loader() -> Callable[[str], int | None]:
+    lib = ctypes.util.find_library("EGL")
+    if not lib:
+        raise ContextError("libEGL not found")
+    egl = ctypes.CDLL(lib)
+    egl.eglGetProcAddress.restype = ctypes.c_void_p
+    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+    return lambda name: egl.eglGetProcAddress(name.encode())
+
+
+def create_egl_context(device_index: int | None = None) -> GLContext:
+    """Headless EGL context; `device_index` picks the GPU when there are several."""
+    kwargs = {"backend": "egl", "require": REQUIRED_GL}
+    if device_index is not None:
+        kwargs["device_index"] = int(device_index)
+    try:
+        ctx = moderngl.create_standalone_context(**kwargs)
+    except Exception as exc:  # moderngl raises plain Exception here
+        raise ContextError(f"egl: {exc}") from exc
+    _check_version(ctx, "egl")
+    return GLContext(ctx, "egl", RawGL(_egl_proc_loader()))
+
+
+class _OSMesaLoader:
+    """The loader object `moderngl.init_context` expects, backed by OSMesaGetProcAddress."""
+
+    def __init__(self, lib):
+        self._lib = lib
+
+    def load_opengl_function(self, name: str) -> int:
+        return self._lib.OSMesaGetProcAddress(name.encode()) or 0
+
+    def release(self) -> None:
+        pass
+
+
+def create_osmesa_context(size: tuple[int, int] = (16, 16)) -> GLContext:
+    """Headless OSMesa (Mesa's software renderer, Debian's libosmesa6) context, 4.5 core."""
+    path = ctypes.util.find_library("OSMesa") or "libOSMesa.so.8"
+    try:
+        lib = ctypes.CDLL(path)
+    except OSError as exc:
+        raise ContextError(f"osmesa: cannot load libOSMesa ({exc}); on Debian: apt-get install libosmesa6") from exc
+    lib.OSMesaCreateContextAttribs.restype = ctypes.c_void_p
+    lib.OSMesaCreateContextAttribs.argtypes = [ctypes.POINTER(ctypes.c_int), ctypes.c_void_p]
+    lib.OSMesaMakeCurrent.restype = ctypes.c_ubyte
+    lib.OSMesaMakeCurrent.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint, ctypes.c_int, ctypes.c_int]
+    lib.OSMesaGetProcAddress.restype = ctypes.c_void_p
+    lib.OSMesaGetProcAddress.argtypes = [ctypes.c_char_p]
+    lib.OSMesaDestroyContext.argtypes = [ctypes.c_void_p]
+    OSMESA_FORMAT, OSMESA_RGBA, OSMESA_DEPTH_BITS = 0x22, 0x1908, 0x30
+    OSMESA_PROFILE, OSMESA_CORE_PROFILE = 0x33, 0x34
+    OSMESA_CONTEXT_MAJOR, OSMESA_CONTEXT_MINOR = 0x36, 0x37
+    attrs = (ctypes.c_int * 13)(OSMESA_FORMAT, OSMESA_RGBA, OSMESA_DEPTH_BITS, 24,
+                                OSMESA_PROFILE, OSMESA_CORE_PROFILE,
+                                OSMESA_CONTEXT_MAJOR, 4, OSMESA_CONTEXT_MINOR, 5, 0, 0, 0)
+    handle = lib.OSMesaCreateContextAttribs(attrs, None)
+    if not handle:
+        raise ContextError("osmesa: OSMesaCreateContextAttribs failed (no 4.5 core profile?)")
+    w, h = size
+    buffer = ctypes.create_string_buffer(w * h * 4)
+    if not lib.OSMesaMakeCurrent(handle, buffer, 0x1401, w, h):  # GL_UNSIGNED_BYTE
+        lib.OSMesaDestroyContext(handle)
+        raise ContextError("osmesa: OSMesaMakeCurrent failed")
+    try:
+        moderngl.init_context(loader=_OSMesaLoader(lib))
+        ctx = moderngl.get_context()
+    except Exception as exc:
+        lib.OSMesaDestroyContext(handle)
+        raise ContextError(f"osmesa: {exc}") from exc
+    _check_version(ctx, "osmesa")
+
+    def release():
+        lib.OSMesaDestroyContext(handle)
+        buffer  # keep the colour buffer alive as long as the context
+
+    return GLContext(ctx, "osmesa", RawGL(lambda n: lib.OSMesaGetProcAddress(n.encode())), release)
+
+
+def create_context(backend: str | None = None, device_index: int | None = None) -> GLContext:
+    """A headless context. `backend` is 'egl', 'osmesa' or None (try each; env RAYVR_GL_BACKEND)."""
+    backend = backend or os.environ.get("RAYVR_GL_BACKEND") or None
+    order = [backend] if backend else list(HEADLESS_BACKENDS)
+    failures = []
+    for name in order:
+        try:
+            if name == "egl":
+                return create_egl_context(device_index)
+            if name == "osmesa":
+                return create_osmesa_context()
+            raise ContextError(f"unknown backend {name!r}; choose one of {', '.join(HEADLESS_BACKENDS)}")
+        except ContextError as exc:
+            failures.append(f"  - {exc}")
+    raise ContextError("no OpenGL 4.3 core context could be made:\n" + "\n".join(failures))
+
+
+def create_window_context(size=(1280, 720), title="rayvr", visible=True, vsync=True):
+    """A glfw window with a 4.3 core context; returns (window, GLContext)."""
+    import glfw
+
+    if not glfw.init():
+        raise ContextError("glfw: init failed (no display? set DISPLAY or run under Xvfb)")
+    glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 4)
+    glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
+    glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
+    glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
+    glfw.window_hint(glfw.VISIBLE, visible)
+    window = glfw.create_window(int(size[0]), int(size[1]), title, None, None)
+    if not window:
+        glfw.terminate()
+        raise ContextError("glfw: could not open a window with an OpenGL 4.3 core context")
+    glfw.make_context_current(window)
+    glfw.swap_interval(1 if vsync else 0)
+    try:
+        ctx = moderngl.create_context(require=REQUIRED_GL)
+    except Exception as exc:
+        glfw.destroy_window(window)
+        raise ContextError(f"glfw: {exc}") from exc
+
+    def release():
+        glfw.destroy_window(window)
+
+    return window, GLContext(ctx, "glfw", RawGL(lambda n: glfw.get_proc_address(n)), release)

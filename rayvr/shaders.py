@@ -1,0 +1,122 @@
+"""GLSL sources under rayvr/glsl/, with `#include "path"` and compile errors mapped to file:line.
+
+Each file gets a source-string number; `#line` directives around every include make the
+driver report (number, line), and `ShaderError` turns that back into `glsl/file.glsl:line`
+(Mesa writes `0:12(3): error`, NVIDIA `0(12) : error`). A file is included once per
+program, whatever the number of `#include`s naming it.
+"""
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import moderngl
+
+GLSL_DIR = Path(__file__).resolve().parent / "glsl"
+_INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
+_VERSION = re.compile(r"^\s*#\s*version\b")
+_EXTENSION = re.compile(r"^\s*#\s*extension\b")
+# Mesa: "0:12(3): error: ..."   NVIDIA: "0(12) : error C0000: ..."
+_LOG_LOCATION = re.compile(r"(?m)^(?:ERROR: )?(\d+)(?::(\d+)\((\d+)\)|\((\d+)\))")
+
+
+class ShaderError(RuntimeError):
+    """A shader failed to load, compile or link; the message names the original file and line."""
+
+
+@dataclass
+class ShaderSource:
+    text: str
+    files: list[str] = field(default_factory=list)  # source-string number -> file name
+
+    def map_log(self, log: str) -> str:
+        def where(m: re.Match) -> str:
+            idx = int(m.group(1))
+            line = m.group(2) or m.group(4)
+            name = self.files[idx] if idx < len(self.files) else f"<source {idx}>"
+            return f"glsl/{name}:{line}"
+        return _LOG_LOCATION.sub(where, log)
+
+
+def _read(name: str, root: Path) -> str:
+    path = (root / name).resolve()
+    if not path.is_file():
+        raise ShaderError(f"shader file not found: {path}")
+    return path.read_text()
+
+
+def load_source(name: str, defines: dict | None = None, root: Path = GLSL_DIR) -> ShaderSource:
+    """Resolve includes of `name` (relative to glsl/) and put `defines` after its header lines."""
+    files: list[str] = []
+    out: list[str] = []
+    included = {name}
+
+    def emit(file: str, is_top: bool) -> None:
+        idx = len(files)
+        files.append(file)
+        if not is_top:
+            out.append(f"#line 1 {idx}")
+        lines = _read(file, root).splitlines()
+        header = [n for n, line in enumerate(lines, 1) if _VERSION.match(line) or _EXTENSION.match(line)]
+        header_end = max(header) if (is_top and header) else -1
+        for lineno, line in enumerate(lines, start=1):
+            m = _INCLUDE.match(line)
+            if m:
+                child = os.path.normpath(os.path.join(os.path.dirname(file), m.group(1)))
+                if child not in included:  # once per program; this also stops cycles
+                    included.add(child)
+                    emit(child, False)
+                    out.append(f"#line {lineno + 1} {idx}")
+                else:
+                    out.append("")
+                continue
+            out.append(line)
+            if lineno == header_end:
+                out.extend(f"#define {k} {_define_value(v)}" for k, v in (defines or {}).items())
+                out.append(f"#line {lineno + 1} {idx}")
+
+    emit(name, True)
+    text = "\n".join(out) + "\n"
+    if not text.lstrip().startswith("#version"):
+        raise ShaderError(f"glsl/{name}: the first line must be a #version directive")
+    return ShaderSource(text, files)
+
+
+def _define_value(value) -> str:
+    if isinstance(value, bool):
+        return "1" if value else "0"
+    return str(value)
+
+
+def _wrap(sources: dict[str, ShaderSource], fn):
+    try:
+        return fn()
+    except moderngl.Error as exc:
+        msg = str(exc)
+        for stage, src in sources.items():
+            msg = src.map_log(msg) if src else msg
+        names = ", ".join(f"{stage}=glsl/{s.files[0]}" for stage, s in sources.items() if s)
+        raise ShaderError(f"shader build failed ({names}):\n{msg}") from None
+
+
+def program(ctx: moderngl.Context, vertex: str, fragment: str | None = None,
+            geometry: str | None = None, defines: dict | None = None) -> moderngl.Program:
+    """Build a raster program from files under glsl/."""
+    sources = {"vertex": load_source(vertex, defines)}
+    if fragment:
+        sources["fragment"] = load_source(fragment, defines)
+    if geometry:
+        sources["geometry"] = load_source(geometry, defines)
+    return _wrap(sources, lambda: ctx.program(
+        vertex_shader=sources["vertex"].text,
+        fragment_shader=sources["fragment"].text if fragment else None,
+        geometry_shader=sources["geometry"].text if geometry else None,
+    ))
+
+
+def compute(ctx: moderngl.Context, name: str, defines: dict | None = None) -> moderngl.ComputeShader:
+    """Build a compute shader from a file under glsl/."""
+    src = load_source(name, defines)
+    return _wrap({"compute": src}, lambda: ctx.compute_shader(src.text))
