@@ -1,0 +1,10 @@
+"""rayvr: hybrid raster + compute-shader ray tracing for stereo VR, effects chosen per material."""
+from .camera import EyeView, Pose, StereoRig
+from .context import ContextError, create_context
+from .materials import ConfigError, MaterialConfig, load_config
+from .renderer import Frame, Renderer, RenderSettings
+from .scene import Scene, SceneError, load
+
+__version__ = "0.1.0"
+__all__ = ["Renderer", "RenderSettings", "Frame", "StereoRig", "Pose", "EyeView", "Scene", "SceneError",
+           "load", "MaterialConfig", "load_config", "ConfigError", "create_context", "ContextError"]

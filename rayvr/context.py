@@ -56,7 +56,8 @@ _RAW_SIGNATURES: dict[str, tuple] = {
     "glFramebufferTexture": (None, (_u, _u, _u, _i)),
     "glCheckFramebufferStatus": (_u, (_u,)),
     "glBindImageTexture": (None, (_u, _u, _i, ctypes.c_ubyte, _i, _u, _u)),
-    "glClearTexImage": (None, (_u, _i, _u, _u, _p)),
+    "glClearBufferuiv": (None, (_u, _i, ctypes.POINTER(_u))),
+    "glClearBufferfv": (None, (_u, _i, ctypes.POINTER(ctypes.c_float))),
     "glGetError": (_u, ()),
 }
 

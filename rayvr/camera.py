@@ -1,0 +1,248 @@
+"""Cameras and the stereo rig.
+
+Conventions (OpenGL): camera looks down -Z, +Y up, +X right; images are stored rows top-down.
+
+Depth precision: rayvr uses **reversed-Z** with a [0, 1] clip range (`glClipControl(
+GL_LOWER_LEFT, GL_ZERO_TO_ONE)`) into a 32-bit float depth buffer, and an **infinite far
+plane** by default (`far=None`). Depth = near / view_distance, so the float's exponent tracks
+distance and the relative depth resolution is nearly constant (about 2^-21 of the distance,
+limited by the float32 projection arithmetic) from `near` to infinity. Near/far ratios from
+1e-4 to 1e7 need no tuning. Without clip control the same projection is remapped to GL's
+[-1, 1] range (works, with less precision far away; `rayvr info` says which is in use).
+
+All matrices are built in float64 relative to the scene's origin (see scene.py) and only then
+cast to float32, so rigs 1e5 units from the world origin stay exact.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .output import atomic_write_bytes
+
+EYES = ("left", "right")
+
+
+def look_at_rotation(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
+    """Camera-to-world rotation (columns: right, up, back) looking from eye to target."""
+    eye, target, up = (np.asarray(x, dtype=np.float64) for x in (eye, target, up))
+    back = eye - target
+    if np.linalg.norm(back) == 0:
+        raise ValueError("camera eye and target are the same point")
+    back /= np.linalg.norm(back)
+    right = np.cross(up, back)
+    if np.linalg.norm(right) < 1e-9:  # looking along `up`: pick another up
+        right = np.cross([0.0, 0.0, 1.0] if abs(back[2]) < 0.9 else [1.0, 0.0, 0.0], back)
+    right /= np.linalg.norm(right)
+    true_up = np.cross(back, right)
+    return np.stack([right, true_up, back], axis=1)
+
+
+@dataclass
+class Pose:
+    """Head pose: world position (float64) and camera-to-world rotation (3x3)."""
+
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    @classmethod
+    def look_at(cls, eye, target, up=(0.0, 1.0, 0.0)) -> "Pose":
+        return cls(np.asarray(eye, dtype=np.float64), look_at_rotation(eye, target, up))
+
+    @property
+    def forward(self) -> np.ndarray:
+        return -self.rotation[:, 2]
+
+    def to_dict(self) -> dict:
+        return {"position": self.position.tolist(), "rotation": self.rotation.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Pose":
+        if "rotation" in d:
+            return cls(np.asarray(d["position"], float), np.asarray(d["rotation"], float).reshape(3, 3))
+        return cls.look_at(d["position"], d["target"], d.get("up", (0.0, 1.0, 0.0)))
+
+
+def projection(left: float, right: float, bottom: float, top: float, near: float,
+               far: float | None = None, zero_to_one: bool = True) -> np.ndarray:
+    """Reversed-Z off-axis projection from frustum *tangents* (x/-z at the edges).
+
+    Depth is near/d (d = view distance) for far=None; with a finite far it is 1 at near, 0 at far.
+    `zero_to_one=False` remaps to GL's default [-1, 1] clip range (no clip control)."""
+    if not (right > left and top > bottom):
+        raise ValueError(f"empty frustum: tangents left={left} right={right} bottom={bottom} top={top}")
+    if not near > 0:
+        raise ValueError(f"near must be > 0, got {near}")
+    p = np.zeros((4, 4))
+    p[0, 0] = 2.0 / (right - left)
+    p[0, 2] = (right + left) / (right - left)
+    p[1, 1] = 2.0 / (top - bottom)
+    p[1, 2] = (top + bottom) / (top - bottom)
+    if far is None or math.isinf(far):
+        p[2, 3] = near
+    else:
+        if not far > near:
+            raise ValueError(f"far ({far}) must be greater than near ({near})")
+        p[2, 2] = near / (far - near)
+        p[2, 3] = near * far / (far - near)
+    p[3, 2] = -1.0
+    if not zero_to_one:
+        p[2] = 2.0 * p[2] - p[3]
+    return p
+
+
+@dataclass
+class EyeView:
+    """One eye: where it is and how it projects. `view` maps scene-local to eye space."""
+
+    name: str
+    position: np.ndarray  # world, float64
+    rotation: np.ndarray  # camera-to-world
+    tangents: tuple  # (left, right, bottom, top) frustum tangents
+    near: float
+    far: float | None
+    size: tuple  # (width, height) in pixels
+
+    def view_matrix(self, origin=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """World-minus-`origin` -> eye space, float64."""
+        m = np.eye(4)
+        m[:3, :3] = self.rotation.T
+        m[:3, 3] = -self.rotation.T @ (self.position - np.asarray(origin, dtype=np.float64))
+        return m
+
+    def projection_matrix(self, zero_to_one: bool = True) -> np.ndarray:
+        return projection(*self.tangents, self.near, self.far, zero_to_one)
+
+    def view_projection(self, origin=(0.0, 0.0, 0.0), zero_to_one: bool = True) -> np.ndarray:
+        return self.projection_matrix(zero_to_one) @ self.view_matrix(origin)
+
+    def project(self, points_world) -> np.ndarray:
+        """World points -> (x, y) pixel coordinates (top-down rows, pixel centres at .5) and depth.
+        Returns (N, 3): px, py, reversed-Z depth value."""
+        p = np.atleast_2d(np.asarray(points_world, dtype=np.float64))
+        clip = (self.view_projection() @ np.c_[p, np.ones(len(p))].T).T
+        ndc = clip[:, :3] / clip[:, 3:4]
+        w, h = self.size
+        px = (ndc[:, 0] * 0.5 + 0.5) * w
+        py = (1.0 - (ndc[:, 1] * 0.5 + 0.5)) * h
+        return np.c_[px, py, ndc[:, 2]]
+
+    def ray_directions(self) -> np.ndarray:
+        """(H, W, 3) world-space unit directions through pixel centres (rows top-down), from the
+        same tangents the rasterizer's projection uses, so rays and raster agree per pixel."""
+        w, h = self.size
+        l, r, b, t = self.tangents
+        xs = l + (np.arange(w) + 0.5) / w * (r - l)
+        ys = t - (np.arange(h) + 0.5) / h * (t - b)
+        d = np.stack(np.broadcast_arrays(xs[None, :], ys[:, None], -np.ones((h, w))), axis=-1)
+        d = d @ self.rotation.T
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+@dataclass
+class StereoRig:
+    """A head pose plus two eyes.
+
+    Either symmetric per-eye frusta from `fov_y` (degrees) and the image aspect, sheared so the
+    eyes' images coincide at `convergence` (None: parallel axes, as HMDs do), or HMD-style per-eye
+    tangents `eye_tangents = {"left": (l, r, b, t), "right": (...)}` (tan of the half-angles, left
+    and bottom negative) which take precedence. `ipd` is the distance between the eyes.
+    """
+
+    pose: Pose = field(default_factory=Pose)
+    ipd: float = 0.064
+    fov_y: float = 90.0
+    convergence: float | None = None
+    near: float = 0.05
+    far: float | None = None
+    eye_tangents: dict | None = None
+    size: tuple = (640, 480)  # per-eye pixels (width, height)
+
+    def __post_init__(self):
+        if not (self.ipd >= 0 and math.isfinite(self.ipd)):
+            raise ValueError(f"ipd must be a finite value >= 0, got {self.ipd}")
+        if not (0 < self.fov_y < 180):
+            raise ValueError(f"fov_y must be in (0, 180) degrees for a planar projection, got {self.fov_y}")
+        if self.convergence is not None and not self.convergence > 0:
+            raise ValueError(f"convergence distance must be > 0 (or None), got {self.convergence}")
+        w, h = self.size
+        if int(w) < 1 or int(h) < 1:
+            raise ValueError(f"image size must be at least 1x1, got {w}x{h}")
+        self.size = (int(w), int(h))
+
+    def with_size(self, size) -> "StereoRig":
+        return replace(self, size=tuple(size))
+
+    def eye(self, name: str) -> EyeView:
+        if name not in EYES and name != "center":
+            raise ValueError(f"eye must be one of {EYES + ('center',)}, got {name!r}")
+        sign = {"left": -1.0, "right": 1.0, "center": 0.0}[name]
+        offset = sign * self.ipd / 2.0
+        position = self.pose.position + self.pose.rotation[:, 0] * offset
+        if self.eye_tangents and name in self.eye_tangents:
+            tangents = tuple(float(x) for x in self.eye_tangents[name])
+        else:
+            t = math.tan(math.radians(self.fov_y) / 2.0)
+            a = self.size[0] / self.size[1]
+            # Off-axis shear: zero parallax at the convergence distance.
+            shift = -offset / self.convergence if self.convergence else 0.0
+            tangents = (-t * a + shift, t * a + shift, -t, t)
+        return EyeView(name, position, self.pose.rotation.copy(), tangents, self.near, self.far, self.size)
+
+    def eyes(self, which: str = "both") -> list[EyeView]:
+        if which == "both":
+            return [self.eye("left"), self.eye("right")]
+        return [self.eye(which)]
+
+    @classmethod
+    def for_scene(cls, scene, size=(640, 480), **kw) -> "StereoRig":
+        """A rig that frames the scene: in front of it (+Z side), looking at its centre."""
+        c = scene.center
+        b = scene.bounds
+        ext = b[1] - b[0]
+        fov = kw.get("fov_y", 90.0)
+        dist = 0.5 * max(ext[0], ext[1]) / math.tan(math.radians(fov) / 2) + ext[2] / 2
+        eye = c + np.array([0.0, 0.0, max(dist, 1e-3) * 1.05])
+        kw.setdefault("near", max(scene.extent * 1e-4, 1e-6))
+        return cls(pose=Pose.look_at(eye, c), size=size, **kw)
+
+
+# ------------------------------------------------------------------ camera paths (JSON)
+
+def save_path(path: str | Path, poses: list[Pose], **meta) -> None:
+    """Write a camera path (JSON: {"poses": [{position, rotation}, ...], ...meta}) atomically."""
+    data = {"format": "rayvr-camera-path", "version": 1, **meta, "poses": [p.to_dict() for p in poses]}
+    atomic_write_bytes(Path(path), json.dumps(data, indent=1).encode())
+
+
+def load_path(path: str | Path) -> list[Pose]:
+    """Read a camera path: {"poses": [...]} where each pose is {position, rotation} or
+    {position, target, up?}."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+        poses = data["poses"] if isinstance(data, dict) else data
+        out = [Pose.from_dict(p) for p in poses]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"{path}: not a camera path ({exc})") from exc
+    if not out:
+        raise ValueError(f"{path}: the camera path has no poses")
+    for i, p in enumerate(out):
+        if not (np.isfinite(p.position).all() and np.isfinite(p.rotation).all()):
+            raise ValueError(f"{path}: pose {i} has NaN or inf values")
+    return out
+
+
+def orbit(center, radius: float, height: float, frames: int, start_deg: float = 0.0) -> list[Pose]:
+    """A turntable path around `center` (for `rayvr capture --frames N`)."""
+    center = np.asarray(center, dtype=np.float64)
+    poses = []
+    for k in range(frames):
+        a = math.radians(start_deg) + 2 * math.pi * k / frames
+        eye = center + np.array([radius * math.sin(a), height, radius * math.cos(a)])
+        poses.append(Pose.look_at(eye, center))
+    return poses

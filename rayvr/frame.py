@@ -1,0 +1,102 @@
+"""The frame graph: passes declare what they read and write and when they are needed; the graph
+keeps only the passes the requested output depends on, orders them by their data edges, and
+times each with a GL timer query.
+
+A pass (rayvr/passes/) subclasses `Pass`:
+    name     unique name, also the key of its GPU time in `Frame.timings`
+    reads    resource names it consumes
+    writes   resource names it produces
+    needed(plan)   False when this plan (effects in use, view, settings) has no use for it
+    setup(gl)      build programs once
+    execute(fc)    record the GL work for one frame
+
+Scenes whose materials are all `raster` get G-buffer -> shade -> resolve and nothing else: the
+pass that builds a BVH or traces rays simply declares `needed()` False for them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import moderngl
+
+
+@dataclass
+class FramePlan:
+    """What this frame must produce and from what: decides which passes run."""
+
+    effects: frozenset  # effect names the scene's materials use
+    view: str = "color"  # "color" or a debug view name (rayvr/passes/debug_view.py)
+    layers: int = 2
+    layer_mode: str = "vertex"  # how the G-buffer reaches its layers: vertex | geometry | passes
+    output: str = "ldr"
+
+
+class Pass:
+    name = "pass"
+    reads: tuple = ()
+    writes: tuple = ()
+
+    def needed(self, plan: FramePlan) -> bool:
+        return True
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        pass
+
+    def execute(self, fc) -> None:  # fc: renderer.FrameContext
+        raise NotImplementedError
+
+    def release(self) -> None:
+        pass
+
+
+class GraphError(RuntimeError):
+    pass
+
+
+def schedule(passes: list[Pass], plan: FramePlan) -> list[Pass]:
+    """The passes `plan.output` depends on, in dependency order.
+
+    A resource's producer is the first needed pass (in registration order) that writes it;
+    passes nobody's output depends on are dropped."""
+    candidates = [p for p in passes if p.needed(plan)]
+    producer: dict[str, Pass] = {}
+    for p in candidates:
+        for r in p.writes:
+            producer.setdefault(r, p)
+    chosen: list[Pass] = []
+    visiting: set[str] = set()
+
+    def visit(resource: str, chain: tuple) -> None:
+        p = producer.get(resource)
+        if p is None:
+            raise GraphError(f"no pass produces {resource!r} (needed by {' <- '.join(chain) or 'the frame'})")
+        if p in chosen:
+            return
+        if p.name in visiting:
+            raise GraphError(f"cycle in the frame graph at pass {p.name!r}")
+        visiting.add(p.name)
+        for r in p.reads:
+            visit(r, chain + (p.name,))
+        visiting.discard(p.name)
+        chosen.append(p)
+
+    visit(plan.output, ())
+    return chosen
+
+
+@dataclass
+class PassTimer:
+    """GL timer queries, one per pass, reused every frame."""
+
+    ctx: moderngl.Context
+    queries: dict = field(default_factory=dict)
+
+    def run(self, name: str, fn) -> None:
+        q = self.queries.get(name)
+        if q is None:
+            q = self.queries[name] = self.ctx.query(time=True)
+        with q:
+            fn()
+
+    def read_ms(self, names) -> dict:
+        return {n: self.queries[n].elapsed / 1e6 for n in names if n in self.queries}

@@ -1,0 +1,126 @@
+"""The layered G-buffer: one texture array per channel, layer = eye (mono is 1 layer).
+
+CHANNELS is the one declaration of what the G-buffer holds; the fragment shader
+(glsl/gbuffer/gbuffer.frag) writes colour attachment i = the i-th colour channel and compute
+passes read them through glsl/common/gbuffer.glsl at texture unit `unit`.
+"""
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+GL_TEXTURE_2D_ARRAY = 0x8C1A
+GL_DEPTH_COMPONENT32F = 0x8CAC
+GL_DEPTH_COMPONENT = 0x1902
+GL_FLOAT = 0x1406
+GL_FRAMEBUFFER = 0x8D40
+GL_DEPTH_ATTACHMENT = 0x8D00
+GL_FRAMEBUFFER_COMPLETE = 0x8CD5
+GL_TEXTURE_MIN_FILTER, GL_TEXTURE_MAG_FILTER, GL_NEAREST = 0x2801, 0x2800, 0x2600
+GL_TEXTURE0 = 0x84C0
+GL_COLOR, GL_DEPTH = 0x1800, 0x1801
+
+
+@dataclass(frozen=True)
+class Channel:
+    name: str
+    components: int
+    dtype: str  # moderngl dtype; 'depth' = 32-bit float depth attachment
+    unit: int  # texture unit compute passes read it from
+    meaning: str
+
+
+CHANNELS = (
+    Channel("depth", 1, "depth", 0, "reversed-Z depth: near/view_distance (1 at near, 0 at infinity)"),
+    Channel("position", 4, "f4", 1, "xyz scene-local position (world - scene.origin), w linear view depth"),
+    Channel("normal", 4, "f2", 2, "xyz world-space shading normal facing the eye, w roughness"),
+    Channel("albedo", 4, "f2", 3, "rgb linear base colour, a metallic"),
+    Channel("emission", 4, "f2", 4, "rgb emitted radiance"),
+    Channel("material", 2, "u4", 5, "x material index, y effect ID (255 = background)"),
+    Channel("triangle", 1, "u4", 6, "triangle ID (0xFFFFFFFF = background)"),
+)
+COLOR_CHANNELS = tuple(c for c in CHANNELS if c.dtype != "depth")
+NO_HIT = 0xFFFFFFFF
+BACKGROUND_EFFECT = 255
+
+
+class GBuffer:
+    """The G-buffer textures for one size and layer count, plus the layered framebuffer."""
+
+    def __init__(self, gl, size: tuple[int, int], layers: int):
+        self.gl, self.size, self.layers = gl, tuple(size), layers
+        ctx = gl.ctx
+        w, h = self.size
+        self.textures = {}
+        for ch in COLOR_CHANNELS:
+            tex = ctx.texture_array((w, h, layers), ch.components, dtype=ch.dtype)
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self.textures[ch.name] = tex
+        self.fbo = ctx.framebuffer([self.textures[c.name] for c in COLOR_CHANNELS])
+        # moderngl has no depth texture arrays: make one with raw GL and attach it layered.
+        raw = gl.raw
+        name = ctypes.c_uint()
+        raw.glGenTextures(1, ctypes.byref(name))
+        self.depth_name = name.value
+        raw.glBindTexture(GL_TEXTURE_2D_ARRAY, self.depth_name)
+        raw.glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_DEPTH_COMPONENT32F, w, h, layers)
+        raw.glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST)
+        raw.glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST)
+        raw.glBindTexture(GL_TEXTURE_2D_ARRAY, 0)
+        self.fbo.use()
+        raw.glBindFramebuffer(GL_FRAMEBUFFER, self.fbo.glo)
+        raw.glFramebufferTexture(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, self.depth_name, 0)
+        status = raw.glCheckFramebufferStatus(GL_FRAMEBUFFER)
+        if status != GL_FRAMEBUFFER_COMPLETE:
+            raise RuntimeError(f"layered G-buffer framebuffer incomplete (status 0x{status:x})")
+
+    def clear(self) -> None:
+        """Background: float channels 0, material (NO_HIT, 255), triangle NO_HIT, depth 0
+        (reversed-Z: 0 is infinitely far). glClearBuffer* clears every layer, and is the
+        defined way to clear integer attachments."""
+        self.fbo.use()
+        raw = self.gl.raw
+        raw.glBindFramebuffer(GL_FRAMEBUFFER, self.fbo.glo)
+        for i, ch in enumerate(COLOR_CHANNELS):
+            if ch.dtype == "u4":
+                value = [NO_HIT, BACKGROUND_EFFECT, 0, 0] if ch.name == "material" else [NO_HIT, 0, 0, 0]
+                raw.glClearBufferuiv(GL_COLOR, i, (ctypes.c_uint * 4)(*value))
+            else:
+                raw.glClearBufferfv(GL_COLOR, i, (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0))
+        raw.glClearBufferfv(GL_DEPTH, 0, (ctypes.c_float * 1)(0.0))
+
+    def bind_for_reading(self) -> None:
+        """Bind every channel to its texture unit (glsl/common/gbuffer.glsl)."""
+        for ch in COLOR_CHANNELS:
+            self.textures[ch.name].use(ch.unit)
+        self.gl.raw.glActiveTexture(GL_TEXTURE0 + CHANNELS[0].unit)
+        self.gl.raw.glBindTexture(GL_TEXTURE_2D_ARRAY, self.depth_name)
+
+    def read(self, name: str, layer: int) -> np.ndarray:
+        """One channel of one layer as a numpy array, rows top-down."""
+        w, h = self.size
+        if name == "depth":
+            out = np.empty((self.layers, h, w), np.float32)
+            raw = self.gl.raw
+            raw.glBindTexture(GL_TEXTURE_2D_ARRAY, self.depth_name)
+            raw.glGetTexImage(GL_TEXTURE_2D_ARRAY, 0, GL_DEPTH_COMPONENT, GL_FLOAT, out.ctypes.data)
+            raw.glBindTexture(GL_TEXTURE_2D_ARRAY, 0)
+            return out[layer][::-1].copy()
+        ch = next(c for c in COLOR_CHANNELS if c.name == name)
+        dtype = {"f4": np.float32, "f2": np.float16, "u4": np.uint32}[ch.dtype]
+        tex = self.textures[name]
+        data = np.frombuffer(tex.read(), dtype).reshape(self.layers, h, w, ch.components)
+        out = data[layer][::-1]
+        if ch.dtype == "f2":
+            out = out.astype(np.float32)
+        return out.copy()
+
+    def release(self) -> None:
+        self.fbo.release()
+        for t in self.textures.values():
+            t.release()
+        name = ctypes.c_uint(self.depth_name)
+        self.gl.raw.glDeleteTextures(1, ctypes.byref(name))

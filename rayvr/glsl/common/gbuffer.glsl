@@ -1,0 +1,42 @@
+// Reading the layered G-buffer (layer = eye) from compute passes.
+// Channel table: rayvr/gbuffer.py (CHANNELS); texture units below match it.
+#ifndef RAYVR_GBUFFER_GLSL
+#define RAYVR_GBUFFER_GLSL
+
+layout(binding = 0) uniform sampler2DArray gb_depth;      // reversed-Z depth
+layout(binding = 1) uniform sampler2DArray gb_position;   // xyz scene-local, w view depth
+layout(binding = 2) uniform sampler2DArray gb_normal;     // xyz world normal, w roughness
+layout(binding = 3) uniform sampler2DArray gb_albedo;     // rgb base colour, a metallic
+layout(binding = 4) uniform sampler2DArray gb_emission;   // rgb emitted radiance
+layout(binding = 5) uniform usampler2DArray gb_material;  // x material index, y effect ID
+layout(binding = 6) uniform usampler2DArray gb_triangle;  // x triangle ID
+
+struct Surface {
+    vec3 position;   // scene-local
+    float view_depth;
+    vec3 normal;
+    float roughness;
+    vec3 base_color;
+    float metallic;
+    vec3 emission;
+    uint material;
+    uint effect;
+    uint triangle;
+};
+
+Surface gbuffer_fetch(ivec3 p) {
+    Surface s;
+    vec4 a = texelFetch(gb_position, p, 0);
+    vec4 b = texelFetch(gb_normal, p, 0);
+    vec4 c = texelFetch(gb_albedo, p, 0);
+    uvec2 m = texelFetch(gb_material, p, 0).xy;
+    s.position = a.xyz; s.view_depth = a.w;
+    s.normal = b.xyz; s.roughness = b.w;
+    s.base_color = c.rgb; s.metallic = c.a;
+    s.emission = texelFetch(gb_emission, p, 0).rgb;
+    s.material = m.x; s.effect = m.y;
+    s.triangle = texelFetch(gb_triangle, p, 0).x;
+    return s;
+}
+
+#endif

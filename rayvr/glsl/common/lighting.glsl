@@ -1,0 +1,64 @@
+// Direct lighting from the scene's lights at a surface point.
+// A pass that traces shadow rays defines HAS_LIGHT_VISIBILITY and provides
+//   float light_visibility(vec3 p, vec3 n, vec3 to_light, float dist);
+// without it every light is unoccluded (the `raster` effect).
+#ifndef RAYVR_LIGHTING_GLSL
+#define RAYVR_LIGHTING_GLSL
+#include "scene.glsl"
+#include "brdf.glsl"
+
+#ifndef RECT_LIGHT_GRID
+#define RECT_LIGHT_GRID 4  // raster: fixed NxN points per rect light (soft, noise-free)
+#endif
+
+#ifndef HAS_LIGHT_VISIBILITY
+float light_visibility(vec3 p, vec3 n, vec3 to_light, float dist) { return 1.0; }
+#endif
+
+vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float roughness) {
+    vec3 sum = vec3(0.0);
+    for (int i = 0; i < lights.length(); ++i) {
+        Light li = lights[i];
+        int kind = int(li.position_kind.w);
+        if (kind == LIGHT_DIRECTIONAL) {
+            vec3 l = -normalize(li.direction.xyz);
+            vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
+            if (any(greaterThan(f, vec3(0.0))))
+                sum += f * li.radiance.rgb * light_visibility(p, n, l, 1e30);
+        } else if (kind == LIGHT_POINT) {
+            vec3 d = li.position_kind.xyz - p;
+            float dist = length(d);
+            if (dist <= 0.0) continue;
+            vec3 l = d / dist;
+            vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
+            if (any(greaterThan(f, vec3(0.0))))
+                sum += f * li.radiance.rgb / (dist * dist) * light_visibility(p, n, l, dist);
+        } else if (kind == LIGHT_RECT) {
+            // Radiance L over area A: E = sum L * cos_l * cos_s / d^2 * A / N over N points.
+            vec3 c = li.position_kind.xyz, u = li.u.xyz, w = li.v.xyz;
+            vec3 ln = normalize(cross(u, w));
+            float area = 4.0 * length(cross(u, w));
+            const int N = RECT_LIGHT_GRID;
+            for (int a = 0; a < N; ++a) {
+                for (int b = 0; b < N; ++b) {
+                    vec2 s = (vec2(a, b) + 0.5) / float(N) * 2.0 - 1.0;
+                    vec3 q = c + s.x * u + s.y * w;
+                    vec3 d = q - p;
+                    float dist2 = dot(d, d);
+                    if (dist2 <= 0.0) continue;
+                    float dist = sqrt(dist2);
+                    vec3 l = d / dist;
+                    float cos_light = dot(ln, -l);
+                    if (cos_light <= 0.0) continue;
+                    vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
+                    if (!any(greaterThan(f, vec3(0.0)))) continue;
+                    sum += f * li.radiance.rgb * cos_light / dist2 * (area / float(N * N))
+                           * light_visibility(p, n, l, dist);
+                }
+            }
+        }
+    }
+    return sum;
+}
+
+#endif

@@ -1,0 +1,37 @@
+// Scene data shared by raster and compute passes (std430; layouts mirror rayvr/gpu_scene.py).
+#ifndef RAYVR_SCENE_GLSL
+#define RAYVR_SCENE_GLSL
+
+#define SSBO_TRIANGLE_MATERIAL 0
+#define SSBO_MATERIALS 1
+#define SSBO_LIGHTS 2
+
+#define LIGHT_POINT 0
+#define LIGHT_DIRECTIONAL 1
+#define LIGHT_RECT 2
+
+#define NO_HIT 0xFFFFFFFFu
+#define BACKGROUND_EFFECT 255u
+
+struct Material {
+    vec4 base_color;      // linear RGBA
+    vec4 emission;        // rgb radiance, w unused
+    float metallic;
+    float roughness;
+    int texture_layer;    // -1: no base-colour texture
+    uint effect;          // effect-ladder ID from the material config
+};
+
+struct Light {
+    vec4 position_kind;   // xyz scene-local position (rect: centre), w kind
+    vec4 radiance;        // rgb colour * intensity
+    vec4 direction;       // directional: direction light travels
+    vec4 u;               // rect: half-edge vectors
+    vec4 v;
+};
+
+layout(std430, binding = SSBO_TRIANGLE_MATERIAL) readonly buffer TriangleMaterials { uint triangle_material[]; };
+layout(std430, binding = SSBO_MATERIALS) readonly buffer Materials { Material materials[]; };
+layout(std430, binding = SSBO_LIGHTS) readonly buffer Lights { Light lights[]; };
+
+#endif

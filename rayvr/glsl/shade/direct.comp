@@ -1,0 +1,25 @@
+#version 430
+// `raster` shading: direct light from the G-buffer for every covered pixel of every eye.
+layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../common/gbuffer.glsl"
+#include "../common/lighting.glsl"
+
+layout(rgba16f, binding = 0) uniform writeonly image2DArray hdr_out;
+uniform vec3 eye_position[2];  // scene-local
+uniform vec3 ambient;           // constant ambient radiance (stands in for indirect light)
+uniform vec3 background;
+
+void main() {
+    ivec3 p = ivec3(gl_GlobalInvocationID);
+    if (any(greaterThanEqual(p.xy, imageSize(hdr_out).xy))) return;
+    Surface s = gbuffer_fetch(p);
+    vec3 color;
+    if (s.triangle == NO_HIT) {
+        color = background;
+    } else {
+        vec3 v = normalize(eye_position[p.z] - s.position);
+        color = s.emission + direct_light(s.position, s.normal, v, s.base_color, s.metallic, s.roughness)
+              + ambient * s.base_color * (1.0 - s.metallic);
+    }
+    imageStore(hdr_out, p, vec4(color, 1.0));
+}

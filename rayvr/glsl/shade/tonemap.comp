@@ -1,0 +1,16 @@
+#version 430
+// Resolve: exposure, tonemapper (common/color.glsl), sRGB encoding into 8-bit output.
+layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../common/color.glsl"
+
+layout(rgba16f, binding = 0) uniform readonly image2DArray hdr_in;
+layout(rgba8, binding = 1) uniform writeonly image2DArray ldr_out;
+uniform float exposure;
+uniform int tonemapper;
+
+void main() {
+    ivec3 p = ivec3(gl_GlobalInvocationID);
+    if (any(greaterThanEqual(p.xy, imageSize(ldr_out).xy))) return;
+    vec3 c = imageLoad(hdr_in, p).rgb * exposure;
+    imageStore(ldr_out, p, vec4(linear_to_srgb(tonemap(c, tonemapper)), 1.0));
+}

@@ -1,0 +1,124 @@
+"""The scene on the GPU: vertex/index buffers, per-triangle material IDs, material and light
+SSBOs (layouts mirror glsl/common/scene.glsl) and the base-colour texture array."""
+from __future__ import annotations
+
+import numpy as np
+
+from .materials import Assignment
+from .scene import Light, Scene
+
+MATERIAL_DTYPE = np.dtype([("base_color", "<f4", 4), ("emission", "<f4", 4), ("metallic", "<f4"),
+                           ("roughness", "<f4"), ("texture_layer", "<i4"), ("effect", "<u4")])
+LIGHT_DTYPE = np.dtype([("position_kind", "<f4", 4), ("radiance", "<f4", 4), ("direction", "<f4", 4),
+                        ("u", "<f4", 4), ("v", "<f4", 4)])
+LIGHT_KIND_ID = {"point": 0, "directional": 1, "rect": 2}
+TEXTURE_SIZE_LIMIT = 1024  # base-colour textures are resampled to one size for the array
+
+
+class BufferTooLarge(ValueError):
+    """The scene needs a buffer larger than the device allows."""
+
+
+def check_buffer_size(name: str, nbytes: int, limit: int) -> None:
+    if limit and nbytes > limit:
+        raise BufferTooLarge(f"scene too large: buffer {name!r} needs {nbytes / 2**20:.1f} MiB, "
+                             f"the device allows {limit / 2**20:.1f} MiB per shader storage buffer")
+
+
+def material_records(scene: Scene, assignments: list[Assignment], texture_layers: list[int]) -> np.ndarray:
+    rec = np.zeros(max(len(scene.materials), 1), MATERIAL_DTYPE)
+    for i, m in enumerate(scene.materials):
+        rec[i]["base_color"] = m.base_color
+        rec[i]["emission"][:3] = m.emission
+        rec[i]["metallic"] = m.metallic
+        rec[i]["roughness"] = m.roughness
+        rec[i]["texture_layer"] = texture_layers[i]
+        rec[i]["effect"] = assignments[i].effect_id
+    return rec
+
+
+def light_records(scene: Scene) -> np.ndarray:
+    rec = np.zeros(max(len(scene.lights), 1), LIGHT_DTYPE)
+    if not scene.lights:  # keep the SSBO non-empty; radiance 0 adds nothing
+        rec[0]["position_kind"][3] = LIGHT_KIND_ID["point"]
+    for i, light in enumerate(scene.lights):
+        rec[i] = _light_record(light, scene.origin)
+    return rec
+
+
+def _light_record(light: Light, origin: np.ndarray):
+    if light.kind not in LIGHT_KIND_ID:
+        raise ValueError(f"unknown light kind {light.kind!r}; allowed: {', '.join(LIGHT_KIND_ID)}")
+    r = np.zeros((), LIGHT_DTYPE)
+    r["position_kind"][:3] = np.asarray(light.position, np.float64) - origin
+    r["position_kind"][3] = LIGHT_KIND_ID[light.kind]
+    r["radiance"][:3] = np.asarray(light.color, np.float64) * light.intensity
+    r["direction"][:3] = light.direction
+    r["u"][:3] = light.u
+    r["v"][:3] = light.v
+    return r
+
+
+class GpuScene:
+    """Uploads a Scene once; `set_assignments` re-uploads only the material table (live reload)."""
+
+    def __init__(self, gl, scene: Scene, assignments: list[Assignment]):
+        ctx = gl.ctx
+        self.ctx, self.scene = ctx, scene
+        limit = gl.max_ssbo_bytes
+        interleaved = np.concatenate([scene.vertices, scene.normals, scene.uvs], axis=1).astype("f4")
+        check_buffer_size("vertices", interleaved.nbytes, 0)
+        check_buffer_size("triangle_material", scene.triangle_material.nbytes, limit)
+        self.vbo = ctx.buffer(np.ascontiguousarray(interleaved))
+        self.ibo = ctx.buffer(scene.indices)
+        self.triangle_material = ctx.buffer(scene.triangle_material)
+        self.texture_layers, self.textures = self._upload_textures(ctx, scene)
+        self.materials = ctx.buffer(material_records(scene, assignments, self.texture_layers))
+        self.lights = ctx.buffer(light_records(scene))
+        self.assignments = assignments
+
+    def set_assignments(self, assignments: list[Assignment]) -> None:
+        self.assignments = assignments
+        self.materials.write(material_records(self.scene, assignments, self.texture_layers))
+
+    def effects_in_use(self) -> set[str]:
+        return {a.effect for a in self.assignments}
+
+    def bind(self) -> None:
+        self.triangle_material.bind_to_storage_buffer(0)
+        self.materials.bind_to_storage_buffer(1)
+        self.lights.bind_to_storage_buffer(2)
+
+    @staticmethod
+    def _upload_textures(ctx, scene: Scene):
+        from PIL import Image
+
+        images = [m.texture for m in scene.materials if m.texture is not None]
+        layers, next_layer = [], 0
+        if not images:
+            tex = ctx.texture_array((1, 1, 1), 4, np.full(4, 255, np.uint8).tobytes())
+            return [-1] * len(scene.materials), tex
+        size = min(TEXTURE_SIZE_LIMIT, max(max(im.shape[0], im.shape[1]) for im in images))
+        size = 1 << max(int(np.ceil(np.log2(max(size, 1)))), 0)
+        data = []
+        for m in scene.materials:
+            if m.texture is None:
+                layers.append(-1)
+                continue
+            im = m.texture
+            if im.shape[0] != size or im.shape[1] != size:
+                im = np.asarray(Image.fromarray(im).resize((size, size), Image.BILINEAR))
+            # trimesh gives UVs with (0,0) at the image's bottom-left (it flips glTF's); GL's
+            # texel row 0 is the bottom while the image's row 0 is its top: flip the rows.
+            data.append(np.ascontiguousarray(im[::-1]))
+            layers.append(next_layer)
+            next_layer += 1
+        tex = ctx.texture_array((size, size, len(data)), 4, np.stack(data).tobytes())
+        tex.build_mipmaps()
+        tex.repeat_x = tex.repeat_y = True
+        tex.anisotropy = 8.0
+        return layers, tex
+
+    def release(self) -> None:
+        for obj in (self.vbo, self.ibo, self.triangle_material, self.materials, self.lights, self.textures):
+            obj.release()

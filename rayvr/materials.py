@@ -1,0 +1,251 @@
+"""The effect ladder and material-ID config files (TOML).
+
+A config maps a scene's materials to an effect, by exact name, by numeric material index, or
+by glob, with per-effect parameters:
+
+    default = "raster"            # effect for materials nothing below matches
+
+    [params.shadows]              # defaults for every material using `shadows`
+    area_samples = 4
+
+    [materials]
+    "floor"    = "shadows"                              # exact name
+    "mirror*"  = { effect = "reflections", bounces = 3 } # glob, with parameters
+
+    [ids]
+    7 = "shadows"                 # numeric material index (as `rayvr info SCENE` lists them)
+
+Precedence: exact name, then numeric id, then the first matching glob in file order.
+The file is data, never code. Every error names the file, the key and the allowed values;
+names that match no material warn with the scene's material names. An effect that rayvr does
+not implement yet fails at load time: it never renders silently as `raster`.
+"""
+from __future__ import annotations
+
+import fnmatch
+import logging
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Param:
+    kind: type
+    default: object
+    lo: float | None = None
+    hi: float | None = None
+    doc: str = ""
+
+
+@dataclass(frozen=True)
+class Effect:
+    name: str
+    id: int
+    implemented: bool
+    doc: str
+    params: dict = field(default_factory=dict)
+
+
+# The ladder, cheapest first. `id` is what the G-buffer's effect channel holds.
+EFFECTS: dict[str, Effect] = {e.name: e for e in (
+    Effect("raster", 0, True, "direct light from the G-buffer, no shadows"),
+    Effect("shadows", 1, False, "+ ray-traced hard shadows; area lights soft with N samples",
+           {"area_samples": Param(int, 4, 1, 1024, "shadow rays per area light per pixel")}),
+    Effect("ssr", 2, False, "+ screen-space reflections through the depth quadtree, BVH fallback",
+           {"gamma_norm": Param(float, 0.05, 0.0, 3.1416, "plane merge angle threshold (radians)"),
+            "gamma_dist": Param(float, 0.01, 0.0, None, "plane merge distance threshold (scene units)")}),
+    Effect("reflections", 3, False, "+ ray-traced mirror reflections",
+           {"bounces": Param(int, 1, 1, 16, "reflection bounces"),
+            "area_samples": Param(int, 4, 1, 1024, "shadow rays per area light per pixel")}),
+    Effect("glossy", 4, False, "+ GGX glossy reflections (VNDF importance sampling)",
+           {"samples": Param(int, 4, 1, 1024, "reflection rays per pixel"),
+            "bounces": Param(int, 1, 1, 8, "reflection bounces"),
+            "area_samples": Param(int, 4, 1, 1024, "shadow rays per area light per pixel")}),
+    Effect("path", 5, False, "path traced, accumulated while the camera is still",
+           {"samples": Param(int, 1, 1, 65536, "paths per pixel per frame"),
+            "bounces": Param(int, 4, 1, 64, "maximum path length")}),
+    Effect("photon", 6, False, "+ photon-mapped indirect light and caustics (hash grid)",
+           {"photons": Param(int, 65536, 1, 1 << 26, "photons traced per frame"),
+            "radius": Param(float, 0.05, 1e-6, None, "gather radius (scene units)")}),
+)}
+BACKGROUND_EFFECT = 255  # effect-ID value of pixels no geometry covers
+
+
+def implemented_effects() -> list[str]:
+    return [e.name for e in EFFECTS.values() if e.implemented]
+
+
+def effect_by_id(effect_id: int) -> Effect | None:
+    return next((e for e in EFFECTS.values() if e.id == effect_id), None)
+
+
+class ConfigError(ValueError):
+    """A material config is invalid; the message names file, key and the allowed values."""
+
+
+@dataclass(frozen=True)
+class Assignment:
+    effect: str
+    params: dict
+    rule: str  # which config entry chose it ("default", "materials.floor", "ids.7", ...)
+
+    @property
+    def effect_id(self) -> int:
+        return EFFECTS[self.effect].id
+
+
+@dataclass
+class MaterialConfig:
+    """A validated config. `assign(names)` gives one Assignment per scene material."""
+
+    default: str = "raster"
+    params: dict = field(default_factory=dict)  # effect -> {param: value}
+    by_name: dict = field(default_factory=dict)  # name or glob -> (effect, params)
+    by_id: dict = field(default_factory=dict)  # int -> (effect, params)
+    source: str = "<defaults>"
+
+    def effect_params(self, effect: str, overrides: dict | None = None) -> dict:
+        spec = EFFECTS[effect].params
+        out = {k: p.default for k, p in spec.items()}
+        out.update(self.params.get(effect, {}))
+        out.update(overrides or {})
+        return out
+
+    def assign(self, material_names: list[str], warn: bool = True) -> list[Assignment]:
+        result = []
+        used_keys = set()
+        for index, name in enumerate(material_names):
+            if name in self.by_name and not _is_glob(name):
+                key, (effect, over) = f"materials.{name}", self.by_name[name]
+            elif index in self.by_id:
+                key, (effect, over) = f"ids.{index}", self.by_id[index]
+            else:
+                glob = next((g for g in self.by_name if _is_glob(g) and fnmatch.fnmatchcase(name, g)), None)
+                if glob is not None:
+                    key, (effect, over) = f"materials.{glob}", self.by_name[glob]
+                else:
+                    key, effect, over = "default", self.default, {}
+            used_keys.add(key)
+            result.append(Assignment(effect, self.effect_params(effect, over), key))
+        if warn:
+            unused = [f"materials.{k}" for k in self.by_name if f"materials.{k}" not in used_keys]
+            unused += [f"ids.{k}" for k in self.by_id if f"ids.{k}" not in used_keys]
+            if unused:
+                log.warning("%s: %s match no material in this scene; its materials are: %s",
+                            self.source, ", ".join(unused), ", ".join(material_names))
+        return result
+
+    def unmatched(self, material_names: list[str]) -> list[str]:
+        """Config keys that select no material of the scene."""
+        out = [k for k in self.by_name if not any(
+            (fnmatch.fnmatchcase(n, k) if _is_glob(k) else n == k) for n in material_names)]
+        out += [str(k) for k in self.by_id if k >= len(material_names)]
+        return out
+
+
+def _is_glob(s: str) -> bool:
+    return any(c in s for c in "*?[")
+
+
+def _check_effect(value, where: str, source: str) -> str:
+    if not isinstance(value, str):
+        raise ConfigError(f"{source}: {where}: effect must be a string, got {type(value).__name__} "
+                          f"{value!r}; allowed: {', '.join(EFFECTS)}")
+    if value not in EFFECTS:
+        raise ConfigError(f"{source}: {where}: unknown effect {value!r}; allowed: {', '.join(EFFECTS)}")
+    if not EFFECTS[value].implemented:
+        raise ConfigError(f"{source}: {where}: effect {value!r} is not implemented yet in this rayvr; "
+                          f"implemented: {', '.join(implemented_effects())}")
+    return value
+
+
+def _check_params(effect: str, params: dict, where: str, source: str) -> dict:
+    spec = EFFECTS[effect].params
+    out = {}
+    for key, value in params.items():
+        if key not in spec:
+            allowed = ", ".join(spec) or "none"
+            raise ConfigError(f"{source}: {where}.{key}: unknown parameter for effect {effect!r}; allowed: {allowed}")
+        p = spec[key]
+        ok = isinstance(value, p.kind) and not isinstance(value, bool)
+        if p.kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value, ok = float(value), True
+        if not ok:
+            raise ConfigError(f"{source}: {where}.{key}: expected {p.kind.__name__}, got "
+                              f"{type(value).__name__} {value!r}")
+        if (p.lo is not None and value < p.lo) or (p.hi is not None and value > p.hi):
+            rng = f"[{p.lo if p.lo is not None else '-inf'}, {p.hi if p.hi is not None else 'inf'}]"
+            raise ConfigError(f"{source}: {where}.{key}: {value!r} is outside the allowed range {rng}")
+        out[key] = value
+    return out
+
+
+def _parse_entry(value, where: str, source: str) -> tuple[str, dict]:
+    if isinstance(value, str):
+        return _check_effect(value, where, source), {}
+    if isinstance(value, dict):
+        if "effect" not in value:
+            raise ConfigError(f"{source}: {where}: a table needs an 'effect' key; allowed effects: {', '.join(EFFECTS)}")
+        effect = _check_effect(value["effect"], f"{where}.effect", source)
+        rest = {k: v for k, v in value.items() if k != "effect"}
+        return effect, _check_params(effect, rest, where, source)
+    raise ConfigError(f"{source}: {where}: expected an effect name or a table, got {type(value).__name__}")
+
+
+TOP_LEVEL_KEYS = ("default", "params", "materials", "ids")
+
+
+def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
+    """Validate an already-parsed TOML document."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: the document must be a table")
+    for key in data:
+        if key not in TOP_LEVEL_KEYS:
+            raise ConfigError(f"{source}: {key}: unknown top-level key; allowed: {', '.join(TOP_LEVEL_KEYS)}")
+    cfg = MaterialConfig(source=source)
+    cfg.default = _check_effect(data.get("default", "raster"), "default", source)
+    params = data.get("params", {})
+    if not isinstance(params, dict):
+        raise ConfigError(f"{source}: params: expected a table of [params.<effect>] tables")
+    for effect, values in params.items():
+        if effect not in EFFECTS:
+            raise ConfigError(f"{source}: params.{effect}: unknown effect; allowed: {', '.join(EFFECTS)}")
+        if not isinstance(values, dict):
+            raise ConfigError(f"{source}: params.{effect}: expected a table")
+        cfg.params[effect] = _check_params(effect, values, f"params.{effect}", source)
+    mats = data.get("materials", {})
+    if not isinstance(mats, dict):
+        raise ConfigError(f"{source}: materials: expected a table of name = effect entries")
+    for name, value in mats.items():
+        cfg.by_name[name] = _parse_entry(value, f"materials.{name}", source)
+    ids = data.get("ids", {})
+    if not isinstance(ids, dict):
+        raise ConfigError(f"{source}: ids: expected a table of index = effect entries")
+    for key, value in ids.items():
+        try:
+            index = int(key)
+        except ValueError:
+            raise ConfigError(f"{source}: ids.{key}: keys must be non-negative integers (material indices)") from None
+        if index < 0:
+            raise ConfigError(f"{source}: ids.{key}: keys must be non-negative integers (material indices)")
+        cfg.by_id[index] = _parse_entry(value, f"ids.{key}", source)
+    return cfg
+
+
+def load_config(path: str | Path | None) -> MaterialConfig:
+    """Read and validate a TOML material config; None gives the all-`raster` default."""
+    if path is None:
+        return MaterialConfig()
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read material config: {exc.strerror or exc}") from exc
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
+    return parse_config(data, str(path))

@@ -1,0 +1,86 @@
+"""Raster G-buffer pass: both eyes in one layered draw (or one draw per eye)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import shaders
+from ..frame import FramePlan, Pass
+
+GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE, GL_ZERO_TO_ONE = 0x8CA1, 0x935E, 0x935F
+LAYER_MODES = ("vertex", "geometry", "passes")
+
+
+def pick_layer_mode(gl, requested: str = "auto") -> str:
+    """'vertex' writes gl_Layer from the vertex stage (instanced); 'geometry' uses a geometry
+    shader; 'passes' draws each eye separately (the baseline the benchmark compares with)."""
+    if requested != "auto":
+        if requested not in LAYER_MODES:
+            raise ValueError(f"unknown layer mode {requested!r}; allowed: auto, {', '.join(LAYER_MODES)}")
+        return requested
+    if gl.has_extension("GL_ARB_shader_viewport_layer_array") or gl.has_extension("GL_AMD_vertex_shader_layer"):
+        return "vertex"
+    return "geometry"
+
+
+class GBufferPass(Pass):
+    name = "gbuffer"
+    writes = ("gbuffer",)
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        self.gl = gl
+        self.mode = plan.layer_mode
+        self.clip_control = gl.raw.has("glClipControl") and (
+            gl.ctx.version_code >= 450 or gl.has_extension("GL_ARB_clip_control"))
+        defines = {"LAYER_MODE": 1 if self.mode == "geometry" else 0, "LAYERS": plan.layers}
+        self.program = shaders.program(gl.ctx, "gbuffer/gbuffer.vert", "gbuffer/gbuffer.frag",
+                                       "gbuffer/gbuffer.geom" if self.mode == "geometry" else None, defines)
+        self.vao = None
+        self._scene = None
+
+    def _vao(self, gpu_scene):
+        if self._scene is not gpu_scene:
+            if self.vao is not None:
+                self.vao.release()
+            self.vao = self.gl.ctx.vertex_array(
+                self.program, [(gpu_scene.vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")],
+                index_buffer=gpu_scene.ibo, index_element_size=4)
+            self._scene = gpu_scene
+        return self.vao
+
+    def execute(self, fc) -> None:
+        ctx, raw = self.gl.ctx, self.gl.raw
+        gb = fc.gbuffer
+        vp = np.zeros((2, 4, 4), np.float32)
+        zrow = np.zeros((2, 4), np.float32)
+        for i, eye in enumerate(fc.eyes):
+            m = eye.view_projection(fc.scene.origin, zero_to_one=self.clip_control)
+            vp[i] = m.T  # GLSL matrices are column-major
+            zrow[i] = eye.view_matrix(fc.scene.origin)[2]
+        self.program["view_proj"].write(vp.tobytes())
+        self.program["view_z_row"].write(zrow.tobytes())
+        vao = self._vao(fc.gpu_scene)
+        gb.clear()
+        fc.gpu_scene.bind()
+        fc.gpu_scene.textures.use(0)
+        ctx.enable_only(ctx.DEPTH_TEST)
+        ctx.depth_func = ">"  # reversed-Z: nearer is larger
+        if self.clip_control:
+            raw.glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE)
+        ctx.viewport = (0, 0, *gb.size)
+        try:
+            if self.mode == "passes":
+                for layer in range(len(fc.eyes)):
+                    self.program["base_layer"].value = layer
+                    vao.render(ctx.TRIANGLES, instances=1)
+            else:
+                self.program["base_layer"].value = 0
+                vao.render(ctx.TRIANGLES, instances=1 if self.mode == "geometry" else len(fc.eyes))
+        finally:
+            if self.clip_control:
+                raw.glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE)
+            ctx.depth_func = "<"
+
+    def release(self) -> None:
+        if self.vao is not None:
+            self.vao.release()
+        self.program.release()

@@ -1,0 +1,33 @@
+"""`raster` shading: direct light from the G-buffer (no shadows) into the HDR target."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import shaders
+from ..frame import FramePlan, Pass
+from .compute import dispatch_per_pixel
+
+
+class ShadeDirectPass(Pass):
+    name = "shade"
+    reads = ("gbuffer",)
+    writes = ("hdr",)
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        self.program = shaders.compute(gl.ctx, "shade/direct.comp")
+
+    def execute(self, fc) -> None:
+        p = self.program
+        eyes = np.zeros((2, 3), np.float32)
+        for i, eye in enumerate(fc.eyes):
+            eyes[i] = eye.position - fc.scene.origin
+        p["eye_position"].write(eyes.tobytes())
+        p["ambient"].value = tuple(fc.settings.ambient)
+        p["background"].value = tuple(fc.settings.background)
+        fc.gbuffer.bind_for_reading()
+        fc.gpu_scene.bind()
+        fc.target("hdr").bind_to_image(0, read=False, write=True)
+        dispatch_per_pixel(fc, p)
+
+    def release(self) -> None:
+        self.program.release()

@@ -1,0 +1,230 @@
+"""`Renderer(scene, materials).render(rig)`: the Python entry point, familiar to pyrender users.
+
+    from rayvr import Renderer, StereoRig, Pose
+    r = Renderer()                                   # built-in default scene, all-`raster`
+    rig = StereoRig.for_scene(r.scene, size=(640, 480))
+    frame = r.render(rig)
+    frame.left.color   # (H, W, 3) uint8 sRGB, rows top-down
+    frame.left.depth   # (H, W) float32 linear view depth (0 = background, like pyrender)
+    frame.timings      # {pass name: GPU ms} from GL timer queries
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import materials as materials_mod
+from . import scene as scene_mod
+from .camera import EYES, EyeView, StereoRig
+from .context import GLContext, create_context
+from .frame import FramePlan, PassTimer, schedule
+from .gbuffer import GBuffer, NO_HIT
+from .gpu_scene import GpuScene
+from .passes.debug_view import DEBUG_VIEWS, DebugViewPass
+from .passes.gbuffer import GBufferPass, pick_layer_mode
+from .passes.resolve import TONEMAPPERS, ResolvePass
+from .passes.shade import ShadeDirectPass
+
+AUX_CHANNELS = ("depth", "zbuffer", "position", "normal", "albedo", "material", "effect", "triangle")
+VIEWS = ("color",) + DEBUG_VIEWS
+
+
+@dataclass
+class RenderSettings:
+    exposure: float = 1.0
+    tonemapper: str = "aces"  # aces | reinhard | clamp (glsl/common/color.glsl)
+    ambient: tuple = (0.03, 0.03, 0.03)
+    background: tuple = (0.02, 0.02, 0.025)
+    layer_mode: str = "auto"  # auto | vertex | geometry | passes
+
+    def __post_init__(self):
+        if self.tonemapper not in TONEMAPPERS:
+            raise ValueError(f"unknown tonemapper {self.tonemapper!r}; allowed: {', '.join(TONEMAPPERS)}")
+        if not (np.isfinite(self.exposure) and self.exposure > 0):
+            raise ValueError(f"exposure must be a positive number, got {self.exposure}")
+
+
+@dataclass
+class EyeImage:
+    name: str
+    color: np.ndarray
+    depth: np.ndarray
+    aux: dict = field(default_factory=dict)
+
+    def __iter__(self):  # color, depth = frame.left
+        return iter((self.color, self.depth))
+
+
+@dataclass
+class Frame:
+    eyes: dict
+    timings: dict
+    view: str
+
+    @property
+    def left(self) -> EyeImage:
+        return self.eyes["left"]
+
+    @property
+    def right(self) -> EyeImage:
+        return self.eyes["right"]
+
+    def __getitem__(self, eye: str) -> EyeImage:
+        return self.eyes[eye]
+
+
+@dataclass
+class FrameContext:
+    """What passes see while a frame is recorded."""
+
+    gl: GLContext
+    scene: scene_mod.Scene
+    gpu_scene: GpuScene
+    gbuffer: GBuffer
+    eyes: list[EyeView]
+    plan: FramePlan
+    settings: RenderSettings
+    targets: dict
+
+    def target(self, name: str):
+        return self.targets[name]
+
+
+def _all_passes():
+    """Every pass rayvr has, in registration order (the graph picks and orders what runs)."""
+    return [GBufferPass(), ShadeDirectPass(), ResolvePass(), DebugViewPass()]
+
+
+class Renderer:
+    def __init__(self, scene=None, materials=None, *, gl: GLContext | None = None, backend: str | None = None,
+                 settings: RenderSettings | None = None):
+        self.scene = scene if isinstance(scene, scene_mod.Scene) else scene_mod.load(scene)
+        self._owns_gl = gl is None
+        self.gl = gl or create_context(backend)
+        self.settings = settings or RenderSettings()
+        self.config = (materials if isinstance(materials, materials_mod.MaterialConfig)
+                       else materials_mod.load_config(materials))
+        self.assignments = self.config.assign(self.scene.material_names())
+        self.gpu_scene = GpuScene(self.gl, self.scene, self.assignments)
+        self.layer_mode = pick_layer_mode(self.gl, self.settings.layer_mode)
+        self.timer = PassTimer(self.gl.ctx)
+        self._passes: dict = {}  # plan key -> scheduled, set-up passes
+        self._gbuffer: GBuffer | None = None
+        self._targets: dict = {}
+
+    # -- configuration ---------------------------------------------------------------
+    def set_materials(self, materials) -> None:
+        """Swap the material config (a path or MaterialConfig); validation errors leave the
+        current one in place."""
+        config = (materials if isinstance(materials, materials_mod.MaterialConfig)
+                  else materials_mod.load_config(materials))
+        assignments = config.assign(self.scene.material_names())
+        self.config, self.assignments = config, assignments
+        self.gpu_scene.set_assignments(assignments)
+
+    def effects_in_use(self) -> frozenset:
+        return frozenset(a.effect for a in self.assignments)
+
+    # -- rendering -------------------------------------------------------------------
+    def _plan(self, layers: int, view: str) -> FramePlan:
+        if view not in VIEWS:
+            raise ValueError(f"unknown view {view!r}; allowed: {', '.join(VIEWS)}")
+        return FramePlan(effects=self.effects_in_use(), view=view, layers=layers, layer_mode=self.layer_mode)
+
+    def passes_for(self, plan: FramePlan) -> list:
+        key = (plan.effects, plan.view, plan.layers, plan.layer_mode)
+        if key not in self._passes:
+            chosen = schedule(_all_passes(), plan)
+            for p in chosen:
+                p.setup(self.gl, plan)
+            self._passes[key] = chosen
+        return self._passes[key]
+
+    def _resources(self, size, layers):
+        if self._gbuffer is None or self._gbuffer.size != tuple(size) or self._gbuffer.layers != layers:
+            self._release_resources()
+            ctx = self.gl.ctx
+            self._gbuffer = GBuffer(self.gl, size, layers)
+            self._targets = {
+                "hdr": ctx.texture_array((*size, layers), 4, dtype="f2"),
+                "ldr": ctx.texture_array((*size, layers), 4, dtype="f1"),
+            }
+        return self._gbuffer, self._targets
+
+    def record(self, rig: StereoRig, eyes: str = "both", view: str = "color") -> FrameContext:
+        """Run the frame's passes on the GPU (no readback); returns the context for readback."""
+        eye_views = rig.eyes(eyes)
+        plan = self._plan(len(eye_views), view)
+        passes = self.passes_for(plan)
+        gbuffer, targets = self._resources(rig.size, len(eye_views))
+        fc = FrameContext(self.gl, self.scene, self.gpu_scene, gbuffer, eye_views, plan, self.settings, targets)
+        for p in passes:
+            self.timer.run(p.name, lambda p=p: p.execute(fc))
+        fc.pass_names = [p.name for p in passes]
+        return fc
+
+    def render(self, rig: StereoRig, eyes: str = "both", view: str = "color", aux=()) -> Frame:
+        """Render one frame; `eyes` is 'both', 'left' or 'right'; `aux` names extra G-buffer
+        channels to read back (AUX_CHANNELS)."""
+        unknown = [a for a in aux if a not in AUX_CHANNELS]
+        if unknown:
+            raise ValueError(f"unknown aux channel(s) {', '.join(unknown)}; allowed: {', '.join(AUX_CHANNELS)}")
+        fc = self.record(rig, eyes, view)
+        timings = self.timer.read_ms(fc.pass_names)
+        ldr = fc.target("ldr")
+        w, h = rig.size
+        rgba = np.frombuffer(ldr.read(), np.uint8).reshape(len(fc.eyes), h, w, 4)
+        out = {}
+        for layer, eye in enumerate(fc.eyes):
+            color = rgba[layer, ::-1, :, :3].copy()
+            position = fc.gbuffer.read("position", layer)
+            triangle = fc.gbuffer.read("triangle", layer)[..., 0]
+            hit = triangle != NO_HIT
+            depth = np.where(hit, position[..., 3], 0.0).astype(np.float32)
+            extra = {}
+            for name in aux:
+                extra[name] = self._aux(fc, name, layer, position, triangle, hit, depth)
+            out[eye.name] = EyeImage(eye.name, color, depth, extra)
+        return Frame(out, timings, view)
+
+    def _aux(self, fc, name, layer, position, triangle, hit, depth):
+        gb = fc.gbuffer
+        if name == "depth":
+            return depth
+        if name == "zbuffer":
+            return gb.read("depth", layer)
+        if name == "triangle":
+            return triangle
+        if name == "position":  # world space, float64, NaN-free: background is 0
+            world = position[..., :3].astype(np.float64) + self.scene.origin
+            return np.where(hit[..., None], world, 0.0)
+        if name in ("material", "effect"):
+            m = gb.read("material", layer)
+            return m[..., 0] if name == "material" else m[..., 1]
+        return gb.read(name, layer)[..., :3]
+
+    # -- lifetime --------------------------------------------------------------------
+    def _release_resources(self) -> None:
+        if self._gbuffer is not None:
+            self._gbuffer.release()
+            for t in self._targets.values():
+                t.release()
+        self._gbuffer, self._targets = None, {}
+
+    def release(self) -> None:
+        self._release_resources()
+        for passes in self._passes.values():
+            for p in passes:
+                p.release()
+        self._passes.clear()
+        self.gpu_scene.release()
+        if self._owns_gl:
+            self.gl.release()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()

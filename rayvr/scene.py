@@ -1,0 +1,488 @@
+"""Scenes: glTF/GLB, OBJ+MTL and PLY through trimesh, flattened into GPU-ready arrays.
+
+Positions are stored in float32 *relative to* `Scene.origin` (float64, the centre of the
+bounds), so a scene placed 1e5 units from the world origin keeps sub-millimetre precision;
+cameras build their view matrices in float64 against that origin.
+
+Arrays (one draw call covers the whole scene, so a triangle's index is its ID everywhere):
+  vertices  (V,3) float32   scene-local positions
+  normals   (V,3) float32   unit shading normals (computed when the file has none)
+  uvs       (V,2) float32   texture coordinates (0 when the file has none)
+  indices   (T,3) uint32
+  triangle_material (T,) uint32   index into `materials`
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+ASSETS_DIR = Path(__file__).resolve().parent / "assets"
+DEFAULT_SCENE = ASSETS_DIR / "default_room.glb"
+SUPPORTED_SUFFIXES = (".glb", ".gltf", ".obj", ".ply")
+
+
+class SceneError(ValueError):
+    """A scene file cannot be used; the message names the file and the problem."""
+
+
+@dataclass
+class Material:
+    name: str
+    base_color: tuple = (0.8, 0.8, 0.8, 1.0)  # linear RGBA
+    metallic: float = 0.0
+    roughness: float = 0.5
+    emission: tuple = (0.0, 0.0, 0.0)  # linear RGB radiance
+    texture: np.ndarray | None = field(default=None, repr=False)  # HxWx4 uint8 sRGB base colour
+
+    @property
+    def is_emissive(self) -> bool:
+        return max(self.emission) > 0.0
+
+
+@dataclass
+class Light:
+    """kind: 'point' (position), 'directional' (direction the light travels), 'rect'
+    (position = centre, u/v = half-edge vectors, emits on the side of cross(u, v)).
+    `color` is linear RGB and `intensity` scales it (point: W/sr-like, directional: irradiance,
+    rect: radiance)."""
+
+    kind: str
+    color: tuple = (1.0, 1.0, 1.0)
+    intensity: float = 1.0
+    position: tuple = (0.0, 0.0, 0.0)  # world space (float64)
+    direction: tuple = (0.0, -1.0, 0.0)
+    u: tuple = (0.0, 0.0, 0.0)
+    v: tuple = (0.0, 0.0, 0.0)
+    source: str = "default"
+
+    KINDS = ("point", "directional", "rect")
+
+
+@dataclass
+class Scene:
+    name: str
+    path: Path | None
+    origin: np.ndarray  # float64 (3,)
+    vertices: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray
+    indices: np.ndarray
+    triangle_material: np.ndarray
+    materials: list[Material]
+    lights: list[Light]
+    dropped_degenerate: int = 0
+
+    @property
+    def triangle_count(self) -> int:
+        return int(len(self.indices))
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2,3) float64 world-space bounds."""
+        if len(self.vertices) == 0:
+            return np.zeros((2, 3)) + self.origin
+        lo = self.vertices.min(axis=0).astype(np.float64) + self.origin
+        hi = self.vertices.max(axis=0).astype(np.float64) + self.origin
+        return np.stack([lo, hi])
+
+    @property
+    def center(self) -> np.ndarray:
+        return self.bounds.mean(axis=0)
+
+    @property
+    def extent(self) -> float:
+        b = self.bounds
+        return float(np.linalg.norm(b[1] - b[0]))
+
+    def material_names(self) -> list[str]:
+        return [m.name for m in self.materials]
+
+    def world_vertices(self) -> np.ndarray:
+        """float64 world-space positions (for cross-checks)."""
+        return self.vertices.astype(np.float64) + self.origin
+
+    def summary(self) -> str:
+        return (f"{self.name}: {self.triangle_count} triangles, {len(self.materials)} materials, "
+                f"{len(self.lights)} lights"
+                + (f", {self.dropped_degenerate} degenerate triangles dropped" if self.dropped_degenerate else ""))
+
+
+# --------------------------------------------------------------------------- building
+
+
+def from_arrays(vertices, indices, *, triangle_material=None, materials=None, normals=None, uvs=None,
+                lights=None, name="arrays", path=None, ambient_lights=True) -> Scene:
+    """Validate raw world-space arrays and make a Scene. Used by the loaders and by tests."""
+    where = str(path or name)
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(indices)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise SceneError(f"{where}: vertices must be (N, 3), got shape {v.shape}")
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise SceneError(f"{where}: faces must be (M, 3) triangles, got shape {f.shape}")
+    if len(f) == 0:
+        raise SceneError(f"{where}: the mesh has no faces")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        raise SceneError(f"{where}: {int(bad.sum())} vertices have NaN or inf coordinates "
+                         f"(first: vertex {first} = {v[first].tolist()})")
+    if not np.issubdtype(f.dtype, np.integer):
+        raise SceneError(f"{where}: face indices must be integers, got {f.dtype}")
+    if f.min() < 0 or f.max() >= len(v):
+        raise SceneError(f"{where}: face indices out of range: min {int(f.min())}, max {int(f.max())}, "
+                         f"but there are {len(v)} vertices")
+    materials = list(materials) if materials else [Material("default")]
+    tm = (np.zeros(len(f), np.uint32) if triangle_material is None
+          else np.asarray(triangle_material, dtype=np.int64))
+    if tm.shape != (len(f),):
+        raise SceneError(f"{where}: triangle_material must have one entry per face")
+    if len(tm) and (tm.min() < 0 or tm.max() >= len(materials)):
+        raise SceneError(f"{where}: material index out of range (have {len(materials)} materials)")
+
+    # Degenerate (zero-area, repeated-index, collinear) triangles rasterize to nothing and
+    # break ray tests: drop them and count.
+    tri = v[f]
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    scale = max(float(np.abs(tri).max()), 1e-30)
+    keep = area2 > (scale * 1e-12) ** 2
+    dropped = int((~keep).sum())
+    if dropped:
+        log.info("%s: dropped %d degenerate triangles", where, dropped)
+        f, tm = f[keep], tm[keep]
+    if len(f) == 0:
+        raise SceneError(f"{where}: every triangle is degenerate (zero area)")
+
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    origin = (lo + hi) / 2.0
+    local = (v - origin).astype(np.float32)
+    if normals is None or np.asarray(normals).shape != v.shape or not np.isfinite(normals).all():
+        n = vertex_normals(v, f)
+    else:
+        n = np.asarray(normals, dtype=np.float64)
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        n = np.where(length > 1e-12, n / np.maximum(length, 1e-30), vertex_normals(v, f))
+    uv = np.zeros((len(v), 2), np.float32) if uvs is None else np.asarray(uvs, dtype=np.float32)
+    if uv.shape != (len(v), 2) or not np.isfinite(uv).all():
+        uv = np.zeros((len(v), 2), np.float32)
+    scene = Scene(
+        name=name, path=Path(path) if path else None, origin=origin,
+        vertices=np.ascontiguousarray(local), normals=np.ascontiguousarray(n, dtype=np.float32),
+        uvs=np.ascontiguousarray(uv), indices=np.ascontiguousarray(f, dtype=np.uint32),
+        triangle_material=np.ascontiguousarray(tm, dtype=np.uint32), materials=materials,
+        lights=list(lights or []), dropped_degenerate=dropped,
+    )
+    if not scene.lights:
+        scene.lights = emissive_rect_lights(scene)
+    if not scene.lights and ambient_lights:
+        scene.lights = default_lights(scene)
+    return scene
+
+
+def vertex_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals; vertices no face touches get +Y."""
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    n = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(n, f[:, k], fn)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(length > 0, n / np.maximum(length, 1e-300), np.array([0.0, 1.0, 0.0]))
+    return n
+
+
+def default_lights(scene: Scene) -> list[Light]:
+    """A key directional light and a point light above the scene, sized to its bounds."""
+    b = scene.bounds
+    c, size = scene.center, max(scene.extent, 1e-6)
+    top = np.array([c[0], b[1][1] + 0.25 * size, c[2] + 0.25 * size])
+    return [
+        Light("directional", (1.0, 0.97, 0.92), 2.0, direction=tuple(_unit([-0.4, -1.0, -0.3])), source="default"),
+        Light("point", (1.0, 1.0, 1.0), 0.5 * size * size, position=tuple(top), source="default"),
+    ]
+
+
+def emissive_rect_lights(scene: Scene) -> list[Light]:
+    """Each emissive material whose triangles form one planar rectangle becomes a rect light
+    (how OBJ/Cornell-box files describe area lights)."""
+    lights = []
+    world = scene.world_vertices()
+    for mi, m in enumerate(scene.materials):
+        if not m.is_emissive:
+            continue
+        tris = scene.indices[scene.triangle_material == mi]
+        pts = world[np.unique(tris)]
+        rect = _fit_rectangle(pts)
+        if rect is None:
+            log.info("emissive material %r is not a rectangle; it glows but casts no light", m.name)
+            continue
+        centre, u, v, normal = rect
+        # Orient to the emitting side: the triangles' winding.
+        t0 = world[tris[0]]
+        fn = np.cross(t0[1] - t0[0], t0[2] - t0[0])
+        if np.dot(np.cross(u, v), fn) < 0:
+            v = -v
+        scale = max(m.emission)
+        color = tuple(float(e / scale) for e in m.emission)
+        lights.append(Light("rect", color, float(scale), position=tuple(centre), u=tuple(u), v=tuple(v),
+                            source=f"emissive material {m.name}"))
+    return lights
+
+
+def _fit_rectangle(pts: np.ndarray):
+    if len(pts) < 3:
+        return None
+    centre = pts.mean(axis=0)
+    d = pts - centre
+    _, s, vt = np.linalg.svd(d, full_matrices=False)
+    if s[0] <= 0 or s[-1] > 1e-4 * s[0]:
+        return None  # not planar
+    a1, a2 = vt[0], vt[1]
+    p1, p2 = d @ a1, d @ a2
+    lo1, hi1, lo2, hi2 = p1.min(), p1.max(), p2.min(), p2.max()
+    # Every point must lie on the rectangle's boundary corners or edges: check area coverage
+    # loosely by requiring the corners to be present.
+    corners = [(lo1, lo2), (lo1, hi2), (hi1, lo2), (hi1, hi2)]
+    tol = 1e-3 * max(hi1 - lo1, hi2 - lo2)
+    for c1, c2 in corners:
+        if not np.any((np.abs(p1 - c1) < tol) & (np.abs(p2 - c2) < tol)):
+            return None
+    centre = centre + a1 * (lo1 + hi1) / 2 + a2 * (lo2 + hi2) / 2
+    return centre, a1 * (hi1 - lo1) / 2, a2 * (hi2 - lo2) / 2, np.cross(a1, a2)
+
+
+def _unit(x) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    return x / np.linalg.norm(x)
+
+
+# --------------------------------------------------------------------------- loading files
+
+
+def load(path: str | Path | None = None) -> Scene:
+    """Load a scene file (glTF/GLB, OBJ+MTL, PLY); None loads the built-in default scene."""
+    import trimesh
+
+    path = Path(path) if path is not None else DEFAULT_SCENE
+    if not path.exists():
+        raise SceneError(f"{path}: no such file")
+    if path.suffix.lower() not in SUPPORTED_SUFFIXES:
+        raise SceneError(f"{path}: unsupported format {path.suffix!r}; use one of {', '.join(SUPPORTED_SUFFIXES)}")
+    try:
+        tscene = trimesh.load(str(path), force="scene", process=False)
+    except Exception as exc:
+        raise SceneError(f"{path}: trimesh could not read it: {exc}") from exc
+
+    verts, faces, norms, uvs, tri_mat = [], [], [], [], []
+    materials: list[Material] = []
+    mat_index: dict[int, int] = {}
+    offset = 0
+    for node in tscene.graph.nodes_geometry:
+        transform, geom_name = tscene.graph[node]
+        geom = tscene.geometry[geom_name]
+        if not hasattr(geom, "faces") or geom.faces is None or len(geom.faces) == 0:
+            continue
+        v = np.asarray(geom.vertices, dtype=np.float64)
+        if not np.isfinite(v).all():
+            bad = int((~np.isfinite(v).all(axis=1)).sum())
+            raise SceneError(f"{path}: mesh {geom_name!r} has {bad} vertices with NaN or inf coordinates")
+        f = np.asarray(geom.faces, dtype=np.int64)
+        if f.size and (f.min() < 0 or f.max() >= len(v)):
+            raise SceneError(f"{path}: mesh {geom_name!r} has face indices out of range "
+                             f"(max {int(f.max())}, {len(v)} vertices)")
+        vw = v @ transform[:3, :3].T + transform[:3, 3]
+        n = _file_normals(geom)
+        if n is not None:
+            n = n @ np.linalg.inv(transform[:3, :3]).T
+        uv = getattr(geom.visual, "uv", None)
+        uv = np.asarray(uv, dtype=np.float32) if uv is not None and len(uv) == len(v) else np.zeros((len(v), 2), np.float32)
+        tmat = getattr(geom.visual, "material", None)
+        key = id(tmat)
+        if key not in mat_index:
+            mat_index[key] = len(materials)
+            materials.append(_material_from_trimesh(tmat, geom_name, len(materials)))
+        verts.append(vw)
+        faces.append(f + offset)
+        norms.append(n if n is not None else np.full_like(vw, np.nan))
+        uvs.append(uv)
+        tri_mat.append(np.full(len(f), mat_index[key], np.int64))
+        offset += len(v)
+    if not faces:
+        raise SceneError(f"{path}: the file has no triangle meshes")
+    _dedupe_material_names(materials)
+    lights = _gltf_lights(path) if path.suffix.lower() in (".gltf", ".glb") else []
+    normals = np.concatenate(norms)
+    return from_arrays(np.concatenate(verts), np.concatenate(faces), triangle_material=np.concatenate(tri_mat),
+                       materials=materials, normals=None if np.isnan(normals).any() else normals,
+                       uvs=np.concatenate(uvs), lights=lights, name=path.stem, path=path)
+
+
+def _file_normals(geom):
+    """Normals stored in the file, or None (then they are computed)."""
+    cached = getattr(geom, "_cache", None)
+    try:
+        if cached is not None and "vertex_normals" in cached:
+            return np.asarray(cached["vertex_normals"], dtype=np.float64)
+    except Exception:
+        pass
+    return None
+
+
+def _dedupe_material_names(materials: list[Material]) -> None:
+    seen: dict[str, int] = {}
+    for m in materials:
+        if m.name in seen:
+            seen[m.name] += 1
+            m.name = f"{m.name}.{seen[m.name]}"
+        else:
+            seen[m.name] = 0
+
+
+def _srgb_to_linear(c):
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _texture_array(image) -> np.ndarray | None:
+    if image is None:
+        return None
+    try:
+        return np.asarray(image.convert("RGBA"), dtype=np.uint8)
+    except Exception:
+        return None
+
+
+def _texture_mean(image, linear: bool, default) -> np.ndarray:
+    rgba = _texture_array(image)
+    if rgba is None:
+        return np.asarray(default, dtype=np.float64)
+    rgb = rgba[::4, ::4, :3].astype(np.float64) / 255.0
+    return (_srgb_to_linear(rgb) if linear else rgb).reshape(-1, 3).mean(axis=0)
+
+
+def _material_from_trimesh(tmat, fallback_name: str, index: int) -> Material:
+    """glTF PBR or OBJ/MTL material -> Material. MTL's Ke/illum/Ns/Ks are read from what
+    trimesh keeps in `kwargs` (it drops them from its own fields)."""
+    if tmat is None:
+        return Material(fallback_name or f"material_{index}")
+    name = getattr(tmat, "name", None) or fallback_name or f"material_{index}"
+    if type(tmat).__name__ == "PBRMaterial":
+        bc = tmat.baseColorFactor
+        bc = (np.asarray(bc, dtype=np.float64) / (255.0 if np.asarray(bc).dtype == np.uint8 else 1.0)
+              if bc is not None else np.ones(4))
+        emissive = np.asarray(tmat.emissiveFactor if tmat.emissiveFactor is not None else (0.0, 0.0, 0.0),
+                              dtype=np.float64)[:3]
+        metallic = float(tmat.metallicFactor if tmat.metallicFactor is not None else 1.0)
+        roughness = float(tmat.roughnessFactor if tmat.roughnessFactor is not None else 1.0)
+        # Emissive and metallic-roughness textures are not sampled yet: scale the factors by the
+        # textures' means so a mostly dark emissive map does not make the whole mesh glow.
+        emissive = emissive * _texture_mean(getattr(tmat, "emissiveTexture", None), linear=True, default=(1, 1, 1))
+        mr = _texture_mean(getattr(tmat, "metallicRoughnessTexture", None), linear=False, default=(1, 1, 1))
+        return Material(
+            name=name,
+            base_color=tuple(float(x) for x in bc[:4]) if len(bc) >= 4 else (*map(float, bc[:3]), 1.0),
+            metallic=metallic * float(mr[2]),
+            roughness=roughness * float(mr[1]),
+            emission=tuple(float(x) for x in emissive),
+            texture=_texture_array(getattr(tmat, "baseColorTexture", None)),
+        )
+    # OBJ/MTL (SimpleMaterial): Kd is already linear reflectance in practice.
+    kw = getattr(tmat, "kwargs", {}) or {}
+
+    def vec(key, default):
+        val = kw.get(key)
+        if val is None:
+            return np.asarray(default, dtype=np.float64)
+        try:
+            arr = np.asarray([float(x) for x in np.atleast_1d(val)], dtype=np.float64)
+        except (TypeError, ValueError):
+            return np.asarray(default, dtype=np.float64)
+        return np.resize(arr, 3)
+
+    kd = vec("kd", np.asarray(getattr(tmat, "diffuse", [204, 204, 204, 255])[:3], dtype=np.float64) / 255.0)
+    ks = vec("ks", [0.0, 0.0, 0.0])
+    ke = vec("ke", [0.0, 0.0, 0.0])
+    ns = float(vec("ns", [float(getattr(tmat, "glossiness", 10.0) or 10.0)])[0])
+    illum = int(float(np.atleast_1d(kw.get("illum", [2]))[0]))
+    # Blinn-Phong exponent -> GGX roughness (alpha = sqrt(2 / (Ns + 2)), roughness = sqrt(alpha)).
+    roughness = float(np.clip((2.0 / (ns + 2.0)) ** 0.25, 0.02, 1.0))
+    metallic = 0.0
+    base = kd
+    # illum 3/5 (reflection on) with a strong specular colour: a metal whose colour is Ks.
+    if illum in (3, 5, 6, 7) and ks.max() > max(kd.max(), 0.2):
+        metallic, base = 1.0, ks
+    d = float(vec("d", [1.0])[0])
+    return Material(name=name, base_color=(*map(float, base), d), metallic=metallic, roughness=roughness,
+                    emission=tuple(map(float, ke)), texture=_texture_array(getattr(tmat, "image", None)))
+
+
+def _gltf_lights(path: Path) -> list[Light]:
+    """KHR_lights_punctual point and directional lights (trimesh drops them)."""
+    try:
+        doc = _gltf_json(path)
+    except Exception as exc:
+        log.warning("%s: could not read glTF JSON for lights: %s", path, exc)
+        return []
+    defs = (doc.get("extensions", {}).get("KHR_lights_punctual", {}) or {}).get("lights", [])
+    if not defs:
+        return []
+    nodes = doc.get("nodes", [])
+    parent = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
+
+    def world(i):
+        m = _node_matrix(nodes[i])
+        while i in parent:
+            i = parent[i]
+            m = _node_matrix(nodes[i]) @ m
+        return m
+
+    lights = []
+    for i, node in enumerate(nodes):
+        ref = node.get("extensions", {}).get("KHR_lights_punctual", {}).get("light")
+        if ref is None or ref >= len(defs):
+            continue
+        d = defs[ref]
+        m = world(i)
+        color = tuple(float(c) for c in d.get("color", [1, 1, 1]))
+        intensity = float(d.get("intensity", 1.0))
+        kind = d.get("type")
+        if kind == "directional":
+            direction = _unit(m[:3, :3] @ np.array([0.0, 0.0, -1.0]))
+            lights.append(Light("directional", color, intensity, direction=tuple(direction), source=f"{path.name} node {i}"))
+        elif kind in ("point", "spot"):
+            # glTF point intensity is candela (lm/sr); rayvr point intensity is W/sr-like: use
+            # the value with the 683 lm/W luminous efficacy removed so Blender exports look sane.
+            lights.append(Light("point", color, intensity / (4 * math.pi) if intensity > 100 else intensity,
+                                position=tuple(m[:3, 3]), source=f"{path.name} node {i}"))
+    return lights
+
+
+def _gltf_json(path: Path) -> dict:
+    data = path.read_bytes()
+    if path.suffix.lower() == ".glb":
+        length = int.from_bytes(data[12:16], "little")
+        return json.loads(data[20:20 + length])
+    return json.loads(data)
+
+
+def _node_matrix(node: dict) -> np.ndarray:
+    if "matrix" in node:
+        return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
+    t = np.asarray(node.get("translation", [0, 0, 0]), dtype=np.float64)
+    x, y, z, w = node.get("rotation", [0, 0, 0, 1])
+    s = np.asarray(node.get("scale", [1, 1, 1]), dtype=np.float64)
+    r = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+    m = np.eye(4)
+    m[:3, :3] = r * s
+    m[:3, 3] = t
+    return m
