@@ -200,14 +200,18 @@ class StereoRig:
 
     @classmethod
     def for_scene(cls, scene, size=(640, 480), **kw) -> "StereoRig":
-        """A rig that frames the scene: in front of it (+Z side), looking at its centre."""
+        """The scene file's own camera when it has one, else a view from its +Z side that
+        frames its bounds."""
+        kw.setdefault("near", max(scene.extent * 1e-4, 1e-6) if scene.camera is None else 0.05)
+        if scene.camera is not None:
+            kw.setdefault("fov_y", scene.camera["fov_y"])
+            pose = Pose(np.asarray(scene.camera["position"], float), np.asarray(scene.camera["rotation"], float))
+            return cls(pose=pose, size=size, **kw)
         c = scene.center
-        b = scene.bounds
-        ext = b[1] - b[0]
+        ext = scene.bounds[1] - scene.bounds[0]
         fov = kw.get("fov_y", 90.0)
         dist = 0.5 * max(ext[0], ext[1]) / math.tan(math.radians(fov) / 2) + ext[2] / 2
         eye = c + np.array([0.0, 0.0, max(dist, 1e-3) * 1.05])
-        kw.setdefault("near", max(scene.extent * 1e-4, 1e-6))
         return cls(pose=Pose.look_at(eye, c), size=size, **kw)
 
 

@@ -60,6 +60,9 @@ class GBuffer:
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self.textures[ch.name] = tex
         self.fbo = ctx.framebuffer([self.textures[c.name] for c in COLOR_CHANNELS])
+        # moderngl sets glDepthMask from the attachments it knows of on every use(): it does not
+        # know the raw depth array attached below, so depth writes must be enabled explicitly.
+        self.fbo.depth_mask = True
         # moderngl has no depth texture arrays: make one with raw GL and attach it layered.
         raw = gl.raw
         name = ctypes.c_uint()

@@ -78,6 +78,7 @@ class Scene:
     materials: list[Material]
     lights: list[Light]
     dropped_degenerate: int = 0
+    camera: dict | None = None  # the file's default view: {"position", "rotation", "fov_y"} (world, degrees)
 
     @property
     def triangle_count(self) -> int:
@@ -316,11 +317,16 @@ def load(path: str | Path | None = None) -> Scene:
     if not faces:
         raise SceneError(f"{path}: the file has no triangle meshes")
     _dedupe_material_names(materials)
-    lights = _gltf_lights(path) if path.suffix.lower() in (".gltf", ".glb") else []
+    is_gltf = path.suffix.lower() in (".gltf", ".glb")
+    lights, camera = ([], None)
+    if is_gltf:
+        lights, camera = _gltf_extras(path, materials)
     normals = np.concatenate(norms)
-    return from_arrays(np.concatenate(verts), np.concatenate(faces), triangle_material=np.concatenate(tri_mat),
+    scene = from_arrays(np.concatenate(verts), np.concatenate(faces), triangle_material=np.concatenate(tri_mat),
                        materials=materials, normals=None if np.isnan(normals).any() else normals,
                        uvs=np.concatenate(uvs), lights=lights, name=path.stem, path=path)
+    scene.camera = camera
+    return scene
 
 
 def _file_normals(geom):
@@ -422,16 +428,20 @@ def _material_from_trimesh(tmat, fallback_name: str, index: int) -> Material:
                     emission=tuple(map(float, ke)), texture=_texture_array(getattr(tmat, "image", None)))
 
 
-def _gltf_lights(path: Path) -> list[Light]:
-    """KHR_lights_punctual point and directional lights (trimesh drops them)."""
+def _gltf_extras(path: Path, materials: list[Material]):
+    """What trimesh drops from glTF: KHR_lights_punctual lights, KHR_materials_emissive_strength
+    and the first camera node (the file's default view)."""
     try:
         doc = _gltf_json(path)
     except Exception as exc:
-        log.warning("%s: could not read glTF JSON for lights: %s", path, exc)
-        return []
-    defs = (doc.get("extensions", {}).get("KHR_lights_punctual", {}) or {}).get("lights", [])
-    if not defs:
-        return []
+        log.warning("%s: could not read glTF JSON: %s", path, exc)
+        return [], None
+    by_name = {m.name: m for m in materials}
+    for gm in doc.get("materials", []):
+        strength = gm.get("extensions", {}).get("KHR_materials_emissive_strength", {}).get("emissiveStrength")
+        m = by_name.get(gm.get("name"))
+        if m is not None and strength:
+            m.emission = tuple(float(e) * float(strength) for e in m.emission)
     nodes = doc.get("nodes", [])
     parent = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
 
@@ -442,6 +452,18 @@ def _gltf_lights(path: Path) -> list[Light]:
             m = _node_matrix(nodes[i]) @ m
         return m
 
+    camera = None
+    cams = doc.get("cameras", [])
+    for i, node in enumerate(nodes):
+        ref = node.get("camera")
+        if ref is not None and ref < len(cams) and cams[ref].get("type") == "perspective":
+            m = world(i)
+            rot = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
+            camera = {"position": m[:3, 3].copy(), "rotation": rot,
+                      "fov_y": math.degrees(float(cams[ref]["perspective"].get("yfov", math.radians(60))))}
+            break
+
+    defs = (doc.get("extensions", {}).get("KHR_lights_punctual", {}) or {}).get("lights", [])
     lights = []
     for i, node in enumerate(nodes):
         ref = node.get("extensions", {}).get("KHR_lights_punctual", {}).get("light")
@@ -455,12 +477,9 @@ def _gltf_lights(path: Path) -> list[Light]:
         if kind == "directional":
             direction = _unit(m[:3, :3] @ np.array([0.0, 0.0, -1.0]))
             lights.append(Light("directional", color, intensity, direction=tuple(direction), source=f"{path.name} node {i}"))
-        elif kind in ("point", "spot"):
-            # glTF point intensity is candela (lm/sr); rayvr point intensity is W/sr-like: use
-            # the value with the 683 lm/W luminous efficacy removed so Blender exports look sane.
-            lights.append(Light("point", color, intensity / (4 * math.pi) if intensity > 100 else intensity,
-                                position=tuple(m[:3, 3]), source=f"{path.name} node {i}"))
-    return lights
+        elif kind in ("point", "spot"):  # spot cones are not modelled yet: lit as a point light
+            lights.append(Light("point", color, intensity, position=tuple(m[:3, 3]), source=f"{path.name} node {i}"))
+    return lights, camera
 
 
 def _gltf_json(path: Path) -> dict:

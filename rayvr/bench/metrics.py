@@ -175,7 +175,7 @@ def _ssim_kernel(dtype) -> np.ndarray:
     return (w / w.sum()).astype(dtype)
 
 
-def _ssim_map(r: np.ndarray, t: np.ndarray, rows_per_strip: int = 64) -> np.ndarray:
+def _ssim_map(r: np.ndarray, t: np.ndarray, rows_per_strip: int = 32) -> np.ndarray:
     """Per-pixel SSIM averaged over the three channels (data range 1).
 
     Works in float32 on values shifted to [-0.5, 0.5] (variance and covariance do not change

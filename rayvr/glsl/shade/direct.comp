@@ -19,7 +19,7 @@ void main() {
     } else {
         vec3 v = normalize(eye_position[p.z] - s.position);
         color = s.emission + direct_light(s.position, s.normal, v, s.base_color, s.metallic, s.roughness)
-              + ambient * s.base_color * (1.0 - s.metallic);
+              + ambient * s.base_color;  // constant environment light, diffuse and specular alike
     }
     imageStore(hdr_out, p, vec4(color, 1.0));
 }
