@@ -1,0 +1,81 @@
+"""`rayvr bench gbuffer`: G-buffer GPU time, one layered stereo pass vs two mono passes.
+
+Each layer mode renders the same rig; the G-buffer pass's GPU time comes from its GL timer
+query (median over `repeat` frames after `warmup`). Only meaningful on a real GPU: llvmpipe's
+timer queries are not (see ../shared/references/platform-notes.md).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .. import scene as scene_mod
+from ..camera import Pose, StereoRig
+from ..context import create_context
+from ..renderer import Renderer, RenderSettings
+from .report import device_meta, write_report
+
+SHARED_SCENES = Path(__file__).resolve().parents[2].parent / "shared" / "scenes"
+
+# Benchmark views: (scene file relative to shared/scenes or None for the default, pose).
+SCENES = {
+    "default": (None, None),
+    "sponza": ("sponza_dabrovic/sponza.obj", Pose.look_at((-10.0, 3.0, -0.5), (8.0, 5.0, 0.5))),
+}
+
+
+def load_bench_scene(name: str):
+    rel, pose = SCENES[name]
+    if rel is None:
+        return scene_mod.load(None), pose
+    path = SHARED_SCENES / rel
+    if not path.exists():
+        return None, f"{path} not found (the shared scenes folder is absent)"
+    return scene_mod.load(path), pose
+
+
+def time_gbuffer(renderer: Renderer, rig: StereoRig, repeat: int, warmup: int) -> dict:
+    ms = []
+    for i in range(warmup + repeat):
+        fc = renderer.record(rig, "both", "color")
+        t = renderer.timer.read_ms(["gbuffer"])["gbuffer"]
+        if i >= warmup:
+            ms.append(t)
+    del fc
+    a = np.asarray(ms)
+    return {"gbuffer_ms_median": float(np.median(a)), "gbuffer_ms_min": float(a.min()),
+            "gbuffer_ms_p90": float(np.percentile(a, 90)), "frames": len(a)}
+
+
+def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=50, warmup=5,
+        modes=("vertex", "geometry", "passes"), backend=None, progress=True) -> dict:
+    gl = create_context(backend)
+    rows, skipped = [], {}
+    try:
+        for name in scenes:
+            scene, pose = load_bench_scene(name)
+            if scene is None:
+                skipped[name] = pose
+                continue
+            for mode in modes:
+                r = Renderer(scene, gl=gl, settings=RenderSettings(layer_mode=mode))
+                rig = StereoRig.for_scene(scene, size=size)
+                if pose is not None:
+                    rig.pose = pose
+                res = time_gbuffer(r, rig, repeat, warmup)
+                rows.append({"scene": name, "triangles": scene.triangle_count, "mode": mode,
+                             "layers": 2, "size": f"2x{size[0]}x{size[1]}", **res})
+                if progress:
+                    print(f"  {name:8s} {mode:9s} {res['gbuffer_ms_median']:.3f} ms (median of {res['frames']})")
+                r.release()
+        meta = {**device_meta(gl.info()), "bench": "gbuffer", "per_eye_size": list(size), "repeat": repeat,
+                "warmup": warmup, "skipped": skipped,
+                "modes": {"vertex": "one instanced draw, gl_Layer from the vertex stage",
+                          "geometry": "one draw, geometry shader with 2 invocations picks the layer",
+                          "passes": "two draws, one per eye (mono baseline)"}}
+    finally:
+        gl.release()
+    result = {"meta": meta, "rows": rows}
+    write_report(out_dir, "gbuffer", result)
+    return result

@@ -1,0 +1,206 @@
+"""The `rayvr` command: capture, info, bench, preview."""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = text.lower().split("x")
+        size = (int(w), int(h))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"size must be WIDTHxHEIGHT (e.g. 640x480), got {text!r}") from None
+    if min(size) < 1 or max(size) > 16384:
+        raise argparse.ArgumentTypeError(f"size must be between 1x1 and 16384x16384, got {text!r}")
+    return size
+
+
+def _floats(n: int):
+    def parse(text: str):
+        try:
+            vals = [float(x) for x in text.split(",")]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {text!r}") from None
+        if len(vals) != n or not all(np.isfinite(vals)):
+            raise argparse.ArgumentTypeError(f"expected {n} finite comma-separated numbers, got {text!r}")
+        return vals
+    return parse
+
+
+def add_rig_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("camera / stereo rig")
+    g.add_argument("--size", type=_size, default=(640, 480), help="per-eye image size WxH (default 640x480)")
+    g.add_argument("--camera", type=_floats(6), metavar="EX,EY,EZ,TX,TY,TZ",
+                   help="eye position and look-at target (default: the scene's camera or a framing view)")
+    g.add_argument("--fov", type=float, help="vertical field of view in degrees")
+    g.add_argument("--ipd", type=float, default=0.064, help="interpupillary distance in scene units (default 0.064)")
+    g.add_argument("--convergence", type=float, help="zero-parallax distance (default: parallel eyes, as HMDs)")
+    g.add_argument("--near", type=float, help="near plane distance")
+    g.add_argument("--far", type=float, help="far plane distance (default: infinite, reversed-Z)")
+
+
+def rig_from_args(args, scene):
+    from .camera import Pose, StereoRig
+
+    kw = {"ipd": args.ipd}
+    for key, attr in (("fov_y", "fov"), ("convergence", "convergence"), ("near", "near"), ("far", "far")):
+        if getattr(args, attr) is not None:
+            kw[key] = getattr(args, attr)
+    rig = StereoRig.for_scene(scene, size=args.size, **kw)
+    if args.camera:
+        rig.pose = Pose.look_at(args.camera[:3], args.camera[3:])
+    return rig
+
+
+def cmd_capture(args) -> int:
+    from .capture import CaptureJob, poses_for, run_capture, write_summary
+    from .output import ensure_writable_dir
+    from .renderer import Renderer, RenderSettings
+
+    ensure_writable_dir(args.out)  # fail before any rendering work
+    aux = tuple(a for a in (args.aux or "").split(",") if a)
+    settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode)
+    with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
+        rig = rig_from_args(args, r.scene)
+        poses = poses_for(rig, r.scene, args.frames, args.path)
+        job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix)
+        summary = run_capture(r, job, progress=not args.quiet)
+        summary_path = write_summary(job, summary)
+    if not args.quiet:
+        print(f"{r.scene.summary()}")
+        print(f"wrote {len(summary['files'])} files to {args.out}/ ({summary['frames']} frame(s), {args.eye} eye(s))")
+    if args.timings:
+        print("GPU ms per pass (mean over frames; GL timer queries):")
+        for k, v in summary["gpu_ms_mean"].items():
+            print(f"  {k:12s} {v:9.3f}")
+        print(f"  {'total':12s} {sum(summary['gpu_ms_mean'].values()):9.3f}   ({summary['gl']})")
+        print(f"timings saved to {summary_path}")
+    return 0
+
+
+def cmd_info(args) -> int:
+    from .context import create_context
+
+    gl = create_context(args.backend)
+    try:
+        info = gl.info()
+    finally:
+        gl.release()
+    if args.scene is not None or args.materials:
+        from . import materials, scene
+
+        s = scene.load(args.scene)
+        cfg = materials.load_config(args.materials)
+        assigned = cfg.assign(s.material_names(), warn=False)
+        info["scene"] = {"summary": s.summary(), "materials": [
+            {"index": i, "name": m.name, "effect": a.effect, "rule": a.rule, "params": a.params}
+            for i, (m, a) in enumerate(zip(s.materials, assigned))],
+            "lights": [{"kind": l.kind, "source": l.source} for l in s.lights],
+            "unmatched_config_keys": cfg.unmatched(s.material_names())}
+    if args.json:
+        print(json.dumps(info, indent=1, default=str))
+        return 0
+    print(f"backend   {info['backend']}")
+    print(f"vendor    {info['vendor']}\nrenderer  {info['renderer']}\nversion   {info['version']}\nglsl      {info['glsl']}")
+    print("limits")
+    for k, v in info["limits"].items():
+        print(f"  {k:40s} {v}")
+    print("extensions rayvr uses")
+    for k, v in info["extensions"].items():
+        print(f"  {'yes' if v else 'no ':3s} {k}")
+    if "scene" in info:
+        print(info["scene"]["summary"])
+        for m in info["scene"]["materials"]:
+            print(f"  [{m['index']:3d}] {m['name']:24s} -> {m['effect']:12s} ({m['rule']})")
+        for key in info["scene"]["unmatched_config_keys"]:
+            print(f"  warning: config key {key!r} matches no material")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    out = Path(args.out)
+    if args.area == "gbuffer":
+        from .bench import gbuffer
+
+        size = (64, 64) if args.quick else args.size
+        scenes = ("default",) if args.quick else tuple(args.scenes.split(","))
+        repeat = 3 if args.quick else args.repeat
+        gbuffer.run(out, size=size, scenes=scenes, repeat=repeat, warmup=1 if args.quick else 5,
+                    backend=args.backend)
+        print(f"results in {out}/gbuffer.json and gbuffer.md")
+        return 0
+    raise SystemExit(f"unknown benchmark area {args.area!r}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .renderer import AUX_CHANNELS, VIEWS
+
+    p = argparse.ArgumentParser(prog="rayvr", description="Hybrid raster + ray-traced stereo renderer for VR.")
+    p.add_argument("-v", "--verbose", action="store_true", help="log what rayvr decides")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    c = sub.add_parser("capture", help="render headless to PNG/NPY (default: the built-in scene, both eyes)")
+    c.add_argument("scene", nargs="?", help="glTF/GLB, OBJ or PLY file (default: built-in room)")
+    c.add_argument("--materials", help="material-ID config (TOML)")
+    c.add_argument("--eye", choices=("both", "left", "right"), default="both")
+    c.add_argument("--out", default="out", help="output folder (default ./out)")
+    c.add_argument("--prefix", default="frame", help="file name prefix (default 'frame')")
+    c.add_argument("--view", choices=VIEWS, default="color", help="colour or a G-buffer debug view")
+    c.add_argument("--aux", help=f"extra channels as .npy, comma-separated: {','.join(AUX_CHANNELS)}")
+    seq = c.add_mutually_exclusive_group()
+    seq.add_argument("--frames", type=int, help="N frames of a turntable orbit")
+    seq.add_argument("--path", help="camera path file (JSON) to replay")
+    c.add_argument("--timings", action="store_true", help="print GPU ms per pass")
+    c.add_argument("--exposure", type=float, default=1.0)
+    c.add_argument("--tonemapper", choices=("aces", "reinhard", "clamp"), default="aces")
+    c.add_argument("--layer-mode", choices=("auto", "vertex", "geometry", "passes"), default="auto",
+                   help="how the stereo G-buffer reaches both layers")
+    c.add_argument("--backend", choices=("egl", "osmesa"), help="headless GL backend (default: egl, then osmesa)")
+    c.add_argument("-q", "--quiet", action="store_true")
+    add_rig_arguments(c)
+    c.set_defaults(func=cmd_capture)
+
+    i = sub.add_parser("info", help="GL vendor, renderer, version, limits, extensions; a scene's material effects")
+    i.add_argument("scene", nargs="?", help="also list this scene's materials and their effects")
+    i.add_argument("--materials", help="material-ID config to apply to the scene")
+    i.add_argument("--backend", choices=("egl", "osmesa"))
+    i.add_argument("--json", action="store_true")
+    i.set_defaults(func=cmd_info)
+
+    b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
+    b.add_argument("area", choices=("gbuffer",), help="what to measure")
+    b.add_argument("--out", default="bench/results", help="folder for JSON/markdown results")
+    b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")
+    b.add_argument("--scenes", default="default,sponza", help="comma-separated: default, sponza")
+    b.add_argument("--repeat", type=int, default=50)
+    b.add_argument("--quick", action="store_true", help="tiny sizes and few frames (CI smoke test)")
+    b.add_argument("--backend", choices=("egl", "osmesa"))
+    b.set_defaults(func=cmd_bench)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="rayvr: %(message)s")
+    from .context import ContextError
+    from .materials import ConfigError
+    from .output import OutputError
+    from .scene import SceneError
+    from .shaders import ShaderError
+
+    try:
+        return args.func(args)
+    except (ContextError, ConfigError, SceneError, OutputError, ShaderError, ValueError) as exc:
+        print(f"rayvr {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
