@@ -1,0 +1,54 @@
+"""Shared fixtures. GL tests share one headless context per session (moderngl objects belong to
+the context current when they were made; mixing contexts in one process breaks them).
+RAYVR_GL_BACKEND=osmesa runs the same tests under OSMesa."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_SCENES = REPO.parent / "shared" / "scenes"
+
+
+@pytest.fixture(scope="session")
+def gl():
+    from rayvr.context import ContextError, create_context
+
+    try:
+        g = create_context(os.environ.get("RAYVR_GL_BACKEND") or None)
+    except ContextError as exc:
+        pytest.skip(f"no OpenGL 4.3 context: {exc}")
+    yield g
+    g.release()
+
+
+@pytest.fixture
+def shared_scene():
+    """Path to a file under ../shared/scenes, or skip when that folder is absent."""
+    def get(rel: str) -> Path:
+        p = SHARED_SCENES / rel
+        if not p.exists():
+            pytest.skip(f"{p} not found: the shared scenes folder is absent")
+        return p
+    return get
+
+
+def quad(center, u, v):
+    """Two triangles spanning center +- u +- v, front face along cross(u, v)."""
+    c, u, v = (np.asarray(x, float) for x in (center, u, v))
+    verts = np.array([c - u - v, c + u - v, c + u + v, c - u + v])
+    return verts, np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def merge(*parts):
+    """Concatenate (verts, faces) parts; returns verts, faces, per-triangle part index."""
+    vs, fs, ids, off = [], [], [], 0
+    for i, (v, f) in enumerate(parts):
+        vs.append(v)
+        fs.append(np.asarray(f) + off)
+        ids.append(np.full(len(f), i))
+        off += len(v)
+    return np.concatenate(vs), np.concatenate(fs), np.concatenate(ids)

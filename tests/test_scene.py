@@ -1,0 +1,148 @@
+import json
+import struct
+
+import numpy as np
+import pytest
+import trimesh
+
+from rayvr.scene import Material, SceneError, from_arrays, load
+
+TRI = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+
+
+@pytest.mark.parametrize("verts, faces, words", [
+    (np.array([[0, 0, 0], [1, np.nan, 0], [0, 1, 0]]), [[0, 1, 2]], ["NaN or inf", "vertex 1"]),
+    (np.array([[0, 0, 0], [1, 0, np.inf], [0, 1, 0]]), [[0, 1, 2]], ["NaN or inf"]),
+    (TRI, np.zeros((0, 3), int), ["no faces"]),
+    (TRI, [[0, 1, 3]], ["out of range", "max 3", "3 vertices"]),
+    (TRI, [[0, -1, 2]], ["out of range"]),
+    (TRI, [[0.0, 1.0, 2.0]], ["integers"]),
+    (TRI[:, :2], [[0, 1, 2]], ["(N, 3)"]),
+    (TRI, [[0, 0, 0]], ["every triangle is degenerate"]),
+])
+def test_bad_meshes_rejected_with_name(verts, faces, words):
+    with pytest.raises(SceneError) as e:
+        from_arrays(verts, np.asarray(faces), name="broken.obj")
+    assert "broken.obj" in str(e.value)
+    for w in words:
+        assert w in str(e.value)
+
+
+def test_degenerate_triangles_dropped_and_counted():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [3, 0, 0]], float)
+    f = np.array([[0, 1, 2], [0, 0, 1], [0, 1, 3], [1, 3, 4], [2, 1, 0]])
+    s = from_arrays(v, f)
+    assert s.triangle_count == 2 and s.dropped_degenerate == 3
+    assert "3 degenerate triangles dropped" in s.summary()
+
+
+def test_missing_normals_are_computed_for_a_sphere():
+    m = trimesh.creation.icosphere(subdivisions=3, radius=2.0)
+    s = from_arrays(m.vertices + [5, 0, 0], m.faces)
+    radial = s.world_vertices() - [5, 0, 0]
+    radial /= np.linalg.norm(radial, axis=1, keepdims=True)
+    assert np.einsum("ij,ij->i", s.normals, radial).min() > 0.995
+
+
+def test_positions_are_relative_to_origin_far_from_zero():
+    off = np.array([1e5, -2e5, 3e5])
+    s = from_arrays(TRI * 1e-3 + off, np.array([[0, 1, 2]]))
+    assert np.allclose(s.origin, off + [5e-4, 5e-4, 0])
+    # float32 local coordinates keep sub-micrometre detail that float32 world ones would lose.
+    assert np.abs(s.world_vertices() - (TRI * 1e-3 + off)).max() < 1e-9
+
+
+def test_obj_mtl_emission_illum_and_area_light(tmp_path):
+    (tmp_path / "m.mtl").write_text(
+        "newmtl lamp\nKd 0.8 0.8 0.8\nKe 5 4 3\nillum 2\n\n"
+        "newmtl chrome\nKd 0.01 0.01 0.01\nKs 0.9 0.9 0.9\nNs 1000\nillum 3\n")
+    (tmp_path / "s.obj").write_text(
+        "mtllib m.mtl\nv -1 2 -1\nv 1 2 -1\nv 1 2 1\nv -1 2 1\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+        "usemtl lamp\nf 1 2 3\nf 1 3 4\nusemtl chrome\nf 5 6 7\n")
+    s = load(tmp_path / "s.obj")
+    mats = {m.name: m for m in s.materials}
+    assert mats["lamp"].emission == pytest.approx((5, 4, 3))
+    assert mats["chrome"].metallic == 1.0 and mats["chrome"].roughness < 0.25
+    assert mats["chrome"].base_color[:3] == pytest.approx((0.9, 0.9, 0.9))
+    (light,) = s.lights
+    assert light.kind == "rect" and light.intensity == 5
+    assert np.allclose(light.position, [0, 2, 0])
+    normal = np.cross(light.u, light.v)
+    assert normal[1] < 0  # faces 1 2 3 / 1 3 4 wind downwards (-Y)
+    assert 4 * np.linalg.norm(normal) == pytest.approx(4.0)  # 2 x 2 rectangle
+
+
+def _write_gltf(path, doc, bin_data):
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    bin_data += b"\0" * (-len(bin_data) % 4)
+    body = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(bin_data), 0x004E4942) + bin_data
+    path.write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
+
+
+def test_gltf_lights_camera_and_pbr(tmp_path):
+    pos = TRI.astype(np.float32).tobytes()
+    idx = np.array([0, 1, 2], np.uint32).tobytes()
+    doc = {
+        "asset": {"version": "2.0"}, "scene": 0,
+        "scenes": [{"nodes": [0, 1, 2, 3]}],
+        "nodes": [{"mesh": 0}, {"extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [1, 2, 3]},
+                  {"extensions": {"KHR_lights_punctual": {"light": 1}}, "rotation": [-0.7071068, 0, 0, 0.7071068]},
+                  {"camera": 0, "translation": [0, 1, 5]}],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "point", "color": [1, 0.5, 0.25], "intensity": 7},
+            {"type": "directional", "intensity": 3}]}},
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]}],
+        "materials": [{"name": "lamp_shade", "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.4, 0.6, 1],
+                       "metallicFactor": 0.25, "roughnessFactor": 0.75}, "emissiveFactor": [1, 0.5, 0],
+                       "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4}}}],
+        "buffers": [{"byteLength": 48}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 12}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                      {"bufferView": 1, "componentType": 5125, "count": 3, "type": "SCALAR"}],
+    }
+    _write_gltf(tmp_path / "t.glb", doc, pos + idx)
+    s = load(tmp_path / "t.glb")
+    point = next(l for l in s.lights if l.kind == "point")
+    sun = next(l for l in s.lights if l.kind == "directional")
+    assert np.allclose(point.position, [1, 2, 3]) and point.intensity == 7 and point.color == (1, 0.5, 0.25)
+    assert np.allclose(sun.direction, [0, -1, 0], atol=1e-6)  # -Z rotated -90 deg about X
+    m = s.materials[0]
+    assert m.name == "lamp_shade" and m.metallic == pytest.approx(0.25) and m.roughness == pytest.approx(0.75)
+    assert m.base_color[:3] == pytest.approx((0.2, 0.4, 0.6)) and m.emission == pytest.approx((4, 2, 0))
+    assert np.allclose(s.camera["position"], [0, 1, 5]) and s.camera["fov_y"] == pytest.approx(np.degrees(0.8))
+
+
+def test_ply_and_default_scene():
+    s = load()
+    assert s.triangle_count > 1000 and s.camera is not None
+    names = s.material_names()
+    assert {"mirror", "floor", "light", "gold"} <= set(names)
+    assert any(l.kind == "rect" for l in s.lights)
+
+
+def test_ply_loads(tmp_path):
+    m = trimesh.creation.box()
+    m.export(tmp_path / "b.ply")
+    s = load(tmp_path / "b.ply")
+    assert s.triangle_count == 12 and len(s.lights) == 2  # default lights when the file has none
+
+
+def test_unsupported_and_missing_files(tmp_path):
+    with pytest.raises(SceneError, match="no such file"):
+        load(tmp_path / "nope.glb")
+    (tmp_path / "x.fbx").write_text("")
+    with pytest.raises(SceneError, match="unsupported format"):
+        load(tmp_path / "x.fbx")
+    (tmp_path / "bad.obj").write_text("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(SceneError, match="NaN"):
+        load(tmp_path / "bad.obj")
+
+
+def test_shared_scenes_load(shared_scene):
+    s = load(shared_scene("cornell_box/CornellBox-Original.trimesh.obj"))
+    assert s.triangle_count == 36 - s.dropped_degenerate
+    assert [l.kind for l in s.lights] == ["rect"]
+    s = load(shared_scene("damaged_helmet/DamagedHelmet.gltf"))
+    assert s.materials[0].texture is not None and s.triangle_count == 15452
