@@ -1,0 +1,194 @@
+"""The BVH on the GPU: buffer upload (`GpuBvh`) and a batch ray tracer for tests and benchmarks.
+
+A shader that traces rays `#include`s "accel/bvh.glsl" (from a file under glsl/, with the path relative
+to it), builds with `GpuBvh.defines(base)` among its defines, and calls `gpu_bvh.bind(base)` before
+dispatching: node buffer at binding `base`, triangle buffer at `base + 1` (default base 8, clear of the
+scene buffers 0..2 of glsl/common/scene.glsl).
+"""
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import moderngl
+import numpy as np
+
+from .. import shaders
+from .bvh import Bvh, BufferTooLargeError
+
+DEFAULT_BINDING = 8
+STACK_SIZE = 64            # BVH_STACK_SIZE in glsl/accel/bvh.glsl
+MISS = 0xFFFFFFFF
+MODES = {"closest": 0, "any": 1, "reflect": 2, "through": 3}
+_LOCAL_SIZE = 64
+_MAX_GROUPS_X = 65535
+
+
+def _moderngl(ctx) -> moderngl.Context:
+    return getattr(ctx, "ctx", ctx)   # accept rayvr.context.GLContext or a bare moderngl context
+
+
+def max_ssbo_bytes(ctx) -> int:
+    return int(_moderngl(ctx).info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0)
+
+
+class GpuBvh:
+    """The packed BVH in two shader storage buffers (layout: rayvr/accel/bvh.py docstring)."""
+
+    def __init__(self, ctx, bvh: Bvh):
+        self.ctx = _moderngl(ctx)
+        self.bvh = bvh
+        self.limit = max_ssbo_bytes(self.ctx)
+        bvh.check_fits(self.limit)
+        if bvh.max_depth > STACK_SIZE:
+            raise ValueError(f"BVH depth {bvh.max_depth} exceeds the GPU traversal stack ({STACK_SIZE}); "
+                             f"build with max_depth <= {STACK_SIZE}")
+        self.nodes = self.ctx.buffer(bvh.pack_nodes().tobytes())
+        self.triangles = self.ctx.buffer(bvh.pack_triangles().tobytes())
+
+    def update(self) -> None:
+        """Re-upload boxes and vertices after `bvh.refit(...)` (same topology, same sizes)."""
+        self.nodes.write(self.bvh.pack_nodes().tobytes())
+        self.triangles.write(self.bvh.pack_triangles().tobytes())
+
+    def bind(self, base_binding: int = DEFAULT_BINDING) -> None:
+        self.nodes.bind_to_storage_buffer(base_binding)
+        self.triangles.bind_to_storage_buffer(base_binding + 1)
+
+    @staticmethod
+    def defines(base_binding: int = DEFAULT_BINDING) -> dict:
+        return {"BVH_NODES_BINDING": base_binding, "BVH_TRIS_BINDING": base_binding + 1,
+                "BVH_STACK_SIZE": STACK_SIZE}
+
+    @property
+    def nbytes(self) -> int:
+        return self.nodes.size + self.triangles.size
+
+    def release(self) -> None:
+        self.nodes.release()
+        self.triangles.release()
+
+
+class Hits(NamedTuple):
+    prim: np.ndarray   # (N,) uint32 original triangle ID, 0xFFFFFFFF = miss
+    t: np.ndarray      # (N,) float32, inf on a miss
+    u: np.ndarray      # (N,) float32 barycentric weight of v1
+    v: np.ndarray      # (N,) float32 barycentric weight of v2
+
+
+def pack_rays(origins, directions, tmin=0.0, tmax=np.inf) -> np.ndarray:
+    """(N, 8) float32: origin, tmin, direction, tmax (the layout trace_rays.comp reads)."""
+    o = np.asarray(origins, np.float32).reshape(-1, 3)
+    d = np.asarray(directions, np.float32).reshape(-1, 3)
+    n = len(o)
+    if d.shape != o.shape:
+        raise ValueError(f"origins {o.shape} and directions {d.shape} differ")
+    rays = np.empty((n, 8), np.float32)
+    rays[:, 0:3], rays[:, 4:7] = o, d
+    rays[:, 3] = np.broadcast_to(np.asarray(tmin, np.float32), (n,))
+    rays[:, 7] = np.broadcast_to(np.asarray(tmax, np.float32), (n,))
+    return rays
+
+
+class RayTracer:
+    """Traces ray batches through glsl/accel/trace_rays.comp; one program per mode, built lazily."""
+
+    def __init__(self, ctx, gpu_bvh: GpuBvh, base_binding: int = DEFAULT_BINDING):
+        self.ctx = _moderngl(ctx)
+        self.gpu_bvh = gpu_bvh
+        self.base = base_binding
+        self._programs: dict[tuple, moderngl.ComputeShader] = {}
+        self.last_seconds = 0.0   # wall time of the last dispatches (after ctx.finish)
+
+    def program(self, mode: str, offset: bool = True) -> moderngl.ComputeShader:
+        key = (mode, offset)
+        if key not in self._programs:
+            if mode not in MODES:
+                raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+            defines = dict(GpuBvh.defines(self.base), TRACE_MODE=MODES[mode], OFFSET_RAYS=int(offset),
+                           RAYS_BINDING=self.base + 2, HITS_BINDING=self.base + 3)
+            self._programs[key] = shaders.compute(self.ctx, "accel/trace_rays.comp", defines)
+        return self._programs[key]
+
+    def trace(self, origins, directions, tmin=0.0, tmax=np.inf, mode: str = "closest",
+              offset: bool = True):
+        """Trace rays; returns Hits, or for mode='any' a bool array (occluded)."""
+        rays = pack_rays(origins, directions, tmin, tmax)
+        n = len(rays)
+        out = np.zeros((n, 4), np.uint32)
+        limit = self.gpu_bvh.limit or 2**31
+        chunk = max(1, min(n, limit // rays.itemsize // 8, 1 << 24))
+        prog = self.program(mode, offset)
+        self.gpu_bvh.bind(self.base)
+        self.last_seconds = 0.0
+        for s in range(0, n, chunk):
+            part = rays[s:s + chunk]
+            rbuf = self.ctx.buffer(part.tobytes())
+            hbuf = self.ctx.buffer(reserve=len(part) * 16)
+            try:
+                rbuf.bind_to_storage_buffer(self.base + 2)
+                hbuf.bind_to_storage_buffer(self.base + 3)
+                t0 = time.perf_counter()
+                self._dispatch(prog, len(part))
+                self.ctx.finish()
+                self.last_seconds += time.perf_counter() - t0
+                out[s:s + len(part)] = np.frombuffer(hbuf.read(), np.uint32).reshape(-1, 4)
+            finally:
+                rbuf.release()
+                hbuf.release()
+        if mode == "any":
+            return out[:, 0] != 0
+        prim = out[:, 0].copy()
+        t = out[:, 1].view(np.float32).copy()
+        t[prim == MISS] = np.inf
+        return Hits(prim, t, out[:, 2].view(np.float32).copy(), out[:, 3].view(np.float32).copy())
+
+    def _dispatch(self, prog: moderngl.ComputeShader, n: int) -> None:
+        groups = -(-n // _LOCAL_SIZE)
+        gx = min(groups, _MAX_GROUPS_X)
+        gy = -(-groups // gx)
+        prog["ray_count"].value = n
+        prog.run(gx, gy, 1)
+
+    def time_trace(self, origins, directions, tmin=0.0, tmax=np.inf, mode: str = "closest",
+                   repeats: int = 10) -> dict:
+        """Rays already on the GPU, `repeats` dispatches: GPU ms per dispatch (timer query) and rays/s."""
+        rays = pack_rays(origins, directions, tmin, tmax)
+        n = len(rays)
+        prog = self.program(mode)
+        rbuf = self.ctx.buffer(rays.tobytes())
+        hbuf = self.ctx.buffer(reserve=n * 16)
+        try:
+            self.gpu_bvh.bind(self.base)
+            rbuf.bind_to_storage_buffer(self.base + 2)
+            hbuf.bind_to_storage_buffer(self.base + 3)
+            self._dispatch(prog, n)   # warm-up
+            self.ctx.finish()
+            query = self.ctx.query(time=True)
+            t0 = time.perf_counter()
+            with query:
+                for _ in range(repeats):
+                    self._dispatch(prog, n)
+            self.ctx.finish()
+            wall = (time.perf_counter() - t0) / repeats
+            gpu = query.elapsed * 1e-9 / repeats
+        finally:
+            rbuf.release()
+            hbuf.release()
+        seconds = gpu if gpu > 0 else wall   # llvmpipe reports ~0 for compute in timer queries
+        return {"rays": n, "gpu_ms": gpu * 1e3, "wall_ms": wall * 1e3, "rays_per_s": n / seconds}
+
+
+def trace_rays(ctx, bvh_or_gpu, origins, directions, tmin=0.0, tmax=np.inf, mode: str = "closest"):
+    """One-shot helper: upload (if given a Bvh), trace, return Hits (or occlusion for mode='any')."""
+    owned = not isinstance(bvh_or_gpu, GpuBvh)
+    gpu_bvh = GpuBvh(ctx, bvh_or_gpu) if owned else bvh_or_gpu
+    try:
+        return RayTracer(ctx, gpu_bvh).trace(origins, directions, tmin, tmax, mode)
+    finally:
+        if owned:
+            gpu_bvh.release()
+
+
+__all__ = ["GpuBvh", "RayTracer", "Hits", "trace_rays", "pack_rays", "max_ssbo_bytes",
+           "BufferTooLargeError", "MISS", "MODES", "DEFAULT_BINDING", "STACK_SIZE"]

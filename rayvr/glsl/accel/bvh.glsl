@@ -1,0 +1,156 @@
+// BVH traversal: trace_closest() and trace_any() over the child-pair BVH2 built by rayvr/accel/bvh.py.
+//
+// Buffers (std430, bound by GpuBvh.bind(base) at base and base + 1; pass GpuBvh.defines(base)):
+//   bvh_nodes: 4 vec4 per node: L box (x lo/hi, y lo/hi, z lo/hi), R box, then int bits
+//              (L index, R index, L count, R count); count 0 = internal child at node `index`,
+//              count > 0 = leaf of `count` triangles starting at slot `index`. Node 0 is the root.
+//   bvh_tris:  3 vec4 per reordered triangle: (v0, original id bits), (v1, 0), (v2, 0).
+#ifndef RAYVR_ACCEL_BVH_GLSL
+#define RAYVR_ACCEL_BVH_GLSL
+
+#include "ray.glsl"
+#include "triangle.glsl"
+
+#ifndef BVH_NODES_BINDING
+#define BVH_NODES_BINDING 8
+#endif
+#ifndef BVH_TRIS_BINDING
+#define BVH_TRIS_BINDING 9
+#endif
+#ifndef BVH_STACK_SIZE
+#define BVH_STACK_SIZE 64   // >= the build's max_depth (bvh.py caps the depth at it)
+#endif
+
+layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhNodes { vec4 bvh_nodes[]; };
+layout(std430, binding = BVH_TRIS_BINDING) readonly restrict buffer BvhTriangles { vec4 bvh_tris[]; };
+
+// Zero, NaN or infinite directions and empty [tmin, tmax] intervals trace nothing.
+bool bvh_ray_valid(Ray r) {
+    vec3 d = r.direction;
+    return !any(isnan(d)) && !any(isinf(d)) && any(notEqual(d, vec3(0.0))) && r.tmax > r.tmin;
+}
+
+// 1/d, with zero components (axis-parallel rays) replaced by a large finite value of the same sign:
+// (plane - origin) * inv then never computes 0 * inf = NaN, and the slab of a ray lying in a box face
+// still counts as overlapping. Exactness does not matter here: only the triangle test decides hits.
+vec3 bvh_safe_inverse(vec3 d) {
+    const float tiny = 1e-20;
+    vec3 sgn = mix(vec3(1.0), vec3(-1.0), lessThan(d, vec3(0.0)));
+    return 1.0 / mix(d, sgn * tiny, lessThan(abs(d), vec3(tiny)));
+}
+
+// Slab test with the near/far plane of each axis picked by the direction's sign (an inverted empty
+// box then never overlaps). far is widened by 1 + 2 gamma(3) (Ize 2013) so float rounding cannot
+// cull a box that the ray grazes.
+bool bvh_slab(vec3 o, vec3 inv, vec3 lo, vec3 hi, float tmin, float tmax, out float tnear) {
+    bvec3 neg = lessThan(inv, vec3(0.0));
+    vec3 t0 = (mix(lo, hi, neg) - o) * inv;
+    vec3 t1 = (mix(hi, lo, neg) - o) * inv;
+    tnear = max(max(t0.x, t0.y), max(t0.z, tmin));
+    float tfar = min(min(t1.x, t1.y), t1.z) * 1.00000024;
+    return tnear <= min(tfar, tmax);
+}
+
+// Test the triangles of one leaf, shrinking h.t on every closer hit.
+bool bvh_leaf(RayShear s, int first, int count, float tmin, bool any_hit, inout Hit h) {
+    bool found = false;
+    for (int i = first; i < first + count; ++i) {
+        vec4 a = bvh_tris[3 * i];
+        vec4 b = bvh_tris[3 * i + 1];
+        vec4 c = bvh_tris[3 * i + 2];
+        float t;
+        vec2 uv;
+        if (intersect_triangle(s, a.xyz, b.xyz, c.xyz, tmin, h.t, t, uv)) {
+            h.t = t;
+            h.uv = uv;
+            h.slot = uint(i);
+            h.prim = floatBitsToUint(a.w);
+            found = true;
+            if (any_hit)
+                return true;
+        }
+    }
+    return found;
+}
+
+// Stack traversal: test both children of a node; leaf children are intersected at once, so only
+// internal nodes are pushed; with two internal children hit, go to the nearer, push the farther.
+bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
+    h.t = r.tmax;
+    h.prim = BVH_MISS;
+    h.slot = BVH_MISS;
+    h.uv = vec2(0.0);
+    if (!bvh_ray_valid(r))
+        return false;
+    RayShear s = ray_shear(r);
+    vec3 inv = bvh_safe_inverse(r.direction);
+    int stack[BVH_STACK_SIZE];
+    int sp = 0;
+    int node = 0;
+    while (true) {
+        vec4 n0 = bvh_nodes[4 * node];
+        vec4 n1 = bvh_nodes[4 * node + 1];
+        vec4 n2 = bvh_nodes[4 * node + 2];
+        ivec4 m = floatBitsToInt(bvh_nodes[4 * node + 3]);
+        float tl, tr;
+        bool hl = bvh_slab(r.origin, inv, vec3(n0.x, n0.z, n1.x), vec3(n0.y, n0.w, n1.y), r.tmin, h.t, tl);
+        bool hr = bvh_slab(r.origin, inv, vec3(n1.z, n2.x, n2.z), vec3(n1.w, n2.y, n2.w), r.tmin, h.t, tr);
+        if (hl && m.z > 0) {
+            if (bvh_leaf(s, m.x, m.z, r.tmin, any_hit, h) && any_hit)
+                return true;
+            hl = false;
+            hr = hr && tr <= h.t;
+        }
+        if (hr && m.w > 0) {
+            if (bvh_leaf(s, m.y, m.w, r.tmin, any_hit, h) && any_hit)
+                return true;
+            hr = false;
+        }
+        if (hl && hr) {
+            bool left_first = tl <= tr;
+            stack[sp++] = left_first ? m.y : m.x;
+            node = left_first ? m.x : m.y;
+        } else if (hl) {
+            node = m.x;
+        } else if (hr) {
+            node = m.y;
+        } else {
+            if (sp == 0)
+                break;
+            node = stack[--sp];
+        }
+    }
+    return h.prim != BVH_MISS;
+}
+
+// Closest hit in (tmin, tmax); h.prim = BVH_MISS and h.t = tmax on a miss.
+bool trace_closest(Ray r, out Hit h) {
+    return bvh_traverse(r, false, h);
+}
+
+// Anything in (tmin, tmax)? Stops at the first hit (shadow rays).
+bool trace_any(Ray r) {
+    Hit h;
+    return bvh_traverse(r, true, h);
+}
+
+// Vertex k (0..2) of the triangle in BVH slot `slot` (Hit.slot).
+vec3 bvh_triangle_vertex(uint slot, int k) {
+    return bvh_tris[3 * int(slot) + k].xyz;
+}
+
+// Unit geometric normal, wound v0 -> v1 -> v2 (right-handed).
+vec3 bvh_geometric_normal(uint slot) {
+    vec3 a = bvh_triangle_vertex(slot, 0);
+    return normalize(cross(bvh_triangle_vertex(slot, 1) - a, bvh_triangle_vertex(slot, 2) - a));
+}
+
+// Hit point from barycentrics: more accurate than origin + t * direction (see offset_ray).
+vec3 bvh_hit_point(Hit h) {
+    vec3 a = bvh_triangle_vertex(h.slot, 0);
+    vec3 b = bvh_triangle_vertex(h.slot, 1);
+    vec3 c = bvh_triangle_vertex(h.slot, 2);
+    return a + h.uv.x * (b - a) + h.uv.y * (c - a);
+}
+
+#endif
