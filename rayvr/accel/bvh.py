@@ -434,7 +434,7 @@ def safe_inverse(d: np.ndarray) -> np.ndarray:
     rule is used by the GLSL traversal.
     """
     tiny = 1e-20
-    sign = np.where(np.signbit(d), -1.0, 1.0)
+    sign = np.where(d < 0, -1.0, 1.0)
     return 1.0 / np.where(np.abs(d) < tiny, sign * tiny, d)
 
 

@@ -35,10 +35,11 @@ def max_ssbo_bytes(ctx) -> int:
 class GpuBvh:
     """The packed BVH in two shader storage buffers (layout: rayvr/accel/bvh.py docstring)."""
 
-    def __init__(self, ctx, bvh: Bvh):
+    def __init__(self, ctx, bvh: Bvh, limit: int | None = None):
+        """`limit`: bytes per storage block; default: the device's GL_MAX_SHADER_STORAGE_BLOCK_SIZE."""
         self.ctx = _moderngl(ctx)
         self.bvh = bvh
-        self.limit = max_ssbo_bytes(self.ctx)
+        self.limit = max_ssbo_bytes(self.ctx) if limit is None else int(limit)
         bvh.check_fits(self.limit)
         if bvh.max_depth > STACK_SIZE:
             raise ValueError(f"BVH depth {bvh.max_depth} exceeds the GPU traversal stack ({STACK_SIZE}); "

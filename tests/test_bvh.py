@@ -1,0 +1,232 @@
+"""BVH build invariants, refit, packing, limits, and the numpy reference traversal vs brute force."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rayvr.accel.bvh import (EMPTY_HI, EMPTY_LO, BufferTooLargeError, build_bvh, offset_ray,
+                             trace_brute_force, trace_reference)
+
+MISS = 0xFFFFFFFF
+
+
+def soup(n=300, seed=0, spread=10.0, size=1.0):
+    """Random triangles: n independent triangles in a cube of side `spread`."""
+    rng = np.random.default_rng(seed)
+    centers = rng.uniform(-spread / 2, spread / 2, (n, 1, 3))
+    verts = (centers + rng.normal(scale=size, size=(n, 3, 3))).reshape(-1, 3)
+    return verts.astype(np.float32), np.arange(3 * n).reshape(n, 3)
+
+
+def random_rays(n, verts, seed=1):
+    """Rays from a sphere around the mesh towards points near its centre (about half hit)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = verts.min(0), verts.max(0)
+    c, r = (lo + hi) / 2, np.linalg.norm(hi - lo)
+    o = c + rng.normal(size=(n, 3)) * r
+    d = c + rng.normal(size=(n, 3)) * r * 0.2 - o
+    return o, d
+
+
+def check_invariants(bvh, verts, faces):
+    leaves = np.flatnonzero(bvh.left < 0)
+    cover = np.zeros(bvh.triangle_count, int)
+    for s, c in zip(bvh.start[leaves], bvh.count[leaves]):
+        cover[s:s + c] += 1
+    assert (cover == 1).all(), "every reordered triangle slot must be in exactly one leaf"
+    assert np.array_equal(np.sort(bvh.prim_ids), np.arange(len(faces))), "prim_ids must be a permutation"
+    tri = np.asarray(verts, np.float32)[np.asarray(faces)[bvh.prim_ids]]
+    assert np.array_equal(bvh.triangles(), tri)
+    for n in leaves:   # leaf boxes contain their triangles
+        t = tri[bvh.start[n]:bvh.start[n] + bvh.count[n]].reshape(-1, 3)
+        assert (bvh.node_lo[n] <= t.min(0)).all() and (t.max(0) <= bvh.node_hi[n]).all()
+    inner = np.flatnonzero(bvh.left >= 0)
+    for child in (bvh.left[inner], bvh.right[inner]):   # parents contain children, one level deeper
+        assert (bvh.node_lo[inner] <= bvh.node_lo[child]).all()
+        assert (bvh.node_hi[child] <= bvh.node_hi[inner]).all()
+        assert (bvh.depth[child] == bvh.depth[inner] + 1).all()
+    # Preorder: left child right after its parent; every node but the root has one parent.
+    assert (bvh.left[inner] == inner + 1).all()
+    parents = np.bincount(np.concatenate([bvh.left[inner], bvh.right[inner]]), minlength=bvh.node_count)
+    assert parents[0] == 0 and (parents[1:] == 1).all()
+
+
+@pytest.fixture(scope="module")
+def bunny(request):
+    from pathlib import Path
+    p = Path(__file__).parents[1].parent / "shared" / "scenes" / "stanford_bunny" / "bun_zipper_res2.ply"
+    if not p.exists():
+        pytest.skip(f"{p} not found: the shared scenes folder is absent")
+    import trimesh
+    m = trimesh.load(p, force="mesh")
+    return np.asarray(m.vertices, np.float32), np.asarray(m.faces)
+
+
+def test_invariants_soup():
+    v, f = soup(500)
+    bvh = build_bvh(v, f)
+    check_invariants(bvh, v, f)
+    assert bvh.count[bvh.left < 0].max() <= 8
+
+
+def test_invariants_bunny(bunny):
+    v, f = bunny
+    bvh = build_bvh(v, f)
+    check_invariants(bvh, v, f)
+    s = bvh.stats()
+    assert s["triangles"] == len(f) and 1.0 < s["sah_cost"] < 100.0 and s["max_depth"] <= 64
+
+
+def test_sah_beats_a_bad_split():
+    # One cluster of tiny triangles plus a few far ones: the SAH tree must be cheaper than a tree
+    # that is forced to split by position only (bins=2 on a shuffled soup approximates a bad split).
+    v, f = soup(400, size=0.05)
+    good = build_bvh(v, f)
+    coarse = build_bvh(v, f, bins=2)
+    assert good.sah_cost() <= coarse.sah_cost()
+
+
+def test_refit_keeps_boxes_and_hits():
+    v, f = soup(300)
+    bvh = build_bvh(v, f)
+    rng = np.random.default_rng(3)
+    moved = (v + rng.normal(scale=0.5, size=v.shape)).astype(np.float32)
+    bvh.refit(moved)
+    check_invariants(bvh, moved, f)
+    o, d = random_rays(500, moved)
+    ref = trace_reference(bvh, o, d)
+    bf = trace_brute_force(moved, f, o, d)
+    assert np.array_equal(ref[0], bf[0])
+    with pytest.raises(ValueError, match="refit needs"):
+        bvh.refit(moved[:-3])
+
+
+def test_reference_matches_brute_force():
+    v, f = soup(300, seed=5)
+    bvh = build_bvh(v, f)
+    o, d = random_rays(2000, v, seed=6)
+    prim, t, u, w = trace_reference(bvh, o, d)
+    bprim, bt, bu, bw = trace_brute_force(v, f, o, d)
+    assert 0.2 < (prim != MISS).mean() < 0.9
+    assert np.array_equal(prim, bprim)
+    hit = prim != MISS
+    assert np.array_equal(t[hit], bt[hit]) and np.array_equal(u[hit], bu[hit])
+    # any hit with a finite segment
+    occ = trace_reference(bvh, o, d, tmax=0.9, any_hit=True)
+    assert np.array_equal(occ, trace_brute_force(v, f, o, d, tmax=0.9, any_hit=True))
+    # barycentrics reproduce the hit point
+    tri = v[f[prim[hit]]].astype(np.float64)
+    p = (1 - u[hit] - w[hit])[:, None] * tri[:, 0] + u[hit][:, None] * tri[:, 1] + w[hit][:, None] * tri[:, 2]
+    assert np.allclose(p, o[hit] + t[hit][:, None] * d[hit], atol=1e-6)
+
+
+def test_depth_cap_and_coincident_centroids():
+    # Geometrically spaced triangles make SAH trees deep; a cap must hold and traversal stay exact.
+    x = 2.0 ** -np.arange(60, dtype=np.float64)
+    tri = np.stack([np.stack([x, np.zeros_like(x), np.zeros_like(x)], 1),
+                    np.stack([x, np.ones_like(x), np.zeros_like(x)], 1),
+                    np.stack([x, np.zeros_like(x), np.ones_like(x)], 1)], 1)
+    v, f = tri.reshape(-1, 3).astype(np.float32), np.arange(180).reshape(60, 3)
+    bvh = build_bvh(v, f, max_depth=6)
+    assert bvh.max_depth <= 6
+    check_invariants(bvh, v, f)
+    # 50 copies of one triangle: no SAH split exists, the node is halved instead.
+    one = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
+    v2, f2 = np.tile(one, (50, 1)), np.arange(150).reshape(50, 3)
+    b2 = build_bvh(v2, f2)
+    check_invariants(b2, v2, f2)
+    assert b2.count[b2.left < 0].max() <= 8
+    prim, t, _, _ = trace_reference(b2, [[0.2, 0.2, 1]], [[0, 0, -1]])
+    assert prim[0] < 50 and t[0] == pytest.approx(1.0)
+
+
+def test_empty_single_and_degenerate():
+    empty = build_bvh(np.zeros((0, 3)), np.zeros((0, 3), int))
+    assert empty.triangle_count == 0
+    prim, t, _, _ = trace_reference(empty, [[0, 0, 0]], [[0, 0, 1]])
+    assert prim[0] == MISS and np.isinf(t[0])
+    nodes = empty.pack_nodes()
+    assert nodes.shape == (1, 16) and (nodes[0, :6:2] == EMPTY_LO).all() and (nodes[0, 1:6:2] == EMPTY_HI).all()
+
+    one = build_bvh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]]), [[0, 1, 2]])
+    prim, t, u, w = trace_reference(one, [[0.25, 0.5, 2]], [[0, 0, -1]])
+    assert prim[0] == 0 and t[0] == pytest.approx(2.0) and (u[0], w[0]) == pytest.approx((0.25, 0.5))
+    meta = one.pack_nodes()[0, 12:].view(np.int32)
+    assert list(meta) == [0, 0, 1, 0]   # left = leaf of 1 triangle, right = empty
+
+    # zero-area triangles (a point and a line) build fine and are never hit
+    deg = build_bvh(np.array([[0, 0, 0], [0, 0, 0], [0, 0, 0], [1, 1, 1]]), [[0, 1, 2], [0, 1, 3]])
+    prim, *_ = trace_reference(deg, [[0.5, 0.5, 2], [0, 0, 1]], [[0, 0, -1], [0, 0, -1]])
+    assert (prim == MISS).all()
+
+
+def test_bad_input_is_rejected():
+    v, f = soup(10)
+    bad = v.copy()
+    bad[7, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN or inf.*first bad vertex: 7"):
+        build_bvh(bad, f)
+    bad[7, 1] = np.inf
+    with pytest.raises(ValueError, match="NaN or inf"):
+        build_bvh(bad, f)
+    with pytest.raises(ValueError, match=r"indices must lie in \[0, 30\)"):
+        build_bvh(v, f + 1)
+    with pytest.raises(ValueError, match="shape"):
+        build_bvh(v[:, :2], f)
+    with pytest.raises(ValueError, match="shape"):
+        build_bvh(v, f.reshape(-1, 6))
+
+
+def test_buffer_limit_error_names_buffer():
+    v, f = soup(100)
+    bvh = build_bvh(v, f)
+    sizes = bvh.gpu_sizes()
+    assert sizes["bvh_triangles"] == 100 * 48 and sizes["bvh_nodes"] == 64 * bvh.gpu_node_count
+    bvh.check_fits(10 ** 9)   # fits
+    limit = sizes["bvh_nodes"]                  # nodes fit exactly, triangles (4,800 bytes) do not
+    if sizes["bvh_triangles"] > limit:
+        with pytest.raises(BufferTooLargeError) as e:
+            bvh.check_fits(limit)
+        assert e.value.buffer == "bvh_triangles" and e.value.size == 4800 and e.value.limit == limit
+    with pytest.raises(BufferTooLargeError) as e:
+        bvh.check_fits(1000)
+    assert isinstance(e.value, ValueError)
+    msg = str(e.value)
+    assert e.value.buffer in msg and f"{e.value.size:,}" in msg and "1,000" in msg
+    assert e.value.size == sizes[e.value.buffer]
+
+
+def test_packing_layout():
+    v, f = soup(200)
+    bvh = build_bvh(v, f)
+    nodes, tris = bvh.pack_nodes(), bvh.pack_triangles()
+    inner = np.flatnonzero(bvh.left >= 0)
+    assert nodes.shape == (len(inner), 16) and tris.shape == (200, 12)
+    assert np.array_equal(tris[:, 3].view(np.uint32), bvh.prim_ids)
+    assert np.array_equal(tris.reshape(-1, 3, 4)[:, :, :3], bvh.triangles())
+    # Root's children boxes and links
+    meta = nodes[:, 12:].view(np.int32)
+    l, r = bvh.left[0], bvh.right[0]
+    assert np.array_equal(nodes[0, [0, 2, 4]], bvh.node_lo[l]) and np.array_equal(nodes[0, [7, 9, 11]], bvh.node_hi[r])
+    gpu_index = {n: i for i, n in enumerate(inner)}
+    for side, child in enumerate((l, r)):
+        if bvh.left[child] < 0:
+            assert (meta[0, side], meta[0, 2 + side]) == (bvh.start[child], bvh.count[child])
+        else:
+            assert (meta[0, side], meta[0, 2 + side]) == (gpu_index[child], 0)
+    # Every triangle reachable from exactly one leaf slot across all GPU nodes
+    leaf_counts = np.concatenate([meta[:, 2], meta[:, 3]])
+    assert leaf_counts.sum() == 200
+
+
+@pytest.mark.parametrize("shift", [0.0, 1e-3, 1.0, 1e5, -1e5])
+def test_offset_ray_moves_to_the_normal_side(shift):
+    rng = np.random.default_rng(2)
+    p = (rng.uniform(-1, 1, (1000, 3)) * max(abs(shift), 1e-3) + shift).astype(np.float32)
+    n = rng.normal(size=(1000, 3))
+    n = (n / np.linalg.norm(n, axis=1, keepdims=True)).astype(np.float32)
+    q = offset_ray(p, n)
+    assert np.isfinite(q).all()
+    step = (q.astype(np.float64) - p) * n      # per axis: never against the normal
+    assert (step >= 0).all()
+    assert ((step.sum(1)) > 0).all()            # and strictly off the surface plane through p
