@@ -178,16 +178,16 @@ def test_bad_input_is_rejected():
 
 
 def test_buffer_limit_error_names_buffer():
-    v, f = soup(100)
+    v, f = soup(100, seed=0)
     bvh = build_bvh(v, f)
     sizes = bvh.gpu_sizes()
     assert sizes["bvh_triangles"] == 100 * 48 and sizes["bvh_nodes"] == 64 * bvh.gpu_node_count
     bvh.check_fits(10 ** 9)   # fits
-    limit = sizes["bvh_nodes"]                  # nodes fit exactly, triangles (4,800 bytes) do not
-    if sizes["bvh_triangles"] > limit:
-        with pytest.raises(BufferTooLargeError) as e:
-            bvh.check_fits(limit)
-        assert e.value.buffer == "bvh_triangles" and e.value.size == 4800 and e.value.limit == limit
+    # 100 copies of a triangle: few large leaves, so the node buffer is the smaller one.
+    same = build_bvh(np.tile(v[:3], (100, 1)), np.arange(300).reshape(100, 3))
+    with pytest.raises(BufferTooLargeError) as e:
+        same.check_fits(same.gpu_sizes()["bvh_nodes"])     # nodes fit exactly, triangles do not
+    assert e.value.buffer == "bvh_triangles" and e.value.size == 4800
     with pytest.raises(BufferTooLargeError) as e:
         bvh.check_fits(1000)
     assert isinstance(e.value, ValueError)
