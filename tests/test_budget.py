@@ -1,0 +1,130 @@
+import itertools
+import time
+
+import numpy as np
+import pytest
+
+from rayvr.bench.budget import COST_EPS_MS, MaterialOptions, Option, solve_budget
+
+# A ladder like rayvr's: each step up costs more and errs less.
+LADDER = ["raster", "ssr", "ssrt", "rt1", "rt2", "rt4", "path"]
+
+
+def _random_materials(rng, n, k, ladder=True, cheap_first=False):
+    mats = []
+    for i in range(n):
+        cost = np.sort(rng.uniform(0.0, 1.0, k))
+        if cheap_first:  # the raster rung costs next to nothing, as in a real ladder
+            cost[0] = rng.uniform(0.0, 0.02)
+        err = np.sort(rng.uniform(0.0, 1.0, k))[::-1] if ladder else rng.uniform(0.0, 1.0, k)
+        mats.append({
+            "name": f"m{i}",
+            "options": [(LADDER[j % len(LADDER)] + str(j), cost[j], err[j]) for j in range(k)],
+            "importance": rng.uniform(0.5, 2.0),
+            "coverage": rng.uniform(0.0, 0.3),
+        })
+    return mats
+
+
+def _brute_force(mats, budget, base):
+    best = None
+    for choice in itertools.product(*(range(len(m["options"])) for m in mats)):
+        cost = base + sum(m["options"][i][1] for m, i in zip(mats, choice))
+        if cost > budget + COST_EPS_MS:
+            continue
+        err = sum(m["importance"] * m["coverage"] * m["options"][i][2] for m, i in zip(mats, choice))
+        if best is None or err < best[0]:
+            best = (err, cost, choice)
+    return best
+
+
+def test_known_optimum():
+    # Greedy by error-per-ms would upgrade "a" (best ratio) first and then have no room for "b".
+    mats = [
+        MaterialOptions("a", [Option("raster", 0.0, 1.0), Option("rt1", 1.0, 0.5)]),
+        MaterialOptions("b", [Option("raster", 0.0, 2.0), Option("rt1", 2.0, 0.9)]),
+        MaterialOptions("c", [Option("raster", 0.0, 0.2), Option("rt1", 1.5, 0.0)]),
+    ]
+    r = solve_budget(mats, budget_ms=3.0, base_ms=0.5)
+    assert r.feasible
+    assert r.assignment == {"a": "raster", "b": "rt1", "c": "raster"}
+    assert r.total_ms == pytest.approx(2.5)
+    assert r.error == pytest.approx(1.0 + 0.9 + 0.2)
+    # Importance steers the choice: make "c" matter a lot and it gets the upgrade instead.
+    mats[2].importance = 20.0
+    r = solve_budget(mats, budget_ms=3.0, base_ms=0.5)
+    assert r.assignment == {"a": "rt1", "b": "raster", "c": "rt1"}
+    assert r.error == pytest.approx(0.5 + 2.0 + 0.0)
+
+
+def test_generous_and_zero_budget():
+    mats = [MaterialOptions("m", [Option("raster", 0.1, 1.0), Option("ssr", 0.4, 0.3),
+                                   Option("path", 3.0, 0.0)])]
+    assert solve_budget(mats, 100.0).assignment == {"m": "path"}
+    assert solve_budget(mats, 0.1).assignment == {"m": "raster"}
+    r = solve_budget([], 1.0, base_ms=0.5)
+    assert r.feasible and r.total_ms == 0.5 and r.assignment == {}
+
+
+def test_over_budget_returns_cheapest_with_flag():
+    mats = [
+        {"name": "a", "options": [("raster", 1.0, 0.5), ("cheap", 1.0, 0.4), ("rt", 2.0, 0.1)]},
+        {"name": "b", "options": [("ssr", 0.5, 0.3), ("rt", 3.0, 0.0)]},
+    ]
+    r = solve_budget(mats, budget_ms=2.0, base_ms=1.0)
+    assert not r.feasible
+    # Cheapest per material, ties broken by lower error.
+    assert r.assignment == {"a": "cheap", "b": "ssr"}
+    assert r.total_ms == pytest.approx(2.5)
+    assert r.summary()["feasible"] is False
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_matches_brute_force(seed):
+    rng = np.random.default_rng(seed)
+    n, k = rng.integers(1, 6), rng.integers(1, 5)
+    mats = _random_materials(rng, n, k, ladder=bool(seed % 2))
+    base = rng.uniform(0, 0.5)
+    budget = base + rng.uniform(0, 0.6 * n)
+    r = solve_budget(mats, budget, base)
+    bf = _brute_force(mats, budget, base)
+    if bf is None:
+        assert not r.feasible
+        return
+    assert r.feasible
+    assert r.total_ms <= budget + COST_EPS_MS
+    assert r.error == pytest.approx(bf[0], abs=1e-12)
+
+
+def test_respects_budget_at_scale():
+    rng = np.random.default_rng(123)
+    mats = _random_materials(rng, 50, 7, cheap_first=True)
+    base = 1.5
+    errors = []
+    for budget in (2.0, 4.0, 8.0, 16.0):
+        t0 = time.perf_counter()
+        r = solve_budget(mats, budget, base)
+        assert time.perf_counter() - t0 < 2.0
+        assert r.feasible and r.total_ms <= budget + COST_EPS_MS
+        # total_ms and error match the reported rows
+        rows = r.rows()
+        assert r.total_ms == pytest.approx(base + sum(x["cost_ms"] for x in rows))
+        assert r.error == pytest.approx(sum(x["weighted_error"] for x in rows))
+        errors.append(r.error)
+    # More budget never makes the optimum worse.
+    assert errors == sorted(errors, reverse=True)
+
+
+def test_validation():
+    with pytest.raises(ValueError, match="twice"):
+        solve_budget([{"name": "a", "options": [("x", 1, 1)]}] * 2, 5)
+    with pytest.raises(ValueError, match="no options"):
+        solve_budget([{"name": "a", "options": []}], 5)
+    with pytest.raises(ValueError, match="cost_ms"):
+        solve_budget([{"name": "a", "options": [("x", -1, 1)]}], 5)
+    with pytest.raises(ValueError, match="error"):
+        solve_budget([{"name": "a", "options": [("x", 1, float("nan"))]}], 5)
+    with pytest.raises(ValueError, match="coverage"):
+        solve_budget([{"name": "a", "options": [("x", 1, 1)], "coverage": -0.1}], 5)
+    with pytest.raises(TypeError, match="option"):
+        solve_budget([{"name": "a", "options": ["x"]}], 5)
