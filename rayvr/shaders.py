@@ -102,13 +102,13 @@ def _wrap(sources: dict[str, ShaderSource], fn):
 
 
 def program(ctx: moderngl.Context, vertex: str, fragment: str | None = None,
-            geometry: str | None = None, defines: dict | None = None) -> moderngl.Program:
+            geometry: str | None = None, defines: dict | None = None, root: Path = GLSL_DIR) -> moderngl.Program:
     """Build a raster program from files under glsl/."""
-    sources = {"vertex": load_source(vertex, defines)}
+    sources = {"vertex": load_source(vertex, defines, root)}
     if fragment:
-        sources["fragment"] = load_source(fragment, defines)
+        sources["fragment"] = load_source(fragment, defines, root)
     if geometry:
-        sources["geometry"] = load_source(geometry, defines)
+        sources["geometry"] = load_source(geometry, defines, root)
     return _wrap(sources, lambda: ctx.program(
         vertex_shader=sources["vertex"].text,
         fragment_shader=sources["fragment"].text if fragment else None,
@@ -116,7 +116,8 @@ def program(ctx: moderngl.Context, vertex: str, fragment: str | None = None,
     ))
 
 
-def compute(ctx: moderngl.Context, name: str, defines: dict | None = None) -> moderngl.ComputeShader:
+def compute(ctx: moderngl.Context, name: str, defines: dict | None = None,
+            root: Path = GLSL_DIR) -> moderngl.ComputeShader:
     """Build a compute shader from a file under glsl/."""
-    src = load_source(name, defines)
+    src = load_source(name, defines, root)
     return _wrap({"compute": src}, lambda: ctx.compute_shader(src.text))

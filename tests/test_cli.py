@@ -1,0 +1,103 @@
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from rayvr.camera import orbit, save_path
+
+
+def rayvr(*args, timeout=300):
+    return subprocess.run([sys.executable, "-m", "rayvr", *args], capture_output=True, text=True, timeout=timeout)
+
+
+def test_capture_default_scene_stereo_pair_with_aux(tmp_path):
+    run = rayvr("capture", "--size", "40x30", "--out", str(tmp_path), "--aux", "depth,normal,material",
+                "--timings")
+    assert run.returncode == 0, run.stderr
+    for eye in ("left", "right"):
+        img = np.asarray(Image.open(tmp_path / f"frame_{eye}.png"))
+        assert img.shape == (30, 40, 3) and img.dtype == np.uint8 and img.std() > 5
+        depth = np.load(tmp_path / f"frame_{eye}_depth.npy")
+        assert depth.shape == (30, 40) and np.isfinite(depth).all() and depth.max() > 0
+        assert np.load(tmp_path / f"frame_{eye}_normal.npy").shape == (30, 40, 3)
+        assert np.load(tmp_path / f"frame_{eye}_material.npy").dtype == np.uint32
+    left = np.asarray(Image.open(tmp_path / "frame_left.png")).astype(int)
+    right = np.asarray(Image.open(tmp_path / "frame_right.png")).astype(int)
+    assert np.abs(left - right).mean() > 0.5  # two different eyes
+    assert "gbuffer" in run.stdout and "total" in run.stdout
+    summary = json.loads((tmp_path / "frame_timings.json").read_text())
+    assert set(summary["gpu_ms_mean"]) == {"gbuffer", "shade", "resolve"}  # raster-only graph
+    assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]
+
+
+def test_capture_one_eye_debug_view_and_path_replay(tmp_path):
+    save_path(tmp_path / "path.json", orbit([0, 1, -1], 3.0, 0.5, 3))
+    run = rayvr("capture", "--size", "24x16", "--out", str(tmp_path / "o"), "--eye", "right", "--view", "normal",
+                "--path", str(tmp_path / "path.json"), "-q")
+    assert run.returncode == 0, run.stderr
+    assert sorted(os.listdir(tmp_path / "o")) == ["frame_0000_right_normal.png", "frame_0001_right_normal.png",
+                                                   "frame_0002_right_normal.png", "frame_timings.json"]
+    frames = [np.asarray(Image.open(tmp_path / "o" / f"frame_000{i}_right_normal.png")) for i in range(3)]
+    assert not np.array_equal(frames[0], frames[1])
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--materials", "MISSING"], ["cannot read material config"]),
+    (["--size", "0x10"], ["size must be between"]),
+    (["--camera", "1,2,3"], ["expected 6"]),
+    (["/nonexistent/scene.glb"], ["no such file"]),
+    (["--aux", "colour"], ["unknown aux channel", "depth"]),
+    (["--fov", "200"], ["fov_y must be in (0, 180)"]),
+])
+def test_capture_bad_input_is_a_clear_error(tmp_path, args, words):
+    run = rayvr("capture", "--out", str(tmp_path / "o"), "--size", "8x8", *args)
+    assert run.returncode == 2, run.stdout + run.stderr
+    for w in words:
+        assert w in run.stderr, run.stderr
+
+
+def test_bad_config_names_file_and_key(tmp_path):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text('[materials]\nfloor = "sparkle"\n')
+    run = rayvr("capture", "--materials", str(cfg), "--out", str(tmp_path / "o"), "--size", "8x8")
+    assert run.returncode == 2
+    assert str(cfg) in run.stderr and "materials.floor" in run.stderr and "raster" in run.stderr
+    assert not (tmp_path / "o" / "frame_left.png").exists()
+
+
+def test_unwritable_output_fails_before_rendering_and_loses_nothing(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("keep me")
+    run = rayvr("capture", "--out", str(blocker / "sub"), "--size", "8x8")
+    assert run.returncode == 2 and "cannot create output folder" in run.stderr
+    assert blocker.read_text() == "keep me"
+    if os.geteuid() != 0:  # root can write anywhere
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o500)
+        run = rayvr("capture", "--out", str(ro), "--size", "8x8")
+        assert run.returncode == 2 and "not writable" in run.stderr
+
+
+def test_info_lists_gl_and_scene_effects(tmp_path):
+    run = rayvr("info", "--json")
+    assert run.returncode == 0, run.stderr
+    info = json.loads(run.stdout)
+    assert info["version_code"] >= 430 and "GL_MAX_SHADER_STORAGE_BLOCK_SIZE" in info["limits"]
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[materials]\n"nope" = "raster"\n')
+    run = rayvr("info", "--materials", str(cfg))
+    assert run.returncode == 0, run.stderr
+    assert "mirror" in run.stdout and "raster" in run.stdout and "'nope' matches no material" in run.stdout
+
+
+def test_bench_quick_writes_results(tmp_path):
+    run = rayvr("bench", "gbuffer", "--quick", "--out", str(tmp_path))
+    assert run.returncode == 0, run.stderr
+    result = json.loads((tmp_path / "gbuffer.json").read_text())
+    assert {r["mode"] for r in result["rows"]} == {"vertex", "geometry", "passes"}
+    assert result["meta"]["gl_renderer"] and (tmp_path / "gbuffer.md").exists()

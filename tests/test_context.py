@@ -1,0 +1,57 @@
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rayvr.context import ContextError, create_context
+
+
+def test_context_is_4_3_core_with_what_rayvr_needs(gl):
+    info = gl.info()
+    assert info["version_code"] >= 430
+    assert info["limits"]["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"] >= 2 ** 24
+    assert set(info["extensions"]) >= {"GL_ARB_shader_viewport_layer_array", "GL_OVR_multiview"}
+    assert gl.raw.has("glFramebufferTexture")
+
+
+def test_unknown_backend_lists_what_was_tried():
+    with pytest.raises(ContextError) as e:
+        create_context("vulkan")
+    assert "unknown backend 'vulkan'" in str(e.value) and "egl, osmesa" in str(e.value)
+
+
+def _capture(backend, out):
+    env = {**os.environ, "RAYVR_GL_BACKEND": backend}
+    cmd = [sys.executable, "-m", "rayvr", "capture", "--size", "48x32", "--out", str(out), "-q",
+           "--aux", "triangle"]
+    return subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+
+
+def test_egl_and_osmesa_render_the_same_frame(tmp_path):
+    """Each backend in its own process (one GL context per process), same default scene."""
+    from PIL import Image
+
+    results = {}
+    for backend in ("egl", "osmesa"):
+        run = _capture(backend, tmp_path / backend)
+        if run.returncode != 0 and "no OpenGL 4.3 core context" in run.stderr:
+            pytest.skip(f"{backend} unavailable: {run.stderr.strip()}")
+        assert run.returncode == 0, run.stderr
+        results[backend] = (np.asarray(Image.open(tmp_path / backend / "frame_left.png")),
+                            np.load(tmp_path / backend / "frame_left_triangle.npy"))
+    (ce, te), (co, to) = results["egl"], results["osmesa"]
+    assert (te == to).mean() > 0.999
+    assert np.abs(ce.astype(int) - co).max() <= 2
+
+
+def test_no_context_error_is_clear():
+    """With every backend broken the error names each one and why."""
+    env = {**os.environ, "GLCONTEXT_LINUX_LIBEGL": "/nonexistent/libEGL.so", "LD_LIBRARY_PATH": "/nonexistent"}
+    code = ("import ctypes.util, rayvr.context as c\n"
+            "ctypes.util.find_library = lambda name: '/nonexistent/lib' + name + '.so'\n"
+            "try:\n    c.create_context()\nexcept c.ContextError as e:\n    print(e)\n")
+    run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert "no OpenGL 4.3 core context could be made" in run.stdout, run.stdout + run.stderr
+    assert "- egl:" in run.stdout and "- osmesa:" in run.stdout

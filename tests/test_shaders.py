@@ -1,0 +1,57 @@
+import numpy as np
+import pytest
+
+from rayvr import shaders
+from rayvr.shaders import GLSL_DIR, ShaderError, load_source
+
+
+def write(root, name, text):
+    p = root / name
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(text)
+
+
+def test_includes_resolve_once_and_defines_follow_the_header(tmp_path):
+    write(tmp_path, "lib/a.glsl", '#include "b.glsl"\nfloat a() { return b() + 1.0; }\n')
+    write(tmp_path, "lib/b.glsl", "float b() { return 2.0; }\n")
+    write(tmp_path, "main.comp", '#version 430\n#extension GL_ARB_gpu_shader_int64 : enable\n'
+                                 '#include "lib/a.glsl"\n#include "lib/b.glsl"\nvoid main() {}\n')
+    src = load_source("main.comp", {"N": 4, "FLAG": True}, root=tmp_path)
+    assert src.files == ["main.comp", "lib/a.glsl", "lib/b.glsl"]
+    assert src.text.count("float b()") == 1
+    lines = src.text.splitlines()
+    assert lines[0] == "#version 430" and lines[1].startswith("#extension")
+    assert lines[2:4] == ["#define N 4", "#define FLAG 1"]
+
+
+def test_missing_include_and_missing_version(tmp_path):
+    write(tmp_path, "x.comp", '#version 430\n#include "nope.glsl"\n')
+    with pytest.raises(ShaderError, match="not found"):
+        load_source("x.comp", root=tmp_path)
+    write(tmp_path, "y.comp", "void main() {}\n")
+    with pytest.raises(ShaderError, match="#version"):
+        load_source("y.comp", root=tmp_path)
+
+
+def test_compile_error_names_the_included_file_and_line(gl, tmp_path):
+    write(tmp_path, "common/util.glsl", "// helper\nfloat util() {\n    return undefined_name;\n}\n")
+    write(tmp_path, "k.comp", '#version 430\nlayout(local_size_x = 1) in;\n#include "common/util.glsl"\n'
+                              'void main() { float x = util(); }\n')
+    with pytest.raises(ShaderError) as e:
+        shaders.compute(gl.ctx, "k.comp", root=tmp_path)
+    assert "glsl/common/util.glsl:3" in str(e.value), str(e.value)
+    write(tmp_path, "m.comp", '#version 430\nlayout(local_size_x = 1) in;\n#include "common/ok.glsl"\n'
+                              'void main() {\n  int y = ;\n}\n')
+    write(tmp_path, "common/ok.glsl", "float ok() { return 1.0; }\n")
+    with pytest.raises(ShaderError) as e:
+        shaders.compute(gl.ctx, "m.comp", root=tmp_path)
+    assert "glsl/m.comp:5" in str(e.value), str(e.value)
+
+
+def test_every_shipped_shader_compiles(gl):
+    """Each compute shader and raster program under rayvr/glsl builds on this driver."""
+    for path in sorted(GLSL_DIR.rglob("*.comp")):
+        shaders.compute(gl.ctx, str(path.relative_to(GLSL_DIR))).release()
+    for mode in (0, 1):
+        shaders.program(gl.ctx, "gbuffer/gbuffer.vert", "gbuffer/gbuffer.frag",
+                        "gbuffer/gbuffer.geom" if mode else None, {"LAYER_MODE": mode, "LAYERS": 2}).release()
