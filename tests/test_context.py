@@ -55,3 +55,19 @@ def test_no_context_error_is_clear():
     run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert "no OpenGL 4.3 core context could be made" in run.stdout, run.stdout + run.stderr
     assert "- egl:" in run.stdout and "- osmesa:" in run.stdout
+
+
+def test_gbuffer_suite_passes_under_osmesa():
+    """The analytic G-buffer tests again, in a child process on the OSMesa backend."""
+    from pathlib import Path
+
+    here = Path(__file__).parent
+    probe = subprocess.run([sys.executable, "-c", "import rayvr.context as c; c.create_context('osmesa')"],
+                           capture_output=True, text=True, timeout=120)
+    if probe.returncode != 0:
+        pytest.skip(f"OSMesa unavailable: {probe.stderr.strip().splitlines()[-1:]}")
+    env = {**os.environ, "RAYVR_GL_BACKEND": "osmesa"}
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(here / "test_gbuffer.py")],
+                         env=env, capture_output=True, text=True, timeout=600, cwd=here.parent)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
+    assert " passed" in run.stdout and "skipped" not in run.stdout.splitlines()[-1]
