@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED_SCENES = REPO.parent / "shared" / "scenes"
+SHARED_SCENES = Path(os.environ.get("RAYVR_SCENES") or REPO.parent / "shared" / "scenes")
 
 
 @pytest.fixture(scope="session")

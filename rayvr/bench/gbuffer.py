@@ -6,6 +6,7 @@ timer queries are not (see ../shared/references/platform-notes.md).
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,8 @@ from ..context import create_context
 from ..renderer import Renderer, RenderSettings
 from .report import device_meta, write_report
 
-SHARED_SCENES = Path(__file__).resolve().parents[2].parent / "shared" / "scenes"
+# The workspace's third-party scenes (not shipped); RAYVR_SCENES points elsewhere.
+SHARED_SCENES = Path(os.environ.get("RAYVR_SCENES") or Path(__file__).resolve().parents[2].parent / "shared" / "scenes")
 
 # Benchmark views: (scene file relative to shared/scenes or None for the default, pose).
 SCENES = {
