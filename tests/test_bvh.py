@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from rayvr.accel.bvh import (EMPTY_HI, EMPTY_LO, BufferTooLargeError, build_bvh, offset_ray,
-                             trace_brute_force, trace_reference)
+                             trace_brute_force, trace_reference, widen)
 
 MISS = 0xFFFFFFFF
 
@@ -146,7 +146,8 @@ def test_empty_single_and_degenerate():
     prim, t, _, _ = trace_reference(empty, [[0, 0, 0]], [[0, 0, 1]])
     assert prim[0] == MISS and np.isinf(t[0])
     nodes = empty.pack_nodes()
-    assert nodes.shape == (1, 16) and (nodes[0, :6:2] == EMPTY_LO).all() and (nodes[0, 1:6:2] == EMPTY_HI).all()
+    assert nodes.shape == (1, 16) and (nodes[0, :6:2] <= EMPTY_LO).all() and (nodes[0, 1:6:2] >= EMPTY_HI).all()
+    assert (nodes[0, :6:2] > nodes[0, 1:6:2]).all()   # still inverted after widening
 
     one = build_bvh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]]), [[0, 1, 2]])
     prim, t, u, w = trace_reference(one, [[0.25, 0.5, 2]], [[0, 0, -1]])
@@ -207,7 +208,8 @@ def test_packing_layout():
     # Root's children boxes and links
     meta = nodes[:, 12:].view(np.int32)
     l, r = bvh.left[0], bvh.right[0]
-    assert np.array_equal(nodes[0, [0, 2, 4]], bvh.node_lo[l]) and np.array_equal(nodes[0, [7, 9, 11]], bvh.node_hi[r])
+    assert np.array_equal(nodes[0, [0, 2, 4]], widen(bvh.node_lo[l], bvh.node_hi[l])[0])
+    assert np.array_equal(nodes[0, [7, 9, 11]], widen(bvh.node_lo[r], bvh.node_hi[r])[1])
     gpu_index = {n: i for i, n in enumerate(inner)}
     for side, child in enumerate((l, r)):
         if bvh.left[child] < 0:

@@ -26,7 +26,8 @@ BVH2 with both child boxes stored in the parent ("child pair" nodes, Aila & Lain
 
 count == 0: the child is an internal node and index is its GPU node number; count > 0: the child is a
 leaf of `count` triangles starting at reordered triangle `index`. An empty child has an inverted box
-(lo > hi), which the octant-ordered slab test never enters. Root is GPU node 0.
+(lo > hi), which the octant-ordered slab test never enters. Root is GPU node 0. Boxes are widened by
+one ulp when packed (`widen`), so axis-parallel rays lying in a box face still enter it.
 Triangles: 48 bytes = 3 x vec4 per triangle, (v0.xyz, original id as uint bits), (v1.xyz, 0), (v2.xyz, 0),
 raw vertices because the watertight test (Woop et al. 2013) works on them.
 
@@ -187,8 +188,19 @@ class Bvh:
         return out
 
 
+def widen(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Boxes grown by one float ulp on every side, as traversal sees them.
+
+    An axis-parallel ray lying exactly in a box face gets (face - origin) * inv = 0 * large = 0 for
+    its far plane and would miss the box; one ulp of slack makes the face strictly outside the ray.
+    """
+    lo, hi = np.asarray(lo, np.float32), np.asarray(hi, np.float32)
+    return np.nextafter(lo, np.float32(-np.inf)), np.nextafter(hi, np.float32(np.inf))
+
+
 def _put_child(out: np.ndarray, side: int, lo: np.ndarray, hi: np.ndarray) -> None:
-    """Write child boxes into the interleaved lo/hi slots of a child-pair node."""
+    """Write child boxes (widened by an ulp) into the interleaved lo/hi slots of a child-pair node."""
+    lo, hi = widen(lo, hi)
     base = 6 * side
     for axis in range(3):
         out[:, base + 2 * axis] = lo[:, axis]
@@ -549,7 +561,7 @@ def trace_reference(bvh: Bvh, origins, directions, tmin=0.0, tmax=np.inf, any_hi
 
 def _slab(o, inv, lo, hi, tmin, tmax):
     """Ray-box overlap with near/far planes picked by the sign of the inverse direction."""
-    lo, hi = lo.astype(np.float64), hi.astype(np.float64)
+    lo, hi = (x.astype(np.float64) for x in widen(lo, hi))
     pos = inv >= 0
     near = (np.where(pos, lo, hi) - o) * inv
     far = (np.where(pos, hi, lo) - o) * inv
@@ -585,11 +597,12 @@ def offset_ray(p, n):
     """Move p off its surface along n (Wächter & Binder, Ray Tracing Gems ch. 6), float32.
 
     Far from the origin the offset is a fixed number of float ulps (scale-invariant); near the origin,
-    where ulps get tiny, a small fixed distance. The GLSL `offset_ray` does the same.
+    where ulps get tiny, a small fixed distance. The GLSL `offset_ray` does the same; its comment says
+    why the integer step is 32 ulps per unit normal rather than the paper's 256.
     """
     p = np.asarray(p, np.float32)
     n = np.asarray(n, np.float32)
-    origin, float_scale, int_scale = 1.0 / 32.0, 1.0 / 65536.0, 256.0
+    origin, float_scale, int_scale = 1.0 / 32.0, 1.0 / 65536.0, 32.0
     of_i = (int_scale * n).astype(np.int32)
     pi = p.view(np.int32)
     p_i = (pi + np.where(p < 0, -of_i, of_i)).astype(np.int32).view(np.float32)
