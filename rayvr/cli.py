@@ -138,6 +138,21 @@ def cmd_bench(args) -> int:
     raise SystemExit(f"unknown benchmark area {args.area!r}")
 
 
+def cmd_preview(args) -> int:
+    from .preview import Preview
+
+    rig_options = {"ipd": args.ipd}
+    for key, attr in (("fov_y", "fov"), ("convergence", "convergence")):
+        if getattr(args, attr) is not None:
+            rig_options[key] = getattr(args, attr)
+    look_at = (args.camera[:3], args.camera[3:]) if args.camera else None
+    with Preview(args.scene, args.materials, size=args.size, vsync=not args.no_vsync, stereo=args.mode,
+                 view=args.view, res_scale=args.scale, rig_options=rig_options, look_at=look_at,
+                 out_dir=args.out, path_file=args.record) as p:
+        p.run(max_frames=args.frames)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .renderer import AUX_CHANNELS, VIEWS
 
@@ -182,6 +197,24 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="tiny sizes and few frames (CI smoke test)")
     b.add_argument("--backend", choices=("egl", "osmesa"))
     b.set_defaults(func=cmd_bench)
+
+    v = sub.add_parser("preview", help="desktop stereo preview window (glfw); H in the window lists the keys")
+    v.add_argument("scene", nargs="?", help="glTF/GLB, OBJ or PLY file (default: built-in room)")
+    v.add_argument("--materials", help="material-ID config (TOML), reloaded when the file changes")
+    v.add_argument("--size", type=_size, default=(1280, 720), help="window size WxH (default 1280x720)")
+    v.add_argument("--mode", choices=("side-by-side", "cross-eyed", "anaglyph", "left", "right"),
+                   default="side-by-side", help="stereo mode at start (Tab cycles)")
+    v.add_argument("--view", choices=VIEWS, default="color", help="colour or a debug view at start (V cycles)")
+    v.add_argument("--scale", type=float, help="resolution scale (default 1, 0.5 on a CPU rasterizer)")
+    v.add_argument("--no-vsync", action="store_true", help="start with vsync off (Y toggles)")
+    v.add_argument("--camera", type=_floats(6), metavar="EX,EY,EZ,TX,TY,TZ", help="start eye position and target")
+    v.add_argument("--fov", type=float, help="vertical field of view in degrees")
+    v.add_argument("--ipd", type=float, default=0.064, help="interpupillary distance (default 0.064)")
+    v.add_argument("--convergence", type=float, help="zero-parallax distance (default: parallel eyes)")
+    v.add_argument("--out", default="shots", help="screenshot folder (default ./shots)")
+    v.add_argument("--record", default="camera_path.json", help="camera path file P writes")
+    v.add_argument("--frames", type=int, help="close after N frames (smoke tests)")
+    v.set_defaults(func=cmd_preview)
     return p
 
 

@@ -1,0 +1,9 @@
+#version 430
+// One triangle that covers the viewport; no vertex buffer (gl_VertexID 0..2).
+out vec2 uv;
+
+void main() {
+    vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
+    uv = p;
+    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}

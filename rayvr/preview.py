@@ -1,0 +1,723 @@
+"""Desktop stereo preview: a glfw window that shows both eyes, moves with mouse and keys, shows
+per-pass GPU timings, and reloads the material config when its file changes.
+
+    python app.py [SCENE] [--materials FILE]        # or: rayvr preview ...
+
+Three layers, so the input handling is testable without a window:
+- `Camera`: fly and orbit navigation, IPD and convergence; builds the `StereoRig` of each frame.
+- `Controls`: the input state machine. Key names ("W", "TAB", "F12", as glfw spells them without
+  `KEY_`), mouse buttons, cursor and wheel go in; `ViewState` changes and requested actions
+  (screenshot, reload, ...) come out. No GL, no glfw.
+- `Preview`: the window. glfw callbacks translate events for `Controls`; `frame()` records the
+  renderer's passes, draws the eye images (side by side, cross-eyed, anaglyph, one eye), picks
+  the material under the cursor, draws the HUD and swaps.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import os
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import moderngl
+import numpy as np
+
+from . import materials as materials_mod
+from . import shaders
+from .camera import Pose, StereoRig, save_path
+from .gbuffer import NO_HIT
+
+log = logging.getLogger(__name__)
+
+STEREO_MODES = ("side-by-side", "cross-eyed", "anaglyph", "left", "right")
+RES_SCALES = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0)
+LOOK_RADIANS_PER_PIXEL = 0.004
+MAX_PITCH = math.radians(89.0)
+RECORD_FPS = 30.0  # camera paths are sampled at a fixed rate so replays keep the pace
+MESSAGE_SECONDS = 4.0
+EYE_UNIT, ATLAS_UNIT = 8, 9  # texture units clear of the G-buffer's 0..6
+PICK_BINDING = 7  # SSBO binding clear of the scene's 0..4 and the BVH's 8..
+
+# The keys, in the order the help overlay and README list them.
+KEYS = (
+    ("W A S D", "fly forward / left / back / right (orbit: nearer, turn, farther, turn)"),
+    ("Q E", "fly down / up (orbit: tilt)"),
+    ("Shift, Ctrl", "hold: move 4x faster, 4x slower"),
+    ("left drag", "look around (orbit: turn around the scene centre)"),
+    ("wheel", "fly speed (orbit: distance)"),
+    ("F", "fly <-> orbit around the scene centre"),
+    ("R", "reset camera, IPD and convergence"),
+    ("Tab, 1-5", "stereo mode: side-by-side, cross-eyed, anaglyph, left, right"),
+    ("V, Shift+V", "next / previous view: colour, then each debug view"),
+    ("- =", "IPD smaller / larger"),
+    ("C", "convergence at the scene centre / parallel eyes"),
+    ("[ ]", "convergence nearer / farther"),
+    ("O, Shift+O", "global effect override: next / previous (off = the config file)"),
+    ("T", "quadtree thresholds (no quadtree pass yet)"),
+    (", .", "resolution scale down / up"),
+    ("Y", "vsync on / off"),
+    ("P", "record a camera path on / off (saved on stop; rayvr capture --path)"),
+    ("F12", "screenshot: the files rayvr capture writes, plus the window"),
+    ("L", "reload the material config now"),
+    ("F2", "HUD on / off"),
+    ("H, F1", "this help"),
+    ("Esc", "quit"),
+)
+
+
+# ------------------------------------------------------------------------------- camera
+
+def _yaw_pitch(rotation) -> tuple[float, float]:
+    f = -np.asarray(rotation, float)[:, 2]
+    return math.atan2(-f[0], -f[2]), math.asin(float(np.clip(f[1], -1.0, 1.0)))
+
+
+def _forward(yaw: float, pitch: float) -> np.ndarray:
+    """Unit view direction; yaw 0 pitch 0 looks down -Z, positive yaw turns left."""
+    return np.array([-math.sin(yaw) * math.cos(pitch), math.sin(pitch), -math.cos(yaw) * math.cos(pitch)])
+
+
+class Camera:
+    """Head pose by fly or orbit navigation, plus the rig's IPD and convergence.
+
+    Orientation is yaw and pitch (no roll), so the horizon stays level however the mouse moves.
+    In orbit mode the eye sits at `distance` from `center`, looking at it."""
+
+    def __init__(self, rig: StereoRig, center, extent: float):
+        self.home = rig
+        self.center = np.asarray(center, dtype=np.float64)
+        self.extent = max(float(extent), 1e-6)
+        self.reset()
+
+    def reset(self) -> None:
+        rig = self.home
+        self.mode = "fly"
+        self.position = np.array(rig.pose.position, dtype=np.float64)
+        self.yaw, self.pitch = _yaw_pitch(rig.pose.rotation)
+        self.ipd, self.convergence = rig.ipd, rig.convergence
+        self.speed = self.extent * 0.25  # scene units per second
+        self.distance = max(float(np.linalg.norm(self.position - self.center)), self.extent * 1e-3)
+
+    @property
+    def forward(self) -> np.ndarray:
+        return _forward(self.yaw, self.pitch)
+
+    @property
+    def pose(self) -> Pose:
+        f = self.forward
+        up = (0.0, 1.0, 0.0) if abs(f[1]) < 0.999 else (0.0, 0.0, -1.0)
+        return Pose.look_at(self.position, self.position + f, up)
+
+    def rig(self, size) -> StereoRig:
+        return replace(self.home, pose=self.pose, ipd=self.ipd, convergence=self.convergence, size=tuple(size))
+
+    def set_mode(self, mode: str) -> None:
+        if mode == "orbit" and self.mode != "orbit":
+            # Keep the eye where it is and turn it towards the centre.
+            offset = self.center - self.position
+            self.distance = max(float(np.linalg.norm(offset)), self.extent * 1e-3)
+            if np.linalg.norm(offset) > 0:
+                f = offset / np.linalg.norm(offset)
+                self.yaw, self.pitch = math.atan2(-f[0], -f[2]), math.asin(float(np.clip(f[1], -1, 1)))
+            self._place_orbit()
+        self.mode = mode
+
+    def _place_orbit(self) -> None:
+        self.position = self.center - self.forward * self.distance
+
+    def look(self, dx: float, dy: float) -> None:
+        """Turn by a mouse movement in pixels (right and down positive)."""
+        self.yaw -= dx * LOOK_RADIANS_PER_PIXEL
+        self.pitch = float(np.clip(self.pitch - dy * LOOK_RADIANS_PER_PIXEL, -MAX_PITCH, MAX_PITCH))
+        if self.mode == "orbit":
+            self._place_orbit()
+
+    def move(self, right: float, up: float, forward: float, dt: float) -> None:
+        """Held keys: each axis in -1..1 (times a speed factor), for `dt` seconds."""
+        if self.mode == "fly":
+            f = self.forward
+            r = np.cross(f, [0.0, 1.0, 0.0])
+            r = r / np.linalg.norm(r) if np.linalg.norm(r) > 1e-9 else np.array([1.0, 0.0, 0.0])
+            step = (forward * f + right * r + up * np.array([0.0, 1.0, 0.0])) * self.speed * dt
+            self.position = self.position + step
+        else:  # orbit: forward = nearer, right = turn, up = tilt
+            self.distance = max(self.distance * math.exp(-forward * dt), self.extent * 1e-4)
+            self.yaw += right * dt
+            self.pitch = float(np.clip(self.pitch - up * dt, -MAX_PITCH, MAX_PITCH))
+            self._place_orbit()
+
+    def wheel(self, steps: float) -> None:
+        if self.mode == "fly":
+            self.speed = float(np.clip(self.speed * 1.25 ** steps, self.extent * 1e-4, self.extent * 100))
+        else:
+            self.distance = max(self.distance * 0.9 ** steps, self.extent * 1e-4)
+            self._place_orbit()
+
+    def scale_ipd(self, factor: float) -> None:
+        floor = max(self.home.ipd, 1e-3) / 16  # below this, stepping down means "no stereo"
+        if factor < 1:
+            self.ipd = 0.0 if self.ipd * factor < floor else self.ipd * factor
+        else:
+            self.ipd = floor if self.ipd == 0 else self.ipd * factor
+
+    def toggle_convergence(self) -> None:
+        self.convergence = None if self.convergence else max(
+            float(np.linalg.norm(self.center - self.position)), self.extent * 1e-3)
+
+    def scale_convergence(self, factor: float) -> None:
+        if self.convergence:
+            self.convergence *= factor
+
+
+# ---------------------------------------------------------------------------- controls
+
+@dataclass
+class ViewState:
+    """What the window shows; changed only by `Controls`."""
+
+    stereo: str = "side-by-side"
+    view: str = "color"
+    res_scale: float = 1.0
+    vsync: bool = True
+    hud: bool = True
+    help: bool = False
+    override: str | None = None  # effect forced on every material; None = the config file
+    recording: bool = False
+    quit: bool = False
+
+
+@dataclass
+class Controls:
+    """Input state machine: events in; `state` and `camera` change, and requests that need the
+    window or the disk are queued in `actions` for the window loop ("screenshot", "reload",
+    "vsync", "record", "quadtree")."""
+
+    camera: Camera
+    state: ViewState = field(default_factory=ViewState)
+    views: tuple = ()
+    effects: tuple = ()  # what the override cycles through (implemented effects only)
+    actions: list = field(default_factory=list)
+    held: set = field(default_factory=set)
+    cursor_pos: tuple | None = None  # framebuffer pixels, origin top-left
+    dragging: bool = False
+
+    def __post_init__(self):
+        if not self.views:
+            from .renderer import VIEWS
+            self.views = VIEWS
+        if not self.effects:
+            self.effects = tuple(materials_mod.implemented_effects())
+
+    def take_actions(self) -> list:
+        out, self.actions = self.actions, []
+        return out
+
+    def key(self, name: str, action: str = "press", shift: bool = False, ctrl: bool = False) -> None:
+        """`action` is "press", "repeat" or "release"; held movement keys are applied by `update`."""
+        if action == "release":
+            self.held.discard(name)
+            return
+        self.held.add(name)
+        s, cam = self.state, self.camera
+        step = -1 if shift else 1
+        if name in ("TAB", "1", "2", "3", "4", "5"):
+            i = STEREO_MODES.index(s.stereo)
+            i = (i + step) % len(STEREO_MODES) if name == "TAB" else int(name) - 1
+            s.stereo = STEREO_MODES[i]
+        elif name == "V":
+            s.view = self.views[(self.views.index(s.view) + step) % len(self.views)]
+        elif name == "O":
+            cycle = (None,) + tuple(self.effects)
+            s.override = cycle[(cycle.index(s.override) + step) % len(cycle)]
+        elif name in ("COMMA", "PERIOD"):
+            i = min(range(len(RES_SCALES)), key=lambda k: abs(RES_SCALES[k] - s.res_scale))
+            i = max(0, min(len(RES_SCALES) - 1, i + (1 if name == "PERIOD" else -1)))
+            s.res_scale = RES_SCALES[i]
+        elif name == "MINUS":
+            cam.scale_ipd(1 / 1.25)
+        elif name == "EQUAL":
+            cam.scale_ipd(1.25)
+        elif name == "C" and action == "press":
+            cam.toggle_convergence()
+        elif name == "LEFT_BRACKET":
+            cam.scale_convergence(1 / 1.25)
+        elif name == "RIGHT_BRACKET":
+            cam.scale_convergence(1.25)
+        elif action != "press":
+            return  # the rest are toggles: auto-repeat must not flip them back and forth
+        elif name == "F":
+            cam.set_mode("orbit" if cam.mode == "fly" else "fly")
+        elif name == "R":
+            cam.reset()
+        elif name == "Y":
+            s.vsync = not s.vsync
+            self.actions.append("vsync")
+        elif name == "P":
+            s.recording = not s.recording
+            self.actions.append("record")
+        elif name == "T":
+            self.actions.append("quadtree")
+        elif name == "F12":
+            self.actions.append("screenshot")
+        elif name == "L":
+            self.actions.append("reload")
+        elif name == "F2":
+            s.hud = not s.hud
+        elif name in ("H", "F1"):
+            s.help = not s.help
+        elif name == "ESCAPE":
+            if s.help:
+                s.help = False
+            else:
+                s.quit = True
+
+    def mouse_button(self, button: str, pressed: bool) -> None:
+        if button == "left":
+            self.dragging = pressed
+
+    def cursor(self, x: float, y: float) -> None:
+        if self.dragging and self.cursor_pos is not None:
+            self.camera.look(x - self.cursor_pos[0], y - self.cursor_pos[1])
+        self.cursor_pos = (x, y)
+
+    def scroll(self, steps: float) -> None:
+        self.camera.wheel(steps)
+
+    def update(self, dt: float) -> None:
+        """Apply held movement keys for `dt` seconds."""
+        h = self.held
+        axis = lambda neg, pos: float(pos in h) - float(neg in h)  # noqa: E731
+        right, up, forward = axis("A", "D"), axis("Q", "E"), axis("S", "W")
+        if right or up or forward:
+            factor = 1.0
+            if h & {"LEFT_SHIFT", "RIGHT_SHIFT"}:
+                factor *= 4.0
+            if h & {"LEFT_CONTROL", "RIGHT_CONTROL"}:
+                factor /= 4.0
+            self.camera.move(right * factor, up * factor, forward * factor, dt)
+
+
+# ------------------------------------------------------------------------------ layout
+
+@dataclass
+class Layout:
+    """How the eyes fill a framebuffer: what to render and where each layer goes."""
+
+    eyes: str  # what Renderer.record renders: both | left | right
+    eye_size: tuple  # per-eye render size (after the resolution scale)
+    viewports: list  # (x, y, w, h, layer), GL bottom-up pixels
+    anaglyph: bool = False
+
+    def texel_at(self, x: float, y: float, fb_height: int):
+        """The (x, y, layer) eye texel (GL bottom-up rows) under framebuffer pixel (x, y)
+        counted from the top-left, or None outside every viewport."""
+        gy = fb_height - y
+        for vx, vy, vw, vh, layer in self.viewports:
+            if vx <= x < vx + vw and vy <= gy < vy + vh:
+                tx = int((x - vx) / vw * self.eye_size[0])
+                ty = int((gy - vy) / vh * self.eye_size[1])
+                return (min(tx, self.eye_size[0] - 1), min(ty, self.eye_size[1] - 1), layer)
+        return None
+
+
+def layout_for(stereo: str, fb_size, scale: float = 1.0) -> Layout:
+    w, h = int(fb_size[0]), int(fb_size[1])
+    scaled = lambda vw, vh: (max(1, round(vw * scale)), max(1, round(vh * scale)))  # noqa: E731
+    if stereo in ("side-by-side", "cross-eyed"):
+        half = w // 2
+        left, right = (0, 0, half, h), (half, 0, w - half, h)
+        first, second = (0, 1) if stereo == "side-by-side" else (1, 0)  # layer 0 = left eye
+        return Layout("both", scaled(half, h), [(*left, first), (*right, second)])
+    if stereo == "anaglyph":
+        return Layout("both", scaled(w, h), [(0, 0, w, h, 0)], anaglyph=True)
+    if stereo in ("left", "right"):
+        return Layout(stereo, scaled(w, h), [(0, 0, w, h, 0)])
+    raise ValueError(f"unknown stereo mode {stereo!r}; allowed: {', '.join(STEREO_MODES)}")
+
+
+def _glfw_key_names() -> dict:
+    import glfw
+
+    return {getattr(glfw, n): n[4:] for n in dir(glfw) if n.startswith("KEY_") and n != "KEY_UNKNOWN"}
+
+
+def _wrap(text: str, width_px: int, measure) -> list[str]:
+    """Greedy word wrap by measured pixel width (the HUD font is proportional)."""
+    lines = []
+    for para in text.splitlines() or [""]:
+        line = ""
+        for word in para.split(" "):
+            cand = f"{line} {word}" if line else word
+            if line and measure(cand) > width_px:
+                lines.append(line)
+                line = word
+            else:
+                line = cand
+        lines.append(line)
+    return lines
+
+
+# ------------------------------------------------------------------------------ window
+
+class Preview:
+    """The preview window around a `Renderer`. `run()` loops until the window closes;
+    `frame()` renders one frame (tests drive it directly)."""
+
+    def __init__(self, scene=None, materials=None, *, size=(1280, 720), title=None, visible=True,
+                 vsync=True, stereo="side-by-side", view="color", res_scale=None, rig=None,
+                 rig_options=None, look_at=None, out_dir="shots", path_file="camera_path.json", hud=True):
+        import glfw
+
+        from .context import create_window_context
+        from .renderer import Renderer
+
+        self.glfw = glfw
+        self.window, self.gl = create_window_context(size, title or "rayvr preview", visible, vsync)
+        try:
+            # Start from the built-in all-`raster` config; the file is applied below so that a bad
+            # file opens the window with the error in the HUD instead of failing.
+            self.renderer = Renderer(scene, None, gl=self.gl)
+            ctx = self.ctx = self.gl.ctx
+            self.home_rig = rig or StereoRig.for_scene(self.renderer.scene, size=size, **(rig_options or {}))
+            if look_at is not None:  # (eye, target)
+                self.home_rig = replace(self.home_rig, pose=Pose.look_at(*look_at))
+            self.camera = Camera(self.home_rig, self.renderer.scene.center, self.renderer.scene.extent)
+            gl_name = ctx.info.get("GL_RENDERER", "")
+            if res_scale is None:  # a CPU rasterizer is slow: start at half resolution there
+                res_scale = 0.5 if ("llvmpipe" in gl_name or "softpipe" in gl_name) else 1.0
+            state = ViewState(stereo=stereo, view=view, res_scale=res_scale, vsync=vsync, hud=hud)
+            self.controls = Controls(self.camera, state)
+            self.gl_name = gl_name
+            self.scene_name = str(scene) if isinstance(scene, (str, Path)) else self.renderer.scene.name
+            self._init_gl()
+        except BaseException:
+            self.gl.release()
+            raise
+        self.materials_path = Path(materials) if materials else None
+        self.file_config = materials_mod.MaterialConfig()
+        self.config_error: str | None = None
+        self._config_stamp = None
+        self.out_dir, self.path_file = Path(out_dir), Path(path_file)
+        self.message, self._message_until = "", 0.0
+        self.recorded: list[Pose] | None = None
+        self._record_clock = 0.0
+        self.picked = None  # (material index, effect id) under the cursor
+        self.timings: dict = {}  # pass -> smoothed GPU ms
+        self.frame_ms = 0.0
+        self.frames = 0
+        self.screenshots = 0
+        self.last_files: list[Path] = []
+        self.last_frame = None  # the FrameContext of the newest frame
+        self._last_time = time.perf_counter()
+        self._applied_override = None
+        if self.materials_path is not None:
+            self.poll_config(force=True)
+        self._install_callbacks()
+
+    @property
+    def state(self) -> ViewState:
+        return self.controls.state
+
+    def _init_gl(self) -> None:
+        ctx = self.ctx
+        self.eye_program = shaders.program(ctx, "preview/fullscreen.vert", "preview/eyes.frag")
+        self.eye_vao = ctx.vertex_array(self.eye_program, [])
+        self.sampler = ctx.sampler(repeat_x=False, repeat_y=False)
+        self.pick_program = shaders.compute(ctx, "preview/pick.comp")
+        self.pick_buffer = ctx.buffer(reserve=8)
+        from .hud import Hud
+
+        self.hud = Hud(ctx)
+
+    # -- glfw callbacks (tests call these with glfw constants, as glfw would) -------------
+    def _install_callbacks(self) -> None:
+        glfw, w = self.glfw, self.window
+        self._key_names = _glfw_key_names()
+        glfw.set_key_callback(w, self.on_key)
+        glfw.set_mouse_button_callback(w, self.on_mouse_button)
+        glfw.set_cursor_pos_callback(w, self.on_cursor_pos)
+        glfw.set_scroll_callback(w, self.on_scroll)
+
+    def on_key(self, window, key, scancode, action, mods) -> None:
+        glfw = self.glfw
+        name = self._key_names.get(key)
+        if name is None:
+            return
+        kind = {glfw.PRESS: "press", glfw.REPEAT: "repeat", glfw.RELEASE: "release"}[action]
+        self.controls.key(name, kind, shift=bool(mods & glfw.MOD_SHIFT), ctrl=bool(mods & glfw.MOD_CONTROL))
+
+    def on_mouse_button(self, window, button, action, mods) -> None:
+        glfw = self.glfw
+        name = {glfw.MOUSE_BUTTON_LEFT: "left", glfw.MOUSE_BUTTON_RIGHT: "right",
+                glfw.MOUSE_BUTTON_MIDDLE: "middle"}.get(button)
+        if name:
+            self.controls.mouse_button(name, action == glfw.PRESS)
+
+    def on_cursor_pos(self, window, x, y) -> None:
+        # Window coordinates -> framebuffer pixels (they differ on high-DPI screens).
+        ww, wh = self.glfw.get_window_size(self.window)
+        fw, fh = self.glfw.get_framebuffer_size(self.window)
+        self.controls.cursor(x * fw / max(ww, 1), y * fh / max(wh, 1))
+
+    def on_scroll(self, window, dx, dy) -> None:
+        self.controls.scroll(dy)
+
+    # -- material config ----------------------------------------------------------------
+    def poll_config(self, force: bool = False) -> bool:
+        """Re-read the config file when it changed on disk (or `force`); True when re-read."""
+        if self.materials_path is None:
+            return False
+        try:
+            st = os.stat(self.materials_path)
+            stamp = (st.st_mtime_ns, st.st_size, st.st_ino)
+        except OSError as exc:
+            stamp = ("missing", exc.errno)
+        if stamp == self._config_stamp and not force:
+            return False
+        self._config_stamp = stamp
+        try:
+            config = materials_mod.load_config(self.materials_path)
+            config.assign(self.renderer.scene.material_names())  # warns about unmatched keys
+        except materials_mod.ConfigError as exc:
+            # Keep rendering with the last good config; the HUD shows why the file was refused.
+            self.config_error = str(exc)
+            log.warning("%s (keeping the previous material config)", exc)
+            return True
+        self.file_config, self.config_error = config, None
+        self._apply_materials()
+        self.say(f"material config loaded: {self.materials_path.name}")
+        return True
+
+    def override_config(self, effect: str) -> materials_mod.MaterialConfig:
+        """Every material gets `effect`, with the file's [params] for it."""
+        return materials_mod.parse_config({"default": effect, "params": self.file_config.params},
+                                          f"override:{effect}")
+
+    def _apply_materials(self) -> None:
+        effect = self.state.override
+        self.renderer.set_materials(self.override_config(effect) if effect else self.file_config)
+        self._applied_override = effect
+
+    def cycle_quadtree_thresholds(self) -> None:
+        # Hook for the `ssr` effect's depth quadtree: when that pass exists, step
+        # (gamma_norm, gamma_dist) through a few presets here, through an override config's
+        # [params.ssr], and show them in the HUD. There is no quadtree pass yet.
+        self.say("quadtree thresholds: no quadtree pass in this rayvr yet (needs the ssr effect)")
+
+    # -- actions ------------------------------------------------------------------------
+    def say(self, text: str, seconds: float = MESSAGE_SECONDS) -> None:
+        self.message, self._message_until = text, time.perf_counter() + seconds
+        log.info("%s", text)
+
+    def _do(self, action: str) -> None:
+        if action == "vsync":
+            self.glfw.swap_interval(1 if self.state.vsync else 0)
+        elif action == "reload":
+            self.poll_config(force=True)
+        elif action == "quadtree":
+            self.cycle_quadtree_thresholds()
+        elif action == "record":
+            if self.state.recording:
+                self.recorded, self._record_clock = [self.camera.pose], 0.0
+                self.say("recording camera path (P stops)")
+            else:
+                self.save_recording()
+
+    def save_recording(self) -> Path | None:
+        poses, self.recorded = self.recorded, None
+        self.state.recording = False
+        if not poses:
+            return None
+        save_path(self.path_file, poses, fps=RECORD_FPS, ipd=self.camera.ipd, fov_y=self.home_rig.fov_y)
+        self.say(f"camera path saved: {self.path_file} ({len(poses)} poses; rayvr capture --path {self.path_file})")
+        return self.path_file
+
+    def screenshot(self, window_image: np.ndarray | None, layout: Layout) -> list[Path]:
+        """Write what `rayvr capture` writes for the current view (same code path, same file
+        names, prefix `preview_NNNN`), plus the window as `<prefix>_window.png`."""
+        from .capture import CaptureJob, run_capture, write_summary
+        from .output import write_png
+
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        while True:
+            self.screenshots += 1
+            prefix = f"preview_{self.screenshots:04d}"
+            if not any(self.out_dir.glob(prefix + "_*")):
+                break
+        rig = self.camera.rig(layout.eye_size)
+        job = CaptureJob(rig, [rig.pose], layout.eyes, self.state.view, (), self.out_dir, prefix)
+        summary = run_capture(self.renderer, job, progress=False)
+        files = [Path(f) for f in summary["files"]] + [write_summary(job, summary)]
+        if window_image is not None:
+            p = self.out_dir / f"{prefix}_window.png"
+            write_png(p, window_image)
+            files.append(p)
+        self.last_files = files
+        self.say(f"screenshot: {self.out_dir}/{prefix}_* ({len(files)} files)")
+        return files
+
+    # -- the frame ----------------------------------------------------------------------
+    def frame(self, grab: bool = False) -> np.ndarray | None:
+        """Handle input, render, draw and swap one frame. With `grab`, return the window as
+        (H, W, 3) uint8, rows top-down, read back before the swap."""
+        now = time.perf_counter()
+        dt, self._last_time = now - self._last_time, now
+        self.frame_ms += ((dt * 1000.0) - self.frame_ms) * (0.1 if self.frames > 2 else 1.0)
+        self.controls.update(min(dt, 0.1))  # a stalled frame must not throw the camera away
+        self.poll_config()
+        actions = self.controls.take_actions()
+        for a in actions:
+            if a != "screenshot":
+                self._do(a)
+        if self.state.override != self._applied_override:
+            self._apply_materials()
+        fb = self.glfw.get_framebuffer_size(self.window)
+        if fb[0] < 1 or fb[1] < 1:  # minimized
+            return None
+        layout = layout_for(self.state.stereo, fb, self.state.res_scale)
+        rig = self.camera.rig(layout.eye_size)
+        fc = self.renderer.record(rig, layout.eyes, self.state.view)
+        self.last_frame = fc
+        self._draw_eyes(fc, layout, fb)
+        self._pick(fc, layout, fb)
+        if self.state.hud or self.state.help:
+            self._draw_hud(layout, fb)
+        image = None
+        if grab or "screenshot" in actions:
+            image = np.frombuffer(self.ctx.screen.read(components=3), np.uint8).reshape(fb[1], fb[0], 3)[::-1].copy()
+        self.glfw.swap_buffers(self.window)
+        new = self.renderer.timer.read_ms(fc.pass_names)
+        a = 0.1 if self.frames > 2 else 1.0
+        # Smoothed for reading; passes that no longer run (another view) drop out.
+        self.timings = {k: self.timings.get(k, v) + (v - self.timings.get(k, v)) * a for k, v in new.items()}
+        if self.recorded is not None:
+            self._record_clock += dt
+            if self._record_clock >= 1.0 / RECORD_FPS:
+                self._record_clock %= 1.0 / RECORD_FPS
+                self.recorded.append(self.camera.pose)
+        if "screenshot" in actions:
+            self.screenshot(image, layout)
+        self.frames += 1
+        return image
+
+    def _draw_eyes(self, fc, layout: Layout, fb) -> None:
+        ctx = self.ctx
+        ctx.screen.use()
+        ctx.viewport = (0, 0, fb[0], fb[1])
+        ctx.clear(0.0, 0.0, 0.0, 1.0)
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+        tex = fc.target("ldr")
+        vw, vh = layout.viewports[0][2:4]
+        exact = tuple(layout.eye_size) == (vw, vh)  # 1:1 pixels: no filtering, exactly the capture
+        f = moderngl.NEAREST if exact else moderngl.LINEAR
+        self.sampler.filter = (f, f)
+        tex.use(EYE_UNIT)
+        self.sampler.use(EYE_UNIT)
+        self.eye_program["eyes"].value = EYE_UNIT
+        self.eye_program["anaglyph"].value = int(layout.anaglyph)
+        for x, y, w, h, layer in layout.viewports:
+            ctx.viewport = (x, y, w, h)
+            self.eye_program["layer"].value = layer
+            self.eye_vao.render(moderngl.TRIANGLES, vertices=3)
+        self.sampler.clear(EYE_UNIT)  # sampler objects override texture state for later passes
+        ctx.viewport = (0, 0, fb[0], fb[1])
+
+    def _pick(self, fc, layout: Layout, fb) -> None:
+        pos = self.controls.cursor_pos
+        texel = layout.texel_at(pos[0], pos[1], fb[1]) if pos is not None else None
+        if texel is None:
+            self.picked = None
+            return
+        fc.gbuffer.textures["material"].use(5)
+        self.pick_buffer.bind_to_storage_buffer(PICK_BINDING)
+        self.pick_program["texel"].value = texel
+        self.pick_program.run(1, 1, 1)
+        self.ctx.memory_barrier(moderngl.BUFFER_UPDATE_BARRIER_BIT)
+        self.picked = tuple(int(v) for v in np.frombuffer(self.pick_buffer.read(), np.uint32))
+
+    def picked_text(self) -> str:
+        if self.picked is None:
+            return "cursor: -"
+        index, effect_id = self.picked
+        if index == NO_HIT:
+            return "cursor: background"
+        names = self.renderer.scene.material_names()
+        name = names[index] if index < len(names) else f"#{index}"
+        effect = materials_mod.effect_by_id(effect_id)
+        rule = self.renderer.assignments[index].rule if index < len(self.renderer.assignments) else "?"
+        return f"cursor: {name} (#{index}) -> {effect.name if effect else effect_id}  [{rule}]"
+
+    def hud_lines(self, layout: Layout, fb) -> list:
+        """The HUD text, (text, rgba) per line."""
+        s, cam = self.state, self.camera
+        white, dim, red, yellow = (1, 1, 1, 1), (0.7, 0.7, 0.7, 1), (1, 0.35, 0.3, 1), (1, 0.85, 0.3, 1)
+        fps = 1000.0 / self.frame_ms if self.frame_ms > 0 else 0.0
+        lines = [(f"{self.frame_ms:6.1f} ms/frame  {fps:5.1f} fps   {self.gl_name}", white)]
+        gpu = "  ".join(f"{k} {v:.2f}" for k, v in self.timings.items())
+        lines.append((f"GPU ms  {gpu}   total {sum(self.timings.values()):.2f}", white))
+        ew, eh = layout.eye_size
+        lines.append((f"{s.stereo}  view {s.view}   eye {ew}x{eh} (scale {s.res_scale:g})  window "
+                      f"{fb[0]}x{fb[1]}  vsync {'on' if s.vsync else 'off'}", white))
+        conv = f"{cam.convergence:.3g}" if cam.convergence else "parallel"
+        speed = f"speed {cam.speed:.3g}/s" if cam.mode == "fly" else f"distance {cam.distance:.3g}"
+        lines.append((f"{cam.mode}  {speed}   IPD {cam.ipd:.4g}  convergence {conv}", white))
+        lines.append((self.picked_text(), white))
+        src = self.materials_path.name if self.materials_path else "built-in (all raster)"
+        if s.override:
+            lines.append((f"effect override: {s.override} on every material   (config {src} kept)", yellow))
+        else:
+            lines.append((f"effects from config: {src}", white))
+        if self.config_error:
+            lines.append(("config error, keeping the last good config:", red))
+            width = max(200, fb[0] - 40)
+            lines += [(ln, red) for ln in _wrap(self.config_error, width, self.hud.width)]
+        if self.recorded is not None:
+            lines.append((f"REC camera path: {len(self.recorded)} poses (P stops)", red))
+        if self.message and time.perf_counter() < self._message_until:
+            lines.append((self.message, yellow))
+        lines.append(("H: help", dim))
+        return lines
+
+    def _draw_hud(self, layout: Layout, fb) -> None:
+        hud = self.hud
+        if self.state.hud and not self.state.help:
+            hud.panel(8, 8, self.hud_lines(layout, fb))
+        if self.state.help:
+            key_w = max(hud.width(k) for k, _ in KEYS) + 16
+            rows = [("rayvr preview: keys", (1, 0.85, 0.3, 1))] + [(f"{k}", (1, 1, 1, 1)) for k, _ in KEYS]
+            w = key_w + max(hud.width(d) for _, d in KEYS) + 12
+            h = len(rows) * hud.line_height + 12
+            x, y = max(8, (fb[0] - w) // 2), max(8, (fb[1] - h) // 2)
+            hud.rect(x, y, w, h, (0.0, 0.0, 0.0, 0.8))
+            hud.text(x + 6, y + 6, rows[0][0], rows[0][1])
+            for i, (k, d) in enumerate(KEYS, start=1):
+                ty = y + 6 + i * hud.line_height
+                hud.text(x + 6, ty, k, (0.6, 0.85, 1.0, 1.0))
+                hud.text(x + 6 + key_w, ty, d)
+        hud.draw(fb)
+
+    # -- loop and lifetime --------------------------------------------------------------
+    def should_close(self) -> bool:
+        return self.state.quit or bool(self.glfw.window_should_close(self.window))
+
+    def run(self, max_frames: int | None = None) -> None:
+        while not self.should_close() and (max_frames is None or self.frames < max_frames):
+            self.glfw.poll_events()
+            self.frame()
+
+    def close(self) -> None:
+        if self.recorded is not None:
+            self.save_recording()
+        for obj in (self.eye_vao, self.eye_program, self.sampler, self.pick_program, self.pick_buffer):
+            obj.release()
+        self.hud.release()
+        self.renderer.release()
+        self.gl.release()  # destroys the window
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
