@@ -313,9 +313,9 @@ class Layout:
     def texel_at(self, x: float, y: float, fb_height: int):
         """The (x, y, layer) eye texel (GL bottom-up rows) under framebuffer pixel (x, y)
         counted from the top-left, or None outside every viewport."""
-        gy = fb_height - y
+        gy = fb_height - y  # cursor y in [0, H) from the top -> (0, H] from the bottom
         for vx, vy, vw, vh, layer in self.viewports:
-            if vx <= x < vx + vw and vy <= gy < vy + vh:
+            if vx <= x < vx + vw and vy < gy <= vy + vh:
                 tx = int((x - vx) / vw * self.eye_size[0])
                 ty = int((gy - vy) / vh * self.eye_size[1])
                 return (min(tx, self.eye_size[0] - 1), min(ty, self.eye_size[1] - 1), layer)
@@ -409,7 +409,7 @@ class Preview:
         self.frames = 0
         self.screenshots = 0
         self.last_files: list[Path] = []
-        self.last_frame = None  # the FrameContext of the newest frame
+        self.last_frame = self.last_layout = None  # the newest frame's FrameContext and Layout
         self._last_time = time.perf_counter()
         self._applied_override = None
         if self.materials_path is not None:
@@ -520,7 +520,8 @@ class Preview:
             self.cycle_quadtree_thresholds()
         elif action == "record":
             if self.state.recording:
-                self.recorded, self._record_clock = [self.camera.pose], 0.0
+                # A full period on the clock: the first pose is taken at the end of this frame.
+                self.recorded, self._record_clock = [], 1.0 / RECORD_FPS
                 self.say("recording camera path (P stops)")
             else:
                 self.save_recording()
@@ -579,7 +580,7 @@ class Preview:
         layout = layout_for(self.state.stereo, fb, self.state.res_scale)
         rig = self.camera.rig(layout.eye_size)
         fc = self.renderer.record(rig, layout.eyes, self.state.view)
-        self.last_frame = fc
+        self.last_frame, self.last_layout = fc, layout
         self._draw_eyes(fc, layout, fb)
         self._pick(fc, layout, fb)
         if self.state.hud or self.state.help:
