@@ -1,8 +1,10 @@
 """The layered G-buffer: one texture array per channel, layer = eye (mono is 1 layer).
 
-CHANNELS is the one declaration of what the G-buffer holds; the fragment shader
-(glsl/gbuffer/gbuffer.frag) writes colour attachment i = the i-th colour channel and compute
-passes read them through glsl/common/gbuffer.glsl at texture unit `unit`.
+CHANNELS is the one declaration of what the G-buffer holds. It is made in two steps: a
+visibility raster writes `depth` and `triangle` only (glsl/gbuffer/visibility.*), then a
+compute resolve fills every other channel from the triangle and the pixel's ray
+(glsl/gbuffer/resolve.comp, images bound at `image` below). Later passes read all channels
+through glsl/common/gbuffer.glsl at texture unit `unit`.
 """
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ GL_DEPTH_ATTACHMENT = 0x8D00
 GL_FRAMEBUFFER_COMPLETE = 0x8CD5
 GL_TEXTURE_MIN_FILTER, GL_TEXTURE_MAG_FILTER, GL_NEAREST = 0x2801, 0x2800, 0x2600
 GL_TEXTURE0 = 0x84C0
-GL_COLOR, GL_DEPTH = 0x1800, 0x1801
+GL_DEPTH = 0x1801
 
 
 @dataclass(frozen=True)
@@ -30,17 +32,18 @@ class Channel:
     components: int
     dtype: str  # moderngl dtype; 'depth' = 32-bit float depth attachment
     unit: int  # texture unit compute passes read it from
+    image: int  # image unit the resolve writes it at (-1: written by the raster only)
     meaning: str
 
 
 CHANNELS = (
-    Channel("depth", 1, "depth", 0, "reversed-Z depth: near/view_distance (1 at near, 0 at infinity)"),
-    Channel("position", 4, "f4", 1, "xyz scene-local position (world - scene.origin), w linear view depth"),
-    Channel("normal", 4, "f2", 2, "xyz world-space shading normal facing the eye, w roughness"),
-    Channel("albedo", 4, "f2", 3, "rgb linear base colour, a metallic"),
-    Channel("emission", 4, "f2", 4, "rgb emitted radiance"),
-    Channel("material", 2, "u4", 5, "x material index, y effect ID (255 = background)"),
-    Channel("triangle", 1, "u4", 6, "triangle ID (0xFFFFFFFF = background)"),
+    Channel("depth", 1, "depth", 0, -1, "reversed-Z depth: near/view_distance (1 at near, 0 at infinity)"),
+    Channel("position", 4, "f4", 1, 0, "xyz scene-local position (world - scene.origin), w linear view depth"),
+    Channel("normal", 4, "f2", 2, 1, "xyz world-space shading normal facing the eye, w roughness"),
+    Channel("albedo", 4, "f2", 3, 2, "rgb linear base colour, a metallic"),
+    Channel("emission", 4, "f2", 4, 3, "rgb emitted radiance"),
+    Channel("material", 2, "u4", 5, 4, "x material index, y effect ID (255 = background)"),
+    Channel("triangle", 1, "u4", 6, 5, "triangle ID (0xFFFFFFFF = background)"),
 )
 COLOR_CHANNELS = tuple(c for c in CHANNELS if c.dtype != "depth")
 NO_HIT = 0xFFFFFFFF
@@ -48,7 +51,8 @@ BACKGROUND_EFFECT = 255
 
 
 class GBuffer:
-    """The G-buffer textures for one size and layer count, plus the layered framebuffer."""
+    """The G-buffer textures for one size and layer count, plus the layered visibility framebuffer
+    (triangle + depth attachments)."""
 
     def __init__(self, gl, size: tuple[int, int], layers: int):
         self.gl, self.size, self.layers = gl, tuple(size), layers
@@ -59,7 +63,7 @@ class GBuffer:
             tex = ctx.texture_array((w, h, layers), ch.components, dtype=ch.dtype)
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self.textures[ch.name] = tex
-        self.fbo = ctx.framebuffer([self.textures[c.name] for c in COLOR_CHANNELS])
+        self.fbo = ctx.framebuffer([self.textures["triangle"]])
         # moderngl sets glDepthMask from the attachments it knows of on every use(): it does not
         # know the raw depth array attached below, so depth writes must be enabled explicitly.
         self.fbo.depth_mask = True
@@ -81,26 +85,28 @@ class GBuffer:
             raise RuntimeError(f"layered G-buffer framebuffer incomplete (status 0x{status:x})")
 
     def clear(self) -> None:
-        """Background: float channels 0, material (NO_HIT, 255), triangle NO_HIT, depth 0
-        (reversed-Z: 0 is infinitely far). glClearBuffer* clears every layer, and is the
-        defined way to clear integer attachments."""
+        """Depth to 0 (reversed-Z: infinitely far) on every layer. The triangle channel needs no
+        clear: the resolve treats depth 0 as background and rewrites it."""
         self.fbo.use()
         raw = self.gl.raw
         raw.glBindFramebuffer(GL_FRAMEBUFFER, self.fbo.glo)
-        for i, ch in enumerate(COLOR_CHANNELS):
-            if ch.dtype == "u4":
-                value = [NO_HIT, BACKGROUND_EFFECT, 0, 0] if ch.name == "material" else [NO_HIT, 0, 0, 0]
-                raw.glClearBufferuiv(GL_COLOR, i, (ctypes.c_uint * 4)(*value))
-            else:
-                raw.glClearBufferfv(GL_COLOR, i, (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0))
         raw.glClearBufferfv(GL_DEPTH, 0, (ctypes.c_float * 1)(0.0))
+
+    def bind_for_writing(self) -> None:
+        """Bind the channels the resolve writes to their image units (and depth for reading)."""
+        for ch in COLOR_CHANNELS:
+            self.textures[ch.name].bind_to_image(ch.image, read=ch.name == "triangle", write=True)
+        self._bind_depth()
+
+    def _bind_depth(self) -> None:
+        self.gl.raw.glActiveTexture(GL_TEXTURE0 + CHANNELS[0].unit)
+        self.gl.raw.glBindTexture(GL_TEXTURE_2D_ARRAY, self.depth_name)
 
     def bind_for_reading(self) -> None:
         """Bind every channel to its texture unit (glsl/common/gbuffer.glsl)."""
         for ch in COLOR_CHANNELS:
             self.textures[ch.name].use(ch.unit)
-        self.gl.raw.glActiveTexture(GL_TEXTURE0 + CHANNELS[0].unit)
-        self.gl.raw.glBindTexture(GL_TEXTURE_2D_ARRAY, self.depth_name)
+        self._bind_depth()
 
     def read(self, name: str, layer: int) -> np.ndarray:
         """One channel of one layer as a numpy array, rows top-down."""

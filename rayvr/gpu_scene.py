@@ -67,7 +67,8 @@ class GpuScene:
         self.ctx, self.scene = ctx, scene
         limit = gl.max_ssbo_bytes
         interleaved = np.concatenate([scene.vertices, scene.normals, scene.uvs], axis=1).astype("f4")
-        check_buffer_size("vertices", interleaved.nbytes, 0)
+        check_buffer_size("vertices", interleaved.nbytes, limit)
+        check_buffer_size("indices", scene.indices.nbytes, limit)
         check_buffer_size("triangle_material", scene.triangle_material.nbytes, limit)
         self.vbo = ctx.buffer(np.ascontiguousarray(interleaved))
         self.ibo = ctx.buffer(scene.indices)
@@ -88,6 +89,8 @@ class GpuScene:
         self.triangle_material.bind_to_storage_buffer(0)
         self.materials.bind_to_storage_buffer(1)
         self.lights.bind_to_storage_buffer(2)
+        self.vbo.bind_to_storage_buffer(3)
+        self.ibo.bind_to_storage_buffer(4)
 
     @staticmethod
     def _upload_textures(ctx, scene: Scene):

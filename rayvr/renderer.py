@@ -23,7 +23,7 @@ from .frame import FramePlan, PassTimer, schedule
 from .gbuffer import GBuffer, NO_HIT
 from .gpu_scene import GpuScene
 from .passes.debug_view import DEBUG_VIEWS, DebugViewPass
-from .passes.gbuffer import GBufferPass, pick_layer_mode
+from .passes.gbuffer import GBufferResolvePass, VisibilityPass, pick_layer_mode
 from .passes.resolve import TONEMAPPERS, ResolvePass
 from .passes.shade import ShadeDirectPass
 
@@ -94,7 +94,7 @@ class FrameContext:
 
 def _all_passes():
     """Every pass rayvr has, in registration order (the graph picks and orders what runs)."""
-    return [GBufferPass(), ShadeDirectPass(), ResolvePass(), DebugViewPass()]
+    return [VisibilityPass(), GBufferResolvePass(), ShadeDirectPass(), ResolvePass(), DebugViewPass()]
 
 
 class Renderer:

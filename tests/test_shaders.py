@@ -53,5 +53,5 @@ def test_every_shipped_shader_compiles(gl):
     for path in sorted(GLSL_DIR.rglob("*.comp")):
         shaders.compute(gl.ctx, str(path.relative_to(GLSL_DIR))).release()
     for mode in (0, 1):
-        shaders.program(gl.ctx, "gbuffer/gbuffer.vert", "gbuffer/gbuffer.frag",
-                        "gbuffer/gbuffer.geom" if mode else None, {"LAYER_MODE": mode, "LAYERS": 2}).release()
+        shaders.program(gl.ctx, "gbuffer/visibility.vert", "gbuffer/visibility.frag",
+                        "gbuffer/visibility.geom" if mode else None, {"LAYER_MODE": mode, "LAYERS": 2}).release()

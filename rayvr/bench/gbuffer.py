@@ -1,8 +1,10 @@
 """`rayvr bench gbuffer`: G-buffer GPU time, one layered stereo pass vs two mono passes.
 
-Each layer mode renders the same rig; the G-buffer pass's GPU time comes from its GL timer
-query (median over `repeat` frames after `warmup`). Only meaningful on a real GPU: llvmpipe's
-timer queries are not (see ../shared/references/platform-notes.md).
+The G-buffer is two passes: the visibility raster (triangle ID + depth; the layer mode decides
+how both eyes are drawn) and the compute resolve that fills the other channels. Each layer mode
+renders the same rig; GPU times come from the passes' GL timer queries (median over `repeat`
+frames after `warmup`). Only meaningful on a real GPU: llvmpipe's timer queries are not (see
+../shared/references/platform-notes.md).
 """
 from __future__ import annotations
 
@@ -38,16 +40,19 @@ def load_bench_scene(name: str):
 
 
 def time_gbuffer(renderer: Renderer, rig: StereoRig, repeat: int, warmup: int) -> dict:
-    ms = []
+    passes = ("visibility", "gbuffer")
+    ms = {p: [] for p in passes}
     for i in range(warmup + repeat):
-        fc = renderer.record(rig, "both", "color")
-        t = renderer.timer.read_ms(["gbuffer"])["gbuffer"]
+        renderer.record(rig, "both", "color")
+        t = renderer.timer.read_ms(passes)
         if i >= warmup:
-            ms.append(t)
-    del fc
-    a = np.asarray(ms)
-    return {"gbuffer_ms_median": float(np.median(a)), "gbuffer_ms_min": float(a.min()),
-            "gbuffer_ms_p90": float(np.percentile(a, 90)), "frames": len(a)}
+            for p in passes:
+                ms[p].append(t[p])
+    vis, res = np.asarray(ms["visibility"]), np.asarray(ms["gbuffer"])
+    total = vis + res
+    return {"visibility_ms": float(np.median(vis)), "resolve_ms": float(np.median(res)),
+            "gbuffer_ms_median": float(np.median(total)), "gbuffer_ms_min": float(total.min()),
+            "gbuffer_ms_p90": float(np.percentile(total, 90)), "frames": len(total)}
 
 
 def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=50, warmup=5,

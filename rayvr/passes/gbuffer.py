@@ -1,10 +1,12 @@
-"""Raster G-buffer pass: both eyes in one layered draw (or one draw per eye)."""
+"""The G-buffer in two passes: a layered visibility raster (triangle ID + depth, both eyes in
+one draw or one draw per eye) and a compute resolve that fills the other channels."""
 from __future__ import annotations
 
 import numpy as np
 
 from .. import shaders
 from ..frame import FramePlan, Pass
+from .compute import dispatch_per_pixel, set_eye_uniforms
 
 GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE, GL_ZERO_TO_ONE = 0x8CA1, 0x935E, 0x935F
 LAYER_MODES = ("vertex", "geometry", "passes")
@@ -22,9 +24,9 @@ def pick_layer_mode(gl, requested: str = "auto") -> str:
     return "geometry"
 
 
-class GBufferPass(Pass):
-    name = "gbuffer"
-    writes = ("gbuffer",)
+class VisibilityPass(Pass):
+    name = "visibility"
+    writes = ("visibility",)
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.gl = gl
@@ -32,8 +34,8 @@ class GBufferPass(Pass):
         self.clip_control = gl.raw.has("glClipControl") and (
             gl.ctx.version_code >= 450 or gl.has_extension("GL_ARB_clip_control"))
         defines = {"LAYER_MODE": 1 if self.mode == "geometry" else 0, "LAYERS": plan.layers}
-        self.program = shaders.program(gl.ctx, "gbuffer/gbuffer.vert", "gbuffer/gbuffer.frag",
-                                       "gbuffer/gbuffer.geom" if self.mode == "geometry" else None, defines)
+        self.program = shaders.program(gl.ctx, "gbuffer/visibility.vert", "gbuffer/visibility.frag",
+                                       "gbuffer/visibility.geom" if self.mode == "geometry" else None, defines)
         self.vao = None
         self._scene = None
 
@@ -41,9 +43,8 @@ class GBufferPass(Pass):
         if self._scene is not gpu_scene:
             if self.vao is not None:
                 self.vao.release()
-            self.vao = self.gl.ctx.vertex_array(
-                self.program, [(gpu_scene.vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")],
-                index_buffer=gpu_scene.ibo, index_element_size=4)
+            self.vao = self.gl.ctx.vertex_array(self.program, [(gpu_scene.vbo, "3f 20x", "in_position")],
+                                                index_buffer=gpu_scene.ibo, index_element_size=4)
             self._scene = gpu_scene
         return self.vao
 
@@ -51,17 +52,11 @@ class GBufferPass(Pass):
         ctx, raw = self.gl.ctx, self.gl.raw
         gb = fc.gbuffer
         vp = np.zeros((2, 4, 4), np.float32)
-        zrow = np.zeros((2, 4), np.float32)
         for i, eye in enumerate(fc.eyes):
-            m = eye.view_projection(fc.scene.origin, zero_to_one=self.clip_control)
-            vp[i] = m.T  # GLSL matrices are column-major
-            zrow[i] = eye.view_matrix(fc.scene.origin)[2]
+            vp[i] = eye.view_projection(fc.scene.origin, zero_to_one=self.clip_control).T  # column-major
         self.program["view_proj"].write(vp.tobytes())
-        self.program["view_z_row"].write(zrow.tobytes())
         vao = self._vao(fc.gpu_scene)
         gb.clear()
-        fc.gpu_scene.bind()
-        fc.gpu_scene.textures.use(0)
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = ">"  # reversed-Z: nearer is larger
         if self.clip_control:
@@ -83,4 +78,23 @@ class GBufferPass(Pass):
     def release(self) -> None:
         if self.vao is not None:
             self.vao.release()
+        self.program.release()
+
+
+class GBufferResolvePass(Pass):
+    name = "gbuffer"
+    reads = ("visibility",)
+    writes = ("gbuffer",)
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        self.program = shaders.compute(gl.ctx, "gbuffer/resolve.comp")
+
+    def execute(self, fc) -> None:
+        set_eye_uniforms(self.program, fc)
+        fc.gpu_scene.bind()
+        fc.gpu_scene.textures.use(7)
+        fc.gbuffer.bind_for_writing()
+        dispatch_per_pixel(fc, self.program)
+
+    def release(self) -> None:
         self.program.release()

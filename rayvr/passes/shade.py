@@ -1,11 +1,9 @@
 """`raster` shading: direct light from the G-buffer (no shadows) into the HDR target."""
 from __future__ import annotations
 
-import numpy as np
-
 from .. import shaders
 from ..frame import FramePlan, Pass
-from .compute import dispatch_per_pixel
+from .compute import dispatch_per_pixel, set_eye_uniforms
 
 
 class ShadeDirectPass(Pass):
@@ -18,10 +16,7 @@ class ShadeDirectPass(Pass):
 
     def execute(self, fc) -> None:
         p = self.program
-        eyes = np.zeros((2, 3), np.float32)
-        for i, eye in enumerate(fc.eyes):
-            eyes[i] = eye.position - fc.scene.origin
-        p["eye_position"].write(eyes.tobytes())
+        set_eye_uniforms(p, fc)
         p["ambient"].value = tuple(fc.settings.ambient)
         p["background"].value = tuple(fc.settings.background)
         fc.gbuffer.bind_for_reading()

@@ -5,6 +5,9 @@
 #define SSBO_TRIANGLE_MATERIAL 0
 #define SSBO_MATERIALS 1
 #define SSBO_LIGHTS 2
+#define SSBO_VERTICES 3
+#define SSBO_INDICES 4
+#define VERTEX_FLOATS 8  // position xyz, normal xyz, uv (rayvr/gpu_scene.py)
 
 #define LIGHT_POINT 0
 #define LIGHT_DIRECTIONAL 1
@@ -33,5 +36,20 @@ struct Light {
 layout(std430, binding = SSBO_TRIANGLE_MATERIAL) readonly buffer TriangleMaterials { uint triangle_material[]; };
 layout(std430, binding = SSBO_MATERIALS) readonly buffer Materials { Material materials[]; };
 layout(std430, binding = SSBO_LIGHTS) readonly buffer Lights { Light lights[]; };
+layout(std430, binding = SSBO_VERTICES) readonly buffer Vertices { float vertex_data[]; };
+layout(std430, binding = SSBO_INDICES) readonly buffer Indices { uint index_data[]; };
+
+struct TriangleVerts { vec3 p[3]; vec3 n[3]; vec2 uv[3]; };
+
+TriangleVerts scene_triangle(uint tri) {
+    TriangleVerts t;
+    for (int k = 0; k < 3; ++k) {
+        uint b = index_data[3u * tri + uint(k)] * uint(VERTEX_FLOATS);
+        t.p[k] = vec3(vertex_data[b], vertex_data[b + 1u], vertex_data[b + 2u]);
+        t.n[k] = vec3(vertex_data[b + 3u], vertex_data[b + 4u], vertex_data[b + 5u]);
+        t.uv[k] = vec2(vertex_data[b + 6u], vertex_data[b + 7u]);
+    }
+    return t;
+}
 
 #endif

@@ -3,9 +3,9 @@
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../common/gbuffer.glsl"
 #include "../common/lighting.glsl"
+#include "../common/camera.glsl"
 
 layout(rgba16f, binding = 0) uniform writeonly image2DArray hdr_out;
-uniform vec3 eye_position[2];  // scene-local
 uniform vec3 ambient;           // constant ambient radiance (stands in for indirect light)
 uniform vec3 background;
 

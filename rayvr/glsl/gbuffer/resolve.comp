@@ -1,0 +1,94 @@
+#version 430
+// G-buffer resolve: from each pixel's triangle ID (visibility raster or ray-traced primary
+// hits) and the pixel's own camera ray, compute the exact hit on that triangle and fill every
+// G-buffer channel (rayvr/gbuffer.py CHANNELS). Positions lie on the pixel's ray by
+// construction, so ray-traced passes and the G-buffer register exactly; texture LOD comes
+// from ray differentials (the neighbouring pixels' rays on the same triangle plane).
+layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../common/scene.glsl"
+#include "../common/camera.glsl"
+#include "../common/color.glsl"
+
+layout(binding = 0) uniform sampler2DArray gb_depth;
+layout(binding = 7) uniform sampler2DArray base_color_textures;
+layout(rgba32f, binding = 0) uniform writeonly image2DArray img_position;
+layout(rgba16f, binding = 1) uniform writeonly image2DArray img_normal;
+layout(rgba16f, binding = 2) uniform writeonly image2DArray img_albedo;
+layout(rgba16f, binding = 3) uniform writeonly image2DArray img_emission;
+layout(rg32ui, binding = 4) uniform writeonly uimage2DArray img_material;
+layout(r32ui, binding = 5) uniform uimage2DArray img_triangle;
+
+// Barycentrics (b1, b2) of the point where ray (o, d) meets the plane of (v0, e1, e2).
+vec2 plane_barycentrics(vec3 o, vec3 d, vec3 v0, vec3 e1, vec3 e2, vec3 ng, out float t) {
+    t = dot(v0 - o, ng) / dot(d, ng);
+    vec3 q = o + t * d - v0;
+    float inv = 1.0 / dot(ng, ng);
+    return vec2(dot(cross(q, e2), ng), dot(cross(e1, q), ng)) * inv;
+}
+
+void main() {
+    ivec3 p = ivec3(gl_GlobalInvocationID);
+    vec2 size = vec2(imageSize(img_position).xy);
+    if (any(greaterThanEqual(p.xy, ivec2(size)))) return;
+    float z = texelFetch(gb_depth, p, 0).x;
+    uint tri = imageLoad(img_triangle, p).x;
+    if (z <= 0.0 || tri == NO_HIT) {  // reversed-Z: 0 is the cleared (infinitely far) value
+        imageStore(img_position, p, vec4(0.0));
+        imageStore(img_normal, p, vec4(0.0));
+        imageStore(img_albedo, p, vec4(0.0));
+        imageStore(img_emission, p, vec4(0.0));
+        imageStore(img_material, p, uvec4(NO_HIT, BACKGROUND_EFFECT, 0u, 0u));
+        imageStore(img_triangle, p, uvec4(NO_HIT));
+        return;
+    }
+    int eye = p.z;
+    vec3 o = eye_position[eye];
+    vec3 d = eye_ray_direction(eye, vec2(p.xy) + 0.5, size);
+    TriangleVerts tv = scene_triangle(tri);
+    vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0];
+    vec3 ng = cross(e1, e2);
+    float t;
+    vec2 b = plane_barycentrics(o, d, tv.p[0], e1, e2, ng, t);
+    float view_dist_along = dot(d, eye_forward(eye));
+    if (!(abs(dot(d, ng)) > 1e-7 * length(ng)) || !(t > 0.0)) {
+        // Seen edge-on: the plane hit is ill-conditioned; take the distance from the depth buffer.
+        t = eye_view_depth(z) / view_dist_along;
+        vec3 q = o + t * d - tv.p[0];
+        b = vec2(dot(cross(q, e2), ng), dot(cross(e1, q), ng)) / max(dot(ng, ng), 1e-30);
+    }
+    // Pixel centres the rasterizer counted as inside may fall a rounding error outside.
+    vec3 w = max(vec3(1.0 - b.x - b.y, b), 0.0);
+    w /= w.x + w.y + w.z;
+    vec3 position = o + t * d;
+
+    vec3 n = normalize(w.x * tv.n[0] + w.y * tv.n[1] + w.z * tv.n[2]);
+    if (dot(ng, d) > 0.0) n = -n;  // two-sided: the normal faces the eye
+
+    uint mi = triangle_material[tri];
+    Material m = materials[mi];
+    vec4 base = m.base_color;
+    if (m.texture_layer >= 0) {
+        vec2 uv = w.x * tv.uv[0] + w.y * tv.uv[1] + w.z * tv.uv[2];
+        float tx, ty;
+        vec2 bx = plane_barycentrics(o, eye_ray_direction(eye, vec2(p.xy) + vec2(1.5, 0.5), size), tv.p[0], e1, e2, ng, tx);
+        vec2 by = plane_barycentrics(o, eye_ray_direction(eye, vec2(p.xy) + vec2(0.5, 1.5), size), tv.p[0], e1, e2, ng, ty);
+        vec2 duv1 = tv.uv[1] - tv.uv[0], duv2 = tv.uv[2] - tv.uv[0];
+        vec2 ddx = (bx.x - b.x) * duv1 + (bx.y - b.y) * duv2;
+        vec2 ddy = (by.x - b.x) * duv1 + (by.y - b.y) * duv2;
+        // The LOD is computed here and used with textureLod, per pixel: implementations may share
+        // one textureGrad LOD across a SIMD group, where one grazing pixel would blur its
+        // neighbours. A neighbour ray that misses the plane (grazing) takes the other axis' size.
+        vec2 tex_size = vec2(textureSize(base_color_textures, 0).xy);
+        float fx = tx > 0.0 ? length(ddx * tex_size) : 0.0;
+        float fy = ty > 0.0 ? length(ddy * tex_size) : 0.0;
+        float footprint = max(max(fx, fy), 1e-6);
+        float lod = clamp(log2(footprint), 0.0, log2(max(tex_size.x, tex_size.y)));
+        vec4 tex = textureLod(base_color_textures, vec3(uv, float(m.texture_layer)), lod);
+        base *= vec4(srgb_to_linear(tex.rgb), tex.a);  // textures hold sRGB-encoded colour
+    }
+    imageStore(img_position, p, vec4(position, t * view_dist_along));
+    imageStore(img_normal, p, vec4(n, m.roughness));
+    imageStore(img_albedo, p, vec4(base.rgb, m.metallic));
+    imageStore(img_emission, p, vec4(m.emission.rgb, 1.0));
+    imageStore(img_material, p, uvec4(mi, m.effect, 0u, 0u));
+}
