@@ -412,6 +412,7 @@ class Preview:
         self.last_frame = self.last_layout = None  # the newest frame's FrameContext and Layout
         self._last_time = time.perf_counter()
         self._applied_override = None
+        self._good = (None, None)  # the last (config, override) that rendered
         if self.materials_path is not None:
             self.poll_config(force=True)
         self._install_callbacks()
@@ -429,7 +430,8 @@ class Preview:
         self.pick_buffer = ctx.buffer(reserve=8)
         from .hud import Hud
 
-        self.hud = Hud(ctx)
+        scale = max(self.glfw.get_window_content_scale(self.window))  # 2 on high-DPI screens
+        self.hud = Hud(ctx, font_size=round(14 * max(scale, 1.0)))
 
     # -- glfw callbacks (tests call these with glfw constants, as glfw would) -------------
     def _install_callbacks(self) -> None:
@@ -522,7 +524,7 @@ class Preview:
             if self.state.recording:
                 # A full period on the clock: the first pose is taken at the end of this frame.
                 self.recorded, self._record_clock = [], 1.0 / RECORD_FPS
-                self.say("recording camera path (P stops)")
+                self.say(f"recording a camera path to {self.path_file}")
             else:
                 self.save_recording()
 
@@ -579,7 +581,19 @@ class Preview:
             return None
         layout = layout_for(self.state.stereo, fb, self.state.res_scale)
         rig = self.camera.rig(layout.eye_size)
-        fc = self.renderer.record(rig, layout.eyes, self.state.view)
+        try:
+            fc = self.renderer.record(rig, layout.eyes, self.state.view)
+        except Exception as exc:
+            if self.renderer.config is self._good[0]:
+                raise
+            # A new config or override the passes cannot render (say, a pass that fails to
+            # build): back to the last config that rendered, with the reason in the HUD.
+            self.config_error = f"{self.renderer.config.source}: rendering failed, reverted: {exc}"
+            log.warning("%s", self.config_error)
+            self.renderer.set_materials(self._good[0])
+            self.state.override = self._applied_override = self._good[1]
+            fc = self.renderer.record(rig, layout.eyes, self.state.view)
+        self._good = (self.renderer.config, self.state.override)
         self.last_frame, self.last_layout = fc, layout
         self._draw_eyes(fc, layout, fb)
         self._pick(fc, layout, fb)
@@ -667,7 +681,7 @@ class Preview:
         lines.append((self.picked_text(), white))
         src = self.materials_path.name if self.materials_path else "built-in (all raster)"
         if s.override:
-            lines.append((f"effect override: {s.override} on every material   (config {src} kept)", yellow))
+            lines.append((f"effect override: {s.override} on every material   (O: next; off: back to {src})", yellow))
         else:
             lines.append((f"effects from config: {src}", white))
         if self.config_error:
@@ -675,7 +689,7 @@ class Preview:
             width = max(200, fb[0] - 40)
             lines += [(ln, red) for ln in _wrap(self.config_error, width, self.hud.width)]
         if self.recorded is not None:
-            lines.append((f"REC camera path: {len(self.recorded)} poses (P stops)", red))
+            lines.append((f"REC camera path: {len(self.recorded)} pose(s), P stops and saves", red))
         if self.message and time.perf_counter() < self._message_until:
             lines.append((self.message, yellow))
         lines.append(("H: help", dim))

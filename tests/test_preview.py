@@ -463,6 +463,18 @@ def _config_reload(cfg_path):
         write('default = "raster"\n')
         p.frame()
         out["fixed"] = (p.config_error, effect_ids(p))
+        # A valid config whose passes fail to build (a new pass with a shader bug, say).
+        record = p.renderer.record
+
+        def failing_record(*args, **kw):
+            if effect in p.renderer.effects_in_use():
+                raise RuntimeError(f"pass for {effect} failed to build")
+            return record(*args, **kw)
+
+        p.renderer.record = failing_record
+        write(f'default = "{effect}"\n')
+        p.frame()
+        out["unrenderable"] = (p.config_error, effect_ids(p), p.renderer.config.default)
         return out
     finally:
         p.close()
@@ -487,6 +499,9 @@ def test_config_edits_on_disk_change_effect_ids_on_the_next_frame(worker, tmp_pa
     assert "cannot read" in error and ids == out["ids1"]
     error, ids = out["fixed"]
     assert error is None and all(v == [0] for v in ids.values())
+    error, ids, default = out["unrenderable"]
+    assert "rendering failed, reverted" in error and "failed to build" in error
+    assert default == "raster" and ids == out["fixed"][1]
 
 
 def _screenshot(out_dir):
