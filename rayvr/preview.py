@@ -373,6 +373,10 @@ class Preview:
         from .context import create_window_context
         from .renderer import Renderer
 
+        if stereo not in STEREO_MODES:
+            raise ValueError(f"unknown stereo mode {stereo!r}; allowed: {', '.join(STEREO_MODES)}")
+        if res_scale is not None and not (0 < res_scale <= 4):
+            raise ValueError(f"resolution scale must be in (0, 4], got {res_scale}")
         self.glfw = glfw
         self.window, self.gl = create_window_context(size, title or "rayvr preview", visible, vsync)
         try:
@@ -723,6 +727,8 @@ class Preview:
             self.frame()
 
     def close(self) -> None:
+        if self.window is None:
+            return
         if self.recorded is not None:
             self.save_recording()
         for obj in (self.eye_vao, self.eye_program, self.sampler, self.pick_program, self.pick_buffer):
@@ -730,6 +736,7 @@ class Preview:
         self.hud.release()
         self.renderer.release()
         self.gl.release()  # destroys the window
+        self.window = None
 
     def __enter__(self):
         return self

@@ -386,6 +386,10 @@ def _events():
         p.on_cursor_pos(p.window, 30, 30)
         p.frame()
         out["hud"] = [t for t, _ in p.hud_lines(p.last_layout, (128, 48))]
+        glfw.set_window_size(p.window, 100, 40)  # resizing: the next frame follows the window
+        glfw.poll_events()
+        p.frame()
+        out["resized"] = (p.last_layout.eye_size, p.last_frame.gbuffer.size)
         _press(p, glfw.KEY_ESCAPE)
         out["should_close"] = p.should_close()
         return out
@@ -411,6 +415,7 @@ def test_synthetic_key_and_mouse_events_drive_the_window(worker):
     hud = "\n".join(out["hud"])
     for needle in ("ms/frame", "GPU ms", "gbuffer", "left  view", "scale 0.75", "cursor: ", "IPD"):
         assert needle in hud, needle
+    assert out["resized"] == ((75, 30), (75, 30))
     assert out["should_close"]
 
 
