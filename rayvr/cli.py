@@ -174,7 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--timings", action="store_true", help="print GPU ms per pass")
     c.add_argument("--exposure", type=float, default=1.0)
     c.add_argument("--tonemapper", choices=("aces", "reinhard", "clamp"), default="aces")
-    c.add_argument("--layer-mode", choices=("auto", "vertex", "geometry", "passes"), default="auto",
+    c.add_argument("--layer-mode", choices=("auto", "vertex", "geometry", "multiview", "passes"), default="auto",
                    help="how the stereo G-buffer reaches both layers")
     c.add_argument("--backend", choices=("egl", "osmesa"), help="headless GL backend (default: egl, then osmesa)")
     c.add_argument("-q", "--quiet", action="store_true")

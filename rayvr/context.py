@@ -54,6 +54,7 @@ _RAW_SIGNATURES: dict[str, tuple] = {
     "glGetTexImage": (None, (_u, _i, _u, _u, _p)),
     "glBindFramebuffer": (None, (_u, _u)),
     "glFramebufferTexture": (None, (_u, _u, _u, _i)),
+    "glFramebufferTextureMultiviewOVR": (None, (_u, _u, _u, _i, _i, _i)),
     "glCheckFramebufferStatus": (_u, (_u,)),
     "glBindImageTexture": (None, (_u, _u, _i, ctypes.c_ubyte, _i, _u, _u)),
     "glClearBufferuiv": (None, (_u, _i, ctypes.POINTER(_u))),

@@ -12,6 +12,11 @@ A pass (rayvr/passes/) subclasses `Pass`:
 
 Scenes whose materials are all `raster` get G-buffer -> shade -> resolve and nothing else: the
 pass that builds a BVH or traces rays simply declares `needed()` False for them.
+
+A pass may read and write the same resource (the ray-traced effects read "hdr" and overwrite
+their own pixels of it): each read is served by the latest needed writer registered *before* the
+reading pass, and the frame's output by the last writer of all, so such passes chain in
+registration order.
 """
 from __future__ import annotations
 
@@ -27,7 +32,7 @@ class FramePlan:
     effects: frozenset  # effect names the scene's materials use
     view: str = "color"  # "color" or a debug view name (rayvr/passes/debug_view.py)
     layers: int = 2
-    layer_mode: str = "vertex"  # how the G-buffer reaches its layers: vertex | geometry | passes
+    layer_mode: str = "vertex"  # how the G-buffer reaches its layers: vertex | geometry | multiview | passes
     output: str = "ldr"
 
 
@@ -56,31 +61,33 @@ class GraphError(RuntimeError):
 def schedule(passes: list[Pass], plan: FramePlan) -> list[Pass]:
     """The passes `plan.output` depends on, in dependency order.
 
-    A resource's producer is the first needed pass (in registration order) that writes it;
-    passes nobody's output depends on are dropped."""
+    A resource read by a pass is produced by the latest needed pass registered before it that
+    writes it (the output: by the last writer); passes nobody's output depends on are dropped."""
     candidates = [p for p in passes if p.needed(plan)]
-    producer: dict[str, Pass] = {}
-    for p in candidates:
+    writers: dict[str, list[int]] = {}
+    for i, p in enumerate(candidates):
         for r in p.writes:
-            producer.setdefault(r, p)
+            writers.setdefault(r, []).append(i)
     chosen: list[Pass] = []
-    visiting: set[str] = set()
+    visiting: set[int] = set()
 
-    def visit(resource: str, chain: tuple) -> None:
-        p = producer.get(resource)
-        if p is None:
+    def visit(resource: str, before: int, chain: tuple) -> None:
+        earlier = [i for i in writers.get(resource, ()) if i < before]
+        if not earlier:
             raise GraphError(f"no pass produces {resource!r} (needed by {' <- '.join(chain) or 'the frame'})")
+        i = earlier[-1]
+        p = candidates[i]
         if p in chosen:
             return
-        if p.name in visiting:
+        if i in visiting:
             raise GraphError(f"cycle in the frame graph at pass {p.name!r}")
-        visiting.add(p.name)
+        visiting.add(i)
         for r in p.reads:
-            visit(r, chain + (p.name,))
-        visiting.discard(p.name)
+            visit(r, i, chain + (p.name,))
+        visiting.discard(i)
         chosen.append(p)
 
-    visit(plan.output, ())
+    visit(plan.output, len(candidates), ())
     return chosen
 
 

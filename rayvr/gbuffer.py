@@ -20,6 +20,7 @@ GL_DEPTH_COMPONENT = 0x1902
 GL_FLOAT = 0x1406
 GL_FRAMEBUFFER = 0x8D40
 GL_DEPTH_ATTACHMENT = 0x8D00
+GL_COLOR_ATTACHMENT0 = 0x8CE0
 GL_FRAMEBUFFER_COMPLETE = 0x8CD5
 GL_TEXTURE_MIN_FILTER, GL_TEXTURE_MAG_FILTER, GL_NEAREST = 0x2801, 0x2800, 0x2600
 GL_TEXTURE0 = 0x84C0
@@ -56,6 +57,7 @@ class GBuffer:
 
     def __init__(self, gl, size: tuple[int, int], layers: int):
         self.gl, self.size, self.layers = gl, tuple(size), layers
+        self._multiview = False
         ctx = gl.ctx
         w, h = self.size
         self.textures = {}
@@ -83,6 +85,22 @@ class GBuffer:
         status = raw.glCheckFramebufferStatus(GL_FRAMEBUFFER)
         if status != GL_FRAMEBUFFER_COMPLETE:
             raise RuntimeError(f"layered G-buffer framebuffer incomplete (status 0x{status:x})")
+
+    def attach_multiview(self) -> None:
+        """Re-attach triangle and depth as GL_OVR_multiview views (view i = layer i); a
+        multiview draw needs its attachments made this way rather than layered."""
+        if self._multiview:
+            return
+        raw = self.gl.raw
+        self.fbo.use()
+        raw.glBindFramebuffer(GL_FRAMEBUFFER, self.fbo.glo)
+        raw.glFramebufferTextureMultiviewOVR(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, self.textures["triangle"].glo,
+                                             0, 0, self.layers)
+        raw.glFramebufferTextureMultiviewOVR(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, self.depth_name, 0, 0, self.layers)
+        status = raw.glCheckFramebufferStatus(GL_FRAMEBUFFER)
+        if status != GL_FRAMEBUFFER_COMPLETE:
+            raise RuntimeError(f"multiview G-buffer framebuffer incomplete (status 0x{status:x})")
+        self._multiview = True
 
     def clear(self) -> None:
         """Depth to 0 (reversed-Z: infinitely far) on every layer. The triangle channel needs no

@@ -37,7 +37,7 @@ class RenderSettings:
     tonemapper: str = "aces"  # aces | reinhard | clamp (glsl/common/color.glsl)
     ambient: tuple = (0.03, 0.03, 0.03)
     background: tuple = (0.02, 0.02, 0.025)
-    layer_mode: str = "auto"  # auto | vertex | geometry | passes
+    layer_mode: str = "auto"  # auto | vertex | geometry | multiview | passes
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:

@@ -17,7 +17,6 @@ import moderngl
 GLSL_DIR = Path(__file__).resolve().parent / "glsl"
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
 _VERSION = re.compile(r"^\s*#\s*version\b")
-_EXTENSION = re.compile(r"^\s*#\s*extension\b")
 # Mesa: "0:12(3): error: ..."   NVIDIA: "0(12) : error C0000: ..."
 _LOG_LOCATION = re.compile(r"(?m)^(?:ERROR: )?(\d+)(?::(\d+)\((\d+)\)|\((\d+)\))")
 
@@ -48,7 +47,7 @@ def _read(name: str, root: Path) -> str:
 
 
 def load_source(name: str, defines: dict | None = None, root: Path = GLSL_DIR) -> ShaderSource:
-    """Resolve includes of `name` (relative to glsl/) and put `defines` after its header lines."""
+    """Resolve includes of `name` (relative to glsl/) and put `defines` after its #version."""
     files: list[str] = []
     out: list[str] = []
     included = {name}
@@ -59,8 +58,9 @@ def load_source(name: str, defines: dict | None = None, root: Path = GLSL_DIR) -
         if not is_top:
             out.append(f"#line 1 {idx}")
         lines = _read(file, root).splitlines()
-        header = [n for n, line in enumerate(lines, 1) if _VERSION.match(line) or _EXTENSION.match(line)]
-        header_end = max(header) if (is_top and header) else -1
+        # Defines go right after #version, so that #if blocks around #extension lines see them.
+        version = [n for n, line in enumerate(lines, 1) if _VERSION.match(line)]
+        header_end = version[0] if (is_top and version) else -1
         for lineno, line in enumerate(lines, start=1):
             m = _INCLUDE.match(line)
             if m:

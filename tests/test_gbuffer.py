@@ -132,7 +132,8 @@ def test_effect_buffer_matches_material_config(gl, monkeypatch):
 def test_layer_modes_and_mono_agree(gl):
     scene = load()
     rig = StereoRig.for_scene(scene, size=(40, 30))
-    frames = {mode: render(gl, scene, rig, layer_mode=mode) for mode in ("vertex", "geometry", "passes")}
+    modes = ["vertex", "geometry", "passes"] + (["multiview"] if gl.has_extension("GL_OVR_multiview2") else [])
+    frames = {mode: render(gl, scene, rig, layer_mode=mode) for mode in modes}
     ref = frames["vertex"]
     for mode, frame in frames.items():
         for eye in ("left", "right"):

@@ -56,8 +56,10 @@ def time_gbuffer(renderer: Renderer, rig: StereoRig, repeat: int, warmup: int) -
 
 
 def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=50, warmup=5,
-        modes=("vertex", "geometry", "passes"), backend=None, progress=True) -> dict:
+        modes=("vertex", "geometry", "multiview", "passes"), backend=None, progress=True) -> dict:
     gl = create_context(backend)
+    if not gl.has_extension("GL_OVR_multiview2"):
+        modes = tuple(m for m in modes if m != "multiview")
     rows, skipped = [], {}
     try:
         for name in scenes:
@@ -80,6 +82,7 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=5
                 "warmup": warmup, "skipped": skipped,
                 "modes": {"vertex": "one instanced draw, gl_Layer from the vertex stage",
                           "geometry": "one draw, geometry shader with 2 invocations picks the layer",
+                          "multiview": "one draw, GL_OVR_multiview2 (num_views = 2)",
                           "passes": "two draws, one per eye (mono baseline)"}}
     finally:
         gl.release()

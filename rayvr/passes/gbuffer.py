@@ -9,15 +9,19 @@ from ..frame import FramePlan, Pass
 from .compute import dispatch_per_pixel, set_eye_uniforms
 
 GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE, GL_ZERO_TO_ONE = 0x8CA1, 0x935E, 0x935F
-LAYER_MODES = ("vertex", "geometry", "passes")
+LAYER_MODES = ("vertex", "geometry", "multiview", "passes")
+LAYER_MODE_DEFINE = {"vertex": 0, "passes": 0, "geometry": 1, "multiview": 2}
 
 
 def pick_layer_mode(gl, requested: str = "auto") -> str:
     """'vertex' writes gl_Layer from the vertex stage (instanced); 'geometry' uses a geometry
-    shader; 'passes' draws each eye separately (the baseline the benchmark compares with)."""
+    shader; 'multiview' uses GL_OVR_multiview2; 'passes' draws each eye separately (the
+    baseline the benchmark compares with)."""
     if requested != "auto":
         if requested not in LAYER_MODES:
             raise ValueError(f"unknown layer mode {requested!r}; allowed: auto, {', '.join(LAYER_MODES)}")
+        if requested == "multiview" and not gl.has_extension("GL_OVR_multiview2"):
+            raise ValueError("layer mode 'multiview' needs GL_OVR_multiview2, which this driver lacks")
         return requested
     if gl.has_extension("GL_ARB_shader_viewport_layer_array") or gl.has_extension("GL_AMD_vertex_shader_layer"):
         return "vertex"
@@ -33,7 +37,9 @@ class VisibilityPass(Pass):
         self.mode = plan.layer_mode
         self.clip_control = gl.raw.has("glClipControl") and (
             gl.ctx.version_code >= 450 or gl.has_extension("GL_ARB_clip_control"))
-        defines = {"LAYER_MODE": 1 if self.mode == "geometry" else 0, "LAYERS": plan.layers}
+        # Multiview renders exactly LAYERS views; one eye uses the instanced path.
+        self.mode = "vertex" if (self.mode == "multiview" and plan.layers != 2) else self.mode
+        defines = {"LAYER_MODE": LAYER_MODE_DEFINE[self.mode], "LAYERS": plan.layers}
         self.program = shaders.program(gl.ctx, "gbuffer/visibility.vert", "gbuffer/visibility.frag",
                                        "gbuffer/visibility.geom" if self.mode == "geometry" else None, defines)
         self.vao = None
@@ -56,6 +62,8 @@ class VisibilityPass(Pass):
             vp[i] = eye.view_projection(fc.scene.origin, zero_to_one=self.clip_control).T  # column-major
         self.program["view_proj"].write(vp.tobytes())
         vao = self._vao(fc.gpu_scene)
+        if self.mode == "multiview":
+            gb.attach_multiview()
         gb.clear()
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = ">"  # reversed-Z: nearer is larger
@@ -69,7 +77,8 @@ class VisibilityPass(Pass):
                     vao.render(ctx.TRIANGLES, instances=1)
             else:
                 self.program["base_layer"].value = 0
-                vao.render(ctx.TRIANGLES, instances=1 if self.mode == "geometry" else len(fc.eyes))
+                instanced = self.mode == "vertex"
+                vao.render(ctx.TRIANGLES, instances=len(fc.eyes) if instanced else 1)
         finally:
             if self.clip_control:
                 raw.glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE)
