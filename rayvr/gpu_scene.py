@@ -8,7 +8,10 @@ from .materials import Assignment
 from .scene import Light, Scene
 
 MATERIAL_DTYPE = np.dtype([("base_color", "<f4", 4), ("emission", "<f4", 4), ("metallic", "<f4"),
-                           ("roughness", "<f4"), ("texture_layer", "<i4"), ("effect", "<u4")])
+                           ("roughness", "<f4"), ("texture_layer", "<i4"), ("effect", "<u4"),
+                           ("params", "<u4", 4)])
+# `params` carries the effect's per-material parameters to the ray-tracing passes.
+EFFECT_PARAM_SLOTS = ("bounces", "samples", "area_samples")
 LIGHT_DTYPE = np.dtype([("position_kind", "<f4", 4), ("radiance", "<f4", 4), ("direction", "<f4", 4),
                         ("u", "<f4", 4), ("v", "<f4", 4)])
 LIGHT_KIND_ID = {"point": 0, "directional": 1, "rect": 2}
@@ -34,6 +37,8 @@ def material_records(scene: Scene, assignments: list[Assignment], texture_layers
         rec[i]["roughness"] = m.roughness
         rec[i]["texture_layer"] = texture_layers[i]
         rec[i]["effect"] = assignments[i].effect_id
+        p = assignments[i].params
+        rec[i]["params"][:3] = [int(p.get(k, 1)) for k in EFFECT_PARAM_SLOTS]
     return rec
 
 

@@ -23,6 +23,7 @@ struct Material {
     float roughness;
     int texture_layer;    // -1: no base-colour texture
     uint effect;          // effect-ladder ID from the material config
+    uvec4 params;         // the effect's parameters: bounces, samples, area_samples (gpu_scene.py)
 };
 
 struct Light {
