@@ -83,6 +83,7 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> d
     mean = {k: float(np.mean([t[k] for t in timings if k in t])) for k in passes}
     summary = {"frames": len(job.poses), "files": [str(f) for f in files], "gpu_ms_mean": mean,
                "gpu_ms_per_frame": timings, "gl": renderer.gl.info()["renderer"],
+               "timings_meaningful": not renderer.gl.is_software,
                "size": list(job.rig.size), "eyes": job.eyes}
     return summary
 

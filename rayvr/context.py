@@ -129,6 +129,13 @@ class GLContext:
         }
 
     @property
+    def is_software(self) -> bool:
+        """Mesa's CPU rasterizers: correct images, but GL timer queries there do not measure GPU
+        work (they read near zero or garbage), so timings are for information only."""
+        renderer = (self.ctx.info.get("GL_RENDERER") or "").lower()
+        return any(name in renderer for name in ("llvmpipe", "softpipe", "swrast"))
+
+    @property
     def max_ssbo_bytes(self) -> int:
         return int(self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0)
 
