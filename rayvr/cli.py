@@ -80,6 +80,9 @@ def cmd_capture(args) -> int:
         for k, v in summary["gpu_ms_mean"].items():
             print(f"  {k:12s} {v:9.3f}")
         print(f"  {'total':12s} {sum(summary['gpu_ms_mean'].values()):9.3f}   ({summary['gl']})")
+        if not summary["timings_meaningful"]:
+            print("  note: software rasterizer: GL timer queries do not measure GPU work here; "
+                  "benchmark on a GPU")
         print(f"timings saved to {summary_path}")
     return 0
 
