@@ -275,8 +275,13 @@ def load(path: str | Path | None = None) -> Scene:
         raise SceneError(f"{path}: no such file")
     if path.suffix.lower() not in SUPPORTED_SUFFIXES:
         raise SceneError(f"{path}: unsupported format {path.suffix!r}; use one of {', '.join(SUPPORTED_SUFFIXES)}")
+    # An OBJ without materials (no mtllib/usemtl) would be one material for the whole file:
+    # split it by its `g` groups instead and name each part's material after its group, so a
+    # material config can select parts of it (Sponza's "floors", "walls", ...).
+    by_group = path.suffix.lower() == ".obj" and not _obj_has_materials(path)
+    kwargs = {"split_groups": True, "group_material": False} if by_group else {}
     try:
-        tscene = trimesh.load(str(path), force="scene", process=False)
+        tscene = trimesh.load(str(path), force="scene", process=False, **kwargs)
     except Exception as exc:
         raise SceneError(f"{path}: trimesh could not read it: {exc}") from exc
 
@@ -308,6 +313,8 @@ def load(path: str | Path | None = None) -> Scene:
         if key not in mat_index:
             mat_index[key] = len(materials)
             materials.append(_material_from_trimesh(tmat, geom_name, len(materials)))
+            if by_group:
+                materials[-1].name = str(geom_name)
         verts.append(vw)
         faces.append(f + offset)
         norms.append(n if n is not None else np.full_like(vw, np.nan))
@@ -327,6 +334,11 @@ def load(path: str | Path | None = None) -> Scene:
                        uvs=np.concatenate(uvs), lights=lights, name=path.stem, path=path)
     scene.camera = camera
     return scene
+
+
+def _obj_has_materials(path: Path) -> bool:
+    data = path.read_bytes()
+    return b"usemtl" in data or b"mtllib" in data
 
 
 def _file_normals(geom):

@@ -146,3 +146,16 @@ def test_shared_scenes_load(shared_scene):
     assert [l.kind for l in s.lights] == ["rect"]
     s = load(shared_scene("damaged_helmet/DamagedHelmet.gltf"))
     assert s.materials[0].texture is not None and s.triangle_count == 15452
+
+
+def test_obj_without_materials_splits_by_group(tmp_path, shared_scene):
+    """No mtllib/usemtl: one material per `g` group, named after it (configs select parts)."""
+    p = tmp_path / "groups.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\n"
+                 "g floor\nf 1 2 3\ng mirror\nf 4 5 6\n")
+    s = load(p)
+    assert s.material_names() == ["floor", "mirror"]
+    assert sorted(s.triangle_material.tolist()) == [0, 1]
+    sponza = load(shared_scene("sponza_dabrovic/sponza.obj"))
+    assert {"floors", "walls", "ceiling"} <= set(sponza.material_names())
+    assert len(sponza.materials) == 34 and sponza.triangle_count >= 66000
