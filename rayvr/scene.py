@@ -309,7 +309,7 @@ def load(path: str | Path | None = None) -> Scene:
         uv = getattr(geom.visual, "uv", None)
         uv = np.asarray(uv, dtype=np.float32) if uv is not None and len(uv) == len(v) else np.zeros((len(v), 2), np.float32)
         tmat = getattr(geom.visual, "material", None)
-        key = id(tmat)
+        key = geom_name if by_group else id(tmat)
         if key not in mat_index:
             mat_index[key] = len(materials)
             materials.append(_material_from_trimesh(tmat, geom_name, len(materials)))
