@@ -154,8 +154,11 @@ def test_obj_without_materials_splits_by_group(tmp_path, shared_scene):
     p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\n"
                  "g floor\nf 1 2 3\ng mirror\nf 4 5 6\n")
     s = load(p)
-    assert s.material_names() == ["floor", "mirror"]
+    assert sorted(s.material_names()) == ["floor", "mirror"]   # trimesh's order, not the file's
     assert sorted(s.triangle_material.tolist()) == [0, 1]
+    floor = s.material_names().index("floor")
+    tri = s.world_vertices()[s.indices[s.triangle_material == floor][0]]
+    assert np.allclose(tri[:, 2], 0)   # the floor group's triangle
     sponza = load(shared_scene("sponza_dabrovic/sponza.obj"))
     assert {"floors", "walls", "ceiling"} <= set(sponza.material_names())
     assert len(sponza.materials) == 34 and sponza.triangle_count >= 66000
