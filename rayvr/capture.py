@@ -62,16 +62,15 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> d
     """Render every pose of `job`, write the files, return a summary (files, GPU ms per pass)."""
     ensure_writable_dir(job.out_dir)
     files, timings = [], []
-    iterator = enumerate(job.poses)
     bar = None
     if progress and len(job.poses) > 1:
         from tqdm import tqdm
 
         bar = tqdm(total=len(job.poses), unit="frame", desc="capture")
+    rigs = [StereoRig(**{**job.rig.__dict__, "pose": pose}) for pose in job.poses]
     try:
-        for i, pose in iterator:
-            rig = StereoRig(**{**job.rig.__dict__, "pose": pose})
-            frame = renderer.render(rig, eyes=job.eyes, view=job.view, aux=job.aux)
+        # Frames come back pipelined: frame i is written while frame i+1 renders.
+        for i, frame in enumerate(renderer.render_sequence(rigs, eyes=job.eyes, view=job.view, aux=job.aux)):
             files += write_frame(job, i, frame)
             timings.append(frame.timings)
             if bar is not None:

@@ -93,17 +93,24 @@ def schedule(passes: list[Pass], plan: FramePlan) -> list[Pass]:
 
 @dataclass
 class PassTimer:
-    """GL timer queries, one per pass, reused every frame."""
+    """GL timer queries, one per pass and slot. Two slots alternate frame by frame, so a frame's
+    times can be read after the next frame has been recorded (reading waits for the GPU)."""
 
     ctx: moderngl.Context
     queries: dict = field(default_factory=dict)
+    slot: int = 0
+
+    def next_frame(self) -> None:
+        self.slot ^= 1
 
     def run(self, name: str, fn) -> None:
-        q = self.queries.get(name)
+        key = (self.slot, name)
+        q = self.queries.get(key)
         if q is None:
-            q = self.queries[name] = self.ctx.query(time=True)
+            q = self.queries[key] = self.ctx.query(time=True)
         with q:
             fn()
 
-    def read_ms(self, names) -> dict:
-        return {n: self.queries[n].elapsed / 1e6 for n in names if n in self.queries}
+    def read_ms(self, names, slot: int | None = None) -> dict:
+        slot = self.slot if slot is None else slot
+        return {n: self.queries[(slot, n)].elapsed / 1e6 for n in names if (slot, n) in self.queries}

@@ -12,7 +12,6 @@ import ctypes
 from dataclasses import dataclass
 
 import moderngl
-import numpy as np
 
 GL_TEXTURE_2D_ARRAY = 0x8C1A
 GL_DEPTH_COMPONENT32F = 0x8CAC
@@ -125,25 +124,6 @@ class GBuffer:
         for ch in COLOR_CHANNELS:
             self.textures[ch.name].use(ch.unit)
         self._bind_depth()
-
-    def read(self, name: str, layer: int) -> np.ndarray:
-        """One channel of one layer as a numpy array, rows top-down."""
-        w, h = self.size
-        if name == "depth":
-            out = np.empty((self.layers, h, w), np.float32)
-            raw = self.gl.raw
-            raw.glBindTexture(GL_TEXTURE_2D_ARRAY, self.depth_name)
-            raw.glGetTexImage(GL_TEXTURE_2D_ARRAY, 0, GL_DEPTH_COMPONENT, GL_FLOAT, out.ctypes.data)
-            raw.glBindTexture(GL_TEXTURE_2D_ARRAY, 0)
-            return out[layer][::-1].copy()
-        ch = next(c for c in COLOR_CHANNELS if c.name == name)
-        dtype = {"f4": np.float32, "f2": np.float16, "u4": np.uint32}[ch.dtype]
-        tex = self.textures[name]
-        data = np.frombuffer(tex.read(), dtype).reshape(self.layers, h, w, ch.components)
-        out = data[layer][::-1]
-        if ch.dtype == "f2":
-            out = out.astype(np.float32)
-        return out.copy()
 
     def release(self) -> None:
         self.fbo.release()

@@ -20,14 +20,14 @@ from . import scene as scene_mod
 from .camera import EYES, EyeView, StereoRig
 from .context import GLContext, create_context
 from .frame import FramePlan, PassTimer, schedule
-from .gbuffer import GBuffer, NO_HIT
+from .gbuffer import GBuffer
 from .gpu_scene import GpuScene
 from .passes.debug_view import DEBUG_VIEWS, DebugViewPass
 from .passes.gbuffer import GBufferResolvePass, VisibilityPass, pick_layer_mode
 from .passes.resolve import TONEMAPPERS, ResolvePass
 from .passes.shade import ShadeDirectPass
+from .readback import AUX_CHANNELS, Reader
 
-AUX_CHANNELS = ("depth", "zbuffer", "position", "normal", "albedo", "material", "effect", "triangle")
 VIEWS = ("color",) + DEBUG_VIEWS
 
 
@@ -110,6 +110,7 @@ class Renderer:
         self.gpu_scene = GpuScene(self.gl, self.scene, self.assignments)
         self.layer_mode = pick_layer_mode(self.gl, self.settings.layer_mode)
         self.timer = PassTimer(self.gl.ctx)
+        self.reader = Reader(self.gl)
         self._passes: dict = {}  # plan key -> scheduled, set-up passes
         self._gbuffer: GBuffer | None = None
         self._targets: dict = {}
@@ -160,6 +161,7 @@ class Renderer:
         passes = self.passes_for(plan)
         gbuffer, targets = self._resources(rig.size, len(eye_views))
         fc = FrameContext(self.gl, self.scene, self.gpu_scene, gbuffer, eye_views, plan, self.settings, targets)
+        self.timer.next_frame()
         for p in passes:
             self.timer.run(p.name, lambda p=p: p.execute(fc))
         fc.pass_names = [p.name for p in passes]
@@ -168,42 +170,27 @@ class Renderer:
     def render(self, rig: StereoRig, eyes: str = "both", view: str = "color", aux=()) -> Frame:
         """Render one frame; `eyes` is 'both', 'left' or 'right'; `aux` names extra G-buffer
         channels to read back (AUX_CHANNELS)."""
+        return next(self.render_sequence([rig], eyes, view, aux))
+
+    def render_sequence(self, rigs, eyes: str = "both", view: str = "color", aux=()):
+        """Yield one Frame per rig. Frame N is read back while frame N+1 renders (pixel
+        buffers and timer queries are double-buffered), so sequences run at GPU speed."""
         unknown = [a for a in aux if a not in AUX_CHANNELS]
         if unknown:
             raise ValueError(f"unknown aux channel(s) {', '.join(unknown)}; allowed: {', '.join(AUX_CHANNELS)}")
-        fc = self.record(rig, eyes, view)
-        timings = self.timer.read_ms(fc.pass_names)
-        ldr = fc.target("ldr")
-        w, h = rig.size
-        rgba = np.frombuffer(ldr.read(), np.uint8).reshape(len(fc.eyes), h, w, 4)
-        out = {}
-        for layer, eye in enumerate(fc.eyes):
-            color = rgba[layer, ::-1, :, :3].copy()
-            position = fc.gbuffer.read("position", layer)
-            triangle = fc.gbuffer.read("triangle", layer)[..., 0]
-            hit = triangle != NO_HIT
-            depth = np.where(hit, position[..., 3], 0.0).astype(np.float32)
-            extra = {}
-            for name in aux:
-                extra[name] = self._aux(fc, name, layer, position, triangle, hit, depth)
-            out[eye.name] = EyeImage(eye.name, color, depth, extra)
-        return Frame(out, timings, view)
+        pending = None
+        for i, rig in enumerate(rigs):
+            fc = self.record(rig, eyes, view)
+            started = self.reader.start(fc, tuple(aux), parity=i % 2, timer_slot=self.timer.slot)
+            if pending is not None:
+                yield self._finish(pending)
+            pending = started
+        if pending is not None:
+            yield self._finish(pending)
 
-    def _aux(self, fc, name, layer, position, triangle, hit, depth):
-        gb = fc.gbuffer
-        if name == "depth":
-            return depth
-        if name == "zbuffer":
-            return gb.read("depth", layer)
-        if name == "triangle":
-            return triangle
-        if name == "position":  # world space, float64, NaN-free: background is 0
-            world = position[..., :3].astype(np.float64) + self.scene.origin
-            return np.where(hit[..., None], world, 0.0)
-        if name in ("material", "effect"):
-            m = gb.read("material", layer)
-            return m[..., 0] if name == "material" else m[..., 1]
-        return gb.read(name, layer)[..., :3]
+    def _finish(self, pending) -> Frame:
+        timings = self.timer.read_ms(pending.fc.pass_names, slot=pending.timer_slot)
+        return Frame(self.reader.finish(pending), timings, pending.fc.plan.view)
 
     # -- lifetime --------------------------------------------------------------------
     def _release_resources(self) -> None:
@@ -215,6 +202,7 @@ class Renderer:
 
     def release(self) -> None:
         self._release_resources()
+        self.reader.release()
         for passes in self._passes.values():
             for p in passes:
                 p.release()

@@ -1,0 +1,136 @@
+"""Reading frames back to numpy: each channel once for both eyes, through pixel buffer objects.
+
+`start()` queues the copies GPU-side (glGetTexImage into a PBO returns at once) and `finish()`
+maps them; `Renderer.render_sequence` records frame N+1 before finishing frame N, so transfers
+overlap rendering. Only what is asked for travels: colour (RGBA8) and depth (the 4-byte
+reversed-Z buffer, turned into linear view depth here) by default, G-buffer channels on request.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .gbuffer import COLOR_CHANNELS, GL_DEPTH_COMPONENT, GL_FLOAT, GL_TEXTURE_2D_ARRAY, NO_HIT
+
+GL_PIXEL_PACK_BUFFER = 0x88EB
+AUX_CHANNELS = ("depth", "zbuffer", "position", "normal", "albedo", "material", "effect", "triangle")
+# aux name -> G-buffer channel it comes from
+_SOURCE = {"zbuffer": "zbuffer", "position": "position", "normal": "normal", "albedo": "albedo",
+           "material": "material", "effect": "material", "triangle": "triangle"}
+_DTYPES = {"f1": np.uint8, "f2": np.float16, "f4": np.float32, "u4": np.uint32}
+
+
+def depth_from_zbuffer(z: np.ndarray, near: float, far: float | None) -> np.ndarray:
+    """Reversed-Z value -> linear view depth (rayvr/camera.py projection); 0 stays 0 (background)."""
+    z = z.astype(np.float64)
+    safe = np.where(z > 0, z, 1.0)
+    d = near / safe if not far else near * far / (safe * (far - near) + near)
+    return np.where(z > 0, d, 0.0).astype(np.float32)
+
+
+@dataclass
+class Pending:
+    """A frame whose readbacks are in flight."""
+
+    fc: object
+    buffers: dict  # channel -> (moderngl.Buffer, dtype, components)
+    aux: tuple
+    timer_slot: int
+    frame_buffers: list = field(default_factory=list)
+
+
+class Reader:
+    """Owns the pixel buffers (two sets, for one frame in flight while the next is recorded)."""
+
+    def __init__(self, gl):
+        self.gl = gl
+        self._pool: dict = {}
+
+    def _buffer(self, key, nbytes):
+        buf = self._pool.get(key)
+        if buf is None or buf.size != nbytes:
+            if buf is not None:
+                buf.release()
+            buf = self._pool[key] = self.gl.ctx.buffer(reserve=nbytes)
+        return buf
+
+    def channels_for(self, fc, aux) -> list[str]:
+        primary = getattr(fc.plan, "primary", "raster")
+        depth = "zbuffer" if primary == "raster" else "position"
+        need = ["ldr", depth] + [_SOURCE[a] for a in aux if a in _SOURCE]
+        if primary != "raster" or "position" in aux:
+            need.append("triangle")  # the hit mask where no depth buffer decides it
+        return list(dict.fromkeys(need))
+
+    def start(self, fc, aux, parity: int, timer_slot: int) -> Pending:
+        gb, raw = fc.gbuffer, self.gl.raw
+        w, h = gb.size
+        buffers = {}
+        for name in self.channels_for(fc, aux):
+            if name == "zbuffer":
+                buf = self._buffer((parity, name), w * h * gb.layers * 4)
+                raw.glBindBuffer(GL_PIXEL_PACK_BUFFER, buf.glo)
+                raw.glBindTexture(GL_TEXTURE_2D_ARRAY, gb.depth_name)
+                raw.glGetTexImage(GL_TEXTURE_2D_ARRAY, 0, GL_DEPTH_COMPONENT, GL_FLOAT, None)
+                raw.glBindTexture(GL_TEXTURE_2D_ARRAY, 0)
+                raw.glBindBuffer(GL_PIXEL_PACK_BUFFER, 0)
+                buffers[name] = (buf, np.float32, 1)
+                continue
+            if name == "ldr":
+                tex, dtype, comps = fc.target("ldr"), np.uint8, 4
+            else:
+                ch = next(c for c in COLOR_CHANNELS if c.name == name)
+                tex, dtype, comps = gb.textures[name], _DTYPES[ch.dtype], ch.components
+            nbytes = w * h * gb.layers * comps * np.dtype(dtype).itemsize
+            buf = self._buffer((parity, name), nbytes)
+            tex.read_into(buf, alignment=1)
+            buffers[name] = (buf, dtype, comps)
+        return Pending(fc, buffers, tuple(aux), timer_slot)
+
+    def finish(self, pending: Pending):
+        """Map the buffers and cut them into per-eye numpy images (rows top-down)."""
+        from .renderer import EyeImage
+
+        fc = pending.fc
+        w, h = fc.gbuffer.size
+        layers = fc.gbuffer.layers
+        data = {}
+        for name, (buf, dtype, comps) in pending.buffers.items():
+            a = np.frombuffer(buf.read(), dtype).reshape(layers, h, w, comps)[:, ::-1]
+            data[name] = a.astype(np.float32) if dtype == np.float16 else a
+        out = {}
+        for layer, eye in enumerate(fc.eyes):
+            color = np.ascontiguousarray(data["ldr"][layer, ..., :3])
+            if "zbuffer" in data:
+                z = data["zbuffer"][layer, ..., 0]
+                hit = z > 0
+                depth = depth_from_zbuffer(z, eye.near, eye.far)
+            else:
+                hit = data["triangle"][layer, ..., 0] != NO_HIT
+                depth = np.where(hit, data["position"][layer, ..., 3], 0.0).astype(np.float32)
+            if "triangle" in data:
+                hit = data["triangle"][layer, ..., 0] != NO_HIT
+            extra = {name: self._aux(name, data, layer, hit, depth, fc.scene.origin) for name in pending.aux}
+            out[eye.name] = EyeImage(eye.name, color, depth, extra)
+        return out
+
+    @staticmethod
+    def _aux(name, data, layer, hit, depth, origin):
+        if name == "depth":
+            return depth
+        if name == "zbuffer":
+            return np.ascontiguousarray(data["zbuffer"][layer, ..., 0])
+        if name == "triangle":
+            return np.ascontiguousarray(data["triangle"][layer, ..., 0])
+        if name == "position":  # world space, float64, NaN-free: background is 0
+            world = data["position"][layer, ..., :3].astype(np.float64) + origin
+            return np.where(hit[..., None], world, 0.0)
+        if name in ("material", "effect"):
+            return np.ascontiguousarray(data["material"][layer, ..., 0 if name == "material" else 1])
+        return np.ascontiguousarray(data[name][layer, ..., :3])
+
+    def release(self) -> None:
+        for buf in self._pool.values():
+            buf.release()
+        self._pool.clear()
