@@ -34,6 +34,8 @@ class FramePlan:
     layers: int = 2
     layer_mode: str = "vertex"  # how the G-buffer reaches its layers: vertex | geometry | multiview | passes
     output: str = "ldr"
+    primary: str = "raster"  # primary visibility: "raster" (visibility pass) or "rays" (BVH)
+
 
 
 class Pass:
