@@ -128,17 +128,23 @@ def cmd_info(args) -> int:
 
 def cmd_bench(args) -> int:
     out = Path(args.out)
+    quick = args.quick
     if args.area == "gbuffer":
         from .bench import gbuffer
 
-        size = (64, 64) if args.quick else args.size
-        scenes = ("default",) if args.quick else tuple(args.scenes.split(","))
-        repeat = 3 if args.quick else args.repeat
-        gbuffer.run(out, size=size, scenes=scenes, repeat=repeat, warmup=1 if args.quick else 5,
-                    backend=args.backend)
-        print(f"results in {out}/gbuffer.json and gbuffer.md")
-        return 0
-    raise SystemExit(f"unknown benchmark area {args.area!r}")
+        gbuffer.run(out, size=(64, 64) if quick else args.size,
+                    scenes=("default",) if quick else tuple(args.scenes.split(",")),
+                    repeat=3 if quick else args.repeat, warmup=1 if quick else 5, backend=args.backend)
+    elif args.area == "peers":
+        from .bench import peers
+
+        peers.run(out, size=(64, 36) if quick else (1280, 720),
+                  scenes=("default",) if quick else tuple(args.scenes.split(",")),
+                  frames=5 if quick else args.repeat * 4, backend=args.backend)
+    else:
+        raise SystemExit(f"unknown benchmark area {args.area!r}")
+    print(f"results in {out}/{args.area}.json and {args.area}.md")
+    return 0
 
 
 def cmd_preview(args) -> int:
@@ -192,7 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
-    b.add_argument("area", choices=("gbuffer",), help="what to measure")
+    b.add_argument("area", choices=("gbuffer", "peers"),
+                   help="gbuffer: layered stereo vs mono G-buffer ms; peers: frames/s against pyrender")
     b.add_argument("--out", default="bench/results", help="folder for JSON/markdown results")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")
     b.add_argument("--scenes", default="default,sponza", help="comma-separated: default, sponza")

@@ -103,3 +103,11 @@ def test_bench_quick_writes_results(tmp_path):
         else result["meta"].get("gl_extensions", {}).get("GL_OVR_multiview2")
     assert {r["mode"] for r in result["rows"]} == {"vertex", "geometry", "passes"} | ({"multiview"} if multiview else set())
     assert result["meta"]["gl_renderer"] and (tmp_path / "gbuffer.md").exists()
+
+
+def test_bench_peers_quick(tmp_path):
+    pytest.importorskip("pyrender", reason="pyrender is an optional peer (pip install pyrender)")
+    run = rayvr("bench", "peers", "--quick", "--out", str(tmp_path))
+    assert run.returncode == 0, run.stderr
+    row = json.loads((tmp_path / "peers.json").read_text())["rows"][0]
+    assert row["rayvr_fps"] > 0 and (row["pyrender_fps"] or row["pyrender_error"])
