@@ -25,10 +25,14 @@ from .gpu_scene import GpuScene
 from .passes.debug_view import DEBUG_VIEWS, DebugViewPass
 from .passes.gbuffer import GBufferResolvePass, VisibilityPass, pick_layer_mode
 from .passes.resolve import TONEMAPPERS, ResolvePass
+from .passes.raytrace import all_rt_passes
 from .passes.shade import ShadeDirectPass
+from .accel.scene import SceneAccel
 from .readback import AUX_CHANNELS, Reader
 
 VIEWS = ("color",) + DEBUG_VIEWS
+PRIMARY_MODES = ("raster", "rays")
+
 
 
 @dataclass
@@ -38,12 +42,16 @@ class RenderSettings:
     ambient: tuple = (0.03, 0.03, 0.03)
     background: tuple = (0.02, 0.02, 0.025)
     layer_mode: str = "auto"  # auto | vertex | geometry | multiview | passes
+    primary: str = "raster"  # primary visibility: raster (visibility pass) | rays (BVH, passes/raytrace.py)
+    seed: int = 0  # random sequence of the sampled effects (area-light points, glossy rays)
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
             raise ValueError(f"unknown tonemapper {self.tonemapper!r}; allowed: {', '.join(TONEMAPPERS)}")
         if not (np.isfinite(self.exposure) and self.exposure > 0):
             raise ValueError(f"exposure must be a positive number, got {self.exposure}")
+        if self.primary not in PRIMARY_MODES:
+            raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
 
 
 @dataclass
@@ -87,6 +95,7 @@ class FrameContext:
     plan: FramePlan
     settings: RenderSettings
     targets: dict
+    accel: SceneAccel | None = None  # the scene's BVH, built by the `bvh` pass when one is needed
 
     def target(self, name: str):
         return self.targets[name]
@@ -94,7 +103,10 @@ class FrameContext:
 
 def _all_passes():
     """Every pass rayvr has, in registration order (the graph picks and orders what runs)."""
-    return [VisibilityPass(), GBufferResolvePass(), ShadeDirectPass(), ResolvePass(), DebugViewPass()]
+    rt = all_rt_passes()
+    return [rt["bvh"], VisibilityPass(), rt["primary_rays"], GBufferResolvePass(), ShadeDirectPass(), rt["classify"],
+
+            rt["rt_shadows"], rt["rt_reflections"], rt["rt_glossy"], ResolvePass(), DebugViewPass()]
 
 
 class Renderer:
@@ -110,6 +122,7 @@ class Renderer:
         self.gpu_scene = GpuScene(self.gl, self.scene, self.assignments)
         self.layer_mode = pick_layer_mode(self.gl, self.settings.layer_mode)
         self.timer = PassTimer(self.gl.ctx)
+        self.accel = SceneAccel(self.gl, self.scene)  # BVH: built only when a pass needs it
         self.reader = Reader(self.gl)
         self._passes: dict = {}  # plan key -> scheduled, set-up passes
         self._gbuffer: GBuffer | None = None
@@ -132,10 +145,11 @@ class Renderer:
     def _plan(self, layers: int, view: str) -> FramePlan:
         if view not in VIEWS:
             raise ValueError(f"unknown view {view!r}; allowed: {', '.join(VIEWS)}")
-        return FramePlan(effects=self.effects_in_use(), view=view, layers=layers, layer_mode=self.layer_mode)
+        return FramePlan(effects=self.effects_in_use(), view=view, layers=layers, layer_mode=self.layer_mode,
+                         primary=self.settings.primary)
 
     def passes_for(self, plan: FramePlan) -> list:
-        key = (plan.effects, plan.view, plan.layers, plan.layer_mode)
+        key = (plan.effects, plan.view, plan.layers, plan.layer_mode, plan.primary)
         if key not in self._passes:
             chosen = schedule(_all_passes(), plan)
             for p in chosen:
@@ -160,7 +174,8 @@ class Renderer:
         plan = self._plan(len(eye_views), view)
         passes = self.passes_for(plan)
         gbuffer, targets = self._resources(rig.size, len(eye_views))
-        fc = FrameContext(self.gl, self.scene, self.gpu_scene, gbuffer, eye_views, plan, self.settings, targets)
+        fc = FrameContext(self.gl, self.scene, self.gpu_scene, gbuffer, eye_views, plan, self.settings, targets,
+                          self.accel)
         self.timer.next_frame()
         for p in passes:
             self.timer.run(p.name, lambda p=p: p.execute(fc))
@@ -192,6 +207,17 @@ class Renderer:
         timings = self.timer.read_ms(pending.fc.pass_names, slot=pending.timer_slot)
         return Frame(self.reader.finish(pending), timings, pending.fc.plan.view)
 
+    def update_vertices(self, vertices) -> None:
+        """Move the scene's vertices (scene-local, same triangles): re-upload them and refit the
+        BVH if one was built."""
+        v = np.asarray(vertices, np.float32)
+        if v.shape != self.scene.vertices.shape or not np.isfinite(v).all():
+            raise ValueError(f"update_vertices needs {self.scene.vertices.shape} finite positions, got {v.shape}")
+        self.scene.vertices = np.ascontiguousarray(v)
+        interleaved = np.concatenate([v, self.scene.normals, self.scene.uvs], axis=1).astype("f4")
+        self.gpu_scene.vbo.write(np.ascontiguousarray(interleaved))
+        self.accel.refit(v)
+
     # -- lifetime --------------------------------------------------------------------
     def _release_resources(self) -> None:
         if self._gbuffer is not None:
@@ -207,7 +233,9 @@ class Renderer:
             for p in passes:
                 p.release()
         self._passes.clear()
+        self.accel.release()
         self.gpu_scene.release()
+
         if self._owns_gl:
             self.gl.release()
 

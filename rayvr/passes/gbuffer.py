@@ -32,6 +32,10 @@ class VisibilityPass(Pass):
     name = "visibility"
     writes = ("visibility",)
 
+    def needed(self, plan: FramePlan) -> bool:
+        return plan.primary == "raster"  # else passes/raytrace.py PrimaryRaysPass casts them
+
+
     def setup(self, gl, plan: FramePlan) -> None:
         self.gl = gl
         self.mode = plan.layer_mode
@@ -96,13 +100,16 @@ class GBufferResolvePass(Pass):
     writes = ("gbuffer",)
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.program = shaders.compute(gl.ctx, "gbuffer/resolve.comp")
+        self.rays = plan.primary == "rays"  # triangle IDs from passes/raytrace.py PrimaryRaysPass
+        self.program = shaders.compute(gl.ctx, "gbuffer/resolve.comp", {"PRIMARY_RAYS": int(self.rays)})
 
     def execute(self, fc) -> None:
         set_eye_uniforms(self.program, fc)
         fc.gpu_scene.bind()
         fc.gpu_scene.textures.use(7)
         fc.gbuffer.bind_for_writing()
+        if self.rays:  # the primary-ray pass left each hit distance in position.w
+            fc.gbuffer.textures["position"].bind_to_image(0, read=True, write=True)
         dispatch_per_pixel(fc, self.program)
 
     def release(self) -> None:

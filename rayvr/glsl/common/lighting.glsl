@@ -15,6 +15,15 @@
 float light_visibility(vec3 p, vec3 n, vec3 to_light, float dist) { return 1.0; }
 #endif
 
+// Points on a rect light, in [0,1]^2. A pass that samples them itself (randomly, per pixel)
+// defines HAS_RECT_LIGHT_SAMPLES and provides both functions; without it: a fixed NxN grid.
+#ifndef HAS_RECT_LIGHT_SAMPLES
+int rect_light_sample_count() { return RECT_LIGHT_GRID * RECT_LIGHT_GRID; }
+vec2 rect_light_sample(int k, int n) {
+    return (vec2(k / RECT_LIGHT_GRID, k % RECT_LIGHT_GRID) + 0.5) / float(RECT_LIGHT_GRID);
+}
+#endif
+
 vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float roughness) {
     vec3 sum = vec3(0.0);
     for (int i = 0; i < lights.length(); ++i) {
@@ -38,23 +47,21 @@ vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float
             vec3 c = li.position_kind.xyz, u = li.u.xyz, w = li.v.xyz;
             vec3 ln = normalize(cross(u, w));
             float area = 4.0 * length(cross(u, w));
-            const int N = RECT_LIGHT_GRID;
-            for (int a = 0; a < N; ++a) {
-                for (int b = 0; b < N; ++b) {
-                    vec2 s = (vec2(a, b) + 0.5) / float(N) * 2.0 - 1.0;
-                    vec3 q = c + s.x * u + s.y * w;
-                    vec3 d = q - p;
-                    float dist2 = dot(d, d);
-                    if (dist2 <= 0.0) continue;
-                    float dist = sqrt(dist2);
-                    vec3 l = d / dist;
-                    float cos_light = dot(ln, -l);
-                    if (cos_light <= 0.0) continue;
-                    vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
-                    if (!any(greaterThan(f, vec3(0.0)))) continue;
-                    sum += f * li.radiance.rgb * cos_light / dist2 * (area / float(N * N))
-                           * light_visibility(p, n, l, dist);
-                }
+            int N = rect_light_sample_count();
+            for (int k = 0; k < N; ++k) {
+                vec2 s = rect_light_sample(k, N) * 2.0 - 1.0;
+                vec3 q = c + s.x * u + s.y * w;
+                vec3 d = q - p;
+                float dist2 = dot(d, d);
+                if (dist2 <= 0.0) continue;
+                float dist = sqrt(dist2);
+                vec3 l = d / dist;
+                float cos_light = dot(ln, -l);
+                if (cos_light <= 0.0) continue;
+                vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
+                if (!any(greaterThan(f, vec3(0.0)))) continue;
+                sum += f * li.radiance.rgb * cos_light / dist2 * (area / float(N))
+                       * light_visibility(p, n, l, dist);
             }
         }
     }

@@ -4,6 +4,11 @@
 // G-buffer channel (rayvr/gbuffer.py CHANNELS). Positions lie on the pixel's ray by
 // construction, so ray-traced passes and the G-buffer register exactly; texture LOD comes
 // from ray differentials (the neighbouring pixels' rays on the same triangle plane).
+// PRIMARY_RAYS 1: the triangle IDs come from rt/primary.comp, which leaves the hit distance in
+// position.w instead of a depth buffer.
+#ifndef PRIMARY_RAYS
+#define PRIMARY_RAYS 0
+#endif
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../common/scene.glsl"
 #include "../common/camera.glsl"
@@ -11,7 +16,11 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
 layout(binding = 0) uniform sampler2DArray gb_depth;
 layout(binding = 7) uniform sampler2DArray base_color_textures;
+#if PRIMARY_RAYS
+layout(rgba32f, binding = 0) uniform image2DArray img_position;
+#else
 layout(rgba32f, binding = 0) uniform writeonly image2DArray img_position;
+#endif
 layout(rgba16f, binding = 1) uniform writeonly image2DArray img_normal;
 layout(rgba16f, binding = 2) uniform writeonly image2DArray img_albedo;
 layout(rgba16f, binding = 3) uniform writeonly image2DArray img_emission;
@@ -30,9 +39,14 @@ void main() {
     ivec3 p = ivec3(gl_GlobalInvocationID);
     vec2 size = vec2(imageSize(img_position).xy);
     if (any(greaterThanEqual(p.xy, ivec2(size)))) return;
-    float z = texelFetch(gb_depth, p, 0).x;
     uint tri = imageLoad(img_triangle, p).x;
+#if PRIMARY_RAYS
+    float ray_t = imageLoad(img_position, p).w;
+    if (tri == NO_HIT) {
+#else
+    float z = texelFetch(gb_depth, p, 0).x;
     if (z <= 0.0 || tri == NO_HIT) {  // reversed-Z: 0 is the cleared (infinitely far) value
+#endif
         imageStore(img_position, p, vec4(0.0));
         imageStore(img_normal, p, vec4(0.0));
         imageStore(img_albedo, p, vec4(0.0));
@@ -52,7 +66,11 @@ void main() {
     float view_dist_along = dot(d, eye_forward(eye));
     if (!(abs(dot(d, ng)) > 1e-7 * length(ng)) || !(t > 0.0)) {
         // Seen edge-on: the plane hit is ill-conditioned; take the distance from the depth buffer.
+#if PRIMARY_RAYS
+        t = ray_t;
+#else
         t = eye_view_depth(z) / view_dist_along;
+#endif
         vec3 q = o + t * d - tv.p[0];
         b = vec2(dot(cross(q, e2), ng), dot(cross(e1, q), ng)) / max(dot(ng, ng), 1e-30);
     }

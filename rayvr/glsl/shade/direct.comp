@@ -8,11 +8,13 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 layout(rgba16f, binding = 0) uniform writeonly image2DArray hdr_out;
 uniform vec3 ambient;           // constant ambient radiance (stands in for indirect light)
 uniform vec3 background;
+uniform uint traced_effects;    // bit e set: effect e's own pass (rt/effects.comp) shades those pixels
 
 void main() {
     ivec3 p = ivec3(gl_GlobalInvocationID);
     if (any(greaterThanEqual(p.xy, imageSize(hdr_out).xy))) return;
     Surface s = gbuffer_fetch(p);
+    if (s.triangle != NO_HIT && s.effect < 32u && ((traced_effects >> s.effect) & 1u) != 0u) return;
     vec3 color;
     if (s.triangle == NO_HIT) {
         color = background;

@@ -1,0 +1,54 @@
+"""The scene's BVH as a frame resource: built on first use, uploaded once, refit on request.
+
+Only the `bvh` pass (rayvr/passes/raytrace.py) calls `SceneAccel.ensure()`, and the frame graph
+schedules that pass only when a ray-traced effect or ray-traced primary visibility needs it: a
+scene that is all `raster` never reaches `build_scene_bvh`.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from .bvh import Bvh, build_bvh
+from .gpu import GpuBvh
+
+log = logging.getLogger(__name__)
+
+
+def build_scene_bvh(scene) -> Bvh:
+    """Binned-SAH BVH over the scene's triangles in scene-local coordinates (the space of the
+    G-buffer's positions); hit IDs are the scene's triangle IDs."""
+    bvh = build_bvh(scene.vertices, scene.indices)
+    log.info("%s: BVH of %d triangles built in %.3f s (SAH cost %.1f)", scene.name, bvh.triangle_count,
+             bvh.build_seconds, bvh.sah_cost())
+    return bvh
+
+
+class SceneAccel:
+    def __init__(self, gl, scene):
+        self.gl, self.scene = gl, scene
+        self.bvh: Bvh | None = None
+        self.gpu: GpuBvh | None = None
+
+    @property
+    def built(self) -> bool:
+        return self.gpu is not None
+
+    def ensure(self) -> GpuBvh:
+        if self.gpu is None:
+            self.bvh = build_scene_bvh(self.scene)
+            self.gpu = GpuBvh(self.gl.ctx, self.bvh)
+        return self.gpu
+
+    def refit(self, vertices) -> None:
+        """Moving geometry (same triangles, new scene-local positions): refit the boxes and
+        re-upload. A BVH not built yet is simply built from the new positions when first needed."""
+        if self.bvh is not None:
+            self.bvh.refit(np.asarray(vertices, np.float32))
+            self.gpu.update()
+
+    def release(self) -> None:
+        if self.gpu is not None:
+            self.gpu.release()
+        self.gpu = self.bvh = None
