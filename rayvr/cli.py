@@ -126,6 +126,24 @@ def cmd_info(args) -> int:
     return 0
 
 
+def _example_config(scene_name: str):
+    """The material config shipped for a benchmark scene (rayvr/assets/<scene>.toml), if any."""
+    from .scene import ASSETS_DIR
+
+    path = ASSETS_DIR / ("default_room.toml" if scene_name == "default" else f"{scene_name}.toml")
+    return path if path.exists() else None
+
+
+def _budgets(text: str) -> list[float]:
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated milliseconds, got {text!r}") from None
+    if not values or not all(np.isfinite(values)) or min(values) <= 0:
+        raise argparse.ArgumentTypeError(f"budgets must be positive milliseconds, got {text!r}")
+    return values
+
+
 def cmd_bench(args) -> int:
     out = Path(args.out)
     quick = args.quick
@@ -141,6 +159,16 @@ def cmd_bench(args) -> int:
         peers.run(out, size=(64, 36) if quick else (1280, 720),
                   scenes=("default",) if quick else tuple(args.scenes.split(",")),
                   frames=5 if quick else args.repeat * 4, backend=args.backend)
+    elif args.area in ("tradeoff", "budget"):
+        from .bench import tradeoff
+
+        kw = dict(size=(32, 24) if quick else args.size,
+                  scenes=("default",) if quick else tuple(args.scenes.split(",")),
+                  repeat=2 if quick else args.repeat // 5, base_config=_example_config, backend=args.backend)
+        if args.area == "tradeoff":
+            tradeoff.run(out, quick=quick, **kw)
+        else:
+            tradeoff.run_budget(out, budgets=tuple(args.budget_ms), **kw)
     else:
         raise SystemExit(f"unknown benchmark area {args.area!r}")
     print(f"results in {out}/{args.area}.json and {args.area}.md")
@@ -198,8 +226,11 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
-    b.add_argument("area", choices=("gbuffer", "peers"),
-                   help="gbuffer: layered stereo vs mono G-buffer ms; peers: frames/s against pyrender")
+    b.add_argument("area", choices=("gbuffer", "peers", "tradeoff", "budget"),
+                   help="gbuffer: layered stereo vs mono G-buffer ms; peers: frames/s against pyrender; "
+                        "tradeoff: every knob's GPU ms vs error against the reference; budget: effects per "
+                        "material chosen under --budget-ms")
+    b.add_argument("--budget-ms", type=_budgets, default=[4.0, 8.0], help="frame budgets for 'budget' (default 4,8)")
     b.add_argument("--out", default="bench/results", help="folder for JSON/markdown results")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")
     b.add_argument("--scenes", default="default,sponza", help="comma-separated: default, sponza")

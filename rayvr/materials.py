@@ -11,6 +11,7 @@ by glob, with per-effect parameters:
     [materials]
     "floor"    = "shadows"                              # exact name
     "mirror*"  = { effect = "reflections", bounces = 3 } # glob, with parameters
+    "face"     = { effect = "shadows", importance = 4.0 }  # weight in --budget-ms choices
 
     [ids]
     7 = "shadows"                 # numeric material index (as `rayvr info SCENE` lists them)
@@ -91,6 +92,7 @@ class Assignment:
     effect: str
     params: dict
     rule: str  # which config entry chose it ("default", "materials.floor", "ids.7", ...)
+    importance: float = 1.0  # the user's weight for this material's error (budget mode)
 
     @property
     def effect_id(self) -> int:
@@ -105,6 +107,7 @@ class MaterialConfig:
     params: dict = field(default_factory=dict)  # effect -> {param: value}
     by_name: dict = field(default_factory=dict)  # name or glob -> (effect, params)
     by_id: dict = field(default_factory=dict)  # int -> (effect, params)
+    importance_of: dict = field(default_factory=dict)  # rule ("materials.x", "ids.3") -> weight
     source: str = "<defaults>"
 
     def effect_params(self, effect: str, overrides: dict | None = None) -> dict:
@@ -129,7 +132,7 @@ class MaterialConfig:
                 else:
                     key, effect, over = "default", self.default, {}
             used_keys.add(key)
-            result.append(Assignment(effect, self.effect_params(effect, over), key))
+            result.append(Assignment(effect, self.effect_params(effect, over), key, self.importance_of.get(key, 1.0)))
         if warn:
             unused = [f"materials.{k}" for k in self.by_name if f"materials.{k}" not in used_keys]
             unused += [f"ids.{k}" for k in self.by_id if f"ids.{k}" not in used_keys]
@@ -183,15 +186,19 @@ def _check_params(effect: str, params: dict, where: str, source: str) -> dict:
     return out
 
 
-def _parse_entry(value, where: str, source: str) -> tuple[str, dict]:
+def _parse_entry(value, where: str, source: str) -> tuple[str, dict, float]:
+    """(effect, params, importance) of one [materials] / [ids] entry."""
     if isinstance(value, str):
-        return _check_effect(value, where, source), {}
+        return _check_effect(value, where, source), {}, 1.0
     if isinstance(value, dict):
         if "effect" not in value:
             raise ConfigError(f"{source}: {where}: a table needs an 'effect' key; allowed effects: {', '.join(EFFECTS)}")
         effect = _check_effect(value["effect"], f"{where}.effect", source)
-        rest = {k: v for k, v in value.items() if k != "effect"}
-        return effect, _check_params(effect, rest, where, source)
+        importance = value.get("importance", 1.0)
+        if isinstance(importance, bool) or not isinstance(importance, (int, float)) or not importance >= 0:
+            raise ConfigError(f"{source}: {where}.importance: expected a number >= 0, got {importance!r}")
+        rest = {k: v for k, v in value.items() if k not in ("effect", "importance")}
+        return effect, _check_params(effect, rest, where, source), float(importance)
     raise ConfigError(f"{source}: {where}: expected an effect name or a table, got {type(value).__name__}")
 
 
@@ -220,7 +227,9 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
     if not isinstance(mats, dict):
         raise ConfigError(f"{source}: materials: expected a table of name = effect entries")
     for name, value in mats.items():
-        cfg.by_name[name] = _parse_entry(value, f"materials.{name}", source)
+        effect, params_, importance = _parse_entry(value, f"materials.{name}", source)
+        cfg.by_name[name] = (effect, params_)
+        cfg.importance_of[f"materials.{name}"] = importance
     ids = data.get("ids", {})
     if not isinstance(ids, dict):
         raise ConfigError(f"{source}: ids: expected a table of index = effect entries")
@@ -231,7 +240,9 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
             raise ConfigError(f"{source}: ids.{key}: keys must be non-negative integers (material indices)") from None
         if index < 0:
             raise ConfigError(f"{source}: ids.{key}: keys must be non-negative integers (material indices)")
-        cfg.by_id[index] = _parse_entry(value, f"ids.{key}", source)
+        effect, params_, importance = _parse_entry(value, f"ids.{key}", source)
+        cfg.by_id[index] = (effect, params_)
+        cfg.importance_of[f"ids.{index}"] = importance
     return cfg
 
 

@@ -1,0 +1,295 @@
+"""`rayvr bench tradeoff` and `--budget-ms`: the price list of accuracy.
+
+Every knob setting (a *variant*: a material config plus render settings plus a resolution
+scale) is rendered on the same stereo rig; its cost is the median GPU time of the whole frame
+(sum of the passes' timer queries) and its error is measured against the reference image (the
+most accurate setting rayvr has, from `reference.py`) with mean FLIP at the headset's pixels
+per degree, PSNR and SSIM, over the whole image and over the pixels the knob touches.
+
+The budget mode measures, per material, what each effect costs and how much error it leaves
+(rendering that material with the effect and everything else `raster`), then picks one effect
+per material with `budget.solve_budget` and measures the chosen assignment for real.
+"""
+from __future__ import annotations
+
+import fnmatch
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..camera import StereoRig
+from ..materials import EFFECTS, MaterialConfig, implemented_effects
+from ..renderer import Renderer, RenderSettings
+from . import budget as budget_mod
+from . import metrics
+
+
+@dataclass
+class Variant:
+    knob: str  # what is varied ("effect", "bounces", "resolution_scale", ...)
+    value: object
+    config: MaterialConfig
+    settings: RenderSettings = field(default_factory=RenderSettings)
+    scale: float = 1.0  # render at scale x size, compare upscaled to full size
+    touches: tuple = ()  # material names this variant changes (the error mask); () = whole image
+
+    @property
+    def label(self) -> str:
+        return f"{self.knob}={self.value}"
+
+
+@dataclass
+class Measured:
+    gpu_ms: float
+    passes_ms: dict
+    image: np.ndarray  # uint8 HxWx3, both eyes side by side, full size
+    material: np.ndarray  # uint32 HxW material index per pixel (same layout)
+
+
+def config_with(base: MaterialConfig, default: str | None = None, materials: dict | None = None,
+                params: dict | None = None) -> MaterialConfig:
+    """A copy of `base` with another default effect, per-material effects and effect params."""
+    cfg = MaterialConfig(default=default or base.default, params={k: dict(v) for k, v in base.params.items()},
+                         by_name=dict(base.by_name), by_id=dict(base.by_id), importance_of=dict(base.importance_of),
+                         source=f"{base.source} (variant)")
+    for name, effect in (materials or {}).items():
+        cfg.by_name[name] = (effect, {})
+    for effect, values in (params or {}).items():
+        cfg.params.setdefault(effect, {}).update(values)
+    return cfg
+
+
+def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmup: int = 3) -> Measured:
+    w, h = rig.size
+    small = (max(1, round(w * variant.scale)), max(1, round(h * variant.scale)))
+    r = Renderer(scene, variant.config, gl=gl, settings=variant.settings)
+    try:
+        rigs = [rig.with_size(small)] * (warmup + repeat)
+        totals, passes, last = [], [], None
+        for i, frame in enumerate(r.render_sequence(rigs, aux=("material",))):
+            if i >= warmup:
+                totals.append(sum(frame.timings.values()))
+                passes.append(frame.timings)
+            last = frame
+    finally:
+        r.release()
+    image = np.hstack([last.left.color, last.right.color])
+    material = np.hstack([last.left.aux["material"], last.right.aux["material"]])
+    if small != (w, h):
+        from PIL import Image
+
+        image = np.asarray(Image.fromarray(image).resize((2 * w, h), Image.BILINEAR))
+        material = np.asarray(Image.fromarray(material.astype(np.int32)).resize((2 * w, h), Image.NEAREST)).astype(np.uint32)
+    names = sorted({k for p in passes for k in p})
+    return Measured(float(np.median(totals)), {k: float(np.median([p.get(k, 0.0) for p in passes])) for k in names},
+                    image, material)
+
+
+def material_mask(scene, material_map: np.ndarray, names) -> np.ndarray | None:
+    if not names:
+        return None
+    index = [i for i, n in enumerate(scene.material_names()) if any(fnmatch.fnmatchcase(n, g) for g in names)]
+    return np.isin(material_map, index)
+
+
+def error_row(ref: Measured, test: Measured, scene, variant: Variant, ppd: float, with_flip: bool = True) -> dict:
+    mask = material_mask(scene, ref.material, variant.touches)
+    if mask is not None and not mask.any():
+        mask = None
+    which = ("flip", "psnr", "ssim") if with_flip else ("psnr", "ssim")
+    return metrics.compare(ref.image, test.image, mask=mask, ppd=ppd, metrics=which)
+
+
+# ------------------------------------------------------------------------------- the knobs
+
+
+def variants(scene, base: MaterialConfig, quick: bool = False) -> list[Variant]:
+    """Every knob rayvr has today, each swept along its range (effects not implemented yet are
+    left out; they appear here as they land)."""
+    out: list[Variant] = []
+    effects = implemented_effects()
+    for e in effects:  # the whole scene on one rung of the ladder
+        out.append(Variant("effect", e, config_with(base, default=e, materials={n: e for n in base.by_name})))
+    ranges = {
+        "area_samples": [1, 4, 16] if quick else [1, 2, 4, 8, 16, 32],
+        "bounces": [1, 2] if quick else [1, 2, 3, 4, 8],
+        "samples": [1, 4] if quick else [1, 2, 4, 8, 16, 32],
+    }
+    for effect in effects:
+        # Sweep a parameter where the effect is in use: the materials the config gives it, or
+        # (when it gives it none) the whole scene.
+        users = tuple(n for n, (e, _) in base.by_name.items() if e == effect)
+        on = base if (users or base.default == effect) else config_with(base, default=effect)
+        touched = () if on.default == effect else users
+        for param, values in ranges.items():
+            if param in EFFECTS[effect].params:
+                for v in values:
+                    out.append(Variant(f"{effect}.{param}", v, config_with(on, params={effect: {param: v}}),
+                                       touches=touched))
+    for s in ([0.5, 1.0] if quick else [0.5, 0.75, 1.0]):
+        out.append(Variant("resolution_scale", s, base, scale=s))
+    return out
+
+
+def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd: float, repeat=10,
+              progress=True, with_flip=True) -> tuple[list[dict], Measured]:
+    ref = measure(gl, scene, rig, reference, repeat)
+    rows = []
+    iterator = variants_
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(variants_), unit="variant", desc=f"tradeoff {scene.name}")
+    for v in iterator:
+        m = measure(gl, scene, rig, v, repeat)
+        rows.append({"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label,
+                     "gpu_ms": m.gpu_ms, **error_row(ref, m, scene, v, ppd, with_flip),
+                     "passes_ms": m.passes_ms})
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    return rows, ref
+
+
+# ------------------------------------------------------------------------------- budget
+
+
+def per_material_options(gl, scene, rig, reference_image: Measured, base: MaterialConfig, ppd: float,
+                         effects=None, repeat=10, min_coverage=1e-4, progress=True):
+    """Per material: (effect, extra ms over all-raster, mean FLIP over its pixels) for each
+    implemented effect, plus its screen coverage. Materials covering < min_coverage of the
+    image stay `raster` (their error cannot be measured; their cost is noise)."""
+    effects = list(effects or implemented_effects())
+    names = scene.material_names()
+    raster = measure(gl, scene, rig, Variant("budget", "raster", config_with(base, default="raster",
+                                                                            materials={n: "raster" for n in base.by_name})), repeat)
+    coverage = np.bincount(np.where(reference_image.material < len(names), reference_image.material, len(names)).ravel(),
+                           minlength=len(names) + 1)[:len(names)] / reference_image.material.size
+    options = []
+    importance = [a.importance for a in base.assign(names, warn=False)]
+    todo = [(i, n) for i, n in enumerate(names) if coverage[i] >= min_coverage]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(todo) * len(effects), unit="render", desc=f"budget {scene.name}")
+    for i, name in todo:
+        mask = reference_image.material == i
+        opts = []
+        for e in effects:
+            if e == "raster":
+                m = raster
+            else:
+                cfg = config_with(base, default="raster", materials={**{n: "raster" for n in base.by_name}, name: e})
+                m = measure(gl, scene, rig, Variant("budget", e, cfg), repeat)
+            err = metrics.flip(reference_image.image, m.image, mask=mask, ppd=ppd)
+            opts.append(budget_mod.Option(e, max(m.gpu_ms - raster.gpu_ms, 0.0), err))
+            if bar is not None:
+                bar.update(1)
+        options.append(budget_mod.MaterialOptions(name, opts, importance=importance[i],
+                                                  coverage=float(coverage[i])))
+    if bar is not None:
+        bar.close()
+    return raster.gpu_ms, options
+
+
+def choose_under_budget(gl, scene, rig, budget_ms: float, base: MaterialConfig, reference_image: Measured,
+                        ppd: float, repeat=10, progress=True) -> dict:
+    """Pick effects per material for `budget_ms`, then render the pick and measure it."""
+    base_ms, options = per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
+                                            progress=progress)
+    result = budget_mod.solve_budget(options, budget_ms, base_ms=base_ms)
+    cfg = config_with(base, default="raster", materials={**{n: "raster" for n in base.by_name}, **result.assignment})
+    chosen = measure(gl, scene, rig, Variant("budget", budget_ms, cfg), repeat)
+    return {"budget_ms": budget_ms, "predicted_ms": result.total_ms, "measured_ms": chosen.gpu_ms,
+            "feasible": result.feasible, "predicted_error": result.error,
+            "measured_flip": metrics.flip(reference_image.image, chosen.image, ppd=ppd),
+            "assignment": result.assignment, "config": cfg, "image": chosen.image}
+
+
+# ------------------------------------------------------------------------------- entry points
+
+
+def _setup(name, size, base_config):
+    from ..materials import load_config
+    from .gbuffer import load_bench_scene
+    from .reference import reference_setup
+
+    scene, pose = load_bench_scene(name)
+    if scene is None:
+        return None, pose
+    rig = StereoRig.for_scene(scene, size=size)
+    if pose is not None:
+        rig.pose = pose
+    base = load_config(base_config(name)) if base_config else load_config(None)
+    ref_config, ref_settings = reference_setup(scene)
+    return (scene, rig, base, Variant("reference", "reference", ref_config, ref_settings)), None
+
+
+def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
+        base_config=None, backend=None, progress=True) -> dict:
+    """Sweep every knob on each scene against its reference; write tradeoff.json/.md and plots."""
+    from ..context import create_context
+    from .report import device_meta, write_report
+
+    gl = create_context(backend)
+    rows, skipped = [], {}
+    try:
+        for name in scenes:
+            setup, why = _setup(name, size, base_config)
+            if setup is None:
+                skipped[name] = why
+                continue
+            scene, rig, base, reference = setup
+            r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick), ppd, repeat, progress,
+                             with_flip=True)
+            for row in r:
+                row["scene"] = name
+                row["series"] = f"{name}: {row['knob']}"
+            rows += r
+        meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
+                "ppd": ppd, "skipped": skipped, "error": "vs the scene's reference (rayvr.bench.reference); "
+                "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
+    finally:
+        gl.release()
+    result = {"meta": meta, "rows": rows}
+    write_report(out_dir, "tradeoff", result,
+                 plots=[{"x": "gpu_ms", "y": "flip", "group": "series", "pareto": True,
+                         "title": "GPU ms vs mean FLIP against the reference, per scene and knob"}])
+    return result
+
+
+def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
+               ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True) -> dict:
+    """For each budget: the chosen effect per material, its predicted and measured ms and error."""
+    from ..context import create_context
+    from ..output import write_png
+    from .report import device_meta, write_report
+
+    gl = create_context(backend)
+    rows, skipped = [], {}
+    try:
+        for name in scenes:
+            setup, why = _setup(name, size, base_config)
+            if setup is None:
+                skipped[name] = why
+                continue
+            scene, rig, base, reference = setup
+            ref = measure(gl, scene, rig, reference, repeat)
+            for b in budgets:
+                pick = choose_under_budget(gl, scene, rig, b, base, ref, ppd, repeat, progress)
+                rows.append({"scene": name, "reference_ms": ref.gpu_ms,
+                             **{k: v for k, v in pick.items() if k not in ("config", "image")}})
+                write_png(f"{out_dir}/budget_{name}_{b:g}ms.png", pick["image"])
+        meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
+                "ppd": ppd, "skipped": skipped,
+                "model": "per material: extra GPU ms of each effect over all-raster and mean FLIP over its "
+                         "pixels vs the reference; total error = sum importance x coverage x error; exact "
+                         "multiple-choice knapsack (rayvr.bench.budget)"}
+    finally:
+        gl.release()
+    result = {"meta": meta, "rows": rows}
+    write_report(out_dir, "budget", result)
+    return result
