@@ -11,13 +11,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from . import materials as materials_mod
 from . import scene as scene_mod
-from .camera import EYES, EyeView, StereoRig
+from .camera import EyeView, StereoRig
 from .context import GLContext, create_context
 from .frame import FramePlan, PassTimer, schedule
 from .gbuffer import GBuffer

@@ -1,6 +1,6 @@
 import numpy as np
 
-from rayvr.camera import Pose, StereoRig, orbit
+from rayvr.camera import StereoRig, orbit
 from rayvr.renderer import Renderer
 from rayvr.scene import load
 

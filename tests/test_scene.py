@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from rayvr.scene import Material, SceneError, from_arrays, load
+from rayvr.scene import SceneError, from_arrays, load
 
 TRI = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
 

@@ -8,36 +8,15 @@ frames after `warmup`). Only meaningful on a real GPU: llvmpipe's timer queries 
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
-from .. import scene as scene_mod
-from ..camera import Pose, StereoRig
+from ..camera import StereoRig
 from ..context import create_context
 from ..renderer import Renderer, RenderSettings
 from .report import device_meta, write_report
-
-# The workspace's third-party scenes (not shipped); RAYVR_SCENES points elsewhere.
-SHARED_SCENES = Path(os.environ.get("RAYVR_SCENES") or Path(__file__).resolve().parents[2].parent / "shared" / "scenes")
-
-# Benchmark views: (scene file relative to shared/scenes or None for the default, pose).
-SCENES = {
-    "default": (None, None),
-    "sponza": ("sponza_dabrovic/sponza.obj", Pose.look_at((-10.0, 3.0, -0.5), (8.0, 5.0, 0.5))),
-}
-
-
-def load_bench_scene(name: str):
-    rel, pose = SCENES[name]
-    if rel is None:
-        return scene_mod.load(None), pose
-    path = SHARED_SCENES / rel
-    if not path.exists():
-        return None, f"{path} not found (the shared scenes folder is absent)"
-    return scene_mod.load(path), pose
-
+from .scenes import bench_scenes
 
 def time_gbuffer(renderer: Renderer, rig: StereoRig, repeat: int, warmup: int) -> dict:
     passes = ("visibility", "gbuffer")
@@ -62,16 +41,9 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=5
         modes = tuple(m for m in modes if m != "multiview")
     rows, skipped = [], {}
     try:
-        for name in scenes:
-            scene, pose = load_bench_scene(name)
-            if scene is None:
-                skipped[name] = pose
-                continue
+        for name, scene, rig in bench_scenes(scenes, size, skipped):
             for mode in modes:
                 r = Renderer(scene, gl=gl, settings=RenderSettings(layer_mode=mode))
-                rig = StereoRig.for_scene(scene, size=size)
-                if pose is not None:
-                    rig.pose = pose
                 res = time_gbuffer(r, rig, repeat, warmup)
                 rows.append({"scene": name, "triangles": scene.triangle_count, "mode": mode,
                              "layers": 2, "size": f"2x{size[0]}x{size[1]}", **res})

@@ -19,8 +19,8 @@ from .. import scene as scene_mod
 from ..camera import StereoRig, orbit
 from ..context import create_context
 from ..renderer import Renderer
-from .gbuffer import SCENES, load_bench_scene
 from .report import device_meta, write_report
+from .scenes import SCENES, bench_scenes
 
 
 def _poses(scene, rig, frames):
@@ -103,14 +103,7 @@ def run(out_dir: Path, size=(1280, 720), scenes=("default", "sponza"), frames=20
     gl = create_context(backend)
     rows, skipped = [], {}
     try:
-        for name in scenes:
-            scene, pose = load_bench_scene(name)
-            if scene is None:
-                skipped[name] = pose
-                continue
-            rig = StereoRig.for_scene(scene, size=size)
-            if pose is not None:
-                rig.pose = pose
+        for name, scene, rig in bench_scenes(scenes, size, skipped):
             ours = rayvr_fps(gl, scene, rig, frames)
             path = scene.path or scene_mod.DEFAULT_SCENE
             theirs = pyrender_fps(path, _poses(scene, rig, frames + 5), rig.fov_y, size, frames)

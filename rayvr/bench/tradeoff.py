@@ -13,7 +13,7 @@ per material with `budget.solve_budget` and measures the chosen assignment for r
 from __future__ import annotations
 
 import fnmatch
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -212,20 +212,16 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base: MaterialConfig, 
 # ------------------------------------------------------------------------------- entry points
 
 
-def _setup(name, size, base_config):
+def _setups(names, size, base_config, skipped):
+    """(name, scene, rig, base config, reference variant) per available benchmark scene."""
     from ..materials import load_config
-    from .gbuffer import load_bench_scene
     from .reference import reference_setup
+    from .scenes import bench_scenes
 
-    scene, pose = load_bench_scene(name)
-    if scene is None:
-        return None, pose
-    rig = StereoRig.for_scene(scene, size=size)
-    if pose is not None:
-        rig.pose = pose
-    base = load_config(base_config(name)) if base_config else load_config(None)
-    ref_config, ref_settings = reference_setup(scene)
-    return (scene, rig, base, Variant("reference", "reference", ref_config, ref_settings)), None
+    for name, scene, rig in bench_scenes(names, size, skipped):
+        base = load_config(base_config(name) if base_config else None)
+        ref_config, ref_settings = reference_setup(scene)
+        yield name, scene, rig, base, Variant("reference", "reference", ref_config, ref_settings)
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
@@ -237,12 +233,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     gl = create_context(backend)
     rows, skipped = [], {}
     try:
-        for name in scenes:
-            setup, why = _setup(name, size, base_config)
-            if setup is None:
-                skipped[name] = why
-                continue
-            scene, rig, base, reference = setup
+        for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped):
             r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick), ppd, repeat, progress,
                              with_flip=True)
             for row in r:
@@ -271,12 +262,7 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
     gl = create_context(backend)
     rows, skipped = [], {}
     try:
-        for name in scenes:
-            setup, why = _setup(name, size, base_config)
-            if setup is None:
-                skipped[name] = why
-                continue
-            scene, rig, base, reference = setup
+        for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped):
             ref = measure(gl, scene, rig, reference, repeat)
             for b in budgets:
                 pick = choose_under_budget(gl, scene, rig, b, base, ref, ppd, repeat, progress)
