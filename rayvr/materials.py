@@ -53,15 +53,15 @@ class Effect:
 # The ladder, cheapest first. `id` is what the G-buffer's effect channel holds.
 EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("raster", 0, True, "direct light from the G-buffer, no shadows"),
-    Effect("shadows", 1, False, "+ ray-traced hard shadows; area lights soft with N samples",
+    Effect("shadows", 1, True, "+ ray-traced hard shadows; area lights soft with N samples",
            {"area_samples": Param(int, 4, 1, 1024, "shadow rays per area light per pixel")}),
     Effect("ssr", 2, False, "+ screen-space reflections through the depth quadtree, BVH fallback",
            {"gamma_norm": Param(float, 0.05, 0.0, 3.1416, "plane merge angle threshold (radians)"),
             "gamma_dist": Param(float, 0.01, 0.0, None, "plane merge distance threshold (scene units)")}),
-    Effect("reflections", 3, False, "+ ray-traced mirror reflections",
+    Effect("reflections", 3, True, "+ ray-traced mirror reflections",
            {"bounces": Param(int, 1, 1, 16, "reflection bounces"),
             "area_samples": Param(int, 4, 1, 1024, "shadow rays per area light per pixel")}),
-    Effect("glossy", 4, False, "+ GGX glossy reflections (VNDF importance sampling)",
+    Effect("glossy", 4, True, "+ GGX glossy reflections (VNDF importance sampling)",
            {"samples": Param(int, 4, 1, 1024, "reflection rays per pixel"),
             "bounces": Param(int, 1, 1, 8, "reflection bounces"),
             "area_samples": Param(int, 4, 1, 1024, "shadow rays per area light per pixel")}),

@@ -1,0 +1,368 @@
+"""Ray-traced effects and primary visibility (passes/raytrace.py, glsl/rt/): pass-graph pruning,
+pixel lists, analytic mirrors, bounce counts, cross-checks against Embree, soft-shadow convergence.
+Small images: these run on llvmpipe."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from conftest import merge, quad
+from rayvr.accel.bvh import offset_ray
+from rayvr.camera import Pose, StereoRig
+from rayvr.gbuffer import NO_HIT
+from rayvr.materials import EFFECTS, parse_config
+from rayvr.renderer import Renderer, RenderSettings
+from rayvr.scene import Light, Material, from_arrays, load
+
+DARK = RenderSettings(ambient=(0.0, 0.0, 0.0), background=(0.0, 0.0, 0.0))
+
+
+def hdr(r: Renderer) -> np.ndarray:
+    """The last frame's HDR colour, (layers, H, W, 3) float32, rows top-down."""
+    t = r._targets["hdr"]
+    a = np.frombuffer(t.read(), np.float16).reshape(t.layers, t.height, t.width, 4)
+    return a[:, ::-1, :, :3].astype(np.float32)
+
+
+def render(gl, scene, rig, config=None, settings=None, aux=("triangle", "material", "position")):
+    r = Renderer(scene, parse_config(config or {}, "test"), gl=gl, settings=settings or RenderSettings())
+    try:
+        frame = r.render(rig, aux=aux)
+        return frame, hdr(r), r.passes_for(r._plan(2, "color"))
+    finally:
+        r.release()
+
+
+def everything(effect, **params):
+    """A config giving every material `effect` with `params`."""
+    return {"default": effect, "params": {effect: params}}
+
+
+def no_light():
+    return [Light("point", intensity=0.0)]  # keeps emissive quads from becoming rect lights
+
+
+def embree(verts, faces):
+    pytest.importorskip("embreex")
+    from embreex import mesh_construction, rtcore_scene
+    s = rtcore_scene.EmbreeScene()
+    mesh_construction.TriangleMesh(s, np.asarray(verts, np.float32), np.asarray(faces, np.int32))
+    return s
+
+
+# ------------------------------------------------------------------------------ the graph
+
+def test_all_raster_scene_builds_no_bvh_and_traces_nothing(gl, monkeypatch):
+    import rayvr.accel.scene as accel_scene
+
+    def refuse(scene):
+        raise AssertionError("an all-raster frame built a BVH")
+    monkeypatch.setattr(accel_scene, "build_scene_bvh", refuse)
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(24, 16))
+    for view in ("color", "effect"):
+        r = Renderer(scene, gl=gl)
+        r.render(rig, view=view)
+        names = {p.name for p in r.passes_for(r._plan(2, view))}
+        assert not names & {"bvh", "classify", "primary_rays", "rt_shadows", "rt_reflections", "rt_glossy"}, names
+        assert not r.accel.built
+        r.release()
+    # A debug view of a traced config needs no rays either: the graph drops what the output ignores.
+    r = Renderer(scene, parse_config({"default": "shadows"}, "t"), gl=gl)
+    r.render(rig, view="normal")
+    assert not r.accel.built
+    r.release()
+
+
+def test_traced_effects_schedule_only_their_passes_and_list_their_pixels(gl):
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(40, 30))
+    r = Renderer(scene, parse_config({"default": "raster", "materials": {"mirror*": "reflections",
+                                                                        "walls": "shadows"}}, "t"), gl=gl)
+    frame = r.render(rig, aux=("effect",))
+    names = [p.name for p in r.passes_for(r._plan(2, "color"))]
+    i = names.index
+    assert i("bvh") < i("rt_shadows") and i("classify") < i("rt_shadows") and i("shade") < i("rt_shadows")
+    assert i("rt_shadows") < i("rt_reflections") < i("resolve")
+    assert "rt_glossy" not in names and "primary_rays" not in names
+    counts = r._targets["rt_lists"].counts()
+    effect = np.stack([frame.left.aux["effect"], frame.right.aux["effect"]])
+    for name in ("shadows", "reflections", "glossy"):
+        assert counts[name] == int((effect == EFFECTS[name].id).sum())
+    assert counts["shadows"] > 50 and counts["reflections"] > 10
+    r.release()
+
+
+def test_config_changes_the_image_only_on_the_configured_materials(gl):
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(48, 36))
+    base, hdr0, _ = render(gl, scene, rig)
+    for cfg, names in (({"materials": {"mirror*": {"effect": "reflections", "bounces": 2}}}, ("mirror", "mirror_panel")),
+                       ({"materials": {"floor": {"effect": "glossy", "samples": 2}}}, ("floor",)),
+                       ({"materials": {"box_*": "shadows", "walls": "shadows"}}, ("box_blue", "box_white", "walls"))):
+        frame, hdr1, _ = render(gl, scene, rig, cfg)
+        ids = [scene.material_names().index(n) for n in names]
+        mat = np.stack([frame.left.aux["material"], frame.right.aux["material"]])
+        configured = np.isin(mat, ids)
+        changed = np.abs(hdr1 - hdr0).max(-1) > 0
+        assert configured.any() and changed.any()
+        assert not (changed & ~configured).any(), f"{cfg}: pixels of other materials changed"
+        assert changed[configured].mean() > 0.3
+
+
+# ------------------------------------------------------------------------------ analytic mirrors
+
+H, CELLS = 10.0, 4
+
+
+def cell_cube():
+    """An inward box of half-size H, each face split into CELLS x CELLS emissive cells of unique colour."""
+    parts, mats = [], []
+    step = 2 * H / CELLS
+    for axis in range(3):
+        b, c = [a for a in range(3) if a != axis]
+        for sign in (-1, 1):
+            for i in range(CELLS):
+                for j in range(CELLS):
+                    idx = len(mats)
+                    center = np.zeros(3)
+                    center[axis] = sign * H
+                    center[b] = -H + (i + 0.5) * step
+                    center[c] = -H + (j + 0.5) * step
+                    u, v = np.zeros(3), np.zeros(3)
+                    u[b], v[c] = step / 2, step / 2
+                    parts.append(quad(center, u, v))
+                    e = ((idx % 6 + 1) / 8, ((idx // 6) % 4 + 1) / 8, (idx // 24 + 1) / 8)
+                    mats.append(Material(f"cell{idx}", base_color=(0, 0, 0, 1), emission=e))
+    return parts, mats
+
+
+def expected_cell_colour(p, r, mats):
+    """Colour of the cell the rays p + t r (t > 0) reach, and the distance to the nearest cell edge."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_axis = (np.sign(r) * H - p) / r
+    t_axis = np.where(np.isfinite(t_axis) & (t_axis > 0), t_axis, np.inf)
+    axis = t_axis.argmin(-1)
+    t = t_axis.min(-1)
+    q = p + t[..., None] * r
+    sign = np.sign(np.take_along_axis(q, axis[..., None], -1)[..., 0])
+    step = 2 * H / CELLS
+    colour = np.zeros(p.shape)
+    margin = np.full(p.shape[:-1], np.inf)
+    emission = np.array([m.emission for m in mats])
+    for a in range(3):
+        b, c = [x for x in range(3) if x != a]
+        sel = axis == a
+        ui, vj = (q[..., b] + H) / step, (q[..., c] + H) / step
+        i, j = np.clip(np.floor(ui), 0, CELLS - 1).astype(int), np.clip(np.floor(vj), 0, CELLS - 1).astype(int)
+        idx = (a * 2 + (sign > 0)) * CELLS * CELLS + i * CELLS + j
+        colour[sel] = emission[idx[sel]]
+        edge = np.minimum(np.minimum(ui - np.floor(ui), np.ceil(ui) - ui), np.minimum(vj - np.floor(vj), np.ceil(vj) - vj))
+        margin[sel] = (edge * step)[sel]
+    return colour, margin, t
+
+
+@pytest.mark.parametrize("shape", ["plane", "sphere"])
+def test_mirror_reflections_hit_where_geometry_says(gl, shape):
+    parts, mats = cell_cube()
+    if shape == "plane":
+        mirror = quad((0, -3, 0), (9, 0, 0), (0, 0, -9))
+        eye, target = (1.0, 2.0, 6.0), (0.0, -3.0, 0.0)
+    else:
+        s = trimesh.creation.icosphere(subdivisions=4, radius=2.0)
+        mirror = (s.vertices, s.faces)
+        eye, target = (1.0, 1.5, 6.5), (0.0, 0.0, 0.0)
+    v, f, part = merge(*parts, mirror)
+    mats = mats + [Material("mirror", base_color=(1, 1, 1, 1), metallic=1.0, roughness=0.0)]
+    scene = from_arrays(v, f, triangle_material=part, materials=mats, lights=no_light())
+    rig = StereoRig(Pose.look_at(eye, target), ipd=0.3, fov_y=60, size=(64, 48))
+    frame, img, _ = render(gl, scene, rig, {"materials": {"mirror": "reflections"}}, DARK)
+    mirror_id = len(mats) - 1
+    checked = 0
+    for layer, e in enumerate(rig.eyes()):
+        aux = frame[e.name].aux
+        on = aux["material"] == mirror_id
+        p = aux["position"][on]
+        d = e.ray_directions()[on]
+        n = np.array([0.0, 1.0, 0.0]) if shape == "plane" else p / np.linalg.norm(p, axis=-1, keepdims=True)
+        n = np.broadcast_to(n, p.shape)
+        cos = -(d * n).sum(-1)
+        r = d + 2 * cos[:, None] * n
+        colour, margin, t = expected_cell_colour(p, r, mats)
+        angle = 1e-3 if shape == "plane" else 0.03  # the sphere's interpolated normals are not exact
+        keep = (margin > angle * t) & (cos > 0.2)
+        got = img[layer][on]
+        ok = np.abs(got - colour).max(-1) < 2e-3
+        assert keep.sum() > 200
+        assert ok[keep].mean() >= 0.99, f"{e.name}: {ok[keep].mean():.3%} of mirror pixels show the expected cell"
+        checked += keep.sum()
+    assert checked > 500
+
+
+@pytest.mark.parametrize("bounces", [1, 2, 4])
+def test_mirror_corridor_stops_after_n_bounces(gl, bounces):
+    """A square mirror tube whose walls glow 1 (red): a pixel's value counts the surfaces its path
+    visited, so it is exactly bounces + 1 wherever the path stays in the tube."""
+    L = 1000.0
+    walls = [quad((x, 0, -L / 2), (0, 1, 0), (0, 0, L / 2 + 1)) for x in (-1, 1)] + \
+            [quad((0, y, -L / 2), (1, 0, 0), (0, 0, L / 2 + 1)) for y in (-1, 1)]
+    v, f, _ = merge(*walls)
+    mirror = Material("mirror", base_color=(1, 1, 1, 1), metallic=1.0, roughness=0.0, emission=(1.0, 0.0, 0.0))
+    scene = from_arrays(v, f, materials=[mirror], lights=no_light())
+    rig = StereoRig(Pose.look_at((0.1, -0.2, 0.0), (0.4, 0.3, -1.0)), ipd=0.1, fov_y=70, size=(40, 30))
+    frame, img, _ = render(gl, scene, rig, everything("reflections", bounces=bounces), DARK)
+    for layer, e in enumerate(rig.eyes()):
+        near = (frame[e.name].depth > 0) & (frame[e.name].depth < 3.0)
+        assert near.mean() > 0.5
+        red = img[layer][..., 0]
+        assert np.all(red[near] == bounces + 1), np.unique(red[near])
+        assert red.max() <= bounces + 1  # no path goes on past its last bounce
+
+
+# ------------------------------------------------------------------------------ against Embree
+
+def shadow_check(gl, scene, rig, light_pos, min_lit=200):
+    """Pixels the GPU shades as occluded from a point light vs Embree's occlusion of the same rays."""
+    scene.lights = [Light("point", (1, 1, 1), 20.0, position=tuple(light_pos))]
+    _, raster, _ = render(gl, scene, rig, {}, DARK)
+    frame, shadowed, _ = render(gl, scene, rig, {"default": "shadows"}, DARK)
+    es = embree(scene.vertices, scene.indices)
+    light = (np.asarray(light_pos) - scene.origin).astype(np.float32)
+    agree, total = 0, 0
+    for layer, e in enumerate(rig.eyes()):
+        aux = frame[e.name].aux
+        tri = aux["triangle"]
+        emissive = np.array([max(m.emission) > 0 for m in scene.materials])[scene.triangle_material[np.where(tri == NO_HIT, 0, tri)]]
+        lit = (raster[layer].sum(-1) > 1e-3) & (tri != NO_HIT) & ~emissive
+        p = (aux["position"][lit] - scene.origin).astype(np.float32)
+        t = scene.vertices[scene.indices[tri[lit]]]
+        ng = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+        ng = (ng / np.linalg.norm(ng, axis=1, keepdims=True)).astype(np.float32)
+        to = light - p
+        dist = np.linalg.norm(to, axis=1)
+        ng *= np.where((ng * to).sum(1) >= 0, 1, -1)[:, None].astype(np.float32)
+        o = offset_ray(p, ng)
+        d = (to / dist[:, None]).astype(np.float32)
+        occluded_embree = es.run(o, d, dists=(dist * (1 - 1e-4)).astype(np.float32), query="OCCLUDED") != -1
+        occluded_gpu = shadowed[layer][lit].sum(-1) < 0.5 * raster[layer][lit].sum(-1)
+        agree += int((occluded_embree == occluded_gpu).sum())
+        total += int(lit.sum())
+        assert occluded_gpu.any() and (~occluded_gpu).any()
+    assert total >= min_lit
+    return agree / total
+
+
+def test_shadow_rays_match_embree_default_scene(gl):
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(64, 48))
+    assert shadow_check(gl, scene, rig, (0.6, 2.4, -0.6)) >= 0.995
+
+
+def test_shadow_rays_match_embree_sponza(gl, shared_scene):
+    scene = load(shared_scene("sponza_dabrovic/sponza.obj"))
+    rig = StereoRig(Pose.look_at((-10.0, 3.0, -0.5), (8.0, 5.0, 0.5)), ipd=0.064, fov_y=80, size=(64, 48))
+    assert shadow_check(gl, scene, rig, (2.0, 9.0, 1.0)) >= 0.995
+
+
+def random_rigs(scene, n, seed):
+    rng = np.random.default_rng(seed)
+    lo, hi = scene.bounds
+    for _ in range(n):
+        eye = lo + (hi - lo) * rng.uniform(0.2, 0.8, 3)
+        target = lo + (hi - lo) * rng.uniform(0.1, 0.9, 3)
+        yield StereoRig(Pose.look_at(eye, target), ipd=float(rng.uniform(0.0, 0.3)), fov_y=float(rng.uniform(40, 100)),
+                        convergence=float(rng.uniform(1, 5)) if rng.uniform() < 0.5 else None, size=(80, 60),
+                        near=0.01)
+
+
+@pytest.mark.parametrize("which", ["default", "sponza"])
+def test_primary_rays_match_embree_and_the_raster_gbuffer(gl, shared_scene, which):
+    scene = load() if which == "default" else load(shared_scene("sponza_dabrovic/sponza.obj"))
+    es = embree(scene.vertices, scene.indices)
+    rays = RenderSettings(primary="rays")
+    for rig in random_rigs(scene, 3, seed=11 if which == "default" else 12):
+        traced, _, passes = render(gl, scene, rig, settings=rays)
+        assert "primary_rays" in {p.name for p in passes} and "visibility" not in {p.name for p in passes}
+        raster, _, _ = render(gl, scene, rig)
+        for e in rig.eyes():
+            tri = traced[e.name].aux["triangle"]
+            o = np.broadcast_to((e.position - scene.origin).astype(np.float32), tri.shape + (3,)).reshape(-1, 3)
+            d = e.ray_directions().astype(np.float32).reshape(-1, 3)
+            forward = -e.rotation[:, 2]
+            tmin = (rig.near / (d @ forward)).astype(np.float32)
+            res = es.run(np.ascontiguousarray(o + tmin[:, None] * d), d, output=1)
+            eprim = np.where(res["primID"] >= 0, res["primID"], NO_HIT).astype(np.uint32)
+            et = np.where(res["primID"] >= 0, res["tfar"] + tmin, np.inf)
+            hit = tri.reshape(-1) != NO_HIT
+            pos = traced[e.name].aux["position"].reshape(-1, 3)
+            t = np.where(hit, np.linalg.norm(pos - e.position, axis=1), np.inf)
+            same = tri.reshape(-1) == eprim
+            with np.errstate(invalid="ignore"):
+                tie = ~same & hit & (eprim != NO_HIT) & (np.abs(t - et) <= 1e-5 * et)
+            assert (same | tie).mean() >= 0.999, f"{(same | tie).mean():.4%} agree with Embree"
+            both = same & hit
+            assert both.sum() > 100
+            rel = np.abs(t[both] - et[both]) / et[both]
+            assert rel.max() <= 1e-5, rel.max()
+            assert (tri == raster[e.name].aux["triangle"]).mean() >= 0.995
+
+
+def test_refit_moves_what_rays_see(gl):
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=0.5)
+    v, f, part = merge((sphere.vertices + [0, 0, -3], sphere.faces), quad((0, 0, -5), (6, 0, 0), (0, 6, 0)))
+    scene = from_arrays(v, f, triangle_material=part, materials=[Material("ball"), Material("wall")])
+    rig = StereoRig(Pose(), ipd=0.1, fov_y=60, size=(32, 24))
+    r = Renderer(scene, gl=gl, settings=RenderSettings(primary="rays"))
+    before = r.render(rig, aux=("triangle",)).left.aux["triangle"]
+    moved = scene.vertices.copy()
+    moved[: len(sphere.vertices)] += np.float32([0.8, 0.0, 0.0])
+    r.update_vertices(moved)
+    after = r.render(rig, aux=("triangle",)).left.aux["triangle"]
+    r.release()
+    ref = Renderer(scene, gl=gl)
+    expected = ref.render(rig, aux=("triangle",)).left.aux["triangle"]
+    ref.release()
+    assert (before != after).mean() > 0.05
+    assert (after == expected).mean() >= 0.995
+
+
+# ------------------------------------------------------------------------------ robustness, convergence
+
+def test_no_nan_for_axis_parallel_and_grazing_rays(gl):
+    """Axis-aligned box, camera looking exactly down -Z (rays along axes), a plane seen edge-on,
+    every traced effect on every material."""
+    box = trimesh.creation.box(extents=(4, 3, 8))
+    v, f, part = merge((box.vertices, box.faces), quad((0, 0, -2), (1, 0, 0), (0, 0, 1)),
+                       quad((0.5, -1.4, -1), (0, 0.05, 0), (0, 0, 2)))
+    mats = [Material("box", roughness=0.0, metallic=1.0), Material("edge_on", roughness=0.3), Material("sliver")]
+    scene = from_arrays(v, f, triangle_material=part, materials=mats,
+                        lights=[Light("directional", direction=(0, -1, 0)), Light("point", position=(0, 1, 0)),
+                                Light("rect", intensity=3, position=(0, 1.45, -1), u=(0.5, 0, 0), v=(0, 0, 0.5))])
+    rig = StereoRig(Pose(np.zeros(3), np.eye(3)), ipd=0.0, fov_y=90, size=(33, 33))
+    for primary in ("raster", "rays"):
+        for cfg in (everything("reflections", bounces=4),
+                    everything("glossy", samples=3, bounces=2),
+                    everything("shadows", area_samples=5)):
+            frame, img, _ = render(gl, scene, rig, cfg, RenderSettings(primary=primary))
+            assert np.isfinite(img).all(), (primary, cfg)
+            assert img.max() > 0
+
+
+def test_soft_shadow_converges_with_more_samples(gl):
+    """A square occluder under a rect light: the penumbra estimate gets closer to a 1024-sample
+    reference as area_samples grows."""
+    v, f, part = merge(quad((0, 0, 0), (4, 0, 0), (0, 0, -4)), quad((0, 1, 0), (0.5, 0, 0), (0, 0, -0.5)))
+    scene = from_arrays(v, f, triangle_material=part, materials=[Material("floor"), Material("blocker")],
+                        lights=[Light("rect", intensity=4, position=(0, 2.0, 0), u=(0.6, 0, 0), v=(0, 0, 0.6))])
+    rig = StereoRig(Pose.look_at((0, 4, 2), (0, 0, 0)), ipd=0.1, fov_y=50, size=(48, 36))
+
+    def shade(n):
+        frame, img, _ = render(gl, scene, rig, everything("shadows", area_samples=n), DARK)
+        return img, frame.left.aux["material"]
+
+    ref, mat = shade(1024)
+    floor = np.stack([mat, mat]) == 0
+    err = {n: float(np.abs(shade(n)[0] - ref)[floor].mean()) for n in (1, 4, 16, 64)}
+    assert err[1] > err[4] > err[16] > err[64], err
+    assert err[64] < 0.25 * err[1], err
