@@ -65,7 +65,8 @@ def cmd_capture(args) -> int:
 
     ensure_writable_dir(args.out)  # fail before any rendering work
     aux = tuple(a for a in (args.aux or "").split(",") if a)
-    settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode)
+    settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode,
+                              primary=args.primary)
     with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
         rig = rig_from_args(args, r.scene)
         poses = poses_for(rig, r.scene, args.frames, args.path)
@@ -153,6 +154,12 @@ def cmd_bench(args) -> int:
         gbuffer.run(out, size=(64, 64) if quick else args.size,
                     scenes=("default",) if quick else tuple(args.scenes.split(",")),
                     repeat=3 if quick else args.repeat, warmup=1 if quick else 5, backend=args.backend)
+    elif args.area == "rays":
+        from .bench import rays
+
+        rays.run(out, size=(64, 48) if quick else args.size,
+                 scenes=("default",) if quick else tuple(args.scenes.split(",")),
+                 repeat=2 if quick else args.repeat // 2, warmup=1 if quick else 3, backend=args.backend)
     elif args.area == "peers":
         from .bench import peers
 
@@ -213,7 +220,10 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--tonemapper", choices=("aces", "reinhard", "clamp"), default="aces")
     c.add_argument("--layer-mode", choices=("auto", "vertex", "geometry", "multiview", "passes"), default="auto",
                    help="how the stereo G-buffer reaches both layers")
+    c.add_argument("--primary", choices=("raster", "rays"), default="raster",
+                   help="primary visibility: the raster G-buffer pass, or camera rays through the BVH")
     c.add_argument("--backend", choices=("egl", "osmesa"), help="headless GL backend (default: egl, then osmesa)")
+
     c.add_argument("-q", "--quiet", action="store_true")
     add_rig_arguments(c)
     c.set_defaults(func=cmd_capture)
@@ -226,7 +236,8 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
-    b.add_argument("area", choices=("gbuffer", "peers", "tradeoff", "budget"),
+    b.add_argument("area", choices=("gbuffer", "rays", "peers", "tradeoff", "budget"),
+
                    help="gbuffer: layered stereo vs mono G-buffer ms; peers: frames/s against pyrender; "
                         "tradeoff: every knob's GPU ms vs error against the reference; budget: effects per "
                         "material chosen under --budget-ms")

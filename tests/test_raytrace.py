@@ -366,3 +366,30 @@ def test_soft_shadow_converges_with_more_samples(gl):
     err = {n: float(np.abs(shade(n)[0] - ref)[floor].mean()) for n in (1, 4, 16, 64)}
     assert err[1] > err[4] > err[16] > err[64], err
     assert err[64] < 0.25 * err[1], err
+
+
+# ------------------------------------------------------------------------------ command line
+
+def test_cli_capture_primary_rays_and_bench_rays_quick(tmp_path):
+    import json
+    import subprocess
+    import sys
+    cfg = tmp_path / "m.toml"
+    cfg.write_text('default = "shadows"\n[materials]\n"mirror*" = { effect = "reflections", bounces = 2 }\n')
+    run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--primary", "rays", "--materials", str(cfg),
+                          "--size", "32x24", "--out", str(tmp_path / "o"), "--aux", "triangle", "--timings"],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    summary = json.loads((tmp_path / "o" / "frame_timings.json").read_text())
+    assert {"bvh", "primary_rays", "classify", "rt_shadows", "rt_reflections"} <= set(summary["gpu_ms_mean"])
+    assert "visibility" not in summary["gpu_ms_mean"]
+    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "rays", "--quick", "--out", str(tmp_path / "b")],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    result = json.loads((tmp_path / "b" / "rays.json").read_text())
+    assert {r["rays_kind"] for r in result["rows"]} == {"primary", "shadow", "reflect"}
+    assert all(r["build_s"] > 0 and r["sah_cost"] > 0 for r in result["rows"])
+    if "agree_with_embree" in result["rows"][0]:
+        assert min(r["agree_with_embree"] for r in result["rows"]) > 0.99
+    frame = result["meta"]["hybrid_frames"][0]
+    assert {"rt_shadows", "rt_reflections", "classify"} <= set(frame["pass_ms"]) and frame["mirror_pixel_fraction"] > 0
