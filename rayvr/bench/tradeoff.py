@@ -6,9 +6,9 @@ scale) is rendered on the same stereo rig; its cost is the median GPU time of th
 most accurate setting rayvr has, from `reference.py`) with mean FLIP at the headset's pixels
 per degree, PSNR and SSIM, over the whole image and over the pixels the knob touches.
 
-The budget mode measures, per material, what each effect costs and how much error it leaves
-(rendering that material with the effect and everything else `raster`), then picks one effect
-per material with `budget.solve_budget` and measures the chosen assignment for real.
+The budget mode estimates, per material, what each effect costs and how much error it leaves
+(`per_material_options`), picks one effect per material with `budget.solve_budget`, and then
+renders and measures the chosen assignment for real.
 """
 from __future__ import annotations
 
@@ -24,18 +24,30 @@ from . import budget as budget_mod
 from . import metrics
 
 
+def _compare_settings():
+    """One RenderSettings for the reference and every variant, so only the knob differs: no
+    ambient term (it stands in for indirect light, which only the reference would model), the
+    ACES tonemapper users see."""
+    from .reference import reference_settings
+
+    return reference_settings(tonemapper="aces")
+
+
 @dataclass
 class Variant:
     knob: str  # what is varied ("effect", "bounces", "resolution_scale", ...)
     value: object
     config: MaterialConfig
-    settings: RenderSettings = field(default_factory=RenderSettings)
+    settings: RenderSettings = field(default_factory=lambda: COMPARE_SETTINGS)
     scale: float = 1.0  # render at scale x size, compare upscaled to full size
     touches: tuple = ()  # material names this variant changes (the error mask); () = whole image
 
     @property
     def label(self) -> str:
         return f"{self.knob}={self.value}"
+
+
+COMPARE_SETTINGS = _compare_settings()
 
 
 @dataclass
@@ -56,7 +68,25 @@ def config_with(base: MaterialConfig, default: str | None = None, materials: dic
         cfg.by_name[name] = (effect, {})
     for effect, values in (params or {}).items():
         cfg.params.setdefault(effect, {}).update(values)
+        # Per-material parameters win over [params]: a swept value must reach those too.
+        for table in (cfg.by_name, cfg.by_id):
+            for key, (e, p) in table.items():
+                if e == effect:
+                    table[key] = (e, {**p, **values})
     return cfg
+
+
+def config_for_assignment(base: MaterialConfig, scene, effects: dict) -> MaterialConfig:
+    """A config giving each material (by index, so glob characters in names cannot misfire) the
+    effect in `effects` (default `raster`), keeping the base config's parameters for it when the
+    effect is the one the base gives it."""
+    names = scene.material_names()
+    by_id = {}
+    for i, (name, a) in enumerate(zip(names, base.assign(names, warn=False))):
+        e = effects.get(name, "raster")
+        by_id[i] = (e, a.params if a.effect == e else base.effect_params(e))
+    return MaterialConfig(default="raster", params={k: dict(v) for k, v in base.params.items()}, by_id=by_id,
+                          source=f"{base.source} (assignment)")
 
 
 def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmup: int = 3) -> Measured:
@@ -145,7 +175,7 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
         m = measure(gl, scene, rig, v, repeat)
         rows.append({"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label,
                      "gpu_ms": m.gpu_ms, **error_row(ref, m, scene, v, ppd, with_flip),
-                     "passes_ms": m.passes_ms})
+                     "reference_ms": ref.gpu_ms})
         if bar is not None:
             bar.update(1)
     if bar is not None:
@@ -158,41 +188,49 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
 
 def per_material_options(gl, scene, rig, reference_image: Measured, base: MaterialConfig, ppd: float,
                          effects=None, repeat=10, min_coverage=1e-4, progress=True):
-    """Per material: (effect, extra ms over all-raster, mean FLIP over its pixels) for each
-    implemented effect, plus its screen coverage. Materials covering < min_coverage of the
-    image stay `raster` (their error cannot be measured; their cost is noise)."""
+    """Per material and effect: extra GPU ms over all-`raster` and the error left on its pixels.
+
+    One render per effect (the whole scene on that rung) instead of one per material and
+    effect: a material's error is the mean FLIP over its own pixels in that render, and the
+    effect's extra cost is shared out over materials in proportion to their pixels (the traced
+    passes run over compacted pixel lists, so their cost follows pixel counts). Both are
+    approximations: reflections also show other materials, and dispatch overheads are shared;
+    the chosen assignment is therefore rendered and measured for real afterwards.
+    Materials covering < min_coverage of the image stay `raster`."""
     effects = list(effects or implemented_effects())
     names = scene.material_names()
-    raster = measure(gl, scene, rig, Variant("budget", "raster", config_with(base, default="raster",
-                                                                            materials={n: "raster" for n in base.by_name})), repeat)
-    coverage = np.bincount(np.where(reference_image.material < len(names), reference_image.material, len(names)).ravel(),
-                           minlength=len(names) + 1)[:len(names)] / reference_image.material.size
-    options = []
+    ids = reference_image.material
+    coverage = np.bincount(np.where(ids < len(names), ids, len(names)).ravel(),
+                           minlength=len(names) + 1)[:len(names)] / ids.size
     importance = [a.importance for a in base.assign(names, warn=False)]
-    todo = [(i, n) for i, n in enumerate(names) if coverage[i] >= min_coverage]
+    covered = [i for i in range(len(names)) if coverage[i] >= min_coverage]
+    flip_maps, extra_ms, raster_ms = {}, {}, None
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(todo) * len(effects), unit="render", desc=f"budget {scene.name}")
-    for i, name in todo:
-        mask = reference_image.material == i
-        opts = []
-        for e in effects:
-            if e == "raster":
-                m = raster
-            else:
-                cfg = config_with(base, default="raster", materials={**{n: "raster" for n in base.by_name}, name: e})
-                m = measure(gl, scene, rig, Variant("budget", e, cfg), repeat)
-            err = metrics.flip(reference_image.image, m.image, mask=mask, ppd=ppd)
-            opts.append(budget_mod.Option(e, max(m.gpu_ms - raster.gpu_ms, 0.0), err))
-            if bar is not None:
-                bar.update(1)
-        options.append(budget_mod.MaterialOptions(name, opts, importance=importance[i],
-                                                  coverage=float(coverage[i])))
+        bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name}")
+    for e in effects:
+        cfg = config_for_assignment(base, scene, {n: e for n in names})
+        m = measure(gl, scene, rig, Variant("budget", e, cfg), repeat)
+        flip_maps[e] = metrics.flip_map(reference_image.image, m.image, ppd=ppd)
+        extra_ms[e] = m.gpu_ms
+        if e == "raster":
+            raster_ms = m.gpu_ms
+        if bar is not None:
+            bar.update(1)
     if bar is not None:
         bar.close()
-    return raster.gpu_ms, options
+    if raster_ms is None:
+        raise ValueError("the budget model needs 'raster' among the effects (it is the cost baseline)")
+    share = coverage / max(coverage[covered].sum(), 1e-12)
+    options = []
+    for i in covered:
+        mask = ids == i
+        opts = [budget_mod.Option(e, max(extra_ms[e] - raster_ms, 0.0) * share[i], float(flip_maps[e][mask].mean()))
+                for e in effects]
+        options.append(budget_mod.MaterialOptions(names[i], opts, importance=importance[i], coverage=float(coverage[i])))
+    return raster_ms, options
 
 
 def choose_under_budget(gl, scene, rig, budget_ms: float, base: MaterialConfig, reference_image: Measured,
@@ -201,7 +239,7 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base: MaterialConfig, 
     base_ms, options = per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
                                             progress=progress)
     result = budget_mod.solve_budget(options, budget_ms, base_ms=base_ms)
-    cfg = config_with(base, default="raster", materials={**{n: "raster" for n in base.by_name}, **result.assignment})
+    cfg = config_for_assignment(base, scene, result.assignment)
     chosen = measure(gl, scene, rig, Variant("budget", budget_ms, cfg), repeat)
     return {"budget_ms": budget_ms, "predicted_ms": result.total_ms, "measured_ms": chosen.gpu_ms,
             "feasible": result.feasible, "predicted_error": result.error,
@@ -215,21 +253,22 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base: MaterialConfig, 
 def _setups(names, size, base_config, skipped):
     """(name, scene, rig, base config, reference variant) per available benchmark scene."""
     from ..materials import load_config
-    from .reference import reference_setup
+    from .reference import reference_config
     from .scenes import bench_scenes
 
     for name, scene, rig in bench_scenes(names, size, skipped):
         base = load_config(base_config(name) if base_config else None)
-        ref_config, ref_settings = reference_setup(scene)
-        yield name, scene, rig, base, Variant("reference", "reference", ref_config, ref_settings)
+        yield name, scene, rig, base, Variant("reference", "reference", reference_config(scene), COMPARE_SETTINGS)
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
         base_config=None, backend=None, progress=True) -> dict:
     """Sweep every knob on each scene against its reference; write tradeoff.json/.md and plots."""
     from ..context import create_context
+    from ..output import ensure_writable_dir
     from .report import device_meta, write_report
 
+    ensure_writable_dir(out_dir)
     gl = create_context(backend)
     rows, skipped = [], {}
     try:
@@ -256,9 +295,10 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
                ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True) -> dict:
     """For each budget: the chosen effect per material, its predicted and measured ms and error."""
     from ..context import create_context
-    from ..output import write_png
+    from ..output import ensure_writable_dir, write_png
     from .report import device_meta, write_report
 
+    ensure_writable_dir(out_dir)
     gl = create_context(backend)
     rows, skipped = [], {}
     try:
