@@ -1,0 +1,386 @@
+"""Cross-check rayvr's reference images against Mitsuba 3 (`rayvr bench crosscheck`).
+
+`scene_dict(scene, eye)` turns a rayvr Scene and one StereoRig eye into a Mitsuba `load_dict`
+scene that models what rayvr models:
+
+* **Geometry**: one mesh per material from `scene.world_vertices()`, `scene.indices` and rayvr's
+  own vertex normals (so smooth spheres shade alike); the triangles of an emissive material that
+  rayvr turned into a rect light are replaced by that `rectangle`.
+* **BSDFs** (rayvr/glsl/common/brdf.glsl: Lambert * (1 - F) + GGX, Smith height-correlated,
+  Schlick F with F0 = mix(0.04, base, metallic), alpha = roughness^2), all `twosided` because rayvr
+  shades the side facing the eye:
+  - metallic >= 0.5: `principled` with metallic 1 (its metal lobe is Schlick(base) GGX with
+    alpha = roughness^2; measured against a port of brdf.glsl: identical to float precision);
+  - otherwise a `blendbsdf` (weight 0.5) of 2 x `diffuse`(0.96 base) and 2 x `roughconductor`
+    (GGX, eta 1.5, k 0: the dielectric Fresnel, F0 0.04). Mitsuba has no sum of lobes; blending
+    at 0.5 with doubled lobes is one. Reflectances above 1 are refused by load_dict, so the factor
+    2 is set through `mi.traverse`. Mean |error| against brdf.glsl 0.7-1.4 % (the constant 0.96
+    stands for rayvr's (1 - F(v.h))); `diffuse` alone is 3-6 % off, `principled` (Disney
+    diffuse) 5-7 %, `roughplastic` 23-40 %.
+* **Lights**: rect -> `rectangle` with an `area` emitter (radiance = colour x intensity, emitting
+  along cross(u, v)), point -> `point` (intensity), directional -> `directional` (irradiance).
+* **Sensor**: `perspective` matching the eye's frustum tangents exactly: fov along x, the
+  off-axis part through `principal_point_offset_x/y` (fractions of the film: +x moves the frustum
+  right, +y moves it down), pose from EyeView.position/rotation. A box reconstruction filter
+  (one pixel) so that Mitsuba's pixel is the pixel's area; rayvr is supersampled and box
+  downsampled to the same footprint.
+
+`run(out_dir, quick=False)` renders the Cornell boxes with both and writes the report.
+Variants: `llvm_ad_rgb` when Debian's libLLVM 19 is present (DRJIT_LIBLLVM_PATH is set to it;
+Mesa's LLVM 15 makes Dr.Jit abort), else `scalar_rgb`; env RAYVR_MITSUBA_VARIANT picks one.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import EyeView, Pose, StereoRig
+from ..scene import Light, Material, Scene
+from . import reference as ref_mod
+
+LLVM19_PATHS = ("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1", "/usr/lib/x86_64-linux-gnu/libLLVM-19.so")
+
+# Dielectric diffuse weight: rayvr scales Lambert by (1 - F(v.h)), F0 = 0.04; 0.96 is its value
+# over most of the hemisphere (it only drops at grazing angles).
+DIELECTRIC_DIFFUSE_SCALE = 0.96
+DIELECTRIC_IOR = 1.5  # Fresnel F0 = ((1.5 - 1) / (1.5 + 1))^2 = 0.04, rayvr's dielectric F0
+
+
+def _mi():
+    try:
+        import mitsuba as mi
+    except ImportError as exc:
+        raise ImportError("the Mitsuba cross-check needs the optional 'mitsuba' package: "
+                          "pip install 'rayvr[reference]'") from exc
+    return mi
+
+
+def set_variant(variant: str | None = None) -> str:
+    """Select a Mitsuba variant (see module doc) and return its name."""
+    mi = _mi()
+    variant = variant or os.environ.get("RAYVR_MITSUBA_VARIANT") or None
+    candidates = [variant] if variant else ["llvm_ad_rgb", "scalar_rgb"]
+    current = mi.variant()
+    if current in candidates:
+        return current
+    for v in candidates:
+        if v.startswith("llvm") and not os.environ.get("DRJIT_LIBLLVM_PATH"):
+            lib = next((p for p in LLVM19_PATHS if os.path.exists(p)), None)
+            if lib is None:
+                continue  # the system LLVM may be Mesa's LLVM 15: Dr.Jit aborts the process on it
+            os.environ["DRJIT_LIBLLVM_PATH"] = lib
+        try:
+            mi.set_variant(v)
+            return v
+        except Exception:
+            continue
+    raise RuntimeError(f"no usable Mitsuba variant among {candidates}")
+
+
+def _scalar(mi) -> bool:
+    return mi.variant().startswith("scalar")
+
+
+# --------------------------------------------------------------------------------- sensor
+
+
+def sensor_dict(eye: EyeView, spp: int = 64, seed: int = 0) -> dict:
+    """A `perspective` sensor that sees exactly what `eye` sees (same pixel rays)."""
+    mi = _mi()
+    l, r, b, t = eye.tangents
+    w, h = eye.size
+    if not math.isclose((r - l) / w, (t - b) / h, rel_tol=1e-6):
+        raise ValueError(f"eye {eye.name}: non-square pixels (tangents {eye.tangents}, size {w}x{h}); "
+                         "Mitsuba's perspective sensor has square pixels")
+    # Mitsuba's camera looks along local +z with +x to the left; rayvr's rotation columns are
+    # right, up, back.
+    to_world = np.eye(4)
+    to_world[:3, :3] = eye.rotation @ np.diag([-1.0, 1.0, -1.0])
+    to_world[:3, 3] = eye.position
+    return {
+        "type": "perspective",
+        "fov_axis": "x",
+        "fov": math.degrees(2.0 * math.atan((r - l) / 2.0)),
+        "principal_point_offset_x": (r + l) / 2.0 / (r - l),
+        "principal_point_offset_y": -(t + b) / 2.0 / (t - b),
+        "near_clip": float(eye.near),
+        "far_clip": float(eye.far) if eye.far else 1e7,
+        "to_world": mi.ScalarTransform4f(to_world.tolist()),
+        "film": {"type": "hdrfilm", "width": int(w), "height": int(h), "pixel_format": "rgb",
+                 "rfilter": {"type": "box"}},
+        "sampler": {"type": "independent", "sample_count": int(spp), "seed": int(seed)},
+    }
+
+
+# --------------------------------------------------------------------------------- BSDFs
+
+
+def _rgb(c) -> dict:
+    return {"type": "rgb", "value": [float(x) for x in c[:3]]}
+
+
+def bsdf(material: Material):
+    """A Mitsuba BSDF object matching rayvr's metallic-roughness model for `material`
+    (base colour only: textures are not carried over)."""
+    mi = _mi()
+    base = np.clip(np.asarray(material.base_color[:3], float), 0.0, 1.0)
+    rough = float(np.clip(material.roughness, 0.0, 1.0))
+    alpha = max(rough * rough, 1e-3)  # the clamp brdf.glsl applies
+    if material.metallic >= 0.5:
+        inner = mi.load_dict({"type": "principled", "base_color": _rgb(base), "metallic": 1.0,
+                              "roughness": math.sqrt(alpha), "specular": 0.5})
+    else:
+        inner = mi.load_dict({
+            "type": "blendbsdf", "weight": 0.5,
+            "diffuse": {"type": "diffuse", "reflectance": _rgb(base * 0.5)},
+            "specular": {"type": "roughconductor", "distribution": "ggx", "alpha": alpha,
+                         "eta": DIELECTRIC_IOR, "k": 0.0, "specular_reflectance": _rgb((0.5, 0.5, 0.5))},
+        })
+        p = mi.traverse(inner)
+        # Doubled lobes blended at 0.5 make a sum; > 1 values only pass through traverse.
+        p["bsdf_0.reflectance.value"] = mi.Color3f(*(float(x) for x in 2.0 * DIELECTRIC_DIFFUSE_SCALE * base))
+        p["bsdf_1.specular_reflectance.value"] = mi.Color3f(2.0, 2.0, 2.0)
+        p.update()
+    return mi.load_dict({"type": "twosided", "bsdf": inner})
+
+
+def rayvr_brdf_cos(n, v, l, base_color, metallic, roughness) -> np.ndarray:
+    """numpy port of brdf.glsl's brdf_cos for one (n, v, l) triple (tests and diagnostics)."""
+    n, v, l = (np.asarray(x, float) for x in (n, v, l))
+    n_l = float(n @ l)
+    n_v = max(float(n @ v), 1e-4)
+    if n_l <= 0:
+        return np.zeros(3)
+    h = (v + l) / np.linalg.norm(v + l)
+    a = max(roughness * roughness, 1e-3)
+    a2 = a * a
+    n_h = max(float(n @ h), 0.0)
+    d = n_h * n_h * (a2 - 1.0) + 1.0
+    ggx = a2 / max(math.pi * d * d, 1e-12)
+    vis = 0.5 / max(n_l * math.sqrt(n_v * n_v * (1 - a2) + a2) + n_v * math.sqrt(n_l * n_l * (1 - a2) + a2), 1e-12)
+    base = np.asarray(base_color[:3], float)
+    f0 = (1 - metallic) * 0.04 + metallic * base
+    f = f0 + (1 - f0) * (1 - min(max(float(v @ h), 0.0), 1.0)) ** 5
+    return ((1 - f) * (1 - metallic) * base / math.pi + f * ggx * vis) * n_l
+
+
+# --------------------------------------------------------------------------------- scene
+
+
+def _mesh(name: str, verts, faces, normals, bsdf_obj, emitter=None):
+    mi = _mi()
+    props = mi.Properties()
+    props["bsdf"] = bsdf_obj
+    if emitter is not None:
+        props["emitter"] = emitter
+    mesh = mi.Mesh(name, len(verts), len(faces), props, has_vertex_normals=True)
+    p = mi.traverse(mesh)
+    p["vertex_positions"] = np.ascontiguousarray(verts, np.float32).ravel()
+    p["vertex_normals"] = np.ascontiguousarray(normals, np.float32).ravel()
+    p["faces"] = np.ascontiguousarray(faces, np.uint32).ravel()
+    p.update()
+    return mesh
+
+
+def _rect_transform(light: Light) -> list:
+    u, v = np.asarray(light.u, float), np.asarray(light.v, float)
+    n = np.cross(u, v)
+    m = np.eye(4)
+    # `rectangle` spans [-1, 1]^2 in xy with normal +z: map x -> u, y -> v, z -> unit normal.
+    m[:3, 0], m[:3, 1], m[:3, 2] = u, v, n / np.linalg.norm(n)
+    m[:3, 3] = light.position
+    return m.tolist()
+
+
+def rect_light_materials(scene: Scene) -> set[int]:
+    """Indices of emissive materials rayvr turned into rect lights (their triangles are the light)."""
+    names = {l.source[len("emissive material "):] for l in scene.lights
+             if l.kind == "rect" and l.source.startswith("emissive material ")}
+    return {i for i, m in enumerate(scene.materials) if m.name in names}
+
+
+def scene_dict(scene: Scene, eye: EyeView, spp: int = 64, seed: int = 0) -> dict:
+    """A Mitsuba scene dict (objects already built) for `scene` seen from `eye`; no integrator
+    (pass one to `render`)."""
+    mi = _mi()
+    d: dict = {"type": "scene", "sensor": sensor_dict(eye, spp, seed)}
+    world = scene.world_vertices()
+    as_lights = rect_light_materials(scene)
+    for mi_idx, mat in enumerate(scene.materials):
+        tris = scene.indices[scene.triangle_material == mi_idx]
+        if len(tris) == 0 or mi_idx in as_lights:
+            continue
+        used, local = np.unique(tris, return_inverse=True)
+        emitter = None
+        if mat.is_emissive:  # rayvr: glows, casts no light (not a rectangle); Mitsuba's would
+            emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": list(mat.emission)}})
+        d[f"mat{mi_idx}"] = _mesh(f"mat{mi_idx}", world[used], local.reshape(-1, 3),
+                                  scene.normals[used], bsdf(mat), emitter)
+    for k, light in enumerate(scene.lights):
+        radiance = [float(c) * float(light.intensity) for c in light.color]
+        if light.kind == "rect":
+            src = next((i for i in as_lights if light.source == f"emissive material {scene.materials[i].name}"), None)
+            entry = {"type": "rectangle", "to_world": mi.ScalarTransform4f(_rect_transform(light)),
+                     "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}}}
+            if src is not None:
+                entry["bsdf"] = bsdf(scene.materials[src])
+            d[f"light{k}"] = entry
+        elif light.kind == "point":
+            d[f"light{k}"] = {"type": "point", "position": [float(x) for x in light.position],
+                              "intensity": {"type": "rgb", "value": radiance}}
+        elif light.kind == "directional":
+            d[f"light{k}"] = {"type": "directional", "direction": [float(x) for x in light.direction],
+                              "irradiance": {"type": "rgb", "value": radiance}}
+    return d
+
+
+def integrator(kind: str = "direct", max_depth: int = 3):
+    """`direct` (emitter + BSDF sampling, MIS) or `path` (max_depth: 2 = direct light only,
+    3 = one bounce)."""
+    mi = _mi()
+    if kind == "direct":
+        return mi.load_dict({"type": "direct"})
+    if kind == "path":
+        return mi.load_dict({"type": "path", "max_depth": int(max_depth), "rr_depth": 1000})
+    raise ValueError(f"unknown integrator {kind!r}; allowed: direct, path")
+
+
+def render(mi_scene, integrator_obj, spp: int, seed: int = 0) -> np.ndarray:
+    """(H, W, 3) float32 linear radiance, rows top-down."""
+    mi = _mi()
+    img = mi.render(mi_scene, integrator=integrator_obj, spp=int(spp), seed=int(seed))
+    return np.array(img, dtype=np.float32)[..., :3]
+
+
+# --------------------------------------------------------------------------------- rays
+
+
+def sensor_rays(mi_scene, px, py):
+    """Mitsuba's camera rays through film positions (px, py) in pixels (top-down, centres at .5):
+    (N, 3) origins and unit directions."""
+    mi = _mi()
+    sensor = mi_scene.sensors()[0]
+    w, h = sensor.film().size()
+    u, v = np.asarray(px, float) / w, np.asarray(py, float) / h
+    if _scalar(mi):
+        o, d = [], []
+        for a, b in zip(u, v):
+            ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(a, b), mi.Point2f(0.5, 0.5))
+            o.append(np.array(ray.o))
+            d.append(np.array(ray.d))
+        return np.array(o), np.array(d)
+    ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(u.astype(np.float32), v.astype(np.float32)),
+                               mi.Point2f(0.5, 0.5))
+    return np.array(ray.o).reshape(3, -1).T, np.array(ray.d).reshape(3, -1).T
+
+
+def intersect(mi_scene, origins, dirs):
+    """Closest hits: t (inf on miss), shape index into mi_scene.shapes() (-1 on miss), normal."""
+    mi = _mi()
+    shapes = list(mi_scene.shapes())
+    n = len(origins)
+    if _scalar(mi):
+        t, idx, nrm = np.full(n, np.inf), np.full(n, -1), np.zeros((n, 3))
+        for i in range(n):
+            si = mi_scene.ray_intersect(mi.Ray3f(mi.Point3f(*origins[i]), mi.Vector3f(*dirs[i])))
+            if si.is_valid():
+                t[i], nrm[i] = si.t, np.array(si.n)
+                idx[i] = next(k for k, s in enumerate(shapes) if s.id() == si.shape.id())
+        return t, idx, nrm
+    o = mi.Point3f(*(origins[:, k].astype(np.float32) for k in range(3)))
+    d = mi.Vector3f(*(dirs[:, k].astype(np.float32) for k in range(3)))
+    si = mi_scene.ray_intersect(mi.Ray3f(o, d))
+    valid = np.array(si.is_valid(), bool)
+    t = np.where(valid, np.array(si.t), np.inf)
+    idx = np.full(n, -1)
+    for k, s in enumerate(shapes):
+        idx[np.array(si.shape == mi.ShapePtr(s), bool) & valid] = k
+    return t, idx, np.array(si.n).reshape(3, -1).T
+
+
+def occluded(mi_scene, origins, dirs, tmax) -> np.ndarray:
+    mi = _mi()
+    if _scalar(mi):
+        return np.array([bool(mi_scene.ray_test(mi.Ray3f(mi.Point3f(*o), mi.Vector3f(*d), float(tm), 0.0, [])))
+                         for o, d, tm in zip(origins, dirs, tmax)])
+    o = mi.Point3f(*(origins[:, k].astype(np.float32) for k in range(3)))
+    d = mi.Vector3f(*(dirs[:, k].astype(np.float32) for k in range(3)))
+    ray = mi.Ray3f(o, d)
+    ray.maxt = mi.Float(np.asarray(tmax, np.float32))
+    return np.array(mi_scene.ray_test(ray), bool)
+
+
+@dataclass
+class PrimaryHits:
+    t: np.ndarray  # (H, W) ray distance, inf = miss
+    material: np.ndarray  # (H, W) rayvr material index, -1 = miss or a light rectangle
+    position: np.ndarray  # (H, W, 3)
+    normal: np.ndarray  # (H, W, 3) geometric normal
+
+
+def primary_hits(mi_scene, eye: EyeView) -> PrimaryHits:
+    """Hits of Mitsuba's own camera rays through the pixel centres."""
+    w, h = eye.size
+    py, px = np.mgrid[0:h, 0:w] + 0.5
+    o, d = sensor_rays(mi_scene, px.ravel(), py.ravel())
+    t, idx, nrm = intersect(mi_scene, o, d)
+    ids = [s.id() for s in mi_scene.shapes()]
+    to_mat = np.array([int(i[3:]) if i.startswith("mat") and i[3:].isdigit() else -1 for i in ids] + [-1])
+    mat = to_mat[idx]
+    pos = o + d * np.where(np.isfinite(t), t, 0.0)[:, None]
+    return PrimaryHits(t.reshape(h, w), mat.reshape(h, w), pos.reshape(h, w, 3), nrm.reshape(h, w, 3))
+
+
+def unshadowed_mask(mi_scene, scene: Scene, hits: PrimaryHits, grid: int = 4) -> np.ndarray:
+    """Pixels whose centre sees every light fully (every point of a grid x grid pattern on rect
+    lights): there `raster` (no shadow rays) and a shadowed render must agree."""
+    hit = np.isfinite(hits.t).ravel()
+    p = hits.position.reshape(-1, 3)[hit]
+    n = hits.normal.reshape(-1, 3)[hit]
+    eps = 1e-4 * max(scene.extent, 1e-6)
+    ok = np.ones(len(p), bool)
+    for light in scene.lights:
+        if light.kind == "directional":
+            targets = [None]
+        elif light.kind == "point":
+            targets = [np.asarray(light.position, float)]
+        else:
+            c, u, v = (np.asarray(x, float) for x in (light.position, light.u, light.v))
+            s = (np.arange(grid) + 0.5) / grid * 2.0 - 1.0
+            targets = [c + a * u + b * v for a in s for b in s]
+        for q in targets:
+            if q is None:
+                d = np.broadcast_to(-np.asarray(light.direction, float), p.shape)
+                d = d / np.linalg.norm(d, axis=1, keepdims=True)
+                tmax = np.full(len(p), 1e7)
+            else:
+                d = q - p
+                tmax = np.linalg.norm(d, axis=1)
+                d = d / np.maximum(tmax, 1e-12)[:, None]
+            side = np.sign(np.einsum("ij,ij->i", n, d))[:, None]  # leave on the side facing the light
+            origin = p + n * side * eps
+            ok &= ~occluded(mi_scene, origin, d, tmax * (1 - 1e-4) - eps)
+    out = np.zeros(hits.t.size, bool)
+    out[hit] = ok
+    return out.reshape(hits.t.shape)
+
+
+# --------------------------------------------------------------------------------- rayvr side
+
+
+def rayvr_hdr(renderer, rig: StereoRig, supersample: int = 1) -> np.ndarray:
+    """The first eye's linear HDR radiance (H, W, 3) float32, rows top-down, from the Renderer's
+    "hdr" target. With `supersample` s the eye is rendered at s x the size and box-averaged
+    (the footprint of Mitsuba's box-filtered pixel)."""
+    s = int(supersample)
+    w, h = rig.size
+    big = rig.with_size((w * s, h * s))
+    fc = renderer.record(big, eyes="left")
+    raw = np.frombuffer(fc.target("hdr").read(), np.float16)
+    img = raw.reshape(-1, h * s, w * s, 4)[0, ::-1, :, :3].astype(np.float32)  # GL rows bottom-up
+    return img.reshape(h, s, w, s, 3).mean(axis=(1, 3))
