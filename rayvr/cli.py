@@ -175,7 +175,7 @@ def cmd_bench(args) -> int:
         if args.area == "tradeoff":
             tradeoff.run(out, quick=quick, **kw)
         else:
-            tradeoff.run_budget(out, budgets=tuple(args.budget_ms), **kw)
+            tradeoff.run_budget(out, budgets=tuple(args.budget_ms), quick=quick, **kw)
     else:
         raise SystemExit(f"unknown benchmark area {args.area!r}")
     print(f"results in {out}/{args.area}.json and {args.area}.md")

@@ -250,7 +250,7 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base: MaterialConfig, 
 # ------------------------------------------------------------------------------- entry points
 
 
-def _setups(names, size, base_config, skipped):
+def _setups(names, size, base_config, skipped, quick=False):
     """(name, scene, rig, base config, reference variant) per available benchmark scene."""
     from ..materials import load_config
     from .reference import reference_config
@@ -258,7 +258,8 @@ def _setups(names, size, base_config, skipped):
 
     for name, scene, rig in bench_scenes(names, size, skipped):
         base = load_config(base_config(name) if base_config else None)
-        yield name, scene, rig, base, Variant("reference", "reference", reference_config(scene), COMPARE_SETTINGS)
+        yield name, scene, rig, base, Variant("reference", "reference", reference_config(scene, quick=quick),
+                                              COMPARE_SETTINGS)
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
@@ -272,7 +273,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     gl = create_context(backend)
     rows, skipped = [], {}
     try:
-        for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped):
+        for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
             r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick), ppd, repeat, progress,
                              with_flip=True)
             for row in r:
@@ -292,7 +293,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
 
 
 def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
-               ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True) -> dict:
+               ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False) -> dict:
     """For each budget: the chosen effect per material, its predicted and measured ms and error."""
     from ..context import create_context
     from ..output import ensure_writable_dir, write_png
@@ -302,7 +303,7 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
     gl = create_context(backend)
     rows, skipped = [], {}
     try:
-        for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped):
+        for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
             ref = measure(gl, scene, rig, reference, repeat)
             for b in budgets:
                 pick = choose_under_budget(gl, scene, rig, b, base, ref, ppd, repeat, progress)
