@@ -1,0 +1,87 @@
+"""The speed/accuracy machinery end to end at tiny sizes (llvmpipe): sweeps, budget choice."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rayvr.bench import metrics
+from rayvr.bench import tradeoff as T
+from rayvr.camera import StereoRig
+from rayvr.materials import load_config, parse_config
+from rayvr.scene import load
+
+
+@pytest.fixture(scope="module")
+def room():
+    scene = load()
+    return scene, StereoRig.for_scene(scene, size=(32, 24))
+
+
+def test_reference_has_zero_error_and_variants_are_worse(gl, room):
+    scene, rig = room
+    from rayvr.bench.reference import reference_config
+
+    ref = T.Variant("reference", "ref", reference_config(scene, quick=True))
+    raster = T.Variant("effect", "raster", parse_config({"default": "raster"}))
+    rows, measured = T.run_sweep(gl, scene, rig, ref, [ref, raster], metrics.DEFAULT_PPD, repeat=1, progress=False)
+    same, cheap = rows
+    assert same["flip"] < 0.02 and same["psnr"] > 35  # the reference against itself (sampling noise only)
+    assert cheap["flip"] > same["flip"] + 0.01 and cheap["psnr"] < same["psnr"]
+    assert measured.image.shape == (24, 64, 3)
+
+
+def test_swept_parameters_reach_per_material_entries():
+    base = parse_config({"materials": {"gold": {"effect": "glossy", "samples": 8}}})
+    cfg = T.config_with(base, params={"glossy": {"samples": 2}})
+    (gold,) = cfg.assign(["gold"], warn=False)
+    assert gold.params["samples"] == 2
+
+
+def test_assignment_config_keeps_base_params_for_the_same_effect(room):
+    scene, _ = room
+    base = load_config(None)
+    base = parse_config({"materials": {"gold": {"effect": "glossy", "samples": 8}}})
+    cfg = T.config_for_assignment(base, scene, {"gold": "glossy", "mirror": "reflections"})
+    got = {n: a for n, a in zip(scene.material_names(), cfg.assign(scene.material_names(), warn=False))}
+    assert got["gold"].effect == "glossy" and got["gold"].params["samples"] == 8
+    assert got["mirror"].effect == "reflections" and got["floor"].effect == "raster"
+
+
+def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
+    scene, rig = room
+    from rayvr.bench.reference import reference_config
+
+    base = load_config(None)
+    ref = T.measure(gl, scene, rig, T.Variant("reference", "ref", reference_config(scene, quick=True)), repeat=1)
+    base_ms, options = T.per_material_options(gl, scene, rig, ref, base, metrics.DEFAULT_PPD, repeat=1,
+                                              progress=False)
+    assert base_ms > 0 and options
+    for o in options:
+        assert {x.effect for x in o.options} >= {"raster", "shadows"}
+        raster = next(x for x in o.options if x.effect == "raster")
+        assert raster.cost_ms == 0.0
+    from rayvr.bench.budget import solve_budget
+
+    tight = solve_budget(options, budget_ms=base_ms, base_ms=base_ms)
+    assert set(tight.assignment.values()) == {"raster"}
+    generous = solve_budget(options, budget_ms=1e9, base_ms=base_ms)
+    assert generous.error <= tight.error
+
+
+@pytest.mark.parametrize("area", ["tradeoff", "budget"])
+def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
+    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", area, "--quick", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr[-3000:]
+    result = json.loads((tmp_path / f"{area}.json").read_text())
+    assert result["rows"] and result["meta"]["gl_renderer"]
+    assert (tmp_path / f"{area}.md").exists()
+    if area == "tradeoff":
+        pytest.importorskip("matplotlib")
+        assert list(tmp_path.glob("*.png"))
+        assert {r["knob"] for r in result["rows"]} >= {"effect", "resolution_scale"}
+    else:
+        for row in result["rows"]:
+            assert row["assignment"] and (row["measured_ms"] > 0)
