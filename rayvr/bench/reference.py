@@ -72,10 +72,11 @@ class ReferenceChoice:
 
 
 def reference_choices(scene, quick: bool = False, use_path: bool = False,
-                      available=None) -> list[ReferenceChoice]:
-    """One choice per scene material (index order). `available` defaults to implemented_effects()."""
+                      available=None, quality: dict | None = None) -> list[ReferenceChoice]:
+    """One choice per scene material (index order). `available` defaults to implemented_effects();
+    `quality` overrides entries of REFERENCE_QUALITY/QUICK_QUALITY (e.g. {"bounces": 1})."""
     have = set(implemented_effects() if available is None else available)
-    q = QUICK_QUALITY if quick else REFERENCE_QUALITY
+    q = {**(QUICK_QUALITY if quick else REFERENCE_QUALITY), **(quality or {})}
     out = []
     for m in scene.materials:
         kind = material_class(m)
@@ -87,10 +88,14 @@ def reference_choices(scene, quick: bool = False, use_path: bool = False,
     return out
 
 
-def reference_config(scene, quick: bool = False, use_path: bool = False, available=None) -> MaterialConfig:
+def reference_config(scene, quick: bool = False, use_path: bool = False, available=None,
+                     quality: dict | None = None) -> MaterialConfig:
     """A validated MaterialConfig giving each material its reference effect. Entries are keyed
     by material index ([ids]) so names with glob characters cannot match other materials."""
-    choices = reference_choices(scene, quick, use_path, available)
+    return config_from_choices(reference_choices(scene, quick, use_path, available, quality))
+
+
+def config_from_choices(choices: list[ReferenceChoice]) -> MaterialConfig:
     data = {"default": "raster",
             "ids": {str(i): {"effect": c.effect, **c.params} for i, c in enumerate(choices)}}
     return parse_config(data, "<reference>")
