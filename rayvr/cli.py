@@ -69,9 +69,19 @@ def cmd_capture(args) -> int:
                               primary=args.primary)
     with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
         rig = rig_from_args(args, r.scene)
+        pick = None
+        if args.budget_ms is not None:
+            from .bench.tradeoff import auto_config, describe_pick
+
+            config, pick = auto_config(r, rig, args.budget_ms, progress=not args.quiet)
+            r.set_materials(config)
+            if not args.quiet:
+                print(describe_pick(pick))
         poses = poses_for(rig, r.scene, args.frames, args.path)
         job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix)
         summary = run_capture(r, job, progress=not args.quiet)
+        if pick is not None:
+            summary["budget"] = pick
         summary_path = write_summary(job, summary)
     if not args.quiet:
         print(f"{r.scene.summary()}")
@@ -193,6 +203,8 @@ def cmd_preview(args) -> int:
     with Preview(args.scene, args.materials, size=args.size, vsync=not args.no_vsync, stereo=args.mode,
                  view=args.view, res_scale=args.scale, rig_options=rig_options, look_at=look_at,
                  out_dir=args.out, path_file=args.record) as p:
+        if args.budget_ms is not None:
+            print(p.apply_budget(args.budget_ms))
         p.run(max_frames=args.frames)
     return 0
 
@@ -216,6 +228,8 @@ def build_parser() -> argparse.ArgumentParser:
     seq.add_argument("--frames", type=int, help="N frames of a turntable orbit")
     seq.add_argument("--path", help="camera path file (JSON) to replay")
     c.add_argument("--timings", action="store_true", help="print GPU ms per pass")
+    c.add_argument("--budget-ms", type=float, help="pick effects per material to fit this GPU frame time "
+                   "(measured on this device against a reference; overrides --materials' effects)")
     c.add_argument("--exposure", type=float, default=1.0)
     c.add_argument("--tonemapper", choices=("aces", "reinhard", "clamp"), default="aces")
     c.add_argument("--layer-mode", choices=("auto", "vertex", "geometry", "multiview", "passes"), default="auto",
@@ -266,6 +280,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--out", default="shots", help="screenshot folder (default ./shots)")
     v.add_argument("--record", default="camera_path.json", help="camera path file P writes")
     v.add_argument("--frames", type=int, help="close after N frames (smoke tests)")
+    v.add_argument("--budget-ms", type=float, help="pick effects per material to fit this GPU frame time at start")
     v.set_defaults(func=cmd_preview)
     return p
 

@@ -496,6 +496,21 @@ class Preview:
         self.say(f"material config loaded: {self.materials_path.name}")
         return True
 
+    def apply_budget(self, budget_ms: float) -> str:
+        """`--budget-ms`: measure this scene on this device from the current view, pick effects per
+        material that fit the budget, and render with them (the config file's params stay the
+        base). Returns the summary the HUD and terminal show."""
+        from .bench.tradeoff import auto_config, describe_pick
+
+        fb = self.glfw.get_framebuffer_size(self.window)
+        rig = self.camera.rig(layout_for(self.state.stereo, fb, self.state.res_scale).eye_size)
+        config, summary = auto_config(self.renderer, rig, budget_ms, progress=False)
+        self.file_config = config
+        self._apply_materials()
+        text = describe_pick(summary)
+        self.say(text.splitlines()[0])
+        return text
+
     def override_config(self, effect: str) -> materials_mod.MaterialConfig:
         """Every material gets `effect`, with the file's [params] for it."""
         return materials_mod.parse_config({"default": effect, "params": self.file_config.params},

@@ -85,3 +85,15 @@ def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
     else:
         for row in result["rows"]:
             assert row["assignment"] and (row["measured_ms"] > 0)
+
+
+def test_capture_budget_mode_records_the_choice(tmp_path):
+    run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--size", "24x16", "--budget-ms", "1e6",
+                          "--out", str(tmp_path), "-q"], capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr[-3000:]
+    summary = json.loads((tmp_path / "frame_timings.json").read_text())
+    pick = summary["budget"]
+    assert pick["feasible"] and pick["budget_ms"] == 1e6
+    assert set(pick["assignment"]) >= {"mirror", "floor"}
+    # With all the time in the world nothing stays on the bottom rung where a better one exists.
+    assert pick["assignment"]["mirror"] != "raster"

@@ -320,3 +320,30 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "budget", result)
     return result
+
+
+def auto_config(renderer, rig: StereoRig, budget_ms: float, ppd: float = metrics.DEFAULT_PPD, repeat: int = 5,
+                progress: bool = True) -> tuple[MaterialConfig, dict]:
+    """`--budget-ms` for capture and preview: effects per material of `renderer.scene` that keep the
+    frame within `budget_ms` on this device with the least error, starting from the renderer's
+    current config. Returns the config and the summary (predicted and measured ms and FLIP)."""
+    from .reference import reference_config
+
+    gl, scene = renderer.gl, renderer.scene
+    reference = Variant("reference", "reference", reference_config(scene, quick=gl.is_software))
+    ref = measure(gl, scene, rig, reference, repeat=1, warmup=1)
+    pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress)
+    summary = {k: v for k, v in pick.items() if k not in ("config", "image")}
+    return pick["config"], summary
+
+
+def describe_pick(summary: dict) -> str:
+    """A few lines for the terminal or the HUD."""
+    state = "within" if summary["feasible"] else "OVER (cheapest assignment)"
+    lines = [f"budget {summary['budget_ms']:g} ms: {state}; predicted {summary['predicted_ms']:.2f} ms, "
+             f"measured {summary['measured_ms']:.2f} ms, mean FLIP {summary['measured_flip']:.4f}"]
+    by_effect: dict = {}
+    for name, effect in summary["assignment"].items():
+        by_effect.setdefault(effect, []).append(name)
+    lines += [f"  {e:12s} {', '.join(sorted(n))}" for e, n in sorted(by_effect.items())]
+    return "\n".join(lines)
