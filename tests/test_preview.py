@@ -369,7 +369,8 @@ def _events():
         _press(p, glfw.KEY_O)
         p.frame()
         out["override"] = (p.state.override, p.renderer.config.source, p.renderer.config.default)
-        _press(p, glfw.KEY_O)
+        for _ in materials.implemented_effects():  # the cycle is off -> each effect -> off
+            _press(p, glfw.KEY_O)
         p.frame()
         out["override_off"] = (p.state.override, p.renderer.config.source)
         _press(p, glfw.KEY_EQUAL)
