@@ -292,7 +292,8 @@ def test_primary_rays_match_embree_and_the_raster_gbuffer(gl, shared_scene, whic
             forward = -e.rotation[:, 2]
             tmin = (rig.near / (d @ forward)).astype(np.float32)
             res = es.run(np.ascontiguousarray(o + tmin[:, None] * d), d, output=1)
-            eprim = np.where(res["primID"] >= 0, res["primID"], NO_HIT).astype(np.uint32)
+            prim_ids = res["primID"].astype(np.int64)
+            eprim = np.where(prim_ids >= 0, prim_ids, NO_HIT).astype(np.uint32)
             et = np.where(res["primID"] >= 0, res["tfar"] + tmin, np.inf)
             hit = tri.reshape(-1) != NO_HIT
             pos = traced[e.name].aux["position"].reshape(-1, 3)

@@ -21,6 +21,16 @@
 #define BVH_STACK_SIZE 64   // >= the build's max_depth (bvh.py caps the depth at it)
 #endif
 
+#ifndef BVH_GLOBAL_STACK
+#define BVH_GLOBAL_STACK 1
+#endif
+#if BVH_GLOBAL_STACK
+// One traversal stack per invocation at file scope, shared by every inlined call site of
+// bvh_traverse: a shader that traces from several places (rt/effects.comp: shadow rays per light
+// kind, reflection rays) would otherwise hold one local-memory array per site.
+int bvh_stack[BVH_STACK_SIZE];
+#endif
+
 layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhNodes { vec4 bvh_nodes[]; };
 layout(std430, binding = BVH_TRIS_BINDING) readonly restrict buffer BvhTriangles { vec4 bvh_tris[]; };
 
@@ -84,7 +94,9 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
         return false;
     RayShear s = ray_shear(r);
     vec3 inv = bvh_safe_inverse(r.direction);
-    int stack[BVH_STACK_SIZE];
+#if !BVH_GLOBAL_STACK
+    int bvh_stack[BVH_STACK_SIZE];
+#endif
     int sp = 0;
     int node = 0;
     while (true) {
@@ -108,7 +120,7 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
         }
         if (hl && hr) {
             bool left_first = tl <= tr;
-            stack[sp++] = left_first ? m.y : m.x;
+            bvh_stack[sp++] = left_first ? m.y : m.x;
             node = left_first ? m.x : m.y;
         } else if (hl) {
             node = m.x;
@@ -117,7 +129,7 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
         } else {
             if (sp == 0)
                 break;
-            node = stack[--sp];
+            node = bvh_stack[--sp];
         }
     }
     return h.prim != BVH_MISS;
