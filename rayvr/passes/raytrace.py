@@ -142,7 +142,61 @@ class ClassifyPass(Pass):
         self.finalize.release()
 
 
+# Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.
+PATH_BYTES, SLOT_BYTES = 80, 48
+WAVE_BUFFER_BYTES = 1 << 30  # largest wavefront buffer: the device's storage-block limit or this
+EFFECT_IMPL = "wave"  # "wave": shade / trace split (rt/wave_*.comp); "inline": rt/effects.comp
+
+
+def _effect_params(fc, effect: str) -> dict:
+    """The largest of each parameter over the materials that use `effect` (sizes the waves)."""
+    out = {"bounces": 1, "samples": 1, "area_samples": 1}
+    for a in fc.gpu_scene.assignments:
+        if a.effect == effect:
+            for k in out:
+                out[k] = max(out[k], int(a.params.get(k, 1)))
+    return out
+
+
+class WaveBuffers:
+    """Path states and shadow slots for `capacity` paths x `slots` shadow rays each."""
+
+    def __init__(self, ctx, capacity: int, slots: int):
+        self.key = (capacity, slots)
+        self.paths = ctx.buffer(reserve=capacity * PATH_BYTES)
+        self.shadows = ctx.buffer(reserve=capacity * slots * SLOT_BYTES)
+        self.args = ctx.buffer(reserve=32)
+
+    def bind(self) -> None:
+        self.paths.bind_to_storage_buffer(WAVE_PATHS_BINDING)
+        self.shadows.bind_to_storage_buffer(WAVE_SHADOWS_BINDING)
+        self.args.bind_to_storage_buffer(WAVE_ARGS_BINDING)
+
+    def release(self) -> None:
+        for b in (self.paths, self.shadows, self.args):
+            b.release()
+
+
+WAVE_PATHS_BINDING, WAVE_SHADOWS_BINDING, WAVE_ARGS_BINDING = 12, 13, 14
+
+
+def wave_plan(pixel_capacity: int, paths_per_pixel: int, slots: int, limit: int) -> tuple[int, int]:
+    """(pixels per batch, shadow slots per chunk) so that no wavefront buffer exceeds `limit` bytes."""
+    batch = max(1, min(pixel_capacity, limit // (PATH_BYTES * paths_per_pixel)))
+    chunk = max(1, min(slots, limit // (SLOT_BYTES * batch * paths_per_pixel)))
+    if chunk * SLOT_BYTES * batch * paths_per_pixel > limit:
+        batch = max(1, limit // (SLOT_BYTES * paths_per_pixel))
+    return batch, chunk
+
+
 class TraceEffectPass(Pass):
+    """One effect as a wavefront: shading kernels (rt/wave_shade.comp) write rays into buffers,
+    lean kernels (rt/wave_trace.comp) trace them. Per batch of the effect's pixel list:
+        prep; pixel event (+ shadow rays); then per bounce: closest hits, hit event (+ shadow
+        rays); finish (fused into the last shadow kernel when a pixel has one path).
+    The shadow rays of an event may be split into chunks and the pixel list into batches so
+    that every buffer stays under the device's storage-block limit."""
+
     reads = ("gbuffer", "bvh", "rt_lists", "hdr")
     writes = ("hdr",)
 
@@ -155,7 +209,111 @@ class TraceEffectPass(Pass):
         return plan.view == "color" and self.effect in plan.effects
 
     def setup(self, gl, plan: FramePlan) -> None:
-        defines = {**rt_defines(), "EFFECT": EFFECTS[self.effect].id, "RT_SLOT": self.slot}
+        d = {**rt_defines(), "EFFECT": EFFECTS[self.effect].id, "RT_SLOT": self.slot}
+        trace = "rt/wave_trace.comp"
+        self.programs = {
+            "prep": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 0}),
+            "closest": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 1}),
+            "shadow": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 2}),
+            "shadow_finish": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
+            "pixel": shaders.compute(gl.ctx, "rt/wave_shade.comp", {**d, "WAVE_STAGE": 3}),
+            "finish": shaders.compute(gl.ctx, "rt/wave_shade.comp", {**d, "WAVE_STAGE": 5}),
+        }
+        if self.effect != "shadows":
+            self.programs["hit"] = shaders.compute(gl.ctx, "rt/wave_shade.comp", {**d, "WAVE_STAGE": 4})
+
+    def _buffers(self, fc, capacity: int, slots: int) -> WaveBuffers:
+        key = f"rt_wave_{self.effect}"
+        buf = fc.targets.get(key)
+        if buf is None or buf.key != (capacity, slots):
+            if buf is not None:
+                buf.release()
+            buf = fc.targets[key] = WaveBuffers(fc.gl.ctx, capacity, slots)
+        return buf
+
+    def execute(self, fc) -> None:
+        ctx = fc.gl.ctx
+        lists = pixel_lists(fc)
+        prm = _effect_params(fc, self.effect)
+        traced = self.effect != "shadows"
+        bounces = prm["bounces"] if traced else 0
+        paths_per_pixel = prm["samples"] if self.effect == "glossy" else 1
+        slots = sum(prm["area_samples"] if l.kind == "rect" else 1 for l in fc.scene.lights) or 1
+        limit = min(int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or WAVE_BUFFER_BYTES), WAVE_BUFFER_BYTES)
+        batch, chunk = wave_plan(lists.capacity, paths_per_pixel, slots, limit)
+        capacity = batch * paths_per_pixel
+        wave = self._buffers(fc, capacity, chunk)
+        chunks = [(k, min(chunk, slots - k)) for k in range(0, slots, chunk)]
+        common = {"ambient": tuple(fc.settings.ambient), "background": tuple(fc.settings.background),
+                  "frame_seed": int(getattr(fc.settings, "seed", 0)), "rt_capacity": lists.capacity,
+                  "wave_capacity": capacity, "wave_paths_per_pixel": paths_per_pixel}
+        for p in self.programs.values():
+            set_eye_uniforms(p, fc)
+            for k, v in common.items():
+                if k in p:
+                    p[k].value = v
+        fc.gbuffer.bind_for_reading()
+        fc.gpu_scene.bind()
+        fc.gpu_scene.textures.use(7)
+        fc.accel.gpu.bind(DEFAULT_BINDING)
+        lists.bind()
+        wave.bind()
+        fc.target("hdr").bind_to_image(0, read=False, write=True)
+        barrier = ctx.memory_barrier
+
+        def run(name, items=1, **uniforms):
+            p = self.programs[name]
+            for k, v in uniforms.items():
+                if k in p:
+                    p[k].value = v
+            if name == "prep":
+                p.run(1, 1, 1)
+            else:
+                p.run_indirect(wave.args, offset=16 * items)
+            barrier(moderngl.ALL_BARRIER_BITS)
+
+        one_path = paths_per_pixel == 1
+        for base in range(0, lists.capacity, batch):
+            for p in self.programs.values():
+                if "wave_batch_base" in p:
+                    p["wave_batch_base"].value = base
+            run("prep")
+            for ci, (first, count) in enumerate(chunks):
+                last = ci == len(chunks) - 1
+                run("pixel", 0, wave_slot_first=first, wave_slot_count=count)
+                fuse = last and bounces == 0 and one_path
+                run("shadow_finish" if fuse else "shadow", 0, wave_items=0, wave_slot_first=first, wave_slot_count=count)
+            for b in range(bounces):
+                run("closest", 1)
+                for ci, (first, count) in enumerate(chunks):
+                    last = ci == len(chunks) - 1
+                    run("hit", 1, wave_bounce=b, wave_last_chunk=int(last), wave_slot_first=first, wave_slot_count=count)
+                    fuse = last and b == bounces - 1 and one_path
+                    run("shadow_finish" if fuse else "shadow", 1, wave_items=1)
+            if not one_path:
+                run("finish", 0)
+
+    def release(self) -> None:
+        for p in self.programs.values():
+            p.release()
+
+
+class InlineEffectPass(Pass):
+    """The effect in one fat kernel per pixel (rt/effects.comp): shading and tracing together."""
+
+    reads = ("gbuffer", "bvh", "rt_lists", "hdr")
+    writes = ("hdr",)
+
+    def __init__(self, effect: str):
+        self.effect = effect
+        self.slot = TRACED_EFFECTS.index(effect)
+        self.name = f"rt_{effect}"
+
+    def needed(self, plan: FramePlan) -> bool:
+        return plan.view == "color" and self.effect in plan.effects
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        defines = {**rt_defines(), "EFFECT": EFFECTS[self.effect].id, "RT_SLOT": self.slot, "SHADOW_RAYS_INLINE": 1}
         self.program = shaders.compute(gl.ctx, "rt/effects.comp", defines)
 
     def execute(self, fc) -> None:
@@ -183,4 +341,4 @@ class TraceEffectPass(Pass):
 def all_rt_passes() -> dict:
     """name -> pass, for the renderer's registration list."""
     return {"bvh": BvhPass(), "primary_rays": PrimaryRaysPass(), "classify": ClassifyPass(),
-            **{f"rt_{e}": TraceEffectPass(e) for e in TRACED_EFFECTS}}
+            **{f"rt_{e}": (TraceEffectPass if EFFECT_IMPL == "wave" else InlineEffectPass)(e) for e in TRACED_EFFECTS}}

@@ -1,7 +1,8 @@
 // Direct lighting from the scene's lights at a surface point.
 // A pass that traces shadow rays defines HAS_LIGHT_VISIBILITY and provides
-//   float light_visibility(vec3 p, vec3 n, vec3 to_light, float dist);
-// without it every light is unoccluded (the `raster` effect).
+//   vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist);
+// which returns the unshadowed `contribution` of one light (sample) scaled by its visibility, or
+// records a shadow ray for it (rt/shadow_rays.glsl); without it every light is unoccluded (`raster`).
 #ifndef RAYVR_LIGHTING_GLSL
 #define RAYVR_LIGHTING_GLSL
 #include "scene.glsl"
@@ -12,7 +13,7 @@
 #endif
 
 #ifndef HAS_LIGHT_VISIBILITY
-float light_visibility(vec3 p, vec3 n, vec3 to_light, float dist) { return 1.0; }
+vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist) { return contribution; }
 #endif
 
 // Points on a rect light, in [0,1]^2. A pass that samples them itself (randomly, per pixel)
@@ -33,7 +34,7 @@ vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float
             vec3 l = -normalize(li.direction.xyz);
             vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
             if (any(greaterThan(f, vec3(0.0))))
-                sum += f * li.radiance.rgb * light_visibility(p, n, l, 1e30);
+                sum += shadowed(f * li.radiance.rgb, p, n, l, 1e30);
         } else if (kind == LIGHT_POINT) {
             vec3 d = li.position_kind.xyz - p;
             float dist = length(d);
@@ -41,7 +42,7 @@ vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float
             vec3 l = d / dist;
             vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
             if (any(greaterThan(f, vec3(0.0))))
-                sum += f * li.radiance.rgb / (dist * dist) * light_visibility(p, n, l, dist);
+                sum += shadowed(f * li.radiance.rgb / (dist * dist), p, n, l, dist);
         } else if (kind == LIGHT_RECT) {
             // Radiance L over area A: E = sum L * cos_l * cos_s / d^2 * A / N over N points.
             vec3 c = li.position_kind.xyz, u = li.u.xyz, w = li.v.xyz;
@@ -60,8 +61,7 @@ vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float
                 if (cos_light <= 0.0) continue;
                 vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
                 if (!any(greaterThan(f, vec3(0.0)))) continue;
-                sum += f * li.radiance.rgb * cos_light / dist2 * (area / float(N))
-                       * light_visibility(p, n, l, dist);
+                sum += shadowed(f * li.radiance.rgb * cos_light / dist2 * (area / float(N)), p, n, l, dist);
             }
         }
     }

@@ -1,12 +1,21 @@
-// Shadow rays for glsl/common/lighting.glsl: light_visibility() traces an any-hit ray through the
-// BVH, and rect lights get `area_samples` random points per pixel (a Fibonacci lattice, randomly
-// shifted per pixel: stratified in both axes, so the estimate converges as samples grow) instead
-// of the raster's fixed grid. Include before lighting.glsl; set the two globals per surface.
+// Shadow rays for glsl/common/lighting.glsl: shadowed() scales each light (sample) by its
+// visibility along a shadow ray, and rect lights get `area_samples` random points per pixel (a
+// Fibonacci lattice, randomly shifted per pixel: stratified in both axes, so the estimate converges
+// as samples grow) instead of the raster's fixed grid. Include before lighting.glsl; set the
+// globals below per surface.
+//
+// Two ways to answer shadowed():
+//   SHADOW_RAYS_INLINE  trace an any-hit ray on the spot (one fat kernel shades and traces)
+//   default (wavefront) store the ray and the unshadowed contribution (times shadow_weight) in the
+//                       item's shadow slots of rt/wave.glsl and return 0; the lean any-hit kernel
+//                       (rt/wave_trace.comp) traces them all and adds the unoccluded contributions
 #ifndef RAYVR_RT_SHADOW_RAYS_GLSL
 #define RAYVR_RT_SHADOW_RAYS_GLSL
 #define HAS_LIGHT_VISIBILITY
 #define HAS_RECT_LIGHT_SAMPLES
+// (The include preprocessor takes each file once per program, so includes sit outside the #if.)
 #include "../accel/bvh.glsl"
+#include "wave.glsl"
 
 vec3 shadow_geometric_normal;  // unit geometric normal of the surface being lit (either side)
 int shadow_area_samples = 1;   // points per rect light
@@ -22,10 +31,45 @@ vec2 rect_light_sample(int k, int n) {
 // The ray starts off the surface on the light's side of the *geometric* normal (the G-buffer's
 // shading normal may point elsewhere) and stops just short of the light: a rect light's own
 // emissive triangles lie at the sample point.
-float light_visibility(vec3 p, vec3 n, vec3 to_light, float dist) {
+Ray shadow_ray(vec3 p, vec3 to_light, float dist) {
     vec3 ng = dot(shadow_geometric_normal, to_light) >= 0.0 ? shadow_geometric_normal : -shadow_geometric_normal;
-    Ray r = Ray(offset_ray(p, ng), 0.0, to_light, dist * (1.0 - 1e-4));
-    return trace_any(r) ? 0.0 : 1.0;
+    return Ray(offset_ray(p, ng), 0.0, to_light, dist * (1.0 - 1e-4));
 }
+
+#ifdef SHADOW_RAYS_INLINE
+vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist) {
+    return trace_any(shadow_ray(p, to_light, dist)) ? vec3(0.0) : contribution;
+}
+#else
+uint shadow_item;           // wave item (pixel or path) the rays belong to
+vec3 shadow_weight;         // throughput of that item's path up to this surface
+int shadow_calls;           // shadow rays asked for at this surface so far
+
+vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist) {
+    vec3 c = contribution * shadow_weight;
+    if (all(equal(c, vec3(0.0))))
+        return vec3(0.0);  // nothing to lose: no ray
+    int k = shadow_calls++ - int(wave_slot_first);
+    if (k >= 0 && k < int(wave_slot_count)) {  // this chunk of the slots
+        Ray r = shadow_ray(p, to_light, dist);
+        wave_shadows[uint(k) * wave_capacity + shadow_item] =
+            ShadowSlot(vec4(r.origin, r.tmin), vec4(r.direction, r.tmax), vec4(c, 0.0));
+    }
+    return vec3(0.0);
+}
+
+// Call before lighting a surface of item `item` with path weight `weight`.
+void shadow_begin(uint item, vec3 weight, vec3 geometric_normal) {
+    shadow_item = item;
+    shadow_weight = weight;
+    shadow_geometric_normal = geometric_normal;
+    shadow_calls = 0;
+}
+
+// Shadow rays stored for the current item in this chunk.
+uint shadow_stored() {
+    return uint(clamp(shadow_calls - int(wave_slot_first), 0, int(wave_slot_count)));
+}
+#endif
 
 #endif

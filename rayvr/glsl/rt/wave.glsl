@@ -1,0 +1,50 @@
+// Wavefront state of the effect passes (rayvr/passes/raytrace.py TraceEffectPass): the shading
+// kernels (rt/wave_shade.comp) write rays into these buffers, the lean trace kernels
+// (rt/wave_trace.comp) trace them at the batch tracer's speed, and the shading kernels read back.
+//
+// Items: the pixels of a batch of the effect's pixel list, i in [0, n) with n = wave_args[0].w,
+// and their paths p = j * n + i, j < wave_paths_per_pixel (glossy: one per GGX sample; otherwise
+// one). A pixel's own shading event uses item i; the events along path p use item p.
+// Shadow slot k of item q: wave_shadows[k * wave_capacity + q] (rays of neighbouring pixels for
+// the same light sample lie side by side: coherent loads, coherent rays).
+#ifndef RAYVR_RT_WAVE_GLSL
+#define RAYVR_RT_WAVE_GLSL
+#include "pixel_list.glsl"
+
+#define WAVE_IDLE 0xFFFFFFFEu  // hit.x of a path with no ray this bounce
+
+struct WavePath {
+    vec4 origin;      // xyz ray origin (already offset off its surface), w tmin
+    vec4 direction;   // xyz direction, w tmax; tmax < 0: the path has ended
+    vec4 throughput;  // rgb weight of the radiance the ray brings back; w: shadow rays (uint bits)
+    vec4 radiance;    // rgb gathered so far (the any-hit kernel adds the unoccluded lights)
+    uvec4 hit;        // closest hit: BVH slot (BVH_MISS, WAVE_IDLE), triangle, u, v bits
+};
+
+struct ShadowSlot {
+    vec4 origin;      // xyz, w tmin
+    vec4 direction;   // xyz (to the light, unnormalized allowed), w tmax
+    vec4 light;       // rgb contribution if unoccluded (path weight included)
+};
+
+layout(std430, binding = 12) restrict buffer WavePaths { WavePath wave_paths[]; };
+layout(std430, binding = 13) restrict buffer WaveShadows { ShadowSlot wave_shadows[]; };
+// [0]: dispatch over the batch's pixels, [1]: over its paths; w = item count.
+layout(std430, binding = 14) restrict buffer WaveArgs { uvec4 wave_args[2]; };
+
+uniform uint wave_capacity;         // paths the buffers hold (row stride of the shadow slots)
+uniform uint wave_paths_per_pixel;  // paths per pixel (the effect's largest sample count)
+uniform uint wave_slot_first;       // shadow rays [first, first + count) of each surface go to
+uniform uint wave_slot_count;       //   slots 0.. of this chunk; the others are skipped
+uniform uint wave_batch_base;       // first pixel-list entry of this batch
+
+uint wave_index() {
+    return gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * uint(RT_LOCAL_SIZE);
+}
+
+// Pixel (layer = eye) of batch pixel i.
+ivec3 wave_pixel(uint i) {
+    return rt_unpack_pixel(rt_pixels[uint(RT_SLOT) * rt_capacity + wave_batch_base + i]);
+}
+
+#endif

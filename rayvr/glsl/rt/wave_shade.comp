@@ -1,0 +1,173 @@
+#version 430
+// The shading kernels of the ray-traced rungs of the effect ladder, one program per effect and
+// stage (EFFECT = the effect's ID), run by indirect dispatches over a batch of that effect's pixel
+// list (rt/wave.glsl), both eyes at once. Rays are not traced here: shadowed() stores shadow rays
+// (rt/shadow_rays.glsl) and the stages below store reflection rays, for rt/wave_trace.comp.
+//   shadows      emission + direct light with shadow rays (rect lights: area_samples points)
+//                + ambient, as `raster` does
+//   reflections  + a mirror ray that follows up to `bounces` reflective surfaces, each hit shaded
+//                with its own direct light and shadows; misses see the background
+//   glossy       + `samples` GGX rays (VNDF importance sampling), each followed like a mirror ray
+// A reflective surface (effect reflections or glossy) met along a reflection ray continues it in
+// its mirror direction while bounces remain; any other surface ends it.
+//   WAVE_STAGE 3  pixel: light the G-buffer surface, start the pixel's paths
+//   WAVE_STAGE 4  hit: light each path's hit (bounce wave_bounce), continue or end the path
+//   WAVE_STAGE 5  finish: the pixel's colour = sum of its paths' radiance
+// With several chunks of shadow slots (wave_slot_first > 0 on later ones) stages 3 and 4 run once
+// per chunk; only the first (stage 3) or the last (stage 4) touches the path state.
+#ifndef WAVE_STAGE
+#define WAVE_STAGE 3
+#endif
+#ifndef EFFECT
+#define EFFECT EFFECT_SHADOWS
+#define RT_SLOT 0
+#endif
+layout(local_size_x = 64) in;
+#include "shadow_rays.glsl"
+#include "../common/lighting.glsl"
+#include "../common/ggx_sample.glsl"
+#include "../common/random.glsl"
+#include "../common/camera.glsl"
+#include "hit_surface.glsl"
+
+layout(rgba16f, binding = 0) uniform writeonly image2DArray hdr_out;
+uniform vec3 ambient;
+uniform vec3 background;
+uniform uint frame_seed;
+uniform int wave_bounce;      // stage 4: 0 for the first reflection hit
+uniform uint wave_last_chunk; // stage 4: 1 on the last chunk of shadow slots
+
+bool is_reflective(uint effect) {
+    return effect == uint(EFFECT_REFLECTIONS) || effect == uint(EFFECT_GLOSSY);
+}
+
+// A path's ray leaving p (geometric normal ng) in direction dir, or an ended path (throughput 0).
+void start_path(uint p, vec3 origin_p, vec3 ng, vec3 dir, vec3 weight) {
+    wave_paths[p].origin = vec4(offset_ray(origin_p, dot(ng, dir) >= 0.0 ? ng : -ng), 0.0);
+    wave_paths[p].direction = vec4(dir, 3.0e38);
+    wave_paths[p].throughput.rgb = weight;
+}
+
+void end_path(uint p) {
+    wave_paths[p].direction.w = -1.0;
+}
+
+// Per-pixel sampling state, as the pixel's own event set it: same stream, same lattice.
+uint pixel_setup(ivec3 px, out uvec4 params, out uint rng) {
+    uint mi = texelFetch(gb_material, px, 0).x;
+    params = materials[mi].params;  // bounces, samples, area_samples
+    rng = rng_seed(px, frame_seed);
+    shadow_area_samples = int(max(params.z, 1u));
+    shadow_lattice_shift = rng_next2(rng);
+    return mi;
+}
+
+#if WAVE_STAGE == 3
+void main() {
+    uint i = wave_index();
+    if (i >= wave_args[0].w) return;
+    ivec3 px = wave_pixel(i);
+    Surface s = gbuffer_fetch(px);
+    vec3 v = normalize(eye_position[px.z] - s.position);
+    vec3 ng = triangle_normal(s.triangle);
+    if (dot(ng, v) < 0.0) ng = -ng;
+    uvec4 params;
+    uint rng;
+    pixel_setup(px, params, rng);
+    shadow_begin(i, vec3(1.0), ng);
+    direct_light(s.position, s.normal, v, s.base_color, s.metallic, s.roughness);
+    wave_paths[i].throughput.w = uintBitsToFloat(shadow_stored());
+    if (wave_slot_first != 0u) return;  // later chunks only add shadow rays
+#if EFFECT == EFFECT_SHADOWS
+    wave_paths[i].radiance = vec4(s.emission + ambient * s.base_color, 0.0);
+#else
+    wave_paths[i].radiance = vec4(s.emission + ambient * s.base_color * (1.0 - s.metallic), 0.0);  // the specular share is traced
+    vec3 f0 = mix(vec3(0.04), s.base_color, s.metallic);
+    uint n = wave_args[0].w;
+#if EFFECT == EFFECT_REFLECTIONS
+    vec3 dir = reflect(-v, s.normal);
+    if (dot(dir, ng) <= 0.0) dir = reflect(dir, ng);
+    start_path(i, s.position, ng, dir, fresnel_schlick(f0, dot(s.normal, v)));
+#else  // glossy
+    int samples = int(max(params.y, 1u));
+    float alpha = max(s.roughness * s.roughness, 1e-3);
+    mat3 tbn = basis_around(s.normal);
+    vec3 v_local = v * tbn;  // transpose(tbn) * v
+    v_local.z = max(v_local.z, 1e-4);
+    for (int j = 0; j < int(wave_paths_per_pixel); ++j) {
+        uint p = uint(j) * n + i;
+        if (j > 0) wave_paths[p].radiance = vec4(0.0);
+        if (j >= samples) {
+            end_path(p);
+            continue;
+        }
+        vec3 m = tbn * sample_ggx_vndf(normalize(v_local), alpha, rng_next2(rng));
+        vec3 l = reflect(-v, m);
+        float n_l = dot(s.normal, l);
+        if (n_l <= 0.0 || dot(l, ng) <= 0.0) {  // below the surface: no light this way
+            end_path(p);
+            continue;
+        }
+        vec3 weight = fresnel_schlick(f0, dot(v, m)) * smith_g2_over_g1(v_local.z, n_l, alpha);
+        start_path(p, s.position, ng, l, weight / float(samples));
+    }
+#endif
+#endif
+}
+
+#elif WAVE_STAGE == 4
+void main() {
+    uint p = wave_index();
+    if (p >= wave_args[1].w) return;
+    uvec4 hb = wave_paths[p].hit;
+    if (hb.x == WAVE_IDLE || hb.x == BVH_MISS) {
+        wave_paths[p].throughput.w = uintBitsToFloat(0u);
+        if (hb.x == BVH_MISS && wave_last_chunk != 0u) {
+            wave_paths[p].radiance.rgb += wave_paths[p].throughput.rgb * background;
+            end_path(p);
+        }
+        return;
+    }
+    uint n = wave_args[0].w;
+    ivec3 px = wave_pixel(p % n);
+    uvec4 params;
+    uint rng;
+    pixel_setup(px, params, rng);
+    vec3 dir = wave_paths[p].direction.xyz;
+    vec3 throughput = wave_paths[p].throughput.rgb;
+    Hit h;
+    h.t = 0.0;
+    h.slot = hb.x;
+    h.prim = hb.y;
+    h.uv = uintBitsToFloat(hb.zw);
+    vec3 hng;
+    Surface s = surface_at_hit(h, dir, hng);
+    vec3 v = -dir;
+    shadow_begin(p, throughput, hng);
+    direct_light(s.position, s.normal, v, s.base_color, s.metallic, s.roughness);
+    wave_paths[p].throughput.w = uintBitsToFloat(shadow_stored());
+    if (wave_last_chunk == 0u) return;
+    int bounces = int(max(params.x, 1u));
+    if (!is_reflective(s.effect) || wave_bounce >= bounces - 1) {
+        wave_paths[p].radiance.rgb += throughput * (s.emission + ambient * s.base_color);
+        end_path(p);
+        return;
+    }
+    wave_paths[p].radiance.rgb += throughput * (s.emission + ambient * s.base_color * (1.0 - s.metallic));
+    vec3 weight = throughput * fresnel_schlick(mix(vec3(0.04), s.base_color, s.metallic), dot(s.normal, v));
+    dir = reflect(dir, s.normal);
+    if (dot(dir, hng) <= 0.0) dir = reflect(dir, hng);  // shading normal sent it under the surface
+    start_path(p, s.position, hng, dir, weight);
+}
+
+#else  // WAVE_STAGE 5
+void main() {
+    uint i = wave_index();
+    uint n = wave_args[0].w;
+    if (i >= n) return;
+    vec3 color = vec3(0.0);
+    for (uint j = 0u; j < wave_paths_per_pixel; ++j)
+        color += wave_paths[j * n + i].radiance.rgb;
+    imageStore(hdr_out, wave_pixel(i), vec4(color, 1.0));
+}
+#endif

@@ -1,0 +1,72 @@
+#version 430
+// The lean kernels of the wavefront effect passes (rt/wave.glsl): nothing but traversal, so they
+// keep the batch tracer's registers and occupancy while the shading lives in rt/wave_shade.comp.
+//   WAVE_STAGE 0  prep: dispatch sizes of this batch from the effect's pixel count (one thread)
+//   WAVE_STAGE 1  closest: each active path's ray -> its hit
+//   WAVE_STAGE 2  shadow: each item's stored shadow rays, any hit; unoccluded contributions are
+//                 added to its radiance; with WAVE_FINISH the pixel's colour is written as well
+//                 (one path per pixel, last event)
+#ifndef WAVE_STAGE
+#define WAVE_STAGE 1
+#endif
+#ifndef RT_SLOT
+#define RT_SLOT 0
+#endif
+#include "wave.glsl"
+#if WAVE_STAGE == 0
+layout(local_size_x = 1) in;
+uvec4 dispatch_of(uint n) {
+    uint groups = (n + uint(RT_LOCAL_SIZE) - 1u) / uint(RT_LOCAL_SIZE);
+    uint gx = min(groups, RT_MAX_GROUPS_X);
+    uint gy = gx == 0u ? 1u : (groups + gx - 1u) / gx;
+    return uvec4(gx, gy, 1u, n);
+}
+void main() {
+    uint total = rt_args[RT_SLOT].w;
+    uint n = total > wave_batch_base ? min(total - wave_batch_base, wave_capacity / wave_paths_per_pixel) : 0u;
+    wave_args[0] = dispatch_of(n);
+    wave_args[1] = dispatch_of(n * wave_paths_per_pixel);
+}
+#else
+layout(local_size_x = RT_LOCAL_SIZE) in;
+#include "../accel/bvh.glsl"
+#if WAVE_STAGE == 1
+void main() {
+    uint p = wave_index();
+    if (p >= wave_args[1].w) return;
+    vec4 o = wave_paths[p].origin;
+    vec4 d = wave_paths[p].direction;
+    if (d.w < 0.0) {
+        wave_paths[p].hit = uvec4(WAVE_IDLE, BVH_MISS, 0u, 0u);
+        return;
+    }
+    Hit h;
+    trace_closest(Ray(o.xyz, o.w, d.xyz, d.w), h);
+    wave_paths[p].hit = uvec4(h.slot, h.prim, floatBitsToUint(h.uv.x), floatBitsToUint(h.uv.y));
+}
+#else
+#ifdef WAVE_FINISH
+layout(rgba16f, binding = 0) uniform writeonly image2DArray hdr_out;
+#endif
+uniform uint wave_items;  // 0: the batch's pixels, 1: its paths (wave_args index)
+void main() {
+    uint q = wave_index();
+    if (q >= wave_args[wave_items].w) return;
+    uint n = floatBitsToUint(wave_paths[q].throughput.w);
+    vec3 sum = vec3(0.0);
+    for (uint k = 0u; k < n; ++k) {
+        uint at = k * wave_capacity + q;
+        vec4 o = wave_shadows[at].origin;
+        vec4 d = wave_shadows[at].direction;
+        if (!trace_any(Ray(o.xyz, o.w, d.xyz, d.w)))
+            sum += wave_shadows[at].light.rgb;
+    }
+#ifdef WAVE_FINISH
+    imageStore(hdr_out, wave_pixel(q), vec4(wave_paths[q].radiance.rgb + sum, 1.0));
+#else
+    if (n > 0u)
+        wave_paths[q].radiance.rgb += sum;
+#endif
+}
+#endif
+#endif
