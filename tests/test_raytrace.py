@@ -328,6 +328,35 @@ def test_refit_moves_what_rays_see(gl):
     assert (after == expected).mean() >= 0.995
 
 
+# ------------------------------------------------------------------------------ wavefront buffers
+
+def test_wave_batches_and_shadow_chunks_give_the_same_image(gl, monkeypatch):
+    """Effect passes under a tiny buffer limit (pixel list in batches, each surface's shadow rays
+    in chunks) render what they render in one go, up to float summation order."""
+    from rayvr.passes import raytrace
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(40, 30))
+    cfg = {"default": "shadows", "params": {"shadows": {"area_samples": 3}},
+           "materials": {"floor": {"effect": "glossy", "samples": 2, "bounces": 2},
+                         "mirror*": {"effect": "reflections", "bounces": 3}}}
+    _, whole, _ = render(gl, scene, rig, cfg)
+    limit = 30_000
+    batch, chunk = raytrace.wave_plan(40 * 30 * 2, 2, 3, limit)
+    assert batch < 40 * 30 * 2 and chunk < 3  # the limit does split both ways
+    monkeypatch.setattr(raytrace, "WAVE_BUFFER_BYTES", limit)
+    _, split, _ = render(gl, scene, rig, cfg)
+    assert np.allclose(split, whole, rtol=2e-3, atol=1e-4), np.abs(split - whole).max()
+
+
+def test_wave_plan_respects_the_limit():
+    from rayvr.passes.raytrace import PATH_BYTES, SLOT_BYTES, wave_plan
+    for pixels, paths, slots, limit in ((4_608_000, 1, 4, 1 << 30), (4_608_000, 16, 64, 128 << 20),
+                                        (100, 1, 2, 1 << 30), (10_000, 4, 1024, 200_000)):
+        batch, chunk = wave_plan(pixels, paths, slots, limit)
+        assert 1 <= batch <= pixels and 1 <= chunk <= slots
+        assert batch * paths * PATH_BYTES <= limit and batch * paths * chunk * SLOT_BYTES <= limit
+
+
 # ------------------------------------------------------------------------------ robustness, convergence
 
 def test_no_nan_for_axis_parallel_and_grazing_rays(gl):

@@ -4,8 +4,10 @@ the effects `shadows`, `reflections`, `glossy` (glsl/rt/).
     bvh           builds and uploads the scene's BVH once (rayvr/accel/scene.py)
     primary_rays  camera rays through the BVH -> triangle IDs for the G-buffer resolve
     classify      G-buffer effect channel -> one pixel list per traced effect + dispatch sizes
-    rt_<effect>   indirect dispatch over that effect's list, both eyes; overwrites its pixels of
-                  the HDR colour the raster `shade` pass wrote (which skips those pixels)
+    rt_<effect>   indirect dispatches over that effect's list, both eyes, as a wavefront: shading
+                  kernels (glsl/rt/wave_shade.comp) store rays, lean kernels (rt/wave_trace.comp)
+                  trace them; overwrites its pixels of the HDR colour the raster `shade` pass wrote
+                  (which skips those pixels)
 
 Each declares `needed()` only for plans whose effects (or `primary == "rays"`) use it, so an
 all-`raster` scene schedules none of them and never builds a BVH.
@@ -145,7 +147,6 @@ class ClassifyPass(Pass):
 # Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.
 PATH_BYTES, SLOT_BYTES = 80, 48
 WAVE_BUFFER_BYTES = 1 << 30  # largest wavefront buffer: the device's storage-block limit or this
-EFFECT_IMPL = "wave"  # "wave": shade / trace split (rt/wave_*.comp); "inline": rt/effects.comp
 
 
 def _effect_params(fc, effect: str) -> dict:
@@ -204,6 +205,7 @@ class TraceEffectPass(Pass):
         self.effect = effect
         self.slot = TRACED_EFFECTS.index(effect)
         self.name = f"rt_{effect}"
+        self.stage_timer = None  # a PassTimer-like run(name, fn): per-kernel GPU times (profiling)
 
     def needed(self, plan: FramePlan) -> bool:
         return plan.view == "color" and self.effect in plan.effects
@@ -266,11 +268,16 @@ class TraceEffectPass(Pass):
             for k, v in uniforms.items():
                 if k in p:
                     p[k].value = v
-            if name == "prep":
-                p.run(1, 1, 1)
+            def go():
+                if name == "prep":
+                    p.run(1, 1, 1)
+                else:
+                    p.run_indirect(wave.args, offset=16 * items)
+                barrier(moderngl.ALL_BARRIER_BITS)
+            if self.stage_timer is None:
+                go()
             else:
-                p.run_indirect(wave.args, offset=16 * items)
-            barrier(moderngl.ALL_BARRIER_BITS)
+                self.stage_timer.run(f"{self.name}.{name}", go)
 
         one_path = paths_per_pixel == 1
         for base in range(0, lists.capacity, batch):
@@ -298,47 +305,7 @@ class TraceEffectPass(Pass):
             p.release()
 
 
-class InlineEffectPass(Pass):
-    """The effect in one fat kernel per pixel (rt/effects.comp): shading and tracing together."""
-
-    reads = ("gbuffer", "bvh", "rt_lists", "hdr")
-    writes = ("hdr",)
-
-    def __init__(self, effect: str):
-        self.effect = effect
-        self.slot = TRACED_EFFECTS.index(effect)
-        self.name = f"rt_{effect}"
-
-    def needed(self, plan: FramePlan) -> bool:
-        return plan.view == "color" and self.effect in plan.effects
-
-    def setup(self, gl, plan: FramePlan) -> None:
-        defines = {**rt_defines(), "EFFECT": EFFECTS[self.effect].id, "RT_SLOT": self.slot, "SHADOW_RAYS_INLINE": 1}
-        self.program = shaders.compute(gl.ctx, "rt/effects.comp", defines)
-
-    def execute(self, fc) -> None:
-        p = self.program
-        set_eye_uniforms(p, fc)
-        lists = pixel_lists(fc)
-        values = {"ambient": tuple(fc.settings.ambient), "background": tuple(fc.settings.background),
-                  "frame_seed": int(getattr(fc.settings, "seed", 0)), "rt_capacity": lists.capacity}
-        for k, v in values.items():
-            if k in p:
-                p[k].value = v
-        fc.gbuffer.bind_for_reading()
-        fc.gpu_scene.bind()
-        fc.gpu_scene.textures.use(7)
-        fc.accel.gpu.bind(DEFAULT_BINDING)
-        lists.bind()
-        fc.target("hdr").bind_to_image(0, read=False, write=True)
-        p.run_indirect(lists.args, offset=self.slot * ARGS_BYTES)
-        fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
-
-    def release(self) -> None:
-        self.program.release()
-
-
 def all_rt_passes() -> dict:
     """name -> pass, for the renderer's registration list."""
     return {"bvh": BvhPass(), "primary_rays": PrimaryRaysPass(), "classify": ClassifyPass(),
-            **{f"rt_{e}": (TraceEffectPass if EFFECT_IMPL == "wave" else InlineEffectPass)(e) for e in TRACED_EFFECTS}}
+            **{f"rt_{e}": TraceEffectPass(e) for e in TRACED_EFFECTS}}

@@ -4,16 +4,14 @@
 // as samples grow) instead of the raster's fixed grid. Include before lighting.glsl; set the
 // globals below per surface.
 //
-// Two ways to answer shadowed():
-//   SHADOW_RAYS_INLINE  trace an any-hit ray on the spot (one fat kernel shades and traces)
-//   default (wavefront) store the ray and the unshadowed contribution (times shadow_weight) in the
-//                       item's shadow slots of rt/wave.glsl and return 0; the lean any-hit kernel
-//                       (rt/wave_trace.comp) traces them all and adds the unoccluded contributions
+// shadowed() traces nothing: it stores the ray and the unshadowed contribution (times
+// shadow_weight) in the item's shadow slots of rt/wave.glsl and returns 0; the lean any-hit kernel
+// (rt/wave_trace.comp) traces them all and adds the unoccluded contributions. (Tracing on the
+// spot, one fat kernel shading and tracing, ran 6-10x slower on the H200.)
 #ifndef RAYVR_RT_SHADOW_RAYS_GLSL
 #define RAYVR_RT_SHADOW_RAYS_GLSL
 #define HAS_LIGHT_VISIBILITY
 #define HAS_RECT_LIGHT_SAMPLES
-// (The include preprocessor takes each file once per program, so includes sit outside the #if.)
 #include "../accel/bvh.glsl"
 #include "wave.glsl"
 
@@ -36,11 +34,6 @@ Ray shadow_ray(vec3 p, vec3 to_light, float dist) {
     return Ray(offset_ray(p, ng), 0.0, to_light, dist * (1.0 - 1e-4));
 }
 
-#ifdef SHADOW_RAYS_INLINE
-vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist) {
-    return trace_any(shadow_ray(p, to_light, dist)) ? vec3(0.0) : contribution;
-}
-#else
 uint shadow_item;           // wave item (pixel or path) the rays belong to
 vec3 shadow_weight;         // throughput of that item's path up to this surface
 int shadow_calls;           // shadow rays asked for at this surface so far
@@ -70,6 +63,5 @@ void shadow_begin(uint item, vec3 weight, vec3 geometric_normal) {
 uint shadow_stored() {
     return uint(clamp(shadow_calls - int(wave_slot_first), 0, int(wave_slot_count)));
 }
-#endif
 
 #endif
