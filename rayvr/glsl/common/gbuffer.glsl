@@ -2,6 +2,7 @@
 // Channel table: rayvr/gbuffer.py (CHANNELS); texture units below match it.
 #ifndef RAYVR_GBUFFER_GLSL
 #define RAYVR_GBUFFER_GLSL
+#include "surface.glsl"
 
 layout(binding = 0) uniform sampler2DArray gb_depth;      // reversed-Z depth
 layout(binding = 1) uniform sampler2DArray gb_position;   // xyz scene-local, w view depth
@@ -10,19 +11,6 @@ layout(binding = 3) uniform sampler2DArray gb_albedo;     // rgb base colour, a 
 layout(binding = 4) uniform sampler2DArray gb_emission;   // rgb emitted radiance
 layout(binding = 5) uniform usampler2DArray gb_material;  // x material index, y effect ID
 layout(binding = 6) uniform usampler2DArray gb_triangle;  // x triangle ID
-
-struct Surface {
-    vec3 position;   // scene-local
-    float view_depth;
-    vec3 normal;
-    float roughness;
-    vec3 base_color;
-    float metallic;
-    vec3 emission;
-    uint material;
-    uint effect;
-    uint triangle;
-};
 
 Surface gbuffer_fetch(ivec3 p) {
     Surface s;

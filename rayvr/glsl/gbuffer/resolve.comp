@@ -4,18 +4,18 @@
 // G-buffer channel (rayvr/gbuffer.py CHANNELS). Positions lie on the pixel's ray by
 // construction, so ray-traced passes and the G-buffer register exactly; texture LOD comes
 // from ray differentials (the neighbouring pixels' rays on the same triangle plane).
+// Normal, material and base colour come from common/triangle_surface.glsl, which secondary-ray
+// hits (rt/hit_surface.glsl) share.
 // PRIMARY_RAYS 1: the triangle IDs come from rt/primary.comp, which leaves the hit distance in
 // position.w instead of a depth buffer.
 #ifndef PRIMARY_RAYS
 #define PRIMARY_RAYS 0
 #endif
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
-#include "../common/scene.glsl"
+#include "../common/triangle_surface.glsl"
 #include "../common/camera.glsl"
-#include "../common/color.glsl"
 
 layout(binding = 0) uniform sampler2DArray gb_depth;
-layout(binding = 7) uniform sampler2DArray base_color_textures;
 #if PRIMARY_RAYS
 layout(rgba32f, binding = 0) uniform image2DArray img_position;
 #else
@@ -79,14 +79,9 @@ void main() {
     w /= w.x + w.y + w.z;
     vec3 position = o + t * d;
 
-    vec3 n = normalize(w.x * tv.n[0] + w.y * tv.n[1] + w.z * tv.n[2]);
-    if (dot(ng, d) > 0.0) n = -n;  // two-sided: the normal faces the eye
-
     uint mi = triangle_material[tri];
-    Material m = materials[mi];
-    vec4 base = m.base_color;
-    if (m.texture_layer >= 0) {
-        vec2 uv = w.x * tv.uv[0] + w.y * tv.uv[1] + w.z * tv.uv[2];
+    float lod = 0.0;
+    if (materials[mi].texture_layer >= 0) {
         float tx, ty;
         vec2 bx = plane_barycentrics(o, eye_ray_direction(eye, vec2(p.xy) + vec2(1.5, 0.5), size), tv.p[0], e1, e2, ng, tx);
         vec2 by = plane_barycentrics(o, eye_ray_direction(eye, vec2(p.xy) + vec2(0.5, 1.5), size), tv.p[0], e1, e2, ng, ty);
@@ -100,13 +95,12 @@ void main() {
         float fx = tx > 0.0 ? length(ddx * tex_size) : 0.0;
         float fy = ty > 0.0 ? length(ddy * tex_size) : 0.0;
         float footprint = max(max(fx, fy), 1e-6);
-        float lod = clamp(log2(footprint), 0.0, log2(max(tex_size.x, tex_size.y)));
-        vec4 tex = textureLod(base_color_textures, vec3(uv, float(m.texture_layer)), lod);
-        base *= vec4(srgb_to_linear(tex.rgb), tex.a);  // textures hold sRGB-encoded colour
+        lod = clamp(log2(footprint), 0.0, log2(max(tex_size.x, tex_size.y)));
     }
+    Surface s = triangle_surface(tri, tv, w, ng, d, lod);
     imageStore(img_position, p, vec4(position, t * view_dist_along));
-    imageStore(img_normal, p, vec4(n, m.roughness));
-    imageStore(img_albedo, p, vec4(base.rgb, m.metallic));
-    imageStore(img_emission, p, vec4(m.emission.rgb, 1.0));
-    imageStore(img_material, p, uvec4(mi, m.effect, 0u, 0u));
+    imageStore(img_normal, p, vec4(s.normal, s.roughness));
+    imageStore(img_albedo, p, vec4(s.base_color, s.metallic));
+    imageStore(img_emission, p, vec4(s.emission, 1.0));
+    imageStore(img_material, p, uvec4(s.material, s.effect, 0u, 0u));
 }
