@@ -53,8 +53,8 @@ def check_invariants(bvh, verts, faces):
 
 @pytest.fixture(scope="module")
 def bunny(request):
-    from pathlib import Path
-    p = Path(__file__).parents[1].parent / "shared" / "scenes" / "stanford_bunny" / "bun_zipper_res2.ply"
+    from conftest import SHARED_SCENES
+    p = SHARED_SCENES / "stanford_bunny" / "bun_zipper_res2.ply"
     if not p.exists():
         pytest.skip(f"{p} not found: the shared scenes folder is absent")
     import trimesh

@@ -1,19 +1,15 @@
 """GPU traversal (glsl/accel) against the numpy reference and against Embree; robustness cases."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from conftest import SHARED_SCENES
 from rayvr.accel.bvh import BufferTooLargeError, build_bvh, offset_ray, trace_reference
 from rayvr.accel.gpu import MISS, GpuBvh, RayTracer
 
-SCENES = Path(__file__).parents[1].parent / "shared" / "scenes"
-
-
 def load_mesh(rel):
-    p = SCENES / rel
+    p = SHARED_SCENES / rel
     if not p.exists():
         pytest.skip(f"{p} not found: the shared scenes folder is absent")
     import trimesh

@@ -21,6 +21,7 @@ STACK_SIZE = 64            # BVH_STACK_SIZE in glsl/accel/bvh.glsl
 MISS = 0xFFFFFFFF
 MODES = {"closest": 0, "any": 1, "reflect": 2, "through": 3}
 _LOCAL_SIZE = 64
+WARMUP_S = 0.2   # time_trace dispatches this long before timing (an idle GPU starts at low clocks)
 _MAX_GROUPS_X = 65535
 
 
@@ -163,8 +164,12 @@ class RayTracer:
             self.gpu_bvh.bind(self.base)
             rbuf.bind_to_storage_buffer(self.base + 2)
             hbuf.bind_to_storage_buffer(self.base + 3)
-            self._dispatch(prog, n)   # warm-up
-            self.ctx.finish()
+            warm = time.perf_counter()   # warm-up: long enough for the GPU to reach its clocks
+            while True:
+                self._dispatch(prog, n)
+                self.ctx.finish()
+                if time.perf_counter() - warm >= WARMUP_S:
+                    break
             query = self.ctx.query(time=True)
             t0 = time.perf_counter()
             with query:

@@ -15,7 +15,9 @@ Agreement with Embree (same triangle / same occlusion) is reported beside the sp
 
 The hybrid frame renders the scene with `shadows` on every material and mirror `reflections` on
 the reflective ones (MIRRORS), through the Renderer's frame graph: raster G-buffer, classify,
-per-effect passes by indirect dispatch, tonemap. Per-pass GPU ms are medians over `repeat` frames.
+per-effect passes by indirect dispatch, tonemap. Per-pass GPU ms are medians over `repeat` frames
+after a warm-up; `effect_kernel_ms` splits the effect passes into their wavefront kernels (shading
+vs tracing, medians of 5 more frames timed kernel by kernel).
 Sponza (no MTL) is split into its OBJ groups by the loader; its mirror config is the `floors`
 group, about 28 % of the pixels of the benchmark view.
 """
@@ -114,19 +116,60 @@ def embree_trace(pool, workers, kind, n, repeat=1):
 
 # -------------------------------------------------------------------------- the run
 
-def time_frame(renderer, rig, repeat, warmup):
+def time_frame(renderer, rig, repeat, warmup, warmup_s=0.3):
+    """Median GPU ms per pass and of the frame total over `repeat` frames, after at least `warmup`
+    frames and `warmup_s` seconds of them (an idle GPU starts at low clocks)."""
     names, ms = None, {}
-    for i in range(warmup + repeat):
+    t0, done = time.perf_counter(), 0
+    while done < warmup or time.perf_counter() - t0 < warmup_s:
+        renderer.record(rig, "both", "color")
+        renderer.gl.ctx.finish()
+        done += 1
+    for i in range(repeat):
         fc = renderer.record(rig, "both", "color")
         renderer.gl.ctx.finish()
         t = renderer.timer.read_ms(fc.pass_names)
         names = fc.pass_names
-        if i >= warmup:
-            for k, v in t.items():
-                ms.setdefault(k, []).append(v)
+        for k, v in t.items():
+            ms.setdefault(k, []).append(v)
     med = {k: float(np.median(v)) for k, v in ms.items()}
     totals = np.sum([ms[k] for k in ms], axis=0)
     return names, med, float(np.median(totals))
+
+
+class _Untimed:
+    """Stands in for the renderer's PassTimer while the effect passes time their own kernels
+    (GL timer queries do not nest)."""
+
+    slot = 0
+
+    def next_frame(self):
+        pass
+
+    def run(self, name, fn):
+        fn()
+
+
+def time_effect_stages(renderer, rig, repeat=5) -> dict:
+    """Median GPU ms of each kernel of the wavefront effect passes ("rt_shadows.shadow", ...)."""
+    from ..frame import PassTimer
+    passes = [p for p in renderer.passes_for(renderer._plan(2, "color")) if hasattr(p, "stage_timer")]
+    stages, saved = PassTimer(renderer.gl.ctx), renderer.timer
+    ms: dict = {}
+    renderer.timer = _Untimed()
+    try:
+        for p in passes:
+            p.stage_timer = stages
+        for _ in range(repeat):
+            renderer.record(rig, "both", "color")
+            renderer.gl.ctx.finish()
+            for (_, name), q in stages.queries.items():
+                ms.setdefault(name, []).append(q.elapsed / 1e6)
+    finally:
+        for p in passes:
+            p.stage_timer = None
+        renderer.timer = saved
+    return {k: float(np.median(v)) for k, v in ms.items()}
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, workers=None,
@@ -181,16 +224,19 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
             r = Renderer(scene, hybrid_config(name), gl=gl, settings=RenderSettings())
             try:
                 names, med, total = time_frame(r, rig, repeat, warmup)
+                stages = time_effect_stages(r, rig)
                 counts = r._targets["rt_lists"].counts()
                 pixels = 2 * size[0] * size[1]
                 frames.append({"scene": name, "size": f"2x{size[0]}x{size[1]}", "passes": names,
                                "pass_ms": {k: med[k] for k in names if k in med}, "total_ms": total,
                                "mirror_pixel_fraction": counts["reflections"] / pixels,
                                "shadow_pixel_fraction": counts["shadows"] / pixels,
+                               "effect_kernel_ms": stages,
                                "config": {"default": "shadows", "reflections": list(MIRRORS.get(name, ()))}})
                 if progress:
                     print(f"  {name:8s} hybrid frame {total:.3f} ms: "
                           + ", ".join(f"{k} {v:.3f}" for k, v in frames[-1]["pass_ms"].items()))
+                    print(f"  {name:8s} effect kernels: " + ", ".join(f"{k} {v:.3f}" for k, v in stages.items()))
             finally:
                 r.release()
         meta = {**device_meta(gl.info()), "bench": "rays", "per_eye_size": list(size), "repeat": repeat,
