@@ -33,6 +33,12 @@ def _compare_settings():
     return reference_settings(tonemapper="aces")
 
 
+# The reference for GPU sweeps at 2x1440x1600: REFERENCE_QUALITY's 256 glossy samples x 256
+# area samples per hit would take minutes a frame there; this converges to within the FLIP
+# differences the knobs make (64 glossy directions, 16 light samples, 4 bounces).
+BENCH_QUALITY = {"bounces": 4, "samples": 64, "area_samples": 16}
+
+
 @dataclass
 class Variant:
     knob: str  # what is varied ("effect", "bounces", "resolution_scale", ...)
@@ -258,8 +264,8 @@ def _setups(names, size, base_config, skipped, quick=False):
 
     for name, scene, rig in bench_scenes(names, size, skipped):
         base = load_config(base_config(name) if base_config else None)
-        yield name, scene, rig, base, Variant("reference", "reference", reference_config(scene, quick=quick),
-                                              COMPARE_SETTINGS)
+        ref = reference_config(scene, quick=quick, quality=None if quick else BENCH_QUALITY)
+        yield name, scene, rig, base, Variant("reference", "reference", ref, COMPARE_SETTINGS)
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
@@ -330,7 +336,8 @@ def auto_config(renderer, rig: StereoRig, budget_ms: float, ppd: float = metrics
     from .reference import reference_config
 
     gl, scene = renderer.gl, renderer.scene
-    reference = Variant("reference", "reference", reference_config(scene, quick=gl.is_software))
+    reference = Variant("reference", "reference",
+                        reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
     ref = measure(gl, scene, rig, reference, repeat=1, warmup=1)
     pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress)
     summary = {k: v for k, v in pick.items() if k not in ("config", "image")}
