@@ -95,10 +95,41 @@ def config_for_assignment(base: MaterialConfig, scene, effects: dict) -> Materia
                           source=f"{base.source} (assignment)")
 
 
-def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmup: int = 3) -> Measured:
+class RendererPool:
+    """One Renderer per (scene, settings), reused across variants: a variant only swaps the
+    material config, so shaders compile and the BVH builds once per sweep, not per variant."""
+
+    def __init__(self, gl):
+        self.gl, self._renderers = gl, {}
+
+    def get(self, scene, settings: RenderSettings, config: MaterialConfig) -> Renderer:
+        key = (id(scene), repr(settings))
+        r = self._renderers.get(key)
+        if r is None:
+            r = self._renderers[key] = Renderer(scene, config, gl=self.gl, settings=settings)
+        else:
+            r.set_materials(config)
+        return r
+
+    def release(self) -> None:
+        for r in self._renderers.values():
+            r.release()
+        self._renderers.clear()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+
+def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmup: int = 3,
+            pool: RendererPool | None = None) -> Measured:
     w, h = rig.size
     small = (max(1, round(w * variant.scale)), max(1, round(h * variant.scale)))
-    r = Renderer(scene, variant.config, gl=gl, settings=variant.settings)
+    own = pool is None
+    pool = pool or RendererPool(gl)
+    r = pool.get(scene, variant.settings, variant.config)
     try:
         rigs = [rig.with_size(small)] * (warmup + repeat)
         totals, passes, last = [], [], None
@@ -108,7 +139,8 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
                 passes.append(frame.timings)
             last = frame
     finally:
-        r.release()
+        if own:
+            pool.release()
     image = np.hstack([last.left.color, last.right.color])
     material = np.hstack([last.left.aux["material"], last.right.aux["material"]])
     if small != (w, h):
@@ -168,8 +200,8 @@ def variants(scene, base: MaterialConfig, quick: bool = False) -> list[Variant]:
 
 
 def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd: float, repeat=10,
-              progress=True, with_flip=True) -> tuple[list[dict], Measured]:
-    ref = measure(gl, scene, rig, reference, repeat)
+              progress=True, with_flip=True, pool: RendererPool | None = None) -> tuple[list[dict], Measured]:
+    ref = measure(gl, scene, rig, reference, repeat, pool=pool)
     rows = []
     iterator = variants_
     bar = None
@@ -178,7 +210,7 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
 
         bar = tqdm(total=len(variants_), unit="variant", desc=f"tradeoff {scene.name}")
     for v in iterator:
-        m = measure(gl, scene, rig, v, repeat)
+        m = measure(gl, scene, rig, v, repeat, pool=pool)
         rows.append({"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label,
                      "gpu_ms": m.gpu_ms, **error_row(ref, m, scene, v, ppd, with_flip),
                      "reference_ms": ref.gpu_ms})
@@ -193,7 +225,7 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
 
 
 def per_material_options(gl, scene, rig, reference_image: Measured, base: MaterialConfig, ppd: float,
-                         effects=None, repeat=10, min_coverage=1e-4, progress=True):
+                         effects=None, repeat=10, min_coverage=1e-4, progress=True, pool=None):
     """Per material and effect: extra GPU ms over all-`raster` and the error left on its pixels.
 
     One render per effect (the whole scene on that rung) instead of one per material and
@@ -218,7 +250,7 @@ def per_material_options(gl, scene, rig, reference_image: Measured, base: Materi
         bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name}")
     for e in effects:
         cfg = config_for_assignment(base, scene, {n: e for n in names})
-        m = measure(gl, scene, rig, Variant("budget", e, cfg), repeat)
+        m = measure(gl, scene, rig, Variant("budget", e, cfg), repeat, pool=pool)
         flip_maps[e] = metrics.flip_map(reference_image.image, m.image, ppd=ppd)
         extra_ms[e] = m.gpu_ms
         if e == "raster":
@@ -240,13 +272,14 @@ def per_material_options(gl, scene, rig, reference_image: Measured, base: Materi
 
 
 def choose_under_budget(gl, scene, rig, budget_ms: float, base: MaterialConfig, reference_image: Measured,
-                        ppd: float, repeat=10, progress=True) -> dict:
-    """Pick effects per material for `budget_ms`, then render the pick and measure it."""
-    base_ms, options = per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
-                                            progress=progress)
+                        ppd: float, repeat=10, progress=True, pool=None, options=None) -> dict:
+    """Pick effects per material for `budget_ms`, then render the pick and measure it.
+    `options`: (base_ms, per-material options) already measured, to solve several budgets."""
+    base_ms, options = options or per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
+                                                       progress=progress, pool=pool)
     result = budget_mod.solve_budget(options, budget_ms, base_ms=base_ms)
     cfg = config_for_assignment(base, scene, result.assignment)
-    chosen = measure(gl, scene, rig, Variant("budget", budget_ms, cfg), repeat)
+    chosen = measure(gl, scene, rig, Variant("budget", budget_ms, cfg), repeat, pool=pool)
     return {"budget_ms": budget_ms, "predicted_ms": result.total_ms, "measured_ms": chosen.gpu_ms,
             "feasible": result.feasible, "predicted_error": result.error,
             "measured_flip": metrics.flip(reference_image.image, chosen.image, ppd=ppd),
@@ -280,8 +313,9 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     rows, skipped = [], {}
     try:
         for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
-            r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick), ppd, repeat, progress,
-                             with_flip=True)
+            with RendererPool(gl) as pool:
+                r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick), ppd, repeat, progress,
+                                 with_flip=True, pool=pool)
             for row in r:
                 row["scene"] = name
                 row["series"] = f"{name}: {row['knob']}"
@@ -310,9 +344,13 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
     rows, skipped = [], {}
     try:
         for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
-            ref = measure(gl, scene, rig, reference, repeat)
-            for b in budgets:
-                pick = choose_under_budget(gl, scene, rig, b, base, ref, ppd, repeat, progress)
+            with RendererPool(gl) as pool:
+                ref = measure(gl, scene, rig, reference, repeat, pool=pool)
+                options = per_material_options(gl, scene, rig, ref, base, ppd, repeat=repeat, progress=progress,
+                                               pool=pool)
+                picks = [choose_under_budget(gl, scene, rig, b, base, ref, ppd, repeat, progress, pool, options)
+                         for b in budgets]
+            for b, pick in zip(budgets, picks):
                 rows.append({"scene": name, "reference_ms": ref.gpu_ms,
                              **{k: v for k, v in pick.items() if k not in ("config", "image")}})
                 write_png(f"{out_dir}/budget_{name}_{b:g}ms.png", pick["image"])
@@ -338,8 +376,9 @@ def auto_config(renderer, rig: StereoRig, budget_ms: float, ppd: float = metrics
     gl, scene = renderer.gl, renderer.scene
     reference = Variant("reference", "reference",
                         reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
-    ref = measure(gl, scene, rig, reference, repeat=1, warmup=1)
-    pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress)
+    with RendererPool(gl) as pool:
+        ref = measure(gl, scene, rig, reference, repeat=1, warmup=1, pool=pool)
+        pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)
     summary = {k: v for k, v in pick.items() if k not in ("config", "image")}
     return pick["config"], summary
 
