@@ -134,6 +134,18 @@ def test_diffuse_cornell_box_matches_direct(gl, variant, shared_scene):
     assert row["gi_radiance_ratio"] < 0.8
 
 
+def test_raster_matches_direct_where_unshadowed(gl, variant, shared_scene):
+    sc = M.load_cornell(shared_scene(ORIGINAL))
+    cmp = M.crosscheck_scene(gl, sc, M.cornell_rig(sc, (32, 32)), spp=32, supersample=2, quick=True,
+                             available=["raster"])
+    row = cmp.row
+    assert row["rayvr_effects"] == "raster" and row["unshadowed_pixels"] > 200
+    # Raster has no shadows: shadowed pixels differ, unshadowed ones agree up to the 4x4 light
+    # grid and Mitsuba's noise.
+    assert row["flip_unshadowed"] < max(0.2, row["flip_mitsuba_noise"] + 0.06), row
+    assert row["psnr_unshadowed"] > row["psnr"] + 3, row
+
+
 def test_glossy_box_geometry_is_read_right(shared_scene):
     sc = M.load_cornell(shared_scene("cornell_box/CornellBox-Glossy.obj"))
     w = sc.world_vertices()

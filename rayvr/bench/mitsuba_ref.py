@@ -497,7 +497,7 @@ REFLECTIVE = ("reflections", "glossy")
 
 
 def crosscheck_scene(gl, scene: Scene, rig: StereoRig, *, spp=256, supersample=4, quick=False,
-                     gi_spp=None, seed=0, ppd=None) -> Comparison:
+                     gi_spp=None, seed=0, ppd=None, available=None) -> Comparison:
     """Render `scene` from the rig's first eye with rayvr's reference (bounces 1, see below) and
     with Mitsuba in the matching light transport, and compare.
 
@@ -506,7 +506,9 @@ def crosscheck_scene(gl, scene: Scene, rig: StereoRig, *, spp=256, supersample=4
     one-bounce light reflected through its specular lobe only, i.e. path(max_depth 3) minus
     direct, both on a copy of the scene where those materials keep only their specular lobe.
     rayvr runs with bounces = 1 to match (more only adds reflective-to-reflective chains).
-    A full path-traced image (max_depth 8) measures what neither models (indirect light)."""
+    A full path-traced image (max_depth 8) measures what neither models (indirect light).
+    `available` restricts rayvr's effects (e.g. ["raster"]: then the `unshadowed` mask, where
+    no shadow ray would be blocked, is where the two must agree)."""
     from ..renderer import Renderer
     from . import metrics
 
@@ -514,7 +516,7 @@ def crosscheck_scene(gl, scene: Scene, rig: StereoRig, *, spp=256, supersample=4
     # Per pixel the reference's sample counts: each of the supersample^2 sub-pixels takes its share.
     base = ref_mod.QUICK_QUALITY if quick else ref_mod.REFERENCE_QUALITY
     share = lambda k: max(4, base[k] // int(supersample) ** 2)  # noqa: E731
-    choices = ref_mod.reference_choices(scene, quick=quick, quality={
+    choices = ref_mod.reference_choices(scene, quick=quick, available=available, quality={
         "bounces": 1, "area_samples": share("area_samples"), "samples": share("samples")})
     config = ref_mod.config_from_choices(choices)
     eye = rig.eye("left")
