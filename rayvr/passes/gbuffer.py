@@ -80,7 +80,8 @@ class VisibilityPass(Pass):
                     self.program["base_layer"].value = layer
                     vao.render(ctx.TRIANGLES, instances=1)
             else:
-                self.program["base_layer"].value = 0
+                if "base_layer" in self.program:  # multiview shaders have no layer uniform
+                    self.program["base_layer"].value = 0
                 instanced = self.mode == "vertex"
                 vao.render(ctx.TRIANGLES, instances=len(fc.eyes) if instanced else 1)
         finally:
