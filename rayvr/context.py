@@ -53,6 +53,7 @@ _RAW_SIGNATURES: dict[str, tuple] = {
     "glTexParameteri": (None, (_u, _u, _i)),
     "glGetTexImage": (None, (_u, _i, _u, _u, _p)),
     "glBindBuffer": (None, (_u, _u)),
+    "glPixelStorei": (None, (_u, _i)),
     "glBindFramebuffer": (None, (_u, _u)),
     "glFramebufferTexture": (None, (_u, _u, _u, _i)),
     "glFramebufferTextureMultiviewOVR": (None, (_u, _u, _u, _i, _i, _i)),

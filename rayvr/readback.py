@@ -14,6 +14,8 @@ import numpy as np
 from .gbuffer import COLOR_CHANNELS, GL_DEPTH_COMPONENT, GL_FLOAT, GL_TEXTURE_2D_ARRAY, NO_HIT
 
 GL_PIXEL_PACK_BUFFER = 0x88EB
+GL_PACK_ALIGNMENT = 0x0D05
+GL_RGB, GL_UNSIGNED_BYTE = 0x1907, 0x1401
 AUX_CHANNELS = ("depth", "zbuffer", "position", "normal", "albedo", "material", "effect", "triangle")
 # aux name -> G-buffer channel it comes from
 _SOURCE = {"zbuffer": "zbuffer", "position": "position", "normal": "normal", "albedo": "albedo",
@@ -22,11 +24,15 @@ _DTYPES = {"f1": np.uint8, "f2": np.float16, "f4": np.float32, "u4": np.uint32}
 
 
 def depth_from_zbuffer(z: np.ndarray, near: float, far: float | None) -> np.ndarray:
-    """Reversed-Z value -> linear view depth (rayvr/camera.py projection); 0 stays 0 (background)."""
-    z = z.astype(np.float64)
-    safe = np.where(z > 0, z, 1.0)
-    d = near / safe if not far else near * far / (safe * (far - near) + near)
-    return np.where(z > 0, d, 0.0).astype(np.float32)
+    """Reversed-Z value -> linear view depth (rayvr/camera.py projection); 0 stays 0 (background).
+    float32 throughout: the result keeps the buffer's own ~1e-7 relative precision."""
+    out = np.zeros(z.shape, np.float32)
+    hit = z > 0
+    if not far:
+        np.divide(np.float32(near), z, out=out, where=hit)
+    else:
+        np.divide(np.float32(near * far), z * np.float32(far - near) + np.float32(near), out=out, where=hit)
+    return out
 
 
 @dataclass
@@ -68,20 +74,24 @@ class Reader:
         w, h = gb.size
         buffers = {}
         for name in self.channels_for(fc, aux):
-            if name == "zbuffer":
-                buf = self._buffer((parity, name), w * h * gb.layers * 4)
+            if name in ("zbuffer", "ldr"):
+                # Read by GL itself: the depth array moderngl does not know, and colour packed to
+                # RGB by the driver (no alpha to strip on the CPU afterwards).
+                depth = name == "zbuffer"
+                dtype, comps = (np.float32, 1) if depth else (np.uint8, 3)
+                buf = self._buffer((parity, name), w * h * gb.layers * comps * np.dtype(dtype).itemsize)
+                texture = gb.depth_name if depth else fc.target("ldr").glo
                 raw.glBindBuffer(GL_PIXEL_PACK_BUFFER, buf.glo)
-                raw.glBindTexture(GL_TEXTURE_2D_ARRAY, gb.depth_name)
-                raw.glGetTexImage(GL_TEXTURE_2D_ARRAY, 0, GL_DEPTH_COMPONENT, GL_FLOAT, None)
+                raw.glPixelStorei(GL_PACK_ALIGNMENT, 1)
+                raw.glBindTexture(GL_TEXTURE_2D_ARRAY, texture)
+                raw.glGetTexImage(GL_TEXTURE_2D_ARRAY, 0, GL_DEPTH_COMPONENT if depth else GL_RGB,
+                                  GL_FLOAT if depth else GL_UNSIGNED_BYTE, None)
                 raw.glBindTexture(GL_TEXTURE_2D_ARRAY, 0)
                 raw.glBindBuffer(GL_PIXEL_PACK_BUFFER, 0)
-                buffers[name] = (buf, np.float32, 1)
+                buffers[name] = (buf, dtype, comps)
                 continue
-            if name == "ldr":
-                tex, dtype, comps = fc.target("ldr"), np.uint8, 4
-            else:
-                ch = next(c for c in COLOR_CHANNELS if c.name == name)
-                tex, dtype, comps = gb.textures[name], _DTYPES[ch.dtype], ch.components
+            ch = next(c for c in COLOR_CHANNELS if c.name == name)
+            tex, dtype, comps = gb.textures[name], _DTYPES[ch.dtype], ch.components
             nbytes = w * h * gb.layers * comps * np.dtype(dtype).itemsize
             buf = self._buffer((parity, name), nbytes)
             tex.read_into(buf, alignment=1)
@@ -97,11 +107,14 @@ class Reader:
         layers = fc.gbuffer.layers
         data = {}
         for name, (buf, dtype, comps) in pending.buffers.items():
-            a = np.frombuffer(buf.read(), dtype).reshape(layers, h, w, comps)[:, ::-1]
+            raw = np.empty(buf.size, np.uint8)  # one copy out of the mapped buffer, writable
+            buf.read_into(raw)
+            # Rows top-down as a view (GL rows go bottom-up): no copy per channel.
+            a = raw.view(dtype).reshape(layers, h, w, comps)[:, ::-1]
             data[name] = a.astype(np.float32) if dtype == np.float16 else a
         out = {}
         for layer, eye in enumerate(fc.eyes):
-            color = np.ascontiguousarray(data["ldr"][layer, ..., :3])
+            color = data["ldr"][layer]
             if "zbuffer" in data:
                 z = data["zbuffer"][layer, ..., 0]
                 hit = z > 0
