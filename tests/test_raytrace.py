@@ -306,7 +306,15 @@ def test_primary_rays_match_embree_and_the_raster_gbuffer(gl, shared_scene, whic
             assert both.sum() > 100
             rel = np.abs(t[both] - et[both]) / et[both]
             assert rel.max() <= 1e-5, rel.max()
-            assert (tri == raster[e.name].aux["triangle"]).mean() >= 0.995
+            # Raster vs ray-traced G-buffer: the same triangle, or an edge tie (another triangle
+            # at the same distance along the pixel's ray: shared edges, coplanar neighbours).
+            rtri = raster[e.name].aux["triangle"].reshape(-1)
+            rpos = raster[e.name].aux["position"].reshape(-1, 3)
+            rt = np.where(rtri != NO_HIT, np.linalg.norm(rpos - e.position, axis=1), np.inf)
+            with np.errstate(invalid="ignore"):
+                rtie = (rtri != tri.reshape(-1)) & np.isfinite(t) & (np.abs(rt - t) <= 1e-4 * t)
+            agree = (rtri == tri.reshape(-1)) | rtie
+            assert agree.mean() >= 0.995, f"{agree.mean():.4%} raster/traced agreement"
 
 
 def test_refit_moves_what_rays_see(gl):
