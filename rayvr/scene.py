@@ -237,6 +237,11 @@ def emissive_rect_lights(scene: Scene) -> list[Light]:
 
 
 def _fit_rectangle(pts: np.ndarray):
+    """(centre, u, v, normal) of the rectangle whose corners are among `pts`, or None.
+
+    The side directions are tried from the point pairs (a rectangle's sides are among them), not
+    from an SVD: for a square the SVD's in-plane axes are any rotation, so whether a square
+    light was recognised depended on the LAPACK build."""
     if len(pts) < 3:
         return None
     centre = pts.mean(axis=0)
@@ -244,18 +249,23 @@ def _fit_rectangle(pts: np.ndarray):
     _, s, vt = np.linalg.svd(d, full_matrices=False)
     if s[0] <= 0 or s[-1] > 1e-4 * s[0]:
         return None  # not planar
-    a1, a2 = vt[0], vt[1]
-    p1, p2 = d @ a1, d @ a2
-    lo1, hi1, lo2, hi2 = p1.min(), p1.max(), p2.min(), p2.max()
-    # Every point must lie on the rectangle's boundary corners or edges: check area coverage
-    # loosely by requiring the corners to be present.
-    corners = [(lo1, lo2), (lo1, hi2), (hi1, lo2), (hi1, hi2)]
-    tol = 1e-3 * max(hi1 - lo1, hi2 - lo2)
-    for c1, c2 in corners:
-        if not np.any((np.abs(p1 - c1) < tol) & (np.abs(p2 - c2) < tol)):
-            return None
-    centre = centre + a1 * (lo1 + hi1) / 2 + a2 * (lo2 + hi2) / 2
-    return centre, a1 * (hi1 - lo1) / 2, a2 * (hi2 - lo2) / 2, np.cross(a1, a2)
+    normal = vt[2] if len(vt) > 2 else np.cross(vt[0], vt[1])
+    for i in range(len(pts)):
+        for j in range(i + 1, len(pts)):
+            edge = d[j] - d[i]
+            edge -= normal * (edge @ normal)
+            if np.linalg.norm(edge) <= 1e-9 * s[0]:
+                continue
+            a1 = edge / np.linalg.norm(edge)
+            a2 = np.cross(normal, a1)
+            p1, p2 = d @ a1, d @ a2
+            lo1, hi1, lo2, hi2 = p1.min(), p1.max(), p2.min(), p2.max()
+            tol = 1e-3 * max(hi1 - lo1, hi2 - lo2)
+            corners = [(lo1, lo2), (lo1, hi2), (hi1, lo2), (hi1, hi2)]
+            if all(np.any((np.abs(p1 - c1) < tol) & (np.abs(p2 - c2) < tol)) for c1, c2 in corners):
+                c = centre + a1 * (lo1 + hi1) / 2 + a2 * (lo2 + hi2) / 2
+                return c, a1 * (hi1 - lo1) / 2, a2 * (hi2 - lo2) / 2, np.cross(a1, a2)
+    return None
 
 
 def _unit(x) -> np.ndarray:

@@ -162,3 +162,22 @@ def test_obj_without_materials_splits_by_group(tmp_path, shared_scene):
     sponza = load(shared_scene("sponza_dabrovic/sponza.obj"))
     assert {"floors", "walls", "ceiling"} <= set(sponza.material_names())
     assert len(sponza.materials) == 34 and sponza.triangle_count >= 66000
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.3, 45.0, 71.0])
+def test_square_and_rotated_rect_lights_are_recognised(angle):
+    """Squares have no preferred in-plane axes: the fit must not depend on an SVD's choice."""
+    from rayvr.scene import Material, emissive_rect_lights
+
+    a = np.radians(angle)
+    u = np.array([np.cos(a), 0.0, np.sin(a)]) * 0.8
+    v = np.array([-np.sin(a), 0.0, np.cos(a)]) * 0.8
+    c = np.array([1.0, 3.0, -2.0])
+    quad = np.array([c - u - v, c + u - v, c + u + v, c - u + v])
+    floor = np.array([[-5, 0, -5], [5, 0, -5], [0, 0, 5]], float)
+    s = from_arrays(np.vstack([quad, floor]), np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6]]),
+                    triangle_material=[0, 0, 1], materials=[Material("lamp", emission=(3, 3, 3)), Material("floor")])
+    (light,) = emissive_rect_lights(s)
+    assert np.allclose(light.position, c)
+    assert 4 * np.linalg.norm(np.cross(light.u, light.v)) == pytest.approx(1.6 * 1.6)  # the square's area
+    assert np.cross(light.u, light.v)[1] < 0  # faces 0 2 1 / 0 3 2 wind downwards
