@@ -180,4 +180,4 @@ def test_square_and_rotated_rect_lights_are_recognised(angle):
     (light,) = emissive_rect_lights(s)
     assert np.allclose(light.position, c)
     assert 4 * np.linalg.norm(np.cross(light.u, light.v)) == pytest.approx(1.6 * 1.6)  # the square's area
-    assert np.cross(light.u, light.v)[1] < 0  # faces 0 2 1 / 0 3 2 wind downwards
+    assert np.cross(light.u, light.v)[1] > 0  # emits to the side faces 0 2 1 / 0 3 2 wind to (+Y)
