@@ -356,7 +356,6 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
                                  with_flip=True, pool=pool)
             for row in r:
                 row["scene"] = name
-                row["series"] = f"{name}: {row['knob']}"
             rows += r
         meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
                 "ppd": ppd, "skipped": skipped, "error": "vs the scene's reference (rayvr.bench.reference); "
@@ -364,9 +363,8 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     finally:
         gl.release()
     result = {"meta": meta, "rows": rows}
-    write_report(out_dir, "tradeoff", result,
-                 plots=[{"x": "gpu_ms", "y": "flip", "group": "series", "pareto": True,
-                         "title": "GPU ms vs mean FLIP against the reference, per scene and knob"}])
+    write_report(out_dir, "tradeoff", result)
+    plot_tradeoff(rows, out_dir)
     return result
 
 
@@ -431,3 +429,43 @@ def describe_pick(summary: dict) -> str:
         by_effect.setdefault(effect, []).append(name)
     lines += [f"  {e:12s} {', '.join(sorted(n))}" for e, n in sorted(by_effect.items())]
     return "\n".join(lines)
+
+
+def plot_tradeoff(rows: list[dict], out_dir) -> list:
+    """One picture per scene: every variant as GPU ms vs mean FLIP, coloured by knob, with the
+    Pareto front over all of them (the settings worth choosing). Needs matplotlib."""
+    from pathlib import Path
+
+    try:
+        import matplotlib
+    except ImportError:
+        return []
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .report import pareto_front
+
+    written = []
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        mine = [r for r in rows if r["scene"] == scene and isinstance(r.get("flip"), (int, float))]
+        fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
+        for knob in dict.fromkeys(r["knob"] for r in mine):
+            pts = [(r["gpu_ms"], r["flip"]) for r in mine if r["knob"] == knob]
+            ax.scatter(*zip(*pts), s=22, label=knob, alpha=0.85)
+        front = [mine[i] for i in pareto_front([(r["gpu_ms"], r["flip"]) for r in mine])]
+        ax.step([r["gpu_ms"] for r in front], [r["flip"] for r in front], where="post", color="k", lw=1,
+                label="Pareto front")
+        for r in front:
+            ax.annotate(r["label"], (r["gpu_ms"], r["flip"]), fontsize=6, xytext=(3, 3), textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_xlabel("GPU ms per stereo frame (timer queries)")
+        ax.set_ylabel("mean FLIP vs reference (lower is better)")
+        ax.set_title(f"{scene}: speed vs accuracy, every knob", fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, ncol=2)
+        fig.tight_layout()
+        path = Path(out_dir) / f"tradeoff_{scene}.png"
+        fig.savefig(path)
+        plt.close(fig)
+        written.append(path)
+    return written
