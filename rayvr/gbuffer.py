@@ -44,9 +44,12 @@ CHANNELS = (
     Channel("emission", 4, "f2", 4, 3, "rgb emitted radiance"),
     Channel("material", 2, "u4", 5, 4, "x material index, y effect ID (255 = background)"),
     Channel("triangle", 1, "u4", 6, 5, "triangle ID (0xFFFFFFFF = background)"),
+    Channel("linear_depth", 1, "f4", 7, 6, "view depth of the pixel ray's hit, exact (0 = background); "
+                                           "what frames return as depth, 4 bytes a pixel"),
 )
 COLOR_CHANNELS = tuple(c for c in CHANNELS if c.dtype != "depth")
 NO_HIT = 0xFFFFFFFF
+BASE_COLOR_TEXTURE_UNIT = 9  # after the G-buffer's units (glsl/common/triangle_surface.glsl)
 BACKGROUND_EFFECT = 255
 
 

@@ -2,8 +2,8 @@
 
 `start()` queues the copies GPU-side (glGetTexImage into a PBO returns at once) and `finish()`
 maps them; `Renderer.render_sequence` records frame N+1 before finishing frame N, so transfers
-overlap rendering. Only what is asked for travels: colour (RGBA8) and depth (the 4-byte
-reversed-Z buffer, turned into linear view depth here) by default, G-buffer channels on request.
+overlap rendering. Only what is asked for travels: colour (packed to RGB by GL) and depth (the
+G-buffer's exact linear view depth, 4 bytes a pixel) by default, other channels on request.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .gbuffer import COLOR_CHANNELS, GL_DEPTH_COMPONENT, GL_FLOAT, GL_TEXTURE_2D_ARRAY, NO_HIT
+from .gbuffer import COLOR_CHANNELS, GL_DEPTH_COMPONENT, GL_FLOAT, GL_TEXTURE_2D_ARRAY
 
 GL_PIXEL_PACK_BUFFER = 0x88EB
 GL_PACK_ALIGNMENT = 0x0D05
@@ -21,18 +21,6 @@ AUX_CHANNELS = ("depth", "zbuffer", "position", "normal", "albedo", "material", 
 _SOURCE = {"zbuffer": "zbuffer", "position": "position", "normal": "normal", "albedo": "albedo",
            "material": "material", "effect": "material", "triangle": "triangle"}
 _DTYPES = {"f1": np.uint8, "f2": np.float16, "f4": np.float32, "u4": np.uint32}
-
-
-def depth_from_zbuffer(z: np.ndarray, near: float, far: float | None) -> np.ndarray:
-    """Reversed-Z value -> linear view depth (rayvr/camera.py projection); 0 stays 0 (background).
-    float32 throughout: the result keeps the buffer's own ~1e-7 relative precision."""
-    out = np.zeros(z.shape, np.float32)
-    hit = z > 0
-    if not far:
-        np.divide(np.float32(near), z, out=out, where=hit)
-    else:
-        np.divide(np.float32(near * far), z * np.float32(far - near) + np.float32(near), out=out, where=hit)
-    return out
 
 
 @dataclass
@@ -62,11 +50,7 @@ class Reader:
         return buf
 
     def channels_for(self, fc, aux) -> list[str]:
-        primary = getattr(fc.plan, "primary", "raster")
-        depth = "zbuffer" if primary == "raster" else "position"
-        need = ["ldr", depth] + [_SOURCE[a] for a in aux if a in _SOURCE]
-        if primary != "raster" or "position" in aux:
-            need.append("triangle")  # the hit mask where no depth buffer decides it
+        need = ["ldr", "linear_depth"] + [_SOURCE[a] for a in aux if a in _SOURCE]
         return list(dict.fromkeys(need))
 
     def start(self, fc, aux, parity: int, timer_slot: int) -> Pending:
@@ -115,15 +99,8 @@ class Reader:
         out = {}
         for layer, eye in enumerate(fc.eyes):
             color = data["ldr"][layer]
-            if "zbuffer" in data:
-                z = data["zbuffer"][layer, ..., 0]
-                hit = z > 0
-                depth = depth_from_zbuffer(z, eye.near, eye.far)
-            else:
-                hit = data["triangle"][layer, ..., 0] != NO_HIT
-                depth = np.where(hit, data["position"][layer, ..., 3], 0.0).astype(np.float32)
-            if "triangle" in data:
-                hit = data["triangle"][layer, ..., 0] != NO_HIT
+            depth = data["linear_depth"][layer, ..., 0]
+            hit = depth > 0
             extra = {name: self._aux(name, data, layer, hit, depth, fc.scene.origin) for name in pending.aux}
             out[eye.name] = EyeImage(eye.name, color, depth, extra)
         return out

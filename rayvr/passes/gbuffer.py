@@ -6,6 +6,7 @@ import numpy as np
 
 from .. import shaders
 from ..frame import FramePlan, Pass
+from ..gbuffer import BASE_COLOR_TEXTURE_UNIT
 from .compute import dispatch_per_pixel, set_eye_uniforms
 
 GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE, GL_ZERO_TO_ONE = 0x8CA1, 0x935E, 0x935F
@@ -107,7 +108,7 @@ class GBufferResolvePass(Pass):
     def execute(self, fc) -> None:
         set_eye_uniforms(self.program, fc)
         fc.gpu_scene.bind()
-        fc.gpu_scene.textures.use(7)
+        fc.gpu_scene.textures.use(BASE_COLOR_TEXTURE_UNIT)
         fc.gbuffer.bind_for_writing()
         if self.rays:  # the primary-ray pass left each hit distance in position.w
             fc.gbuffer.textures["position"].bind_to_image(0, read=True, write=True)

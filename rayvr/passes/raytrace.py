@@ -20,6 +20,7 @@ import numpy as np
 from .. import shaders
 from ..accel.gpu import DEFAULT_BINDING, GpuBvh
 from ..frame import FramePlan, Pass
+from ..gbuffer import BASE_COLOR_TEXTURE_UNIT
 from ..materials import EFFECTS
 from .compute import dispatch_per_pixel, set_eye_uniforms
 
@@ -256,7 +257,7 @@ class TraceEffectPass(Pass):
                     p[k].value = v
         fc.gbuffer.bind_for_reading()
         fc.gpu_scene.bind()
-        fc.gpu_scene.textures.use(7)
+        fc.gpu_scene.textures.use(BASE_COLOR_TEXTURE_UNIT)
         fc.accel.gpu.bind(DEFAULT_BINDING)
         lists.bind()
         wave.bind()

@@ -26,6 +26,7 @@ layout(rgba16f, binding = 2) uniform writeonly image2DArray img_albedo;
 layout(rgba16f, binding = 3) uniform writeonly image2DArray img_emission;
 layout(rg32ui, binding = 4) uniform writeonly uimage2DArray img_material;
 layout(r32ui, binding = 5) uniform uimage2DArray img_triangle;
+layout(r32f, binding = 6) uniform writeonly image2DArray img_linear_depth;
 
 // Barycentrics (b1, b2) of the point where ray (o, d) meets the plane of (v0, e1, e2).
 vec2 plane_barycentrics(vec3 o, vec3 d, vec3 v0, vec3 e1, vec3 e2, vec3 ng, out float t) {
@@ -53,6 +54,7 @@ void main() {
         imageStore(img_emission, p, vec4(0.0));
         imageStore(img_material, p, uvec4(NO_HIT, BACKGROUND_EFFECT, 0u, 0u));
         imageStore(img_triangle, p, uvec4(NO_HIT));
+        imageStore(img_linear_depth, p, vec4(0.0));
         return;
     }
     int eye = p.z;
@@ -99,6 +101,7 @@ void main() {
     }
     Surface s = triangle_surface(tri, tv, w, ng, d, lod);
     imageStore(img_position, p, vec4(position, t * view_dist_along));
+    imageStore(img_linear_depth, p, vec4(t * view_dist_along));
     imageStore(img_normal, p, vec4(s.normal, s.roughness));
     imageStore(img_albedo, p, vec4(s.base_color, s.metallic));
     imageStore(img_emission, p, vec4(s.emission, 1.0));
