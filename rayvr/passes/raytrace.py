@@ -27,6 +27,8 @@ from .compute import dispatch_per_pixel, set_eye_uniforms
 TRACED_EFFECTS = ("shadows", "reflections", "glossy")  # list slot = position here
 LISTS_BINDING, ARGS_BINDING = 10, 11  # glsl/rt/pixel_list.glsl
 ARGS_BYTES = 16  # per list: uvec4 (groups x, groups y, groups z, pixel count)
+# After the lists' arguments: classify's running count per list and its finished-group ticket.
+SCRATCH_BYTES = 4 * (len(TRACED_EFFECTS) + 1)
 MAX_EFFECT_ID = 8
 
 
@@ -55,7 +57,8 @@ class PixelLists:
     def __init__(self, ctx, capacity: int):
         self.capacity = capacity
         self.pixels = ctx.buffer(reserve=max(capacity, 1) * 4 * len(TRACED_EFFECTS))
-        self.args = ctx.buffer(reserve=ARGS_BYTES * len(TRACED_EFFECTS))
+        # Zeroed once: the classify pass leaves its scratch counters at zero for the next frame.
+        self.args = ctx.buffer(bytes(ARGS_BYTES * len(TRACED_EFFECTS) + SCRATCH_BYTES))
 
     def bind(self) -> None:
         self.pixels.bind_to_storage_buffer(LISTS_BINDING)
@@ -63,7 +66,7 @@ class PixelLists:
 
     def counts(self) -> dict:
         """Pixels per traced effect in the last classified frame (reads back; for tests and stats)."""
-        a = np.frombuffer(self.args.read(), np.uint32).reshape(-1, 4)
+        a = np.frombuffer(self.args.read(ARGS_BYTES * len(TRACED_EFFECTS)), np.uint32).reshape(-1, 4)
         return {e: int(a[i, 3]) for i, e in enumerate(TRACED_EFFECTS)}
 
     def release(self) -> None:
@@ -118,31 +121,54 @@ class PrimaryRaysPass(Pass):
         self.program.release()
 
 
+# glsl/rt/classify.comp aggregation, best first: (CLASSIFY_BALLOT, the extension it needs)
+BALLOT_MODES = {"khr": (1, "GL_KHR_shader_subgroup"), "arb": (2, "GL_ARB_shader_ballot"), "shared": (0, None)}
+
+
 class ClassifyPass(Pass):
+    """G-buffer effect channel -> the per-effect pixel lists and their indirect dispatch sizes, in
+    one dispatch (glsl/rt/classify.comp). `ballot` picks the in-wave aggregation: "khr", "arb" or
+    "shared" (no subgroup operations); None takes the first the context has whose shader builds."""
+
     name = "classify"
     reads = ("gbuffer",)
     writes = ("rt_lists",)
+
+    def __init__(self, ballot: str | None = None, group: tuple[int, int] = (16, 16)):
+        assert group[0] % 8 == 0 and group[1] % 8 == 0 and group[0] * group[1] <= 1024, group
+        self.ballot, self.group, self.mode = ballot, group, None
 
     def needed(self, plan: FramePlan) -> bool:
         return plan.view == "color" and bool(traced_effects(plan))
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.program = shaders.compute(gl.ctx, "rt/classify.comp", rt_defines())
-        self.finalize = shaders.compute(gl.ctx, "rt/classify.comp", {**rt_defines(), "FINALIZE": 1})
+        modes = [self.ballot] if self.ballot else list(BALLOT_MODES)
+        gx, gy = self.group
+        d = {**rt_defines(), "CLASSIFY_GROUP_X": gx, "CLASSIFY_GROUP_Y": gy, "CLASSIFY_INVOCATIONS": gx * gy}
+        for mode in modes:
+            value, ext = BALLOT_MODES[mode]
+            if ext and not gl.has_extension(ext) and self.ballot is None:
+                continue
+            try:
+                self.program = shaders.compute(gl.ctx, "rt/classify.comp", {**d, "CLASSIFY_BALLOT": value})
+            except shaders.ShaderError:
+                if mode == modes[-1]:
+                    raise
+                continue
+            self.mode = mode
+            return
 
     def execute(self, fc) -> None:
         lists = pixel_lists(fc)
-        lists.args.clear()
         lists.bind()
         fc.gbuffer.bind_for_reading()
         self.program["rt_capacity"].value = lists.capacity
-        dispatch_per_pixel(fc, self.program)
-        self.finalize.run(1, 1, 1)
+        (w, h), (gx, gy) = fc.gbuffer.size, self.group
+        self.program.run((w + gx - 1) // gx, (h + gy - 1) // gy, fc.gbuffer.layers)
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
     def release(self) -> None:
         self.program.release()
-        self.finalize.release()
 
 
 # Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.

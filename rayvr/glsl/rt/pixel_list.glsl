@@ -20,8 +20,13 @@
 #define RT_LOCAL_SIZE 64          // invocations per work group of the effect passes
 #define RT_MAX_GROUPS_X 65535u    // GL's minimum max work group count per dimension
 
-// Per list: dispatch size (x, y, z) for glDispatchComputeIndirect, then the pixel count.
-layout(std430, binding = 11) restrict buffer RtListArgs { uvec4 rt_args[RT_SLOTS]; };
+// Per list: dispatch size (x, y, z) for glDispatchComputeIndirect, then the pixel count. After
+// them the classify pass's running counts and finished-group ticket (zero between frames).
+layout(std430, binding = 11) restrict buffer RtListArgs {
+    uvec4 rt_args[RT_SLOTS];
+    uint rt_running[RT_SLOTS];
+    uint rt_groups_done;
+};
 // List `slot` occupies [slot * rt_capacity, slot * rt_capacity + count).
 layout(std430, binding = 10) restrict buffer RtLists { uint rt_pixels[]; };
 uniform uint rt_capacity;
