@@ -431,3 +431,38 @@ def test_cli_capture_primary_rays_and_bench_rays_quick(tmp_path):
         assert min(r["agree_with_embree"] for r in result["rows"]) > 0.99
     frame = result["meta"]["hybrid_frames"][0]
     assert {"rt_shadows", "rt_reflections", "classify"} <= set(frame["pass_ms"]) and frame["mirror_pixel_fraction"] > 0
+
+
+@pytest.mark.parametrize("ballot", ["khr", "arb", "shared"])
+@pytest.mark.parametrize("group", [(8, 8), (32, 16)])
+def test_classify_lists_every_traced_pixel_once_in_each_aggregation_mode(gl, ballot, group):
+    from rayvr.passes import raytrace as rt
+    ext = rt.BALLOT_MODES[ballot][1]
+    if ext and not gl.has_extension(ext):
+        pytest.skip(f"no {ext}")
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(37, 29))  # not a multiple of any group size
+    r = Renderer(scene, parse_config({"default": "shadows", "materials": {"mirror*": "reflections"}}, "t"), gl=gl)
+    try:
+        plan = r._plan(2, "color")
+        passes = r.passes_for(plan)
+        i = [p.name for p in passes].index("classify")
+        passes[i].release()
+        passes[i] = rt.ClassifyPass(ballot, group)
+        passes[i].setup(gl, plan)
+        assert passes[i].mode == ballot
+        for _ in range(2):  # the second frame starts from the counters the first one left
+            frame = r.render(rig, aux=("effect",))
+            lists = r._targets["rt_lists"]
+            effect = np.stack([frame.left.aux["effect"], frame.right.aux["effect"]])[:, ::-1]  # rows bottom-up
+            args = np.frombuffer(lists.args.read(), np.uint32)
+            pixels = np.frombuffer(lists.pixels.read(), np.uint32).reshape(len(rt.TRACED_EFFECTS), -1)
+            assert not args[4 * len(rt.TRACED_EFFECTS):].any()  # scratch left at zero
+            for s, name in enumerate(rt.TRACED_EFFECTS):
+                z, y, x = np.nonzero(effect == EFFECTS[name].id)
+                want = np.sort(x.astype(np.uint32) | (y.astype(np.uint32) << 14) | (z.astype(np.uint32) << 28))
+                n = int(args[4 * s + 3])
+                assert np.array_equal(np.sort(pixels[s, :n]), want), name
+                assert tuple(args[4 * s:4 * s + 3]) == ((-(-n // 64), 1, 1) if n else (0, 1, 1))
+    finally:
+        r.release()

@@ -134,7 +134,7 @@ class ClassifyPass(Pass):
     reads = ("gbuffer",)
     writes = ("rt_lists",)
 
-    def __init__(self, ballot: str | None = None, group: tuple[int, int] = (16, 16)):
+    def __init__(self, ballot: str | None = None, group: tuple[int, int] = (32, 16)):
         assert group[0] % 8 == 0 and group[1] % 8 == 0 and group[0] * group[1] <= 1024, group
         self.ballot, self.group, self.mode = ballot, group, None
 

@@ -17,9 +17,9 @@
 #define CLASSIFY_BALLOT 0
 #endif
 #ifndef CLASSIFY_GROUP_X  // rayvr/passes/raytrace.py ClassifyPass passes all three (430: literals)
-#define CLASSIFY_GROUP_X 16
+#define CLASSIFY_GROUP_X 32
 #define CLASSIFY_GROUP_Y 16
-#define CLASSIFY_INVOCATIONS 256
+#define CLASSIFY_INVOCATIONS 512
 #endif
 #if CLASSIFY_BALLOT == 1
 #extension GL_KHR_shader_subgroup_basic : require
