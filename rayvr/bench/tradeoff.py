@@ -12,6 +12,7 @@ renders and measures the chosen assignment for real.
 """
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 from dataclasses import dataclass, field
 
@@ -339,17 +340,27 @@ def _setups(names, size, base_config, skipped, quick=False):
         yield name, scene, rig, base, Variant("reference", "reference", ref, COMPARE_SETTINGS)
 
 
-def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
-        base_config=None, backend=None, progress=True) -> dict:
-    """Sweep every knob on each scene against its reference; write tradeoff.json/.md and plots."""
+@contextlib.contextmanager
+def _bench_gl(out_dir, backend):
+    """Check the output folder first (fail before any work), then a GL context for the run."""
     from ..context import create_context
     from ..output import ensure_writable_dir
-    from .report import device_meta, write_report
 
     ensure_writable_dir(out_dir)
     gl = create_context(backend)
-    rows, skipped = [], {}
     try:
+        yield gl
+    finally:
+        gl.release()
+
+
+def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
+        base_config=None, backend=None, progress=True) -> dict:
+    """Sweep every knob on each scene against its reference; write tradeoff.json/.md and plots."""
+    from .report import device_meta, write_report
+
+    rows, skipped = [], {}
+    with _bench_gl(out_dir, backend) as gl:
         for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
             with RendererPool(gl) as pool:
                 r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick), ppd, repeat, progress,
@@ -360,8 +371,6 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
         meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
                 "ppd": ppd, "skipped": skipped, "error": "vs the scene's reference (rayvr.bench.reference); "
                 "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
-    finally:
-        gl.release()
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "tradeoff", result)
     plot_tradeoff(rows, out_dir)
@@ -371,14 +380,11 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
 def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
                ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False) -> dict:
     """For each budget: the chosen effect per material, its predicted and measured ms and error."""
-    from ..context import create_context
-    from ..output import ensure_writable_dir, write_png
+    from ..output import write_png
     from .report import device_meta, write_report
 
-    ensure_writable_dir(out_dir)
-    gl = create_context(backend)
     rows, skipped = [], {}
-    try:
+    with _bench_gl(out_dir, backend) as gl:
         for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
             with RendererPool(gl) as pool:
                 ref = measure(gl, scene, rig, reference, repeat, pool=pool)
@@ -395,8 +401,6 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
                 "model": "per material: extra GPU ms of each effect over all-raster and mean FLIP over its "
                          "pixels vs the reference; total error = sum importance x coverage x error; exact "
                          "multiple-choice knapsack (rayvr.bench.budget)"}
-    finally:
-        gl.release()
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "budget", result)
     return result
