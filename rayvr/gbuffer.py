@@ -50,7 +50,6 @@ CHANNELS = (
 COLOR_CHANNELS = tuple(c for c in CHANNELS if c.dtype != "depth")
 NO_HIT = 0xFFFFFFFF
 BASE_COLOR_TEXTURE_UNIT = 9  # after the G-buffer's units (glsl/common/triangle_surface.glsl)
-BACKGROUND_EFFECT = 255
 
 
 class GBuffer:

@@ -64,6 +64,11 @@ def _light_record(light: Light, origin: np.ndarray):
     return r
 
 
+def interleaved_vertices(scene: Scene) -> np.ndarray:
+    """(V, 8) float32 rows: position, normal, uv (VERTEX_FLOATS in glsl/common/scene.glsl)."""
+    return np.ascontiguousarray(np.concatenate([scene.vertices, scene.normals, scene.uvs], axis=1), dtype="f4")
+
+
 class GpuScene:
     """Uploads a Scene once; `set_assignments` re-uploads only the material table (live reload)."""
 
@@ -71,11 +76,11 @@ class GpuScene:
         ctx = gl.ctx
         self.ctx, self.scene = ctx, scene
         limit = gl.max_ssbo_bytes
-        interleaved = np.concatenate([scene.vertices, scene.normals, scene.uvs], axis=1).astype("f4")
+        interleaved = interleaved_vertices(scene)
         check_buffer_size("vertices", interleaved.nbytes, limit)
         check_buffer_size("indices", scene.indices.nbytes, limit)
         check_buffer_size("triangle_material", scene.triangle_material.nbytes, limit)
-        self.vbo = ctx.buffer(np.ascontiguousarray(interleaved))
+        self.vbo = ctx.buffer(interleaved)
         self.ibo = ctx.buffer(scene.indices)
         self.triangle_material = ctx.buffer(scene.triangle_material)
         self.texture_layers, self.textures = self._upload_textures(ctx, scene)
@@ -83,12 +88,13 @@ class GpuScene:
         self.lights = ctx.buffer(light_records(scene))
         self.assignments = assignments
 
+    def upload_vertices(self) -> None:
+        """Re-upload the scene's (moved) vertices; same count and layout."""
+        self.vbo.write(interleaved_vertices(self.scene))
+
     def set_assignments(self, assignments: list[Assignment]) -> None:
         self.assignments = assignments
         self.materials.write(material_records(self.scene, assignments, self.texture_layers))
-
-    def effects_in_use(self) -> set[str]:
-        return {a.effect for a in self.assignments}
 
     def bind(self) -> None:
         self.triangle_material.bind_to_storage_buffer(0)

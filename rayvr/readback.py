@@ -7,7 +7,7 @@ G-buffer's exact linear view depth, 4 bytes a pixel) by default, other channels 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -31,7 +31,6 @@ class Pending:
     buffers: dict  # channel -> (moderngl.Buffer, dtype, components)
     aux: tuple
     timer_slot: int
-    frame_buffers: list = field(default_factory=list)
 
 
 class Reader:

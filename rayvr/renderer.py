@@ -33,7 +33,6 @@ VIEWS = ("color",) + DEBUG_VIEWS
 PRIMARY_MODES = ("raster", "rays")
 
 
-
 @dataclass
 class RenderSettings:
     exposure: float = 1.0
@@ -100,11 +99,17 @@ class FrameContext:
         return self.targets[name]
 
 
+def _as_config(materials) -> materials_mod.MaterialConfig:
+    """A MaterialConfig as given, or loaded and validated from a path (None: all `raster`)."""
+    if isinstance(materials, materials_mod.MaterialConfig):
+        return materials
+    return materials_mod.load_config(materials)
+
+
 def _all_passes():
     """Every pass rayvr has, in registration order (the graph picks and orders what runs)."""
     rt = all_rt_passes()
     return [rt["bvh"], VisibilityPass(), rt["primary_rays"], GBufferResolvePass(), ShadeDirectPass(), rt["classify"],
-
             rt["rt_shadows"], rt["rt_reflections"], rt["rt_glossy"], ResolvePass(), DebugViewPass()]
 
 
@@ -115,8 +120,7 @@ class Renderer:
         self._owns_gl = gl is None
         self.gl = gl or create_context(backend)
         self.settings = settings or RenderSettings()
-        self.config = (materials if isinstance(materials, materials_mod.MaterialConfig)
-                       else materials_mod.load_config(materials))
+        self.config = _as_config(materials)
         self.assignments = self.config.assign(self.scene.material_names())
         self.gpu_scene = GpuScene(self.gl, self.scene, self.assignments)
         self.layer_mode = pick_layer_mode(self.gl, self.settings.layer_mode)
@@ -131,8 +135,7 @@ class Renderer:
     def set_materials(self, materials) -> None:
         """Swap the material config (a path or MaterialConfig); validation errors leave the
         current one in place."""
-        config = (materials if isinstance(materials, materials_mod.MaterialConfig)
-                  else materials_mod.load_config(materials))
+        config = _as_config(materials)
         assignments = config.assign(self.scene.material_names())
         self.config, self.assignments = config, assignments
         self.gpu_scene.set_assignments(assignments)
@@ -181,18 +184,21 @@ class Renderer:
         fc.pass_names = [p.name for p in passes]
         return fc
 
-    def warm_up(self, rig: StereoRig, eyes: str = "both", view: str = "color", seconds: float = 0.3) -> None:
+    def warm_up(self, rig: StereoRig, eyes: str = "both", view: str = "color", seconds: float | None = None,
+                min_frames: int = 1) -> None:
         """Render for `seconds` without reading anything back: an idle GPU runs at a fraction of
         its clock (the H200 idles at 345 MHz against 1980 MHz) and needs ~0.2 s of work to ramp
-        up, so timings taken straight after a pause measure the clock governor, not rayvr."""
+        up, so timings taken straight after a pause measure the clock governor, not rayvr.
+        Default: 0.3 s on a GPU, one frame on a software rasterizer (no clocks to ramp)."""
         import time
 
-        end = time.perf_counter() + seconds
-        while True:
+        if seconds is None:
+            seconds = 0.0 if self.gl.is_software else 0.3
+        end, done = time.perf_counter() + seconds, 0
+        while done < min_frames or time.perf_counter() < end:
             self.record(rig, eyes, view)
             self.gl.ctx.finish()
-            if time.perf_counter() >= end:
-                break
+            done += 1
 
     def render(self, rig: StereoRig, eyes: str = "both", view: str = "color", aux=()) -> Frame:
         """Render one frame; `eyes` is 'both', 'left' or 'right'; `aux` names extra G-buffer
@@ -226,8 +232,7 @@ class Renderer:
         if v.shape != self.scene.vertices.shape or not np.isfinite(v).all():
             raise ValueError(f"update_vertices needs {self.scene.vertices.shape} finite positions, got {v.shape}")
         self.scene.vertices = np.ascontiguousarray(v)
-        interleaved = np.concatenate([v, self.scene.normals, self.scene.uvs], axis=1).astype("f4")
-        self.gpu_scene.vbo.write(np.ascontiguousarray(interleaved))
+        self.gpu_scene.upload_vertices()
         self.accel.refit(v)
 
     # -- lifetime --------------------------------------------------------------------
@@ -247,7 +252,6 @@ class Renderer:
         self._passes.clear()
         self.accel.release()
         self.gpu_scene.release()
-
         if self._owns_gl:
             self.gl.release()
 

@@ -62,8 +62,6 @@ class Light:
     v: tuple = (0.0, 0.0, 0.0)
     source: str = "default"
 
-    KINDS = ("point", "directional", "rect")
-
 
 @dataclass
 class Scene:

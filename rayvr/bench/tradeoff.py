@@ -60,7 +60,6 @@ COMPARE_SETTINGS = _compare_settings()
 @dataclass
 class Measured:
     gpu_ms: float
-    passes_ms: dict
     image: np.ndarray  # uint8 HxWx3, both eyes side by side, full size
     material: np.ndarray  # uint32 HxW material index per pixel (same layout)
 
@@ -132,13 +131,13 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
     pool = pool or RendererPool(gl)
     r = pool.get(scene, variant.settings, variant.config)
     try:
-        r.warm_up(rig.with_size(small), seconds=0.0 if gl.is_software else 0.3)
-        rigs = [rig.with_size(small)] * (warmup + repeat)
-        totals, passes, last = [], [], None
+        sized = rig.with_size(small)
+        r.warm_up(sized)
+        rigs = [sized] * (warmup + repeat)
+        totals, last = [], None
         for i, frame in enumerate(r.render_sequence(rigs, aux=("material",))):
             if i >= warmup:
                 totals.append(sum(frame.timings.values()))
-                passes.append(frame.timings)
             last = frame
     finally:
         if own:
@@ -150,9 +149,7 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
 
         image = np.asarray(Image.fromarray(image).resize((2 * w, h), Image.BILINEAR))
         material = np.asarray(Image.fromarray(material.astype(np.int32)).resize((2 * w, h), Image.NEAREST)).astype(np.uint32)
-    names = sorted({k for p in passes for k in p})
-    return Measured(float(np.median(totals)), {k: float(np.median([p.get(k, 0.0) for p in passes])) for k in names},
-                    image, material)
+    return Measured(float(np.median(totals)), image, material)
 
 
 def material_mask(scene, material_map: np.ndarray, names) -> np.ndarray | None:
