@@ -227,7 +227,7 @@ def benchmark(ctx, vertices, indices, width: int = 1440, height: int = 1600, rep
     gpu = GpuBvh(ctx, bvh)
     rt = RayTracer(ctx, gpu)
     lo, hi = bvh.node_lo[0].astype(np.float64), bvh.node_hi[0].astype(np.float64)
-    centre, size = (lo + hi) / 2, float(np.linalg.norm(hi - lo))
+    centre = (lo + hi) / 2
     eyes = [centre + [0, 0, s * 0.032] for s in (-1, 1)]
     prim = [pinhole_rays(e, [1, 0, 0], [0, 1, 0], width, height) for e in eyes]
     o = np.concatenate([p[0] for p in prim])

@@ -21,7 +21,7 @@ from .scenes import bench_scenes
 def time_gbuffer(renderer: Renderer, rig: StereoRig, repeat: int, warmup: int) -> dict:
     passes = ("visibility", "gbuffer")
     ms = {p: [] for p in passes}
-    renderer.warm_up(rig, seconds=0.0 if renderer.gl.is_software else 0.3)
+    renderer.warm_up(rig)
     for i in range(warmup + repeat):
         renderer.record(rig, "both", "color")
         t = renderer.timer.read_ms(passes)

@@ -36,7 +36,7 @@ def rayvr_fps(gl, scene, rig, frames: int, warmup: int = 5) -> dict:
     try:
         poses = _poses(scene, rig, frames + warmup)
         rigs = [StereoRig(**{**rig.__dict__, "pose": p}) for p in poses]
-        r.warm_up(rigs[0], eyes="left", seconds=0.0 if gl.is_software else 0.3)
+        r.warm_up(rigs[0], eyes="left")
         t0, gpu, n = None, [], 0
         for i, frame in enumerate(r.render_sequence(rigs, eyes="left")):
             assert frame.left.color.shape[:2] == frame.left.depth.shape

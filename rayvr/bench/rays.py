@@ -120,11 +120,7 @@ def time_frame(renderer, rig, repeat, warmup, warmup_s=0.3):
     """Median GPU ms per pass and of the frame total over `repeat` frames, after at least `warmup`
     frames and `warmup_s` seconds of them (an idle GPU starts at low clocks)."""
     names, ms = None, {}
-    t0, done = time.perf_counter(), 0
-    while done < warmup or time.perf_counter() - t0 < warmup_s:
-        renderer.record(rig, "both", "color")
-        renderer.gl.ctx.finish()
-        done += 1
+    renderer.warm_up(rig, seconds=warmup_s, min_frames=warmup)
     for i in range(repeat):
         fc = renderer.record(rig, "both", "color")
         renderer.gl.ctx.finish()
