@@ -100,7 +100,6 @@ class RayTracer:
         self.gpu_bvh = gpu_bvh
         self.base = base_binding
         self._programs: dict[tuple, moderngl.ComputeShader] = {}
-        self.last_seconds = 0.0   # wall time of the last dispatches (after ctx.finish)
 
     def program(self, mode: str, offset: bool = True) -> moderngl.ComputeShader:
         key = (mode, offset)
@@ -122,7 +121,6 @@ class RayTracer:
         chunk = max(1, min(n, limit // rays.itemsize // 8, 1 << 24))
         prog = self.program(mode, offset)
         self.gpu_bvh.bind(self.base)
-        self.last_seconds = 0.0
         for s in range(0, n, chunk):
             part = rays[s:s + chunk]
             rbuf = self.ctx.buffer(part.tobytes())
@@ -130,10 +128,7 @@ class RayTracer:
             try:
                 rbuf.bind_to_storage_buffer(self.base + 2)
                 hbuf.bind_to_storage_buffer(self.base + 3)
-                t0 = time.perf_counter()
                 self._dispatch(prog, len(part))
-                self.ctx.finish()
-                self.last_seconds += time.perf_counter() - t0
                 out[s:s + len(part)] = np.frombuffer(hbuf.read(), np.uint32).reshape(-1, 4)
             finally:
                 rbuf.release()
