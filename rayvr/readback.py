@@ -16,10 +16,10 @@ from .gbuffer import COLOR_CHANNELS, GL_DEPTH_COMPONENT, GL_FLOAT, GL_TEXTURE_2D
 GL_PIXEL_PACK_BUFFER = 0x88EB
 GL_PACK_ALIGNMENT = 0x0D05
 GL_RGB, GL_UNSIGNED_BYTE = 0x1907, 0x1401
-AUX_CHANNELS = ("depth", "zbuffer", "position", "normal", "albedo", "material", "effect", "triangle")
+AUX_CHANNELS = ("depth", "zbuffer", "position", "normal", "albedo", "material", "effect", "triangle", "hdr")
 # aux name -> G-buffer channel it comes from
 _SOURCE = {"zbuffer": "zbuffer", "position": "position", "normal": "normal", "albedo": "albedo",
-           "material": "material", "effect": "material", "triangle": "triangle"}
+           "material": "material", "effect": "material", "triangle": "triangle", "hdr": "hdr"}
 _DTYPES = {"f1": np.uint8, "f2": np.float16, "f4": np.float32, "u4": np.uint32}
 
 
@@ -73,8 +73,11 @@ class Reader:
                 raw.glBindBuffer(GL_PIXEL_PACK_BUFFER, 0)
                 buffers[name] = (buf, dtype, comps)
                 continue
-            ch = next(c for c in COLOR_CHANNELS if c.name == name)
-            tex, dtype, comps = gb.textures[name], _DTYPES[ch.dtype], ch.components
+            if name == "hdr":  # the linear colour before exposure and tonemapping
+                tex, dtype, comps = fc.target("hdr"), np.float16, 4
+            else:
+                ch = next(c for c in COLOR_CHANNELS if c.name == name)
+                tex, dtype, comps = gb.textures[name], _DTYPES[ch.dtype], ch.components
             nbytes = w * h * gb.layers * comps * np.dtype(dtype).itemsize
             buf = self._buffer((parity, name), nbytes)
             tex.read_into(buf, alignment=1)

@@ -26,3 +26,19 @@ def test_sequence_frames_equal_single_renders_and_depth_sources_agree(gl):
         assert not np.array_equal(seq[0].left.color, seq[1].left.color)
     finally:
         r.release()
+
+
+def test_hdr_aux_is_the_linear_colour_the_8_bit_image_encodes(gl):
+    """aux 'hdr' reads the linear HDR target; with exposure 1 and the clamp tonemapper the 8-bit
+    colour must be its sRGB encoding (an independent numpy sRGB curve)."""
+    from rayvr.renderer import RenderSettings
+
+    scene = load()
+    with Renderer(scene, gl=gl, settings=RenderSettings(tonemapper="clamp", exposure=1.0)) as r:
+        frame = r.render(StereoRig.for_scene(scene, size=(40, 30)), aux=("hdr",))
+    hdr = frame.left.aux["hdr"]
+    assert hdr.shape == (30, 40, 3) and hdr.dtype == np.float32
+    assert hdr.max() > 1.0  # really HDR: the light is brighter than white
+    x = np.clip(hdr, 0.0, 1.0)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    assert np.abs(srgb * 255.0 - frame.left.color.astype(np.float64)).max() <= 1.01
