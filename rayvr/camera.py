@@ -13,6 +13,10 @@ advertises). Near/far ratios need no tuning. Without clip control the same proje
 
 All matrices are built in float64 relative to the scene's origin (see scene.py) and only then
 cast to float32, so rigs 1e5 units from the world origin stay exact.
+
+Rays come from the rig's camera model (rayvr/cameras/, default the pinhole). The projection
+matrices here describe the eye's planar frustum, which is what the rasterizer draws: exact for
+the pinhole, the only rasterizable model.
 """
 from __future__ import annotations
 
@@ -23,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cameras import CameraModel, Pinhole, get_camera_model
 from .output import atomic_write_bytes
 
 EYES = ("left", "right")
@@ -98,7 +103,8 @@ def projection(left: float, right: float, bottom: float, top: float, near: float
 
 @dataclass
 class EyeView:
-    """One eye: where it is and how it projects. `view` maps scene-local to eye space."""
+    """One eye: where it is, how it projects (planar frustum) and its camera model, which makes
+    its rays. `view` maps scene-local to eye space."""
 
     name: str
     position: np.ndarray  # world, float64
@@ -107,6 +113,7 @@ class EyeView:
     near: float
     far: float | None
     size: tuple  # (width, height) in pixels
+    camera: CameraModel = field(default_factory=Pinhole)
 
     def view_matrix(self, origin=(0.0, 0.0, 0.0)) -> np.ndarray:
         """World-minus-`origin` -> eye space, float64."""
@@ -132,16 +139,16 @@ class EyeView:
         py = (1.0 - (ndc[:, 1] * 0.5 + 0.5)) * h
         return np.c_[px, py, ndc[:, 2]]
 
+    def rays(self):
+        """This eye's camera rays from its model (rayvr.cameras.CameraRays: world origins, unit
+        directions, footprints, validity; rows top-down)."""
+        return self.camera.rays(self)
+
     def ray_directions(self) -> np.ndarray:
-        """(H, W, 3) world-space unit directions through pixel centres (rows top-down), from the
-        same tangents the rasterizer's projection uses, so rays and raster agree per pixel."""
-        w, h = self.size
-        l, r, b, t = self.tangents
-        xs = l + (np.arange(w) + 0.5) / w * (r - l)
-        ys = t - (np.arange(h) + 0.5) / h * (t - b)
-        d = np.stack(np.broadcast_arrays(xs[None, :], ys[:, None], -np.ones((h, w))), axis=-1)
-        d = d @ self.rotation.T
-        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+        """(H, W, 3) world-space unit directions through pixel centres (rows top-down). With the
+        pinhole these come from the same tangents the rasterizer's projection uses, so rays and
+        raster agree per pixel."""
+        return self.camera.rays(self).directions
 
 
 @dataclass
@@ -152,6 +159,8 @@ class StereoRig:
     eyes' images coincide at `convergence` (None: parallel axes, as HMDs do), or HMD-style per-eye
     tangents `eye_tangents = {"left": (l, r, b, t), "right": (...)}` (tan of the half-angles, left
     and bottom negative) which take precedence. `ipd` is the distance between the eyes.
+    `camera` is the camera model both eyes use (a rayvr.cameras model or its registered name;
+    default the pinhole); a model keeps any per-eye parameters itself, keyed by eye name.
     """
 
     pose: Pose = field(default_factory=Pose)
@@ -162,12 +171,18 @@ class StereoRig:
     far: float | None = None
     eye_tangents: dict | None = None
     size: tuple = (640, 480)  # per-eye pixels (width, height)
+    camera: CameraModel | str = "pinhole"
 
     def __post_init__(self):
+        if isinstance(self.camera, str):
+            self.camera = get_camera_model(self.camera)
+        elif not isinstance(self.camera, CameraModel):
+            raise ValueError(f"camera must be a camera model or its name, got {self.camera!r}")
         if not (self.ipd >= 0 and math.isfinite(self.ipd)):
             raise ValueError(f"ipd must be a finite value >= 0, got {self.ipd}")
-        if not (0 < self.fov_y < 180):
-            raise ValueError(f"fov_y must be in (0, 180) degrees for a planar projection, got {self.fov_y}")
+        if not (self.fov_y > 0 and math.isfinite(self.fov_y)):
+            raise ValueError(f"fov_y must be a finite angle > 0 degrees, got {self.fov_y}")
+        self.camera.check_rig(self)  # e.g. the pinhole's planar projection stops short of 180
         if self.convergence is not None and not self.convergence > 0:
             raise ValueError(f"convergence distance must be > 0 (or None), got {self.convergence}")
         w, h = self.size
@@ -192,7 +207,8 @@ class StereoRig:
             # Off-axis shear: zero parallax at the convergence distance.
             shift = -offset / self.convergence if self.convergence else 0.0
             tangents = (-t * a + shift, t * a + shift, -t, t)
-        return EyeView(name, position, self.pose.rotation.copy(), tangents, self.near, self.far, self.size)
+        return EyeView(name, position, self.pose.rotation.copy(), tangents, self.near, self.far, self.size,
+                       self.camera)
 
     def eyes(self, which: str = "both") -> list[EyeView]:
         if which == "both":

@@ -15,18 +15,10 @@ def dispatch_per_pixel(fc, program: moderngl.ComputeShader) -> None:
 
 
 def set_eye_uniforms(program, fc) -> None:
-    """The per-eye camera block of glsl/common/camera.glsl (uniforms the shader does not use
-    are skipped: GLSL compilers drop them)."""
-    position = np.zeros((2, 3), np.float32)
-    rotation = np.zeros((2, 3, 3), np.float32)
-    tangents = np.zeros((2, 4), np.float32)
-    for i, eye in enumerate(fc.eyes):
-        position[i] = eye.position - fc.scene.origin
-        rotation[i] = eye.rotation.T  # GLSL mat3 is column-major
-        tangents[i] = eye.tangents
-    eye = fc.eyes[0]
-    values = {"eye_position": position, "eye_rotation": rotation, "eye_tangents": tangents,
-              "eye_depth": np.array([eye.near, eye.far or 0.0], np.float32)}
+    """The per-eye camera block of glsl/common/camera.glsl, with the values the eyes' camera
+    model gives (rayvr/cameras/base.py uniforms). Uniforms the shader does not use are skipped:
+    GLSL compilers drop them."""
+    values = fc.eyes[0].camera.uniforms(fc.eyes, fc.scene.origin)
     for name, value in values.items():
         if name in program:
-            program[name].write(value.tobytes())
+            program[name].write(value if isinstance(value, bytes) else np.ascontiguousarray(value).tobytes())
