@@ -1,0 +1,197 @@
+"""Camera models (rayvr/cameras/): the pinhole's numpy rays and footprints, its GLSL twin, the
+registry and the pinhole's field-of-view limit."""
+import math
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rayvr import shaders
+from rayvr.camera import Pose, StereoRig
+from rayvr.cameras import CAMERA_MODELS, Pinhole, get_camera_model
+from rayvr.passes.compute import set_eye_uniforms
+
+HMD_TANGENTS = {"left": (-1.3, 1.0, -1.1, 1.2), "right": (-1.0, 1.3, -1.1, 1.2)}
+
+
+def converged_rig(size=(13, 9)):
+    return StereoRig(Pose.look_at([1.0, 2.0, 3.0], [0.2, 0.1, -0.3]), ipd=0.3, fov_y=70, size=size,
+                     convergence=2.0)
+
+
+def hmd_rig(size=(11, 10)):
+    return StereoRig(Pose.look_at([-0.5, 1.6, 0.4], [0.3, 1.2, -2.0]), ipd=0.064, eye_tangents=HMD_TANGENTS,
+                     size=size)
+
+
+def expected_directions(rotation, tangents, size):
+    """Unit directions through pixel centres, pixel by pixel from the frustum tangents."""
+    l, r, b, t = tangents
+    w, h = size
+    out = np.zeros((h, w, 3))
+    for row in range(h):
+        for col in range(w):
+            u, v = (col + 0.5) / w, (row + 0.5) / h  # v from the top row down
+            d = rotation @ np.array([l * (1 - u) + r * u, t * (1 - v) + b * v, -1.0])
+            out[row, col] = d / math.sqrt(d @ d)
+    return out
+
+
+# ---------------------------------------------------------------- (1) pinhole rays
+
+def test_pinhole_rays_are_pixel_centre_rays_of_off_axis_eyes():
+    rig = converged_rig()
+    t = math.tan(math.radians(70) / 2)
+    a = 13 / 9
+    for eye, sign in zip(rig.eyes(), (-1, 1)):
+        shift = -sign * 0.15 / 2.0  # sheared for zero parallax at 2 m: -offset / convergence
+        assert eye.tangents == pytest.approx((-t * a + shift, t * a + shift, -t, t), abs=1e-15)
+        rays = eye.camera.rays(eye)
+        assert rays.directions.shape == rays.ddx.shape == rays.ddy.shape == rays.origins.shape == (9, 13, 3)
+        np.testing.assert_allclose(rays.directions, expected_directions(eye.rotation, eye.tangents, eye.size),
+                                   atol=1e-14)
+        np.testing.assert_array_equal(eye.ray_directions(), rays.directions)  # EyeView delegates
+        assert np.array_equal(rays.origins, np.broadcast_to(eye.position, (9, 13, 3)))
+        assert rays.valid.shape == (9, 13) and rays.valid.all()
+
+
+def test_pinhole_rays_use_hmd_tangents_verbatim():
+    rig = hmd_rig()
+    for eye in rig.eyes():
+        assert eye.tangents == HMD_TANGENTS[eye.name]
+        np.testing.assert_allclose(eye.ray_directions(), expected_directions(eye.rotation, eye.tangents, eye.size),
+                                   atol=1e-14)
+
+
+def test_rig_default_camera_is_the_rasterizable_pinhole():
+    rig = StereoRig()
+    assert isinstance(rig.camera, Pinhole) and rig.camera.rasterizable
+    assert all(e.camera is rig.camera for e in rig.eyes())
+    assert StereoRig(camera="pinhole").camera == Pinhole()
+    with pytest.raises(ValueError, match="channel"):
+        rig.camera.rays(rig.eye("left"), channel=1)
+
+
+# ---------------------------------------------------------------- (2) footprints
+
+def test_pinhole_footprints_are_the_derivatives_of_the_directions():
+    rig = converged_rig(size=(201, 151))
+    for eye in rig.eyes():
+        rays = eye.camera.rays(eye)
+        d = rays.directions
+        fd_x = (d[:, 2:] - d[:, :-2]) / 2  # central differences: error O(pixel^2)
+        fd_y = (d[2:] - d[:-2]) / 2        # rows top-down: ddy points one row down
+        scale = np.abs(rays.ddx).max()
+        assert np.abs(fd_x - rays.ddx[:, 1:-1]).max() < 1e-3 * scale
+        assert np.abs(fd_y - rays.ddy[1:-1]).max() < 1e-3 * scale
+        # Derivatives of unit vectors are orthogonal to them.
+        assert np.abs(np.sum(rays.ddx * d, axis=-1)).max() < 1e-15
+        assert np.abs(np.sum(rays.ddy * d, axis=-1)).max() < 1e-15
+
+
+def test_centre_ray_of_a_symmetric_eye_follows_the_forward_axis():
+    pose = Pose.look_at([0.4, 1.5, 2.0], [-0.3, 0.8, -1.0])
+    rig = StereoRig(pose, ipd=0.064, fov_y=60, size=(31, 21))  # odd size: a pixel centre on the axis
+    for eye in rig.eyes():
+        rays = eye.camera.rays(eye)
+        np.testing.assert_allclose(rays.directions[10, 15], pose.forward, atol=1e-15)
+        dx, dy = rays.ddx[10, 15], rays.ddy[10, 15]
+        assert abs(dx @ dy) < 1e-15
+        # One pixel on the axis subtends tan(fov/2) / (h/2) along right and (down) -up.
+        step = math.tan(math.radians(30)) / 10.5
+        np.testing.assert_allclose(dx, step * pose.rotation[:, 0], atol=1e-15)
+        np.testing.assert_allclose(dy, -step * pose.rotation[:, 1], atol=1e-15)
+
+
+# ---------------------------------------------------------------- (3) GLSL == numpy
+
+def glsl_rays(gl, rig, origin):
+    """Run glsl/cameras/camera_rays.comp for both eyes; arrays (eye, row top-down, col, 4, 3)."""
+    model = rig.camera
+    w, h = rig.size
+    prog = shaders.compute(gl.ctx, "cameras/camera_rays.comp", model.defines())
+    set_eye_uniforms(prog, SimpleNamespace(eyes=rig.eyes(), scene=SimpleNamespace(origin=origin)))
+    prog["image_size"].value = (w, h)
+    buf = gl.ctx.buffer(reserve=2 * h * w * 4 * 16)
+    try:
+        buf.bind_to_storage_buffer(0)
+        prog.run((w + 7) // 8, (h + 7) // 8, 2)
+        out = np.frombuffer(buf.read(), np.float32).reshape(2, h, w, 4, 4)
+    finally:
+        buf.release()
+        prog.release()
+    return out[:, ::-1, :, :, :3].astype(np.float64), out[:, ::-1, :, 0, 3]  # GL rows are bottom-up
+
+
+@pytest.mark.parametrize("make_rig", [converged_rig, hmd_rig], ids=["convergence", "hmd_tangents"])
+def test_glsl_camera_ray_matches_numpy(gl, make_rig):
+    rig = make_rig()
+    origin = np.array([0.5, -1.0, 2.0])  # the GLSL side is scene-local
+    out, valid = glsl_rays(gl, rig, origin)
+    for i, eye in enumerate(rig.eyes()):
+        rays = eye.camera.rays(eye)
+        origins, dirs, dir_x, dir_y = (out[i, :, :, k] for k in range(4))
+        np.testing.assert_array_equal(valid[i] == 1.0, rays.valid)
+        np.testing.assert_allclose(origins, rays.origins - origin, atol=1e-6)
+        np.testing.assert_allclose(dirs, rays.directions, atol=1e-6)
+        # The neighbours are the next column's and the row above's (GL +y) rays ...
+        np.testing.assert_allclose(dir_x[:, :-1], rays.directions[:, 1:], atol=1e-6)
+        np.testing.assert_allclose(dir_y[1:], rays.directions[:-1], atol=1e-6)
+        # ... so, to first order, the direction plus its footprint (GL up = minus ddy).
+        bound = 2 * max(np.abs(rays.ddx).max(), np.abs(rays.ddy).max()) ** 2
+        assert np.abs(dir_x - (rays.directions + rays.ddx)).max() < bound
+        assert np.abs(dir_y - (rays.directions - rays.ddy)).max() < bound
+
+
+def test_glsl_unknown_camera_model_fails_to_build(gl):
+    with pytest.raises(shaders.ShaderError, match="glsl/common/camera.glsl:20: .*unknown CAMERA_MODEL"):
+        shaders.compute(gl.ctx, "cameras/camera_rays.comp", {"CAMERA_MODEL": "CAMERA_NOPE"})
+
+
+# ---------------------------------------------------------------- (4) registry
+
+def test_registry_lists_models_with_their_glsl():
+    camera_glsl = (shaders.GLSL_DIR / "common" / "camera.glsl").read_text()
+    for name, cls in CAMERA_MODELS.items():
+        model = get_camera_model(name)
+        assert model.name == name and isinstance(model, cls)
+        assert (shaders.GLSL_DIR / model.glsl).is_file()
+        assert f'#include "../{model.glsl}"' in camera_glsl and f"CAMERA_MODEL == {model.glsl_define}" in camera_glsl
+
+
+@pytest.mark.parametrize("make", [lambda: get_camera_model("fisheye"), lambda: StereoRig(camera="fisheye")])
+def test_unknown_camera_model_is_one_clear_error(make):
+    with pytest.raises(ValueError, match=r"unknown camera model 'fisheye'; allowed: pinhole"):
+        make()
+
+
+def test_rig_camera_must_be_a_model_or_a_name():
+    with pytest.raises(ValueError, match="camera model or its name"):
+        StereoRig(camera=42)
+
+
+def test_eyes_of_one_frame_share_a_model():
+    @dataclass(frozen=True)
+    class Other(Pinhole):
+        name = "other"
+
+    rig = StereoRig()
+    left, right = rig.eyes()
+    right.camera = Other()
+    with pytest.raises(ValueError, match="share a camera model"):
+        rig.camera.uniforms([left, right], (0, 0, 0))
+
+
+# ---------------------------------------------------------------- (5) field of view
+
+@pytest.mark.parametrize("fov", [180, 200.0, 359])
+def test_pinhole_refuses_fov_of_180_and_more(fov):
+    with pytest.raises(ValueError, match=r"fov_y must be in \(0, 180\) degrees for a planar projection"):
+        StereoRig(fov_y=fov)
+
+
+@pytest.mark.parametrize("fov", [0, -10, float("nan"), float("inf")])
+def test_rig_refuses_fov_that_no_model_can_use(fov):
+    with pytest.raises(ValueError, match="fov_y"):
+        StereoRig(fov_y=fov)
