@@ -1,4 +1,5 @@
-"""Scenes: glTF/GLB, OBJ+MTL and PLY through trimesh, flattened into GPU-ready arrays.
+"""Scenes: glTF/GLB and PLY through trimesh, OBJ+MTL through rayvr's own reader, flattened into
+GPU-ready arrays.
 
 Positions are stored in float32 *relative to* `Scene.origin` (float64, the centre of the
 bounds), so a scene placed 1e5 units from the world origin keeps sub-millimetre precision;
@@ -16,6 +17,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -76,6 +78,7 @@ class Scene:
     materials: list[Material]
     lights: list[Light]
     dropped_degenerate: int = 0
+    dropped_unreadable: int = 0  # faces a loader could not read (bad indices), in triangles
     camera: dict | None = None  # the file's default view: {"position", "rotation", "fov_y"} (world, degrees)
 
     @property
@@ -110,15 +113,19 @@ class Scene:
     def summary(self) -> str:
         return (f"{self.name}: {self.triangle_count} triangles, {len(self.materials)} materials, "
                 f"{len(self.lights)} lights"
-                + (f", {self.dropped_degenerate} degenerate triangles dropped" if self.dropped_degenerate else ""))
+                + (f", {self.dropped_degenerate} degenerate triangles dropped" if self.dropped_degenerate else "")
+                + (f", {self.dropped_unreadable} unreadable triangles dropped" if self.dropped_unreadable else ""))
 
 
 # --------------------------------------------------------------------------- building
 
 
 def from_arrays(vertices, indices, *, triangle_material=None, materials=None, normals=None, uvs=None,
-                lights=None, name="arrays", path=None, ambient_lights=True) -> Scene:
-    """Validate raw world-space arrays and make a Scene. Used by the loaders and by tests."""
+                lights=None, name="arrays", path=None, ambient_lights=True, unreadable: int = 0) -> Scene:
+    """Validate raw world-space arrays and make a Scene. Used by the loaders and by tests.
+
+    `unreadable`: triangles the loader had to skip; with the degenerate ones they must stay a
+    minority, or the load is refused (a half-read mesh is not rendered silently)."""
     where = str(path or name)
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(indices)
@@ -158,16 +165,23 @@ def from_arrays(vertices, indices, *, triangle_material=None, materials=None, no
         f, tm = f[keep], tm[keep]
     if len(f) == 0:
         raise SceneError(f"{where}: every triangle is degenerate (zero area)")
+    total = len(keep) + unreadable
+    if 2 * (dropped + unreadable) > total:
+        raise SceneError(f"{where}: {dropped + unreadable} of {total} triangles would be dropped ({dropped} degenerate, "
+                         f"{unreadable} unreadable); refusing a load that loses most of the mesh")
 
     lo, hi = v.min(axis=0), v.max(axis=0)
     origin = (lo + hi) / 2.0
     local = (v - origin).astype(np.float32)
-    if normals is None or np.asarray(normals).shape != v.shape or not np.isfinite(normals).all():
+    # The file's normals, made unit; rows that are missing (NaN), zero or not finite are computed.
+    n = None if normals is None else np.asarray(normals, dtype=np.float64)
+    if n is None or n.shape != v.shape:
         n = vertex_normals(v, f)
     else:
-        n = np.asarray(normals, dtype=np.float64)
-        length = np.linalg.norm(n, axis=1, keepdims=True)
-        n = np.where(length > 1e-12, n / np.maximum(length, 1e-30), vertex_normals(v, f))
+        with np.errstate(invalid="ignore", over="ignore"):
+            length = np.linalg.norm(n, axis=1, keepdims=True)
+        ok = np.isfinite(length) & (length > 1e-12)
+        n = np.where(ok, n / np.where(ok, length, 1.0), vertex_normals(v, f) if not ok.all() else 0.0)
     uv = np.zeros((len(v), 2), np.float32) if uvs is None else np.asarray(uvs, dtype=np.float32)
     if uv.shape != (len(v), 2) or not np.isfinite(uv).all():
         uv = np.zeros((len(v), 2), np.float32)
@@ -176,7 +190,7 @@ def from_arrays(vertices, indices, *, triangle_material=None, materials=None, no
         vertices=np.ascontiguousarray(local), normals=np.ascontiguousarray(n, dtype=np.float32),
         uvs=np.ascontiguousarray(uv), indices=np.ascontiguousarray(f, dtype=np.uint32),
         triangle_material=np.ascontiguousarray(tm, dtype=np.uint32), materials=materials,
-        lights=list(lights or []), dropped_degenerate=dropped,
+        lights=list(lights or []), dropped_degenerate=dropped, dropped_unreadable=int(unreadable),
     )
     if not scene.lights:
         scene.lights = emissive_rect_lights(scene)
@@ -283,13 +297,10 @@ def load(path: str | Path | None = None) -> Scene:
         raise SceneError(f"{path}: no such file")
     if path.suffix.lower() not in SUPPORTED_SUFFIXES:
         raise SceneError(f"{path}: unsupported format {path.suffix!r}; use one of {', '.join(SUPPORTED_SUFFIXES)}")
-    # An OBJ without materials (no mtllib/usemtl) would be one material for the whole file:
-    # split it by its `g` groups instead and name each part's material after its group, so a
-    # material config can select parts of it (Sponza's "floors", "walls", ...).
-    by_group = path.suffix.lower() == ".obj" and not _obj_has_materials(path)
-    kwargs = {"split_groups": True, "group_material": False} if by_group else {}
+    if path.suffix.lower() == ".obj":
+        return load_obj(path)
     try:
-        tscene = trimesh.load(str(path), force="scene", process=False, **kwargs)
+        tscene = trimesh.load(str(path), force="scene", process=False)
     except Exception as exc:
         raise SceneError(f"{path}: trimesh could not read it: {exc}") from exc
 
@@ -317,12 +328,10 @@ def load(path: str | Path | None = None) -> Scene:
         uv = getattr(geom.visual, "uv", None)
         uv = np.asarray(uv, dtype=np.float32) if uv is not None and len(uv) == len(v) else np.zeros((len(v), 2), np.float32)
         tmat = getattr(geom.visual, "material", None)
-        key = geom_name if by_group else id(tmat)
+        key = id(tmat)
         if key not in mat_index:
             mat_index[key] = len(materials)
             materials.append(_material_from_trimesh(tmat, geom_name, len(materials)))
-            if by_group:
-                materials[-1].name = str(geom_name)
         verts.append(vw)
         faces.append(f + offset)
         norms.append(n if n is not None else np.full_like(vw, np.nan))
@@ -336,17 +345,165 @@ def load(path: str | Path | None = None) -> Scene:
     lights, camera = ([], None)
     if is_gltf:
         lights, camera = _gltf_extras(path, materials)
-    normals = np.concatenate(norms)
     scene = from_arrays(np.concatenate(verts), np.concatenate(faces), triangle_material=np.concatenate(tri_mat),
-                       materials=materials, normals=None if np.isnan(normals).any() else normals,
+                       materials=materials, normals=np.concatenate(norms),
                        uvs=np.concatenate(uvs), lights=lights, name=path.stem, path=path)
     scene.camera = camera
     return scene
 
 
-def _obj_has_materials(path: Path) -> bool:
-    data = path.read_bytes()
-    return b"usemtl" in data or b"mtllib" in data
+# --------------------------------------------------------------------------- OBJ + MTL
+# rayvr reads OBJ itself: trimesh 5.2 ignores `v<TAB>` lines and resolves relative (negative)
+# indices against the whole file instead of the vertices read so far, so McGuire's Cornell boxes
+# loaded with collapsed walls and no error.
+
+
+def _obj_index(text: str, count: int) -> int:
+    """0-based index of an OBJ reference (1-based, or negative: counted back from the `count`
+    elements read so far); ValueError when it is 0, not an integer or out of range."""
+    i = int(text)
+    r = i - 1 if i > 0 else count + i if i < 0 else -1
+    if not 0 <= r < count:
+        raise ValueError(f"index {text} out of range ({count} read so far)")
+    return r
+
+
+def load_obj(path: str | Path) -> Scene:
+    """Read an OBJ (+ its MTL files): v/vt/vn, faces with positive and negative (relative)
+    indices, polygons fanned into triangles from their first corner, `o`/`g` groups, `usemtl`,
+    `mtllib`, tabs, CRLF and `\\` line continuations. Each distinct (v, vt, vn) corner becomes one
+    vertex. Faces with bad references are skipped, counted and warned about (line number).
+
+    Materials come from the MTL (`newmtl`, one per `usemtl` name, in order of first use); an OBJ
+    without materials (no mtllib/usemtl, e.g. the Dabrovic Sponza) gets one material per `g`/`o`
+    group instead, named after the group, so a material config can select parts of it."""
+    path = Path(path)
+    text = path.read_bytes().decode("utf-8", errors="replace")
+    text = re.sub(r"\\[ \t]*\r?\n", " ", text)
+    pos, tex, nrm = [], [], []
+    corner_ids: dict[tuple, int] = {}
+    faces, face_state = [], []
+    states: dict[tuple, int] = {}  # (usemtl, group) -> id, in order of first use by a face
+    mtllibs, usemtl, group, has_materials = [], None, None, False
+    bad_tris, first_bad = 0, None
+    readers = {"v": (pos, 3), "vn": (nrm, 3), "vt": (tex, 2)}
+    by_token: dict[str, int] = {}  # corner text -> id, for positive (absolute) references only
+    for ln, raw in enumerate(text.splitlines(), 1):
+        tok = (raw.split("#", 1)[0] if "#" in raw else raw).split()
+        if not tok:
+            continue
+        kind = tok[0]
+        if kind == "f":
+            try:
+                if len(tok) < 4:
+                    raise ValueError(f"a face needs 3 corners, got {len(tok) - 1}")
+                ids = []
+                for c in tok[1:]:
+                    cid = by_token.get(c)
+                    if cid is None:
+                        parts = c.split("/")
+                        key = (_obj_index(parts[0], len(pos)),
+                               _obj_index(parts[1], len(tex)) if len(parts) > 1 and parts[1] else -1,
+                               _obj_index(parts[2], len(nrm)) if len(parts) > 2 and parts[2] else -1)
+                        cid = corner_ids.setdefault(key, len(corner_ids))
+                        if "-" not in c:  # an absolute reference that resolved once always will
+                            by_token[c] = cid
+                    ids.append(cid)
+            except ValueError as exc:
+                bad_tris += max(len(tok) - 3, 1)
+                first_bad = first_bad or f"line {ln}: {raw.strip()[:60]!r}: {exc}"
+                continue
+            state = states.setdefault((usemtl, group), len(states))
+            for k in range(1, len(ids) - 1):
+                faces.append((ids[0], ids[k], ids[k + 1]))
+                face_state.append(state)
+        elif kind in readers:
+            out, n = readers[kind]
+            vals = tok[1:n + 1]
+            if kind == "vt" and len(vals) == 1:
+                vals.append("0")
+            try:
+                if len(vals) < n:
+                    raise ValueError
+                out.append(list(map(float, vals)))
+            except ValueError:
+                raise SceneError(f"{path}: line {ln}: cannot read {kind!r} line {raw.strip()[:60]!r}") from None
+        elif kind in ("g", "o"):
+            group = " ".join(tok[1:]) or None
+        elif kind == "usemtl":
+            usemtl, has_materials = " ".join(tok[1:]) or None, True
+        elif kind == "mtllib":
+            mtllibs.append(raw.split("#", 1)[0].strip()[len("mtllib"):].strip())
+            has_materials = True
+    if not faces:
+        if bad_tris:
+            raise SceneError(f"{path}: none of its faces could be read (first: {first_bad})")
+        raise SceneError(f"{path}: " + ("the file is empty" if not text.strip() else
+                                        f"no faces ('f' lines) among {len(pos)} vertices: not an OBJ mesh"))
+    if bad_tris:
+        log.warning("%s: skipped %d unreadable triangles (first: %s)", path, bad_tris, first_bad)
+
+    corners = np.array(list(corner_ids), dtype=np.int64)
+    vertices = np.asarray(pos, dtype=np.float64)[corners[:, 0]]
+    uvs = np.zeros((len(corners), 2))
+    normals = np.full((len(corners), 3), np.nan)
+    has_t, has_n = corners[:, 1] >= 0, corners[:, 2] >= 0
+    if has_t.any():
+        uvs[has_t] = np.asarray(tex)[corners[has_t, 1]]
+    if has_n.any():
+        normals[has_n] = np.asarray(nrm)[corners[has_n, 2]]
+
+    defs: dict[str, dict] = {}
+    for ref in mtllibs:
+        defs.update(_read_mtllib(path, ref))
+    materials, by_key, state_material = [], {}, []
+    for mtl, grp in states:  # in order of first use
+        key = (mtl if has_materials else grp) or "default"
+        if key not in by_key:
+            by_key[key] = len(materials)
+            if not has_materials:
+                materials.append(Material(key))
+            elif key in defs:
+                materials.append(_material_from_mtl(key, defs[key], where=path))
+            else:
+                log.warning("%s: material %r is used but no mtllib (%s) defines it: default grey, no emission",
+                            path, key, ", ".join(mtllibs) or "none given")
+                materials.append(Material(key))
+        state_material.append(by_key[key])
+    _dedupe_material_names(materials)
+    return from_arrays(vertices, np.asarray(faces, dtype=np.int64),
+                       triangle_material=np.asarray(state_material, dtype=np.int64)[face_state],
+                       materials=materials, normals=normals, uvs=uvs, name=path.stem, path=path,
+                       unreadable=bad_tris)
+
+
+def _read_mtllib(obj_path: Path, ref: str) -> dict[str, dict]:
+    """{material name: {lower-case key: value tokens, "_dir": folder}} from an `mtllib` line's
+    file(s) (several names on one line, or one name with spaces); a missing file warns."""
+    folder = obj_path.parent
+    refs = [ref] if (folder / ref.replace("\\", "/")).is_file() else ref.split()
+    defs: dict[str, dict] = {}
+    for name in refs:
+        p = folder / name.replace("\\", "/")
+        try:
+            text = p.read_text(encoding="utf-8", errors="replace")
+        except OSError as exc:
+            log.warning("%s: mtllib %s: cannot read %s (%s); its materials get default parameters",
+                        obj_path, ref, p, exc.strerror or exc)
+            continue
+        current = None
+        for raw in text.splitlines():
+            tok = raw.split()
+            if not tok or tok[0].startswith("#"):
+                continue
+            key = tok[0].lower()
+            if key == "newmtl":
+                current = defs[" ".join(tok[1:])] = {"_dir": p.parent}
+            elif current is not None and key.startswith("map_"):
+                current[key] = raw.strip()[len(key):].strip()  # a file name, maybe with options
+            elif current is not None:
+                current[key] = raw.split("#", 1)[0].split()[1:]
+    return defs
 
 
 def _file_normals(geom):
@@ -375,12 +532,22 @@ def _srgb_to_linear(c):
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
-def _texture_array(image) -> np.ndarray | None:
+def _texture_array(image, what: str = "texture") -> np.ndarray | None:
+    """HxWx4 uint8 from a PIL image or an image file; None (and a warning naming `what` and the
+    file) when it cannot be decoded."""
     if image is None:
         return None
     try:
+        if isinstance(image, (str, Path)):
+            from PIL import Image
+
+            with Image.open(image) as im:
+                return np.asarray(im.convert("RGBA"), dtype=np.uint8)
         return np.asarray(image.convert("RGBA"), dtype=np.uint8)
-    except Exception:
+    except Exception as exc:
+        src = image if isinstance(image, (str, Path)) else getattr(image, "info", {}).get("file_path", "its image")
+        log.warning("%s: texture %s is not an image rayvr can read (%s); rendered untextured",
+                    what, src, " ".join(str(exc).split())[:200] or type(exc).__name__)
         return None
 
 
@@ -393,8 +560,7 @@ def _texture_mean(image, linear: bool, default) -> np.ndarray:
 
 
 def _material_from_trimesh(tmat, fallback_name: str, index: int) -> Material:
-    """glTF PBR or OBJ/MTL material -> Material. MTL's Ke/illum/Ns/Ks are read from what
-    trimesh keeps in `kwargs` (it drops them from its own fields)."""
+    """glTF PBR material (or trimesh's OBJ-style SimpleMaterial, read like MTL) -> Material."""
     if tmat is None:
         return Material(fallback_name or f"material_{index}")
     name = getattr(tmat, "name", None) or fallback_name or f"material_{index}"
@@ -418,8 +584,19 @@ def _material_from_trimesh(tmat, fallback_name: str, index: int) -> Material:
             emission=tuple(float(x) for x in emissive),
             texture=_texture_array(getattr(tmat, "baseColorTexture", None)),
         )
-    # OBJ/MTL (SimpleMaterial): Kd is already linear reflectance in practice.
-    kw = getattr(tmat, "kwargs", {}) or {}
+    # trimesh's SimpleMaterial keeps the MTL keys it has no field for in `kwargs`.
+    kw = dict(getattr(tmat, "kwargs", {}) or {})
+    kw.setdefault("kd", list(np.asarray(getattr(tmat, "diffuse", [102, 102, 102, 255])[:3], dtype=np.float64) / 255.0))
+    kw.setdefault("ns", [float(getattr(tmat, "glossiness", 1.0) or 1.0)])
+    m = _material_from_mtl(name, kw)
+    m.texture = _texture_array(getattr(tmat, "image", None), f"material {name!r}")
+    return m
+
+
+def _material_from_mtl(name: str, kw: dict, where=None) -> Material:
+    """An MTL material ({lower-case key: value tokens}) -> Material: Kd (already linear
+    reflectance in practice), Ks/illum (metal), Ns (roughness), Ke (emission), d, map_Kd (the
+    base colour texture, loaded relative to the MTL file; a missing or unreadable one warns)."""
 
     def vec(key, default):
         val = kw.get(key)
@@ -429,23 +606,38 @@ def _material_from_trimesh(tmat, fallback_name: str, index: int) -> Material:
             arr = np.asarray([float(x) for x in np.atleast_1d(val)], dtype=np.float64)
         except (TypeError, ValueError):
             return np.asarray(default, dtype=np.float64)
-        return np.resize(arr, 3)
+        return np.resize(arr, 3) if arr.size else np.asarray(default, dtype=np.float64)
 
-    kd = vec("kd", np.asarray(getattr(tmat, "diffuse", [204, 204, 204, 255])[:3], dtype=np.float64) / 255.0)
+    kd = vec("kd", [0.4, 0.4, 0.4])  # trimesh's default when an MTL material has no Kd
     ks = vec("ks", [0.0, 0.0, 0.0])
     ke = vec("ke", [0.0, 0.0, 0.0])
-    ns = float(vec("ns", [float(getattr(tmat, "glossiness", 10.0) or 10.0)])[0])
-    illum = int(float(np.atleast_1d(kw.get("illum", [2]))[0]))
+    ns = float(vec("ns", [1.0])[0])
+    illum = int(vec("illum", [2])[0])
     # Blinn-Phong exponent -> GGX roughness (alpha = sqrt(2 / (Ns + 2)), roughness = sqrt(alpha)).
-    roughness = float(np.clip((2.0 / (ns + 2.0)) ** 0.25, 0.02, 1.0))
+    roughness = float(np.clip((2.0 / (max(ns, 0.0) + 2.0)) ** 0.25, 0.02, 1.0))
     metallic = 0.0
     base = kd
     # illum 3/5 (reflection on) with a strong specular colour: a metal whose colour is Ks.
     if illum in (3, 5, 6, 7) and ks.max() > max(kd.max(), 0.2):
         metallic, base = 1.0, ks
     d = float(vec("d", [1.0])[0])
+    folders = [kw.get("_dir") or Path(".")] + ([Path(where).parent] if where else [])
+    texture = _mtl_texture(name, kw["map_kd"], folders, where) if kw.get("map_kd") else None
     return Material(name=name, base_color=(*map(float, base), d), metallic=metallic, roughness=roughness,
-                    emission=tuple(map(float, ke)), texture=_texture_array(getattr(tmat, "image", None)))
+                    emission=tuple(map(float, ke)), texture=texture)
+
+
+def _mtl_texture(material: str, ref: str, folders: list, where) -> np.ndarray | None:
+    """Load a map_Kd image (the whole value as a file name, else its last word: options such as
+    `-bm 1 file.png` come first; looked up next to the MTL, then the OBJ), or warn naming the
+    material and the file and return None."""
+    names = [ref] + ([ref.split()[-1]] if len(ref.split()) > 1 else [])
+    found = next((p for n in names for d in folders if (p := Path(d) / n.replace("\\", "/")).is_file()), None)
+    if found is None:
+        log.warning("%s: material %r: texture %s: no such file (looked in %s); rendered untextured",
+                    where, material, ref, ", ".join(dict.fromkeys(str(d) for d in folders)))
+        return None
+    return _texture_array(found, f"{where}: material {material!r}")
 
 
 def _gltf_extras(path: Path, materials: list[Material]):

@@ -29,10 +29,10 @@ def test_bad_meshes_rejected_with_name(verts, faces, words):
 
 
 def test_degenerate_triangles_dropped_and_counted():
-    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [3, 0, 0]], float)
-    f = np.array([[0, 1, 2], [0, 0, 1], [0, 1, 3], [1, 3, 4], [2, 1, 0]])
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [3, 0, 0], [0, 0, 1]], float)
+    f = np.array([[0, 1, 2], [0, 0, 1], [0, 1, 3], [1, 3, 4], [2, 1, 0], [0, 1, 5], [1, 2, 5]])
     s = from_arrays(v, f)
-    assert s.triangle_count == 2 and s.dropped_degenerate == 3
+    assert s.triangle_count == 4 and s.dropped_degenerate == 3
     assert "3 degenerate triangles dropped" in s.summary()
 
 
@@ -181,3 +181,128 @@ def test_square_and_rotated_rect_lights_are_recognised(angle):
     assert np.allclose(light.position, c)
     assert 4 * np.linalg.norm(np.cross(light.u, light.v)) == pytest.approx(1.6 * 1.6)  # the square's area
     assert np.cross(light.u, light.v)[1] > 0  # emits to the side faces 0 2 1 / 0 3 2 wind to (+Y)
+
+
+# --------------------------------------------------------------------------- OBJ reading
+
+
+def _tri_set(s):
+    """Each triangle as a tuple of its 9 world coordinates (rounded), winding kept."""
+    w = np.round(s.world_vertices()[s.indices], 5)
+    return sorted(map(tuple, w.reshape(-1, 9).tolist()))
+
+
+def test_obj_relative_indices_tabs_crlf_and_polygons(tmp_path):
+    """Negative indices count back from the vertices read *so far* (two quads written the
+    McGuire way, `f -4 -3 -2 -1` after each one's vertices), `v<TAB>` lines, CRLF, a pentagon
+    fanned into 3 triangles, `o`/`g` lines and trailing comments."""
+    (tmp_path / "m.mtl").write_text("newmtl floor\nKd 0.5 0.5 0.5\n\nnewmtl lamp\nKd 1 1 1\nKe 4 4 4 # warm\n")
+    lines = ["mtllib m.mtl", "o floor",
+             "v\t-1 0 -1", "v\t 1 0 -1", "v\t 1 0  1", "v\t-1 0 1 # corner",
+             "g floor", "usemtl floor", "f -1 -2 -3 -4",
+             "v -0.25\t1.5 -0.25", "v 0.25 1.5 -0.25", "v 0.25 1.5 0.25", "v -0.25 1.5 0.25",
+             "g lamp", "usemtl lamp", "f\t-4 -3 -2 -1",
+             "v 0 0.5 0", "v 1 0.5 0", "v 1.5 0.5 0.5", "v 1 0.5 1", "v 0 0.5 1",
+             "usemtl floor", "f 9 10 11 12 13"]
+    (tmp_path / "s.obj").write_bytes("\r\n".join(lines).encode() + b"\r\n")
+    s = load(tmp_path / "s.obj")
+    assert s.triangle_count == 2 + 2 + 3 and s.dropped_degenerate == 0
+    assert s.material_names() == ["floor", "lamp"]          # file order
+    w = s.world_vertices()
+    for name, y in (("floor", 0.0), ("lamp", 1.5)):
+        tris = s.indices[s.triangle_material == s.material_names().index(name)][:2]
+        assert np.allclose(w[tris][..., 1], y), name        # each quad on its own vertices
+    pent = w[s.indices[4:]]
+    assert np.allclose(pent[..., 1], 0.5) and np.allclose(pent[:, 0], [0, 0.5, 0])  # fanned from its first vertex
+    (light,) = s.lights
+    assert light.kind == "rect" and light.intensity == 4 and np.allclose(light.position, [0, 1.5, 0])
+    assert 4 * np.linalg.norm(np.cross(light.u, light.v)) == pytest.approx(0.25)
+
+
+def test_obj_texcoords_normals_and_undefined_material(tmp_path, caplog):
+    (tmp_path / "m.mtl").write_text("newmtl known\nKd 0.2 0.4 0.6\n")
+    (tmp_path / "s.obj").write_text(
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.25 0.75\nvt 1 0\nvt 0 1\nvn 0 0 2\n"
+        "usemtl known\nf 1/1/1 2/2/1 3/3/1\nusemtl ghost\nf 1//-1 3//-1 2//-1\n")
+    with caplog.at_level("WARNING"):
+        s = load(tmp_path / "s.obj")
+    assert s.material_names() == ["known", "ghost"]
+    assert s.materials[0].base_color[:3] == pytest.approx((0.2, 0.4, 0.6))
+    assert "ghost" in caplog.text and "m.mtl" in caplog.text       # used but never defined: said
+    first = s.indices[0]
+    assert np.allclose(s.uvs[first], [[0.25, 0.75], [1, 0], [0, 1]])
+    assert np.allclose(s.normals[first], [0, 0, 1])                 # the file's normal, unit length
+    assert s.triangle_count == 2 and len(s.world_vertices()) == 6   # corners differ by uv: not shared
+
+
+def test_obj_unreadable_faces_are_counted_and_most_refused(tmp_path, caplog):
+    quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+    (tmp_path / "some.obj").write_text(quad + "f 1 2 3\nf 1 3 4\nf 1 3 4\nf 1 2 9\n")
+    with caplog.at_level("WARNING"):
+        s = load(tmp_path / "some.obj")
+    assert s.triangle_count == 3 and s.dropped_unreadable == 1
+    assert "some.obj" in caplog.text and "line 8" in caplog.text
+    (tmp_path / "most.obj").write_text(quad + "f 1 2 3\nf 1 2 9\nf 1 0 3\nf 5 6 7 8\n")
+    with pytest.raises(SceneError) as e:
+        load(tmp_path / "most.obj")
+    assert "most.obj" in str(e.value) and "4 of 5 triangles" in str(e.value)
+
+
+def test_most_triangles_degenerate_refused():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]], float)
+    f = np.array([[0, 1, 2], [0, 0, 1], [0, 1, 3], [1, 1, 1]])
+    with pytest.raises(SceneError) as e:
+        from_arrays(v, f, name="flat.obj")
+    assert "flat.obj" in str(e.value) and "3 of 4 triangles" in str(e.value) and "degenerate" in str(e.value)
+
+
+def _independent_obj_count(path):
+    """Triangles an OBJ really has: every `f` line with n corners fans into n - 2."""
+    tris, mats = 0, set()
+    for line in path.read_bytes().decode("utf-8", "replace").splitlines():
+        t = line.split()
+        if t and t[0] == "f":
+            tris += len(t) - 3
+        elif t and t[0] == "usemtl":
+            mats.add(" ".join(t[1:]))
+    return tris, mats
+
+
+@pytest.mark.parametrize("rel, light", [
+    ("cornell_box/CornellBox-Original.obj", True), ("cornell_box/CornellBox-Original.trimesh.obj", True),
+    ("cornell_box/CornellBox-Mirror.obj", True), ("cornell_box/CornellBox-Mirror.trimesh.obj", True),
+    ("cornell_box/CornellBox-Sphere.obj", True),
+    ("cornell_box/CornellBox-Glossy.obj", False),   # its MTL defines no `light` material (no Ke)
+    ("sponza_dabrovic/sponza.obj", False),
+])
+def test_shared_objs_load_whole(shared_scene, rel, light):
+    p = shared_scene(rel)
+    tris, mats = _independent_obj_count(p)
+    s = load(p)
+    assert s.triangle_count + s.dropped_degenerate == tris and s.dropped_unreadable == 0
+    assert s.dropped_degenerate <= 1                  # Sponza has one zero-area triangle
+    if mats:
+        assert set(s.material_names()) == mats
+    kinds = [l.kind for l in s.lights]
+    if light:
+        assert kinds == ["rect"] and s.lights[0].source == "emissive material light"
+        assert s.lights[0].position[1] > 1.5          # under the ceiling
+    else:
+        assert "rect" not in kinds
+    if "cornell" in rel:
+        assert np.allclose(s.bounds[0], [-1.02, 0, -1.04], atol=2e-4)
+        assert s.bounds[1] == pytest.approx([1.0, 1.99 if ("Original" in rel or "Mirror" in rel) else 1.59, 0.99])
+        w = s.world_vertices()
+        part = {m.name: w[np.unique(s.indices[s.triangle_material == i])] for i, m in enumerate(s.materials)}
+        assert part["floor"][:, 1].max() < 0.01 and part["ceiling"][:, 1].min() > 1.55
+        assert part["leftWall"][:, 0].max() < -0.98 and part["rightWall"][:, 0].min() > 0.98
+        assert part["backWall"][:, 2].max() < -1.0
+
+
+@pytest.mark.parametrize("box", ["Original", "Mirror"])
+def test_relative_index_boxes_equal_their_absolute_copies(shared_scene, box):
+    """The *.trimesh.obj copies were converted (whitespace, absolute indices) by someone else:
+    reading both must give the same triangles, winding included."""
+    a = load(shared_scene(f"cornell_box/CornellBox-{box}.obj"))
+    b = load(shared_scene(f"cornell_box/CornellBox-{box}.trimesh.obj"))
+    assert _tri_set(a) == _tri_set(b) and len(_tri_set(a)) == 36
