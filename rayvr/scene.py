@@ -28,6 +28,10 @@ log = logging.getLogger(__name__)
 ASSETS_DIR = Path(__file__).resolve().parent / "assets"
 DEFAULT_SCENE = ASSETS_DIR / "default_room.glb"
 SUPPORTED_SUFFIXES = (".glb", ".gltf", ".obj", ".ply")
+# Largest scene-local coordinate (distance from the centre of the bounds along an axis): edges up
+# to 2*sqrt(3)*1e8 keep their fourth powers (what the GPU computes) near 1.4e34, well inside
+# float32 (3.4e38), with room for the camera's distance. Measured: 5e8 renders lit, 5e9 does not.
+MAX_LOCAL_COORDINATE = 1e8
 
 
 class SceneError(ValueError):
@@ -126,7 +130,7 @@ def from_arrays(vertices, indices, *, triangle_material=None, materials=None, no
 
     `unreadable`: triangles the loader had to skip; with the degenerate ones they must stay a
     minority, or the load is refused (a half-read mesh is not rendered silently)."""
-    where = str(path or name)
+    where = str(path) if path else f"<{name}>"
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(indices)
     if v.ndim != 2 or v.shape[1] != 3:
@@ -153,41 +157,64 @@ def from_arrays(vertices, indices, *, triangle_material=None, materials=None, no
     if len(tm) and (tm.min() < 0 or tm.max() >= len(materials)):
         raise SceneError(f"{where}: material index out of range (have {len(materials)} materials)")
 
+    # Positions are stored in float32 relative to the centre of the bounds (halves: no overflow
+    # even at +-1.7e308). The GPU multiplies up to four of them (the G-buffer resolve's
+    # barycentrics divide by |cross(e1, e2)|^2), so scene-local coordinates must stay far below
+    # float32's max ** (1/4) ~ 1.4e9: beyond, surfaces render unlit with NaN normals.
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    origin = lo / 2.0 + hi / 2.0
+    half = hi / 2.0 - lo / 2.0
+    if half.max() > MAX_LOCAL_COORDINATE:
+        k = int(np.argmax(half))
+        median = np.partition(v[:, k], len(v) // 2)[len(v) // 2]
+        i = int(np.argmax(np.abs(v[:, k] - median)))  # the outlier
+        raise SceneError(f"{where}: vertex {i} = {v[i].tolist()} lies {abs(v[i, k] - origin[k]):.3g} from the "
+                         f"centre of the scene's bounds along {'xyz'[k]}; coordinates beyond {MAX_LOCAL_COORDINATE:.0e} "
+                         f"from it overflow the renderer's float32 arithmetic (scale the scene or drop far geometry)")
+    local = v - origin
+    local32 = local.astype(np.float32)
+
     # Degenerate (zero-area, repeated-index, collinear) triangles rasterize to nothing and
-    # break ray tests: drop them and count.
-    tri = v[f]
-    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    scale = max(float(np.abs(tri).max()), 1e-30)
-    keep = area2 > (scale * 1e-12) ** 2
-    dropped = int((~keep).sum())
+    # break ray tests: drop them and count. Judged on the float32 positions the GPU gets, so a
+    # triangle too small for float32 at its distance from the centre counts too (and is said).
+    def zero_area(p):
+        tri = p[f]
+        area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        return area2 <= (max(float(np.abs(tri).max()), 1e-30) * 1e-12) ** 2
+
+    degenerate = zero_area(local32.astype(np.float64))
+    lost = int((degenerate & ~zero_area(local)).sum())
+    dropped = int(degenerate.sum())
+    why = (f" ({lost} of them only in float32: too small for their distance from the scene's centre, "
+           f"extent {2 * half.max():.3g})") if lost else ""
+    if len(f) == dropped:
+        raise SceneError(f"{where}: every triangle is degenerate (zero area){why}")
+    total = len(f) + unreadable
+    if 2 * (dropped + unreadable) > total:
+        raise SceneError(f"{where}: {dropped + unreadable} of {total} triangles would be dropped ({dropped} degenerate"
+                         f"{why}, {unreadable} unreadable); refusing a load that loses most of the mesh")
+    if lost:
+        log.warning("%s: dropped %d triangles that collapse in float32 scene-local coordinates (too small for "
+                    "their distance from the scene's centre, extent %.3g)", where, lost, 2 * half.max())
     if dropped:
         log.info("%s: dropped %d degenerate triangles", where, dropped)
-        f, tm = f[keep], tm[keep]
-    if len(f) == 0:
-        raise SceneError(f"{where}: every triangle is degenerate (zero area)")
-    total = len(keep) + unreadable
-    if 2 * (dropped + unreadable) > total:
-        raise SceneError(f"{where}: {dropped + unreadable} of {total} triangles would be dropped ({dropped} degenerate, "
-                         f"{unreadable} unreadable); refusing a load that loses most of the mesh")
+        f, tm = f[~degenerate], tm[~degenerate]
 
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    origin = (lo + hi) / 2.0
-    local = (v - origin).astype(np.float32)
     # The file's normals, made unit; rows that are missing (NaN), zero or not finite are computed.
     n = None if normals is None else np.asarray(normals, dtype=np.float64)
     if n is None or n.shape != v.shape:
-        n = vertex_normals(v, f)
+        n = vertex_normals(local, f)
     else:
         with np.errstate(invalid="ignore", over="ignore"):
             length = np.linalg.norm(n, axis=1, keepdims=True)
         ok = np.isfinite(length) & (length > 1e-12)
-        n = np.where(ok, n / np.where(ok, length, 1.0), vertex_normals(v, f) if not ok.all() else 0.0)
+        n = np.where(ok, n / np.where(ok, length, 1.0), vertex_normals(local, f) if not ok.all() else 0.0)
     uv = np.zeros((len(v), 2), np.float32) if uvs is None else np.asarray(uvs, dtype=np.float32)
     if uv.shape != (len(v), 2) or not np.isfinite(uv).all():
         uv = np.zeros((len(v), 2), np.float32)
     scene = Scene(
         name=name, path=Path(path) if path else None, origin=origin,
-        vertices=np.ascontiguousarray(local), normals=np.ascontiguousarray(n, dtype=np.float32),
+        vertices=np.ascontiguousarray(local32), normals=np.ascontiguousarray(n, dtype=np.float32),
         uvs=np.ascontiguousarray(uv), indices=np.ascontiguousarray(f, dtype=np.uint32),
         triangle_material=np.ascontiguousarray(tm, dtype=np.uint32), materials=materials,
         lights=list(lights or []), dropped_degenerate=dropped, dropped_unreadable=int(unreadable),
@@ -216,7 +243,8 @@ def default_lights(scene: Scene) -> list[Light]:
     c, size = scene.center, max(scene.extent, 1e-6)
     top = np.array([c[0], b[1][1] + 0.25 * size, c[2] + 0.25 * size])
     return [
-        Light("directional", (1.0, 0.97, 0.92), 2.0, direction=tuple(_unit([-0.4, -1.0, -0.3])), source="default"),
+        Light("directional", (1.0, 0.97, 0.92), 2.0, position=tuple(c),  # unused; kept near the scene
+              direction=tuple(_unit([-0.4, -1.0, -0.3])), source="default"),
         Light("point", (1.0, 1.0, 1.0), 0.5 * size * size, position=tuple(top), source="default"),
     ]
 

@@ -1,5 +1,6 @@
 import json
 import struct
+import warnings
 
 import numpy as np
 import pytest
@@ -50,6 +51,11 @@ def test_positions_are_relative_to_origin_far_from_zero():
     assert np.allclose(s.origin, off + [5e-4, 5e-4, 0])
     # float32 local coordinates keep sub-micrometre detail that float32 world ones would lose.
     assert np.abs(s.world_vertices() - (TRI * 1e-3 + off)).max() < 1e-9
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")              # centring keeps even 1e300 out of float32's way
+        s = from_arrays(TRI[:, [2, 0, 1]] + [1e300, 0, 0], np.array([[0, 1, 2]]))
+    assert np.allclose(s.vertices, TRI[:, [2, 0, 1]] - [0, 0.5, 0.5]) and s.triangle_count == 1
+    assert all(abs(l.position[0] - 1e300) < 1e290 for l in s.lights)   # light positions near the scene too
 
 
 def test_obj_mtl_emission_illum_and_area_light(tmp_path):
@@ -306,3 +312,44 @@ def test_relative_index_boxes_equal_their_absolute_copies(shared_scene, box):
     a = load(shared_scene(f"cornell_box/CornellBox-{box}.obj"))
     b = load(shared_scene(f"cornell_box/CornellBox-{box}.trimesh.obj"))
     assert _tri_set(a) == _tri_set(b) and len(_tri_set(a)) == 36
+
+
+# --------------------------------------------------------------------------- float32 range
+
+
+@pytest.mark.parametrize("verts, value", [
+    (TRI * 1e30, "1e+30"),                                           # the triangle from the issue
+    (np.vstack([TRI, [[-1.7e308, 0, 0]]]), "-1.7e+308"),             # unused, but it moves the centre
+    (TRI + [[0, 0, 0], [0, 0, 0], [3e9, 0, 0]], "3000000000.0"),     # float32 holds it; its 4th power not
+])
+def test_coordinates_beyond_float32_arithmetic_refused_without_numpy_warnings(verts, value):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")              # a RuntimeWarning from numpy fails the test
+        with pytest.raises(SceneError) as e:
+            from_arrays(verts, [[0, 1, 2]])
+    msg = str(e.value)
+    assert msg.startswith("<arrays>: vertex ") and value in msg and "float32" in msg and "\n" not in msg
+
+
+def test_coordinates_far_out_in_a_file_are_refused_naming_it(tmp_path):
+    (tmp_path / "far.obj").write_text("v 0 0 0\nv 1e30 0 0\nv 0 1e30 0\nf 1 2 3\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(SceneError) as e:
+            load(tmp_path / "far.obj")
+    assert str(e.value).startswith(str(tmp_path / "far.obj")) and "[1e+30, 0.0, 0.0]" in str(e.value)
+
+
+def test_triangles_float32_cannot_resolve_are_dropped_said_and_most_refused(caplog):
+    """A big triangle 1e7 away makes float32 scene-local coordinates 0.5 apart near the origin:
+    triangles 1e-3 across collapse there. Counted as degenerate and warned about; refused when
+    they are most of the mesh."""
+    far = TRI * 10 + [1e7, 0, 0]
+    tiny = [TRI * 1e-3 + [0, k, 0] for k in range(3)]
+    v = np.vstack([far] + tiny)
+    with caplog.at_level("WARNING"), warnings.catch_warnings():
+        warnings.simplefilter("error")
+        s = from_arrays(np.vstack([v, far + [0, 5, 0]]), np.arange(15).reshape(5, 3)[[0, 1, 4]], name="mix")
+    assert s.triangle_count == 2 and s.dropped_degenerate == 1 and "float32" in caplog.text
+    with pytest.raises(SceneError, match=r"<mix>: 3 of 4 triangles .*float32"):
+        from_arrays(v, np.arange(12).reshape(4, 3), name="mix")
