@@ -610,7 +610,7 @@ def _material_from_trimesh(tmat, fallback_name: str, index: int) -> Material:
             metallic=metallic * float(mr[2]),
             roughness=roughness * float(mr[1]),
             emission=tuple(float(x) for x in emissive),
-            texture=_texture_array(getattr(tmat, "baseColorTexture", None)),
+            texture=_texture_array(getattr(tmat, "baseColorTexture", None), f"material {name!r}"),
         )
     # trimesh's SimpleMaterial keeps the MTL keys it has no field for in `kwargs`.
     kw = dict(getattr(tmat, "kwargs", {}) or {})
@@ -677,11 +677,12 @@ def _gltf_extras(path: Path, materials: list[Material]):
         log.warning("%s: could not read glTF JSON: %s", path, exc)
         return [], None
     by_name = {m.name: m for m in materials}
-    for gm in doc.get("materials", []):
+    for gi, gm in enumerate(doc.get("materials", [])):
         strength = gm.get("extensions", {}).get("KHR_materials_emissive_strength", {}).get("emissiveStrength")
         m = by_name.get(gm.get("name"))
         if m is not None and strength:
             m.emission = tuple(float(e) * float(strength) for e in m.emission)
+        _warn_gltf_textures(path, doc, gm, gm.get("name") or f"#{gi}", m)
     nodes = doc.get("nodes", [])
     parent = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
 
@@ -720,6 +721,46 @@ def _gltf_extras(path: Path, materials: list[Material]):
         elif kind in ("point", "spot"):  # spot cones are not modelled yet: lit as a point light
             lights.append(Light("point", color, intensity, position=tuple(m[:3, 3]), source=f"{path.name} node {i}"))
     return lights, camera
+
+
+def _warn_gltf_textures(path: Path, doc: dict, gm: dict, label: str, m: Material | None) -> None:
+    """trimesh drops a glTF texture it cannot load without a word: say which material lost
+    which image and why (external files are checked here; embedded ones through the result)."""
+    from urllib.parse import unquote
+
+    pbr = gm.get("pbrMetallicRoughness", {})
+    slots = (("base colour", pbr.get("baseColorTexture")), ("metallic-roughness", pbr.get("metallicRoughnessTexture")),
+             ("emissive", gm.get("emissiveTexture")))
+    for slot, ref in slots:
+        if not isinstance(ref, dict):
+            continue
+        try:
+            image = doc["images"][doc["textures"][ref["index"]]["source"]]
+        except (KeyError, IndexError, TypeError):
+            log.warning("%s: material %r: %s texture %s refers to no image; ignored", path, label, slot, ref.get("index"))
+            continue
+        uri = image.get("uri", "")
+        if uri and not uri.startswith("data:"):
+            problem = _image_problem(path.parent / unquote(uri))
+        else:
+            problem = ("the embedded image could not be decoded"
+                       if slot == "base colour" and m is not None and m.texture is None else None)
+        if problem:
+            log.warning("%s: material %r: %s texture %s: %s; rendered without it",
+                        path, label, slot, uri or "(embedded)", problem)
+
+
+def _image_problem(p: Path) -> str | None:
+    """Why the image file `p` cannot be used, or None (only its header is read)."""
+    if not p.is_file():
+        return "no such file"
+    try:
+        from PIL import Image
+
+        with Image.open(p):
+            return None
+    except Exception as exc:
+        return f"not an image rayvr can read ({' '.join(str(exc).split())[:200] or type(exc).__name__})"
 
 
 def _gltf_json(path: Path) -> dict:

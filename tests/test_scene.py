@@ -353,3 +353,68 @@ def test_triangles_float32_cannot_resolve_are_dropped_said_and_most_refused(capl
     assert s.triangle_count == 2 and s.dropped_degenerate == 1 and "float32" in caplog.text
     with pytest.raises(SceneError, match=r"<mix>: 3 of 4 triangles .*float32"):
         from_arrays(v, np.arange(12).reshape(4, 3), name="mix")
+
+
+# --------------------------------------------------------------------------- textures
+
+
+def _textured_obj(tmp_path, map_kd):
+    from PIL import Image
+
+    Image.new("RGB", (4, 2), (255, 0, 0)).save(tmp_path / "red.png")
+    (tmp_path / "fake.png").write_text("this is not a PNG\n")
+    (tmp_path / "m.mtl").write_text(f"newmtl painted\nKd 1 1 1\nmap_Kd {map_kd}\n")
+    (tmp_path / "t.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                    "usemtl painted\nf 1/1 2/2 3/3\n")
+    return tmp_path / "t.obj"
+
+
+@pytest.mark.parametrize("map_kd", ["red.png", "-bm 0.5 red.png"])
+def test_obj_texture_loads(tmp_path, caplog, map_kd):
+    with caplog.at_level("WARNING"):
+        s = load(_textured_obj(tmp_path, map_kd))
+    assert s.materials[0].texture.shape == (2, 4, 4) and tuple(s.materials[0].texture[0, 0]) == (255, 0, 0, 255)
+    assert not caplog.records
+
+
+@pytest.mark.parametrize("map_kd, why", [("gone.png", "no such file"), ("fake.png", "not an image")])
+def test_obj_missing_or_broken_texture_warns_naming_material_and_file(tmp_path, caplog, map_kd, why):
+    with caplog.at_level("WARNING"):
+        s = load(_textured_obj(tmp_path, map_kd))
+    assert s.materials[0].texture is None
+    (rec,) = [r for r in caplog.records if r.levelname == "WARNING"]
+    assert rec.name == "rayvr.scene" and "'painted'" in rec.getMessage() and map_kd in rec.getMessage()
+    assert why in rec.getMessage()
+
+
+def _textured_glb(path, uri):
+    pos = TRI.astype(np.float32).tobytes()
+    uv = np.array([[0, 0], [1, 0], [0, 1]], np.float32).tobytes()
+    idx = np.array([0, 1, 2], np.uint32).tobytes()
+    doc = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
+        "materials": [{"name": "skin", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+        "textures": [{"source": 0}], "images": [{"uri": uri}],
+        "buffers": [{"byteLength": 72}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 24},
+                        {"buffer": 0, "byteOffset": 60, "byteLength": 12}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                      {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"},
+                      {"bufferView": 2, "componentType": 5125, "count": 3, "type": "SCALAR"}],
+    }
+    _write_gltf(path, doc, pos + uv + idx)
+    return path
+
+
+@pytest.mark.parametrize("uri, why", [("red.png", None), ("gone.png", "no such file"), ("fake.png", "not an image")])
+def test_gltf_missing_or_broken_texture_warns_naming_material_and_file(tmp_path, caplog, uri, why):
+    _textured_obj(tmp_path, "red.png")   # writes red.png and fake.png
+    with caplog.at_level("WARNING"):
+        s = load(_textured_glb(tmp_path / "t.glb", uri))
+    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING" and r.name == "rayvr.scene"]
+    if why is None:
+        assert s.materials[0].texture is not None and not warned
+    else:
+        assert s.materials[0].texture is None and len(warned) == 1
+        assert "'skin'" in warned[0] and uri in warned[0] and why in warned[0]
