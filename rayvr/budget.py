@@ -1,4 +1,4 @@
-"""Automatic per-material effects under a frame budget.
+"""Automatic per-material effects under a frame budget (`--budget-ms`, `rayvr bench budget`).
 
 Model
 -----
@@ -237,3 +237,144 @@ def _result(mats, choice, budget_ms, base_ms, costs, errs, feasible) -> BudgetRe
         assignment={m.name: m.options[i].effect for m, i in zip(mats, choice)},
         materials=mats,
     )
+
+
+# --------------------------------------------------------- measured options, then solved
+
+def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
+                         effects=None, repeat=10, min_coverage=1e-4, progress=True, pool=None):
+    """Per material and effect: extra GPU ms over all-`raster` and the error left on its pixels.
+
+    One render per effect (the whole scene on that rung) instead of one per material and
+    effect: a material's error is the mean FLIP over its own pixels in that render, and the
+    effect's extra cost is shared out over materials in proportion to their pixels (the traced
+    passes run over compacted pixel lists, so their cost follows pixel counts). Both are
+    approximations: reflections also show other materials, and dispatch overheads are shared;
+    the chosen assignment is therefore rendered and measured for real afterwards.
+    Materials covering < min_coverage of the image stay `raster`."""
+    from .bench import metrics
+    from .bench.tradeoff import Variant, config_for_assignment, measure
+    from .effects import implemented_effects
+
+    effects = list(effects or implemented_effects())
+    names = scene.material_names()
+    ids = reference_image.material
+    coverage = np.bincount(np.where(ids < len(names), ids, len(names)).ravel(),
+                           minlength=len(names) + 1)[:len(names)] / ids.size
+    importance = [a.importance for a in base.assign(names, warn=False)]
+    covered = [i for i in range(len(names)) if coverage[i] >= min_coverage]
+    flip_maps, extra_ms, raster_ms = {}, {}, None
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name}")
+    for e in effects:
+        cfg = config_for_assignment(base, scene, {n: e for n in names})
+        m = measure(gl, scene, rig, Variant("budget", e, cfg), repeat, pool=pool)
+        flip_maps[e] = metrics.flip_map(reference_image.image, m.image, ppd=ppd)
+        extra_ms[e] = m.gpu_ms
+        if e == "raster":
+            raster_ms = m.gpu_ms
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    if raster_ms is None:
+        raise ValueError("the budget model needs 'raster' among the effects (it is the cost baseline)")
+    share = coverage / max(coverage[covered].sum(), 1e-12)
+    options = []
+    for i in covered:
+        mask = ids == i
+        opts = [Option(e, max(extra_ms[e] - raster_ms, 0.0) * share[i], float(flip_maps[e][mask].mean()))
+                for e in effects]
+        options.append(MaterialOptions(names[i], opts, importance=importance[i], coverage=float(coverage[i])))
+    return raster_ms, options
+
+
+BUDGET_TOLERANCE = 1.02  # measured frames within 2 % of the budget count as within (timer noise)
+BUDGET_ROUNDS = 4
+
+
+def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
+                        ppd: float, repeat=10, progress=True, pool=None, options=None) -> dict:
+    """Pick effects per material for `budget_ms`, render the pick and measure it.
+
+    The per-material costs are estimates (a traced effect also has fixed costs, classify and
+    dispatch, that come with its first material); when the measured frame overshoots, the chosen
+    options' costs are scaled by measured/predicted and the choice is solved again, at most
+    BUDGET_ROUNDS times. If no round fits, the best measured pick that did fit is returned, else
+    the cheapest assignment. `options`: (base_ms, per-material options) measured already, to
+    solve several budgets from one measurement."""
+    from .bench import metrics
+    from .bench.tradeoff import Variant, config_for_assignment, measure
+
+    base_ms, options = options or per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
+                                                       progress=progress, pool=pool)
+
+    def attempt(opts, budget):
+        result = solve_budget(opts, budget, base_ms=base_ms)
+        cfg = config_for_assignment(base, scene, result.assignment)
+        chosen = measure(gl, scene, rig, Variant("budget", budget_ms, cfg), repeat, pool=pool)
+        return {"budget_ms": budget_ms, "predicted_ms": result.total_ms, "measured_ms": chosen.gpu_ms,
+                "within_budget": chosen.gpu_ms <= budget_ms * BUDGET_TOLERANCE, "feasible": result.feasible,
+                "predicted_error": result.error, "measured_flip": metrics.flip(reference_image.image, chosen.image, ppd=ppd),
+                "assignment": result.assignment, "config": cfg, "image": chosen.image}
+
+    scale: dict = {}
+    tried = []
+    for _ in range(BUDGET_ROUNDS):
+        adjusted = [MaterialOptions(
+            o.name, [Option(x.effect, x.cost_ms * scale.get((o.name, x.effect), 1.0), x.error)
+                     for x in o.options], importance=o.importance, coverage=o.coverage) for o in options]
+        pick = attempt(adjusted, budget_ms)
+        tried.append(pick)
+        predicted_extra, measured_extra = pick["predicted_ms"] - base_ms, pick["measured_ms"] - base_ms
+        if pick["within_budget"] or not pick["feasible"] or predicted_extra <= 0:
+            break
+        factor = measured_extra / predicted_extra
+        for name, effect in pick["assignment"].items():
+            if effect != "raster":
+                scale[(name, effect)] = scale.get((name, effect), 1.0) * max(factor, 1.0)
+    fitting = [p for p in tried if p["within_budget"]]
+    if fitting:
+        best = min(fitting, key=lambda p: p["measured_flip"])
+    elif tried[-1]["feasible"]:
+        best = attempt(options, 0.0)  # the cheapest assignment: nothing cheaper exists
+        tried.append(best)
+    else:
+        best = tried[-1]
+    return {**best, "rounds": len(tried)}
+
+
+def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repeat: int = 5,
+                progress: bool = True):
+    """`--budget-ms` for capture and preview: effects per material of `renderer.scene` that keep the
+    frame within `budget_ms` on this device with the least error, starting from the renderer's
+    current config. Returns the config and the summary (predicted and measured ms and FLIP)."""
+    from .bench import metrics
+    from .bench.reference import reference_config
+    from .bench.tradeoff import BENCH_QUALITY, RendererPool, Variant, measure
+
+    ppd = metrics.DEFAULT_PPD if ppd is None else ppd
+
+    gl, scene = renderer.gl, renderer.scene
+    reference = Variant("reference", "reference",
+                        reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
+    with RendererPool(gl) as pool:
+        ref = measure(gl, scene, rig, reference, repeat=1, warmup=1, pool=pool)
+        pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)
+    summary = {k: v for k, v in pick.items() if k not in ("config", "image")}
+    return pick["config"], summary
+
+
+def describe_pick(summary: dict) -> str:
+    """A few lines for the terminal or the HUD."""
+    state = ("within" if summary["within_budget"] else "OVER") + ("" if summary["feasible"] else " (cheapest assignment)")
+    lines = [f"budget {summary['budget_ms']:g} ms: {state}; predicted {summary['predicted_ms']:.2f} ms, "
+             f"measured {summary['measured_ms']:.2f} ms, mean FLIP {summary['measured_flip']:.4f}"]
+    by_effect: dict = {}
+    for name, effect in summary["assignment"].items():
+        by_effect.setdefault(effect, []).append(name)
+    lines += [f"  {e:12s} {', '.join(sorted(n))}" for e, n in sorted(by_effect.items())]
+    return "\n".join(lines)

@@ -71,7 +71,7 @@ def cmd_capture(args) -> int:
         rig = rig_from_args(args, r.scene)
         pick = None
         if args.budget_ms is not None:
-            from .bench.tradeoff import auto_config, describe_pick
+            from .budget import auto_config, describe_pick
 
             config, pick = auto_config(r, rig, args.budget_ms, progress=not args.quiet)
             r.set_materials(config)
@@ -98,9 +98,30 @@ def cmd_capture(args) -> int:
     return 0
 
 
+def print_graph(args) -> int:
+    """`rayvr info SCENE --materials FILE --graph [dot]`: the compiled frame graph."""
+    from .context import create_context
+    from .frame import compile_graph
+    from .renderer import Renderer, RenderSettings, candidate_passes
+
+    gl = create_context(args.backend)
+    try:
+        with Renderer(args.scene, args.materials, gl=gl, settings=RenderSettings(primary=args.primary)) as r:
+            plan = r.plan(layers=2, view=args.view)
+            graph = compile_graph(candidate_passes(plan), plan)  # passes are not built: nothing compiles
+            print(graph.dot() if args.graph == "dot" else graph.describe(r.sizing(args.size, plan.layers)), end="")
+    finally:
+        gl.release()
+    if args.graph != "dot":
+        print()
+    return 0
+
+
 def cmd_info(args) -> int:
     from .context import create_context
 
+    if args.graph:
+        return print_graph(args)
     gl = create_context(args.backend)
     try:
         info = gl.info()
@@ -214,7 +235,8 @@ def cmd_preview(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .renderer import AUX_CHANNELS, VIEWS
+    from .gpu_layout import TONEMAPPERS, VIEWS
+    from .readback import AUX_CHANNELS
 
     p = argparse.ArgumentParser(prog="rayvr", description="Hybrid raster + ray-traced stereo renderer for VR.")
     p.add_argument("-v", "--verbose", action="store_true", help="log what rayvr decides")
@@ -235,7 +257,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--budget-ms", type=float, help="pick effects per material to fit this GPU frame time "
                    "(measured on this device against a reference; overrides --materials' effects)")
     c.add_argument("--exposure", type=float, default=1.0)
-    c.add_argument("--tonemapper", choices=("aces", "reinhard", "clamp"), default="aces")
+    c.add_argument("--tonemapper", choices=TONEMAPPERS, default="aces")
     c.add_argument("--layer-mode", choices=("auto", "vertex", "geometry", "multiview", "passes"), default="auto",
                    help="how the stereo G-buffer reaches both layers")
     c.add_argument("--primary", choices=("raster", "rays"), default="raster",
@@ -251,6 +273,12 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--materials", help="material-ID config to apply to the scene")
     i.add_argument("--backend", choices=("egl", "osmesa"))
     i.add_argument("--json", action="store_true")
+    i.add_argument("--graph", nargs="?", const="text", choices=("text", "dot"),
+                   help="print the compiled frame graph (passes in order, why each runs, resources); "
+                        "'dot' for Graphviz")
+    i.add_argument("--size", type=_size, default="1440x1600", help="per-eye size the --graph resources are sized for")
+    i.add_argument("--view", choices=VIEWS, default="color", help="the view --graph is compiled for")
+    i.add_argument("--primary", choices=("raster", "rays"), default="raster", help="primary visibility for --graph")
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")

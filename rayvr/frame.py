@@ -1,55 +1,179 @@
-"""The frame graph: passes declare what they read and write and when they are needed; the graph
-keeps only the passes the requested output depends on, orders them by their data edges, and
-times each with a GL timer query.
+"""The frame graph: passes declare typed resources they read and write and why they are needed;
+the graph keeps the passes the frame's output depends on, orders them by their data edges,
+allocates their resources, and times each pass with a GL timer query.
 
-A pass (rayvr/passes/) subclasses `Pass`:
-    name     unique name, also the key of its GPU time in `Frame.timings`
-    reads    resource names it consumes
-    writes   resource names it produces
-    needed(plan)   False when this plan (effects in use, view, settings) has no use for it
-    setup(gl)      build programs once
-    execute(fc)    record the GL work for one frame
+A pass (rayvr/passes/, one per file) subclasses `Pass` (Falcor's reflect/execute, smaller):
+    name            unique; also the key of its GPU time in `Frame.timings`
+    why(plan)       None when this plan cannot use it, else the reason it may run ("primary
+                    visibility = raster"); the graph adds who reads what it writes
+    io(plan)        its accesses: read(name), write(name, type) or compose(name), where type is
+                    Texture(format, scale), Buffer(bytes rule), GBufferChannels(...) or External
+    setup(gl, plan) build programs once per compiled plan
+    execute(fc)     record the GL work for one frame (fc: FrameContext; fc.resource(name));
+                    a pass of several kernels runs each through fc.stage(kernel, fn), so that
+                    `profile=True` frames time each kernel (the benchmarks' per-kernel figures)
 
-Scenes whose materials are all `raster` get G-buffer -> shade -> resolve and nothing else: the
-pass that builds a BVH or traces rays simply declares `needed()` False for them.
-
-A pass may read and write the same resource (the ray-traced effects read "hdr" and overwrite
-their own pixels of it): each read is served by the latest needed writer registered *before* the
-reading pass, and the frame's output by the last writer of all, so such passes chain in
-registration order.
+Edges come from the data alone. A resource has one writer, which makes the whole of it, and any
+number of composers, which each overwrite their own part of it (the traced effects write their
+pixels of `hdr` over what `shade` wrote); a composer runs after the writer, a reader after the
+writer and every composer. Passes nothing depends on are dropped: a scene that is all `raster`
+builds no BVH and dispatches no ray because no pass that reads `bvh` is left.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import moderngl
+import numpy as np
+
+from .gpu_layout import CHANNELS
 
 
-@dataclass
+@dataclass(frozen=True)
 class FramePlan:
-    """What this frame must produce and from what: decides which passes run."""
+    """What this frame must produce and from what; frozen, so it keys the compiled graphs."""
 
     effects: frozenset  # effect names the scene's materials use
-    view: str = "color"  # "color" or a debug view name (rayvr/passes/debug_view.py)
+    view: str = "color"  # "color" or a debug view (gpu_layout.DEBUG_VIEWS)
     layers: int = 2
     layer_mode: str = "vertex"  # how the G-buffer reaches its layers: vertex | geometry | multiview | passes
-    output: str = "ldr"
     primary: str = "raster"  # primary visibility: "raster" (visibility pass) or "rays" (BVH)
+    camera: str = "pinhole"  # camera model (rayvr/cameras/)
+    stereo: str = "dual"  # how the second eye is made: "dual" renders both fully
+    output: str = "ldr"
+    users: tuple = ()  # (effect, (material names, ...)) pairs: the reasons shown by --graph
+
+    def materials_using(self, effect: str) -> tuple:
+        return next((names for e, names in self.users if e == effect), ())
 
 
+# ------------------------------------------------------------------------- resource types
+
+# GLSL image format -> (components, moderngl dtype, bytes per texel)
+TEXTURE_FORMATS = {"rgba8": (4, "f1", 4), "rgba16f": (4, "f2", 8), "rgba32f": (4, "f4", 16),
+                   "r32f": (1, "f4", 4), "r32ui": (1, "u4", 4), "rg32ui": (2, "u4", 8)}
+
+
+@dataclass(frozen=True)
+class Sizing:
+    """What resource sizes follow from: the eye image size, the layers, the scene and device."""
+
+    size: tuple
+    layers: int
+    scene: object = None
+    assignments: tuple = ()
+    max_ssbo_bytes: int = 0
+
+    @property
+    def pixels(self) -> int:
+        return self.size[0] * self.size[1] * self.layers
+
+
+@dataclass(frozen=True)
+class Texture:
+    """A layered 2D texture (one layer per eye) of `format`, eye pixels / 2**scale."""
+
+    format: str
+    scale: int = 0
+
+    def __post_init__(self):
+        if self.format not in TEXTURE_FORMATS:
+            raise ValueError(f"unknown texture format {self.format!r}; allowed: {', '.join(TEXTURE_FORMATS)}")
+
+    def extent(self, s: Sizing) -> tuple:
+        return max(1, s.size[0] >> self.scale), max(1, s.size[1] >> self.scale), s.layers
+
+    def nbytes(self, s: Sizing) -> int:
+        w, h, n = self.extent(s)
+        return w * h * n * TEXTURE_FORMATS[self.format][2]
+
+    def describe(self, s: Sizing) -> str:
+        w, h, n = self.extent(s)
+        scale = f" (eye pixels / {1 << self.scale})" if self.scale else ""
+        return f"texture {self.format} {w}x{h}x{n}{scale}"
+
+
+@dataclass(frozen=True)
+class Buffer:
+    """A storage buffer whose size follows from the frame by `bytes_for` (`rule` says how)."""
+
+    bytes_for: Callable = field(compare=False)
+    rule: str = ""
+    zeroed: bool = False  # allocated as zeros (the pass keeps it so between frames)
+
+    def nbytes(self, s: Sizing) -> int:
+        return max(int(self.bytes_for(s)), 4)
+
+    def describe(self, s: Sizing) -> str:
+        return f"buffer {self.rule}"
+
+
+@dataclass(frozen=True)
+class GBufferChannels:
+    """Channels of the layered G-buffer (rayvr/gbuffer.py); all live in one GBuffer per size."""
+
+    channels: tuple
+
+    def nbytes(self, s: Sizing) -> int:
+        per = {"depth": 4, **{k: v[2] for k, v in TEXTURE_FORMATS.items()}}
+        fmt = {c.name: (c.glsl_format or "depth") for c in CHANNELS}
+        return sum(per[fmt[c]] for c in self.channels) * s.pixels
+
+    def describe(self, s: Sizing) -> str:
+        fmt = {c.name: (c.glsl_format or "depth32f") for c in CHANNELS}
+        chans = ", ".join(f"{c} {fmt[c]}" for c in self.channels)
+        return f"G-buffer {s.size[0]}x{s.size[1]}x{s.layers}: {chans}"
+
+
+@dataclass(frozen=True)
+class External:
+    """Owned outside the frame (the scene's BVH): the graph orders by it, allocates nothing."""
+
+    what: str
+
+    def nbytes(self, s: Sizing) -> int:
+        return 0
+
+    def describe(self, s: Sizing) -> str:
+        return self.what
+
+
+@dataclass(frozen=True)
+class Access:
+    resource: str
+    mode: str  # "read", "write" (makes all of it) or "compose" (overwrites a part, after the writer)
+    type: object = None  # the resource's type, on a write
+
+
+def read(name: str) -> Access:
+    return Access(name, "read")
+
+
+def write(name: str, type_) -> Access:
+    return Access(name, "write", type_)
+
+
+def compose(name: str) -> Access:
+    return Access(name, "compose")
+
+
+# ----------------------------------------------------------------------------------- passes
 
 class Pass:
     name = "pass"
-    reads: tuple = ()
-    writes: tuple = ()
+    timed_kernels = False  # True: execute() runs its kernels through fc.stage() (profiled one by one)
 
-    def needed(self, plan: FramePlan) -> bool:
-        return True
+    def why(self, plan: FramePlan) -> str | None:
+        return ""
+
+    def io(self, plan: FramePlan) -> list:
+        return []
 
     def setup(self, gl, plan: FramePlan) -> None:
         pass
 
-    def execute(self, fc) -> None:  # fc: renderer.FrameContext
+    def execute(self, fc) -> None:
         raise NotImplementedError
 
     def release(self) -> None:
@@ -60,42 +184,174 @@ class GraphError(RuntimeError):
     pass
 
 
-def schedule(passes: list[Pass], plan: FramePlan) -> list[Pass]:
-    """The passes `plan.output` depends on, in dependency order.
+@dataclass
+class CompiledGraph:
+    plan: FramePlan
+    passes: list  # in execution order
+    types: dict  # resource -> type
+    io: dict  # pass name -> its accesses
+    reasons: dict  # pass name -> why it runs
 
-    A resource read by a pass is produced by the latest needed pass registered before it that
-    writes it (the output: by the last writer); passes nobody's output depends on are dropped."""
-    candidates = [p for p in passes if p.needed(plan)]
-    writers: dict[str, list[int]] = {}
-    for i, p in enumerate(candidates):
-        for r in p.writes:
-            writers.setdefault(r, []).append(i)
-    chosen: list[Pass] = []
-    visiting: set[int] = set()
+    @property
+    def pass_names(self) -> list:
+        return [p.name for p in self.passes]
 
-    def visit(resource: str, before: int, chain: tuple) -> None:
-        earlier = [i for i in writers.get(resource, ()) if i < before]
-        if not earlier:
-            raise GraphError(f"no pass produces {resource!r} (needed by {' <- '.join(chain) or 'the frame'})")
-        i = earlier[-1]
-        p = candidates[i]
-        if p in chosen:
+    def describe(self, sizing: Sizing) -> str:
+        """The graph as text: passes in order with why they run, then the resources."""
+        plan = self.plan
+        uses = "; ".join(f"{e} ({', '.join(n)})" for e, n in plan.users) or ", ".join(sorted(plan.effects))
+        lines = [f"plan: view {plan.view}, primary {plan.primary}, camera {plan.camera}, stereo {plan.stereo}, "
+                 f"{plan.layers} layer(s) ({plan.layer_mode})", f"effects: {uses}", "", "passes, in order:"]
+        for i, p in enumerate(self.passes, 1):
+            acc = self.io[p.name]
+            fmt = lambda mode: ", ".join(a.resource for a in acc if a.mode == mode) or "-"  # noqa: E731
+            lines.append(f"  {i:2d}. {p.name:16s} {self.reasons[p.name]}")
+            lines.append(f"      reads {fmt('read')}; writes {fmt('write')}" +
+                         (f"; composes {fmt('compose')}" if any(a.mode == "compose" for a in acc) else ""))
+        lines += ["", f"resources at {sizing.size[0]}x{sizing.size[1]} x {sizing.layers} layer(s):"]
+        total, channels = 0, set()
+        for name, t in self.types.items():
+            if isinstance(t, GBufferChannels):  # channels shared by two resources count once
+                t = GBufferChannels(tuple(c for c in t.channels if c not in channels))
+                channels.update(t.channels)
+            nbytes = t.nbytes(sizing)
+            total += nbytes
+            size = f"{nbytes / 2**20:8.2f} MiB" if nbytes else "       -    "
+            lines.append(f"  {name:28s} {size}  {t.describe(sizing)}")
+        lines.append(f"  {'total':28s} {total / 2**20:8.2f} MiB")
+        return "\n".join(lines)
+
+    def dot(self) -> str:
+        """Graphviz DOT: passes as boxes, resources as ellipses, accesses as edges."""
+        out = ["digraph rayvr_frame {", "  rankdir=LR;", "  node [fontname=Helvetica];"]
+        for p in self.passes:
+            out.append(f'  "{p.name}" [shape=box, style=filled, fillcolor="#dde8ff", '
+                       f'tooltip="{self.reasons[p.name]}"];')
+        for name in self.types:
+            out.append(f'  "res:{name}" [label="{name}", shape=ellipse];')
+        for p in self.passes:
+            for a in self.io[p.name]:
+                if a.mode == "read":
+                    out.append(f'  "res:{a.resource}" -> "{p.name}";')
+                else:
+                    style = ' [style=dashed, label="compose"]' if a.mode == "compose" else ""
+                    out.append(f'  "{p.name}" -> "res:{a.resource}"{style};')
+        out.append("}")
+        return "\n".join(out) + "\n"
+
+
+def compile_graph(candidates: list, plan: FramePlan) -> CompiledGraph:
+    """The passes `plan.output` depends on, in dependency order (ties: candidate order)."""
+    avail = [(p, w) for p in candidates if (w := p.why(plan)) is not None]
+    io = {p.name: list(p.io(plan)) for p, _ in avail}
+    if len(io) != len(avail):
+        raise GraphError("two candidate passes share a name")
+    writer, composers, types = {}, {}, {}
+    for p, _ in avail:
+        for a in io[p.name]:
+            if a.mode == "write":
+                if a.resource in writer:
+                    raise GraphError(f"{a.resource!r} is written by both {writer[a.resource].name!r} and {p.name!r}")
+                writer[a.resource], types[a.resource] = p, a.type
+            elif a.mode == "compose":
+                composers.setdefault(a.resource, []).append(p)
+
+    def producers(resource: str, reader: str) -> list:
+        if resource not in writer:
+            raise GraphError(f"no pass produces {resource!r} (read by {reader})")
+        return [writer[resource]] + composers.get(resource, [])
+
+    def deps(p) -> list:
+        out = []
+        for a in io[p.name]:
+            if a.mode == "read":
+                out += producers(a.resource, p.name)
+            elif a.mode == "compose":
+                out += producers(a.resource, p.name)[:1]
+        return [d for d in out if d is not p]
+
+    needed, stack = set(), producers(plan.output, "the frame's output")
+    while stack:
+        p = stack.pop()
+        if p.name not in needed:
+            needed.add(p.name)
+            stack += deps(p)
+    order, done, visiting = [], set(), set()
+
+    def visit(p) -> None:
+        if p.name in done:
             return
-        if i in visiting:
+        if p.name in visiting:
             raise GraphError(f"cycle in the frame graph at pass {p.name!r}")
-        visiting.add(i)
-        for r in p.reads:
-            visit(r, i, chain + (p.name,))
-        visiting.discard(i)
-        chosen.append(p)
+        visiting.add(p.name)
+        for d in deps(p):
+            visit(d)
+        visiting.discard(p.name)
+        done.add(p.name)
+        order.append(p)
 
-    visit(plan.output, len(candidates), ())
-    return chosen
+    for p, _ in avail:
+        if p.name in needed:
+            visit(p)
+    reasons = {}
+    for p, why in avail:
+        if p.name not in needed:
+            continue
+        readers = [q.name for q in order if p in deps(q)]
+        fed = f"feeds {', '.join(readers)}" if readers else "makes the frame's output"
+        reasons[p.name] = f"{why}; {fed}" if why else fed
+    used = {a.resource for p in order for a in io[p.name]}
+    return CompiledGraph(plan, order, {r: t for r, t in types.items() if r in used},
+                         {p.name: io[p.name] for p in order}, reasons)
+
+
+# -------------------------------------------------------------------------------- execution
+
+class FrameResources:
+    """GL objects for the resources of compiled graphs, kept while their type and size stay."""
+
+    def __init__(self, gl):
+        self.gl = gl
+        self._pool: dict = {}  # name -> (key, object)
+
+    def allocate(self, graph: CompiledGraph, sizing: Sizing) -> dict:
+        from .gbuffer import GBuffer
+
+        out = {}
+        for name, t in graph.types.items():
+            if isinstance(t, External):
+                continue
+            if isinstance(t, GBufferChannels):  # every channel lives in one GBuffer
+                name, key = "gbuffer", ("gbuffer", sizing.size, sizing.layers)
+            else:
+                key = (t, t.nbytes(sizing), sizing.size, sizing.layers)
+            have = self._pool.get(name)
+            if have is None or have[0] != key:
+                if have is not None:
+                    have[1].release()
+                ctx = self.gl.ctx
+                if isinstance(t, GBufferChannels):
+                    obj = GBuffer(self.gl, sizing.size, sizing.layers)
+                elif isinstance(t, Texture):
+                    comps, dtype, _ = TEXTURE_FORMATS[t.format]
+                    obj = ctx.texture_array(t.extent(sizing), comps, dtype=dtype)
+                    obj.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                else:
+                    n = t.nbytes(sizing)
+                    obj = ctx.buffer(bytes(n)) if t.zeroed else ctx.buffer(reserve=n)
+                have = self._pool[name] = (key, obj)
+            out[name] = have[1]
+        return out
+
+    def release(self) -> None:
+        for _, obj in self._pool.values():
+            obj.release()
+        self._pool.clear()
 
 
 @dataclass
 class PassTimer:
-    """GL timer queries, one per pass and slot. Two slots alternate frame by frame, so a frame's
+    """GL timer queries, one per name and slot. Two slots alternate frame by frame, so a frame's
     times can be read after the next frame has been recorded (reading waits for the GPU)."""
 
     ctx: moderngl.Context
@@ -116,3 +372,121 @@ class PassTimer:
     def read_ms(self, names, slot: int | None = None) -> dict:
         slot = self.slot if slot is None else slot
         return {n: self.queries[(slot, n)].elapsed / 1e6 for n in names if (slot, n) in self.queries}
+
+
+# ------------------------------------------------------------------------------ one frame
+
+@dataclass
+class EyeImage:
+    name: str
+    color: np.ndarray  # (H, W, 3) uint8 sRGB, rows top-down
+    depth: np.ndarray  # (H, W) float32 linear view depth, 0 = background
+    aux: dict = field(default_factory=dict)  # extra channels asked for (readback.AUX_CHANNELS)
+
+    def __iter__(self):  # color, depth = frame.left
+        return iter((self.color, self.depth))
+
+
+@dataclass
+class Frame:
+    eyes: dict
+    timings: dict  # pass name -> GPU ms (with profile=True: "pass.kernel" -> GPU ms)
+    view: str
+
+    @property
+    def left(self) -> EyeImage:
+        return self.eyes["left"]
+
+    @property
+    def right(self) -> EyeImage:
+        return self.eyes["right"]
+
+    def __getitem__(self, eye: str) -> EyeImage:
+        return self.eyes[eye]
+
+
+@dataclass
+class FrameContext:
+    """What passes see while a frame is recorded (and what readback reads afterwards)."""
+
+    gl: object
+    scene: object
+    gpu_scene: object
+    accel: object  # the scene's BVH (rayvr/accel/scene.py), built by the `bvh` pass when needed
+    eyes: list
+    plan: FramePlan
+    settings: object
+    sizing: Sizing
+    resources: dict = field(default_factory=dict)
+    pass_names: list = field(default_factory=list)
+    timer_slot: int = 0
+    profiler: PassTimer | None = None  # set: passes' kernels are timed one by one (stage names)
+    stage_names: list = field(default_factory=list)
+    current_pass: str = ""
+
+    def resource(self, name: str):
+        return self.resources[name]
+
+    @property
+    def gbuffer(self):
+        return self.resources["gbuffer"]
+
+    def stage(self, kernel: str, fn) -> None:
+        """Run one kernel of the current pass; timed on its own when profiling."""
+        if self.profiler is None:
+            fn()
+            return
+        name = f"{self.current_pass}.{kernel}" if kernel else self.current_pass
+        if name not in self.stage_names:
+            self.stage_names.append(name)
+        self.profiler.run(name, fn)
+
+
+class FrameGraph:
+    """Compiles plans once (passes from `candidates(plan)`, set up), allocates their resources
+    and records frames; every pass under its own GL timer query, or with `profile` every kernel."""
+
+    def __init__(self, gl, candidates):
+        self.gl, self.candidates = gl, candidates
+        self._compiled: dict = {}
+        self.resources = FrameResources(gl)
+        self.timer = PassTimer(gl.ctx)
+        self.kernel_timer = PassTimer(gl.ctx)
+
+    def compile(self, plan: FramePlan) -> CompiledGraph:
+        graph = self._compiled.get(plan)
+        if graph is None:
+            graph = compile_graph(self.candidates(plan), plan)
+            for p in graph.passes:
+                p.setup(self.gl, plan)
+            self._compiled[plan] = graph
+        return graph
+
+    def execute(self, graph: CompiledGraph, fc: FrameContext, profile: bool = False) -> None:
+        fc.resources = self.resources.allocate(graph, fc.sizing)
+        fc.pass_names = graph.pass_names
+        timer = self.kernel_timer if profile else self.timer
+        timer.next_frame()
+        fc.timer_slot = timer.slot
+        fc.profiler = self.kernel_timer if profile else None
+        for p in graph.passes:
+            fc.current_pass = p.name
+            if profile and p.timed_kernels:  # timer queries do not nest: its kernels are timed, it is not
+                p.execute(fc)
+            elif profile:
+                fc.stage("", lambda p=p: p.execute(fc))
+            else:
+                timer.run(p.name, lambda p=p: p.execute(fc))
+
+    def read_ms(self, fc: FrameContext) -> dict:
+        """GPU ms per pass (or per kernel for a profiled frame); waits for the GPU."""
+        if fc.profiler is not None:
+            return self.kernel_timer.read_ms(fc.stage_names, fc.timer_slot)
+        return self.timer.read_ms(fc.pass_names, fc.timer_slot)
+
+    def release(self) -> None:
+        for graph in self._compiled.values():
+            for p in graph.passes:
+                p.release()
+        self._compiled.clear()
+        self.resources.release()

@@ -1,6 +1,6 @@
 """The layered G-buffer: one texture array per channel, layer = eye (mono is 1 layer).
 
-CHANNELS is the one declaration of what the G-buffer holds. It is made in two steps: a
+rayvr/gpu_layout.py CHANNELS is the one declaration of what the G-buffer holds. It is made in two steps: a
 visibility raster writes `depth` and `triangle` only (glsl/gbuffer/visibility.*), then a
 compute resolve fills every other channel from the triangle and the pixel's ray
 (glsl/gbuffer/resolve.comp, images bound at `image` below). Later passes read all channels
@@ -9,9 +9,10 @@ through glsl/common/gbuffer.glsl at texture unit `unit`.
 from __future__ import annotations
 
 import ctypes
-from dataclasses import dataclass
 
 import moderngl
+
+from .gpu_layout import CHANNELS, NO_HIT  # noqa: F401  (the channel table is declared there)
 
 GL_TEXTURE_2D_ARRAY = 0x8C1A
 GL_DEPTH_COMPONENT32F = 0x8CAC
@@ -26,30 +27,7 @@ GL_TEXTURE0 = 0x84C0
 GL_DEPTH = 0x1801
 
 
-@dataclass(frozen=True)
-class Channel:
-    name: str
-    components: int
-    dtype: str  # moderngl dtype; 'depth' = 32-bit float depth attachment
-    unit: int  # texture unit compute passes read it from
-    image: int  # image unit the resolve writes it at (-1: written by the raster only)
-    meaning: str
-
-
-CHANNELS = (
-    Channel("depth", 1, "depth", 0, -1, "reversed-Z depth: near/view_distance (1 at near, 0 at infinity)"),
-    Channel("position", 4, "f4", 1, 0, "xyz scene-local position (world - scene.origin), w linear view depth"),
-    Channel("normal", 4, "f2", 2, 1, "xyz world-space shading normal facing the eye, w roughness"),
-    Channel("albedo", 4, "f2", 3, 2, "rgb linear base colour, a metallic"),
-    Channel("emission", 4, "f2", 4, 3, "rgb emitted radiance"),
-    Channel("material", 2, "u4", 5, 4, "x material index, y effect ID (255 = background)"),
-    Channel("triangle", 1, "u4", 6, 5, "triangle ID (0xFFFFFFFF = background)"),
-    Channel("linear_depth", 1, "f4", 7, 6, "view depth of the pixel ray's hit, exact (0 = background); "
-                                           "what frames return as depth, 4 bytes a pixel"),
-)
 COLOR_CHANNELS = tuple(c for c in CHANNELS if c.dtype != "depth")
-NO_HIT = 0xFFFFFFFF
-BASE_COLOR_TEXTURE_UNIT = 9  # after the G-buffer's units (glsl/common/triangle_surface.glsl)
 
 
 class GBuffer:
@@ -111,10 +89,12 @@ class GBuffer:
         raw.glBindFramebuffer(GL_FRAMEBUFFER, self.fbo.glo)
         raw.glClearBufferfv(GL_DEPTH, 0, (ctypes.c_float * 1)(0.0))
 
-    def bind_for_writing(self) -> None:
-        """Bind the channels the resolve writes to their image units (and depth for reading)."""
+    def bind_for_writing(self, read_position: bool = False) -> None:
+        """Bind the channels the resolve writes to their image units (and depth for reading);
+        it also reads the triangle IDs, and the positions when primary rays left distances there."""
         for ch in COLOR_CHANNELS:
-            self.textures[ch.name].bind_to_image(ch.image, read=ch.name == "triangle", write=True)
+            reads = ch.name == "triangle" or (read_position and ch.name == "position")
+            self.textures[ch.name].bind_to_image(ch.image, read=reads, write=True)
         self._bind_depth()
 
     def _bind_depth(self) -> None:

@@ -4,17 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from .effects import EFFECTS, PARAM_WORDS
+from .gpu_layout import LIGHT_KINDS, SSBO, VERTEX_FLOATS
 from .materials import Assignment
 from .scene import Light, Scene
 
 MATERIAL_DTYPE = np.dtype([("base_color", "<f4", 4), ("emission", "<f4", 4), ("metallic", "<f4"),
                            ("roughness", "<f4"), ("texture_layer", "<i4"), ("effect", "<u4"),
-                           ("params", "<u4", 4)])
-# `params` carries the effect's per-material parameters to the ray-tracing passes.
-EFFECT_PARAM_SLOTS = ("bounces", "samples", "area_samples")
+                           ("params", "<u4", PARAM_WORDS)])
+# `params` carries the material's effect parameters, packed by the effect (effects/base.py).
 LIGHT_DTYPE = np.dtype([("position_kind", "<f4", 4), ("radiance", "<f4", 4), ("direction", "<f4", 4),
                         ("u", "<f4", 4), ("v", "<f4", 4)])
-LIGHT_KIND_ID = {"point": 0, "directional": 1, "rect": 2}
+LIGHT_KIND_ID = {k: i for i, k in enumerate(LIGHT_KINDS)}
 TEXTURE_SIZE_LIMIT = 1024  # base-colour textures are resampled to one size for the array
 
 
@@ -36,9 +37,9 @@ def material_records(scene: Scene, assignments: list[Assignment], texture_layers
         rec[i]["metallic"] = m.metallic
         rec[i]["roughness"] = m.roughness
         rec[i]["texture_layer"] = texture_layers[i]
-        rec[i]["effect"] = assignments[i].effect_id
-        p = assignments[i].params
-        rec[i]["params"][:3] = [int(p.get(k, 1)) for k in EFFECT_PARAM_SLOTS]
+        effect = EFFECTS[assignments[i].effect]
+        rec[i]["effect"] = effect.id
+        rec[i]["params"] = effect.pack_params(assignments[i].params)
     return rec
 
 
@@ -65,7 +66,7 @@ def _light_record(light: Light, origin: np.ndarray):
 
 
 def interleaved_vertices(scene: Scene) -> np.ndarray:
-    """(V, 8) float32 rows: position, normal, uv (VERTEX_FLOATS in glsl/common/scene.glsl)."""
+    """(V, VERTEX_FLOATS) float32 rows: position, normal, uv."""
     return np.ascontiguousarray(np.concatenate([scene.vertices, scene.normals, scene.uvs], axis=1), dtype="f4")
 
 
@@ -97,11 +98,11 @@ class GpuScene:
         self.materials.write(material_records(self.scene, assignments, self.texture_layers))
 
     def bind(self) -> None:
-        self.triangle_material.bind_to_storage_buffer(0)
-        self.materials.bind_to_storage_buffer(1)
-        self.lights.bind_to_storage_buffer(2)
-        self.vbo.bind_to_storage_buffer(3)
-        self.ibo.bind_to_storage_buffer(4)
+        self.triangle_material.bind_to_storage_buffer(SSBO["triangle_material"])
+        self.materials.bind_to_storage_buffer(SSBO["materials"])
+        self.lights.bind_to_storage_buffer(SSBO["lights"])
+        self.vbo.bind_to_storage_buffer(SSBO["vertices"])
+        self.ibo.bind_to_storage_buffer(SSBO["indices"])
 
     @staticmethod
     def _upload_textures(ctx, scene: Scene):

@@ -1,4 +1,4 @@
-"""The effect ladder and material-ID config files (TOML).
+"""Material-ID config files (TOML); the effects they name come from the registry (rayvr/effects/).
 
 A config maps a scene's materials to an effect, by exact name, by numeric material index, or
 by glob, with per-effect parameters:
@@ -19,68 +19,26 @@ by glob, with per-effect parameters:
 Precedence: exact name, then numeric id, then the first matching glob in file order.
 The file is data, never code. Every error names the file, the key and the allowed values;
 names that match no material warn with the scene's material names. An effect that rayvr does
-not implement yet fails at load time: it never renders silently as `raster`.
+not implement yet fails at load time: it never renders silently as `raster`. Parameters are
+checked against the effect's own declaration (type, range).
 """
 from __future__ import annotations
 
 import fnmatch
 import logging
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .effects import BACKGROUND_EFFECT, EFFECTS, PLANNED, effect_by_id, implemented_effects  # noqa: F401
+
 log = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True)
-class Param:
-    kind: type
-    default: object
-    lo: float | None = None
-    hi: float | None = None
-    doc: str = ""
-
-
-@dataclass(frozen=True)
-class Effect:
-    name: str
-    id: int
-    implemented: bool
-    doc: str
-    params: dict = field(default_factory=dict)
-
-
-# The ladder, cheapest first. `id` is what the G-buffer's effect channel holds.
-EFFECTS: dict[str, Effect] = {e.name: e for e in (
-    Effect("raster", 0, True, "direct light from the G-buffer, no shadows"),
-    Effect("shadows", 1, True, "+ ray-traced hard shadows; area lights soft with N samples",
-           {"area_samples": Param(int, 4, 1, 1024, "shadow rays per area light per pixel")}),
-    Effect("ssr", 2, False, "+ screen-space reflections through the depth quadtree, BVH fallback",
-           {"gamma_norm": Param(float, 0.05, 0.0, 3.1416, "plane merge angle threshold (radians)"),
-            "gamma_dist": Param(float, 0.01, 0.0, None, "plane merge distance threshold (scene units)")}),
-    Effect("reflections", 3, True, "+ ray-traced mirror reflections",
-           {"bounces": Param(int, 1, 1, 16, "reflection bounces"),
-            "area_samples": Param(int, 4, 1, 1024, "shadow rays per area light per pixel")}),
-    Effect("glossy", 4, True, "+ GGX glossy reflections (VNDF importance sampling)",
-           {"samples": Param(int, 4, 1, 1024, "reflection rays per pixel"),
-            "bounces": Param(int, 1, 1, 8, "reflection bounces"),
-            "area_samples": Param(int, 4, 1, 1024, "shadow rays per area light per pixel")}),
-    Effect("path", 5, False, "path traced, accumulated while the camera is still",
-           {"samples": Param(int, 1, 1, 65536, "paths per pixel per frame"),
-            "bounces": Param(int, 4, 1, 64, "maximum path length")}),
-    Effect("photon", 6, False, "+ photon-mapped indirect light and caustics (hash grid)",
-           {"photons": Param(int, 65536, 1, 1 << 26, "photons traced per frame"),
-            "radius": Param(float, 0.05, 1e-6, None, "gather radius (scene units)")}),
-)}
-BACKGROUND_EFFECT = 255  # effect-ID value of pixels no geometry covers
-
-
-def implemented_effects() -> list[str]:
-    return [e.name for e in EFFECTS.values() if e.implemented]
-
-
-def effect_by_id(effect_id: int) -> Effect | None:
-    return next((e for e in EFFECTS.values() if e.id == effect_id), None)
+def _effect_list() -> str:
+    planned = [e for e in PLANNED if e not in EFFECTS]
+    return ", ".join(EFFECTS) + (f" (not yet: {', '.join(planned)})" if planned else "")
 
 
 class ConfigError(ValueError):
@@ -156,12 +114,12 @@ def _is_glob(s: str) -> bool:
 def _check_effect(value, where: str, source: str) -> str:
     if not isinstance(value, str):
         raise ConfigError(f"{source}: {where}: effect must be a string, got {type(value).__name__} "
-                          f"{value!r}; allowed: {', '.join(EFFECTS)}")
+                          f"{value!r}; allowed: {_effect_list()}")
+    if value in PLANNED and value not in EFFECTS:
+        raise ConfigError(f"{source}: {where}: effect {value!r} ({PLANNED[value]}) is not implemented yet in "
+                          f"this rayvr; implemented: {', '.join(EFFECTS)}")
     if value not in EFFECTS:
-        raise ConfigError(f"{source}: {where}: unknown effect {value!r}; allowed: {', '.join(EFFECTS)}")
-    if not EFFECTS[value].implemented:
-        raise ConfigError(f"{source}: {where}: effect {value!r} is not implemented yet in this rayvr; "
-                          f"implemented: {', '.join(implemented_effects())}")
+        raise ConfigError(f"{source}: {where}: unknown effect {value!r}; allowed: {_effect_list()}")
     return value
 
 
@@ -179,9 +137,10 @@ def _check_params(effect: str, params: dict, where: str, source: str) -> dict:
         if not ok:
             raise ConfigError(f"{source}: {where}.{key}: expected {p.kind.__name__}, got "
                               f"{type(value).__name__} {value!r}")
+        if p.kind is float and not math.isfinite(value):
+            raise ConfigError(f"{source}: {where}.{key}: expected a finite number, got {value!r}")
         if (p.lo is not None and value < p.lo) or (p.hi is not None and value > p.hi):
-            rng = f"[{p.lo if p.lo is not None else '-inf'}, {p.hi if p.hi is not None else 'inf'}]"
-            raise ConfigError(f"{source}: {where}.{key}: {value!r} is outside the allowed range {rng}")
+            raise ConfigError(f"{source}: {where}.{key}: {value!r} is outside the allowed range {p.allowed_range()}")
         out[key] = value
     return out
 
@@ -192,7 +151,7 @@ def _parse_entry(value, where: str, source: str) -> tuple[str, dict, float]:
         return _check_effect(value, where, source), {}, 1.0
     if isinstance(value, dict):
         if "effect" not in value:
-            raise ConfigError(f"{source}: {where}: a table needs an 'effect' key; allowed effects: {', '.join(EFFECTS)}")
+            raise ConfigError(f"{source}: {where}: a table needs an 'effect' key; allowed effects: {_effect_list()}")
         effect = _check_effect(value["effect"], f"{where}.effect", source)
         importance = value.get("importance", 1.0)
         if isinstance(importance, bool) or not isinstance(importance, (int, float)) or not importance >= 0:
@@ -219,7 +178,7 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
         raise ConfigError(f"{source}: params: expected a table of [params.<effect>] tables")
     for effect, values in params.items():
         if effect not in EFFECTS:
-            raise ConfigError(f"{source}: params.{effect}: unknown effect; allowed: {', '.join(EFFECTS)}")
+            raise ConfigError(f"{source}: params.{effect}: unknown effect; allowed: {_effect_list()}")
         if not isinstance(values, dict):
             raise ConfigError(f"{source}: params.{effect}: expected a table")
         cfg.params[effect] = _check_params(effect, values, f"params.{effect}", source)

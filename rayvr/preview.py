@@ -205,7 +205,7 @@ class Controls:
 
     def __post_init__(self):
         if not self.views:
-            from .renderer import VIEWS
+            from .gpu_layout import VIEWS
             self.views = VIEWS
         if not self.effects:
             self.effects = tuple(materials_mod.implemented_effects())
@@ -500,7 +500,7 @@ class Preview:
         """`--budget-ms`: measure this scene on this device from the current view, pick effects per
         material that fit the budget, and render with them (the config file's params stay the
         base). Returns the summary the HUD and terminal show."""
-        from .bench.tradeoff import auto_config, describe_pick
+        from .budget import auto_config, describe_pick
 
         fb = self.glfw.get_framebuffer_size(self.window)
         rig = self.camera.rig(layout_for(self.state.stereo, fb, self.state.res_scale).eye_size)
@@ -622,7 +622,7 @@ class Preview:
         if grab or "screenshot" in actions:
             image = np.frombuffer(self.ctx.screen.read(components=3), np.uint8).reshape(fb[1], fb[0], 3)[::-1].copy()
         self.glfw.swap_buffers(self.window)
-        new = self.renderer.timer.read_ms(fc.pass_names)
+        new = self.renderer.read_ms(fc)
         a = 0.1 if self.frames > 2 else 1.0
         # Smoothed for reading; passes that no longer run (another view) drop out.
         self.timings = {k: self.timings.get(k, v) + (v - self.timings.get(k, v)) * a for k, v in new.items()}
@@ -642,7 +642,7 @@ class Preview:
         ctx.viewport = (0, 0, fb[0], fb[1])
         ctx.clear(0.0, 0.0, 0.0, 1.0)
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-        tex = fc.target("ldr")
+        tex = fc.resource("ldr")
         vw, vh = layout.viewports[0][2:4]
         exact = tuple(layout.eye_size) == (vw, vh)  # 1:1 pixels: no filtering, exactly the capture
         f = moderngl.NEAREST if exact else moderngl.LINEAR

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .frame import EyeImage
 from .gbuffer import COLOR_CHANNELS, GL_DEPTH_COMPONENT, GL_FLOAT, GL_TEXTURE_2D_ARRAY
 
 GL_PIXEL_PACK_BUFFER = 0x88EB
@@ -30,7 +31,6 @@ class Pending:
     fc: object
     buffers: dict  # channel -> (moderngl.Buffer, dtype, components)
     aux: tuple
-    timer_slot: int
 
 
 class Reader:
@@ -52,7 +52,7 @@ class Reader:
         need = ["ldr", "linear_depth"] + [_SOURCE[a] for a in aux if a in _SOURCE]
         return list(dict.fromkeys(need))
 
-    def start(self, fc, aux, parity: int, timer_slot: int) -> Pending:
+    def start(self, fc, aux, parity: int) -> Pending:
         gb, raw = fc.gbuffer, self.gl.raw
         w, h = gb.size
         buffers = {}
@@ -63,7 +63,7 @@ class Reader:
                 depth = name == "zbuffer"
                 dtype, comps = (np.float32, 1) if depth else (np.uint8, 3)
                 buf = self._buffer((parity, name), w * h * gb.layers * comps * np.dtype(dtype).itemsize)
-                texture = gb.depth_name if depth else fc.target("ldr").glo
+                texture = gb.depth_name if depth else fc.resource("ldr").glo
                 raw.glBindBuffer(GL_PIXEL_PACK_BUFFER, buf.glo)
                 raw.glPixelStorei(GL_PACK_ALIGNMENT, 1)
                 raw.glBindTexture(GL_TEXTURE_2D_ARRAY, texture)
@@ -74,7 +74,7 @@ class Reader:
                 buffers[name] = (buf, dtype, comps)
                 continue
             if name == "hdr":  # the linear colour before exposure and tonemapping
-                tex, dtype, comps = fc.target("hdr"), np.float16, 4
+                tex, dtype, comps = fc.resource("hdr"), np.float16, 4
             else:
                 ch = next(c for c in COLOR_CHANNELS if c.name == name)
                 tex, dtype, comps = gb.textures[name], _DTYPES[ch.dtype], ch.components
@@ -82,12 +82,10 @@ class Reader:
             buf = self._buffer((parity, name), nbytes)
             tex.read_into(buf, alignment=1)
             buffers[name] = (buf, dtype, comps)
-        return Pending(fc, buffers, tuple(aux), timer_slot)
+        return Pending(fc, buffers, tuple(aux))
 
     def finish(self, pending: Pending):
         """Map the buffers and cut them into per-eye numpy images (rows top-down)."""
-        from .renderer import EyeImage
-
         fc = pending.fc
         w, h = fc.gbuffer.size
         layers = fc.gbuffer.layers

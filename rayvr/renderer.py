@@ -10,37 +10,36 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from . import effects as effects_mod
 from . import materials as materials_mod
 from . import scene as scene_mod
-from .camera import EyeView, StereoRig
-from .context import GLContext, create_context
-from .frame import FramePlan, PassTimer, schedule
-from .gbuffer import GBuffer
-from .gpu_scene import GpuScene
-from .passes.debug_view import DEBUG_VIEWS, DebugViewPass
-from .passes.gbuffer import GBufferResolvePass, VisibilityPass, pick_layer_mode
-from .passes.resolve import TONEMAPPERS, ResolvePass
-from .passes.raytrace import all_rt_passes
-from .passes.shade import ShadeDirectPass
 from .accel.scene import SceneAccel
+from .camera import StereoRig
+from .cameras import Pinhole
+from .context import GLContext, create_context
+from .frame import Frame, FrameContext, FrameGraph, FramePlan, Sizing
+from .gpu_layout import TONEMAPPERS, VIEWS
+from .gpu_scene import GpuScene
+from .passes import core_passes
+from .passes.classify import pixel_counts
+from .passes.visibility import pick_layer_mode
 from .readback import AUX_CHANNELS, Reader
 
-VIEWS = ("color",) + DEBUG_VIEWS
 PRIMARY_MODES = ("raster", "rays")
 
 
 @dataclass
 class RenderSettings:
     exposure: float = 1.0
-    tonemapper: str = "aces"  # aces | reinhard | clamp (glsl/common/color.glsl)
+    tonemapper: str = "aces"  # gpu_layout.TONEMAPPERS (glsl/common/color.glsl)
     ambient: tuple = (0.03, 0.03, 0.03)
     background: tuple = (0.02, 0.02, 0.025)
     layer_mode: str = "auto"  # auto | vertex | geometry | multiview | passes
-    primary: str = "raster"  # primary visibility: raster (visibility pass) | rays (BVH, passes/raytrace.py)
+    primary: str = "raster"  # primary visibility: raster (visibility pass) | rays (BVH, passes/primary_rays.py)
     seed: int = 0  # random sequence of the sampled effects (area-light points, glossy rays)
 
     def __post_init__(self):
@@ -52,53 +51,6 @@ class RenderSettings:
             raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
 
 
-@dataclass
-class EyeImage:
-    name: str
-    color: np.ndarray
-    depth: np.ndarray
-    aux: dict = field(default_factory=dict)
-
-    def __iter__(self):  # color, depth = frame.left
-        return iter((self.color, self.depth))
-
-
-@dataclass
-class Frame:
-    eyes: dict
-    timings: dict
-    view: str
-
-    @property
-    def left(self) -> EyeImage:
-        return self.eyes["left"]
-
-    @property
-    def right(self) -> EyeImage:
-        return self.eyes["right"]
-
-    def __getitem__(self, eye: str) -> EyeImage:
-        return self.eyes[eye]
-
-
-@dataclass
-class FrameContext:
-    """What passes see while a frame is recorded."""
-
-    gl: GLContext
-    scene: scene_mod.Scene
-    gpu_scene: GpuScene
-    gbuffer: GBuffer
-    eyes: list[EyeView]
-    plan: FramePlan
-    settings: RenderSettings
-    targets: dict
-    accel: SceneAccel | None = None  # the scene's BVH, built by the `bvh` pass when one is needed
-
-    def target(self, name: str):
-        return self.targets[name]
-
-
 def _as_config(materials) -> materials_mod.MaterialConfig:
     """A MaterialConfig as given, or loaded and validated from a path (None: all `raster`)."""
     if isinstance(materials, materials_mod.MaterialConfig):
@@ -106,11 +58,13 @@ def _as_config(materials) -> materials_mod.MaterialConfig:
     return materials_mod.load_config(materials)
 
 
-def _all_passes():
-    """Every pass rayvr has, in registration order (the graph picks and orders what runs)."""
-    rt = all_rt_passes()
-    return [rt["bvh"], VisibilityPass(), rt["primary_rays"], GBufferResolvePass(), ShadeDirectPass(), rt["classify"],
-            rt["rt_shadows"], rt["rt_reflections"], rt["rt_glossy"], ResolvePass(), DebugViewPass()]
+def candidate_passes(plan: FramePlan) -> list:
+    """The passes a plan may use: the core ones and those of the effects it uses."""
+    out = core_passes()
+    for e in effects_mod.EFFECTS.values():
+        if e.name in plan.effects:
+            out += e.passes()
+    return out
 
 
 class Renderer:
@@ -124,12 +78,10 @@ class Renderer:
         self.assignments = self.config.assign(self.scene.material_names())
         self.gpu_scene = GpuScene(self.gl, self.scene, self.assignments)
         self.layer_mode = pick_layer_mode(self.gl, self.settings.layer_mode)
-        self.timer = PassTimer(self.gl.ctx)
         self.accel = SceneAccel(self.gl, self.scene)  # BVH: built only when a pass needs it
+        self.graph = FrameGraph(self.gl, candidate_passes)
         self.reader = Reader(self.gl)
-        self._passes: dict = {}  # plan key -> scheduled, set-up passes
-        self._gbuffer: GBuffer | None = None
-        self._targets: dict = {}
+        self._last: FrameContext | None = None
 
     # -- configuration ---------------------------------------------------------------
     def set_materials(self, materials) -> None:
@@ -143,46 +95,56 @@ class Renderer:
     def effects_in_use(self) -> frozenset:
         return frozenset(a.effect for a in self.assignments)
 
-    # -- rendering -------------------------------------------------------------------
-    def _plan(self, layers: int, view: str) -> FramePlan:
+    # -- the frame graph -------------------------------------------------------------
+    def plan(self, layers: int = 2, view: str = "color", camera=None) -> FramePlan:
+        """The FramePlan this renderer's scene, config and settings give for `layers` eyes seen
+        through `camera` (a rayvr.cameras model; default the pinhole). A camera a rasterizer cannot
+        sample (not `rasterizable`) takes ray-cast primary visibility whatever the settings say."""
+        camera = camera or Pinhole()
         if view not in VIEWS:
             raise ValueError(f"unknown view {view!r}; allowed: {', '.join(VIEWS)}")
+        names = self.scene.material_names()
+        users = tuple((e, tuple(n for n, a in zip(names, self.assignments) if a.effect == e))
+                      for e in effects_mod.EFFECTS if e in self.effects_in_use())
+        primary = self.settings.primary if camera.rasterizable else "rays"
         return FramePlan(effects=self.effects_in_use(), view=view, layers=layers, layer_mode=self.layer_mode,
-                         primary=self.settings.primary)
+                         primary=primary, camera=camera.name, users=users)
 
-    def passes_for(self, plan: FramePlan) -> list:
-        key = (plan.effects, plan.view, plan.layers, plan.layer_mode, plan.primary)
-        if key not in self._passes:
-            chosen = schedule(_all_passes(), plan)
-            for p in chosen:
-                p.setup(self.gl, plan)
-            self._passes[key] = chosen
-        return self._passes[key]
+    def compiled(self, plan: FramePlan | None = None):
+        """The compiled frame graph of `plan` (default: both eyes, colour): passes in order,
+        resources, reasons; `.describe(sizing)` and `.dot()` print it."""
+        return self.graph.compile(plan or self.plan())
 
-    def _resources(self, size, layers):
-        if self._gbuffer is None or self._gbuffer.size != tuple(size) or self._gbuffer.layers != layers:
-            self._release_resources()
-            ctx = self.gl.ctx
-            self._gbuffer = GBuffer(self.gl, size, layers)
-            self._targets = {
-                "hdr": ctx.texture_array((*size, layers), 4, dtype="f2"),
-                "ldr": ctx.texture_array((*size, layers), 4, dtype="f1"),
-            }
-        return self._gbuffer, self._targets
+    def sizing(self, size, layers: int = 2) -> Sizing:
+        return Sizing(tuple(size), layers, self.scene, tuple(self.assignments), self.gl.max_ssbo_bytes)
 
-    def record(self, rig: StereoRig, eyes: str = "both", view: str = "color") -> FrameContext:
-        """Run the frame's passes on the GPU (no readback); returns the context for readback."""
+    def record(self, rig: StereoRig, eyes: str = "both", view: str = "color", profile: bool = False) -> FrameContext:
+        """Run the frame's passes on the GPU (no readback); returns the context for readback.
+        `profile`: time each kernel of multi-kernel passes instead of each pass (read_ms)."""
         eye_views = rig.eyes(eyes)
-        plan = self._plan(len(eye_views), view)
-        passes = self.passes_for(plan)
-        gbuffer, targets = self._resources(rig.size, len(eye_views))
-        fc = FrameContext(self.gl, self.scene, self.gpu_scene, gbuffer, eye_views, plan, self.settings, targets,
-                          self.accel)
-        self.timer.next_frame()
-        for p in passes:
-            self.timer.run(p.name, lambda p=p: p.execute(fc))
-        fc.pass_names = [p.name for p in passes]
+        plan = self.plan(len(eye_views), view, eye_views[0].camera)
+        graph = self.graph.compile(plan)
+        fc = FrameContext(self.gl, self.scene, self.gpu_scene, self.accel, eye_views, plan, self.settings,
+                          self.sizing(rig.size, len(eye_views)))
+        self.graph.execute(graph, fc, profile)
+        self._last = fc
         return fc
+
+    def read_ms(self, fc: FrameContext) -> dict:
+        """GPU ms per pass of a recorded frame (per kernel if it was profiled); waits for the GPU."""
+        return self.graph.read_ms(fc)
+
+    def resource(self, name: str):
+        """A GL resource of the last recorded frame by its graph name ("hdr", "rt_lists", ...)."""
+        if self._last is None or name not in self._last.resources:
+            raise KeyError(f"the last frame has no resource {name!r}")
+        return self._last.resource(name)
+
+    def pixel_counts(self) -> dict:
+        """Pixels per traced effect in the last recorded frame (its classify pass); {} if none ran."""
+        if self._last is None or "rt_list_args" not in self._last.resources:
+            return {}
+        return pixel_counts(self._last.resource("rt_list_args"))
 
     def warm_up(self, rig: StereoRig, eyes: str = "both", view: str = "color", seconds: float | None = None,
                 min_frames: int = 1) -> None:
@@ -201,8 +163,8 @@ class Renderer:
             done += 1
 
     def render(self, rig: StereoRig, eyes: str = "both", view: str = "color", aux=()) -> Frame:
-        """Render one frame; `eyes` is 'both', 'left' or 'right'; `aux` names extra G-buffer
-        channels to read back (AUX_CHANNELS)."""
+        """Render one frame; `eyes` is 'both', 'left' or 'right'; `aux` names extra channels to
+        read back (AUX_CHANNELS): frame.left.aux[name]."""
         return next(self.render_sequence([rig], eyes, view, aux))
 
     def render_sequence(self, rigs, eyes: str = "both", view: str = "color", aux=()):
@@ -211,10 +173,12 @@ class Renderer:
         unknown = [a for a in aux if a not in AUX_CHANNELS]
         if unknown:
             raise ValueError(f"unknown aux channel(s) {', '.join(unknown)}; allowed: {', '.join(AUX_CHANNELS)}")
+        if "hdr" in aux and view != "color":
+            raise ValueError(f"aux channel 'hdr' needs view 'color' (view {view!r} makes no HDR colour)")
         pending = None
         for i, rig in enumerate(rigs):
             fc = self.record(rig, eyes, view)
-            started = self.reader.start(fc, tuple(aux), parity=i % 2, timer_slot=self.timer.slot)
+            started = self.reader.start(fc, tuple(aux), parity=i % 2)
             if pending is not None:
                 yield self._finish(pending)
             pending = started
@@ -222,7 +186,7 @@ class Renderer:
             yield self._finish(pending)
 
     def _finish(self, pending) -> Frame:
-        timings = self.timer.read_ms(pending.fc.pass_names, slot=pending.timer_slot)
+        timings = self.graph.read_ms(pending.fc)
         return Frame(self.reader.finish(pending), timings, pending.fc.plan.view)
 
     def update_vertices(self, vertices) -> None:
@@ -236,20 +200,9 @@ class Renderer:
         self.accel.refit(v)
 
     # -- lifetime --------------------------------------------------------------------
-    def _release_resources(self) -> None:
-        if self._gbuffer is not None:
-            self._gbuffer.release()
-            for t in self._targets.values():
-                t.release()
-        self._gbuffer, self._targets = None, {}
-
     def release(self) -> None:
-        self._release_resources()
         self.reader.release()
-        for passes in self._passes.values():
-            for p in passes:
-                p.release()
-        self._passes.clear()
+        self.graph.release()
         self.accel.release()
         self.gpu_scene.release()
         if self._owns_gl:

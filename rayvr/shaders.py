@@ -1,5 +1,8 @@
 """GLSL sources under rayvr/glsl/, with `#include "path"` and compile errors mapped to file:line.
 
+`#include "layout.glsl"` (from any folder: "../layout.glsl") is the header rayvr/gpu_layout.py
+generates: the constants the CPU and the shaders share.
+
 Each file gets a source-string number; `#line` directives around every include make the
 driver report (number, line), and `ShaderError` turns that back into `glsl/file.glsl:line`
 (Mesa writes `0:12(3): error`, NVIDIA `0(12) : error`). A file is included once per
@@ -14,8 +17,10 @@ from pathlib import Path
 
 import moderngl
 
+from . import gpu_layout
+
 GLSL_DIR = Path(__file__).resolve().parent / "glsl"
-_INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
+_INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*(//.*)?$')
 _VERSION = re.compile(r"^\s*#\s*version\b")
 # Mesa: "0:12(3): error: ..."   NVIDIA: "0(12) : error C0000: ..."
 _LOG_LOCATION = re.compile(r"(?m)^(?:ERROR: )?(\d+)(?::(\d+)\((\d+)\)|\((\d+)\))")
@@ -39,11 +44,20 @@ class ShaderSource:
         return _LOG_LOCATION.sub(where, log)
 
 
+# Sources generated from Python rather than read from disk.
+GENERATED = {"layout.glsl": gpu_layout.glsl_header}
+
+
 def _read(name: str, root: Path) -> str:
-    path = (root / name).resolve()
-    if not path.is_file():
-        raise ShaderError(f"shader file not found: {path}")
-    return path.read_text()
+    """A file under `root`, else under rayvr/glsl/ (so shaders outside rayvr, such as an effect
+    plugin's, can include rayvr's common code), else a generated source."""
+    if name in GENERATED:
+        return GENERATED[name]()
+    for base in dict.fromkeys((root, GLSL_DIR)):
+        path = (base / name).resolve()
+        if path.is_file():
+            return path.read_text()
+    raise ShaderError(f"shader file not found: {(root / name).resolve()}")
 
 
 def load_source(name: str, defines: dict | None = None, root: Path = GLSL_DIR) -> ShaderSource:

@@ -30,7 +30,7 @@ def test_capture_default_scene_stereo_pair_with_aux(tmp_path):
     assert np.abs(left - right).mean() > 0.5  # two different eyes
     assert "gbuffer" in run.stdout and "total" in run.stdout
     summary = json.loads((tmp_path / "frame_timings.json").read_text())
-    assert set(summary["gpu_ms_mean"]) == {"visibility", "gbuffer", "shade", "resolve"}  # raster-only graph
+    assert set(summary["gpu_ms_mean"]) == {"visibility", "gbuffer", "shade", "tonemap"}  # raster-only graph
     assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]
 
 

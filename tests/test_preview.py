@@ -425,16 +425,9 @@ def _second_effect():
 
 
 def _config_reload(cfg_path):
-    import dataclasses
-
     from rayvr.gbuffer import NO_HIT
 
     effect = _second_effect()
-    if not materials.EFFECTS[effect].implemented:
-        # Only `raster` exists in this rayvr: let the config validator accept a second effect so
-        # the G-buffer's effect IDs can be seen to follow the file. (Test-only; shading of that
-        # effect is whatever the frame graph does for it, which these checks do not look at.)
-        materials.EFFECTS[effect] = dataclasses.replace(materials.EFFECTS[effect], implemented=True)
     cfg = Path(cfg_path)
 
     def write(text):

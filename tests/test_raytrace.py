@@ -1,4 +1,4 @@
-"""Ray-traced effects and primary visibility (passes/raytrace.py, glsl/rt/): pass-graph pruning,
+"""Ray-traced effects and primary visibility (passes/trace_effect.py, classify.py, primary_rays.py, glsl/rt/): pass-graph pruning,
 pixel lists, analytic mirrors, bounce counts, cross-checks against Embree, soft-shadow convergence.
 Small images: these run on llvmpipe."""
 from __future__ import annotations
@@ -18,18 +18,13 @@ from rayvr.scene import Light, Material, from_arrays, load
 DARK = RenderSettings(ambient=(0.0, 0.0, 0.0), background=(0.0, 0.0, 0.0))
 
 
-def hdr(r: Renderer) -> np.ndarray:
-    """The last frame's HDR colour, (layers, H, W, 3) float32, rows top-down."""
-    t = r._targets["hdr"]
-    a = np.frombuffer(t.read(), np.float16).reshape(t.layers, t.height, t.width, 4)
-    return a[:, ::-1, :, :3].astype(np.float32)
-
-
 def render(gl, scene, rig, config=None, settings=None, aux=("triangle", "material", "position")):
+    """The frame, its HDR colour ((eyes, H, W, 3) float32, rows top-down) and the passes that ran."""
     r = Renderer(scene, parse_config(config or {}, "test"), gl=gl, settings=settings or RenderSettings())
     try:
-        frame = r.render(rig, aux=aux)
-        return frame, hdr(r), r.passes_for(r._plan(2, "color"))
+        frame = r.render(rig, aux=tuple(aux) + ("hdr",))
+        hdr = np.stack([frame.left.aux["hdr"], frame.right.aux["hdr"]])
+        return frame, hdr, r.compiled().passes
     finally:
         r.release()
 
@@ -64,7 +59,7 @@ def test_all_raster_scene_builds_no_bvh_and_traces_nothing(gl, monkeypatch):
     for view in ("color", "effect"):
         r = Renderer(scene, gl=gl)
         r.render(rig, view=view)
-        names = {p.name for p in r.passes_for(r._plan(2, view))}
+        names = set(r.compiled(r.plan(2, view)).pass_names)
         assert not names & {"bvh", "classify", "primary_rays", "rt_shadows", "rt_reflections", "rt_glossy"}, names
         assert not r.accel.built
         r.release()
@@ -81,12 +76,12 @@ def test_traced_effects_schedule_only_their_passes_and_list_their_pixels(gl):
     r = Renderer(scene, parse_config({"default": "raster", "materials": {"mirror*": "reflections",
                                                                         "walls": "shadows"}}, "t"), gl=gl)
     frame = r.render(rig, aux=("effect",))
-    names = [p.name for p in r.passes_for(r._plan(2, "color"))]
+    names = r.compiled().pass_names
     i = names.index
     assert i("bvh") < i("rt_shadows") and i("classify") < i("rt_shadows") and i("shade") < i("rt_shadows")
-    assert i("rt_shadows") < i("rt_reflections") < i("resolve")
+    assert i("rt_shadows") < i("tonemap") and i("rt_reflections") < i("tonemap")
     assert "rt_glossy" not in names and "primary_rays" not in names
-    counts = r._targets["rt_lists"].counts()
+    counts = r.pixel_counts()
     effect = np.stack([frame.left.aux["effect"], frame.right.aux["effect"]])
     for name in ("shadows", "reflections", "glossy"):
         assert counts[name] == int((effect == EFFECTS[name].id).sum())
@@ -341,7 +336,7 @@ def test_refit_moves_what_rays_see(gl):
 def test_wave_batches_and_shadow_chunks_give_the_same_image(gl, monkeypatch):
     """Effect passes under a tiny buffer limit (pixel list in batches, each surface's shadow rays
     in chunks) render what they render in one go, up to float summation order."""
-    from rayvr.passes import raytrace
+    from rayvr.passes import trace_effect
     scene = load()
     rig = StereoRig.for_scene(scene, size=(40, 30))
     cfg = {"default": "shadows", "params": {"shadows": {"area_samples": 3}},
@@ -349,15 +344,15 @@ def test_wave_batches_and_shadow_chunks_give_the_same_image(gl, monkeypatch):
                          "mirror*": {"effect": "reflections", "bounces": 3}}}
     _, whole, _ = render(gl, scene, rig, cfg)
     limit = 30_000
-    batch, chunk = raytrace.wave_plan(40 * 30 * 2, 2, 3, limit)
+    batch, chunk = trace_effect.wave_plan(40 * 30 * 2, 2, 3, limit)
     assert batch < 40 * 30 * 2 and chunk < 3  # the limit does split both ways
-    monkeypatch.setattr(raytrace, "WAVE_BUFFER_BYTES", limit)
+    monkeypatch.setattr(trace_effect, "WAVE_BUFFER_BYTES", limit)
     _, split, _ = render(gl, scene, rig, cfg)
     assert np.allclose(split, whole, rtol=2e-3, atol=1e-4), np.abs(split - whole).max()
 
 
 def test_wave_plan_respects_the_limit():
-    from rayvr.passes.raytrace import PATH_BYTES, SLOT_BYTES, wave_plan
+    from rayvr.passes.trace_effect import PATH_BYTES, SLOT_BYTES, wave_plan
     for pixels, paths, slots, limit in ((4_608_000, 1, 4, 1 << 30), (4_608_000, 16, 64, 128 << 20),
                                         (100, 1, 2, 1 << 30), (10_000, 4, 1024, 200_000)):
         batch, chunk = wave_plan(pixels, paths, slots, limit)
@@ -436,29 +431,30 @@ def test_cli_capture_primary_rays_and_bench_rays_quick(tmp_path):
 @pytest.mark.parametrize("ballot", ["khr", "arb", "shared"])
 @pytest.mark.parametrize("group", [(8, 8), (32, 16)])
 def test_classify_lists_every_traced_pixel_once_in_each_aggregation_mode(gl, ballot, group):
-    from rayvr.passes import raytrace as rt
-    ext = rt.BALLOT_MODES[ballot][1]
+    from rayvr.effects import traced_effects
+    from rayvr.passes.classify import BALLOT_MODES, ClassifyPass
+    ext = BALLOT_MODES[ballot][1]
     if ext and not gl.has_extension(ext):
         pytest.skip(f"no {ext}")
     scene = load()
     rig = StereoRig.for_scene(scene, size=(37, 29))  # not a multiple of any group size
     r = Renderer(scene, parse_config({"default": "shadows", "materials": {"mirror*": "reflections"}}, "t"), gl=gl)
     try:
-        plan = r._plan(2, "color")
-        passes = r.passes_for(plan)
+        plan = r.plan(2, "color")
+        passes = r.compiled(plan).passes
         i = [p.name for p in passes].index("classify")
         passes[i].release()
-        passes[i] = rt.ClassifyPass(ballot, group)
+        passes[i] = ClassifyPass(ballot, group)
         passes[i].setup(gl, plan)
         assert passes[i].mode == ballot
         for _ in range(2):  # the second frame starts from the counters the first one left
             frame = r.render(rig, aux=("effect",))
-            lists = r._targets["rt_lists"]
+            traced = [e.name for e in traced_effects()]
             effect = np.stack([frame.left.aux["effect"], frame.right.aux["effect"]])[:, ::-1]  # rows bottom-up
-            args = np.frombuffer(lists.args.read(), np.uint32)
-            pixels = np.frombuffer(lists.pixels.read(), np.uint32).reshape(len(rt.TRACED_EFFECTS), -1)
-            assert not args[4 * len(rt.TRACED_EFFECTS):].any()  # scratch left at zero
-            for s, name in enumerate(rt.TRACED_EFFECTS):
+            args = np.frombuffer(r.resource("rt_list_args").read(), np.uint32)
+            pixels = np.frombuffer(r.resource("rt_lists").read(), np.uint32).reshape(len(traced), -1)
+            assert not args[4 * len(traced):].any()  # scratch left at zero
+            for s, name in enumerate(traced):
                 z, y, x = np.nonzero(effect == EFFECTS[name].id)
                 want = np.sort(x.astype(np.uint32) | (y.astype(np.uint32) << 14) | (z.astype(np.uint32) << 28))
                 n = int(args[4 * s + 3])

@@ -55,14 +55,15 @@ def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
 
     base = load_config(None)
     ref = T.measure(gl, scene, rig, T.Variant("reference", "ref", reference_config(scene, quick=True)), repeat=1)
-    base_ms, options = T.per_material_options(gl, scene, rig, ref, base, metrics.DEFAULT_PPD, repeat=1,
-                                              progress=False)
+    from rayvr.budget import per_material_options, solve_budget
+
+    base_ms, options = per_material_options(gl, scene, rig, ref, base, metrics.DEFAULT_PPD, repeat=1,
+                                            progress=False)
     assert base_ms > 0 and options
     for o in options:
         assert {x.effect for x in o.options} >= {"raster", "shadows"}
         raster = next(x for x in o.options if x.effect == "raster")
         assert raster.cost_ms == 0.0
-    from rayvr.bench.budget import solve_budget
 
     tight = solve_budget(options, budget_ms=base_ms, base_ms=base_ms)
     assert set(tight.assignment.values()) == {"raster"}

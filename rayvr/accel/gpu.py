@@ -14,9 +14,10 @@ import moderngl
 import numpy as np
 
 from .. import shaders
+from ..gpu_layout import SSBO
 from .bvh import Bvh, BufferTooLargeError
 
-DEFAULT_BINDING = 8
+DEFAULT_BINDING = SSBO["bvh_nodes"]  # nodes here, triangles at +1 (gpu_layout.SSBO)
 STACK_SIZE = 64            # BVH_STACK_SIZE in glsl/accel/bvh.glsl
 MISS = 0xFFFFFFFF
 MODES = {"closest": 0, "any": 1, "reflect": 2, "through": 3}
@@ -193,73 +194,3 @@ def trace_rays(ctx, bvh_or_gpu, origins, directions, tmin=0.0, tmax=np.inf, mode
 
 __all__ = ["GpuBvh", "RayTracer", "Hits", "trace_rays", "pack_rays", "max_ssbo_bytes",
            "BufferTooLargeError", "MISS", "MODES", "DEFAULT_BINDING", "STACK_SIZE"]
-
-
-def pinhole_rays(eye, forward, up, width: int, height: int, fov_y_deg: float = 90.0):
-    """(origins, directions) of a pinhole camera, row-major pixels: coherent rays for benchmarks."""
-    f = np.asarray(forward, np.float64)
-    f /= np.linalg.norm(f)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    u = np.cross(r, f)
-    th = np.tan(np.radians(fov_y_deg) / 2)
-    x = (2 * (np.arange(width) + 0.5) / width - 1) * th * width / height
-    y = (1 - 2 * (np.arange(height) + 0.5) / height) * th
-    xx, yy = np.meshgrid(x, y)
-    d = f + xx[..., None] * r + yy[..., None] * u
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    o = np.broadcast_to(np.asarray(eye, np.float32), d.shape)
-    return o.reshape(-1, 3), d.reshape(-1, 3).astype(np.float32)
-
-
-def benchmark(ctx, vertices, indices, width: int = 1440, height: int = 1600, repeats: int = 10,
-              seed: int = 0) -> dict:
-    """Build time, SAH cost and rays/s on a stereo pinhole view from the scene's centre (coherent
-    primary rays), shadow rays from those hits to a point light, and random rays (incoherent)."""
-    from .bvh import build_bvh, offset_ray
-
-    bvh = build_bvh(vertices, indices)
-    gpu = GpuBvh(ctx, bvh)
-    rt = RayTracer(ctx, gpu)
-    lo, hi = bvh.node_lo[0].astype(np.float64), bvh.node_hi[0].astype(np.float64)
-    centre = (lo + hi) / 2
-    eyes = [centre + [0, 0, s * 0.032] for s in (-1, 1)]
-    prim = [pinhole_rays(e, [1, 0, 0], [0, 1, 0], width, height) for e in eyes]
-    o = np.concatenate([p[0] for p in prim])
-    d = np.concatenate([p[1] for p in prim])
-    out = {"triangles": bvh.triangle_count, "build_s": bvh.build_seconds, "sah_cost": bvh.sah_cost(),
-           "gpu_nodes": bvh.gpu_node_count, "max_depth": bvh.max_depth, "rays": len(o),
-           "device": ctx.info.get("GL_RENDERER") if hasattr(ctx, "info") else None}
-    out["primary"] = rt.time_trace(o, d, repeats=repeats)
-    hits = rt.trace(o, d)
-    h = np.flatnonzero(hits.prim != MISS)
-    out["primary_hit_fraction"] = len(h) / len(o)
-    tri = bvh.vertices[bvh.indices[np.argsort(bvh.prim_ids)][hits.prim[h]]]
-    p = tri[:, 0] + hits.u[h, None] * (tri[:, 1] - tri[:, 0]) + hits.v[h, None] * (tri[:, 2] - tri[:, 0])
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
-    n *= -np.sign((n * d[h]).sum(1, keepdims=True))
-    so = offset_ray(p, n.astype(np.float32))
-    light = (centre + [0, 0.4 * (hi[1] - lo[1]), 0]).astype(np.float32)
-    out["shadow"] = rt.time_trace(so, light - so, tmax=1.0, mode="any", repeats=repeats)
-    out["shadow_occluded_fraction"] = float(rt.trace(so, light - so, tmax=1.0, mode="any").mean())
-    rng = np.random.default_rng(seed)
-    ro = (centre + rng.uniform(-0.25, 0.25, (len(o), 3)) * (hi - lo)).astype(np.float32)
-    rd = rng.normal(size=(len(o), 3)).astype(np.float32)
-    out["incoherent"] = rt.time_trace(ro, rd, repeats=repeats)
-    gpu.release()
-    return out
-
-
-if __name__ == "__main__":   # python -m rayvr.accel.gpu MESH [WIDTH HEIGHT]
-    import json
-    import sys
-
-    import trimesh
-
-    from ..context import create_context
-
-    mesh = trimesh.load(sys.argv[1], force="mesh")
-    size = [int(x) for x in sys.argv[2:4]] or [1440, 1600]
-    g = create_context()
-    print(json.dumps(benchmark(g.ctx, mesh.vertices, mesh.faces, *size), indent=1, default=float))

@@ -23,8 +23,8 @@ def time_gbuffer(renderer: Renderer, rig: StereoRig, repeat: int, warmup: int) -
     ms = {p: [] for p in passes}
     renderer.warm_up(rig)
     for i in range(warmup + repeat):
-        renderer.record(rig, "both", "color")
-        t = renderer.timer.read_ms(passes)
+        fc = renderer.record(rig, "both", "color")
+        t = renderer.read_ms(fc)
         if i >= warmup:
             for p in passes:
                 ms[p].append(t[p])

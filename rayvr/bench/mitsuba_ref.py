@@ -383,15 +383,12 @@ def unshadowed_mask(mi_scene, scene: Scene, hits: PrimaryHits, grid: int = 4) ->
 
 
 def rayvr_hdr(renderer, rig: StereoRig, supersample: int = 1) -> np.ndarray:
-    """The first eye's linear HDR radiance (H, W, 3) float32, rows top-down, from the Renderer's
-    "hdr" target. With `supersample` s the eye is rendered at s x the size and box-averaged
+    """The first eye's linear HDR radiance (H, W, 3) float32, rows top-down (aux "hdr"). With `supersample` s the eye is rendered at s x the size and box-averaged
     (the footprint of Mitsuba's box-filtered pixel)."""
     s = int(supersample)
     w, h = rig.size
     big = rig.with_size((w * s, h * s))
-    fc = renderer.record(big, eyes="left")
-    raw = np.frombuffer(fc.target("hdr").read(), np.float16)
-    img = raw.reshape(-1, h * s, w * s, 4)[0, ::-1, :, :3].astype(np.float32)  # GL rows bottom-up
+    img = renderer.render(big, eyes="left", aux=("hdr",)).left.aux["hdr"]
     return img.reshape(h, s, w, s, 3).mean(axis=(1, 3))
 
 

@@ -124,7 +124,7 @@ def time_frame(renderer, rig, repeat, warmup, warmup_s=0.3):
     for i in range(repeat):
         fc = renderer.record(rig, "both", "color")
         renderer.gl.ctx.finish()
-        t = renderer.timer.read_ms(fc.pass_names)
+        t = renderer.read_ms(fc)
         names = fc.pass_names
         for k, v in t.items():
             ms.setdefault(k, []).append(v)
@@ -133,38 +133,14 @@ def time_frame(renderer, rig, repeat, warmup, warmup_s=0.3):
     return names, med, float(np.median(totals))
 
 
-class _Untimed:
-    """Stands in for the renderer's PassTimer while the effect passes time their own kernels
-    (GL timer queries do not nest)."""
-
-    slot = 0
-
-    def next_frame(self):
-        pass
-
-    def run(self, name, fn):
-        fn()
-
-
 def time_effect_stages(renderer, rig, repeat=5) -> dict:
     """Median GPU ms of each kernel of the wavefront effect passes ("rt_shadows.shadow", ...)."""
-    from ..frame import PassTimer
-    passes = [p for p in renderer.passes_for(renderer._plan(2, "color")) if hasattr(p, "stage_timer")]
-    stages, saved = PassTimer(renderer.gl.ctx), renderer.timer
     ms: dict = {}
-    renderer.timer = _Untimed()
-    try:
-        for p in passes:
-            p.stage_timer = stages
-        for _ in range(repeat):
-            renderer.record(rig, "both", "color")
-            renderer.gl.ctx.finish()
-            for (_, name), q in stages.queries.items():
-                ms.setdefault(name, []).append(q.elapsed / 1e6)
-    finally:
-        for p in passes:
-            p.stage_timer = None
-        renderer.timer = saved
+    for _ in range(repeat):
+        fc = renderer.record(rig, "both", "color", profile=True)
+        for name, v in renderer.read_ms(fc).items():
+            if name.startswith("rt_") and "." in name:
+                ms.setdefault(name, []).append(v)
     return {k: float(np.median(v)) for k, v in ms.items()}
 
 
@@ -221,7 +197,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
             try:
                 names, med, total = time_frame(r, rig, repeat, warmup)
                 stages = time_effect_stages(r, rig)
-                counts = r._targets["rt_lists"].counts()
+                counts = r.pixel_counts()
                 pixels = 2 * size[0] * size[1]
                 frames.append({"scene": name, "size": f"2x{size[0]}x{size[1]}", "passes": names,
                                "pass_ms": {k: med[k] for k in names if k in med}, "total_ms": total,

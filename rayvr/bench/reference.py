@@ -1,16 +1,18 @@
 """Reference images: the most accurate setting rayvr has for a scene.
 
-Every material gets the top rung of the effect ladder that models it, restricted to what
-`implemented_effects()` offers now (the ladder grows; the reference grows with it):
+Every material is put in a class and gets the registered effect that ranks highest for that
+class (each effect declares its place: `Effect.reference`, rayvr/effects/), at reference quality
+(`Effect.reference_params`). With today's effects:
 
 * mirror (metallic, roughness < MIRROR_ROUGHNESS)       -> `reflections`, many bounces
 * glossy (rough metal, or a dielectric with roughness
   <= GLOSSY_DIELECTRIC_ROUGHNESS: a visible GGX lobe)    -> `glossy`, many samples
 * everything else                                        -> `shadows`, many area-light samples
 
-An effect that is not implemented falls back down the ladder (a mirror to `glossy`, then
-`shadows`, then `raster`), never up to something that models it wrongly (a glossy surface is
-never rendered as a perfect mirror). `path` (when implemented and asked for) replaces all of it.
+An effect that is not available falls back down its class's ranking (a mirror to `glossy`,
+then `shadows`, then `raster`), never to an effect that does not model the class (a glossy
+surface is never rendered as a perfect mirror). `path` (when implemented and asked for)
+replaces all of it.
 
 `reference_settings()` gives RenderSettings for comparisons with other renderers: no ambient
 term (it stands in for indirect light, which no direct-light reference has), black background,
@@ -20,7 +22,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..materials import EFFECTS, MaterialConfig, implemented_effects, parse_config
+from ..effects import EFFECTS, implemented_effects
+from ..materials import MaterialConfig, parse_config
 
 MIRROR_ROUGHNESS = 0.05
 GLOSSY_DIELECTRIC_ROUGHNESS = 0.5
@@ -29,12 +32,13 @@ GLOSSY_DIELECTRIC_ROUGHNESS = 0.5
 REFERENCE_QUALITY = {"bounces": 8, "samples": 256, "area_samples": 256, "path_samples": 1024}
 QUICK_QUALITY = {"bounces": 2, "samples": 16, "area_samples": 16, "path_samples": 64}
 
-# Fallback chains, best first: each step still models the material (only less of it).
-_CHAINS = {
-    "mirror": ("reflections", "glossy", "shadows", "raster"),
-    "glossy": ("glossy", "shadows", "raster"),
-    "diffuse": ("shadows", "raster"),
-}
+
+
+def chain(kind: str) -> tuple:
+    """Registered effects that model material class `kind`, best first (each still models it,
+    only less of it)."""
+    ranked = [e for e in EFFECTS.values() if kind in e.reference]
+    return tuple(e.name for e in sorted(ranked, key=lambda e: -e.reference[kind]))
 
 
 def material_class(material) -> str:
@@ -42,24 +46,6 @@ def material_class(material) -> str:
     if material.metallic >= 0.5:
         return "mirror" if material.roughness < MIRROR_ROUGHNESS else "glossy"
     return "glossy" if material.roughness <= GLOSSY_DIELECTRIC_ROUGHNESS else "diffuse"
-
-
-def _clamp(effect: str, key: str, value):
-    p = EFFECTS[effect].params[key]
-    if p.lo is not None:
-        value = max(value, p.kind(p.lo))
-    if p.hi is not None:
-        value = min(value, p.kind(p.hi))
-    return p.kind(value)
-
-
-def _params(effect: str, q: dict) -> dict:
-    want = {"reflections": {"bounces": q["bounces"], "area_samples": q["area_samples"]},
-            "glossy": {"samples": q["samples"], "bounces": q["bounces"], "area_samples": q["area_samples"]},
-            "shadows": {"area_samples": q["area_samples"]},
-            "path": {"samples": q["path_samples"], "bounces": q["bounces"]},
-            "raster": {}}[effect]
-    return {k: _clamp(effect, k, v) for k, v in want.items() if k in EFFECTS[effect].params}
 
 
 @dataclass(frozen=True)
@@ -80,11 +66,12 @@ def reference_choices(scene, quick: bool = False, use_path: bool = False,
     out = []
     for m in scene.materials:
         kind = material_class(m)
-        chain = _CHAINS[kind]
+        best = chain(kind)
         if use_path and "path" in have:
-            chain = ("path",) + chain
-        effect = next((e for e in chain if e in have), "raster")
-        out.append(ReferenceChoice(m.name, kind, chain[0], effect, _params(effect, q)))
+            best = ("path",) + best
+        effect = next((e for e in best if e in have), "raster")
+        params = EFFECTS[effect].reference_params(q) if effect in EFFECTS else {}
+        out.append(ReferenceChoice(m.name, kind, best[0], effect, params))
     return out
 
 

@@ -1,4 +1,4 @@
-"""`rayvr bench tradeoff` and `--budget-ms`: the price list of accuracy.
+"""`rayvr bench tradeoff`: the price list of accuracy.
 
 Every knob setting (a *variant*: a material config plus render settings plus a resolution
 scale) is rendered on the same stereo rig; its cost is the median GPU time of the whole frame
@@ -6,9 +6,7 @@ scale) is rendered on the same stereo rig; its cost is the median GPU time of th
 most accurate setting rayvr has, from `reference.py`) with mean FLIP at the headset's pixels
 per degree, PSNR and SSIM, over the whole image and over the pixels the knob touches.
 
-The budget mode estimates, per material, what each effect costs and how much error it leaves
-(`per_material_options`), picks one effect per material with `budget.solve_budget`, and then
-renders and measures the chosen assignment for real.
+The budget mode (rayvr/budget.py) measures per-material options with `measure` from here.
 """
 from __future__ import annotations
 
@@ -21,7 +19,6 @@ import numpy as np
 from ..camera import StereoRig
 from ..materials import EFFECTS, MaterialConfig, implemented_effects
 from ..renderer import Renderer, RenderSettings
-from . import budget as budget_mod
 from . import metrics
 
 
@@ -177,22 +174,16 @@ def variants(scene, base: MaterialConfig, quick: bool = False) -> list[Variant]:
     effects = implemented_effects()
     for e in effects:  # the whole scene on one rung of the ladder
         out.append(Variant("effect", e, config_with(base, default=e, materials={n: e for n in base.by_name})))
-    ranges = {
-        "area_samples": [1, 4, 16] if quick else [1, 2, 4, 8, 16, 32],
-        "bounces": [1, 2] if quick else [1, 2, 3, 4, 8],
-        "samples": [1, 4] if quick else [1, 2, 4, 8, 16, 32],
-    }
     for effect in effects:
         # Sweep a parameter where the effect is in use: the materials the config gives it, or
         # (when it gives it none) the whole scene.
         users = tuple(n for n, (e, _) in base.by_name.items() if e == effect)
         on = base if (users or base.default == effect) else config_with(base, default=effect)
         touched = () if on.default == effect else users
-        for param, values in ranges.items():
-            if param in EFFECTS[effect].params:
-                for v in values:
-                    out.append(Variant(f"{effect}.{param}", v, config_with(on, params={effect: {param: v}}),
-                                       touches=touched))
+        for param, (full, short) in EFFECTS[effect].sweep.items():  # each effect's own sweep ranges
+            for v in (short if quick else full):
+                out.append(Variant(f"{effect}.{param}", v, config_with(on, params={effect: {param: v}}),
+                                   touches=touched))
     for s in ([0.5, 1.0] if quick else [0.5, 0.75, 1.0]):
         out.append(Variant("resolution_scale", s, base, scale=s))
     return out
@@ -218,108 +209,6 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
     if bar is not None:
         bar.close()
     return rows, ref
-
-
-# ------------------------------------------------------------------------------- budget
-
-
-def per_material_options(gl, scene, rig, reference_image: Measured, base: MaterialConfig, ppd: float,
-                         effects=None, repeat=10, min_coverage=1e-4, progress=True, pool=None):
-    """Per material and effect: extra GPU ms over all-`raster` and the error left on its pixels.
-
-    One render per effect (the whole scene on that rung) instead of one per material and
-    effect: a material's error is the mean FLIP over its own pixels in that render, and the
-    effect's extra cost is shared out over materials in proportion to their pixels (the traced
-    passes run over compacted pixel lists, so their cost follows pixel counts). Both are
-    approximations: reflections also show other materials, and dispatch overheads are shared;
-    the chosen assignment is therefore rendered and measured for real afterwards.
-    Materials covering < min_coverage of the image stay `raster`."""
-    effects = list(effects or implemented_effects())
-    names = scene.material_names()
-    ids = reference_image.material
-    coverage = np.bincount(np.where(ids < len(names), ids, len(names)).ravel(),
-                           minlength=len(names) + 1)[:len(names)] / ids.size
-    importance = [a.importance for a in base.assign(names, warn=False)]
-    covered = [i for i in range(len(names)) if coverage[i] >= min_coverage]
-    flip_maps, extra_ms, raster_ms = {}, {}, None
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name}")
-    for e in effects:
-        cfg = config_for_assignment(base, scene, {n: e for n in names})
-        m = measure(gl, scene, rig, Variant("budget", e, cfg), repeat, pool=pool)
-        flip_maps[e] = metrics.flip_map(reference_image.image, m.image, ppd=ppd)
-        extra_ms[e] = m.gpu_ms
-        if e == "raster":
-            raster_ms = m.gpu_ms
-        if bar is not None:
-            bar.update(1)
-    if bar is not None:
-        bar.close()
-    if raster_ms is None:
-        raise ValueError("the budget model needs 'raster' among the effects (it is the cost baseline)")
-    share = coverage / max(coverage[covered].sum(), 1e-12)
-    options = []
-    for i in covered:
-        mask = ids == i
-        opts = [budget_mod.Option(e, max(extra_ms[e] - raster_ms, 0.0) * share[i], float(flip_maps[e][mask].mean()))
-                for e in effects]
-        options.append(budget_mod.MaterialOptions(names[i], opts, importance=importance[i], coverage=float(coverage[i])))
-    return raster_ms, options
-
-
-BUDGET_TOLERANCE = 1.02  # measured frames within 2 % of the budget count as within (timer noise)
-BUDGET_ROUNDS = 4
-
-
-def choose_under_budget(gl, scene, rig, budget_ms: float, base: MaterialConfig, reference_image: Measured,
-                        ppd: float, repeat=10, progress=True, pool=None, options=None) -> dict:
-    """Pick effects per material for `budget_ms`, render the pick and measure it.
-
-    The per-material costs are estimates (a traced effect also has fixed costs, classify and
-    dispatch, that come with its first material); when the measured frame overshoots, the chosen
-    options' costs are scaled by measured/predicted and the choice is solved again, at most
-    BUDGET_ROUNDS times. If no round fits, the best measured pick that did fit is returned, else
-    the cheapest assignment. `options`: (base_ms, per-material options) measured already, to
-    solve several budgets from one measurement."""
-    base_ms, options = options or per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
-                                                       progress=progress, pool=pool)
-
-    def attempt(opts, budget):
-        result = budget_mod.solve_budget(opts, budget, base_ms=base_ms)
-        cfg = config_for_assignment(base, scene, result.assignment)
-        chosen = measure(gl, scene, rig, Variant("budget", budget_ms, cfg), repeat, pool=pool)
-        return {"budget_ms": budget_ms, "predicted_ms": result.total_ms, "measured_ms": chosen.gpu_ms,
-                "within_budget": chosen.gpu_ms <= budget_ms * BUDGET_TOLERANCE, "feasible": result.feasible,
-                "predicted_error": result.error, "measured_flip": metrics.flip(reference_image.image, chosen.image, ppd=ppd),
-                "assignment": result.assignment, "config": cfg, "image": chosen.image}
-
-    scale: dict = {}
-    tried = []
-    for _ in range(BUDGET_ROUNDS):
-        adjusted = [budget_mod.MaterialOptions(
-            o.name, [budget_mod.Option(x.effect, x.cost_ms * scale.get((o.name, x.effect), 1.0), x.error)
-                     for x in o.options], importance=o.importance, coverage=o.coverage) for o in options]
-        pick = attempt(adjusted, budget_ms)
-        tried.append(pick)
-        predicted_extra, measured_extra = pick["predicted_ms"] - base_ms, pick["measured_ms"] - base_ms
-        if pick["within_budget"] or not pick["feasible"] or predicted_extra <= 0:
-            break
-        factor = measured_extra / predicted_extra
-        for name, effect in pick["assignment"].items():
-            if effect != "raster":
-                scale[(name, effect)] = scale.get((name, effect), 1.0) * max(factor, 1.0)
-    fitting = [p for p in tried if p["within_budget"]]
-    if fitting:
-        best = min(fitting, key=lambda p: p["measured_flip"])
-    elif tried[-1]["feasible"]:
-        best = attempt(options, 0.0)  # the cheapest assignment: nothing cheaper exists
-        tried.append(best)
-    else:
-        best = tried[-1]
-    return {**best, "rounds": len(tried)}
 
 
 # ------------------------------------------------------------------------------- entry points
@@ -377,6 +266,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
 def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
                ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False) -> dict:
     """For each budget: the chosen effect per material, its predicted and measured ms and error."""
+    from ..budget import choose_under_budget, per_material_options
     from ..output import write_png
     from .report import device_meta, write_report
 
@@ -397,39 +287,10 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
                 "ppd": ppd, "skipped": skipped,
                 "model": "per material: extra GPU ms of each effect over all-raster and mean FLIP over its "
                          "pixels vs the reference; total error = sum importance x coverage x error; exact "
-                         "multiple-choice knapsack (rayvr.bench.budget)"}
+                         "multiple-choice knapsack (rayvr.budget)"}
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "budget", result)
     return result
-
-
-def auto_config(renderer, rig: StereoRig, budget_ms: float, ppd: float = metrics.DEFAULT_PPD, repeat: int = 5,
-                progress: bool = True) -> tuple[MaterialConfig, dict]:
-    """`--budget-ms` for capture and preview: effects per material of `renderer.scene` that keep the
-    frame within `budget_ms` on this device with the least error, starting from the renderer's
-    current config. Returns the config and the summary (predicted and measured ms and FLIP)."""
-    from .reference import reference_config
-
-    gl, scene = renderer.gl, renderer.scene
-    reference = Variant("reference", "reference",
-                        reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
-    with RendererPool(gl) as pool:
-        ref = measure(gl, scene, rig, reference, repeat=1, warmup=1, pool=pool)
-        pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)
-    summary = {k: v for k, v in pick.items() if k not in ("config", "image")}
-    return pick["config"], summary
-
-
-def describe_pick(summary: dict) -> str:
-    """A few lines for the terminal or the HUD."""
-    state = ("within" if summary["within_budget"] else "OVER") + ("" if summary["feasible"] else " (cheapest assignment)")
-    lines = [f"budget {summary['budget_ms']:g} ms: {state}; predicted {summary['predicted_ms']:.2f} ms, "
-             f"measured {summary['measured_ms']:.2f} ms, mean FLIP {summary['measured_flip']:.4f}"]
-    by_effect: dict = {}
-    for name, effect in summary["assignment"].items():
-        by_effect.setdefault(effect, []).append(name)
-    lines += [f"  {e:12s} {', '.join(sorted(n))}" for e, n in sorted(by_effect.items())]
-    return "\n".join(lines)
 
 
 def plot_tradeoff(rows: list[dict], out_dir) -> list:

@@ -14,6 +14,13 @@ def dispatch_per_pixel(fc, program: moderngl.ComputeShader) -> None:
     fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
 
+def camera_defines(plan) -> dict:
+    """CAMERA_MODEL for programs that include glsl/common/camera.glsl (the plan's camera model)."""
+    from ..cameras import get_camera_model
+
+    return get_camera_model(plan.camera).defines()
+
+
 def set_eye_uniforms(program, fc) -> None:
     """The per-eye camera block of glsl/common/camera.glsl, with the values the eyes' camera
     model gives (rayvr/cameras/base.py uniforms). Uniforms the shader does not use are skipped:

@@ -1,24 +1,24 @@
-"""Debug views of the G-buffer channels and of the per-pixel effect ID."""
+"""`debug_view`: a G-buffer channel or the per-pixel effect ID as the 8-bit output
+(glsl/shade/debug_view.comp)."""
 from __future__ import annotations
 
 import numpy as np
 
 from .. import shaders
-from ..frame import FramePlan, Pass
+from ..frame import FramePlan, Pass, read, write
+from ..gpu_layout import DEBUG_VIEWS, IMAGE
 from .compute import dispatch_per_pixel
-
-# Order matches `view` in glsl/shade/debug_view.comp.
-DEBUG_VIEWS = ("depth", "normal", "albedo", "roughness", "metallic", "emission", "material", "effect",
-               "triangle", "position")
+from .tonemap import LDR
 
 
 class DebugViewPass(Pass):
     name = "debug_view"
-    reads = ("gbuffer",)
-    writes = ("ldr",)
 
-    def needed(self, plan: FramePlan) -> bool:
-        return plan.view in DEBUG_VIEWS
+    def why(self, plan: FramePlan) -> str | None:
+        return f"view = {plan.view}" if plan.view in DEBUG_VIEWS else None
+
+    def io(self, plan: FramePlan) -> list:
+        return [read("gbuffer"), write("ldr", LDR)]
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.program = shaders.compute(gl.ctx, "shade/debug_view.comp")
@@ -29,7 +29,7 @@ class DebugViewPass(Pass):
         hi = max(float(np.linalg.norm(fc.scene.bounds[1] - fc.scene.bounds[0])) * 2.0, lo * 10)
         self.program["depth_range"].value = (lo, hi)
         fc.gbuffer.bind_for_reading()
-        fc.target("ldr").bind_to_image(1, read=False, write=True)
+        fc.resource("ldr").bind_to_image(IMAGE["ldr"], read=False, write=True)
         dispatch_per_pixel(fc, self.program)
 
     def release(self) -> None:

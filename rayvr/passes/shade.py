@@ -1,31 +1,41 @@
-"""`raster` shading: direct light from the G-buffer (no shadows) into the HDR target."""
+"""`shade`: the `raster` rung, direct light from the G-buffer (no shadows) into the HDR target, and
+the background. It makes all of `hdr`; pixels of traced effects are left to their own passes,
+which compose over it (glsl/shade/direct.comp skips them)."""
 from __future__ import annotations
 
 from .. import shaders
-from ..materials import EFFECTS
-from ..frame import FramePlan, Pass
-from .compute import dispatch_per_pixel, set_eye_uniforms
+from ..effects import EFFECTS
+from ..frame import FramePlan, Pass, Texture, read, write
+from ..gpu_layout import IMAGE
+from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
+
+HDR = Texture("rgba16f")  # linear radiance, both eyes
 
 
-class ShadeDirectPass(Pass):
+class ShadePass(Pass):
     name = "shade"
-    reads = ("gbuffer",)
-    writes = ("hdr",)
+
+    def why(self, plan: FramePlan) -> str | None:
+        raster = plan.materials_using("raster")
+        return f"effect raster ({', '.join(raster)}) and the background" if raster else "the background"
+
+    def io(self, plan: FramePlan) -> list:
+        return [read("gbuffer"), write("hdr", HDR)]
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.program = shaders.compute(gl.ctx, "shade/direct.comp")
+        self.program = shaders.compute(gl.ctx, "shade/direct.comp", camera_defines(plan))
+        # Pixels of traced effects get their colour from their own passes.
+        self.traced_mask = sum(1 << EFFECTS[e].id for e in plan.effects if e in EFFECTS and EFFECTS[e].traced)
 
     def execute(self, fc) -> None:
         p = self.program
         set_eye_uniforms(p, fc)
         p["ambient"].value = tuple(fc.settings.ambient)
         p["background"].value = tuple(fc.settings.background)
-        # Pixels of ray-traced effects get their colour from their own pass (passes/raytrace.py).
-        from .raytrace import traced_effects
-        p["traced_effects"].value = sum(1 << EFFECTS[e].id for e in traced_effects(fc.plan))
+        p["traced_effects"].value = self.traced_mask
         fc.gbuffer.bind_for_reading()
         fc.gpu_scene.bind()
-        fc.target("hdr").bind_to_image(0, read=False, write=True)
+        fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
         dispatch_per_pixel(fc, p)
 
     def release(self) -> None:

@@ -1,10 +1,7 @@
 // Tonemapping and output encoding.
 #ifndef RAYVR_COLOR_GLSL
 #define RAYVR_COLOR_GLSL
-
-#define TONEMAP_CLAMP 0
-#define TONEMAP_REINHARD 1
-#define TONEMAP_ACES 2
+#include "../layout.glsl"  // TONEMAP_* (rayvr/gpu_layout.py TONEMAPPERS)
 
 // ACES filmic curve, Narkowicz 2015 fit (input is exposure-scaled linear radiance).
 vec3 tonemap_aces(vec3 x) {

@@ -1,16 +1,17 @@
 // Reading the layered G-buffer (layer = eye) from compute passes.
-// Channel table: rayvr/gbuffer.py (CHANNELS); texture units below match it.
+// Channel table: rayvr/gpu_layout.py (CHANNELS); units from the generated layout.glsl.
 #ifndef RAYVR_GBUFFER_GLSL
 #define RAYVR_GBUFFER_GLSL
 #include "surface.glsl"
+#include "../layout.glsl"
 
-layout(binding = 0) uniform sampler2DArray gb_depth;      // reversed-Z depth
-layout(binding = 1) uniform sampler2DArray gb_position;   // xyz scene-local, w view depth
-layout(binding = 2) uniform sampler2DArray gb_normal;     // xyz world normal, w roughness
-layout(binding = 3) uniform sampler2DArray gb_albedo;     // rgb base colour, a metallic
-layout(binding = 4) uniform sampler2DArray gb_emission;   // rgb emitted radiance
-layout(binding = 5) uniform usampler2DArray gb_material;  // x material index, y effect ID
-layout(binding = 6) uniform usampler2DArray gb_triangle;  // x triangle ID
+layout(binding = GB_UNIT_DEPTH) uniform sampler2DArray gb_depth;      // reversed-Z depth
+layout(binding = GB_UNIT_POSITION) uniform sampler2DArray gb_position;   // xyz scene-local, w view depth
+layout(binding = GB_UNIT_NORMAL) uniform sampler2DArray gb_normal;     // xyz world normal, w roughness
+layout(binding = GB_UNIT_ALBEDO) uniform sampler2DArray gb_albedo;     // rgb base colour, a metallic
+layout(binding = GB_UNIT_EMISSION) uniform sampler2DArray gb_emission;   // rgb emitted radiance
+layout(binding = GB_UNIT_MATERIAL) uniform usampler2DArray gb_material;  // x material index, y effect ID
+layout(binding = GB_UNIT_TRIANGLE) uniform usampler2DArray gb_triangle;  // x triangle ID
 
 Surface gbuffer_fetch(ivec3 p) {
     Surface s;

@@ -1,20 +1,7 @@
 // Scene data shared by raster and compute passes (std430; layouts mirror rayvr/gpu_scene.py).
 #ifndef RAYVR_SCENE_GLSL
 #define RAYVR_SCENE_GLSL
-
-#define SSBO_TRIANGLE_MATERIAL 0
-#define SSBO_MATERIALS 1
-#define SSBO_LIGHTS 2
-#define SSBO_VERTICES 3
-#define SSBO_INDICES 4
-#define VERTEX_FLOATS 8  // position xyz, normal xyz, uv (rayvr/gpu_scene.py)
-
-#define LIGHT_POINT 0
-#define LIGHT_DIRECTIONAL 1
-#define LIGHT_RECT 2
-
-#define NO_HIT 0xFFFFFFFFu
-#define BACKGROUND_EFFECT 255u
+#include "../layout.glsl"
 
 struct Material {
     vec4 base_color;      // linear RGBA
@@ -23,7 +10,7 @@ struct Material {
     float roughness;
     int texture_layer;    // -1: no base-colour texture
     uint effect;          // effect-ladder ID from the material config
-    uvec4 params;         // the effect's parameters: bounces, samples, area_samples (gpu_scene.py)
+    uvec4 params[MATERIAL_PARAM_WORDS / 4];  // the effect's parameters (rayvr/effects/base.py pack_params)
 };
 
 struct Light {
@@ -39,6 +26,12 @@ layout(std430, binding = SSBO_MATERIALS) readonly buffer Materials { Material ma
 layout(std430, binding = SSBO_LIGHTS) readonly buffer Lights { Light lights[]; };
 layout(std430, binding = SSBO_VERTICES) readonly buffer Vertices { float vertex_data[]; };
 layout(std430, binding = SSBO_INDICES) readonly buffer Indices { uint index_data[]; };
+
+// Parameter `slot` of material m's effect (PARAM_<EFFECT>_<NAME>, or PARAM_<NAME> in an effect's
+// own shaders): ints as int32, floats as float32 bits.
+uint material_param_bits(uint m, int slot) { return materials[m].params[slot >> 2][slot & 3]; }
+int material_param_int(uint m, int slot) { return int(material_param_bits(m, slot)); }
+float material_param_float(uint m, int slot) { return uintBitsToFloat(material_param_bits(m, slot)); }
 
 struct TriangleVerts { vec3 p[3]; vec3 n[3]; vec2 uv[3]; };
 

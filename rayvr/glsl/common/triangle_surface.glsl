@@ -8,7 +8,7 @@
 #include "scene.glsl"
 #include "color.glsl"
 
-layout(binding = 9) uniform sampler2DArray base_color_textures;  // BASE_COLOR_TEXTURE_UNIT
+layout(binding = UNIT_BASE_COLOR_TEXTURES) uniform sampler2DArray base_color_textures;
 
 vec2 triangle_uv(TriangleVerts tv, vec3 w) {
     return w.x * tv.uv[0] + w.y * tv.uv[1] + w.z * tv.uv[2];

@@ -1,7 +1,7 @@
 #version 430
 // G-buffer resolve: from each pixel's triangle ID (visibility raster or ray-traced primary
 // hits) and the pixel's own camera ray, compute the exact hit on that triangle and fill every
-// G-buffer channel (rayvr/gbuffer.py CHANNELS). Positions lie on the pixel's ray by
+// G-buffer channel (rayvr/gpu_layout.py CHANNELS). Positions lie on the pixel's ray by
 // construction, so ray-traced passes and the G-buffer register exactly; texture LOD comes
 // from ray differentials (the neighbouring pixels' rays on the same triangle plane).
 // Normal, material and base colour come from common/triangle_surface.glsl, which secondary-ray
@@ -15,18 +15,18 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../common/triangle_surface.glsl"
 #include "../common/camera.glsl"
 
-layout(binding = 0) uniform sampler2DArray gb_depth;
+layout(binding = GB_UNIT_DEPTH) uniform sampler2DArray gb_depth;
 #if PRIMARY_RAYS
-layout(rgba32f, binding = 0) uniform image2DArray img_position;
+layout(rgba32f, binding = GB_IMAGE_POSITION) uniform image2DArray img_position;
 #else
-layout(rgba32f, binding = 0) uniform writeonly image2DArray img_position;
+layout(rgba32f, binding = GB_IMAGE_POSITION) uniform writeonly image2DArray img_position;
 #endif
-layout(rgba16f, binding = 1) uniform writeonly image2DArray img_normal;
-layout(rgba16f, binding = 2) uniform writeonly image2DArray img_albedo;
-layout(rgba16f, binding = 3) uniform writeonly image2DArray img_emission;
-layout(rg32ui, binding = 4) uniform writeonly uimage2DArray img_material;
-layout(r32ui, binding = 5) uniform uimage2DArray img_triangle;
-layout(r32f, binding = 6) uniform writeonly image2DArray img_linear_depth;
+layout(rgba16f, binding = GB_IMAGE_NORMAL) uniform writeonly image2DArray img_normal;
+layout(rgba16f, binding = GB_IMAGE_ALBEDO) uniform writeonly image2DArray img_albedo;
+layout(rgba16f, binding = GB_IMAGE_EMISSION) uniform writeonly image2DArray img_emission;
+layout(rg32ui, binding = GB_IMAGE_MATERIAL) uniform writeonly uimage2DArray img_material;
+layout(r32ui, binding = GB_IMAGE_TRIANGLE) uniform uimage2DArray img_triangle;
+layout(r32f, binding = GB_IMAGE_LINEAR_DEPTH) uniform writeonly image2DArray img_linear_depth;
 
 // Barycentrics (b1, b2) of the point where ray (o, d) meets the plane of (v0, e1, e2).
 vec2 plane_barycentrics(vec3 o, vec3 d, vec3 v0, vec3 e1, vec3 e2, vec3 ng, out float t) {
@@ -58,8 +58,8 @@ void main() {
         return;
     }
     int eye = p.z;
-    vec3 o = eye_position[eye];
-    vec3 d = eye_ray_direction(eye, vec2(p.xy) + 0.5, size);
+    vec3 o, d;
+    camera_ray(eye, vec2(p.xy) + 0.5, size, o, d);
     TriangleVerts tv = scene_triangle(tri);
     vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0];
     vec3 ng = cross(e1, e2);
@@ -85,8 +85,10 @@ void main() {
     float lod = 0.0;
     if (materials[mi].texture_layer >= 0) {
         float tx, ty;
-        vec2 bx = plane_barycentrics(o, eye_ray_direction(eye, vec2(p.xy) + vec2(1.5, 0.5), size), tv.p[0], e1, e2, ng, tx);
-        vec2 by = plane_barycentrics(o, eye_ray_direction(eye, vec2(p.xy) + vec2(0.5, 1.5), size), tv.p[0], e1, e2, ng, ty);
+        vec3 d_x, d_y;
+        camera_ray_neighbours(eye, vec2(p.xy) + 0.5, size, d_x, d_y);
+        vec2 bx = plane_barycentrics(o, d_x, tv.p[0], e1, e2, ng, tx);
+        vec2 by = plane_barycentrics(o, d_y, tv.p[0], e1, e2, ng, ty);
         vec2 duv1 = tv.uv[1] - tv.uv[0], duv2 = tv.uv[2] - tv.uv[0];
         vec2 ddx = (bx.x - b.x) * duv1 + (bx.y - b.y) * duv2;
         vec2 ddy = (by.x - b.x) * duv1 + (by.y - b.y) * duv2;

@@ -33,7 +33,7 @@
 
 layout(local_size_x = CLASSIFY_INVOCATIONS, local_size_y = 1, local_size_z = 1) in;
 
-const int SLOT_OF_EFFECT[8] = RT_SLOT_TABLE;  // effect ID -> list slot, -1: not traced
+const int SLOT_OF_EFFECT[MAX_EFFECT_ID] = RT_SLOT_TABLE;  // effect ID -> list slot, -1: not traced
 shared uint group_count[RT_SLOTS];
 shared uint group_base[RT_SLOTS];
 
@@ -76,7 +76,7 @@ void main() {
     int slot = -1;
     if (all(lessThan(p.xy, textureSize(gb_material, 0).xy))) {
         uint effect = texelFetch(gb_material, p, 0).y;
-        slot = effect < 8u ? SLOT_OF_EFFECT[effect] : -1;
+        slot = effect < uint(MAX_EFFECT_ID) ? SLOT_OF_EFFECT[effect] : -1;
     }
     uint local = 0u;
 #if CLASSIFY_BALLOT != 0

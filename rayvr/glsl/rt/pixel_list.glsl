@@ -1,34 +1,21 @@
 // Per-effect pixel lists: the classify pass (rt/classify.comp) appends every pixel whose material
 // asks for a ray-traced effect to that effect's list; each effect pass then runs with an indirect
-// dispatch over its list only, both eyes at once. Layout mirrors rayvr/passes/raytrace.py.
+// dispatch over its list only, both eyes at once. Layout mirrors rayvr/passes/classify.py.
 #ifndef RAYVR_RT_PIXEL_LIST_GLSL
 #define RAYVR_RT_PIXEL_LIST_GLSL
-
-// Defaults for building the file alone; rayvr/passes/raytrace.py rt_defines() passes the values
-// from rayvr/materials.py EFFECTS.
-#ifndef RT_SLOTS
-#define RT_SLOTS 3
-#endif
-#ifndef RT_SLOT_TABLE
-#define RT_SLOT_TABLE int[8](-1, 0, -1, 1, 2, -1, -1, -1)  // effect ID -> list slot, -1: not traced
-#endif
-#ifndef EFFECT_SHADOWS
-#define EFFECT_SHADOWS 1
-#define EFFECT_REFLECTIONS 3
-#define EFFECT_GLOSSY 4
-#endif
+#include "../layout.glsl"  // RT_SLOTS, RT_SLOT_TABLE: one list per traced effect of the registry
 #define RT_LOCAL_SIZE 64          // invocations per work group of the effect passes
 #define RT_MAX_GROUPS_X 65535u    // GL's minimum max work group count per dimension
 
 // Per list: dispatch size (x, y, z) for glDispatchComputeIndirect, then the pixel count. After
 // them the classify pass's running counts and finished-group ticket (zero between frames).
-layout(std430, binding = 11) restrict buffer RtListArgs {
+layout(std430, binding = SSBO_RT_LIST_ARGS) restrict buffer RtListArgs {
     uvec4 rt_args[RT_SLOTS];
     uint rt_running[RT_SLOTS];
     uint rt_groups_done;
 };
 // List `slot` occupies [slot * rt_capacity, slot * rt_capacity + count).
-layout(std430, binding = 10) restrict buffer RtLists { uint rt_pixels[]; };
+layout(std430, binding = SSBO_RT_LISTS) restrict buffer RtLists { uint rt_pixels[]; };
 uniform uint rt_capacity;
 
 // x and y up to 16383 (14 bits each), layer (eye) in the top bits.

@@ -1,4 +1,4 @@
-// Wavefront state of the effect passes (rayvr/passes/raytrace.py TraceEffectPass): the shading
+// Wavefront state of the effect passes (rayvr/passes/trace_effect.py TraceEffectPass): the shading
 // kernels (rt/wave_shade.comp) write rays into these buffers, the lean trace kernels
 // (rt/wave_trace.comp) trace them at the batch tracer's speed, and the shading kernels read back.
 //
@@ -27,10 +27,10 @@ struct ShadowSlot {
     vec4 light;       // rgb contribution if unoccluded (path weight included)
 };
 
-layout(std430, binding = 12) restrict buffer WavePaths { WavePath wave_paths[]; };
-layout(std430, binding = 13) restrict buffer WaveShadows { ShadowSlot wave_shadows[]; };
+layout(std430, binding = SSBO_WAVE_PATHS) restrict buffer WavePaths { WavePath wave_paths[]; };
+layout(std430, binding = SSBO_WAVE_SHADOWS) restrict buffer WaveShadows { ShadowSlot wave_shadows[]; };
 // [0]: dispatch over the batch's pixels, [1]: over its paths; w = item count.
-layout(std430, binding = 14) restrict buffer WaveArgs { uvec4 wave_args[2]; };
+layout(std430, binding = SSBO_WAVE_ARGS) restrict buffer WaveArgs { uvec4 wave_args[2]; };
 
 uniform uint wave_capacity;         // paths the buffers hold (row stride of the shadow slots)
 uniform uint wave_paths_per_pixel;  // paths per pixel (the effect's largest sample count)

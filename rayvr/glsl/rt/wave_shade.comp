@@ -18,9 +18,10 @@
 #ifndef WAVE_STAGE
 #define WAVE_STAGE 3
 #endif
-#ifndef EFFECT
+#ifndef EFFECT  // built alone: as `shadows` (passes/trace_effect.py passes the effect's own values)
 #define EFFECT EFFECT_SHADOWS
 #define RT_SLOT 0
+#define PARAM_AREA_SAMPLES PARAM_SHADOWS_AREA_SAMPLES
 #endif
 layout(local_size_x = 64) in;
 #include "shadow_rays.glsl"
@@ -30,7 +31,7 @@ layout(local_size_x = 64) in;
 #include "../common/camera.glsl"
 #include "hit_surface.glsl"
 
-layout(rgba16f, binding = 0) uniform writeonly image2DArray hdr_out;
+layout(rgba16f, binding = IMAGE_HDR) uniform writeonly image2DArray hdr_out;
 uniform vec3 ambient;
 uniform vec3 background;
 uniform uint frame_seed;
@@ -38,7 +39,7 @@ uniform int wave_bounce;      // stage 4: 0 for the first reflection hit
 uniform uint wave_last_chunk; // stage 4: 1 on the last chunk of shadow slots
 
 bool is_reflective(uint effect) {
-    return effect == uint(EFFECT_REFLECTIONS) || effect == uint(EFFECT_GLOSSY);
+    return effect < 32u && ((REFLECTIVE_EFFECTS >> effect) & 1u) != 0u;
 }
 
 // A path's ray leaving p (geometric normal ng) in direction dir, or an ended path (throughput 0).
@@ -53,11 +54,11 @@ void end_path(uint p) {
 }
 
 // Per-pixel sampling state, as the pixel's own event set it: same stream, same lattice.
-uint pixel_setup(ivec3 px, out uvec4 params, out uint rng) {
+// The pixel's material has this pass's effect: PARAM_* (its parameter slots) apply.
+uint pixel_setup(ivec3 px, out uint rng) {
     uint mi = texelFetch(gb_material, px, 0).x;
-    params = materials[mi].params;  // bounces, samples, area_samples
     rng = rng_seed(px, frame_seed);
-    shadow_area_samples = int(max(params.z, 1u));
+    shadow_area_samples = max(material_param_int(mi, PARAM_AREA_SAMPLES), 1);
     shadow_lattice_shift = rng_next2(rng);
     return mi;
 }
@@ -71,9 +72,8 @@ void main() {
     vec3 v = normalize(eye_position[px.z] - s.position);
     vec3 ng = triangle_normal(s.triangle);
     if (dot(ng, v) < 0.0) ng = -ng;
-    uvec4 params;
     uint rng;
-    pixel_setup(px, params, rng);
+    uint mi = pixel_setup(px, rng);
     shadow_begin(i, vec3(1.0), ng);
     direct_light(s.position, s.normal, v, s.base_color, s.metallic, s.roughness);
     wave_paths[i].throughput.w = uintBitsToFloat(shadow_stored());
@@ -89,7 +89,7 @@ void main() {
     if (dot(dir, ng) <= 0.0) dir = reflect(dir, ng);
     start_path(i, s.position, ng, dir, fresnel_schlick(f0, dot(s.normal, v)));
 #else  // glossy
-    int samples = int(max(params.y, 1u));
+    int samples = max(material_param_int(mi, PARAM_SAMPLES), 1);
     float alpha = max(s.roughness * s.roughness, 1e-3);
     mat3 tbn = basis_around(s.normal);
     vec3 v_local = v * tbn;  // transpose(tbn) * v
@@ -130,9 +130,8 @@ void main() {
     }
     uint n = wave_args[0].w;
     ivec3 px = wave_pixel(p % n);
-    uvec4 params;
     uint rng;
-    pixel_setup(px, params, rng);
+    uint mi = pixel_setup(px, rng);
     vec3 dir = wave_paths[p].direction.xyz;
     vec3 throughput = wave_paths[p].throughput.rgb;
     Hit h;
@@ -147,7 +146,7 @@ void main() {
     direct_light(s.position, s.normal, v, s.base_color, s.metallic, s.roughness);
     wave_paths[p].throughput.w = uintBitsToFloat(shadow_stored());
     if (wave_last_chunk == 0u) return;
-    int bounces = int(max(params.x, 1u));
+    int bounces = max(material_param_int(mi, PARAM_BOUNCES), 1);
     if (!is_reflective(s.effect) || wave_bounce >= bounces - 1) {
         wave_paths[p].radiance.rgb += throughput * (s.emission + ambient * s.base_color);
         end_path(p);

@@ -46,7 +46,7 @@ void main() {
 }
 #else
 #ifdef WAVE_FINISH
-layout(rgba16f, binding = 0) uniform writeonly image2DArray hdr_out;
+layout(rgba16f, binding = IMAGE_HDR) uniform writeonly image2DArray hdr_out;
 #endif
 uniform uint wave_items;  // 0: the batch's pixels, 1: its paths (wave_args index)
 void main() {

@@ -5,10 +5,10 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../common/lighting.glsl"
 #include "../common/camera.glsl"
 
-layout(rgba16f, binding = 0) uniform writeonly image2DArray hdr_out;
+layout(rgba16f, binding = IMAGE_HDR) uniform writeonly image2DArray hdr_out;
 uniform vec3 ambient;           // constant ambient radiance (stands in for indirect light)
 uniform vec3 background;
-uniform uint traced_effects;    // bit e set: effect e's own pass (rt/wave_shade.comp) shades those pixels
+uniform uint traced_effects;    // bit e set: effect e's own passes shade those pixels
 
 void main() {
     ivec3 p = ivec3(gl_GlobalInvocationID);

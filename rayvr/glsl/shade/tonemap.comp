@@ -1,10 +1,10 @@
 #version 430
-// Resolve: exposure, tonemapper (common/color.glsl), sRGB encoding into 8-bit output.
+// Tonemap: exposure, tonemapper (common/color.glsl), sRGB encoding into 8-bit output.
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../common/color.glsl"
 
-layout(rgba16f, binding = 0) uniform readonly image2DArray hdr_in;
-layout(rgba8, binding = 1) uniform writeonly image2DArray ldr_out;
+layout(rgba16f, binding = IMAGE_HDR) uniform readonly image2DArray hdr_in;
+layout(rgba8, binding = IMAGE_LDR) uniform writeonly image2DArray ldr_out;
 uniform float exposure;
 uniform int tonemapper;
 

@@ -1,0 +1,142 @@
+"""What an effect is: a rung of the ladder, registered by name (Mitsuba-style plugins).
+
+An effect declares, in one place:
+  name, id        the config name; the value the G-buffer's effect channel holds for its pixels
+  params          typed parameters (type, range, default, doc): config validation and the GPU
+                  parameter block (8 words per material, floats included) are generated from them
+  traced          True when its own passes shade its pixels from a pixel list (the `classify`
+                  pass lists them; the `shade` pass skips them); False: `shade` lights them
+  passes()        the frame-graph passes it adds (rayvr/passes/); the graph adds what they read
+  shader          its GLSL (under rayvr/glsl/, or an absolute path for an effect outside rayvr)
+  sweep           parameter -> (full, quick) values for `rayvr bench tradeoff`
+  reference       material class ("mirror", "glossy", "diffuse") -> rank: the reference image
+                  gives each material the highest-ranked registered effect for its class
+  reference_params(quality)   its parameters at reference quality
+
+Adding an effect is one module (a subclass, `register(MyEffect())`), its shaders and its test.
+"""
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+import numpy as np
+
+PARAM_WORDS = 8  # 32-bit words of effect parameters per material (glsl/common/scene.glsl)
+MAX_EFFECT_ID = 32  # effect IDs are bits of a 32-bit mask in the shade pass
+PARAM_TYPES = (int, float)
+
+
+@dataclass(frozen=True)
+class Param:
+    kind: type  # int or float
+    default: object
+    lo: float | None = None
+    hi: float | None = None
+    doc: str = ""
+
+    def __post_init__(self):
+        if self.kind not in PARAM_TYPES:
+            raise TypeError(f"effect parameters are int or float, got {self.kind!r}")
+
+    def allowed_range(self) -> str:
+        return f"[{'-inf' if self.lo is None else self.lo}, {'inf' if self.hi is None else self.hi}]"
+
+    def clamp(self, value):
+        if self.lo is not None:
+            value = max(value, self.kind(self.lo))
+        if self.hi is not None:
+            value = min(value, self.kind(self.hi))
+        return self.kind(value)
+
+
+class Effect:
+    name: str = ""
+    id: int = -1  # -1: the registry picks the next free ID
+    doc: str = ""
+    params: dict = {}
+    traced: bool = False
+    reflective: bool = False  # reflection rays that meet it go on (reflections, glossy)
+    shader: str | None = None
+    sweep: dict = {}
+    reference: dict = {}
+
+    def passes(self) -> list:
+        return []
+
+    def reference_params(self, quality: dict) -> dict:
+        """Parameters at reference quality: every parameter named in `quality`, clamped."""
+        return {k: p.clamp(quality[k]) for k, p in self.params.items() if k in quality}
+
+    # -- the GPU parameter block -------------------------------------------------------
+    def param_slots(self) -> dict:
+        """parameter -> word in the material's parameter block (declaration order)."""
+        return {k: i for i, k in enumerate(self.params)}
+
+    def param_defines(self) -> dict:
+        """PARAM_<NAME> = slot, for the effect's own shaders (read with material_param_int/float)."""
+        return {f"PARAM_{k.upper()}": i for k, i in self.param_slots().items()}
+
+    def pack_params(self, values: dict) -> np.ndarray:
+        """The material's parameter words: ints as int32, floats as float32 bits."""
+        words = np.zeros(PARAM_WORDS, np.uint32)
+        for k, i in self.param_slots().items():
+            v = values.get(k, self.params[k].default)
+            fmt = "<i" if self.params[k].kind is int else "<f"
+            words[i] = struct.unpack("<I", struct.pack(fmt, v))[0]
+        return words
+
+    def __repr__(self) -> str:
+        return f"<effect {self.name} #{self.id}>"
+
+
+class EffectError(ValueError):
+    pass
+
+
+EFFECTS: dict[str, Effect] = {}  # registration order = ladder order (cheapest first)
+BACKGROUND_EFFECT = 255  # effect-ID value of pixels no geometry covers
+# Rungs of the ladder that later versions add: a config naming one is refused as "not yet".
+PLANNED = {"ssr": "screen-space reflections through the depth quadtree",
+           "path": "path tracing", "photon": "photon-mapped indirect light"}
+
+
+def register(effect: Effect) -> Effect:
+    """Add an effect to the registry; its ID is the one it declares or the next free one."""
+    if not effect.name or not effect.name.isidentifier():
+        raise EffectError(f"effect name must be an identifier, got {effect.name!r}")
+    if effect.name in EFFECTS:
+        raise EffectError(f"effect {effect.name!r} is registered already")
+    if len(effect.params) > PARAM_WORDS:
+        raise EffectError(f"effect {effect.name!r}: at most {PARAM_WORDS} parameters, got {len(effect.params)}")
+    used = {e.id for e in EFFECTS.values()}
+    if effect.id < 0:
+        effect.id = next(i for i in range(MAX_EFFECT_ID + 1) if i not in used)
+    if effect.id in used or not 0 <= effect.id < MAX_EFFECT_ID:
+        raise EffectError(f"effect {effect.name!r}: ID {effect.id} is taken or outside [0, {MAX_EFFECT_ID})")
+    EFFECTS[effect.name] = effect
+    return effect
+
+
+def unregister(name: str) -> None:
+    EFFECTS.pop(name, None)
+
+
+def get(name: str) -> Effect:
+    try:
+        return EFFECTS[name]
+    except KeyError:
+        raise EffectError(f"unknown effect {name!r}; allowed: {', '.join(EFFECTS)}") from None
+
+
+def implemented_effects() -> list[str]:
+    return list(EFFECTS)
+
+
+def traced_effects() -> list[Effect]:
+    """Effects with pixel lists, in registration order (= their list slot)."""
+    return [e for e in EFFECTS.values() if e.traced]
+
+
+def effect_by_id(effect_id: int) -> Effect | None:
+    return next((e for e in EFFECTS.values() if e.id == effect_id), None)

@@ -1,0 +1,13 @@
+"""`raster`: direct light from the G-buffer, no shadows (the `shade` pass; rect lights by a fixed
+4x4 grid of points). Every scene has it: it is the bottom of the ladder and the budget baseline."""
+from .base import Effect, register
+
+
+class Raster(Effect):
+    name = "raster"
+    id = 0
+    doc = "direct light from the G-buffer, no shadows"
+    reference = {"mirror": 0, "glossy": 0, "diffuse": 0}
+
+
+register(Raster())

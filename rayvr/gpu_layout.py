@@ -1,0 +1,106 @@
+"""Every constant the CPU and the shaders share, declared once here and emitted as a generated
+GLSL header: shaders `#include "layout.glsl"` (the shader loader serves it from `glsl_header()`;
+there is no such file on disk).
+
+  G-buffer channels   name, format, texture unit (read), image unit (resolve writes)
+  bindings            shader storage buffers (SSBO_*), image units (IMAGE_*), texture units (UNIT_*)
+  enums               effects (from the registry), debug views, tonemappers, light kinds
+  sentinels           NO_HIT, BACKGROUND_EFFECT
+
+Names in GLSL are the Python names in upper case with a prefix: GB_UNIT_<CHANNEL>,
+GB_IMAGE_<CHANNEL>, SSBO_<NAME>, IMAGE_<NAME>, UNIT_<NAME>, EFFECT_<NAME>, VIEW_<NAME>,
+TONEMAP_<NAME>, LIGHT_<KIND>, PARAM_<EFFECT>_<PARAM>.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Channel:
+    name: str
+    components: int
+    dtype: str  # moderngl dtype; 'depth' = 32-bit float depth attachment
+    unit: int  # texture unit compute passes read it from
+    image: int  # image unit the resolve writes it at (-1: written by the raster only)
+    glsl_format: str  # image format qualifier ('' for depth)
+    meaning: str
+
+
+# The G-buffer: a visibility raster writes `depth` and `triangle`; the compute resolve the rest.
+CHANNELS = (
+    Channel("depth", 1, "depth", 0, -1, "", "reversed-Z depth: near/view_distance (1 at near, 0 at infinity)"),
+    Channel("position", 4, "f4", 1, 0, "rgba32f", "xyz scene-local position (world - scene.origin), w linear view depth"),
+    Channel("normal", 4, "f2", 2, 1, "rgba16f", "xyz world-space shading normal facing the eye, w roughness"),
+    Channel("albedo", 4, "f2", 3, 2, "rgba16f", "rgb linear base colour, a metallic"),
+    Channel("emission", 4, "f2", 4, 3, "rgba16f", "rgb emitted radiance"),
+    Channel("material", 2, "u4", 5, 4, "rg32ui", "x material index, y effect ID (255 = background)"),
+    Channel("triangle", 1, "u4", 6, 5, "r32ui", "triangle ID (0xFFFFFFFF = background)"),
+    Channel("linear_depth", 1, "f4", 7, 6, "r32f", "view depth of the pixel ray's hit, exact (0 = background); "
+                                                   "what frames return as depth, 4 bytes a pixel"),
+)
+
+# Shader storage buffer bindings.
+SSBO = {
+    "triangle_material": 0, "materials": 1, "lights": 2, "vertices": 3, "indices": 4,
+    "picked": 7,  # preview: the texel under the cursor
+    "bvh_nodes": 8, "bvh_triangles": 9,  # accel/gpu.py (batch tracers may use other bases)
+    "rt_lists": 10, "rt_list_args": 11,  # passes/classify.py
+    "wave_paths": 12, "wave_shadows": 13, "wave_args": 14,  # passes/trace_effect.py
+}
+# Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
+IMAGE = {"hdr": 0, "ldr": 1}
+# Texture units beside the G-buffer channels' (0..7).
+UNIT = {"base_color_textures": 9}
+
+TONEMAPPERS = ("clamp", "reinhard", "aces")
+DEBUG_VIEWS = ("depth", "normal", "albedo", "roughness", "metallic", "emission", "material", "effect",
+               "triangle", "position")
+VIEWS = ("color",) + DEBUG_VIEWS
+LIGHT_KINDS = ("point", "directional", "rect")
+NO_HIT = 0xFFFFFFFF
+VERTEX_FLOATS = 8  # position xyz, normal xyz, uv (gpu_scene.interleaved_vertices)
+
+
+def channel(name: str) -> Channel:
+    return next(c for c in CHANNELS if c.name == name)
+
+
+def _effect_lines() -> list[str]:
+    from .effects import BACKGROUND_EFFECT, EFFECTS, MAX_EFFECT_ID, PARAM_WORDS, traced_effects
+
+    lines = [f"#define BACKGROUND_EFFECT {BACKGROUND_EFFECT}u", f"#define MAX_EFFECT_ID {MAX_EFFECT_ID}",
+             f"#define MATERIAL_PARAM_WORDS {PARAM_WORDS}"]
+    reflective = 0
+    for e in EFFECTS.values():
+        lines.append(f"#define EFFECT_{e.name.upper()} {e.id}")
+        lines += [f"#define PARAM_{e.name.upper()}_{k.upper()} {i}" for k, i in e.param_slots().items()]
+        reflective |= (1 << e.id) if e.reflective else 0
+    lines.append(f"#define REFLECTIVE_EFFECTS {reflective}u  // bit e: reflection rays go on at effect e")
+    traced = traced_effects()
+    table = [-1] * MAX_EFFECT_ID
+    for slot, e in enumerate(traced):
+        table[e.id] = slot
+    lines += [f"#define RT_SLOTS {max(len(traced), 1)}  // pixel lists: one per traced effect",
+              f"#define RT_SLOT_TABLE int[{MAX_EFFECT_ID}]({', '.join(map(str, table))})  // effect ID -> list, -1: none"]
+    return lines
+
+
+def glsl_header() -> str:
+    """The generated header (a GLSL source string)."""
+    out = ["// Generated from rayvr/gpu_layout.py and the effect registry: do not edit.",
+           "#ifndef RAYVR_LAYOUT_GLSL", "#define RAYVR_LAYOUT_GLSL"]
+    for c in CHANNELS:
+        out.append(f"#define GB_UNIT_{c.name.upper()} {c.unit}")
+        if c.image >= 0:
+            out.append(f"#define GB_IMAGE_{c.name.upper()} {c.image}")
+    out += [f"#define SSBO_{k.upper()} {v}" for k, v in SSBO.items()]
+    out += [f"#define IMAGE_{k.upper()} {v}" for k, v in IMAGE.items()]
+    out += [f"#define UNIT_{k.upper()} {v}" for k, v in UNIT.items()]
+    out += [f"#define TONEMAP_{k.upper()} {i}" for i, k in enumerate(TONEMAPPERS)]
+    out += [f"#define VIEW_{k.upper()} {i}" for i, k in enumerate(DEBUG_VIEWS)]
+    out += [f"#define LIGHT_{k.upper()} {i}" for i, k in enumerate(LIGHT_KINDS)]
+    out += [f"#define NO_HIT 0x{NO_HIT:X}u", f"#define VERTEX_FLOATS {VERTEX_FLOATS}"]
+    out += _effect_lines()
+    out.append("#endif")
+    return "\n".join(out) + "\n"

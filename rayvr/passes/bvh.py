@@ -1,0 +1,15 @@
+"""`bvh`: builds and uploads the scene's BVH on first use (rayvr/accel/scene.py). Only passes that
+read `bvh` make the graph keep it, so an all-`raster` scene never builds one."""
+from __future__ import annotations
+
+from ..frame import External, FramePlan, Pass, write
+
+
+class BvhPass(Pass):
+    name = "bvh"
+
+    def io(self, plan: FramePlan) -> list:
+        return [write("bvh", External("scene BVH: binned SAH, built once, refit by update_vertices"))]
+
+    def execute(self, fc) -> None:
+        fc.accel.ensure()  # built and uploaded on the first frame only

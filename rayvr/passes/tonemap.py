@@ -1,0 +1,33 @@
+"""`tonemap`: exposure, tonemapper and sRGB encoding of `hdr` into the 8-bit output
+(glsl/shade/tonemap.comp, common/color.glsl)."""
+from __future__ import annotations
+
+from .. import shaders
+from ..frame import FramePlan, Pass, Texture, read, write
+from ..gpu_layout import IMAGE, TONEMAPPERS
+from .compute import dispatch_per_pixel
+
+LDR = Texture("rgba8")  # what frames return and the preview shows
+
+
+class TonemapPass(Pass):
+    name = "tonemap"
+
+    def why(self, plan: FramePlan) -> str | None:
+        return "view = color" if plan.view == "color" else None
+
+    def io(self, plan: FramePlan) -> list:
+        return [read("hdr"), write("ldr", LDR)]
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        self.program = shaders.compute(gl.ctx, "shade/tonemap.comp")
+
+    def execute(self, fc) -> None:
+        self.program["exposure"].value = float(fc.settings.exposure)
+        self.program["tonemapper"].value = TONEMAPPERS.index(fc.settings.tonemapper)
+        fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=True, write=False)
+        fc.resource("ldr").bind_to_image(IMAGE["ldr"], read=False, write=True)
+        dispatch_per_pixel(fc, self.program)
+
+    def release(self) -> None:
+        self.program.release()

@@ -1,0 +1,166 @@
+"""`rt_<effect>`: a traced effect (shadows, reflections, glossy) as a wavefront over its pixel list,
+both eyes at once: shading kernels (glsl/rt/wave_shade.comp) write rays into buffers, lean kernels
+(rt/wave_trace.comp) trace them. Per batch of the effect's pixel list:
+    prep; pixel event (+ shadow rays); then per bounce: closest hits, hit event (+ shadow rays);
+    finish (fused into the last shadow kernel when a pixel has one path).
+The shadow rays of an event may be split into chunks and the pixel list into batches so that no
+buffer exceeds the device's storage-block limit. The pass composes its pixels of `hdr` over what
+`shade` wrote."""
+from __future__ import annotations
+
+import moderngl
+
+from .. import shaders
+from ..accel.gpu import DEFAULT_BINDING, GpuBvh
+from ..effects import Effect, traced_effects
+from ..frame import Buffer, FramePlan, Pass, Sizing, compose, read, write
+from ..gpu_layout import IMAGE, SSBO, UNIT
+from .classify import bind_lists
+from .compute import camera_defines, set_eye_uniforms
+
+# Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.
+PATH_BYTES, SLOT_BYTES = 80, 48
+WAVE_BUFFER_BYTES = 1 << 30  # largest wavefront buffer: the device's storage-block limit or this
+
+
+def wave_plan(pixel_capacity: int, paths_per_pixel: int, slots: int, limit: int) -> tuple[int, int]:
+    """(pixels per batch, shadow slots per chunk) so that no wavefront buffer exceeds `limit` bytes."""
+    batch = max(1, min(pixel_capacity, limit // (PATH_BYTES * paths_per_pixel)))
+    chunk = max(1, min(slots, limit // (SLOT_BYTES * batch * paths_per_pixel)))
+    if chunk * SLOT_BYTES * batch * paths_per_pixel > limit:
+        batch = max(1, limit // (SLOT_BYTES * paths_per_pixel))
+    return batch, chunk
+
+
+def effect_maxima(assignments, effect: str) -> dict:
+    """The largest of each integer parameter over the materials that use `effect` (sizes the waves)."""
+    out = {"bounces": 1, "samples": 1, "area_samples": 1}
+    for a in assignments:
+        if a.effect == effect:
+            for k in out:
+                out[k] = max(out[k], int(a.params.get(k, 1)))
+    return out
+
+
+class WaveShape:
+    """How an effect's wavefront is cut for one frame: batches, shadow chunks, path counts."""
+
+    def __init__(self, effect: Effect, s: Sizing):
+        prm = effect_maxima(s.assignments, effect.name)
+        self.bounces = prm["bounces"] if effect.reflective else 0
+        self.paths_per_pixel = prm["samples"] if "samples" in effect.params else 1
+        lights = s.scene.lights if s.scene is not None else ()
+        self.slots = sum(prm["area_samples"] if l.kind == "rect" else 1 for l in lights) or 1
+        limit = min(s.max_ssbo_bytes or WAVE_BUFFER_BYTES, WAVE_BUFFER_BYTES)
+        self.capacity_pixels = s.pixels
+        self.batch, self.chunk = wave_plan(s.pixels, self.paths_per_pixel, self.slots, limit)
+        self.capacity = self.batch * self.paths_per_pixel  # paths the buffers hold
+
+    @property
+    def chunks(self) -> list:
+        return [(k, min(self.chunk, self.slots - k)) for k in range(0, self.slots, self.chunk)]
+
+
+class TraceEffectPass(Pass):
+    timed_kernels = True
+
+    def __init__(self, effect: Effect):
+        self.effect = effect
+        self.name = f"rt_{effect.name}"
+        self.slot = [e.name for e in traced_effects()].index(effect.name)
+        key = f"rt_wave.{effect.name}"
+        self.buffers = {
+            "paths": (f"{key}.paths", Buffer(lambda s: WaveShape(effect, s).capacity * PATH_BYTES,
+                                             "80 B per path of a batch")),
+            "shadows": (f"{key}.shadows", Buffer(lambda s: (w := WaveShape(effect, s)).capacity * w.chunk * SLOT_BYTES,
+                                                 "48 B per shadow ray of a batch's chunk")),
+            "args": (f"{key}.args", Buffer(lambda s: 32, "2 indirect dispatches")),
+        }
+
+    def why(self, plan: FramePlan) -> str | None:
+        if plan.view != "color" or self.effect.name not in plan.effects:
+            return None
+        names = plan.materials_using(self.effect.name)
+        return f"effect {self.effect.name}" + (f" ({', '.join(names)})" if names else "")
+
+    def io(self, plan: FramePlan) -> list:
+        return [read("gbuffer"), read("bvh"), read("rt_lists"), read("rt_list_args"), compose("hdr")] + \
+            [write(name, t) for name, t in self.buffers.values()]
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        d = {**GpuBvh.defines(DEFAULT_BINDING), **self.effect.param_defines(), "EFFECT": self.effect.id,
+             "RT_SLOT": self.slot, **camera_defines(plan)}
+        trace, shade = "rt/wave_trace.comp", self.effect.shader
+        self.programs = {
+            "prep": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 0}),
+            "closest": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 1}),
+            "shadow": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 2}),
+            "shadow_finish": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
+            "pixel": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 3}),
+            "finish": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 5}),
+        }
+        if self.effect.reflective:
+            self.programs["hit"] = shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 4})
+
+    def execute(self, fc) -> None:
+        shape = WaveShape(self.effect, fc.sizing)
+        n_pixels = shape.capacity_pixels
+        common = {"ambient": tuple(fc.settings.ambient), "background": tuple(fc.settings.background),
+                  "frame_seed": int(fc.settings.seed), "rt_capacity": n_pixels,
+                  "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel}
+        for p in self.programs.values():
+            set_eye_uniforms(p, fc)
+            for k, v in common.items():
+                if k in p:
+                    p[k].value = v
+        fc.gbuffer.bind_for_reading()
+        fc.gpu_scene.bind()
+        fc.gpu_scene.textures.use(UNIT["base_color_textures"])
+        fc.accel.gpu.bind(DEFAULT_BINDING)
+        bind_lists(fc)
+        for part, (name, _) in self.buffers.items():
+            fc.resource(name).bind_to_storage_buffer(SSBO[f"wave_{part}"])
+        fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
+        wave_args = fc.resource(self.buffers["args"][0])
+        barrier = fc.gl.ctx.memory_barrier
+
+        def run(name, items=1, **uniforms):
+            p = self.programs[name]
+            for k, v in uniforms.items():
+                if k in p:
+                    p[k].value = v
+
+            def go():
+                if name == "prep":
+                    p.run(1, 1, 1)
+                else:
+                    p.run_indirect(wave_args, offset=16 * items)
+                barrier(moderngl.ALL_BARRIER_BITS)
+            fc.stage(name, go)
+
+        one_path, bounces, chunks = shape.paths_per_pixel == 1, shape.bounces, shape.chunks
+        for base in range(0, n_pixels, shape.batch):
+            for p in self.programs.values():
+                if "wave_batch_base" in p:
+                    p["wave_batch_base"].value = base
+            run("prep")
+            for ci, (first, count) in enumerate(chunks):
+                last = ci == len(chunks) - 1
+                run("pixel", 0, wave_slot_first=first, wave_slot_count=count)
+                fuse = last and bounces == 0 and one_path
+                run("shadow_finish" if fuse else "shadow", 0, wave_items=0, wave_slot_first=first,
+                    wave_slot_count=count)
+            for b in range(bounces):
+                run("closest", 1)
+                for ci, (first, count) in enumerate(chunks):
+                    last = ci == len(chunks) - 1
+                    run("hit", 1, wave_bounce=b, wave_last_chunk=int(last), wave_slot_first=first,
+                        wave_slot_count=count)
+                    fuse = last and b == bounces - 1 and one_path
+                    run("shadow_finish" if fuse else "shadow", 1, wave_items=1)
+            if not one_path:
+                run("finish", 0)
+
+    def release(self) -> None:
+        for p in self.programs.values():
+            p.release()
