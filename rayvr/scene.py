@@ -323,14 +323,31 @@ def load(path: str | Path | None = None) -> Scene:
     path = Path(path) if path is not None else DEFAULT_SCENE
     if not path.exists():
         raise SceneError(f"{path}: no such file")
+    if path.is_dir():
+        raise SceneError(f"{path}: is a folder, not a scene file (give the .glb/.gltf/.obj/.ply inside it)")
     if path.suffix.lower() not in SUPPORTED_SUFFIXES:
         raise SceneError(f"{path}: unsupported format {path.suffix!r}; use one of {', '.join(SUPPORTED_SUFFIXES)}")
-    if path.suffix.lower() == ".obj":
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(64)
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read it: {exc.strerror or exc}") from None
+    if not head:
+        raise SceneError(f"{path}: the file is empty")
+    suffix = path.suffix.lower()
+    if suffix == ".obj":
         return load_obj(path)
+    if suffix == ".glb" and head[:4] != b"glTF":
+        raise SceneError(f"{path}: not a binary glTF (GLB) file: it does not start with 'glTF'")
+    if suffix in (".gltf", ".glb"):
+        try:
+            _gltf_json(path)
+        except Exception as exc:
+            raise SceneError(f"{path}: not glTF JSON: {_one_line(exc)}") from None
     try:
         tscene = trimesh.load(str(path), force="scene", process=False)
     except Exception as exc:
-        raise SceneError(f"{path}: trimesh could not read it: {exc}") from exc
+        raise SceneError(f"{path}: trimesh could not read it: {_one_line(exc)}") from exc
 
     verts, faces, norms, uvs, tri_mat = [], [], [], [], []
     materials: list[Material] = []
@@ -406,7 +423,13 @@ def load_obj(path: str | Path) -> Scene:
     without materials (no mtllib/usemtl, e.g. the Dabrovic Sponza) gets one material per `g`/`o`
     group instead, named after the group, so a material config can select parts of it."""
     path = Path(path)
-    text = path.read_bytes().decode("utf-8", errors="replace")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read it: {exc.strerror or exc}") from None
+    if b"\0" in data:
+        raise SceneError(f"{path}: binary data (NUL bytes), not a text OBJ file")
+    text = data.decode("utf-8", errors="replace")
     text = re.sub(r"\\[ \t]*\r?\n", " ", text)
     pos, tex, nrm = [], [], []
     corner_ids: dict[tuple, int] = {}
@@ -532,6 +555,14 @@ def _read_mtllib(obj_path: Path, ref: str) -> dict[str, dict]:
             elif current is not None:
                 current[key] = raw.split("#", 1)[0].split()[1:]
     return defs
+
+
+def _one_line(exc: BaseException, limit: int = 200) -> str:
+    """An exception as one short line, with its type when the text alone says little."""
+    text = " ".join(str(exc).split())
+    if len(text) > limit:
+        text = text[:limit] + "..."
+    return text if len(text) > 24 and " " in text else f"{type(exc).__name__}: {text}".rstrip(": ")
 
 
 def _file_normals(geom):

@@ -418,3 +418,30 @@ def test_gltf_missing_or_broken_texture_warns_naming_material_and_file(tmp_path,
     else:
         assert s.materials[0].texture is None and len(warned) == 1
         assert "'skin'" in warned[0] and uri in warned[0] and why in warned[0]
+
+
+# --------------------------------------------------------------------------- not a scene
+
+
+def test_not_a_scene_is_one_clear_line(tmp_path):
+    rng = np.random.default_rng(7)
+    (tmp_path / "folder.obj").mkdir()
+    (tmp_path / "plain_folder").mkdir()
+    noise = rng.integers(0, 256, 4096, dtype=np.uint8).tobytes()
+    for name in ("noise.glb", "noise.gltf", "noise.ply", "noise.obj"):
+        (tmp_path / name).write_bytes(noise)
+    for name in ("empty.obj", "empty.glb", "empty.ply"):
+        (tmp_path / name).write_bytes(b"")
+    (tmp_path / "words.obj").write_text("hello world\nthis is not a mesh\n")
+    (tmp_path / "json.gltf").write_text('{"asset": {"version": "2.0"}, "meshes": [{"primitives": [{}]}]}')
+    expect = {"folder.obj": "is a folder", "plain_folder": "is a folder", "noise.glb": "not a binary glTF",
+              "noise.gltf": "not glTF JSON", "noise.ply": "", "noise.obj": "binary", "empty.obj": "empty",
+              "empty.glb": "empty", "empty.ply": "empty", "words.obj": "no faces", "json.gltf": ""}
+    for name, words in expect.items():
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            with pytest.raises(SceneError) as e:
+                load(tmp_path / name)
+        msg = str(e.value)
+        assert msg.startswith(str(tmp_path / name) + ": ") and words in msg and "\n" not in msg, msg
+        assert len(msg) < 300 + len(str(tmp_path)), msg
