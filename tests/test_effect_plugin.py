@@ -1,0 +1,137 @@
+"""An effect registered from outside rayvr (no file under rayvr/ edited): its parameters are
+validated from its declaration, reach the GPU (a float), and its own pass renders its pixels.
+Also: the compiled graph prunes what a scene does not need, as `rayvr info --graph` prints it."""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import moderngl
+import numpy as np
+import pytest
+
+from rayvr import shaders
+from rayvr.camera import StereoRig
+from rayvr.effects import Effect, Param, register, traced_effects, unregister
+from rayvr.frame import FramePlan, Pass, compose, read
+from rayvr.gpu_layout import IMAGE
+from rayvr.materials import ConfigError, parse_config
+from rayvr.passes.classify import bind_lists
+from rayvr.renderer import Renderer, RenderSettings
+from rayvr.scene import load
+
+HERE = Path(__file__).resolve().parent / "toy_effect"
+
+
+class FlatFillPass(Pass):
+    name = "flat_fill"
+
+    def __init__(self, effect):
+        self.effect = effect
+
+    def why(self, plan: FramePlan):
+        return "effect flat" if plan.view == "color" and "flat" in plan.effects else None
+
+    def io(self, plan: FramePlan):
+        return [read("gbuffer"), read("rt_lists"), read("rt_list_args"), compose("hdr")]
+
+    def setup(self, gl, plan: FramePlan):
+        self.slot = [e.name for e in traced_effects()].index("flat")
+        self.program = shaders.compute(gl.ctx, "flat.comp", {"RT_SLOT": self.slot, **self.effect.param_defines()},
+                                       root=HERE)
+
+    def execute(self, fc):
+        bind_lists(fc)
+        fc.gbuffer.bind_for_reading()
+        fc.gpu_scene.bind()
+        fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
+        self.program["rt_capacity"].value = fc.sizing.pixels
+        self.program.run_indirect(fc.resource("rt_list_args"), offset=16 * self.slot)
+        fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
+    def release(self):
+        self.program.release()
+
+
+class Flat(Effect):
+    name = "flat"
+    doc = "its pixels glow at `glow` x their base colour (a test plugin)"
+    params = {"glow": Param(float, 2.5, 0.0, 100.0, "radiance per unit of base colour")}
+    traced = True
+
+    def passes(self):
+        return [FlatFillPass(self)]
+
+
+@pytest.fixture
+def flat():
+    effect = register(Flat())
+    try:
+        yield effect
+    finally:
+        unregister("flat")
+
+
+def test_a_plugin_effect_renders_its_pixels_with_its_float_parameter(gl, flat):
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(48, 36))
+    settings = RenderSettings(ambient=(0.0, 0.0, 0.0))
+    cfg = parse_config({"materials": {"mirror*": {"effect": "flat", "glow": 3.25}}}, "<plugin test>")
+    with Renderer(scene, cfg, gl=gl, settings=settings) as r:
+        assert "flat_fill" in r.compiled().pass_names and "bvh" not in r.compiled().pass_names
+        frame = r.render(rig, aux=("hdr", "albedo", "effect"))
+        counts = r.pixel_counts()
+    with Renderer(scene, None, gl=gl, settings=settings) as r:
+        plain = r.render(rig, aux=("hdr",))
+    ids = np.stack([frame.left.aux["effect"], frame.right.aux["effect"]])
+    mine = ids == flat.id
+    assert counts["flat"] == mine.sum() > 20  # the classify pass listed exactly its pixels
+    hdr = np.stack([frame.left.aux["hdr"], frame.right.aux["hdr"]])
+    albedo = np.stack([frame.left.aux["albedo"], frame.right.aux["albedo"]])
+    assert np.allclose(hdr[mine], 3.25 * albedo[mine], rtol=2e-3, atol=1e-3)  # float16 targets
+    base = np.stack([plain.left.aux["hdr"], plain.right.aux["hdr"]])
+    assert np.array_equal(hdr[~mine], base[~mine])  # nothing else changed
+    assert not np.allclose(hdr[mine], base[mine])
+
+
+def test_a_plugin_effect_validates_its_parameters(flat):
+    with pytest.raises(ConfigError, match=r"glow.*outside the allowed range \[0.0, 100.0\]"):
+        parse_config({"materials": {"m": {"effect": "flat", "glow": 500.0}}}, "<t>")
+    with pytest.raises(ConfigError, match="glow: expected float, got str"):
+        parse_config({"materials": {"m": {"effect": "flat", "glow": "bright"}}}, "<t>")
+    with pytest.raises(ConfigError, match="finite"):
+        parse_config({"materials": {"m": {"effect": "flat", "glow": float("nan")}}}, "<t>")
+    assert parse_config({"default": "flat"}, "<t>").effect_params("flat") == {"glow": 2.5}
+
+
+def test_registry_refuses_clashes(flat):
+    from rayvr.effects import EffectError
+
+    with pytest.raises(EffectError, match="registered already"):
+        register(Flat())
+    with pytest.raises(EffectError, match="identifier"):
+        register(type("Bad", (Effect,), {"name": "no spaces please"})())
+
+
+def _graph(*args):
+    run = subprocess.run([sys.executable, "-m", "rayvr", "info", *args], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    return run.stdout
+
+
+def test_graph_prunes_what_the_scene_does_not_need():
+    text = _graph("--graph", "--size", "64x48")
+    passes = re.findall(r"(?m)^\s+\d+\. (\S+)", text)
+    assert passes == ["visibility", "gbuffer", "shade", "tonemap"], passes  # all raster: no BVH, no lists
+    assert "bvh" not in text and "rt_lists" not in text
+    room = str(Path(__file__).resolve().parents[1] / "rayvr" / "assets" / "default_room.toml")
+    traced = _graph("--materials", room, "--graph", "--size", "64x48")
+    for name in ("bvh", "classify", "rt_shadows", "rt_reflections", "rt_glossy"):
+        assert f" {name} " in traced, name
+    assert "mirror" in traced  # why rt_reflections runs: the materials that use it
+    rays = re.findall(r"(?m)^\s+\d+\. (\S+)", _graph("--graph", "--primary", "rays", "--size", "64x48"))
+    assert rays == ["bvh", "primary_rays", "gbuffer", "shade", "tonemap"], rays
+    dot = _graph("--materials", room, "--graph", "dot")
+    assert dot.startswith("digraph") and '"res:hdr" -> "tonemap"' in dot and "compose" in dot
