@@ -1,9 +1,12 @@
 """Writing results: every file goes through a temporary file in the same folder and
-`os.replace`, so an interrupted run never leaves a half-written image or array."""
+`os.replace`, so an interrupted run never leaves a half-written image or array. The temporary
+file is created with mode 0666 and the kernel applies the umask (and any default ACL), so results
+get the permissions a plain open() would give them (tempfile.mkstemp's are always 0600)."""
 from __future__ import annotations
 
 import io
 import os
+import secrets
 import tempfile
 from pathlib import Path
 
@@ -31,10 +34,22 @@ def ensure_writable_dir(path: str | Path) -> Path:
     return path
 
 
+def _create_temp(path: Path) -> tuple[int, Path]:
+    """A new, exclusively created temporary file next to `path`: (fd, its path)."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0) | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(100):
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
+        try:
+            return os.open(tmp, flags, 0o666), tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free temporary name next to {path}")
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     path = Path(path)
     try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        fd, tmp = _create_temp(path)
     except OSError as exc:
         raise OutputError(f"{path}: cannot write: {exc.strerror or exc}") from exc
     try:

@@ -1,0 +1,44 @@
+import os
+import stat
+
+import numpy as np
+import pytest
+
+from rayvr.output import atomic_write_bytes, write_npy, write_png
+
+
+@pytest.fixture
+def umask():
+    """Set the process umask for one test, restore it after."""
+    old = os.umask(0o022)
+    yield os.umask
+    os.umask(old)
+
+
+@pytest.mark.parametrize("mask, mode", [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664), (0o000, 0o666)])
+def test_output_files_get_the_umask_like_a_plain_open(tmp_path, umask, mask, mode):
+    umask(mask)
+    atomic_write_bytes(tmp_path / "a.json", b"{}")
+    write_png(tmp_path / "a.png", np.zeros((2, 3, 3), np.uint8))
+    write_npy(tmp_path / "a.npy", np.zeros(3, np.float32))
+    with open(tmp_path / "plain.txt", "w"):
+        pass
+    assert stat.S_IMODE(os.stat(tmp_path / "plain.txt").st_mode) == mode
+    for name in ("a.json", "a.png", "a.npy"):
+        assert stat.S_IMODE(os.stat(tmp_path / name).st_mode) == mode, name
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "a.npy", "a.png", "plain.txt"]  # no temp left
+
+
+def test_replacing_keeps_no_temp_and_a_failed_write_leaves_the_old_file(tmp_path, monkeypatch):
+    p = tmp_path / "f.bin"
+    atomic_write_bytes(p, b"one")
+    atomic_write_bytes(p, b"two")
+    assert p.read_bytes() == b"two" and [x.name for x in tmp_path.iterdir()] == ["f.bin"]
+
+    def fail(*a):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", fail)
+    with pytest.raises(OSError):
+        atomic_write_bytes(p, b"three")
+    assert p.read_bytes() == b"two" and [x.name for x in tmp_path.iterdir()] == ["f.bin"]
