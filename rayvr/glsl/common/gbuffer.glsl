@@ -20,7 +20,9 @@ Surface gbuffer_fetch(ivec3 p) {
     vec4 c = texelFetch(gb_albedo, p, 0);
     uvec2 m = texelFetch(gb_material, p, 0).xy;
     s.position = a.xyz; s.view_depth = a.w;
-    s.normal = b.xyz; s.roughness = b.w;
+    // Renormalised: the half-float channel rounds (llvmpipe truncates) and |n| < 1 dims sharp
+    // highlights (9.5 % on the room's gold sphere against the numpy reference).
+    s.normal = b.xyz * inversesqrt(max(dot(b.xyz, b.xyz), 1e-30)); s.roughness = b.w;
     s.base_color = c.rgb; s.metallic = c.a;
     s.emission = texelFetch(gb_emission, p, 0).rgb;
     s.material = m.x; s.effect = m.y;
