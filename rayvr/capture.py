@@ -61,7 +61,7 @@ def write_frame(job: CaptureJob, index: int, frame: Frame) -> list[Path]:
 def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> dict:
     """Render every pose of `job`, write the files, return a summary (files, GPU ms per pass)."""
     ensure_writable_dir(job.out_dir)
-    files, timings = [], []
+    files, timings, unavailable, ran = [], [], set(), {}
     bar = None
     if progress and len(job.poses) > 1:
         from tqdm import tqdm
@@ -73,6 +73,8 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> d
         for i, frame in enumerate(renderer.render_sequence(rigs, eyes=job.eyes, view=job.view, aux=job.aux)):
             files += write_frame(job, i, frame)
             timings.append(frame.timings)
+            unavailable.update(frame.timings_unavailable)
+            ran.update(dict.fromkeys(frame.passes))
             if bar is not None:
                 bar.update(1)
     finally:
@@ -83,6 +85,7 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> d
     summary = {"frames": len(job.poses), "files": [str(f) for f in files], "gpu_ms_mean": mean,
                "gpu_ms_per_frame": timings, "gl": renderer.gl.info()["renderer"],
                "timings_meaningful": not renderer.gl.is_software,
+               "passes": list(ran), "gpu_ms_unavailable": sorted(unavailable),  # timers that read back garbage
                "size": list(job.rig.size), "eyes": job.eyes}
     return summary
 

@@ -88,8 +88,9 @@ def cmd_capture(args) -> int:
         print(f"wrote {len(summary['files'])} files to {args.out}/ ({summary['frames']} frame(s), {args.eye} eye(s))")
     if args.timings:
         print("GPU ms per pass (mean over frames; GL timer queries):")
-        for k, v in summary["gpu_ms_mean"].items():
-            print(f"  {k:12s} {v:9.3f}")
+        for k in summary["passes"]:
+            v = summary["gpu_ms_mean"].get(k)
+            print(f"  {k:12s} {v:9.3f}" if v is not None else f"  {k:12s} unavailable (the timer read back garbage)")
         print(f"  {'total':12s} {sum(summary['gpu_ms_mean'].values()):9.3f}   ({summary['gl']})")
         if not summary["timings_meaningful"]:
             print("  note: software rasterizer: GL timer queries do not measure GPU work here; "

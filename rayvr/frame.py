@@ -28,6 +28,7 @@ import moderngl
 import numpy as np
 
 from .gpu_layout import CHANNELS
+from .timing import valid_elapsed_ns
 
 
 @dataclass(frozen=True)
@@ -370,8 +371,14 @@ class PassTimer:
             fn()
 
     def read_ms(self, names, slot: int | None = None) -> dict:
+        """GPU ms per name; a query that read back garbage is left out (unavailable), never a number."""
         slot = self.slot if slot is None else slot
-        return {n: self.queries[(slot, n)].elapsed / 1e6 for n in names if (slot, n) in self.queries}
+        out = {}
+        for n in names:
+            q = self.queries.get((slot, n))
+            if q is not None and valid_elapsed_ns(ns := q.elapsed):
+                out[n] = ns / 1e6
+        return out
 
 
 # ------------------------------------------------------------------------------ one frame
@@ -392,6 +399,11 @@ class Frame:
     eyes: dict
     timings: dict  # pass name -> GPU ms (with profile=True: "pass.kernel" -> GPU ms)
     view: str
+    passes: tuple = ()  # the passes that ran; those missing from `timings` had no valid reading
+
+    @property
+    def timings_unavailable(self) -> list:
+        return [p for p in self.passes if p not in self.timings]
 
     @property
     def left(self) -> EyeImage:

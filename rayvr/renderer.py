@@ -28,6 +28,7 @@ from .passes import core_passes
 from .passes.classify import pixel_counts
 from .passes.visibility import pick_layer_mode
 from .readback import AUX_CHANNELS, Reader
+from .timing import settle
 
 PRIMARY_MODES = ("raster", "rays")
 
@@ -147,20 +148,22 @@ class Renderer:
         return pixel_counts(self._last.resource("rt_list_args"))
 
     def warm_up(self, rig: StereoRig, eyes: str = "both", view: str = "color", seconds: float | None = None,
-                min_frames: int = 1) -> None:
-        """Render for `seconds` without reading anything back: an idle GPU runs at a fraction of
-        its clock (the H200 idles at 345 MHz against 1980 MHz) and needs ~0.2 s of work to ramp
-        up, so timings taken straight after a pause measure the clock governor, not rayvr.
-        Default: 0.3 s on a GPU, one frame on a software rasterizer (no clocks to ramp)."""
-        import time
+                min_frames: int = 1) -> dict:  # timing.settle's record
+        """Render without reading pixels back until the frame's GPU time settles (timing.settle:
+        the median of the last 5 frames within 3 % of the 5 before, after at least `seconds`,
+        default 0.3 s): timings taken straight after a pause or a build measure the clock
+        governor, not rayvr. A software rasterizer has no clocks to ramp: `min_frames` only."""
+        def frame_ms() -> float:
+            fc = self.record(rig, eyes, view)
+            return sum(self.read_ms(fc).values())  # waits for the GPU
 
-        if seconds is None:
-            seconds = 0.0 if self.gl.is_software else 0.3
-        end, done = time.perf_counter() + seconds, 0
-        while done < min_frames or time.perf_counter() < end:
-            self.record(rig, eyes, view)
-            self.gl.ctx.finish()
-            done += 1
+        if self.gl.is_software:
+            for _ in range(min_frames):
+                frame_ms()
+            return {"runs": min_frames, "settled": False}
+        for _ in range(min_frames):
+            frame_ms()
+        return settle(frame_ms, min_seconds=0.3 if seconds is None else seconds)
 
     def render(self, rig: StereoRig, eyes: str = "both", view: str = "color", aux=()) -> Frame:
         """Render one frame; `eyes` is 'both', 'left' or 'right'; `aux` names extra channels to
@@ -187,7 +190,7 @@ class Renderer:
 
     def _finish(self, pending) -> Frame:
         timings = self.graph.read_ms(pending.fc)
-        return Frame(self.reader.finish(pending), timings, pending.fc.plan.view)
+        return Frame(self.reader.finish(pending), timings, pending.fc.plan.view, tuple(pending.fc.pass_names))
 
     def update_vertices(self, vertices) -> None:
         """Move the scene's vertices (scene-local, same triangles): re-upload them and refit the

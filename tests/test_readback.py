@@ -6,6 +6,8 @@ from rayvr.scene import load
 
 
 def test_sequence_frames_equal_single_renders_and_depth_sources_agree(gl):
+    """Pipelined readback (frame N read while N+1 renders, buffers alternating) against each frame
+    rendered by a renderer of its own, which has nothing in flight and no buffer used before."""
     scene = load()
     r = Renderer(scene, gl=gl)
     try:
@@ -14,7 +16,8 @@ def test_sequence_frames_equal_single_renders_and_depth_sources_agree(gl):
         seq = list(r.render_sequence(rigs, aux=("position", "zbuffer")))
         assert len(seq) == 3
         for rig, frame in zip(rigs, seq):
-            single = r.render(rig, aux=("position",))
+            with Renderer(scene, gl=gl) as fresh:
+                single = fresh.render(rig, aux=("position",))
             for eye in ("left", "right"):
                 assert np.array_equal(frame[eye].color, single[eye].color)
                 assert np.array_equal(frame[eye].depth, single[eye].depth)
@@ -22,7 +25,7 @@ def test_sequence_frames_equal_single_renders_and_depth_sources_agree(gl):
                 hit = frame[eye].depth > 0
                 view_z = (frame[eye].aux["position"] - rig.eye(eye).position) @ -rig.eye(eye).rotation[:, 2]
                 assert np.allclose(frame[eye].depth[hit], view_z[hit], rtol=2e-6)
-            assert set(frame.timings) >= {"visibility", "gbuffer", "shade", "tonemap"}
+            assert frame.passes == ("visibility", "gbuffer", "shade", "tonemap")
         assert not np.array_equal(seq[0].left.color, seq[1].left.color)
     finally:
         r.release()
@@ -42,3 +45,20 @@ def test_hdr_aux_is_the_linear_colour_the_8_bit_image_encodes(gl):
     x = np.clip(hdr, 0.0, 1.0)
     srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
     assert np.abs(srgb * 255.0 - frame.left.color.astype(np.float64)).max() <= 1.01
+
+
+def test_wrapped_timer_readings_are_unavailable_not_numbers():
+    """llvmpipe reads a raster pass's timer back as 4294967295 ns now and then: left out of the
+    timings (and listed as unavailable), never reported as 4294.967 ms."""
+    from rayvr.frame import Frame, PassTimer
+
+    class Query:
+        def __init__(self, ns):
+            self.elapsed = ns
+
+    timer = PassTimer(ctx=None, queries={(0, "visibility"): Query(2**32 - 1), (0, "gbuffer"): Query(1_500_000),
+                                         (0, "tonemap"): Query(2**31)})
+    ms = timer.read_ms(["visibility", "gbuffer", "tonemap"], slot=0)
+    assert ms == {"gbuffer": 1.5}
+    frame = Frame({}, ms, "color", passes=("visibility", "gbuffer", "tonemap"))
+    assert frame.timings_unavailable == ["visibility", "tonemap"]

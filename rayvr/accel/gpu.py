@@ -15,6 +15,7 @@ import numpy as np
 
 from .. import shaders
 from ..gpu_layout import SSBO
+from ..timing import settle
 from .bvh import Bvh, BufferTooLargeError
 
 DEFAULT_BINDING = SSBO["bvh_nodes"]  # nodes here, triangles at +1 (gpu_layout.SSBO)
@@ -22,7 +23,7 @@ STACK_SIZE = 64            # BVH_STACK_SIZE in glsl/accel/bvh.glsl
 MISS = 0xFFFFFFFF
 MODES = {"closest": 0, "any": 1, "reflect": 2, "through": 3}
 _LOCAL_SIZE = 64
-WARMUP_S = 0.2   # time_trace dispatches this long before timing (an idle GPU starts at low clocks)
+WARMUP_S = 0.2   # time_trace dispatches at least this long, until times settle, before timing
 _MAX_GROUPS_X = 65535
 
 
@@ -160,13 +161,14 @@ class RayTracer:
             self.gpu_bvh.bind(self.base)
             rbuf.bind_to_storage_buffer(self.base + 2)
             hbuf.bind_to_storage_buffer(self.base + 3)
-            warm = time.perf_counter()   # warm-up: long enough for the GPU to reach its clocks
-            while True:
-                self._dispatch(prog, n)
-                self.ctx.finish()
-                if time.perf_counter() - warm >= WARMUP_S:
-                    break
             query = self.ctx.query(time=True)
+
+            def one_dispatch_ms() -> float:
+                with query:
+                    self._dispatch(prog, n)
+                return query.elapsed / 1e6  # waits for the GPU
+
+            settle(one_dispatch_ms, min_seconds=WARMUP_S)  # until the GPU's clocks are up and times agree
             t0 = time.perf_counter()
             with query:
                 for _ in range(repeats):

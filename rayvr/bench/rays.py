@@ -117,8 +117,8 @@ def embree_trace(pool, workers, kind, n, repeat=1):
 # -------------------------------------------------------------------------- the run
 
 def time_frame(renderer, rig, repeat, warmup, warmup_s=0.3):
-    """Median GPU ms per pass and of the frame total over `repeat` frames, after at least `warmup`
-    frames and `warmup_s` seconds of them (an idle GPU starts at low clocks)."""
+    """Median GPU ms per pass and of the frame total over `repeat` frames, after a warm-up of at
+    least `warmup` frames and `warmup_s` seconds that lasts until frame times settle."""
     names, ms = None, {}
     renderer.warm_up(rig, seconds=warmup_s, min_frames=warmup)
     for i in range(repeat):
