@@ -53,11 +53,15 @@ void end_path(uint p) {
     wave_paths[p].direction.w = -1.0;
 }
 
-// Per-pixel sampling state, as the pixel's own event set it: same stream, same lattice.
+// Per-pixel sampling state, as the pixel's own event set it: same stream, same lattice, seeded
+// from the surface point the pixel sees (the same in both eyes: common/random.glsl).
 // The pixel's material has this pass's effect: PARAM_* (its parameter slots) apply.
 uint pixel_setup(ivec3 px, out uint rng) {
     uint mi = texelFetch(gb_material, px, 0).x;
-    rng = rng_seed(px, frame_seed);
+    vec4 position = texelFetch(gb_position, px, 0);  // xyz scene-local, w view depth
+    vec4 t = eye_tangents[px.z];
+    float footprint = position.w * (t.w - t.z) / float(textureSize(gb_material, 0).y);
+    rng = rng_seed_surface(position.xyz, footprint, frame_seed);
     shadow_area_samples = max(material_param_int(mi, PARAM_AREA_SAMPLES), 1);
     shadow_lattice_shift = rng_next2(rng);
     return mi;
