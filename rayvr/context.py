@@ -62,7 +62,9 @@ _RAW_SIGNATURES: dict[str, tuple] = {
     "glClearBufferuiv": (None, (_u, _i, ctypes.POINTER(_u))),
     "glClearBufferfv": (None, (_u, _i, ctypes.POINTER(ctypes.c_float))),
     "glGetError": (_u, ()),
+    "glGetIntegerv": (None, (_u, ctypes.POINTER(_i))),
 }
+GL_GPU_MEMORY_INFO_DEDICATED_VIDMEM_NVX = 0x9047  # kB
 
 
 class RawGL:
@@ -140,6 +142,22 @@ class GLContext:
     @property
     def max_ssbo_bytes(self) -> int:
         return int(self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0)
+
+    @property
+    def max_texture_size(self) -> int:
+        return int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE") or 0)
+
+    @property
+    def memory_bytes(self) -> int | None:
+        """Memory a frame's resources may take: the GPU's own where the driver says
+        (GL_NVX_gpu_memory_info), the machine's RAM for a software rasterizer, else None."""
+        if self.has_extension("GL_NVX_gpu_memory_info") and self.raw.has("glGetIntegerv"):
+            kb = ctypes.c_int(0)
+            self.raw.glGetIntegerv(GL_GPU_MEMORY_INFO_DEDICATED_VIDMEM_NVX, ctypes.byref(kb))
+            return kb.value * 1024 if kb.value > 0 else None
+        if self.is_software:
+            return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        return None
 
     def release(self) -> None:
         try:

@@ -102,6 +102,7 @@ class Buffer:
     bytes_for: Callable = field(compare=False)
     rule: str = ""
     zeroed: bool = False  # allocated as zeros (the pass keeps it so between frames)
+    max_extent: int = 0  # largest eye width/height its contents can address (0: any)
 
     def nbytes(self, s: Sizing) -> int:
         return max(int(self.bytes_for(s)), 4)
@@ -306,6 +307,81 @@ def compile_graph(candidates: list, plan: FramePlan) -> CompiledGraph:
                          {p.name: io[p.name] for p in order}, reasons)
 
 
+# ------------------------------------------------------------------------------ device limits
+
+# Drivers size a resource with signed 32-bit byte counts: llvmpipe rendered a 2x8192x8192 frame
+# all black (exit 0) because its position channel is exactly 2 GiB.
+RESOURCE_BYTES_LIMIT = (1 << 31) - 1
+MEMORY_SHARE = 0.8  # of the device's memory a frame's resources may take
+
+
+class FrameTooLarge(ValueError):
+    """The frame's resources do not fit the device; the message says which and what would."""
+
+
+@dataclass(frozen=True)
+class DeviceLimits:
+    max_texture_size: int = 0
+    max_ssbo_bytes: int = 0
+    memory_bytes: int | None = None
+
+    @classmethod
+    def of(cls, gl) -> "DeviceLimits":
+        return cls(gl.max_texture_size, gl.max_ssbo_bytes, gl.memory_bytes)
+
+
+def _gib(n: int) -> str:
+    return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"
+
+
+def limit_problems(graph: CompiledGraph, sizing: Sizing, limits: DeviceLimits) -> list:
+    """What in `graph` at `sizing` exceeds the device, one phrase each (empty: it fits)."""
+    out, total = [], 0
+    w, h = sizing.size
+    channel_bytes = {c.name: GBufferChannels((c.name,)).nbytes(sizing) for c in CHANNELS}
+    for name, t in graph.types.items():
+        if isinstance(t, GBufferChannels):
+            parts = {f"G-buffer channel {c}": channel_bytes[c] for c in t.channels}
+        else:
+            parts = {name: t.nbytes(sizing)}
+        for what, n in parts.items():
+            if n > RESOURCE_BYTES_LIMIT:
+                out.append(f"{what} needs {_gib(n)} (a resource may hold at most 2 GiB)")
+        if isinstance(t, Buffer) and limits.max_ssbo_bytes and parts[name] > limits.max_ssbo_bytes:
+            out.append(f"{name} needs {_gib(parts[name])}, more than a storage buffer may hold here "
+                       f"({_gib(limits.max_ssbo_bytes)})")
+        if isinstance(t, Buffer) and t.max_extent and max(w, h) > t.max_extent:
+            out.append(f"{name} addresses at most {t.max_extent} pixels a side")
+        if isinstance(t, (Texture, GBufferChannels)) and limits.max_texture_size and \
+                max(w, h) > limits.max_texture_size:
+            out.append(f"{name}: textures may be at most {limits.max_texture_size} pixels a side here")
+        total += t.nbytes(sizing)
+    if limits.memory_bytes and total > MEMORY_SHARE * limits.memory_bytes:
+        out.append(f"the frame needs {_gib(total)} of {_gib(limits.memory_bytes)} device memory")
+    return list(dict.fromkeys(out))
+
+
+def check_fits(graph: CompiledGraph, sizing: Sizing, limits: DeviceLimits) -> None:
+    """Raise FrameTooLarge naming what does not fit and the largest eye size of this aspect that does."""
+    problems = limit_problems(graph, sizing, limits)
+    if not problems:
+        return
+    w, h = sizing.size
+    lo, hi = 0.0, 1.0  # the largest scale of (w, h) that fits, by bisection
+    for _ in range(30):
+        mid = (lo + hi) / 2
+        size = (max(1, int(w * mid)), max(1, int(h * mid)))
+        if limit_problems(graph, Sizing(size, sizing.layers, sizing.scene, sizing.assignments,
+                                        sizing.max_ssbo_bytes), limits):
+            hi = mid
+        else:
+            lo = mid
+    fits = f"{max(1, int(w * lo))}x{max(1, int(h * lo))}" if lo > 0 else "none"
+    more = f" (and {len(problems) - 2} more)" if len(problems) > 2 else ""
+    raise FrameTooLarge(f"a {w}x{h} eye image ({sizing.layers} layer(s)) does not fit this device: "
+                        f"{'; '.join(problems[:2])}{more}; the largest size of this aspect that fits is {fits}")
+
+
 # -------------------------------------------------------------------------------- execution
 
 class FrameResources:
@@ -460,6 +536,8 @@ class FrameGraph:
 
     def __init__(self, gl, candidates):
         self.gl, self.candidates = gl, candidates
+        self.limits = DeviceLimits.of(gl)
+        self._fits: set = set()  # (plan, sizing) pairs checked against the limits
         self._compiled: dict = {}
         self.resources = FrameResources(gl)
         self.timer = PassTimer(gl.ctx)
@@ -475,6 +553,10 @@ class FrameGraph:
         return graph
 
     def execute(self, graph: CompiledGraph, fc: FrameContext, profile: bool = False) -> None:
+        key = (graph.plan, fc.sizing.size, fc.sizing.layers)
+        if key not in self._fits:  # before anything is allocated: a clear error, not a black frame
+            check_fits(graph, fc.sizing, self.limits)
+            self._fits.add(key)
         fc.resources = self.resources.allocate(graph, fc.sizing)
         fc.pass_names = graph.pass_names
         timer = self.kernel_timer if profile else self.timer

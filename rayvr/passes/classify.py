@@ -24,7 +24,9 @@ def args_bytes() -> int:
     return ARGS_BYTES * list_slots() + 4 * (list_slots() + 1)
 
 
-PIXEL_LISTS = Buffer(lambda s: 4 * s.pixels * list_slots(), "4 B per eye pixel per traced effect")
+MAX_LIST_EXTENT = 1 << 14  # rt_pack_pixel (glsl/rt/pixel_list.glsl) keeps x and y in 14 bits
+PIXEL_LISTS = Buffer(lambda s: 4 * s.pixels * list_slots(), "4 B per eye pixel per traced effect",
+                     max_extent=MAX_LIST_EXTENT)
 LIST_ARGS = Buffer(lambda s: args_bytes(), "16 B per traced effect + counters", zeroed=True)
 
 

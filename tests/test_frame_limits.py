@@ -1,0 +1,56 @@
+"""Frames too large for the device are refused before anything is allocated, naming what does not
+fit and the largest size that does (llvmpipe rendered 2x8192x8192 all black with exit 0: its
+position channel is exactly 2 GiB), and a size just inside the limits renders."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from rayvr.camera import StereoRig
+from rayvr.frame import (RESOURCE_BYTES_LIMIT, DeviceLimits, FrameTooLarge, Sizing, check_fits, compile_graph,
+                         limit_problems)
+from rayvr.materials import parse_config
+from rayvr.renderer import Renderer, candidate_passes
+from rayvr.scene import load
+
+
+def _graph(gl, config=None):
+    with Renderer(load(), parse_config(config or {}, "<t>"), gl=gl) as r:
+        plan = r.plan()
+        return compile_graph(candidate_passes(plan), plan), r.scene, tuple(r.assignments)
+
+
+def test_resource_over_2_gib_is_refused_with_the_largest_size_that_fits(gl):
+    graph, scene, assigned = _graph(gl)
+    limits = DeviceLimits(max_texture_size=32768, max_ssbo_bytes=1 << 31, memory_bytes=None)
+    big = Sizing((8192, 8192), 2, scene, assigned)
+    assert any("position needs 2.00 GiB" in p for p in limit_problems(graph, big, limits))
+    with pytest.raises(FrameTooLarge, match=r"largest size of this aspect that fits is (\d+)x\1") as e:
+        check_fits(graph, big, limits)
+    side = int(str(e.value).rsplit(" ", 1)[1].split("x")[0])
+    # The position channel (rgba32f, 2 layers) is the largest: 32 B a pixel pair.
+    assert side * side * 32 <= RESOURCE_BYTES_LIMIT < (side + 2) ** 2 * 32
+    check_fits(graph, Sizing((side, side), 2, scene, assigned), limits)  # that size passes
+
+
+def test_texture_side_storage_buffer_and_memory_limits(gl):
+    graph, scene, assigned = _graph(gl, {"default": "shadows"})
+    limits = DeviceLimits(max_texture_size=4096, max_ssbo_bytes=64 << 20, memory_bytes=256 << 20)
+    wide = limit_problems(graph, Sizing((5000, 100), 2, scene, assigned), limits)
+    assert any("at most 4096 pixels a side" in p for p in wide)
+    lists = limit_problems(graph, Sizing((3000, 3000), 2, scene, assigned), limits)
+    assert any(p.startswith("rt_lists needs") and "storage buffer" in p for p in lists)
+    assert any("device memory" in p for p in lists)
+    assert not limit_problems(graph, Sizing((64, 48), 2, scene, assigned), limits)
+
+
+def test_capture_of_an_absurd_size_is_one_line_and_writes_nothing(tmp_path):
+    out = tmp_path / "o"
+    run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--size", "8192x8192", "--out", str(out)],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode != 0
+    lines = [line for line in run.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "does not fit this device" in lines[0] and "Traceback" not in run.stderr, run.stderr
+    assert not list(out.glob("*.png"))
