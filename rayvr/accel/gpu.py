@@ -23,6 +23,7 @@ STACK_SIZE = 64            # BVH_STACK_SIZE in glsl/accel/bvh.glsl
 MISS = 0xFFFFFFFF
 MODES = {"closest": 0, "any": 1, "reflect": 2, "through": 3}
 _LOCAL_SIZE = 64
+TIMED_BATCHES = 5  # time_trace: median of this many timed batches of `repeats` dispatches
 WARMUP_S = 0.2   # time_trace dispatches at least this long, until times settle, before timing
 _MAX_GROUPS_X = 65535
 
@@ -169,18 +170,22 @@ class RayTracer:
                 return query.elapsed / 1e6  # waits for the GPU
 
             settle(one_dispatch_ms, min_seconds=WARMUP_S)  # until the GPU's clocks are up and times agree
+            batches = []  # several timed batches: their spread shows in the result
             t0 = time.perf_counter()
-            with query:
-                for _ in range(repeats):
-                    self._dispatch(prog, n)
+            for _ in range(TIMED_BATCHES):
+                with query:
+                    for _ in range(repeats):
+                        self._dispatch(prog, n)
+                batches.append(query.elapsed * 1e-9 / repeats)
             self.ctx.finish()
-            wall = (time.perf_counter() - t0) / repeats
-            gpu = query.elapsed * 1e-9 / repeats
+            wall = (time.perf_counter() - t0) / (repeats * TIMED_BATCHES)
+            gpu = float(np.median(batches))
         finally:
             rbuf.release()
             hbuf.release()
         seconds = gpu if gpu > 0.01 * wall else wall   # llvmpipe reports ~0 for compute in timer queries
-        return {"rays": n, "gpu_ms": gpu * 1e3, "wall_ms": wall * 1e3, "rays_per_s": n / seconds}
+        return {"rays": n, "gpu_ms": gpu * 1e3, "gpu_ms_min": min(batches) * 1e3, "gpu_ms_max": max(batches) * 1e3,
+                "wall_ms": wall * 1e3, "rays_per_s": n / seconds}
 
 
 def trace_rays(ctx, bvh_or_gpu, origins, directions, tmin=0.0, tmax=np.inf, mode: str = "closest"):
