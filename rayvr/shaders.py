@@ -1,7 +1,8 @@
 """GLSL sources under rayvr/glsl/, with `#include "path"` and compile errors mapped to file:line.
 
 `#include "layout.glsl"` (from any folder: "../layout.glsl") is the header rayvr/gpu_layout.py
-generates: the constants the CPU and the shaders share.
+generates: the constants the CPU and the shaders share. `#include NAME` includes the file the
+define NAME names (a path under the root): how a shared kernel takes an effect's own part.
 
 Each file gets a source-string number; `#line` directives around every include make the
 driver report (number, line), and `ShaderError` turns that back into `glsl/file.glsl:line`
@@ -21,6 +22,8 @@ from . import gpu_layout
 
 GLSL_DIR = Path(__file__).resolve().parent / "glsl"
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*(//.*)?$')
+# `#include NAME`: the file is the value of define NAME, a path under the root (an effect's part)
+_INCLUDE_DEFINE = re.compile(r'^\s*#\s*include\s+([A-Za-z_]\w*)\s*(//.*)?$')
 _VERSION = re.compile(r"^\s*#\s*version\b")
 # Mesa: "0:12(3): error: ..."   NVIDIA: "0(12) : error C0000: ..."
 _LOG_LOCATION = re.compile(r"(?m)^(?:ERROR: )?(\d+)(?::(\d+)\((\d+)\)|\((\d+)\))")
@@ -76,9 +79,15 @@ def load_source(name: str, defines: dict | None = None, root: Path = GLSL_DIR) -
         version = [n for n, line in enumerate(lines, 1) if _VERSION.match(line)]
         header_end = version[0] if (is_top and version) else -1
         for lineno, line in enumerate(lines, start=1):
-            m = _INCLUDE.match(line)
-            if m:
+            m = _INCLUDE.match(line) or _INCLUDE_DEFINE.match(line)
+            if m and m.re is _INCLUDE_DEFINE:
+                if m.group(1) not in (defines or {}):
+                    raise ShaderError(f"glsl/{file}:{lineno}: #include {m.group(1)} needs the define {m.group(1)} "
+                                      f"(the path of the file to include)")
+                child = os.path.normpath(str(defines[m.group(1)]))
+            elif m:
                 child = os.path.normpath(os.path.join(os.path.dirname(file), m.group(1)))
+            if m:
                 if child not in included:  # once per program; this also stops cycles
                     included.add(child)
                     emit(child, False)

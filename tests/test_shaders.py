@@ -50,8 +50,17 @@ def test_compile_error_names_the_included_file_and_line(gl, tmp_path):
 
 def test_every_shipped_shader_compiles(gl):
     """Each compute shader and raster program under rayvr/glsl builds on this driver."""
-    for path in sorted(GLSL_DIR.rglob("*.comp")):
-        shaders.compute(gl.ctx, str(path.relative_to(GLSL_DIR))).release()
+    for path in sorted(GLSL_DIR.rglob("*.comp")):  # the wavefront kernels take an effect's part
+        shaders.compute(gl.ctx, str(path.relative_to(GLSL_DIR)), {"EFFECT_PATHS": "effects/shadows.glsl"}).release()
     for mode in (0, 1):
         shaders.program(gl.ctx, "gbuffer/visibility.vert", "gbuffer/visibility.frag",
                         "gbuffer/visibility.geom" if mode else None, {"LAYER_MODE": mode, "LAYERS": 2}).release()
+
+
+def test_include_named_by_a_define(tmp_path):
+    write(tmp_path, "part/a.glsl", "int part_a() { return 1; }\n")
+    write(tmp_path, "main.comp", "#version 430\n#include PART  // the effect's part\nvoid main() {}\n")
+    src = load_source("main.comp", {"PART": "part/a.glsl"}, root=tmp_path)
+    assert "part_a" in src.text and src.files == ["main.comp", "part/a.glsl"]
+    with pytest.raises(ShaderError, match=r"glsl/main.comp:2: #include PART needs the define PART"):
+        load_source("main.comp", root=tmp_path)

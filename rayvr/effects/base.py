@@ -7,7 +7,8 @@ An effect declares, in one place:
   traced          True when its own passes shade its pixels from a pixel list (the `classify`
                   pass lists them; the `shade` pass skips them); False: `shade` lights them
   passes()        the frame-graph passes it adds (rayvr/passes/); the graph adds what they read
-  shader          its GLSL (under rayvr/glsl/, or an absolute path for an effect outside rayvr)
+  shader          its GLSL (under rayvr/glsl/, or an absolute path for an effect outside rayvr);
+                  for the wavefront effects, the file defining effect_start_paths()
   sweep           parameter -> (full, quick) values for `rayvr bench tradeoff`
   reference       material class ("mirror", "glossy", "diffuse") -> rank: the reference image
                   gives each material the highest-ranked registered effect for its class

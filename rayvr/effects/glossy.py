@@ -14,7 +14,7 @@ class Glossy(Effect):
               "area_samples": AREA_SAMPLES}
     traced = True
     reflective = True
-    shader = "rt/wave_shade.comp"
+    shader = "effects/glossy.glsl"  # its part of the wavefront pixel event (rt/wave_shade.comp)
     sweep = {"samples": ((1, 2, 4, 8, 16, 32), (1, 4)), "bounces": ((1, 2, 3, 4, 8), (1, 2)),
              "area_samples": AREA_SAMPLES_SWEEP}
     reference = {"glossy": 30, "mirror": 20}

@@ -11,7 +11,7 @@ class Reflections(Effect):
     params = {"bounces": Param(int, 1, 1, 16, "reflection bounces"), "area_samples": AREA_SAMPLES}
     traced = True
     reflective = True  # a reflection ray that meets it goes on in its mirror direction
-    shader = "rt/wave_shade.comp"
+    shader = "effects/reflections.glsl"  # its part of the wavefront pixel event (rt/wave_shade.comp)
     sweep = {"bounces": ((1, 2, 3, 4, 8), (1, 2)), "area_samples": AREA_SAMPLES_SWEEP}
     reference = {"mirror": 30}
 

@@ -12,7 +12,7 @@ class Shadows(Effect):
     doc = "+ ray-traced hard shadows; area lights soft with N samples"
     params = {"area_samples": AREA_SAMPLES}
     traced = True
-    shader = "rt/wave_shade.comp"
+    shader = "effects/shadows.glsl"  # its part of the wavefront pixel event (rt/wave_shade.comp)
     sweep = {"area_samples": AREA_SAMPLES_SWEEP}
     reference = {"mirror": 10, "glossy": 10, "diffuse": 10}
 

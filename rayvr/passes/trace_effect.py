@@ -1,5 +1,6 @@
 """`rt_<effect>`: a traced effect (shadows, reflections, glossy) as a wavefront over its pixel list,
-both eyes at once: shading kernels (glsl/rt/wave_shade.comp) write rays into buffers, lean kernels
+both eyes at once: shading kernels (glsl/rt/wave_shade.comp, with the effect's own part included
+from Effect.shader, e.g. glsl/effects/glossy.glsl) write rays into buffers, lean kernels
 (rt/wave_trace.comp) trace them. Per batch of the effect's pixel list:
     prep; pixel event (+ shadow rays); then per bounce: closest hits, hit event (+ shadow rays);
     finish (fused into the last shadow kernel when a pixel has one path).
@@ -89,8 +90,8 @@ class TraceEffectPass(Pass):
 
     def setup(self, gl, plan: FramePlan) -> None:
         d = {**GpuBvh.defines(DEFAULT_BINDING), **self.effect.param_defines(), "EFFECT": self.effect.id,
-             "RT_SLOT": self.slot, **camera_defines(plan)}
-        trace, shade = "rt/wave_trace.comp", self.effect.shader
+             "RT_SLOT": self.slot, "EFFECT_PATHS": self.effect.shader, **camera_defines(plan)}
+        trace, shade = "rt/wave_trace.comp", "rt/wave_shade.comp"
         self.programs = {
             "prep": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 0}),
             "closest": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 1}),

@@ -1,7 +1,8 @@
 #version 430
 // The shading kernels of the ray-traced rungs of the effect ladder, one program per effect and
-// stage (EFFECT = the effect's ID), run by indirect dispatches over a batch of that effect's pixel
-// list (rt/wave.glsl), both eyes at once. Rays are not traced here: shadowed() stores shadow rays
+// stage (EFFECT = the effect's ID; the effect's own part of the pixel event comes from the file
+// EFFECT_PATHS names: glsl/effects/<effect>.glsl), run by indirect dispatches over a batch of that
+// effect's pixel list (rt/wave.glsl), both eyes at once. Rays are not traced here: shadowed() stores shadow rays
 // (rt/shadow_rays.glsl) and the stages below store reflection rays, for rt/wave_trace.comp.
 //   shadows      emission + direct light with shadow rays (rect lights: area_samples points)
 //                + ambient, as `raster` does
@@ -18,8 +19,8 @@
 #ifndef WAVE_STAGE
 #define WAVE_STAGE 3
 #endif
-#ifndef EFFECT  // built alone: as `shadows` (passes/trace_effect.py passes the effect's own values)
-#define EFFECT EFFECT_SHADOWS
+#ifndef EFFECT  // built alone: as `shadows` (passes/trace_effect.py passes the effect's own values,
+#define EFFECT EFFECT_SHADOWS  // EFFECT_PATHS among them: the loader needs it)
 #define RT_SLOT 0
 #define PARAM_AREA_SAMPLES PARAM_SHADOWS_AREA_SAMPLES
 #endif
@@ -53,6 +54,11 @@ void end_path(uint p) {
     wave_paths[p].direction.w = -1.0;
 }
 
+// The effect's own part of the pixel event (Effect.shader, e.g. glsl/effects/glossy.glsl):
+//   void effect_start_paths(uint i, Surface s, vec3 v, vec3 ng, uint mi, inout uint rng)
+// sets the radiance the pixel starts with and starts its reflection paths (start_path/end_path).
+#include EFFECT_PATHS
+
 // Per-pixel sampling state, as the pixel's own event set it: same stream, same lattice, seeded
 // from the surface point the pixel sees (the same in both eyes: common/random.glsl).
 // The pixel's material has this pass's effect: PARAM_* (its parameter slots) apply.
@@ -82,41 +88,7 @@ void main() {
     direct_light(s.position, s.normal, v, s.base_color, s.metallic, s.roughness);
     wave_paths[i].throughput.w = uintBitsToFloat(shadow_stored());
     if (wave_slot_first != 0u) return;  // later chunks only add shadow rays
-#if EFFECT == EFFECT_SHADOWS
-    wave_paths[i].radiance = vec4(s.emission + ambient * s.base_color, 0.0);
-#else
-    wave_paths[i].radiance = vec4(s.emission + ambient * s.base_color * (1.0 - s.metallic), 0.0);  // the specular share is traced
-    vec3 f0 = mix(vec3(0.04), s.base_color, s.metallic);
-    uint n = wave_args[0].w;
-#if EFFECT == EFFECT_REFLECTIONS
-    vec3 dir = reflect(-v, s.normal);
-    if (dot(dir, ng) <= 0.0) dir = reflect(dir, ng);
-    start_path(i, s.position, ng, dir, fresnel_schlick(f0, dot(s.normal, v)));
-#else  // glossy
-    int samples = max(material_param_int(mi, PARAM_SAMPLES), 1);
-    float alpha = max(s.roughness * s.roughness, 1e-3);
-    mat3 tbn = basis_around(s.normal);
-    vec3 v_local = v * tbn;  // transpose(tbn) * v
-    v_local.z = max(v_local.z, 1e-4);
-    for (int j = 0; j < int(wave_paths_per_pixel); ++j) {
-        uint p = uint(j) * n + i;
-        if (j > 0) wave_paths[p].radiance = vec4(0.0);
-        if (j >= samples) {
-            end_path(p);
-            continue;
-        }
-        vec3 m = tbn * sample_ggx_vndf(normalize(v_local), alpha, rng_next2(rng));
-        vec3 l = reflect(-v, m);
-        float n_l = dot(s.normal, l);
-        if (n_l <= 0.0 || dot(l, ng) <= 0.0) {  // below the surface: no light this way
-            end_path(p);
-            continue;
-        }
-        vec3 weight = fresnel_schlick(f0, dot(v, m)) * smith_g2_over_g1(v_local.z, n_l, alpha);
-        start_path(p, s.position, ng, l, weight / float(samples));
-    }
-#endif
-#endif
+    effect_start_paths(i, s, v, ng, mi, rng);
 }
 
 #elif WAVE_STAGE == 4

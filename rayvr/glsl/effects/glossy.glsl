@@ -1,0 +1,30 @@
+// `glossy` (rayvr/effects/glossy.py) in the wavefront of rt/wave_shade.comp: `samples` GGX
+// reflection paths per pixel by VNDF importance sampling (path j of pixel i is item j * n + i),
+// each weighted by F * G2/G1 / samples; the ambient term lights only the diffuse share.
+void effect_start_paths(uint i, Surface s, vec3 v, vec3 ng, uint mi, inout uint rng) {
+    wave_paths[i].radiance = vec4(s.emission + ambient * s.base_color * (1.0 - s.metallic), 0.0);
+    vec3 f0 = mix(vec3(0.04), s.base_color, s.metallic);
+    uint n = wave_args[0].w;
+    int samples = max(material_param_int(mi, PARAM_SAMPLES), 1);
+    float alpha = max(s.roughness * s.roughness, 1e-3);
+    mat3 tbn = basis_around(s.normal);
+    vec3 v_local = v * tbn;  // transpose(tbn) * v
+    v_local.z = max(v_local.z, 1e-4);
+    for (int j = 0; j < int(wave_paths_per_pixel); ++j) {
+        uint p = uint(j) * n + i;
+        if (j > 0) wave_paths[p].radiance = vec4(0.0);
+        if (j >= samples) {
+            end_path(p);
+            continue;
+        }
+        vec3 m = tbn * sample_ggx_vndf(normalize(v_local), alpha, rng_next2(rng));
+        vec3 l = reflect(-v, m);
+        float n_l = dot(s.normal, l);
+        if (n_l <= 0.0 || dot(l, ng) <= 0.0) {  // below the surface: no light this way
+            end_path(p);
+            continue;
+        }
+        vec3 weight = fresnel_schlick(f0, dot(v, m)) * smith_g2_over_g1(v_local.z, n_l, alpha);
+        start_path(p, s.position, ng, l, weight / float(samples));
+    }
+}
