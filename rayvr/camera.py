@@ -182,6 +182,10 @@ class StereoRig:
             raise ValueError(f"ipd must be a finite value >= 0, got {self.ipd}")
         if not (self.fov_y > 0 and math.isfinite(self.fov_y)):
             raise ValueError(f"fov_y must be a finite angle > 0 degrees, got {self.fov_y}")
+        if not (self.near > 0 and math.isfinite(self.near)):
+            raise ValueError(f"near must be a finite distance > 0, got {self.near}")
+        if self.far is not None and not self.far > self.near:  # inf is the infinite far plane
+            raise ValueError(f"far ({self.far}) must be greater than near ({self.near})")
         self.camera.check_rig(self)  # e.g. the pinhole's planar projection stops short of 180
         if self.convergence is not None and not self.convergence > 0:
             raise ValueError(f"convergence distance must be > 0 (or None), got {self.convergence}")
@@ -240,21 +244,47 @@ def save_path(path: str | Path, poses: list[Pose], **meta) -> None:
     atomic_write_bytes(Path(path), json.dumps(data, indent=1).encode())
 
 
+ROTATION_TOLERANCE = 1e-3  # largest |R^T R - I| entry a path file's rotation may have (rounded decimals)
+
+
+def _check_pose(pose: Pose) -> str | None:
+    """Why `pose` cannot be rendered, or None."""
+    if pose.position.shape != (3,):
+        return f"position must be 3 numbers, got shape {pose.position.shape}"
+    if not (np.isfinite(pose.position).all() and np.isfinite(pose.rotation).all()):
+        return "NaN or inf values"
+    r = pose.rotation
+    skew = float(np.abs(r.T @ r - np.eye(3)).max())
+    if skew > ROTATION_TOLERANCE or np.linalg.det(r) <= 0:
+        # An all-zero or scaled matrix renders nothing; a mirror (det -1) flips the image.
+        return (f"rotation is not a rotation matrix (orthonormal columns, determinant +1, within "
+                f"{ROTATION_TOLERANCE:g}): |R^T R - I| reaches {skew:.3g}, det {np.linalg.det(r):.3g}")
+    return None
+
+
 def load_path(path: str | Path) -> list[Pose]:
     """Read a camera path: {"poses": [...]} where each pose is {position, rotation} or
-    {position, target, up?}."""
+    {position, target, up?}. Errors name the file and the pose's index."""
     path = Path(path)
     try:
         data = json.loads(path.read_text())
         poses = data["poses"] if isinstance(data, dict) else data
-        out = [Pose.from_dict(p) for p in poses]
+        if not isinstance(poses, list):
+            raise TypeError(f"'poses' must be a list, got {type(poses).__name__}")
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f"{path}: not a camera path ({exc})") from exc
-    if not out:
+    if not poses:
         raise ValueError(f"{path}: the camera path has no poses")
-    for i, p in enumerate(out):
-        if not (np.isfinite(p.position).all() and np.isfinite(p.rotation).all()):
-            raise ValueError(f"{path}: pose {i} has NaN or inf values")
+    out = []
+    for i, d in enumerate(poses):
+        try:
+            pose = Pose.from_dict(d)
+        except (ValueError, KeyError, TypeError) as exc:
+            raise ValueError(f"{path}: pose {i}: not a pose ({type(exc).__name__}: {exc})") from exc
+        problem = _check_pose(pose)
+        if problem:
+            raise ValueError(f"{path}: pose {i}: {problem}")
+        out.append(pose)
     return out
 
 

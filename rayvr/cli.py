@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import sys
 from pathlib import Path
 
@@ -15,7 +16,7 @@ def _size(text: str) -> tuple[int, int]:
         w, h = text.lower().split("x")
         size = (int(w), int(h))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"size must be WIDTHxHEIGHT (e.g. 640x480), got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"size must be WIDTHxHEIGHT (e.g. 640x480), got {text[:40]!r}") from None
     if min(size) < 1 or max(size) > 16384:
         raise argparse.ArgumentTypeError(f"size must be between 1x1 and 16384x16384, got {text!r}")
     return size
@@ -33,16 +34,61 @@ def _floats(n: int):
     return parse
 
 
+# Bounds of the numbers the command line takes: a value outside them renders nothing useful
+# (black, empty, or float32 overflow in the shaders) and is refused before any work.
+MAX_DISTANCE = 1e30  # --near, --far, --convergence, --ipd: float32 depth maths stays finite below it
+MAX_EXPOSURE = 1e6   # x1e6 already turns any lit pixel white
+MAX_FRAMES = 1_000_000
+MAX_BUDGET_MS = 1e6
+
+
+def _number(lo: float, hi: float, *, lo_open: bool = True, inf_ok: bool = False):
+    """argparse type: a float in (lo, hi] ([lo, hi] with lo_open=False); 'inf' too if inf_ok."""
+    interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]" + (" or inf" if inf_ok else "")
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number in {interval}, got {text[:40]!r}") from None
+        if inf_ok and value == math.inf:
+            return value
+        if not (math.isfinite(value) and (value > lo if lo_open else value >= lo) and value <= hi):
+            raise argparse.ArgumentTypeError(f"expected a finite number in {interval}, got {text!r}")
+        return value
+    return parse
+
+
+def _count(lo: int, hi: int):
+    """argparse type: an integer in [lo, hi]."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number from {lo} to {hi}, got {text[:40]!r}") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"expected a whole number from {lo} to {hi}, got {value}")
+        return value
+    return parse
+
+
+FOV = _number(0, 360)  # degrees; the camera model refuses what it cannot project (the pinhole: < 180)
+IPD = _number(0, MAX_DISTANCE, lo_open=False)
+DISTANCE = _number(0, MAX_DISTANCE)
+FRAMES = _count(1, MAX_FRAMES)
+
+
 def add_rig_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("camera / stereo rig")
     g.add_argument("--size", type=_size, default=(640, 480), help="per-eye image size WxH (default 640x480)")
     g.add_argument("--camera", type=_floats(6), metavar="EX,EY,EZ,TX,TY,TZ",
                    help="eye position and look-at target (default: the scene's camera or a framing view)")
-    g.add_argument("--fov", type=float, help="vertical field of view in degrees")
-    g.add_argument("--ipd", type=float, default=0.064, help="interpupillary distance in scene units (default 0.064)")
-    g.add_argument("--convergence", type=float, help="zero-parallax distance (default: parallel eyes, as HMDs)")
-    g.add_argument("--near", type=float, help="near plane distance")
-    g.add_argument("--far", type=float, help="far plane distance (default: infinite, reversed-Z)")
+    g.add_argument("--fov", type=FOV, help="vertical field of view in degrees (the camera model sets the limit)")
+    g.add_argument("--ipd", type=IPD, default=0.064, help="interpupillary distance in scene units (default 0.064)")
+    g.add_argument("--convergence", type=DISTANCE, help="zero-parallax distance (default: parallel eyes, as HMDs)")
+    g.add_argument("--near", type=DISTANCE, help="near plane distance")
+    g.add_argument("--far", type=_number(0, MAX_DISTANCE, inf_ok=True),
+                   help="far plane distance, greater than near (default: infinite, reversed-Z)")
 
 
 def rig_from_args(args, scene):
@@ -235,11 +281,19 @@ def cmd_preview(args) -> int:
     return 0
 
 
+class OneLineErrors(argparse.ArgumentParser):
+    """A usage error is one line, like every other rayvr error (argparse prints the whole usage
+    first); exit status 2 as argparse's. Sub-commands get this class too."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} -h)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .gpu_layout import TONEMAPPERS, VIEWS
     from .readback import AUX_CHANNELS
 
-    p = argparse.ArgumentParser(prog="rayvr", description="Hybrid raster + ray-traced stereo renderer for VR.")
+    p = OneLineErrors(prog="rayvr", description="Hybrid raster + ray-traced stereo renderer for VR.")
     p.add_argument("-v", "--verbose", action="store_true", help="log what rayvr decides")
     sub = p.add_subparsers(dest="command", required=True)
 
@@ -252,12 +306,13 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--view", choices=VIEWS, default="color", help="colour or a G-buffer debug view")
     c.add_argument("--aux", help=f"extra channels as .npy, comma-separated: {','.join(AUX_CHANNELS)}")
     seq = c.add_mutually_exclusive_group()
-    seq.add_argument("--frames", type=int, help="N frames of a turntable orbit")
+    seq.add_argument("--frames", type=FRAMES, help="N frames of a turntable orbit")
     seq.add_argument("--path", help="camera path file (JSON) to replay")
     c.add_argument("--timings", action="store_true", help="print GPU ms per pass")
-    c.add_argument("--budget-ms", type=float, help="pick effects per material to fit this GPU frame time "
+    c.add_argument("--budget-ms", type=_number(0, MAX_BUDGET_MS), help="pick effects per material to fit this GPU frame time "
                    "(measured on this device against a reference; overrides --materials' effects)")
-    c.add_argument("--exposure", type=float, default=1.0)
+    c.add_argument("--exposure", type=_number(0, MAX_EXPOSURE), default=1.0,
+                   help="linear scale before tonemapping (default 1)")
     c.add_argument("--tonemapper", choices=TONEMAPPERS, default="aces")
     c.add_argument("--layer-mode", choices=("auto", "vertex", "geometry", "multiview", "passes"), default="auto",
                    help="how the stereo G-buffer reaches both layers")
@@ -307,13 +362,13 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--scale", type=float, help="resolution scale (default 1, 0.5 on a CPU rasterizer)")
     v.add_argument("--no-vsync", action="store_true", help="start with vsync off (Y toggles)")
     v.add_argument("--camera", type=_floats(6), metavar="EX,EY,EZ,TX,TY,TZ", help="start eye position and target")
-    v.add_argument("--fov", type=float, help="vertical field of view in degrees")
-    v.add_argument("--ipd", type=float, default=0.064, help="interpupillary distance (default 0.064)")
-    v.add_argument("--convergence", type=float, help="zero-parallax distance (default: parallel eyes)")
+    v.add_argument("--fov", type=FOV, help="vertical field of view in degrees")
+    v.add_argument("--ipd", type=IPD, default=0.064, help="interpupillary distance (default 0.064)")
+    v.add_argument("--convergence", type=DISTANCE, help="zero-parallax distance (default: parallel eyes)")
     v.add_argument("--out", default="shots", help="screenshot folder (default ./shots)")
     v.add_argument("--record", default="camera_path.json", help="camera path file P writes")
-    v.add_argument("--frames", type=int, help="close after N frames (smoke tests)")
-    v.add_argument("--budget-ms", type=float, help="pick effects per material to fit this GPU frame time at start")
+    v.add_argument("--frames", type=FRAMES, help="close after N frames (smoke tests)")
+    v.add_argument("--budget-ms", type=_number(0, MAX_BUDGET_MS), help="pick effects per material to fit this GPU frame time at start")
     v.set_defaults(func=cmd_preview)
     return p
 

@@ -1,3 +1,4 @@
+import json
 import math
 
 import numpy as np
@@ -60,7 +61,9 @@ def test_hmd_tangents_are_used_verbatim():
 
 
 @pytest.mark.parametrize("kw", [dict(ipd=-1), dict(ipd=float("nan")), dict(fov_y=180), dict(fov_y=0),
-                                dict(convergence=0.0), dict(size=(0, 10))])
+                                dict(convergence=0.0), dict(size=(0, 10)), dict(near=0.0), dict(near=-1.0),
+                                dict(near=float("inf")), dict(near=float("nan")), dict(near=1.0, far=1.0),
+                                dict(near=1.0, far=0.5), dict(far=float("nan"))])
 def test_bad_rig_values_rejected(kw):
     with pytest.raises(ValueError):
         StereoRig(**kw)
@@ -84,3 +87,29 @@ def test_camera_path_roundtrip(tmp_path):
     (tmp_path / "empty.json").write_text('{"poses": []}')
     with pytest.raises(ValueError, match="no poses"):
         load_path(tmp_path / "empty.json")
+
+
+def test_camera_path_rotations_must_be_rotations(tmp_path):
+    p = tmp_path / "p.json"
+    pose = {"position": [0, 1, 2], "rotation": np.eye(3).tolist()}
+
+    def write(rotation):
+        p.write_text(json.dumps({"poses": [pose, {"position": [0, 1, 2], "rotation": rotation}]}))
+        return p
+
+    with pytest.raises(ValueError, match=r"p\.json: pose 1: rotation is not a rotation matrix.*det 0"):
+        load_path(write(np.zeros((3, 3)).tolist()))
+    skewed = np.eye(3)
+    skewed[0, 1] = 0.1
+    with pytest.raises(ValueError, match="pose 1: rotation is not a rotation matrix"):
+        load_path(write(skewed.tolist()))
+    with pytest.raises(ValueError, match="det -1"):
+        load_path(write(np.diag([1.0, 1.0, -1.0]).tolist()))
+    # Six decimals, as a hand-written file has them, are a rotation.
+    rounded = np.round(Pose.look_at([1, 2, 3], [0, 0, 0]).rotation, 6)
+    assert np.array_equal(load_path(write(rounded.tolist()))[1].rotation, rounded)
+    with pytest.raises(ValueError, match="pose 1: not a pose"):
+        load_path(write([1, 2, 3]))
+    p.write_text(json.dumps({"poses": [{"position": [0, 0], "rotation": np.eye(3).tolist()}]}))
+    with pytest.raises(ValueError, match="pose 0: position must be 3 numbers"):
+        load_path(p)

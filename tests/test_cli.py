@@ -50,16 +50,52 @@ def test_capture_one_eye_debug_view_and_path_replay(tmp_path):
 @pytest.mark.parametrize("args, words", [
     (["--materials", "MISSING"], ["cannot read material config"]),
     (["--size", "0x10"], ["size must be between"]),
+    (["--size", "0x0"], ["--size", "size must be between"]),
+    (["--size", "garbage"], ["--size", "WIDTHxHEIGHT"]),
     (["--camera", "1,2,3"], ["expected 6"]),
     (["/nonexistent/scene.glb"], ["no such file"]),
     (["--aux", "colour"], ["unknown aux channel", "depth"]),
     (["--fov", "200"], ["fov_y must be in (0, 180)"]),
+    (["--fov", "nan"], ["--fov", "finite"]),
+    (["--fov", "inf"], ["--fov", "finite"]),
+    (["--near", "inf"], ["--near", "finite number in (0, 1e+30]"]),
+    (["--near", "0"], ["--near", "(0, 1e+30]"]),
+    (["--near", "-1"], ["--near", "(0, 1e+30]"]),
+    (["--near", "nan"], ["--near", "finite"]),
+    (["--near", "2", "--far", "1"], ["far (1.0) must be greater than near (2.0)"]),
+    (["--near", "2", "--far", "2"], ["far (2.0) must be greater than near (2.0)"]),
+    (["--far", "nan"], ["--far"]),
+    (["--exposure", "1e38"], ["--exposure", "(0, 1e+06]"]),
+    (["--exposure", "0"], ["--exposure", "(0, 1e+06]"]),
+    (["--exposure", "nan"], ["--exposure", "finite"]),
+    (["--exposure", "inf"], ["--exposure", "finite"]),
+    (["--ipd", "-0.1"], ["--ipd", "[0, 1e+30]"]),
+    (["--ipd", "nan"], ["--ipd", "finite"]),
+    (["--frames", "0"], ["--frames", "from 1 to"]),
+    (["--frames", "-3"], ["--frames", "from 1 to"]),
 ])
 def test_capture_bad_input_is_a_clear_error(tmp_path, args, words):
     run = rayvr("capture", "--out", str(tmp_path / "o"), "--size", "8x8", *args)
     assert run.returncode == 2, run.stdout + run.stderr
+    assert len(run.stderr.splitlines()) == 1 and run.stderr.startswith("rayvr capture: error: "), run.stderr
     for w in words:
         assert w in run.stderr, run.stderr
+
+
+@pytest.mark.parametrize("rotation, words", [
+    ([[0, 0, 0], [0, 0, 0], [0, 0, 0]], "det 0"),
+    ([[2, 0, 0], [0, 2, 0], [0, 0, 2]], "reaches 3"),
+    ([[1, 0, 0], [0, 1, 0], [0, 0, -1]], "det -1"),  # a mirror
+])
+def test_path_pose_that_is_not_a_rotation_is_refused_naming_file_and_pose(tmp_path, rotation, words):
+    path = tmp_path / "path.json"
+    good = {"position": [0, 1, 3], "target": [0, 1, 0]}
+    path.write_text(json.dumps({"poses": [good, good, {"position": [0, 1, 3], "rotation": rotation}]}))
+    run = rayvr("capture", "--path", str(path), "--out", str(tmp_path / "o"), "--size", "8x8")
+    assert run.returncode == 2, run.stdout + run.stderr
+    assert len(run.stderr.splitlines()) == 1, run.stderr
+    assert f"{path}: pose 2: rotation is not a rotation matrix" in run.stderr and words in run.stderr, run.stderr
+    assert not (tmp_path / "o" / "frame_0000_left.png").exists()
 
 
 def test_bad_config_names_file_and_key(tmp_path):
