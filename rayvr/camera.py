@@ -186,13 +186,13 @@ class StereoRig:
             raise ValueError(f"near must be a finite distance > 0, got {self.near}")
         if self.far is not None and not self.far > self.near:  # inf is the infinite far plane
             raise ValueError(f"far ({self.far}) must be greater than near ({self.near})")
-        self.camera.check_rig(self)  # e.g. the pinhole's planar projection stops short of 180
         if self.convergence is not None and not self.convergence > 0:
             raise ValueError(f"convergence distance must be > 0 (or None), got {self.convergence}")
         w, h = self.size
         if int(w) < 1 or int(h) < 1:
             raise ValueError(f"image size must be at least 1x1, got {w}x{h}")
         self.size = (int(w), int(h))
+        self.camera.check_rig(self)  # last: it looks at the eyes (e.g. the pinhole's precision limit)
 
     def with_size(self, size) -> "StereoRig":
         return replace(self, size=tuple(size))

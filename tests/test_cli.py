@@ -56,6 +56,7 @@ def test_capture_one_eye_debug_view_and_path_replay(tmp_path):
     (["/nonexistent/scene.glb"], ["no such file"]),
     (["--aux", "colour"], ["unknown aux channel", "depth"]),
     (["--fov", "200"], ["fov_y must be in (0, 180)"]),
+    (["--fov", "179.9995"], ["planar projection precision ends at tangent 1e+05", "wide-angle camera model"]),
     (["--fov", "nan"], ["--fov", "finite"]),
     (["--fov", "inf"], ["--fov", "finite"]),
     (["--near", "inf"], ["--near", "finite number in (0, 1e+30]"]),
