@@ -15,6 +15,10 @@ from .renderer import Frame, Renderer
 log = logging.getLogger(__name__)
 
 
+class CaptureInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a capture; the message says which frames' files were kept."""
+
+
 @dataclass
 class CaptureJob:
     rig: StereoRig
@@ -45,8 +49,8 @@ def file_name(job: CaptureJob, index: int, eye: str, kind: str, ext: str) -> Pat
     return job.out_dir / f"{job.prefix}{frame}_{eye}{suffix}.{ext}"
 
 
-def write_frame(job: CaptureJob, index: int, frame: Frame) -> list[Path]:
-    written = []
+def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) -> None:
+    """Write one frame's files, appending each to `written` as soon as it is whole."""
     for eye, img in frame.eyes.items():
         p = file_name(job, index, eye, "color" if job.view == "color" else job.view, "png")
         write_png(p, img.color)
@@ -55,7 +59,6 @@ def write_frame(job: CaptureJob, index: int, frame: Frame) -> list[Path]:
             p = file_name(job, index, eye, name, "npy")
             write_npy(p, arr)
             written.append(p)
-    return written
 
 
 def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> dict:
@@ -68,15 +71,21 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> d
 
         bar = tqdm(total=len(job.poses), unit="frame", desc="capture")
     rigs = [StereoRig(**{**job.rig.__dict__, "pose": pose}) for pose in job.poses]
+    done = 0
     try:
         # Frames come back pipelined: frame i is written while frame i+1 renders.
         for i, frame in enumerate(renderer.render_sequence(rigs, eyes=job.eyes, view=job.view, aux=job.aux)):
-            files += write_frame(job, i, frame)
+            write_frame(job, i, frame, files)
+            done += 1
             timings.append(frame.timings)
             unavailable.update(frame.timings_unavailable)
             ran.update(dict.fromkeys(frame.passes))
             if bar is not None:
                 bar.update(1)
+    except KeyboardInterrupt:
+        # Every file is written atomically, so what is there is whole: say what was kept.
+        raise CaptureInterrupted(f"interrupted after {done} of {len(job.poses)} frame(s); "
+                                 f"the {len(files)} file(s) written are kept in {job.out_dir}/") from None
     finally:
         if bar is not None:
             bar.close()

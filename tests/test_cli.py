@@ -1,7 +1,9 @@
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -120,6 +122,28 @@ def test_unwritable_output_fails_before_rendering_and_loses_nothing(tmp_path):
         ro.chmod(0o500)
         run = rayvr("capture", "--out", str(ro), "--size", "8x8")
         assert run.returncode == 2 and "not writable" in run.stderr
+
+
+def test_ctrl_c_during_a_sequence_is_one_line_exit_130_and_keeps_whole_files(tmp_path):
+    out = tmp_path / "o"
+    proc = subprocess.Popen([sys.executable, "-m", "rayvr", "capture", "--frames", "500", "--size", "320x240",
+                             "--out", str(out), "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out.is_dir() and any(p.suffix == ".png" for p in out.iterdir())):
+            assert proc.poll() is None and time.monotonic() < deadline, "no frame file appeared"
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, stderr
+    assert len(stderr.splitlines()) == 1 and "Traceback" not in stderr, stderr
+    files = sorted(out.iterdir())
+    assert stderr.startswith("rayvr capture: interrupted after ") and f"the {len(files)} file(s) written" in stderr
+    assert 0 < len(files) < 1000 and all(p.suffix == ".png" for p in files)  # no temp file, no summary
+    for p in files:
+        assert np.asarray(Image.open(p)).shape == (240, 320, 3)  # every kept file is whole
 
 
 def test_info_lists_gl_and_scene_effects(tmp_path):
