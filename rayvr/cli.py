@@ -201,7 +201,7 @@ def cmd_info(args) -> int:
         for m in info["scene"]["materials"]:
             print(f"  [{m['index']:3d}] {m['name']:24s} -> {m['effect']:12s} ({m['rule']})")
         for key in info["scene"]["unmatched_config_keys"]:
-            print(f"  warning: config key {key!r} matches no material")
+            print(f"  warning: config key {materials.short(repr(key))} matches no material")
     return 0
 
 

@@ -36,6 +36,17 @@ from .effects import BACKGROUND_EFFECT, EFFECTS, PLANNED, effect_by_id, implemen
 log = logging.getLogger(__name__)
 
 
+ECHO_LIMIT = 80  # characters of a key or value that an error message shows
+MAX_CONFIG_BYTES = 1 << 20  # a material config is a few hundred bytes; refuse 1 MiB before parsing
+
+
+def short(text: str) -> str:
+    """`text` (a key, or the repr of a value) cut to ECHO_LIMIT characters with an ellipsis: a
+    10 MB string in a config must not become a 10 MB error message."""
+    text = str(text)
+    return text if len(text) <= ECHO_LIMIT else text[:ECHO_LIMIT - 1] + "\u2026"
+
+
 def _effect_list() -> str:
     planned = [e for e in PLANNED if e not in EFFECTS]
     return ", ".join(EFFECTS) + (f" (not yet: {', '.join(planned)})" if planned else "")
@@ -96,7 +107,7 @@ class MaterialConfig:
             unused += [f"ids.{k}" for k in self.by_id if f"ids.{k}" not in used_keys]
             if unused:
                 log.warning("%s: %s match no material in this scene; its materials are: %s",
-                            self.source, ", ".join(unused), ", ".join(material_names))
+                            self.source, ", ".join(map(short, unused)), ", ".join(map(short, material_names)))
         return result
 
     def unmatched(self, material_names: list[str]) -> list[str]:
@@ -114,12 +125,12 @@ def _is_glob(s: str) -> bool:
 def _check_effect(value, where: str, source: str) -> str:
     if not isinstance(value, str):
         raise ConfigError(f"{source}: {where}: effect must be a string, got {type(value).__name__} "
-                          f"{value!r}; allowed: {_effect_list()}")
+                          f"{short(repr(value))}; allowed: {_effect_list()}")
     if value in PLANNED and value not in EFFECTS:
         raise ConfigError(f"{source}: {where}: effect {value!r} ({PLANNED[value]}) is not implemented yet in "
                           f"this rayvr; implemented: {', '.join(EFFECTS)}")
     if value not in EFFECTS:
-        raise ConfigError(f"{source}: {where}: unknown effect {value!r}; allowed: {_effect_list()}")
+        raise ConfigError(f"{source}: {where}: unknown effect {short(repr(value))}; allowed: {_effect_list()}")
     return value
 
 
@@ -129,18 +140,20 @@ def _check_params(effect: str, params: dict, where: str, source: str) -> dict:
     for key, value in params.items():
         if key not in spec:
             allowed = ", ".join(spec) or "none"
-            raise ConfigError(f"{source}: {where}.{key}: unknown parameter for effect {effect!r}; allowed: {allowed}")
+            raise ConfigError(f"{source}: {where}.{short(key)}: unknown parameter for effect {effect!r}; "
+                              f"allowed: {allowed}")
         p = spec[key]
         ok = isinstance(value, p.kind) and not isinstance(value, bool)
         if p.kind is float and isinstance(value, int) and not isinstance(value, bool):
             value, ok = float(value), True
         if not ok:
             raise ConfigError(f"{source}: {where}.{key}: expected {p.kind.__name__}, got "
-                              f"{type(value).__name__} {value!r}")
+                              f"{type(value).__name__} {short(repr(value))}")
         if p.kind is float and not math.isfinite(value):
-            raise ConfigError(f"{source}: {where}.{key}: expected a finite number, got {value!r}")
+            raise ConfigError(f"{source}: {where}.{key}: expected a finite number, got {short(repr(value))}")
         if (p.lo is not None and value < p.lo) or (p.hi is not None and value > p.hi):
-            raise ConfigError(f"{source}: {where}.{key}: {value!r} is outside the allowed range {p.allowed_range()}")
+            raise ConfigError(f"{source}: {where}.{key}: {short(repr(value))} is outside the allowed range "
+                              f"{p.allowed_range()}")
         out[key] = value
     return out
 
@@ -155,7 +168,7 @@ def _parse_entry(value, where: str, source: str) -> tuple[str, dict, float]:
         effect = _check_effect(value["effect"], f"{where}.effect", source)
         importance = value.get("importance", 1.0)
         if isinstance(importance, bool) or not isinstance(importance, (int, float)) or not importance >= 0:
-            raise ConfigError(f"{source}: {where}.importance: expected a number >= 0, got {importance!r}")
+            raise ConfigError(f"{source}: {where}.importance: expected a number >= 0, got {short(repr(importance))}")
         rest = {k: v for k, v in value.items() if k not in ("effect", "importance")}
         return effect, _check_params(effect, rest, where, source), float(importance)
     raise ConfigError(f"{source}: {where}: expected an effect name or a table, got {type(value).__name__}")
@@ -170,7 +183,7 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
         raise ConfigError(f"{source}: the document must be a table")
     for key in data:
         if key not in TOP_LEVEL_KEYS:
-            raise ConfigError(f"{source}: {key}: unknown top-level key; allowed: {', '.join(TOP_LEVEL_KEYS)}")
+            raise ConfigError(f"{source}: {short(key)}: unknown top-level key; allowed: {', '.join(TOP_LEVEL_KEYS)}")
     cfg = MaterialConfig(source=source)
     cfg.default = _check_effect(data.get("default", "raster"), "default", source)
     params = data.get("params", {})
@@ -178,7 +191,7 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
         raise ConfigError(f"{source}: params: expected a table of [params.<effect>] tables")
     for effect, values in params.items():
         if effect not in EFFECTS:
-            raise ConfigError(f"{source}: params.{effect}: unknown effect; allowed: {_effect_list()}")
+            raise ConfigError(f"{source}: params.{short(effect)}: unknown effect; allowed: {_effect_list()}")
         if not isinstance(values, dict):
             raise ConfigError(f"{source}: params.{effect}: expected a table")
         cfg.params[effect] = _check_params(effect, values, f"params.{effect}", source)
@@ -186,7 +199,7 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
     if not isinstance(mats, dict):
         raise ConfigError(f"{source}: materials: expected a table of name = effect entries")
     for name, value in mats.items():
-        effect, params_, importance = _parse_entry(value, f"materials.{name}", source)
+        effect, params_, importance = _parse_entry(value, f"materials.{short(name)}", source)
         cfg.by_name[name] = (effect, params_)
         cfg.importance_of[f"materials.{name}"] = importance
     ids = data.get("ids", {})
@@ -196,10 +209,11 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
         try:
             index = int(key)
         except ValueError:
-            raise ConfigError(f"{source}: ids.{key}: keys must be non-negative integers (material indices)") from None
+            raise ConfigError(f"{source}: ids.{short(key)}: keys must be non-negative integers (material indices)") \
+                from None
         if index < 0:
-            raise ConfigError(f"{source}: ids.{key}: keys must be non-negative integers (material indices)")
-        effect, params_, importance = _parse_entry(value, f"ids.{key}", source)
+            raise ConfigError(f"{source}: ids.{short(key)}: keys must be non-negative integers (material indices)")
+        effect, params_, importance = _parse_entry(value, f"ids.{short(key)}", source)
         cfg.by_id[index] = (effect, params_)
         cfg.importance_of[f"ids.{index}"] = importance
     return cfg
@@ -211,11 +225,20 @@ def load_config(path: str | Path | None) -> MaterialConfig:
         return MaterialConfig()
     path = Path(path)
     try:
-        text = path.read_text()
+        with path.open("rb") as fh:
+            raw = fh.read(MAX_CONFIG_BYTES + 1)  # never more, whatever the file is
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read material config: {exc.strerror or exc}") from exc
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(f"{path}: material config is larger than {MAX_CONFIG_BYTES // 1024} KiB; "
+                          f"a config maps material names to effects and is a few hundred bytes")
     try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: not UTF-8 text (byte {exc.start})") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
+    except RecursionError:  # tomllib recurses once per level of nested arrays / inline tables
+        raise ConfigError(f"{path}: material config nested too deeply (arrays or tables hundreds of levels "
+                          f"inside each other)") from None
     return parse_config(data, str(path))
