@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .camera import Pose, StereoRig, load_path, orbit
-from .output import atomic_write_bytes, ensure_writable_dir, write_npy, write_png
+from .output import atomic_write_bytes, check_file_prefix, ensure_writable_dir, write_npy, write_png
 from .renderer import Frame, Renderer
 
 log = logging.getLogger(__name__)
@@ -28,6 +28,9 @@ class CaptureJob:
     aux: tuple = ()
     out_dir: Path = Path("out")
     prefix: str = "frame"
+
+    def __post_init__(self):
+        check_file_prefix(self.prefix)  # every file stays inside out_dir
 
 
 def poses_for(rig: StereoRig, scene, frames: int | None = None, path: str | None = None) -> list[Pose]:

@@ -72,6 +72,15 @@ def _count(lo: int, hi: int):
     return parse
 
 
+def _prefix(text: str) -> str:
+    from .output import check_file_prefix
+
+    try:
+        return check_file_prefix(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 FOV = _number(0, 360)  # degrees; the camera model refuses what it cannot project (the pinhole: < 180)
 IPD = _number(0, MAX_DISTANCE, lo_open=False)
 DISTANCE = _number(0, MAX_DISTANCE)
@@ -302,7 +311,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--materials", help="material-ID config (TOML)")
     c.add_argument("--eye", choices=("both", "left", "right"), default="both")
     c.add_argument("--out", default="out", help="output folder (default ./out)")
-    c.add_argument("--prefix", default="frame", help="file name prefix (default 'frame')")
+    c.add_argument("--prefix", type=_prefix, default="frame", help="file name prefix (default 'frame')")
     c.add_argument("--view", choices=VIEWS, default="color", help="colour or a G-buffer debug view")
     c.add_argument("--aux", help=f"extra channels as .npy, comma-separated: {','.join(AUX_CHANNELS)}")
     seq = c.add_mutually_exclusive_group()

@@ -17,6 +17,20 @@ class OutputError(OSError):
     """An output location cannot be written."""
 
 
+MAX_PREFIX_BYTES = 200  # file names may have 255 bytes; frame number, eye and channel take the rest
+
+
+def check_file_prefix(prefix: str) -> str:
+    """A file-name prefix that keeps every output inside its folder: not empty, no path separator
+    or NUL, no leading '.' ('..', and hidden files a listing would not show). ValueError if not."""
+    bad = (not prefix or prefix.startswith(".") or "\0" in prefix or "/" in prefix or "\\" in prefix
+           or any(sep and sep in prefix for sep in (os.sep, os.altsep)))
+    if bad or len(prefix.encode("utf-8", "surrogateescape")) > MAX_PREFIX_BYTES:
+        raise ValueError(f"file prefix must be a plain name of 1 to {MAX_PREFIX_BYTES} bytes: no '/', '\\' or NUL, "
+                         f"not starting with '.'; got {prefix[:60]!r}")
+    return prefix
+
+
 def ensure_writable_dir(path: str | Path) -> Path:
     """Create `path` if needed and check that files can be written there, before any work."""
     path = Path(path)

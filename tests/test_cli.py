@@ -101,6 +101,14 @@ def test_path_pose_that_is_not_a_rotation_is_refused_naming_file_and_pose(tmp_pa
     assert not (tmp_path / "o" / "frame_0000_left.png").exists()
 
 
+@pytest.mark.parametrize("prefix", ["../X", "sub/X", "/tmp/X", "", "..", ".X", "a\\b", "x" * 201])
+def test_prefix_cannot_leave_the_output_folder(tmp_path, prefix):
+    run = rayvr("capture", "--out", str(tmp_path / "o"), "--size", "8x8", "--prefix", prefix)
+    assert run.returncode == 2, run.stdout + run.stderr
+    assert len(run.stderr.splitlines()) == 1 and "argument --prefix: file prefix must be a plain name" in run.stderr
+    assert not (tmp_path / "X_left.png").exists() and not list(tmp_path.rglob("*.png"))
+
+
 def test_bad_config_names_file_and_key(tmp_path):
     cfg = tmp_path / "bad.toml"
     cfg.write_text('[materials]\nfloor = "sparkle"\n')

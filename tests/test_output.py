@@ -4,7 +4,7 @@ import stat
 import numpy as np
 import pytest
 
-from rayvr.output import atomic_write_bytes, write_npy, write_png
+from rayvr.output import MAX_PREFIX_BYTES, atomic_write_bytes, check_file_prefix, write_npy, write_png
 
 
 @pytest.fixture
@@ -42,3 +42,26 @@ def test_replacing_keeps_no_temp_and_a_failed_write_leaves_the_old_file(tmp_path
     with pytest.raises(OSError):
         atomic_write_bytes(p, b"three")
     assert p.read_bytes() == b"two" and [x.name for x in tmp_path.iterdir()] == ["f.bin"]
+
+
+@pytest.mark.parametrize("prefix", ["../X", "a/b", "a\\b", "", ".", "..", ".hidden", "a\0b", "x" * (MAX_PREFIX_BYTES + 1),
+                                    "\u00e9" * (MAX_PREFIX_BYTES // 2 + 1)])
+def test_file_prefix_must_be_a_plain_name(prefix):
+    with pytest.raises(ValueError, match="file prefix must be a plain name"):
+        check_file_prefix(prefix)
+
+
+@pytest.mark.parametrize("prefix", ["frame", "shot-01", "a..b", "x" * MAX_PREFIX_BYTES, "caf\u00e9 2"])
+def test_plain_prefixes_pass(prefix):
+    assert check_file_prefix(prefix) == prefix
+
+
+def test_capture_job_refuses_a_prefix_outside_its_folder():
+    from rayvr.camera import StereoRig
+    from rayvr.capture import CaptureJob
+
+    rig = StereoRig()
+    with pytest.raises(ValueError, match="file prefix"):
+        CaptureJob(rig, [rig.pose], prefix="../escape")
+    with pytest.raises(ValueError, match="file prefix"):
+        CaptureJob(rig, [rig.pose], prefix="nul\0byte")
