@@ -101,3 +101,55 @@ def test_importance_weights(tmp_path):
     assert [a.importance for a in got] == [3.0, 0.5, 0.5, 1.0, 1.0]
     with pytest.raises(ConfigError, match=r"materials.floor.importance: expected a number >= 0"):
         load_config(write(tmp_path, '[materials]\n"floor" = { effect = "raster", importance = -1 }\n'))
+
+
+GLOB_TOML = '''
+default = "shadows"
+[materials]
+"mirror_*"    = "reflections"
+"*_panel"     = { effect = "glossy", samples = 2 }
+"mirror*"     = { effect = "shadows", area_samples = 3 }
+"Mirror*"     = { effect = "glossy", samples = 5 }
+"*"           = "raster"
+"mirror_ball" = { effect = "glossy", samples = 7 }
+'''
+
+
+def test_globs_match_case_sensitively_and_the_first_in_file_order_wins(tmp_path):
+    """Several overlapping globs: a name takes the first glob of the file that matches it, with
+    case, unless it is named exactly. Expected rules worked out by hand from the globs above."""
+    cfg = load_config(write(tmp_path, GLOB_TOML))
+    want = {
+        "mirror_panel": "mirror_*",      # mirror_*, *_panel, mirror*, * match: the first
+        "floor_panel": "*_panel",        # *_panel, *
+        "mirrorball": "mirror*",         # mirror*, *
+        "Mirror_Ball": "Mirror*",        # not mirror_* / mirror*: case counts
+        "MIRROR_PANEL": "*",             # none of mirror_*, *_panel, mirror*, Mirror* with case
+        "mirror_ball": "mirror_ball",    # the exact name beats every glob, wherever it stands
+        "floor": "*",
+    }
+    got = {n: a for n, a in zip(want, cfg.assign(list(want), warn=False))}
+    assert {n: a.rule for n, a in got.items()} == {n: f"materials.{r}" for n, r in want.items()}
+    assert got["mirror_panel"].effect == "reflections"
+    assert got["floor_panel"].effect == "glossy" and got["floor_panel"].params["samples"] == 2
+    assert got["mirrorball"].effect == "shadows" and got["mirrorball"].params["area_samples"] == 3
+    assert got["Mirror_Ball"].effect == "glossy" and got["Mirror_Ball"].params["samples"] == 5
+    assert got["MIRROR_PANEL"].effect == "raster" and got["mirror_ball"].params["samples"] == 7
+
+
+def test_glob_order_is_the_files_not_the_specificity(tmp_path):
+    """The same two globs in both orders: whichever comes first wins, however specific the other."""
+    for first, second in (("mirror*", "mirror_p*"), ("mirror_p*", "mirror*")):
+        cfg = load_config(write(tmp_path, f'[materials]\n"{first}" = "shadows"\n"{second}" = "reflections"\n'))
+        (a,) = cfg.assign(["mirror_panel"], warn=False)
+        assert a.rule == f"materials.{first}" and a.effect == "shadows"
+
+
+def test_globs_of_another_case_match_nothing(tmp_path, caplog):
+    cfg = load_config(write(tmp_path, '[materials]\n"FLOOR*" = "shadows"\n"Mirror_?all" = "reflections"\n'))
+    with caplog.at_level(logging.WARNING):
+        got = cfg.assign(NAMES)
+    assert [a.rule for a in got] == ["default"] * len(NAMES)
+    assert "materials.FLOOR*" in caplog.text and "materials.Mirror_?all" in caplog.text
+    assert set(cfg.unmatched(NAMES)) == {"FLOOR*", "Mirror_?all"}
+    assert cfg.unmatched(["FLOORS", "Mirror_ball"]) == []
