@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from .camera import Pose, StereoRig, load_path, orbit
-from .output import atomic_write_bytes, check_file_prefix, ensure_writable_dir, write_npy, write_png
+from .output import (atomic_write_bytes, check_file_prefix, check_output_dir, make_output_dir, write_npy,
+                     write_png)
 from .renderer import Frame, Renderer
 
 log = logging.getLogger(__name__)
@@ -54,6 +55,7 @@ def file_name(job: CaptureJob, index: int, eye: str, kind: str, ext: str) -> Pat
 
 def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) -> None:
     """Write one frame's files, appending each to `written` as soon as it is whole."""
+    make_output_dir(job.out_dir)  # only now: a run that fails before leaves no empty folder
     for eye, img in frame.eyes.items():
         p = file_name(job, index, eye, "color" if job.view == "color" else job.view, "png")
         write_png(p, img.color)
@@ -66,7 +68,7 @@ def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) 
 
 def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> dict:
     """Render every pose of `job`, write the files, return a summary (files, GPU ms per pass)."""
-    ensure_writable_dir(job.out_dir)
+    check_output_dir(job.out_dir)
     files, timings, unavailable, ran = [], [], set(), {}
     bar = None
     if progress and len(job.poses) > 1:

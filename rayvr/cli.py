@@ -115,10 +115,10 @@ def rig_from_args(args, scene):
 
 def cmd_capture(args) -> int:
     from .capture import CaptureJob, poses_for, run_capture, write_summary
-    from .output import ensure_writable_dir
+    from .output import check_output_dir
     from .renderer import Renderer, RenderSettings
 
-    ensure_writable_dir(args.out)  # fail before any rendering work
+    check_output_dir(args.out)  # fail before any rendering work; the folder is made with the first file
     aux = tuple(a for a in (args.aux or "").split(",") if a)
     settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode,
                               primary=args.primary)

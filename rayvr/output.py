@@ -48,6 +48,38 @@ def ensure_writable_dir(path: str | Path) -> Path:
     return path
 
 
+def check_output_dir(path: str | Path) -> Path:
+    """Check, before any work, that `path` is a writable folder or could be created as one, and
+    create nothing: a run that fails before its first file leaves no empty folder behind
+    (make_output_dir creates it when the first file is written)."""
+    path = Path(path)
+    if path.exists():
+        if not path.is_dir():
+            raise OutputError(f"{path}: output path exists and is not a folder")
+        probe, problem = path, "output folder is not writable"
+    else:
+        probe = next(p for p in path.absolute().parents if p.exists())  # the root always exists
+        if not probe.is_dir():
+            raise OutputError(f"{path}: cannot create output folder: {probe} is not a folder")
+        problem = f"cannot create output folder: {probe} is not writable"
+    try:
+        with tempfile.TemporaryFile(dir=probe):  # unnamed where the OS allows; removed at once anyway
+            pass
+    except OSError as exc:
+        raise OutputError(f"{path}: {problem}: {exc.strerror or exc}") from exc
+    return path
+
+
+def make_output_dir(path: str | Path) -> Path:
+    """Create the output folder (and its parents) when the first file goes into it."""
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot create output folder: {exc.strerror or exc}") from exc
+    return path
+
+
 def _create_temp(path: Path) -> tuple[int, Path]:
     """A new, exclusively created temporary file next to `path`: (fd, its path)."""
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0) | getattr(os, "O_CLOEXEC", 0)

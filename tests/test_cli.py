@@ -83,6 +83,7 @@ def test_capture_bad_input_is_a_clear_error(tmp_path, args, words):
     assert len(run.stderr.splitlines()) == 1 and run.stderr.startswith("rayvr capture: error: "), run.stderr
     for w in words:
         assert w in run.stderr, run.stderr
+    assert not (tmp_path / "o").exists()  # a failed run leaves no empty output folder
 
 
 @pytest.mark.parametrize("rotation, words", [
@@ -98,7 +99,7 @@ def test_path_pose_that_is_not_a_rotation_is_refused_naming_file_and_pose(tmp_pa
     assert run.returncode == 2, run.stdout + run.stderr
     assert len(run.stderr.splitlines()) == 1, run.stderr
     assert f"{path}: pose 2: rotation is not a rotation matrix" in run.stderr and words in run.stderr, run.stderr
-    assert not (tmp_path / "o" / "frame_0000_left.png").exists()
+    assert not (tmp_path / "o").exists()
 
 
 @pytest.mark.parametrize("prefix", ["../X", "sub/X", "/tmp/X", "", "..", ".X", "a\\b", "x" * 201])
@@ -115,14 +116,14 @@ def test_bad_config_names_file_and_key(tmp_path):
     run = rayvr("capture", "--materials", str(cfg), "--out", str(tmp_path / "o"), "--size", "8x8")
     assert run.returncode == 2
     assert str(cfg) in run.stderr and "materials.floor" in run.stderr and "raster" in run.stderr
-    assert not (tmp_path / "o" / "frame_left.png").exists()
+    assert not (tmp_path / "o").exists()
 
 
 def test_unwritable_output_fails_before_rendering_and_loses_nothing(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("keep me")
     run = rayvr("capture", "--out", str(blocker / "sub"), "--size", "8x8")
-    assert run.returncode == 2 and "cannot create output folder" in run.stderr
+    assert run.returncode == 2 and f"cannot create output folder: {blocker} is not a folder" in run.stderr
     assert blocker.read_text() == "keep me"
     if os.geteuid() != 0:  # root can write anywhere
         ro = tmp_path / "ro"
@@ -152,6 +153,14 @@ def test_ctrl_c_during_a_sequence_is_one_line_exit_130_and_keeps_whole_files(tmp
     assert 0 < len(files) < 1000 and all(p.suffix == ".png" for p in files)  # no temp file, no summary
     for p in files:
         assert np.asarray(Image.open(p)).shape == (240, 320, 3)  # every kept file is whole
+
+
+def test_output_folder_is_made_with_the_first_file(tmp_path):
+    out = tmp_path / "a" / "b"
+    run = rayvr("capture", "--out", str(out), "--size", "8x8", "--aux", "depth", "-q")
+    assert run.returncode == 0, run.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["frame_left.png", "frame_left_depth.npy", "frame_right.png",
+                                                     "frame_right_depth.npy", "frame_timings.json"]
 
 
 def test_info_lists_gl_and_scene_effects(tmp_path):

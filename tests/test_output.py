@@ -1,10 +1,12 @@
 import os
 import stat
+import tempfile
 
 import numpy as np
 import pytest
 
-from rayvr.output import MAX_PREFIX_BYTES, atomic_write_bytes, check_file_prefix, write_npy, write_png
+from rayvr.output import (MAX_PREFIX_BYTES, OutputError, atomic_write_bytes, check_file_prefix, check_output_dir,
+                          make_output_dir, write_npy, write_png)
 
 
 @pytest.fixture
@@ -65,3 +67,27 @@ def test_capture_job_refuses_a_prefix_outside_its_folder():
         CaptureJob(rig, [rig.pose], prefix="../escape")
     with pytest.raises(ValueError, match="file prefix"):
         CaptureJob(rig, [rig.pose], prefix="nul\0byte")
+
+
+def test_output_folder_is_checked_without_being_made(tmp_path, monkeypatch):
+    out = tmp_path / "a" / "b"
+    assert check_output_dir(out) == out
+    assert list(tmp_path.iterdir()) == []  # checked, nothing created
+    assert make_output_dir(out).is_dir()
+    check_output_dir(out)  # an existing folder passes too
+    (tmp_path / "f").write_text("")
+    with pytest.raises(OutputError, match=r"cannot create output folder: .*/f is not a folder"):
+        check_output_dir(tmp_path / "f" / "sub")
+    with pytest.raises(OutputError, match="exists and is not a folder"):
+        check_output_dir(tmp_path / "f")
+
+    def refuse(*a, **k):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", refuse)  # what a read-only parent does, even for root
+    with pytest.raises(OutputError, match=rf"{tmp_path}/new: cannot create output folder: {tmp_path} is not "
+                                          r"writable: Permission denied"):
+        check_output_dir(tmp_path / "new")
+    with pytest.raises(OutputError, match="output folder is not writable: Permission denied"):
+        check_output_dir(out)
+    assert not (tmp_path / "new").exists()
