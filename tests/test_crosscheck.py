@@ -147,12 +147,35 @@ def test_raster_matches_direct_where_unshadowed(gl, variant, shared_scene):
 
 
 def test_glossy_box_geometry_is_read_right(shared_scene):
+    """No Mitsuba needed: the Glossy box through load_cornell. Its MTL defines no `light`, so the
+    quad gets GLOSSY_LIGHT and becomes the one rect light, where the OBJ puts it: the 'object
+    light' quad, x -0.24..0.23, z -0.22..0.16 at y 1.58, normal -y (values read off the file)."""
     sc = M.load_cornell(shared_scene("cornell_box/CornellBox-Glossy.obj"))
     w = sc.world_vertices()
     walls = {m.name: w[np.unique(sc.indices[sc.triangle_material == i])] for i, m in enumerate(sc.materials)}
     assert walls["floor"][:, 1].max() < 0.01 and walls["ceiling"][:, 1].min() > 1.55
     assert walls["leftWall"][:, 0].max() < -0.9 and walls["rightWall"][:, 0].min() > 0.9
+    light = sc.materials[sc.material_names().index("light")]
+    assert light.emission == M.GLOSSY_LIGHT.emission == (10.0, 10.0, 10.0)
     assert [l.kind for l in sc.lights] == ["rect"]
+    rect = sc.lights[0]
+    assert np.allclose(rect.position, [(0.23 - 0.24) / 2, 1.58, (0.16 - 0.22) / 2], atol=1e-6)
+    half = sorted([np.linalg.norm(rect.u), np.linalg.norm(rect.v)])
+    assert np.allclose(half, [0.19, 0.235], atol=1e-6)
+    assert np.cross(rect.u, rect.v)[1] < 0  # emits down, into the box
+    assert rect.intensity * np.array(rect.color) == pytest.approx([10.0, 10.0, 10.0])
+
+
+@pytest.mark.parametrize("name", ["CornellBox-Original.obj", "CornellBox-Original.trimesh.obj"])
+def test_cornell_box_with_an_emissive_light_keeps_its_own(shared_scene, name):
+    """A box whose MTL gives `light` its Ke (17 12 4 in Original) keeps it: nothing is swapped in;
+    the relative-index original and its absolute-index copy load alike."""
+    sc = M.load_cornell(shared_scene(f"cornell_box/{name}"))
+    assert sc.triangle_count == 36
+    light = sc.materials[sc.material_names().index("light")]
+    assert light.emission == (17.0, 12.0, 4.0)
+    assert [l.kind for l in sc.lights] == ["rect"]
+    assert sc.lights[0].intensity * np.array(sc.lights[0].color) == pytest.approx([17.0, 12.0, 4.0])
 
 
 def test_run_writes_report(gl, variant, shared_scene, tmp_path):

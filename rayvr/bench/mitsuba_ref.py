@@ -401,74 +401,28 @@ CORNELL_BOXES = {  # name -> file (SOURCE.md there: the *.trimesh.obj ones load 
     "sphere": "CornellBox-Sphere.obj",
     "glossy": "CornellBox-Glossy.obj",
 }
-# CornellBox-Glossy.mtl defines no `light` material: its light quad gets the Sphere box's Ke.
+# CornellBox-Glossy.mtl defines no `light` material (the scene loader gives the quad a default
+# grey, not emissive, with a warning): load_cornell gives it the Sphere box's Ke instead.
 GLOSSY_LIGHT = Material("light", (0.78, 0.78, 0.78, 1.0), 0.0, 0.639, (10.0, 10.0, 10.0))
 
 
-def _has_relative_indices(path: Path) -> bool:
-    return any(line.startswith("f ") and " -" in line
-               for line in path.read_text(errors="replace").replace("\r", "").splitlines())
-
-
-def load_obj_relative(path: Path) -> Scene:
-    """OBJ with relative (negative) face indices, which trimesh 5.2 resolves wrongly without an
-    error (CornellBox-Glossy.obj loads with every wall at the light's place). Geometry is read
-    here; material parameters come from rayvr's own loader (trimesh reads the MTL right). Each
-    (position, normal) pair becomes one vertex so the file's flat/smooth normals are kept."""
-    from .. import scene as scene_mod
-
-    mats = {m.name: m for m in scene_mod.load(path).materials}
-    pos, nrm, corners, tri_mat, names = [], [], [], [], []
-    current = None
-    for raw in path.read_text(errors="replace").replace("\r", "").splitlines():
-        parts = raw.split()
-        if not parts:
-            continue
-        if parts[0] == "v":
-            pos.append([float(x) for x in parts[1:4]])
-        elif parts[0] == "vn":
-            nrm.append([float(x) for x in parts[1:4]])
-        elif parts[0] == "usemtl":
-            current = parts[1] if len(parts) > 1 else "default"
-            if current not in names:
-                names.append(current)
-        elif parts[0] == "f":
-            refs = []
-            for c in parts[1:]:
-                f = c.split("/")
-                vi = int(f[0])
-                ni = int(f[2]) if len(f) > 2 and f[2] else 0
-                refs.append((vi - 1 if vi > 0 else len(pos) + vi,
-                             (ni - 1 if ni > 0 else len(nrm) + ni) if ni else -1))
-            if current is None:
-                current = "default"
-                names.append(current)
-            for k in range(1, len(refs) - 1):  # fan
-                corners.append((refs[0], refs[k], refs[k + 1]))
-                tri_mat.append(names.index(current))
-    key: dict = {}
-    verts, norms, faces = [], [], []
-    for tri in corners:
-        face = []
-        for vi, ni in tri:
-            if (vi, ni) not in key:
-                key[(vi, ni)] = len(verts)
-                verts.append(pos[vi])
-                norms.append(nrm[ni] if ni >= 0 else [np.nan] * 3)
-            face.append(key[(vi, ni)])
-        faces.append(face)
-    materials = [mats.get(n) or (GLOSSY_LIGHT if n == "light" else Material(n)) for n in names]
-    normals = np.asarray(norms, float)
-    return scene_mod.from_arrays(np.asarray(verts), np.asarray(faces), triangle_material=np.asarray(tri_mat),
-                                 materials=materials, normals=None if np.isnan(normals).any() else normals,
-                                 name=path.stem, path=path)
-
-
 def load_cornell(path: Path) -> Scene:
+    """A Cornell box as rayvr's scene loader reads it (its own OBJ reader: relative indices,
+    `v<TAB>`, CRLF), with GLOSSY_LIGHT swapped in for a material named `light` that is not
+    emissive; the quad it covers then becomes the scene's rect light in place of the default
+    lights a scene without any gets."""
+    import dataclasses
+
     from .. import scene as scene_mod
 
-    path = Path(path)
-    return load_obj_relative(path) if _has_relative_indices(path) else scene_mod.load(path)
+    scene = scene_mod.load(path)
+    names = scene.material_names()
+    if "light" in names and not scene.materials[names.index("light")].is_emissive:
+        scene.materials[names.index("light")] = dataclasses.replace(GLOSSY_LIGHT)
+        kept = [light for light in scene.lights if light.source != "default"]
+        new = [light for light in scene_mod.emissive_rect_lights(scene) if light not in kept]
+        scene.lights = (kept + new) or scene_mod.default_lights(scene)
+    return scene
 
 
 def cornell_rig(scene: Scene, size=(256, 256), fov_y: float = 40.0) -> StereoRig:
@@ -638,8 +592,8 @@ RESIDUALS = {
                            "a streak on that face, absent in Mitsuba (same geometry). A rayvr bug, not sampling.",
     "edges": "rayvr is rendered at supersample^2 pixel-centre samples per pixel and box-averaged; Mitsuba box-filters "
              "random positions: edges agree to the sampling noise of both.",
-    "scene_data": "CornellBox-Glossy.obj has relative indices that trimesh resolves wrongly (every wall lands on "
-                  "the light quad): read here by load_obj_relative. Its MTL has no light material: the crosscheck "
+    "scene_data": "CornellBox-Glossy.obj has relative indices (trimesh resolved them wrongly: every wall on the "
+                  "light quad); rayvr's own OBJ reader reads it. Its MTL has no light material: the crosscheck "
                   "gives the quad the Sphere box's Ke 10 10 10. MTL Ns maps to roughness (Ns 1000 -> 0.21), so the "
                   "Mirror/Sphere 'mirrors' are sharp glossy metals in rayvr's model, and the Sphere box's glass "
                   "(illum 7) is an opaque metal (rayvr has no transmission); both renderers use rayvr's model.",
