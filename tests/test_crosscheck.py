@@ -1,6 +1,8 @@
 """rayvr's reference vs Mitsuba 3 (rayvr.bench.mitsuba_ref, rayvr.bench.reference).
 
-Tiny images; skips without mitsuba or the shared Cornell boxes."""
+Tiny images. Tests that render or evaluate with Mitsuba skip without it (the `mi` fixture); the
+reference choices and the Cornell box loading run everywhere. Tests that need the shared Cornell
+boxes skip without them."""
 from __future__ import annotations
 
 import json
@@ -14,14 +16,18 @@ from rayvr.camera import Pose, StereoRig
 from rayvr.materials import implemented_effects
 from rayvr.scene import Material
 
-mi = pytest.importorskip("mitsuba")
-from rayvr.bench import mitsuba_ref as M  # noqa: E402
+from rayvr.bench import mitsuba_ref as M  # imports Mitsuba only when it is used
 
 ORIGINAL = "cornell_box/CornellBox-Original.trimesh.obj"
 
 
 @pytest.fixture(scope="module")
-def variant():
+def mi():
+    return pytest.importorskip("mitsuba")
+
+
+@pytest.fixture(scope="module")
+def variant(mi):
     return M.set_variant()
 
 
@@ -51,7 +57,7 @@ def test_reference_classes_and_fallbacks():
 # ------------------------------------------------------------------ BSDFs vs brdf.glsl (no GL)
 
 
-def _eval(b, v, l):
+def _eval(mi, b, v, l):
     si = mi.SurfaceInteraction3f()
     si.p, si.n = mi.Point3f(0, 0, 0), mi.Normal3f(0, 0, 1)
     si.sh_frame, si.wi, si.uv = mi.Frame3f(si.n), mi.Vector3f(*map(float, v)), mi.Point2f(0.5, 0.5)
@@ -63,7 +69,7 @@ def _eval(b, v, l):
     (Material("glossy", (0.486, 0.631, 0.663, 1), 0.0, 0.467), 0.02),
     (Material("metal", (0.3, 0.3, 0.3, 1), 1.0, 0.315), 0.005),
 ])
-def test_bsdf_matches_rayvr_brdf(variant, mat, bound):
+def test_bsdf_matches_rayvr_brdf(mi, variant, mat, bound):
     rng = np.random.default_rng(3)
     u = rng.random((200, 4))
     def hemi(a, b):
@@ -73,14 +79,14 @@ def test_bsdf_matches_rayvr_brdf(variant, mat, bound):
     V, L = hemi(u[:, 0], u[:, 1]), hemi(u[:, 2], u[:, 3])
     b = M.bsdf(mat)
     ours = np.array([M.rayvr_brdf_cos([0, 0, 1], v, l, mat.base_color, mat.metallic, mat.roughness) for v, l in zip(V, L)])
-    theirs = np.array([_eval(b, v, l) for v, l in zip(V, L)])
+    theirs = np.array([_eval(mi, b, v, l) for v, l in zip(V, L)])
     assert np.abs(ours - theirs).mean() / ours.mean() < bound
 
 
 # ------------------------------------------------------------------ sensor and hits
 
 
-def test_sensor_matches_off_axis_eye(variant, shared_scene):
+def test_sensor_matches_off_axis_eye(mi, variant, shared_scene):
     sc = scene_mod.load(shared_scene(ORIGINAL))
     # Off-axis: IPD and convergence shear the right eye's frustum.
     rig = StereoRig(Pose.look_at([0.1, 1.1, 3.5], [0, 0.9, 0]), ipd=0.3, fov_y=45, convergence=2.0, size=(40, 30))
@@ -99,7 +105,7 @@ def test_sensor_matches_off_axis_eye(variant, shared_scene):
     assert np.abs(np.cross(o - eye.position, d)).max() < 1e-4
 
 
-def test_hit_mask_and_depth_agree(gl, variant, shared_scene):
+def test_hit_mask_and_depth_agree(gl, mi, variant, shared_scene):
     from rayvr.renderer import Renderer
 
     sc = scene_mod.load(shared_scene(ORIGINAL))

@@ -309,7 +309,7 @@ def test_window_shows_exactly_the_headless_capture(worker, gl):
 
     w, h = 96, 48
     images, rig, gl_name = worker(_window_images, (2 * w, h))
-    assert "llvmpipe" in gl_name or gl_name  # a real GL renderer answered
+    assert isinstance(gl_name, str) and gl_name.strip(), f"the window's context names no GL renderer: {gl_name!r}"
     with Renderer(None, None, gl=gl) as r:
         half = r.render(rig.with_size((w, h)))
         full = r.render(rig.with_size((2 * w, h)))
