@@ -1,4 +1,5 @@
-"""Headless capture: stills, stereo pairs and camera paths to PNG (colour) and NPY (aux)."""
+"""Headless capture: stills, stereo pairs and camera paths to PNG (colour) and NPY (aux), or with
+format "exr" also the linear HDR colour and the float aux channels as OpenEXR."""
 from __future__ import annotations
 
 import json
@@ -9,11 +10,13 @@ from pathlib import Path
 import numpy as np
 
 from .camera import Pose, StereoRig, load_path, orbit
-from .output import (atomic_write_bytes, check_file_prefix, check_output_dir, make_output_dir, write_npy,
-                     write_png)
+from .output import (FORMATS, atomic_write_bytes, check_file_prefix, check_output_dir, make_output_dir,
+                     openexr, write_exr, write_npy, write_png)
 from .renderer import Frame, Renderer
 
 log = logging.getLogger(__name__)
+
+EXR_CHANNELS = {1: "Z", 3: "RGB"}  # EXR channel names by components: depth is Z, vectors/colour RGB
 
 
 class CaptureInterrupted(KeyboardInterrupt):
@@ -29,9 +32,24 @@ class CaptureJob:
     aux: tuple = ()
     out_dir: Path = Path("out")
     prefix: str = "frame"
+    format: str = "png"  # FORMATS
 
     def __post_init__(self):
         check_file_prefix(self.prefix)  # every file stays inside out_dir
+        if self.format not in FORMATS:
+            raise ValueError(f"unknown output format {self.format!r}; allowed: {', '.join(FORMATS)}")
+        if self.format == "exr":
+            openexr()  # a missing package is one clear error before any rendering
+
+    @property
+    def hdr_exr(self) -> bool:
+        """Whether the linear HDR colour goes to <prefix>_<eye>.exr (format exr, colour view)."""
+        return self.format == "exr" and self.view == "color"
+
+    @property
+    def render_aux(self) -> tuple:
+        """The aux channels to read back: the user's, plus the HDR colour for its EXR."""
+        return self.aux + ("hdr",) if self.hdr_exr and "hdr" not in self.aux else self.aux
 
 
 def poses_for(rig: StereoRig, scene, frames: int | None = None, path: str | None = None) -> list[Pose]:
@@ -61,8 +79,16 @@ def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) 
         write_png(p, img.color)
         written.append(p)
         for name, arr in img.aux.items():
-            p = file_name(job, index, eye, name, "npy")
-            write_npy(p, arr)
+            if name == "hdr" and job.hdr_exr:  # the colour's linear twin, not an aux file
+                p = file_name(job, index, eye, "color", "exr")
+            elif job.format == "exr" and arr.dtype.kind == "f":  # integer IDs stay exact in NPY
+                p = file_name(job, index, eye, name, "exr")
+            else:
+                p = file_name(job, index, eye, name, "npy")
+                write_npy(p, arr)
+                written.append(p)
+                continue
+            write_exr(p, arr, EXR_CHANNELS[1 if arr.ndim == 2 else arr.shape[-1]])
             written.append(p)
 
 
@@ -79,7 +105,7 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> d
     done = 0
     try:
         # Frames come back pipelined: frame i is written while frame i+1 renders.
-        for i, frame in enumerate(renderer.render_sequence(rigs, eyes=job.eyes, view=job.view, aux=job.aux)):
+        for i, frame in enumerate(renderer.render_sequence(rigs, eyes=job.eyes, view=job.view, aux=job.render_aux)):
             write_frame(job, i, frame, files)
             done += 1
             timings.append(frame.timings)

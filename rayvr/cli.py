@@ -85,6 +85,7 @@ FOV = _number(0, 360)  # degrees; the camera model refuses what it cannot projec
 IPD = _number(0, MAX_DISTANCE, lo_open=False)
 DISTANCE = _number(0, MAX_DISTANCE)
 FRAMES = _count(1, MAX_FRAMES)
+BUDGET_MS = _number(0, MAX_BUDGET_MS)
 
 
 def add_rig_arguments(p: argparse.ArgumentParser) -> None:
@@ -119,6 +120,10 @@ def cmd_capture(args) -> int:
     from .renderer import Renderer, RenderSettings
 
     check_output_dir(args.out)  # fail before any rendering work; the folder is made with the first file
+    if args.format == "exr":
+        from .output import openexr
+
+        openexr()  # the optional package, before any work
     aux = tuple(a for a in (args.aux or "").split(",") if a)
     settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode,
                               primary=args.primary)
@@ -133,7 +138,7 @@ def cmd_capture(args) -> int:
             if not args.quiet:
                 print(describe_pick(pick))
         poses = poses_for(rig, r.scene, args.frames, args.path)
-        job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix)
+        job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format)
         summary = run_capture(r, job, progress=not args.quiet)
         if pick is not None:
             summary["budget"] = pick
@@ -300,13 +305,14 @@ class OneLineErrors(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     from .gpu_layout import TONEMAPPERS, VIEWS
+    from .output import EXR_EXTRA, FORMATS
     from .readback import AUX_CHANNELS
 
     p = OneLineErrors(prog="rayvr", description="Hybrid raster + ray-traced stereo renderer for VR.")
     p.add_argument("-v", "--verbose", action="store_true", help="log what rayvr decides")
     sub = p.add_subparsers(dest="command", required=True)
 
-    c = sub.add_parser("capture", help="render headless to PNG/NPY (default: the built-in scene, both eyes)")
+    c = sub.add_parser("capture", help="render headless to PNG/NPY or EXR (default: the built-in scene, both eyes)")
     c.add_argument("scene", nargs="?", help="glTF/GLB, OBJ or PLY file (default: built-in room)")
     c.add_argument("--materials", help="material-ID config (TOML)")
     c.add_argument("--eye", choices=("both", "left", "right"), default="both")
@@ -314,11 +320,14 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--prefix", type=_prefix, default="frame", help="file name prefix (default 'frame')")
     c.add_argument("--view", choices=VIEWS, default="color", help="colour or a G-buffer debug view")
     c.add_argument("--aux", help=f"extra channels as .npy, comma-separated: {','.join(AUX_CHANNELS)}")
+    c.add_argument("--format", choices=FORMATS, default="png",
+                   help=f"exr: also the linear HDR colour as PREFIX_EYE.exr beside the PNG, and the float aux "
+                        f"channels as .exr instead of .npy (integer ones stay .npy); needs {EXR_EXTRA}")
     seq = c.add_mutually_exclusive_group()
     seq.add_argument("--frames", type=FRAMES, help="N frames of a turntable orbit")
     seq.add_argument("--path", help="camera path file (JSON) to replay")
     c.add_argument("--timings", action="store_true", help="print GPU ms per pass")
-    c.add_argument("--budget-ms", type=_number(0, MAX_BUDGET_MS), help="pick effects per material to fit this GPU frame time "
+    c.add_argument("--budget-ms", type=BUDGET_MS, help="pick effects per material to fit this GPU frame time "
                    "(measured on this device against a reference; overrides --materials' effects)")
     c.add_argument("--exposure", type=_number(0, MAX_EXPOSURE), default=1.0,
                    help="linear scale before tonemapping (default 1)")
@@ -377,7 +386,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--out", default="shots", help="screenshot folder (default ./shots)")
     v.add_argument("--record", default="camera_path.json", help="camera path file P writes")
     v.add_argument("--frames", type=FRAMES, help="close after N frames (smoke tests)")
-    v.add_argument("--budget-ms", type=_number(0, MAX_BUDGET_MS), help="pick effects per material to fit this GPU frame time at start")
+    v.add_argument("--budget-ms", type=BUDGET_MS, help="pick effects per material to fit this GPU frame time at start")
     v.set_defaults(func=cmd_preview)
     return p
 

@@ -92,15 +92,15 @@ def _create_temp(path: Path) -> tuple[int, Path]:
     raise FileExistsError(f"no free temporary name next to {path}")
 
 
-def atomic_write_bytes(path: str | Path, data: bytes) -> None:
-    path = Path(path)
+def _atomic_write(path: Path, fill) -> None:
+    """Create a temporary file next to `path`, let `fill(fd, tmp)` write it (closing fd), then
+    rename it over `path`; on any failure (Ctrl-C too) the temporary file is removed."""
     try:
         fd, tmp = _create_temp(path)
     except OSError as exc:
         raise OutputError(f"{path}: cannot write: {exc.strerror or exc}") from exc
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+        fill(fd, tmp)
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -108,6 +108,14 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
         except OSError:
             pass
         raise
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> None:
+    def fill(fd, tmp):
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+
+    _atomic_write(Path(path), fill)
 
 
 def write_png(path: str | Path, image: np.ndarray) -> None:
@@ -123,3 +131,41 @@ def write_npy(path: str | Path, array: np.ndarray) -> None:
     buf = io.BytesIO()
     np.save(buf, np.ascontiguousarray(array))
     atomic_write_bytes(path, buf.getvalue())
+
+
+FORMATS = ("png", "exr")  # capture: png = colour PNG + aux NPY; exr = also HDR colour EXR, float aux as EXR
+EXR_EXTRA = "pip install 'rayvr[exr]'"  # the optional extra that brings the OpenEXR package
+
+
+def openexr():
+    """The OpenEXR module, or one OutputError saying which extra to install."""
+    try:
+        import OpenEXR
+    except ImportError:
+        raise OutputError(f"EXR output needs the OpenEXR package: {EXR_EXTRA}") from None
+    if not hasattr(OpenEXR, "File"):  # the numpy API arrived in OpenEXR 3.3
+        raise OutputError(f"EXR output needs OpenEXR 3.3 or newer: {EXR_EXTRA} --upgrade")
+    return OpenEXR
+
+
+def write_exr(path: str | Path, image: np.ndarray, names: str = "RGB") -> None:
+    """Float HxW or HxWxC (rows top-down) -> OpenEXR, float32, ZIP-compressed, one channel per
+    letter of `names` (HxW: one letter, e.g. "Z" for depth)."""
+    exr = openexr()
+    path = Path(path)
+    a = np.asarray(image, np.float32)
+    a = a[..., None] if a.ndim == 2 else a
+    if a.ndim != 3 or a.shape[-1] != len(names):
+        raise ValueError(f"{path}: {a.shape} image does not fit EXR channels {names!r}")
+    channels = {n: np.ascontiguousarray(a[..., i]) for i, n in enumerate(names)}
+    header = {"compression": exr.ZIP_COMPRESSION, "type": exr.scanlineimage}
+
+    def fill(fd, tmp):
+        os.close(fd)  # OpenEXR writes by name; the file keeps the mode it was created with
+        try:
+            with exr.File(header, channels) as f:
+                f.write(str(tmp))
+        except RuntimeError as exc:  # OpenEXR's I/O errors
+            raise OutputError(f"{path}: cannot write EXR: {exc}") from exc
+
+    _atomic_write(path, fill)

@@ -46,8 +46,8 @@ def test_replacing_keeps_no_temp_and_a_failed_write_leaves_the_old_file(tmp_path
     assert p.read_bytes() == b"two" and [x.name for x in tmp_path.iterdir()] == ["f.bin"]
 
 
-@pytest.mark.parametrize("prefix", ["../X", "a/b", "a\\b", "", ".", "..", ".hidden", "a\0b", "x" * (MAX_PREFIX_BYTES + 1),
-                                    "\u00e9" * (MAX_PREFIX_BYTES // 2 + 1)])
+@pytest.mark.parametrize("prefix", ["../X", "a/b", "a\\b", "", ".", "..", ".hidden", "a\0b",
+                                    "x" * (MAX_PREFIX_BYTES + 1), "\u00e9" * (MAX_PREFIX_BYTES // 2 + 1)])
 def test_file_prefix_must_be_a_plain_name(prefix):
     with pytest.raises(ValueError, match="file prefix must be a plain name"):
         check_file_prefix(prefix)
