@@ -35,7 +35,13 @@ EXTENSIONS = ("#extension GL_KHR_shader_subgroup_basic : require",
 # lane active at each call (classify calls them in uniform control flow). Barriers stand in for
 # the lockstep of a real subgroup; each call ends with one so the next may reuse the scratch.
 EMULATION = """
-// ---- test emulation of the GL_KHR_shader_subgroup built-ins classify.comp uses
+// ---- test emulation of the GL_KHR_shader_subgroup built-ins classify.comp uses (renamed, so
+// that no driver sees a redefinition of a built-in)
+#define subgroupBallot emu_subgroupBallot
+#define subgroupBallotBitCount emu_subgroupBallotBitCount
+#define subgroupBallotExclusiveBitCount emu_subgroupBallotExclusiveBitCount
+#define subgroupElect emu_subgroupElect
+#define subgroupBroadcastFirst emu_subgroupBroadcastFirst
 #define EMU_WAVES (CLASSIFY_INVOCATIONS / EMU_SUBGROUP_SIZE)
 shared uint emu_ballot[EMU_WAVES * 4];
 shared uint emu_first[EMU_WAVES];
