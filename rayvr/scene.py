@@ -28,6 +28,9 @@ log = logging.getLogger(__name__)
 ASSETS_DIR = Path(__file__).resolve().parent / "assets"
 DEFAULT_SCENE = ASSETS_DIR / "default_room.glb"
 SUPPORTED_SUFFIXES = (".glb", ".gltf", ".obj", ".ply")
+# The material of a `g` group in an OBJ without materials: Blinn-Phong Ns 10 as GGX roughness
+# (alpha = sqrt(2 / (Ns + 2)), roughness = sqrt(alpha)), trimesh's default before rayvr read OBJ itself.
+GROUP_MATERIAL_ROUGHNESS = (2.0 / 12.0) ** 0.25
 # Largest scene-local coordinate (distance from the centre of the bounds along an axis): edges up
 # to 2*sqrt(3)*1e8 keep their fourth powers (what the GPU computes) near 1.4e34, well inside
 # float32 (3.4e38), with room for the camera's distance. Measured: 5e8 renders lit, 5e9 does not.
@@ -512,8 +515,8 @@ def load_obj(path: str | Path) -> Scene:
         key = (mtl if has_materials else grp) or "default"
         if key not in by_key:
             by_key[key] = len(materials)
-            if not has_materials:
-                materials.append(Material(key))
+            if not has_materials:  # grey Kd 0.8, Blinn-Phong Ns 10: what trimesh gave (renders kept)
+                materials.append(Material(key, roughness=GROUP_MATERIAL_ROUGHNESS))
             elif key in defs:
                 materials.append(_material_from_mtl(key, defs[key], where=path))
             else:

@@ -165,6 +165,11 @@ def test_obj_without_materials_splits_by_group(tmp_path, shared_scene):
     floor = s.material_names().index("floor")
     tri = s.world_vertices()[s.indices[s.triangle_material == floor][0]]
     assert np.allclose(tri[:, 2], 0)   # the floor group's triangle
+    # Grey and rough as trimesh made them (Kd 0.8, Blinn-Phong Ns 10 -> GGX roughness (2/12)^0.25):
+    # diffuse, so the reference renders them with `shadows`, not `glossy` (0.5 would be glossy).
+    for m in s.materials:
+        assert m.base_color[:3] == (0.8, 0.8, 0.8) and m.metallic == 0.0
+        assert m.roughness == pytest.approx(0.6389, abs=1e-4)
     sponza = load(shared_scene("sponza_dabrovic/sponza.obj"))
     assert {"floors", "walls", "ceiling"} <= set(sponza.material_names())
     assert len(sponza.materials) == 34 and sponza.triangle_count >= 66000
