@@ -63,6 +63,12 @@ _RAW_SIGNATURES: dict[str, tuple] = {
     "glClearBufferfv": (None, (_u, _i, ctypes.POINTER(ctypes.c_float))),
     "glGetError": (_u, ()),
     "glGetIntegerv": (None, (_u, ctypes.POINTER(_i))),
+    # Timer queries with 64-bit results (moderngl reads 32 bits: passes over 4.29 s saturate).
+    "glGenQueries": (None, (_i, ctypes.POINTER(_u))),
+    "glDeleteQueries": (None, (_i, ctypes.POINTER(_u))),
+    "glBeginQuery": (None, (_u, _u)),
+    "glEndQuery": (None, (_u,)),
+    "glGetQueryObjectui64v": (None, (_u, _u, ctypes.POINTER(ctypes.c_uint64))),
 }
 GL_GPU_MEMORY_INFO_DEDICATED_VIDMEM_NVX = 0x9047  # kB
 

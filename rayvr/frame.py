@@ -24,11 +24,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable
 
+import time
+
 import moderngl
 import numpy as np
 
 from .gpu_layout import CHANNELS
-from .timing import valid_elapsed_ns
+from .timing import TimerQuery, valid_elapsed_ns
 
 
 @dataclass(frozen=True)
@@ -428,10 +430,11 @@ class FrameResources:
 
 @dataclass
 class PassTimer:
-    """GL timer queries, one per name and slot. Two slots alternate frame by frame, so a frame's
-    times can be read after the next frame has been recorded (reading waits for the GPU)."""
+    """GL timer queries (64-bit: timing.TimerQuery), one per name and slot. Two slots alternate
+    frame by frame, so a frame's times can be read after the next frame has been recorded
+    (reading waits for the GPU)."""
 
-    ctx: moderngl.Context
+    raw: object  # rayvr.context.RawGL
     queries: dict = field(default_factory=dict)
     slot: int = 0
 
@@ -442,17 +445,27 @@ class PassTimer:
         key = (self.slot, name)
         q = self.queries.get(key)
         if q is None:
-            q = self.queries[key] = self.ctx.query(time=True)
+            q = self.queries[key] = TimerQuery(self.raw)
         with q:
             fn()
 
-    def read_ms(self, names, slot: int | None = None) -> dict:
-        """GPU ms per name; a query that read back garbage is left out (unavailable), never a number."""
+    def release(self) -> None:
+        for q in self.queries.values():
+            q.release()
+        self.queries.clear()
+
+    def read_ms(self, names, slot: int | None = None, since: float | None = None) -> dict:
+        """GPU ms per name; a query that read back garbage (timing.valid_elapsed_ns; `since`: the
+        perf_counter() when the work was recorded) is left out (unavailable), never a number."""
         slot = self.slot if slot is None else slot
         out = {}
         for n in names:
             q = self.queries.get((slot, n))
-            if q is not None and valid_elapsed_ns(ns := q.elapsed):
+            if q is None:
+                continue
+            ns = q.elapsed  # waits for the GPU
+            wall = None if since is None else (time.perf_counter() - since) * 1e9
+            if valid_elapsed_ns(ns, wall):
                 out[n] = ns / 1e6
         return out
 
@@ -508,6 +521,7 @@ class FrameContext:
     resources: dict = field(default_factory=dict)
     pass_names: list = field(default_factory=list)
     timer_slot: int = 0
+    recorded_at: float = 0.0  # perf_counter() when its GL work began to be recorded
     profiler: PassTimer | None = None  # set: passes' kernels are timed one by one (stage names)
     stage_names: list = field(default_factory=list)
     current_pass: str = ""
@@ -540,8 +554,8 @@ class FrameGraph:
         self._fits: set = set()  # (plan, sizing) pairs checked against the limits
         self._compiled: dict = {}
         self.resources = FrameResources(gl)
-        self.timer = PassTimer(gl.ctx)
-        self.kernel_timer = PassTimer(gl.ctx)
+        self.timer = PassTimer(gl.raw)
+        self.kernel_timer = PassTimer(gl.raw)
 
     def compile(self, plan: FramePlan) -> CompiledGraph:
         graph = self._compiled.get(plan)
@@ -559,6 +573,7 @@ class FrameGraph:
             self._fits.add(key)
         fc.resources = self.resources.allocate(graph, fc.sizing)
         fc.pass_names = graph.pass_names
+        fc.recorded_at = time.perf_counter()
         timer = self.kernel_timer if profile else self.timer
         timer.next_frame()
         fc.timer_slot = timer.slot
@@ -575,8 +590,8 @@ class FrameGraph:
     def read_ms(self, fc: FrameContext) -> dict:
         """GPU ms per pass (or per kernel for a profiled frame); waits for the GPU."""
         if fc.profiler is not None:
-            return self.kernel_timer.read_ms(fc.stage_names, fc.timer_slot)
-        return self.timer.read_ms(fc.pass_names, fc.timer_slot)
+            return self.kernel_timer.read_ms(fc.stage_names, fc.timer_slot, fc.recorded_at)
+        return self.timer.read_ms(fc.pass_names, fc.timer_slot, fc.recorded_at)
 
     def release(self) -> None:
         for graph in self._compiled.values():
@@ -584,3 +599,5 @@ class FrameGraph:
                 p.release()
         self._compiled.clear()
         self.resources.release()
+        self.timer.release()
+        self.kernel_timer.release()

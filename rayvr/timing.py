@@ -7,16 +7,51 @@ the times of the last few runs agree with the few before them.
 """
 from __future__ import annotations
 
+import ctypes
 import statistics
 import time
 
-# A timer query whose end came before its begin reads back as a wrapped 32-bit value (llvmpipe
-# gives 4294967295 ns for a raster pass now and then): nothing real lands in [2^31, 2^32) ns.
-_WRAPPED_NS = (1 << 31, 1 << 32)
+GL_TIME_ELAPSED, GL_QUERY_RESULT = 0x88BF, 0x8866
 
 
-def valid_elapsed_ns(ns: int) -> bool:
-    return ns >= 0 and not (_WRAPPED_NS[0] <= ns < _WRAPPED_NS[1])
+class TimerQuery:
+    """A GL_TIME_ELAPSED query read as 64 bits (moderngl's queries read 32: a pass over 4.29 s
+    saturates at 4294967295 ns). `with q:` times the GL work recorded inside; `elapsed` waits."""
+
+    def __init__(self, raw):
+        self.raw = raw
+        name = ctypes.c_uint()
+        raw.glGenQueries(1, ctypes.byref(name))
+        self.name = name.value
+
+    def __enter__(self):
+        self.raw.glBeginQuery(GL_TIME_ELAPSED, self.name)
+        return self
+
+    def __exit__(self, *exc):
+        self.raw.glEndQuery(GL_TIME_ELAPSED)
+
+    @property
+    def elapsed(self) -> int:
+        ns = ctypes.c_uint64()
+        self.raw.glGetQueryObjectui64v(self.name, GL_QUERY_RESULT, ctypes.byref(ns))
+        return ns.value
+
+    def release(self) -> None:
+        self.raw.glDeleteQueries(1, ctypes.byref(ctypes.c_uint(self.name)))
+
+# llvmpipe reads a raster pass's timer back as garbage now and then: 4294967295 ns through 32
+# bits; through 64, the end timestamp alone (~ the machine's uptime: 3164585 ms was seen). No GPU
+# work takes longer than the wall time since it was recorded: a reading over that is garbage.
+WALL_SLACK_NS = 10**6
+
+
+def valid_elapsed_ns(ns: int, wall_ns: float | None = None) -> bool:
+    """A plausible timer reading: not negative, not the 32-bit saturation value, and not longer
+    than `wall_ns`, the real time since the work was recorded (when known)."""
+    if ns < 0 or ns == 0xFFFFFFFF or ns >= 1 << 63:
+        return False
+    return wall_ns is None or ns <= wall_ns + WALL_SLACK_NS
 
 
 def settle(step, min_seconds: float = 0.3, max_seconds: float = 10.0, window: int = 5,

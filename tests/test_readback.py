@@ -48,17 +48,34 @@ def test_hdr_aux_is_the_linear_colour_the_8_bit_image_encodes(gl):
 
 
 def test_wrapped_timer_readings_are_unavailable_not_numbers():
-    """llvmpipe reads a raster pass's timer back as 4294967295 ns now and then: left out of the
-    timings (and listed as unavailable), never reported as 4294.967 ms."""
+    """llvmpipe reads a raster pass's timer back as garbage now and then (4294967295 ns through
+    32 bits): left out of the timings (listed as unavailable), never reported as 4294.967 ms.
+    Readings are 64-bit, so a real 5 s pass (llvmpipe's glossy reference) is a number."""
     from rayvr.frame import Frame, PassTimer
 
     class Query:
         def __init__(self, ns):
             self.elapsed = ns
 
-    timer = PassTimer(ctx=None, queries={(0, "visibility"): Query(2**32 - 1), (0, "gbuffer"): Query(1_500_000),
-                                         (0, "tonemap"): Query(2**31)})
-    ms = timer.read_ms(["visibility", "gbuffer", "tonemap"], slot=0)
-    assert ms == {"gbuffer": 1.5}
-    frame = Frame({}, ms, "color", passes=("visibility", "gbuffer", "tonemap"))
+    timer = PassTimer(raw=None, queries={(0, "visibility"): Query(2**32 - 1), (0, "gbuffer"): Query(1_500_000),
+                                         (0, "tonemap"): Query(2**64 - 5), (0, "rt_glossy"): Query(5 * 10**9)})
+    ms = timer.read_ms(["visibility", "gbuffer", "tonemap", "rt_glossy"], slot=0)
+    assert ms == {"gbuffer": 1.5, "rt_glossy": 5000.0}
+    frame = Frame({}, ms, "color", passes=("visibility", "gbuffer", "tonemap", "rt_glossy"))
     assert frame.timings_unavailable == ["visibility", "tonemap"]
+
+
+def test_a_timer_longer_than_the_wall_time_since_recording_is_garbage():
+    """Through 64 bits llvmpipe's garbage is the end timestamp alone (~the uptime: 3164585 ms was
+    seen); no GPU work can take longer than the real time since it was recorded."""
+    import time
+
+    from rayvr.frame import PassTimer
+
+    class Query:
+        def __init__(self, ns):
+            self.elapsed = ns
+
+    timer = PassTimer(raw=None, queries={(0, "visibility"): Query(3_164_585_536_000), (0, "shade"): Query(2_000_000)})
+    started = time.perf_counter() - 0.5  # recorded half a second ago
+    assert timer.read_ms(["visibility", "shade"], slot=0, since=started) == {"shade": 2.0}
