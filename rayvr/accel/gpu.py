@@ -24,7 +24,7 @@ MISS = 0xFFFFFFFF
 MODES = {"closest": 0, "any": 1, "reflect": 2, "through": 3}
 _LOCAL_SIZE = 64
 TIMED_BATCHES = 5  # time_trace: median of this many timed batches of `repeats` dispatches
-WARMUP_S = 0.2   # time_trace dispatches at least this long, until times settle, before timing
+WARMUP_S = 1.0   # time_trace dispatches at least this long, until times settle (0.2 s left the first kind of rays measured 3.6x slow in some runs)
 _MAX_GROUPS_X = 65535
 
 
