@@ -21,10 +21,9 @@ builds no BVH and dispatches no ray because no pass that reads `bvh` is left.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Callable
-
-import time
 
 import moderngl
 import numpy as np
@@ -45,7 +44,9 @@ class FramePlan:
     camera: str = "pinhole"  # camera model (rayvr/cameras/)
     stereo: str = "dual"  # how the second eye is made: "dual" renders both fully
     output: str = "ldr"
-    users: tuple = ()  # (effect, (material names, ...)) pairs: the reasons shown by --graph
+    # (effect, (material names, ...)) pairs, for the reasons --graph shows; not part of the key:
+    # moving an effect to other materials compiles nothing new.
+    users: tuple = field(default=(), compare=False)
 
     def materials_using(self, effect: str) -> tuple:
         return next((names for e, names in self.users if e == effect), ())
