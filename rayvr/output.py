@@ -33,19 +33,7 @@ def check_file_prefix(prefix: str) -> str:
 
 def ensure_writable_dir(path: str | Path) -> Path:
     """Create `path` if needed and check that files can be written there, before any work."""
-    path = Path(path)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot create output folder: {exc.strerror or exc}") from exc
-    if not path.is_dir():
-        raise OutputError(f"{path}: output path exists and is not a folder")
-    try:
-        with tempfile.TemporaryFile(dir=path):
-            pass
-    except OSError as exc:
-        raise OutputError(f"{path}: output folder is not writable: {exc.strerror or exc}") from exc
-    return path
+    return check_output_dir(make_output_dir(path))
 
 
 def check_output_dir(path: str | Path) -> Path:
