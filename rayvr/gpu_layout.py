@@ -47,6 +47,7 @@ SSBO = {
     "bvh_nodes": 8, "bvh_triangles": 9,  # accel/gpu.py (batch tracers may use other bases)
     "rt_lists": 10, "rt_list_args": 11,  # passes/classify.py
     "wave_paths": 12, "wave_shadows": 13, "wave_args": 14,  # passes/trace_effect.py
+    "dda_rays": 15, "dda_results": 16,  # accel/dda.py DdaTracer (glsl/ssrt/dda_batch.comp)
 }
 # Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
 IMAGE = {"hdr": 0, "ldr": 1}
