@@ -10,7 +10,8 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import os
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -21,7 +22,8 @@ from .accel.scene import SceneAccel
 from .camera import StereoRig
 from .cameras import Pinhole
 from .context import GLContext, create_context
-from .frame import Frame, FrameContext, FrameGraph, FramePlan, Sizing
+from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameTooLarge, Sizing, check_fits,
+                    limit_problems)
 from .gpu_layout import TONEMAPPERS, VIEWS
 from .gpu_scene import GpuScene
 from .passes import core_passes
@@ -31,6 +33,8 @@ from .readback import AUX_CHANNELS, Reader
 from .timing import settle
 
 PRIMARY_MODES = ("raster", "rays")
+MAX_TILES = 64  # a frame that needs more tiles than this is refused (FrameTooLarge) instead
+HOST_BYTES_PER_PIXEL = 16  # colour, depth and the pixel buffers they come through, per eye pixel
 
 
 @dataclass
@@ -180,6 +184,13 @@ class Renderer:
             raise ValueError(f"aux channel 'hdr' needs view 'color' (view {view!r} makes no HDR colour)")
         pending = None
         for i, rig in enumerate(rigs):
+            tiles = self.tiles(rig, eyes, view)
+            if len(tiles) > 1:  # too large for the device at once: tile by tile, not pipelined
+                if pending is not None:
+                    yield self._finish(pending)
+                    pending = None
+                yield self._render_tiles(rig, tiles, eyes, view, aux)
+                continue
             fc = self.record(rig, eyes, view)
             started = self.reader.start(fc, tuple(aux), parity=i % 2)
             if pending is not None:
@@ -187,6 +198,58 @@ class Renderer:
             pending = started
         if pending is not None:
             yield self._finish(pending)
+
+    def tiles(self, rig: StereoRig, eyes: str = "both", view: str = "color") -> list:
+        """The pixel rectangles (x0, y0, x1, y1; rows top-down) a frame is rendered in: the whole
+        image when it fits the device, else the fewest equal tiles that do (each an off-axis part
+        of the eye's frustum, so the pixels are the same rays). Only a planar camera tiles."""
+        eye_views = rig.eyes(eyes)
+        plan = self.plan(len(eye_views), view, eye_views[0].camera)
+        graph = self.graph.compile(plan)
+        w, h = rig.size
+        host = w * h * len(eye_views) * HOST_BYTES_PER_PIXEL
+        ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        if host > ram / 2:
+            raise FrameTooLarge(f"a {w}x{h} eye image ({len(eye_views)} eye(s)) needs about {host / 2**30:.1f} GiB "
+                                f"of host memory for its pixels, of {ram / 2**30:.1f} GiB")
+        if not limit_problems(graph, self.sizing((w, h), len(eye_views)), self.graph.limits):
+            return [(0, 0, w, h)]
+        if not eye_views[0].camera.rasterizable:
+            check_fits(graph, self.sizing((w, h), len(eye_views)), self.graph.limits)  # raises, saying why
+        nx = ny = 1
+        while limit_problems(graph, self.sizing((-(-w // nx), -(-h // ny)), len(eye_views)), self.graph.limits):
+            if nx * ny >= MAX_TILES:
+                check_fits(graph, self.sizing((w, h), len(eye_views)), self.graph.limits)
+            nx, ny = (nx * 2, ny) if -(-w // nx) >= -(-h // ny) else (nx, ny * 2)
+        xs = [w * i // nx for i in range(nx + 1)]
+        ys = [h * j // ny for j in range(ny + 1)]
+        return [(xs[i], ys[j], xs[i + 1], ys[j + 1]) for j in range(ny) for i in range(nx)]
+
+    def _render_tiles(self, rig: StereoRig, tiles: list, eyes: str, view: str, aux) -> Frame:
+        w, h = rig.size
+        full = {e.name: e for e in rig.eyes(eyes)}
+        out: dict = {}
+        timings: dict = {}
+        passes: tuple = ()
+        for x0, y0, x1, y1 in tiles:
+            sub = {}
+            for name, e in full.items():
+                l, r, b, t = e.tangents
+                sub[name] = (l + (r - l) * x0 / w, l + (r - l) * x1 / w,
+                             t - (t - b) * y1 / h, t - (t - b) * y0 / h)  # rows go top-down, tangents up
+            part = self.render(replace(rig, size=(x1 - x0, y1 - y0), eye_tangents=sub), eyes, view, aux)
+            for k, v in part.timings.items():
+                timings[k] = timings.get(k, 0.0) + v
+            passes = part.passes
+            for name, img in part.eyes.items():
+                whole = out.setdefault(name, EyeImage(name, np.zeros((h, w, 3), np.uint8), np.zeros((h, w), np.float32),
+                                                      {k: np.zeros((h, w) + a.shape[2:], a.dtype)
+                                                       for k, a in img.aux.items()}))
+                whole.color[y0:y1, x0:x1] = img.color
+                whole.depth[y0:y1, x0:x1] = img.depth
+                for k, a in img.aux.items():
+                    whole.aux[k][y0:y1, x0:x1] = a
+        return Frame(out, timings, view, passes)
 
     def _finish(self, pending) -> Frame:
         timings = self.graph.read_ms(pending.fc)
