@@ -1,0 +1,505 @@
+"""Widmer et al. 2015's screen-space quadtree (HPG 2015, §3-4): host side and numpy references.
+
+Screen space S of one eye layer: (x, y, z), x and y in pixels (GL: origin bottom-left, pixel
+centres at +0.5), z = near / view_depth (reversed Z, infinite far: 1 at the near plane, 0 at
+infinity). For a pinhole, 1/view_depth of a view-space plane is affine in the frustum tangents
+(tx, ty) and so in (x, y): planar surfaces are planes in S and rays are straight lines in S, with z
+linear along them.
+
+Nodes (64 bits as two uint32 words, GLSL `uvec2`); level k has ceil(W/2^k) x ceil(H/2^k) nodes,
+node (qx, qy) covers pixels [qx 2^k, min((qx+1) 2^k, W)) x [qy 2^k, min((qy+1) 2^k, H)):
+
+  plane  word0 = float bits of -z0 (sign bit set), z0 > 0 = z at the centre of the node's
+         (image-clipped) rectangle; word1 = packHalf2x16(sx, sy), the slopes *relative to z0*:
+         z(x, y) = z0 (1 + sx (x - xc) + sy (y - yc)). Relative slopes keep the half floats in
+         range at every depth scale (near/far 1e-4..1e7): a half's 2^-11 relative error gives a
+         relative z error <= 2^-11 (|sx| hx + |sy| hy) over a node of half-extents hx, hy.
+  AABB   word0 = float bits of zmin >= 0 (sign bit clear), word1 = float bits of zmax.
+         Background (no geometry) is the AABB [0, 0]: no ray (z > 0) passes behind it.
+
+The lowest bit of word0 is the depth-discontinuity flag O (§3.2): a 4-neighbour is background or
+its plane differs from this one by more than DISCONTINUITY (relative) at their shared edge; a
+parent's flag is the OR of its children's. Decoding clears the bit (<= 1 ulp of z0).
+
+Build (§3.3): leaves are the pixels' planes from the G-buffer (position.w = view depth gives z0
+exactly, the shading normal the slopes; no finite differences). A parent becomes a plane when all
+its (up to 2x2) children are planes, the cosine between each child's normal and the proxy's is
+>= gamma_norm, and every child-rectangle corner lies within gamma_dist *relative* depth of the
+proxy: |z_child - z_proxy| <= gamma_dist z_proxy (so the bound means the same at every distance).
+Normals are view-space normals of the planes. The proxy normal is the normalised mean of the
+children's, its offset the least-squares fit of the children's corner z (the paper's v = (0,0,1)
+in S); both tests run on the *encoded* proxy, so what is stored is what was checked. Otherwise the
+parent is an AABB of its children's z ranges, widened by AABB_MARGIN (float rounding must not
+cull a leaf's hit). gamma_dist = 0 never merges (lossless: plane leaves under a max-z tree).
+A merged surface stays within (1 + gamma_dist)^m - 1 relative depth of the leaf planes after m
+merges (each level compares with its children, which were themselves within the bound).
+
+Height-field semantics (single layer): a ray hits where it first passes behind the surface
+(z_ray < z_surface) in a pixel with geometry. Statuses as in rayvr/accel/dda.py: HIT, OFFSCREEN
+(left the image), NEAR (reached the near plane or lies wholly in front of it), NONE (reached
+infinity on screen without a hit).
+
+GLSL: glsl/ssrt/quadtree_build.comp (build), glsl/ssrt/quadtree.glsl (decode + traversal),
+glsl/ssrt/quadtree_batch.comp (batch harness, QuadtreeTracer below).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4  # QT_HIT ... QT_NONE in glsl/ssrt/quadtree.glsl (same as DDA_*)
+STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
+PLANE_BIT = 0x80000000
+FLAG_BIT = 1
+MAX_LEVELS = 16            # QT_MAX_LEVELS: images up to 32768 pixels a side
+DISCONTINUITY = 0.01       # relative z jump at a shared edge that flags a depth discontinuity
+GRAZING = 1e-4             # |n . v| / |v| floor for a leaf: slopes stay finite for edge-on normals
+AABB_MARGIN = 2.0 ** -20   # relative widening of AABB bounds over the children's exact ranges
+HALF_MAX = 65504.0
+
+
+def level_sizes(width: int, height: int) -> list[tuple[int, int]]:
+    """(w, h) of every level, leaves first, up to the single root: ceil(W/2^k) x ceil(H/2^k)."""
+    sizes = [(int(width), int(height))]
+    while sizes[-1] != (1, 1):
+        w, h = sizes[-1]
+        sizes.append(((w + 1) // 2, (h + 1) // 2))
+    if len(sizes) > MAX_LEVELS:
+        raise ValueError(f"{width}x{height}: the quadtree takes at most {MAX_LEVELS} levels "
+                         f"({1 << (MAX_LEVELS - 1)} pixels a side)")
+    return sizes
+
+
+def level_offsets(sizes) -> tuple[list[int], int]:
+    """Node index of each level's first node within a layer, and nodes per layer."""
+    offs, n = [], 0
+    for w, h in sizes:
+        offs.append(n)
+        n += w * h
+    return offs, n
+
+
+def quadtree_bytes(width: int, height: int, layers: int) -> int:
+    return 8 * level_offsets(level_sizes(width, height))[1] * layers
+
+
+@dataclass(frozen=True)
+class ScreenCamera:
+    """What the tree and the tracer need of an eye: pinhole frustum tangents (l, r, b, t), near,
+    image size, scene-local position and camera-to-world rotation (float64)."""
+
+    tangents: tuple
+    near: float
+    size: tuple
+    position: np.ndarray
+    rotation: np.ndarray
+
+    @classmethod
+    def from_eye(cls, eye, origin=(0.0, 0.0, 0.0)) -> "ScreenCamera":
+        return cls(tuple(float(t) for t in eye.tangents), float(eye.near), tuple(eye.size),
+                   np.asarray(eye.position, np.float64) - np.asarray(origin, np.float64),
+                   np.asarray(eye.rotation, np.float64))
+
+    @property
+    def scale(self) -> tuple[float, float]:
+        """Pixels per unit of frustum tangent in x and y."""
+        l, r, b, t = self.tangents
+        return self.size[0] / (r - l), self.size[1] / (t - b)
+
+    def tangent_at(self, x, y):
+        l, r, b, t = self.tangents
+        kx, ky = self.scale
+        return l + np.asarray(x) / kx, b + np.asarray(y) / ky
+
+
+# ------------------------------------------------------------------ node encoding
+
+def _f32_bits(v) -> np.ndarray:
+    return np.asarray(v, np.float32).view(np.uint32)
+
+
+def encode_planes(z0, sx, sy, flag) -> np.ndarray:
+    """Plane nodes: (..., 2) uint32."""
+    w0 = _f32_bits(-np.abs(np.asarray(z0, np.float32)))
+    w0 = (w0 & ~np.uint32(FLAG_BIT)) | np.asarray(flag, np.uint32)
+    s = np.stack([np.clip(sx, -HALF_MAX, HALF_MAX), np.clip(sy, -HALF_MAX, HALF_MAX)], -1).astype(np.float16)
+    w1 = s.view(np.uint16).astype(np.uint32)
+    return np.stack([w0, w1[..., 0] | (w1[..., 1] << np.uint32(16))], -1)
+
+
+def encode_aabbs(zmin, zmax, flag) -> np.ndarray:
+    zmin, zmax, flag = np.broadcast_arrays(np.maximum(zmin, 0.0), np.maximum(zmax, 0.0), flag)
+    w0 = (_f32_bits(zmin) & ~np.uint32(FLAG_BIT)) | np.asarray(flag, np.uint32)
+    return np.stack([w0, _f32_bits(zmax)], -1)
+
+
+class Nodes(NamedTuple):
+    plane: np.ndarray   # bool
+    flag: np.ndarray    # bool
+    z0: np.ndarray      # plane: z at the rectangle's centre (0 for AABBs)
+    sx: np.ndarray      # plane: relative slopes
+    sy: np.ndarray
+    zmin: np.ndarray    # AABB: bounds; plane: its range over the node's rectangle
+    zmax: np.ndarray
+
+
+def decode(nodes: np.ndarray, half_x=None, half_y=None) -> Nodes:
+    """Decode (..., 2) uint32 nodes (float64 values). With the node rectangles' half-extents,
+    planes get their z range over the rectangle (zmin clamped at 0)."""
+    w0, w1 = nodes[..., 0].astype(np.uint32), nodes[..., 1].astype(np.uint32)
+    plane = (w0 & np.uint32(PLANE_BIT)) != 0
+    flag = (w0 & np.uint32(FLAG_BIT)) != 0
+    v0 = (w0 & ~np.uint32(FLAG_BIT)).view(np.float32).astype(np.float64)
+    halves = np.stack([w1 & np.uint32(0xFFFF), w1 >> np.uint32(16)], -1).astype(np.uint16).view(np.float16)
+    sx = np.where(plane, halves[..., 0].astype(np.float64), 0.0)
+    sy = np.where(plane, halves[..., 1].astype(np.float64), 0.0)
+    z0 = np.where(plane, -v0, 0.0)
+    zmin = np.where(plane, 0.0, v0)
+    zmax = np.where(plane, 0.0, w1.view(np.float32).astype(np.float64))
+    if half_x is not None:
+        spread = np.abs(sx) * half_x + np.abs(sy) * half_y
+        zmax = np.where(plane, z0 * (1 + spread), zmax)
+        zmin = np.where(plane, np.maximum(z0 * (1 - spread), 0.0), zmin)
+    return Nodes(plane, flag, z0, sx, sy, zmin, zmax)
+
+
+# ------------------------------------------------------------------ leaves and the numpy build
+
+def leaf_planes(position: np.ndarray, normal: np.ndarray, cam: ScreenCamera):
+    """Per-pixel planes in S from G-buffer channels of one layer, rows bottom-up (GL texture
+    order): position (H, W, 4) with w = view depth (0: background), normal (H, W, >= 3) world.
+    Returns geometry mask, z0, sx, sy (relative slopes), float64."""
+    h, w = position.shape[:2]
+    depth = position[..., 3].astype(np.float64)
+    geo = depth > 0
+    n = normal[..., :3].astype(np.float64)
+    n = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
+    nv = n @ cam.rotation  # world -> view: R^T n, row vectors
+    tx, ty = cam.tangent_at(np.arange(w)[None, :] + 0.5, np.arange(h)[:, None] + 0.5)
+    tx, ty = np.broadcast_to(tx, (h, w)), np.broadcast_to(ty, (h, w))
+    vlen = np.sqrt(tx * tx + ty * ty + 1)
+    # z = z0 (n . (tx, ty, -1)) / (n . v_c): relative slope = n_xy / (n . v_c) per tangent unit.
+    den = np.minimum(nv[..., 0] * tx + nv[..., 1] * ty - nv[..., 2], -GRAZING * vlen)
+    kx, ky = cam.scale
+    z0 = np.where(geo, cam.near / np.where(geo, depth, 1.0), 0.0)
+    return geo, z0, np.where(geo, nv[..., 0] / den / kx, 0.0), np.where(geo, nv[..., 1] / den / ky, 0.0)
+
+
+def _discontinuity(geo, z0, sx, sy):
+    """Flag pixels whose 4-neighbour is background or jumps by > DISCONTINUITY at the shared edge."""
+    h, w = geo.shape
+    flag = np.zeros((h, w), bool)
+    for axis, s in ((1, sx), (0, sy)):
+        a = [slice(None)] * 2
+        b = [slice(None)] * 2
+        a[axis], b[axis] = slice(0, -1), slice(1, None)
+        a, b = tuple(a), tuple(b)
+        za = z0[a] * (1 + 0.5 * s[a])       # the lower pixel at its upper edge
+        zb = z0[b] * (1 - 0.5 * s[b])       # the upper pixel at its lower edge
+        jump = ~geo[a] | ~geo[b] | (np.abs(za - zb) > DISCONTINUITY * np.maximum(np.abs(za), np.abs(zb)))
+        flag[a] |= jump & geo[a]
+        flag[b] |= jump & geo[b]
+    return flag
+
+
+def node_rects(k: int, size):
+    """x0, x1, y0, y1 pixel bounds of level k's nodes, (h_k, w_k) arrays."""
+    W, H = size
+    wk, hk = (W + (1 << k) - 1) >> k, (H + (1 << k) - 1) >> k
+    x0 = (np.arange(wk) << k).astype(np.float64)
+    y0 = (np.arange(hk) << k).astype(np.float64)
+    x1 = np.minimum(x0 + (1 << k), W)
+    y1 = np.minimum(y0 + (1 << k), H)
+    X0, Y0 = np.meshgrid(x0, y0)
+    X1, Y1 = np.meshgrid(x1, y1)
+    return X0, X1, Y0, Y1
+
+
+def plane_normals(z0, sx, sy, xc, yc, cam: ScreenCamera):
+    """View-space unit normals (facing the eye) of S-planes z = z0 (1 + sx (x-xc) + sy (y-yc)).
+    1/depth = z/near is affine in the tangents: n ~ (-ax, -ay, 1 - ax tx_c - ay ty_c)."""
+    kx, ky = cam.scale
+    ax, ay = sx * kx, sy * ky
+    txc, tyc = cam.tangent_at(xc, yc)
+    n = np.stack([-ax, -ay, 1 - ax * txc - ay * tyc], -1)
+    return n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
+
+
+def build_reference(position, normal, cam: ScreenCamera, gamma_norm: float = 1.0, gamma_dist: float = 0.0):
+    """The numpy build of one layer: list of (h_k, w_k, 2) uint32 node arrays, leaves first."""
+    W, H = cam.size
+    sizes = level_sizes(W, H)
+    geo, z0, sx, sy = leaf_planes(position, normal, cam)
+    flag = _discontinuity(geo, z0, sx, sy)
+    leaf = np.where(geo[..., None], encode_planes(z0, sx, sy, flag), encode_aabbs(0.0, 0.0, flag))
+    levels = [leaf]
+    for k in range(1, len(sizes)):
+        levels.append(_build_level(levels[-1], k, cam, gamma_norm, gamma_dist))
+    return levels
+
+
+def _build_level(child_nodes, k, cam, gamma_norm, gamma_dist):
+    W, H = cam.size
+    wk, hk = (W + (1 << k) - 1) >> k, (H + (1 << k) - 1) >> k
+    hc, wc = child_nodes.shape[:2]
+    CX0, CX1, CY0, CY1 = node_rects(k - 1, cam.size)
+    cd = decode(child_nodes, (CX1 - CX0) / 2, (CY1 - CY0) / 2)
+    # Pad the children to (2 hk, 2 wk); missing children (past the image) are marked absent.
+    def pad(a, fill):
+        out = np.full((2 * hk, 2 * wk) + a.shape[2:], fill, a.dtype)
+        out[:hc, :wc] = a
+        return out.reshape(hk, 2, wk, 2, *a.shape[2:]).transpose(0, 2, 1, 3, *range(4, a.ndim + 2))
+    exists = pad(np.ones((hc, wc), bool), False)            # (hk, wk, 2, 2)
+    P = {name: pad(getattr(cd, name), 0.0 if name not in ("plane", "flag") else False) for name in cd._fields}
+    R = {name: pad(v, 0.0) for name, v in zip(("x0", "x1", "y0", "y1"), (CX0, CX1, CY0, CY1))}
+    flag = (P["flag"] & exists).any(axis=(2, 3))
+    zmax = np.where(exists, P["zmax"], 0.0).max(axis=(2, 3)) * (1 + AABB_MARGIN)
+    zmin = np.where(exists, P["zmin"], np.inf).min(axis=(2, 3)) * (1 - AABB_MARGIN)
+    aabb = encode_aabbs(np.asarray(zmin, np.float32), _round_up(zmax), flag)
+    if gamma_dist <= 0:
+        return aabb
+    # Proxy planes where every existing child is a plane.
+    all_planes = np.where(exists, P["plane"], True).all(axis=(2, 3))
+    cxc, cyc = (R["x0"] + R["x1"]) / 2, (R["y0"] + R["y1"]) / 2
+    with np.errstate(all="ignore"):
+        cn = plane_normals(P["z0"], P["sx"], P["sy"], cxc, cyc, cam)            # (hk, wk, 2, 2, 3)
+        mean = np.where(exists[..., None], cn, 0.0).sum(axis=(2, 3))
+        npx = mean / np.maximum(np.linalg.norm(mean, axis=-1, keepdims=True), 1e-30)
+        # The children's rectangle corners and their z on the children's planes.
+        xs = np.stack([R["x0"], R["x1"], R["x0"], R["x1"]], -1)
+        ys = np.stack([R["y0"], R["y0"], R["y1"], R["y1"]], -1)
+        zc = P["z0"][..., None] * (1 + P["sx"][..., None] * (xs - cxc[..., None]) + P["sy"][..., None] * (ys - cyc[..., None]))
+        tx, ty = cam.tangent_at(xs, ys)
+        nb = npx[:, :, None, None, None, :]
+        f = -nb[..., 0] * tx - nb[..., 1] * ty + nb[..., 2]                     # z_proxy = kappa f
+        e = exists[..., None] & np.ones(4, bool)
+        kappa = np.where(e, f * zc, 0).sum(axis=(2, 3, 4)) / np.where(e, f * f, 0).sum(axis=(2, 3, 4))
+        X0, X1, Y0, Y1 = node_rects(k, cam.size)
+        xc, yc = (X0 + X1) / 2, (Y0 + Y1) / 2
+        txc, tyc = cam.tangent_at(xc, yc)
+        kx, ky = cam.scale
+        pz0 = kappa * (-npx[..., 0] * txc - npx[..., 1] * tyc + npx[..., 2])
+        psx = kappa * -npx[..., 0] / kx / pz0
+        psy = kappa * -npx[..., 1] / ky / pz0
+        proxy = encode_planes(pz0, psx, psy, flag)
+        q = decode(proxy)
+        zp = q.z0[..., None, None, None] * (1 + q.sx[..., None, None, None] * (xs - xc[..., None, None, None])
+                                              + q.sy[..., None, None, None] * (ys - yc[..., None, None, None]))
+        rel = np.where(e, np.abs(zp - zc) / zp, 0.0)
+        dist_ok = (np.where(e, zp, 1.0) > 0).all(axis=(2, 3, 4)) & (rel.max(axis=(2, 3, 4)) < gamma_dist)
+        qn = plane_normals(q.z0, q.sx, q.sy, xc, yc, cam)
+        cos = np.where(exists, (cn * qn[:, :, None, None, :]).sum(-1), 1.0).min(axis=(2, 3))
+        ok = all_planes & (pz0 > 0) & np.isfinite(pz0) & dist_ok & (cos >= gamma_norm)
+    return np.where(ok[..., None], proxy, aabb)
+
+
+def _round_up(z) -> np.ndarray:
+    """float64 -> the nearest float32 not below it."""
+    f = np.asarray(z, np.float32)
+    return np.where(f.astype(np.float64) < z, np.nextafter(f, np.float32(np.inf)), f)
+
+
+def flatten(levels) -> np.ndarray:
+    """Levels of one layer -> (nodes, 2) uint32 in buffer order."""
+    return np.concatenate([lv.reshape(-1, 2) for lv in levels])
+
+
+def unflatten(flat: np.ndarray, size) -> list[np.ndarray]:
+    sizes = level_sizes(*size)
+    offs, n = level_offsets(sizes)
+    return [flat[o:o + w * h].reshape(h, w, 2) for o, (w, h) in zip(offs, sizes)]
+
+
+# ------------------------------------------------------------------ rays in S
+
+class ScreenRay(NamedTuple):
+    """A ray in S: p(u) = s0 + u sd, u in pixels along the screen (|sd.xy| = 1) except when the
+    ray is a point on screen (then |sd.xy| = 0 and u in [0, 1]); [u_lo, u_hi] is the part on
+    screen and in front of the near plane; `end` is the status of a ray that hits nothing there."""
+
+    s0: np.ndarray
+    sd: np.ndarray
+    u_lo: float
+    u_hi: float
+    end: int
+
+
+def screen_ray(cam: ScreenCamera, origin, direction) -> ScreenRay:
+    """Project a scene-local ray into S (float64): clip it at the near plane, then to the image."""
+    W, H = cam.size
+    n = cam.near
+    l, r, b, t = cam.tangents
+    kx, ky = cam.scale
+    o = cam.rotation.T @ (np.asarray(origin, np.float64) - cam.position)
+    d = cam.rotation.T @ np.asarray(direction, np.float64)
+    da, dd = -o[2], -d[2]                              # view depth at the origin, its rate
+    nothing = ScreenRay(np.zeros(3), np.zeros(3), 0.0, -1.0, NEAR)
+    if dd > 0:
+        s = max(0.0, (n - da) / dd)
+    elif da >= n:
+        s = 0.0
+    else:
+        return nothing                                  # wholly in front of the near plane
+    a = o + s * d
+    da = -a[2]
+    s0 = np.array([(a[0] / da - l) * kx, (a[1] / da - b) * ky, n / da])
+    # Screen direction of the projected line (any sign of dd), and dz per pixel along it.
+    wx = (d[0] * da - a[0] * dd) * kx
+    wy = (d[1] * da - a[1] * dd) * ky
+    wlen = np.hypot(wx, wy)
+    scale = (abs(d[0] * da) + abs(a[0] * dd)) * kx + (abs(d[1] * da) + abs(a[1] * dd)) * ky
+    end = NONE if dd >= 0 else NEAR
+    if wlen <= 1e-12 * scale or wlen == 0:             # along a pixel's line of sight
+        if dd == 0:
+            return nothing._replace(end=NONE)
+        sd = np.array([0.0, 0.0, (0.0 if dd > 0 else 1.0) - s0[2]])
+        u_max = 1.0
+    else:
+        sd = np.array([wx / wlen, wy / wlen, -n * dd / wlen])
+        u_max = np.inf if dd == 0 else ((0.0 if dd > 0 else 1.0) - s0[2]) / sd[2]
+    lo, hi = 0.0, u_max
+    for c, dc, extent in ((s0[0], sd[0], W), (s0[1], sd[1], H)):
+        if dc != 0:
+            u0, u1 = (0 - c) / dc, (extent - c) / dc
+            lo, hi = max(lo, min(u0, u1)), min(hi, max(u0, u1))
+        elif not 0 <= c <= extent:
+            lo, hi = 0.0, -1.0
+    if lo > hi:
+        return ScreenRay(s0, sd, lo, hi, OFFSCREEN)
+    return ScreenRay(s0, sd, lo, hi, end if hi >= u_max else OFFSCREEN)
+
+
+class Trace(NamedTuple):
+    status: int
+    pixel: tuple      # (x, y) GL pixel of the hit, (-1, -1) otherwise
+    point: np.ndarray  # hit in S (x, y, z); the origin's S point when nothing was tested
+    nodes: int        # nodes (cells for the brute force) tested
+
+
+def _plane_interval(ray: ScreenRay, ua, ub, z0, sx, sy, xc, yc):
+    """First u in [ua, ub] where the ray is behind the plane, or None. d(u) = z_ray - z_plane is
+    linear in u: behind at ua, or crossing inside."""
+    def d(u):
+        p = ray.s0 + u * ray.sd
+        return p[2] - z0 * (1 + sx * (p[0] - xc) + sy * (p[1] - yc))
+    da, db = d(ua), d(ub)
+    if da < 0:
+        return ua
+    if db < 0:
+        return ua + (ub - ua) * da / (da - db)
+    return None
+
+
+def trace_heightfield_reference(leaves: np.ndarray, cam: ScreenCamera, origin, direction) -> Trace:
+    """Brute force: every pixel cell the ray's screen segment crosses, in order (all its
+    crossings of the pixel grid lines, sorted), each tested against that pixel's leaf plane; the
+    first hit wins. `leaves`: level-0 nodes (H, W, 2) (encoded: the tree's own planes)."""
+    ray = screen_ray(cam, origin, direction)
+    W, H = cam.size
+    if ray.u_lo > ray.u_hi:
+        return Trace(ray.end, (-1, -1), ray.s0, 0)
+    us = [ray.u_lo, ray.u_hi]
+    for c, dc, extent in ((ray.s0[0], ray.sd[0], W), (ray.s0[1], ray.sd[1], H)):
+        if dc != 0 and np.isfinite(ray.u_hi):
+            a, b = sorted((c + ray.u_lo * dc, c + ray.u_hi * dc))
+            lines = np.arange(np.ceil(a), np.floor(b) + 1)
+            us += list((lines - c) / dc)
+    us = np.unique(np.clip(us, ray.u_lo, ray.u_hi))
+    nd = decode(leaves)
+    tested = 0
+    for ua, ub in zip(us[:-1], us[1:]):
+        if not ub > ua:
+            continue
+        m = ray.s0 + 0.5 * (ua + ub) * ray.sd
+        x, y = min(max(int(np.floor(m[0])), 0), W - 1), min(max(int(np.floor(m[1])), 0), H - 1)
+        tested += 1
+        if not nd.plane[y, x]:
+            continue
+        u = _plane_interval(ray, ua, ub, nd.z0[y, x], nd.sx[y, x], nd.sy[y, x], x + 0.5, y + 0.5)
+        if u is not None:
+            return Trace(HIT, (x, y), ray.s0 + u * ray.sd, tested)
+    return Trace(ray.end, (-1, -1), _end_point(ray), tested)
+
+
+def _end_point(ray: ScreenRay) -> np.ndarray:
+    """Where a ray that hit nothing left the screen or reached the near plane / infinity."""
+    return ray.s0 + ray.u_hi * ray.sd if np.isfinite(ray.u_hi) else ray.s0
+
+
+def _find_msb(v: int) -> int:
+    return v.bit_length() - 1  # -1 for 0, as GLSL findMSB
+
+
+def trace_quadtree_reference(levels, cam: ScreenCamera, origin, direction, max_nodes: int | None = None) -> Trace:
+    """The stackless traversal of §4, step for step as glsl/ssrt/quadtree.glsl does it: test the
+    node (AABB: does the ray dip below zmax inside it; plane: does it pass behind the plane); an
+    AABB hit descends into the child holding the ray's entry point (after skipping the part above
+    zmax); a miss moves to the neighbour across the wall the ray leaves by, then climbs
+    findMSB((qx ^ qx') | (qy ^ qy')) levels, to the largest node that starts there."""
+    ray = screen_ray(cam, origin, direction)
+    W, H = cam.size
+    if ray.u_lo > ray.u_hi:
+        return Trace(ray.end, (-1, -1), ray.s0, 0)
+    top = len(levels) - 1
+    k, qx, qy = top, 0, 0
+    u = ray.u_lo
+    sx_dir, sy_dir = ray.sd[0], ray.sd[1]
+    nodes = 0
+    limit = max_nodes or 16 * (W + H) + 64
+    while nodes < limit:
+        nodes += 1
+        x0, y0 = qx << k, qy << k
+        x1, y1 = min(x0 + (1 << k), W), min(y0 + (1 << k), H)
+        ux = ((x1 if sx_dir > 0 else x0) - ray.s0[0]) / sx_dir if sx_dir != 0 else np.inf
+        uy = ((y1 if sy_dir > 0 else y0) - ray.s0[1]) / sy_dir if sy_dir != 0 else np.inf
+        u_exit = min(ux, uy)
+        ub = min(u_exit, ray.u_hi)
+        n = decode(levels[k][qy, qx])
+        go_down = False
+        if ub > u:
+            if n.plane:
+                uh = _plane_interval(ray, u, ub, float(n.z0), float(n.sx), float(n.sy), (x0 + x1) / 2, (y0 + y1) / 2)
+                if uh is not None:
+                    p = ray.s0 + uh * ray.sd
+                    px = min(max(int(np.floor(p[0])), x0), x1 - 1)
+                    py = min(max(int(np.floor(p[1])), y0), y1 - 1)
+                    return Trace(HIT, (px, py), p, nodes)
+            else:
+                zmax = float(n.zmax)
+                za, zb = ray.s0[2] + u * ray.sd[2], ray.s0[2] + ub * ray.sd[2]
+                if min(za, zb) < zmax:
+                    if za >= zmax:   # skip the part of the node the ray crosses above zmax
+                        u = max(u, min(ub, (zmax - ray.s0[2]) / ray.sd[2]))
+                    go_down = k > 0
+        if go_down:
+            # Child holding p(u); on a mid line, the one the ray goes into.
+            p = ray.s0 + u * ray.sd
+            k -= 1
+            half = 1 << k
+            mx, my = x0 + half, y0 + half
+            cx = 1 if (p[0] > mx or (p[0] == mx and sx_dir >= 0)) else 0
+            cy = 1 if (p[1] > my or (p[1] == my and sy_dir >= 0)) else 0
+            qx = min(2 * qx + cx, ((W + half - 1) >> k) - 1)
+            qy = min(2 * qy + cy, ((H + half - 1) >> k) - 1)
+            continue
+        if u_exit >= ray.u_hi:
+            break
+        u = u_exit
+        nx = qx + ((1 if sx_dir > 0 else -1) if ux <= uy else 0)
+        ny = qy + ((1 if sy_dir > 0 else -1) if uy <= ux else 0)
+        wk, hk = (W + (1 << k) - 1) >> k, (H + (1 << k) - 1) >> k
+        if not (0 <= nx < wk and 0 <= ny < hk):
+            break
+        up = max(_find_msb((qx ^ nx) | (qy ^ ny)), 0)   # findMSB(0) = -1: stay on this level
+        up = min(up, top - k)
+        k, qx, qy = k + up, nx >> up, ny >> up
+    end = ray.end if nodes < limit else NONE
+    return Trace(end, (-1, -1), _end_point(ray), nodes)
+
+
+__all__ = ["HIT", "OFFSCREEN", "NEAR", "NONE", "STATUS_NAMES", "level_sizes", "level_offsets", "quadtree_bytes",
+           "ScreenCamera", "encode_planes", "encode_aabbs", "decode", "leaf_planes", "build_reference",
+           "flatten", "unflatten", "screen_ray", "trace_heightfield_reference", "trace_quadtree_reference",
+           "Trace", "ScreenRay", "plane_normals", "node_rects"]
