@@ -9,6 +9,7 @@ import pytest
 from conftest import merge, quad
 from rayvr.accel import quadtree as qt
 from rayvr.camera import Pose, StereoRig
+from rayvr.passes.quadtree import QuadtreePass, QuadtreeTracer
 from rayvr.renderer import Renderer
 from rayvr.scene import from_arrays
 
@@ -53,13 +54,22 @@ class Layers:
         w, h = rig.size
         self.position = np.frombuffer(gb.textures["position"].read(), np.float32).reshape(2, h, w, 4).copy()
         self.normal = np.frombuffer(gb.textures["normal"].read(), np.float16).reshape(2, h, w, 4).astype(np.float32)
-        self.cams = [qt.ScreenCamera.from_eye(e, scene.origin) for e in rig.eyes()]
+        self.cams = [qt.ScreenCamera.from_eye(e, self.renderer.scene.origin) for e in rig.eyes()]
         self.scene, self.rig = scene, rig
 
     def build(self, layer=0, **gammas):
         return qt.build_reference(self.position[layer], self.normal[layer], self.cams[layer], **gammas)
 
+    def tracer(self, **gammas):
+        """The GPU tree of this frame (QuadtreeTracer), built with `gammas`."""
+        if not hasattr(self, "_tracer"):
+            self._tracer = QuadtreeTracer(self.renderer)
+        self._tracer.build(self.rig, **gammas)
+        return self._tracer
+
     def release(self):
+        if hasattr(self, "_tracer"):
+            self._tracer.release()
         self.renderer.release()
 
 
@@ -171,3 +181,84 @@ def test_numpy_quadtree_equals_brute_force(analytic, name):
             assert np.isfinite(a.point).all()
             stats[a.status] += 1
     assert stats[qt.HIT] >= 40, stats   # the rays do meet the geometry
+
+
+# ------------------------------------------------------------------ GPU build and traversal
+
+LOSSLESS = dict(gamma_norm=1.0, gamma_dist=0.0)
+LOSSY = dict(gamma_norm=math.cos(math.radians(10)), gamma_dist=1e-3)
+
+
+def assert_same_tree(gpu_levels, ref_levels):
+    """Node for node: the same kinds and flags; z values to float32 rounding (GPU division and
+    the numpy build's float64 then rounded); slopes to one half-float step."""
+    for k, (g, r) in enumerate(zip(gpu_levels, ref_levels)):
+        a, b = qt.decode(g), qt.decode(r)
+        assert (a.plane == b.plane).all(), f"level {k}: {(a.plane != b.plane).sum()} nodes differ in kind"
+        assert (a.flag == b.flag).all(), f"level {k}: {(a.flag != b.flag).sum()} discontinuity flags differ"
+        for v in ("z0", "zmin", "zmax"):
+            x, y = getattr(a, v), getattr(b, v)
+            assert np.allclose(x, y, rtol=2e-6, atol=0), (k, v, np.abs(x - y).max())
+        for v in ("sx", "sy"):
+            x, y = getattr(a, v), getattr(b, v)
+            assert np.allclose(x, y, rtol=2 ** -10, atol=1e-7), (k, v, np.abs(x - y).max())
+
+
+@pytest.mark.parametrize("gammas", [LOSSLESS, LOSSY], ids=["lossless", "lossy"])
+@pytest.mark.parametrize("name", ["sphere", "step"])
+def test_gpu_build_equals_numpy_build(analytic, name, gammas):
+    L = analytic[name]
+    tr = L.tracer(**gammas)
+    for layer in (0, 1):
+        assert_same_tree(tr.levels(layer), L.build(layer, **gammas))
+    if gammas is LOSSY:  # the thresholds do merge: the sphere's and the walls' planes
+        assert sum(qt.decode(lv).plane.sum() for lv in tr.levels(0)[1:]) > 20
+
+
+def gpu_traces(tracer, o, d, layer):
+    st, nodes, pix, pt = tracer.trace(o, d, layer)
+    return [qt.Trace(int(st[i]), tuple(int(v) for v in pix[i]), pt[i].astype(np.float64), int(nodes[i]))
+            for i in range(len(o))]
+
+
+def check_against_brute_force(L, o, d, layer, tol=1e-4, rate=1.0, gammas=LOSSLESS):
+    """GPU and numpy quadtree traces against the brute force on the GPU-built lossless tree:
+    the same status, and on hits the same pixel and point within `tol` (relative, per component;
+    float32 on the GPU). Returns the brute-force traces."""
+    tracer = L.tracer(**gammas)
+    levels = tracer.levels(layer)
+    gpu = gpu_traces(tracer, o, d, layer)
+    ref, agree = [], 0
+    for i in range(len(o)):
+        a = qt.trace_heightfield_reference(levels[0], L.cams[layer], o[i], d[i])
+        b = qt.trace_quadtree_reference(levels, L.cams[layer], o[i], d[i])
+        assert same(a, b), (i, a, b)                 # numpy traversal: float64, exactly the same
+        assert np.isfinite(gpu[i].point).all() and np.isfinite(a.point).all()
+        agree += same(a, gpu[i], tol)
+        ref.append(a)
+    assert agree >= rate * len(o), f"GPU agrees with the brute force on {agree}/{len(o)} rays"
+    return ref, gpu
+
+
+@pytest.mark.parametrize("name", ["tilted_plane", "step", "sphere", "thin_pole"])
+def test_gpu_quadtree_equals_brute_force(analytic, name):
+    L = analytic[name]
+    rng = np.random.default_rng(11)
+    for layer in (0, 1):
+        o, d = random_rays(rng, L, layer, 80)
+        ref, gpu = check_against_brute_force(L, o, d, layer)
+        assert sum(t.status == qt.HIT for t in ref) > 30
+
+
+def test_default_room(gl):
+    rig = StereoRig(Pose.look_at([0.3, 1.5, 2.6], [0, 0.8, 0]), ipd=0.064, fov_y=80, size=(48, 36))
+    L = Layers(gl, None, rig)
+    try:
+        rng = np.random.default_rng(5)
+        for layer in (0, 1):
+            o, d = random_rays(rng, L, layer, 80)
+            ref, gpu = check_against_brute_force(L, o, d, layer)
+            assert sum(t.status == qt.HIT for t in ref) > 40
+            assert_same_tree(L.tracer(**LOSSY).levels(layer), L.build(layer, **LOSSY))
+    finally:
+        L.release()

@@ -351,7 +351,7 @@ def screen_ray(cam: ScreenCamera, origin, direction) -> ScreenRay:
     wlen = np.hypot(wx, wy)
     scale = (abs(d[0] * da) + abs(a[0] * dd)) * kx + (abs(d[1] * da) + abs(a[1] * dd)) * ky
     end = NONE if dd >= 0 else NEAR
-    if wlen <= 1e-12 * scale or wlen == 0:             # along a pixel's line of sight
+    if wlen <= 1e-6 * scale or wlen == 0:             # along a pixel's line of sight
         if dd == 0:
             return nothing._replace(end=NONE)
         sd = np.array([0.0, 0.0, (0.0 if dd > 0 else 1.0) - s0[2]])

@@ -1,0 +1,175 @@
+"""`quadtree`: the screen-space quadtree of Widmer et al. 2015 (rayvr/accel/quadtree.py) built from
+the G-buffer every frame, one dispatch per level (glsl/ssrt/quadtree_build.comp), both eyes at
+once; and `QuadtreeTracer`, which builds it for a rendered frame and traces ray batches through
+it (glsl/ssrt/quadtree_batch.comp) for tests and benchmarks.
+
+No effect reads the tree yet, so `why()` offers the pass only to plans with an effect that says
+`uses_quadtree = True`; such an effect returns `QuadtreePass()` among its `passes()` and its own
+pass reads "quadtree" (binds it at SSBO["quadtree_nodes"], calls `set_tree_uniforms` and
+`set_eye_uniforms`, and includes glsl/ssrt/quadtree.glsl)."""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from .. import shaders
+from ..accel.quadtree import MAX_LEVELS, level_offsets, level_sizes, quadtree_bytes, unflatten
+from ..frame import Buffer, FramePlan, Pass, read, write
+from ..gpu_layout import SSBO
+from .compute import camera_defines, set_eye_uniforms
+
+LOCAL = 8  # quadtree_build.comp's local size (x and y)
+QUADTREE = Buffer(lambda s: quadtree_bytes(s.size[0], s.size[1], s.layers),
+                  "8 B per node: ceil(W/2^k) x ceil(H/2^k) nodes on every level k up to 1 x 1, per layer",
+                  max_extent=1 << (MAX_LEVELS - 1))
+
+
+def set_tree_uniforms(program, size) -> None:
+    """qt_level, qt_top, qt_layer_nodes of glsl/ssrt/quadtree.glsl for an eye image of `size`."""
+    sizes = level_sizes(*size)
+    offs, per_layer = level_offsets(sizes)
+    table = np.zeros((MAX_LEVELS, 4), np.int32)
+    table[:len(sizes), :2] = sizes
+    table[:len(sizes), 2] = offs
+    for name, value in (("qt_level", table.tobytes()), ("qt_top", np.int32(len(sizes) - 1).tobytes()),
+                        ("qt_layer_nodes", np.uint32(per_layer).tobytes())):
+        if name in program:
+            program[name].write(value)
+
+
+class QuadtreeBuilder:
+    """The build program and its per-level dispatches (shared by the pass and QuadtreeTracer)."""
+
+    def __init__(self, ctx, camera_model_defines: dict | None = None):
+        self.program = shaders.compute(ctx, "ssrt/quadtree_build.comp", dict(camera_model_defines or {}))
+
+    def build(self, ctx, gbuffer, nodes: moderngl.Buffer, gamma_norm: float, gamma_dist: float, stage=None) -> None:
+        """Fill `nodes` from `gbuffer` (bound for reading here); camera uniforms must be set."""
+        prog = self.program
+        w, h = gbuffer.size
+        set_tree_uniforms(prog, (w, h))
+        for name, v in (("gamma_norm", gamma_norm), ("gamma_dist", gamma_dist)):
+            if name in prog:
+                prog[name].value = float(v)
+        gbuffer.bind_for_reading()
+        nodes.bind_to_storage_buffer(SSBO["quadtree_nodes"])
+        for k, (wk, hk) in enumerate(level_sizes(w, h)):
+            def run(k=k, wk=wk, hk=hk):
+                prog["qt_build_level"].value = k
+                prog.run((wk + LOCAL - 1) // LOCAL, (hk + LOCAL - 1) // LOCAL, gbuffer.layers)
+                ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)  # level k + 1 reads it
+            (stage or (lambda name, fn: fn()))(f"level{k}", run)
+
+    def release(self) -> None:
+        self.program.release()
+
+
+class QuadtreePass(Pass):
+    """Reads the G-buffer, writes "quadtree". `gamma_norm` (a cosine) and `gamma_dist` (relative
+    depth): the proxy-plane thresholds; the defaults (1, 0) build the lossless tree."""
+
+    name = "quadtree"
+    timed_kernels = True
+
+    def __init__(self, gamma_norm: float = 1.0, gamma_dist: float = 0.0):
+        self.gamma_norm, self.gamma_dist = gamma_norm, gamma_dist
+
+    def why(self, plan: FramePlan) -> str | None:
+        from ..effects import EFFECTS
+
+        users = [e for e in sorted(plan.effects) if getattr(EFFECTS.get(e), "uses_quadtree", False)]
+        return f"screen-space tracing ({', '.join(users)})" if users else None
+
+    def io(self, plan: FramePlan) -> list:
+        return [read("gbuffer"), write("quadtree", QUADTREE)]
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        self.builder = QuadtreeBuilder(gl.ctx, camera_defines(plan))
+
+    def execute(self, fc) -> None:
+        set_eye_uniforms(self.builder.program, fc)
+        self.builder.build(fc.gl.ctx, fc.gbuffer, fc.resource("quadtree"), self.gamma_norm, self.gamma_dist,
+                           stage=fc.stage)
+
+    def release(self) -> None:
+        self.builder.release()
+
+
+class QuadtreeTracer:
+    """Builds the quadtree of a renderer's last frame and traces ray batches through it on the
+    GPU. Uses the Renderer's public API only: `render()` first, then `build()`, then `trace()`.
+
+        tracer = QuadtreeTracer(renderer)
+        renderer.render(rig, aux=())
+        tracer.build(rig, gamma_norm=1.0, gamma_dist=0.0)
+        status, nodes, pixel, point = tracer.trace(origins, directions, eye=0)
+    """
+
+    def __init__(self, renderer):
+        self.renderer = renderer
+        self.ctx = renderer.gl.ctx
+        self.builder = QuadtreeBuilder(self.ctx)
+        self.program = shaders.compute(self.ctx, "ssrt/quadtree_batch.comp")
+        self.nodes: moderngl.Buffer | None = None
+        self.size = None
+        self._eye_values = None
+
+    def build(self, rig, eyes: str = "both", gamma_norm: float = 1.0, gamma_dist: float = 0.0) -> None:
+        """Build the tree of the last rendered frame (rendered with `rig` and `eyes`)."""
+        gbuffer = self.renderer.resource("gbuffer")
+        eye_views = rig.eyes(eyes)
+        self._eye_values = eye_views[0].camera.uniforms(eye_views, self.renderer.scene.origin)
+        nbytes = quadtree_bytes(*gbuffer.size, gbuffer.layers)
+        if self.nodes is None or self.nodes.size != nbytes:
+            if self.nodes is not None:
+                self.nodes.release()
+            self.nodes = self.ctx.buffer(reserve=nbytes)
+        self.size, self.layers = tuple(gbuffer.size), gbuffer.layers
+        self._set_eyes(self.builder.program)
+        self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist)
+        self.ctx.finish()
+
+    def _set_eyes(self, program) -> None:
+        for name, value in self._eye_values.items():
+            if name in program:
+                program[name].write(np.ascontiguousarray(value).tobytes())
+
+    def levels(self, layer: int = 0) -> list[np.ndarray]:
+        """The built tree of one layer, read back: (h_k, w_k, 2) uint32 per level, leaves first."""
+        per_layer = level_offsets(level_sizes(*self.size))[1]
+        flat = np.frombuffer(self.nodes.read(), np.uint32).reshape(-1, 2)
+        return unflatten(flat[layer * per_layer:(layer + 1) * per_layer], self.size)
+
+    def trace(self, origins, directions, eye=0):
+        """Trace scene-local rays in layer `eye` (an int or one per ray). Returns status (N,)
+        uint32, nodes (N,) uint32, pixel (N, 2) int32 (GL pixel; -1 when no hit), point (N, 3)
+        float32 (in S)."""
+        o = np.asarray(origins, np.float32).reshape(-1, 3)
+        d = np.asarray(directions, np.float32).reshape(-1, 3)
+        n = len(o)
+        rays = np.zeros((n, 8), np.float32)
+        rays[:, :3], rays[:, 3], rays[:, 4:7] = o, np.broadcast_to(np.asarray(eye, np.float32), (n,)), d
+        rbuf = self.ctx.buffer(rays.tobytes())
+        obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
+        try:
+            set_tree_uniforms(self.program, self.size)
+            self._set_eyes(self.program)
+            self.nodes.bind_to_storage_buffer(SSBO["quadtree_nodes"])
+            rbuf.bind_to_storage_buffer(SSBO["quadtree_rays"])
+            obuf.bind_to_storage_buffer(SSBO["quadtree_results"])
+            self.program["ray_count"].value = n
+            groups = -(-n // 64)
+            gx = min(groups, 65535)
+            self.program.run(gx, -(-groups // gx), 1)
+            self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+            out = np.frombuffer(obuf.read(), np.uint32).reshape(-1, 8)[:n]
+        finally:
+            rbuf.release()
+            obuf.release()
+        return out[:, 0].copy(), out[:, 1].copy(), out[:, 2:4].view(np.int32).copy(), out[:, 4:7].view(np.float32).copy()
+
+    def release(self) -> None:
+        self.builder.release()
+        self.program.release()
+        if self.nodes is not None:
+            self.nodes.release()
