@@ -284,9 +284,11 @@ def test_special_rays(gl):
         o_near = eye - (1 + 1e-4) * cam.near * back + 1e-3 * cam.near * (right + up)
         g = run(np.repeat(o_near[None], 2, 0), np.array([back + 0.1 * right, -back + 0.1 * up]))
         assert g.status.tolist() == [NEAR, HIT]
-        # behind the near plane: NEAR without a step
-        g = run((eye - 0.5 * cam.near * back)[None], -back[None])
-        assert g.status.tolist() == [NEAR] and g.steps.tolist() == [0]
+        # in front of the near plane: moved onto it when going away (and then hits the plane),
+        # NEAR without a step when not
+        g = run(np.repeat((eye - 0.5 * cam.near * back + 0.01 * cam.near * up)[None], 3, 0),
+                np.array([-back + 0.1 * right, back, right]))
+        assert g.status.tolist() == [HIT, NEAR, NEAR] and g.steps.tolist()[1:] == [0, 0] and g.steps[0] > 0
         # straight into the screen from free space: the projection is a point; documented NONE, 0 steps
         g = run(o, o - eye)
         assert (g.status == NONE).all() and (g.steps == 0).all()
@@ -389,3 +391,52 @@ def test_stride_trades_steps_for_error(gl):
             assert all(a < b for a, b in zip(err, err[1:])), err
             if thickness == 0.02:
                 assert all(a < b for a, b in zip(lost, lost[1:])), lost
+
+
+def heightfield_reference(fr: Frame, o, d, eye=0):
+    """rayvr/accel/quadtree.py's brute-force tracer (every crossed pixel against its exact plane
+    from the G-buffer position and normal): status, pixel, S point per ray."""
+    from rayvr.accel import quadtree as qt
+
+    cam = qt.ScreenCamera.from_eye(fr.eyes[eye], fr.origin)
+    leaves = qt.build_reference(fr.channel("position", eye), fr.channel("normal", eye), cam)[0]
+    out = [qt.trace_heightfield_reference(leaves, cam, o[i], d[i]) for i in range(len(o))]
+    return (np.array([t.status for t in out]), np.array([t.pixel for t in out]),
+            np.array([t.point for t in out]))
+
+
+ROOM_RIG = dict(pose=Pose.look_at([0, 1.6, 3], [0, 1, 0]), size=SIZE)
+
+
+@pytest.mark.parametrize("scene, rays, min_agree, min_within", [
+    ("room", "free", 0.98, 0.94), ("room", "mirror", 0.99, 0.96),
+    ("tilted", "free", 0.995, 0.99), ("step", "free", 0.995, 0.99)])
+def test_agrees_with_the_quadtree_brute_force(gl, scene, rays, min_agree, min_within):
+    """Stride 1, 1000 steps, solid pixels (thickness inf: the reference's height field) against
+    trace_heightfield_reference. Measured (600 rays, two seeds): status agreement room 98.5-98.7 %
+    (free-space rays) / 99.5 % (mirror rays from the G-buffer), tilted plane 99.7-99.8 %, step
+    100 %; common hits within 1.5 px: room 95-96 % / 97-98 %, planes 100 % (median 0.2 / 0.04 /
+    0.1 / 0.0 px; max 1.5 px on the planes, 25 px in the room). The rest are the DDA's
+    approximations: one pixel per column at its centre depth, so rays that graze a surface or
+    pass a pixel's corner differ (the room's objects are a few pixels wide at 64x48)."""
+    if scene == "room":
+        sc, rig = None, StereoRig(**ROOM_RIG)
+    else:
+        sc = (tilted_plane() if scene == "tilted" else step())[0]
+        rig = rig_looking_down_z()
+    with Renderer(sc, gl=gl) as r:
+        fr = Frame(r, rig)
+        if rays == "free":
+            o, d = fr.free_space_rays(600, seed=11)
+        else:
+            o, d = fr.reflection_rays()
+            pick = np.random.default_rng(0).choice(len(o), 600, replace=False)
+            o, d = o[pick], d[pick]
+        g = fr.gpu(o, d, max_steps=1000, stride=1, thickness=np.inf)
+        status, pixel, point = heightfield_reference(fr, o, d)
+        agree = (g.status == status).mean()
+        both = (g.status == HIT) & (status == HIT)
+        err = np.linalg.norm(g.point[both, :2] - point[both, :2], axis=1)
+        assert finite(g) and both.sum() > 100
+        assert agree >= min_agree, agree
+        assert (err <= 1.5).mean() >= min_within, np.percentile(err, [50, 90, 99])

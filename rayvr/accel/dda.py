@@ -14,7 +14,8 @@ the line in S *is* McGuire & Mara's interpolation of 1/w-scaled quantities.
 
 The march, for a ray (scene-local origin o, direction d) of eye e:
 1. View space: v0 = R^T (o - eye_position), dv = R^T d; w = -v.z (view depth). An origin closer
-   than the near plane (w0 < near) returns NEAR without a step.
+   than the near plane (w0 < near) moves along the ray onto it (McGuire's near clip); if the ray
+   does not go away from the eye it never enters the frustum: NEAR without a step.
 2. The line in S: S(u) = S0 + u D with D = (hd_xy - S0_xy dw, -z0 dw) (hd: the direction's
    homogeneous screen coordinates, dw = -dv.z); u = t / w(t) along the ray. It ends at infinity
    (z = 0, u = 1/dw) for rays going away, at the near plane (z = 1, u = (w0 - near) / (-dw near))
@@ -26,8 +27,8 @@ The march, for a ray (scene-local origin o, direction d) of eye e:
    [c_k - stride/2, c_k + stride/2] (clipped to the segment). With stride 1 the interval is the
    line's whole span in that column, so no depth between columns is skipped; a larger stride skips
    columns (fewer steps, more misses). The first sample is the column after the origin's (the
-   origin's own pixel is its surface); a ray entering from off screen starts with the column it
-   enters.
+   origin is taken to lie on the surface its pixel shows: a reflection ray); a ray entering from
+   off screen or through the near plane starts with the column it enters.
 5. Depth test (single-layer height field): a pixel with geometry (linear_depth > 0) has surface
    z_s = near / linear_depth and is `thickness` thick *relative to its depth*: it occupies view
    depths [d, d (1 + thickness)], z in [z_s / (1 + thickness), z_s]. The ray hits when its z
@@ -41,7 +42,9 @@ The march, for a ray (scene-local origin o, direction d) of eye e:
    was made); `steps` counts the pixels tested.
 
 A ray whose screen projection never leaves its origin's column (straight into or out of the
-screen) tests nothing: NONE going away, NEAR coming towards the camera.
+screen) tests nothing: NONE going away, NEAR coming towards the camera. (The brute-force
+reference, rayvr/accel/quadtree.py trace_heightfield_reference, does test the origin's pixel:
+the two differ on rays from free space whose hit lies in the origin's column.)
 """
 from __future__ import annotations
 
@@ -131,8 +134,12 @@ def trace_dda(linear_depth, cam: DdaCamera, origins, directions, max_steps: int 
     v0 = np.stack([rel[:, 0] * rot[0, k] + rel[:, 1] * rot[1, k] + rel[:, 2] * rot[2, k] for k in range(3)], 1)
     dv = np.stack([d[:, 0] * rot[0, k] + d[:, 1] * rot[1, k] + d[:, 2] * rot[2, k] for k in range(3)], 1)
     w0, dw = -v0[:, 2], -dv[:, 2]
-    behind = ~(w0 >= near)  # also NaN
-    w0s = np.where(behind, near, w0)
+    clipped = ~(w0 >= near)  # also NaN
+    behind = clipped & ~(dw > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ts = np.where(clipped & ~behind, (near - w0) / np.where(behind, f32(1.0), dw), f32(0.0))
+    v0 = np.where(clipped[:, None], v0 + ts[:, None] * dv, v0)
+    w0s = np.where(clipped, near, w0)
 
     # 2. the line in S
     s0 = np.stack([(v0[:, 0] / w0s - l) * sx, (v0[:, 1] / w0s - b) * sy, near / w0s], 1)
@@ -174,7 +181,7 @@ def trace_dda(linear_depth, cam: DdaCamera, origins, directions, max_steps: int 
     x_lo = s_lo[idx, major]
     sgn = np.where(Dn[idx, major] < 0, f32(-1.0), f32(1.0))
     col0 = np.where(sgn > 0, np.floor(x_lo), np.ceil(x_lo) - f32(1.0))
-    k = np.where(u_lo > 0, 0, 1).astype(f32)
+    k = np.where((u_lo > 0) | clipped, 0, 1).astype(f32)
 
     status = np.where(behind, NEAR, np.where(outside, OFFSCREEN, 0)).astype(np.int32)
     pixel = np.full((n, 2), -1, np.int32)

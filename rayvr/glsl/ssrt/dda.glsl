@@ -18,10 +18,11 @@
 // Screen space S of a layer: x, y in pixels (GL: origin bottom-left, centres at +0.5), z = near /
 // view_depth (1 at the near plane, 0 at infinity). Rays are straight lines in S and z is linear
 // along them. The result: status DDA_HIT / DDA_OFFSCREEN (left the viewport) / DDA_NEAR (reached
-// the near plane, or starts in front of it) / DDA_NONE (max_steps without a hit, or reached
+// the near plane, or lies wholly in front of it) / DDA_NONE (max_steps without a hit, or reached
 // infinity on screen); `pixel` and `point` (in S) of the hit, else of the last pixel tested
-// (pixel (-1, -1) and point = the origin in S when none was); `steps` = pixels tested. The pixel
-// of the origin is never tested (it is the surface the ray leaves).
+// (pixel (-1, -1) and point = the origin in S when none was); `steps` = pixels tested. The
+// column (row) of the origin's pixel is not tested: the origin is taken to lie on the surface
+// that pixel shows (a reflection ray); a ray straight into the screen therefore tests nothing.
 //
 // Reads: the camera uniforms of common/camera.glsl (eye_position, eye_rotation, eye_tangents,
 // eye_depth.x = near) and the pixels' view depth through DDA_DEPTH(ivec3(x, y, eye)), by default
@@ -61,9 +62,14 @@ DdaResult dda_trace(int eye, vec3 origin, vec3 direction, vec2 size, int max_ste
     vec3 v0 = (origin - eye_position[eye]) * eye_rotation[eye];
     vec3 dv = direction * eye_rotation[eye];
     float w0 = -v0.z, dw = -dv.z;
-    bool behind = !(w0 >= near);
-    if (behind)
+    // an origin in front of the near plane moves along the ray onto it (McGuire's near clip);
+    // a ray that does not go away from the eye from there never enters the frustum
+    bool clipped = !(w0 >= near);
+    bool behind = clipped && !(dw > 0.0);
+    if (clipped) {
+        v0 += (behind ? 0.0 : (near - w0) / dw) * dv;
         w0 = near;
+    }
 
     // 2. the line S(u) = s0 + u D, u = t / w(t); where it ends
     vec3 s0 = vec3((v0.x / w0 - tg.x) * scale.x, (v0.y / w0 - tg.z) * scale.y, near / w0);
@@ -109,7 +115,7 @@ DdaResult dda_trace(int eye, vec3 origin, vec3 direction, vec2 size, int max_ste
     float x_lo = s_lo[major];
     float sgn = Dn[major] < 0.0 ? -1.0 : 1.0;
     float col0 = sgn > 0.0 ? floor(x_lo) : ceil(x_lo) - 1.0;
-    float k = u_lo > 0.0 ? 0.0 : 1.0;
+    float k = u_lo > 0.0 || clipped ? 0.0 : 1.0;  // skip the origin's column, unless moved
     float half_stride = stride * 0.5;
     ivec2 last = ivec2(size) - 1;
 
