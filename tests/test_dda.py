@@ -194,21 +194,25 @@ def test_gpu_equals_numpy_in_the_room(gl):
     """Mirror rays from every covered pixel plus random rays, both eyes, strides 1 and 3, thin
     and solid pixels: the GPU and numpy marches agree ray for ray (measured: all rays, bit for bit)."""
     with Renderer(gl=gl) as r:
-        rig = StereoRig(Pose.look_at([0, 1.6, 3], [0, 1, 0]), size=SIZE)
-        fr = Frame(r, rig)
-        for eye in (0, 1):
-            o, d = fr.reflection_rays(eye)
-            o2, d2 = fr.free_space_rays(1000, seed=eye, eye=eye)
-            o, d = np.r_[o, o2], np.r_[d, d2]
-            for stride, thickness in ((1, np.inf), (1, 0.05), (3, 0.02)):
-                kw = dict(max_steps=200, stride=stride, thickness=thickness)
-                g, c = fr.gpu(o, d, eye, **kw), fr.cpu(o, d, eye, **kw)
-                agree = same(g, c)
-                assert agree.mean() >= 0.995, (eye, stride, thickness, agree.mean())
-                assert np.abs(g.point - c.point)[agree].max() <= 1e-3
-                assert finite(g) and finite(c)
-                assert set(np.unique(g.status)) <= {HIT, OFFSCREEN, NEAR, NONE}
-                assert (g.status == HIT).mean() > 0.5   # a closed room: most rays hit a wall
+        for size in (SIZE, (37, 29)):   # and an odd size
+            rig = StereoRig(Pose.look_at([0, 1.6, 3], [0, 1, 0]), size=size)
+            fr = Frame(r, rig)
+            for eye in (0, 1):
+                o, d = fr.reflection_rays(eye)
+                o2, d2 = fr.free_space_rays(1000, seed=eye, eye=eye)
+                o, d = np.r_[o, o2], np.r_[d, d2]
+                for stride, thickness in ((1, np.inf), (1, 0.05), (3, 0.02)):
+                    kw = dict(max_steps=200, stride=stride, thickness=thickness)
+                    g, c = fr.gpu(o, d, eye, **kw), fr.cpu(o, d, eye, **kw)
+                    agree = same(g, c)
+                    assert agree.mean() >= 0.995, (size, eye, stride, thickness, agree.mean())
+                    assert np.abs(g.point - c.point)[agree].max() <= 1e-3
+                    assert finite(g) and finite(c)
+                    assert set(np.unique(g.status)) <= {HIT, OFFSCREEN, NEAR, NONE}
+                    if thickness == np.inf:   # a closed room: most rays hit a wall
+                        assert (g.status == HIT).mean() > 0.5
+        timing = fr.tracer.time_trace(fr.gb, fr.eyes, fr.origin, o, d, 1, repeats=2)
+        assert timing["rays"] == len(o) and timing["rays_per_s"] > 0 and timing["mean_steps"] > 1
 
 
 def check_against_reference(fr, planes, o, d, eye=0, min_agree=0.99, bound_px=1.5, bound_share=0.98):

@@ -48,6 +48,7 @@ the two differ on rays from free space whose hit lies in the origin's column.)
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -56,6 +57,8 @@ import numpy as np
 
 from .. import shaders
 from ..gpu_layout import SSBO
+from ..timing import settle
+from .gpu import WARMUP_S
 
 HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4  # DDA_HIT ... DDA_NONE in glsl/ssrt/dda.glsl
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
@@ -174,9 +177,10 @@ def trace_dda(linear_depth, cam: DdaCamera, origins, directions, max_steps: int 
         degenerate = ~(m > 0)
         ms = np.where(degenerate, f32(1.0), m)
         Dn = D / ms[:, None]
-        a_hi = np.where(degenerate, f32(0.0), (u_hi - u_lo) * m)
+        major = np.where(np.abs(D[:, 0]) >= np.abs(D[:, 1]), 0, 1)
+        # the clipped segment spans at most the image along the major axis (a guard against overflow)
+        a_hi = np.where(degenerate, f32(0.0), np.minimum((u_hi - u_lo) * m, size[major]))
         s_lo = s0 + u_lo[:, None] * D
-    major = np.where(np.abs(D[:, 0]) >= np.abs(D[:, 1]), 0, 1)
     idx = np.arange(n)
     x_lo = s_lo[idx, major]
     sgn = np.where(Dn[idx, major] < 0, f32(-1.0), f32(1.0))
@@ -288,6 +292,41 @@ class DdaTracer:
         pixel = out[:, 2:4].view(np.int32).copy()
         point = out[:, 4:7].view(f32).copy()
         return DdaResult(status, pixel, point, steps)
+
+    def time_trace(self, gbuffer, eyes, scene_origin, origins, directions, eye=0, max_steps: int = 256,
+                   stride: float = 1.0, thickness: float = np.inf, repeats: int = 10) -> dict:
+        """GPU ms per dispatch of the batch (rays already on the GPU; timer query after the times
+        settle, as rayvr/accel/gpu.py RayTracer.time_trace), rays/s and the mean steps per ray."""
+        res = self.trace(gbuffer, eyes, scene_origin, origins, directions, eye, max_steps, stride, thickness)
+        rays = pack_rays(origins, directions, eye)
+        n = len(rays)
+        rbuf = self.ctx.buffer(rays.tobytes())
+        obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
+        query = self.ctx.query(time=True)
+        groups = -(-n // _LOCAL_SIZE)
+        gx = min(groups, _MAX_GROUPS_X)
+        try:
+            gbuffer.bind_for_reading()
+            rbuf.bind_to_storage_buffer(SSBO["dda_rays"])
+            obuf.bind_to_storage_buffer(SSBO["dda_results"])
+
+            def batch_ms(count=1) -> float:
+                with query:
+                    for _ in range(count):
+                        self.program.run(gx, -(-groups // gx), 1)
+                return query.elapsed / 1e6 / count
+
+            settle(batch_ms, min_seconds=WARMUP_S)
+            t0 = time.perf_counter()
+            gpu = batch_ms(repeats)
+            self.ctx.finish()
+            wall = (time.perf_counter() - t0) / repeats * 1e3
+        finally:
+            rbuf.release()
+            obuf.release()
+        ms = gpu if gpu > 0.01 * wall else wall   # llvmpipe reports ~0 for compute in timer queries
+        return {"rays": n, "gpu_ms": gpu, "wall_ms": wall, "rays_per_s": n / (ms * 1e-3),
+                "mean_steps": float(res.steps.mean()), "max_steps_reached": float((res.steps >= max_steps).mean())}
 
     def release(self) -> None:
         self.program.release()

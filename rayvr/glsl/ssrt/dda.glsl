@@ -109,9 +109,10 @@ DdaResult dda_trace(int eye, vec3 origin, vec3 direction, vec2 size, int max_ste
     float m = max(abs(D.x), abs(D.y));
     bool degenerate = !(m > 0.0);
     vec3 Dn = D / (degenerate ? 1.0 : m);
-    float a_hi = degenerate ? 0.0 : (u_hi - u_lo) * m;
-    vec3 s_lo = s0 + u_lo * D;
     int major = abs(D.x) >= abs(D.y) ? 0 : 1;
+    // the clipped segment spans at most the image along the major axis (a guard against overflow)
+    float a_hi = degenerate ? 0.0 : min((u_hi - u_lo) * m, size[major]);
+    vec3 s_lo = s0 + u_lo * D;
     float x_lo = s_lo[major];
     float sgn = Dn[major] < 0.0 ? -1.0 : 1.0;
     float col0 = sgn > 0.0 ? floor(x_lo) : ceil(x_lo) - 1.0;
