@@ -39,7 +39,7 @@ def scenes():
     out["step"] = (from_arrays(v, f), rig)
     v, f, _ = merge(quad((0, 0, -6), (6, 0, 0), (0, 6, 0)), sphere((0.2, 0.1, -3.5), 1.0))
     out["sphere"] = (from_arrays(v, f), rig)
-    v, f, _ = merge(quad((0, 0, -5), (4, 0, 0), (0, 4, 0)), quad((0.3, 0, -3), (0.02, 0, 0), (0, 3, 0)))
+    v, f, _ = merge(quad((0, 0, -5), (4, 0, 0), (0, 4, 0)), quad((0.3, 0, -3), (0.06, 0, 0), (0, 3, 0)))
     out["thin_pole"] = (from_arrays(v, f), rig)
     return out
 
@@ -262,3 +262,310 @@ def test_default_room(gl):
             assert_same_tree(L.tracer(**LOSSY).levels(layer), L.build(layer, **LOSSY))
     finally:
         L.release()
+
+
+# ------------------------------------------------------------------ special rays
+
+def to_world(cam: qt.ScreenCamera, p):
+    """A point in S -> scene-local position (and its view depth)."""
+    tx, ty = cam.tangent_at(p[..., 0], p[..., 1])
+    depth = cam.near / p[..., 2]
+    view = np.stack([tx, ty, -np.ones_like(tx)], -1) * depth[..., None]
+    return view @ cam.rotation.T + cam.position, depth
+
+
+@pytest.fixture(scope="module")
+def floor(gl):
+    """A floor to the horizon under a sky (background above it)."""
+    v, f = quad((0, 0, -30), (30, 0, 0), (0, 0, -29.5))
+    rig = StereoRig(Pose.look_at([0, 1, 0], [0, 0.7, -4]), ipd=0.1, fov_y=60, size=SIZE)
+    L = Layers(gl, from_arrays(v, f), rig)
+    yield L
+    L.release()
+
+
+def on_border(p, size=SIZE) -> bool:
+    return min(p[0], p[1], size[0] - p[0], size[1] - p[1]) < 1e-4
+
+
+def plane_tolerance(cam, world, normal):
+    """Relative depth error of a hit on a leaf plane from the G-buffer's half-float normal: a
+    normal off by ~2^-11 tilts the leaf, which at <= 0.71 pixel from its centre moves z by
+    ~5e-4 x 0.71 x (pixel size in tangent units) / |cos(normal, view ray)|; x 3 for safety."""
+    v = world - cam.position
+    cos = np.abs(v @ normal) / np.linalg.norm(v, axis=-1) / np.linalg.norm(normal)
+    pixel = (cam.tangents[1] - cam.tangents[0]) / cam.size[0]
+    return 1e-6 + 3 * 5e-4 * 0.71 * pixel / cos
+
+
+def test_hits_lie_on_the_analytic_planes(analytic, floor):
+    """Hit points, mapped back from S, lie on the scene's planes within plane_tolerance (at most
+    ~1e-4 of the view depth here but for grazing pixels)."""
+    rng = np.random.default_rng(2)
+    worst = 0.0
+    for L, p0, n in ((analytic["tilted_plane"], (0, 0, -4), np.cross((3, 0, 0), (0, 2.5, 2.0))),
+                     (floor, (0, 0, -30), np.array([0.0, 1.0, 0.0]))):
+        for layer in (0, 1):
+            o, d = random_rays(rng, L, layer, 60)
+            tr = L.tracer(**LOSSLESS)
+            flag = qt.decode(tr.levels(layer)[0]).flag
+            # Pixels at the plane's silhouette are walls (height field): their hits are not on it;
+            # nor are those of rays that enter the image already behind the surface.
+            got = [t for t in gpu_traces(tr, o, d, layer) if t.status == qt.HIT and not flag[t.pixel[1], t.pixel[0]]
+                   and not on_border(t.point)]
+            assert len(got) > 25
+            world, depth = to_world(L.cams[layer], np.array([t.point for t in got]))
+            err = np.abs((world + L.scene.origin - p0) @ (n / np.linalg.norm(n))) / depth
+            tol = plane_tolerance(L.cams[layer], world, n)
+            assert (err <= tol).all(), (err / tol).max()
+            worst = max(worst, (err / tol).max())
+
+
+def test_grazing_rays_on_a_floor(floor):
+    """Rays skimming the floor (1e-3 to 3e-2 above it, slopes from -1e-2 to +1e-3, some exactly
+    parallel): the GPU equals the brute force and every hit is on the floor."""
+    rng = np.random.default_rng(4)
+    for layer in (0, 1):
+        n = 120
+        o = np.c_[rng.uniform(-3, 3, n), rng.uniform(1e-3, 3e-2, n), rng.uniform(-12, -2, n)] - floor.scene.origin
+        a = rng.uniform(0, 2 * np.pi, n)
+        slope = np.where(rng.random(n) < 0.25, 0.0, rng.uniform(-1e-2, 1e-3, n))
+        d = np.c_[np.sin(a), slope, -np.abs(np.cos(a))]
+        ref, gpu = check_against_brute_force(floor, o, d, layer)
+        flag = qt.decode(floor.tracer(**LOSSLESS).levels(layer)[0]).flag
+        hits = [t for t in gpu if t.status == qt.HIT and not flag[t.pixel[1], t.pixel[0]] and not on_border(t.point)]
+        assert len(hits) > 30
+        cam = floor.cams[layer]
+        world, depth = to_world(cam, np.array([t.point for t in hits]))
+        err = np.abs(world[:, 1] + floor.scene.origin[1]) / depth
+        assert (err <= plane_tolerance(cam, world, np.array([0.0, 1.0, 0.0]))).all()
+
+
+def test_depth_discontinuity_is_a_wall(analytic):
+    """Height-field semantics at a step: a ray passing behind the front panel's edge (between the
+    panel and the backdrop) hits the panel's first pixel where it enters it, already behind it;
+    those pixels carry the discontinuity flag."""
+    L = analytic["step"]
+    for layer in (0, 1):
+        cam = L.cams[layer]
+        n = 40
+        ys = np.linspace(-1.0, 1.2, n)
+        o = np.c_[np.full(n, 1.0), ys, np.full(n, -4.0)] - L.scene.origin
+        d = np.tile([-1.0, 0.0, 0.0], (n, 1))
+        ref, gpu = check_against_brute_force(L, o, d, layer)
+        leaves = qt.decode(L.tracer(**LOSSLESS).levels(layer)[0])
+        depth = L.position[layer][..., 3]
+        for t in gpu:
+            assert t.status == qt.HIT
+            x, y = t.pixel
+            assert abs(depth[y, x] - 4.0) < 0.3                        # the panel (view depth ~4), not the backdrop (~6)
+            assert leaves.flag[y, x]
+            assert depth[y, x + 1] > 5.5                                # entered from the backdrop side
+            assert t.point[0] == pytest.approx(x + 1, abs=1e-3)         # at the pixel's wall
+            assert t.point[2] < leaves.z0[y, x] * (1 + 0.5 * abs(leaves.sx[y, x]))
+
+
+def test_thin_pole_is_hit(analytic):
+    """A pole narrower than a pixel, where the G-buffer has it, stops rays that pass behind it."""
+    L = analytic["thin_pole"]
+    hits = 0
+    for layer in (0, 1):
+        depth = L.position[layer][..., 3]
+        pole = (depth > 0) & (depth < 5.0)      # the pole at view depth ~4, the wall ~6
+        rows = np.nonzero(pole.any(axis=1))[0]
+        if not len(rows):
+            continue
+        n = 30
+        ys = np.linspace(-0.8, 0.8, n)
+        o = np.c_[np.full(n, -1.0), ys, np.full(n, -3.6)] - L.scene.origin
+        d = np.tile([1.0, 0.0, 0.0], (n, 1))
+        ref, gpu = check_against_brute_force(L, o, d, layer)
+        for t in gpu:
+            if t.status == qt.HIT and pole[t.pixel[1], t.pixel[0]]:
+                hits += 1
+    assert hits >= 20, hits
+
+
+def test_rays_leaving_the_screen(floor):
+    """Rays from border pixels outwards, and from the centre exactly through a corner (across
+    the sky), leave the image: OFFSCREEN at the border."""
+    W, H = SIZE
+    cam = floor.cams[0]
+    tr = floor.tracer(**LOSSLESS)
+    # Through the top-right corner: from a point on the centre line towards the corner's frustum
+    # edge at the same depth.
+    l, r, b, t = cam.tangents
+    depth = 2.0
+    centre = cam.position + cam.rotation @ (np.array([(l + r) / 2, (b + t) / 2, -1.0]) * depth)
+    corner = cam.position + cam.rotation @ (np.array([r, t, -1.0]) * depth)
+    o = np.array([centre, centre])
+    d = np.array([corner - centre, [-1.0, 0.0, 0.0]])
+    ref, gpu = check_against_brute_force(floor, o, d, 0)
+    assert [g.status for g in gpu] == [qt.OFFSCREEN, qt.OFFSCREEN]
+    assert gpu[0].point[:2] == pytest.approx([W, H], abs=1e-3)
+    assert gpu[1].point[0] == pytest.approx(0.0, abs=1e-4)
+    # From lifted surface points on the border rows and columns, outwards parallel to the image.
+    pos = floor.position[0]
+    right, up = cam.rotation[:, 0], cam.rotation[:, 1]
+    cases = [(pos[0, x, :3], -up) for x in range(0, W, 4)] + [(pos[y, 0, :3], -right) for y in range(0, H // 3)]
+    o = np.array([p + 0.5 * (cam.position - p) for p, _ in cases])    # half-way back to the eye
+    d = np.array([v for _, v in cases])
+    ref, gpu = check_against_brute_force(floor, o, d, 0)
+    assert all(g.status == qt.OFFSCREEN for g in gpu)
+    assert all(min(g.point[0], g.point[1]) == pytest.approx(0.0, abs=1e-3) for g in gpu)
+
+
+def test_rays_towards_the_camera(analytic):
+    """Back along a pixel's line of sight (a point on screen: no screen direction), towards the
+    camera with a sideways drift, from in front of the near plane, from behind the camera: NEAR
+    (or what the brute force says), never NaN."""
+    L = analytic["sphere"]
+    cam = L.cams[0]
+    rng = np.random.default_rng(9)
+    pos = L.position[0].reshape(-1, 4)
+    idx = rng.choice(np.nonzero(pos[:, 3] > 0)[0], 20)
+    p = pos[idx, :3].astype(np.float64) + 0.3 * (cam.position - pos[idx, :3])
+    back = cam.position - p
+    o = np.concatenate([p, p, [cam.position + 0.3 * L.rig.near * -cam.rotation[:, 2]], [cam.position + cam.rotation[:, 2]]])
+    drift = rng.normal(0, 0.003, back.shape) * np.linalg.norm(back, axis=1, keepdims=True)
+    d = np.concatenate([back, back + drift, [cam.rotation[:, 2]], [cam.rotation[:, 2]]])
+    ref, gpu = check_against_brute_force(L, o, d, 0)
+    assert all(g.status == qt.NEAR for g in gpu[:20])                # straight back: nothing in between
+    assert all(g.nodes >= 1 for g in gpu[:20])
+    assert all(g.status in (qt.NEAR, qt.OFFSCREEN, qt.HIT) for g in gpu[20:40])
+    assert sum(g.status == qt.NEAR for g in gpu[20:40]) > 10
+    assert [(g.status, g.nodes) for g in gpu[40:]] == [(qt.NEAR, 0), (qt.NEAR, 0)]
+
+
+def test_background_and_infinity(floor):
+    """Rays into the sky whose vanishing point is on screen reach infinity there (NONE, z = 0 at
+    the vanishing point); a ray along a background pixel's line of sight too."""
+    cam = floor.cams[0]
+    W, H = SIZE
+    rng = np.random.default_rng(3)
+    n = 30
+    tx = rng.uniform(cam.tangents[0] * 0.9, cam.tangents[1] * 0.9, n)
+    ty = rng.uniform(0.05, cam.tangents[3] * 0.9, n)         # above the eye level: sky
+    d = np.c_[tx, ty, -np.ones(n)] @ cam.rotation.T
+    o = cam.position + rng.normal(0, 0.2, (n, 3)) + np.array([0, 0.3, 0])
+    bg = np.argwhere(floor.position[0][..., 3] == 0)[0]      # a sky pixel (row, column)
+    pix = cam.tangent_at(bg[1] + 0.5, bg[0] + 0.5)
+    o = np.r_[o, [cam.position]]
+    d = np.r_[d, [cam.rotation @ [pix[0], pix[1], -1.0]]]
+    ref, gpu = check_against_brute_force(floor, o, d, 0)
+    kx, ky = cam.scale
+    nones = [i for i in range(n) if gpu[i].status == qt.NONE]
+    assert len(nones) > n // 2
+    for i in nones:
+        v = cam.rotation.T @ d[i]
+        vanish = [(v[0] / -v[2] - cam.tangents[0]) * kx, (v[1] / -v[2] - cam.tangents[2]) * ky, 0.0]
+        assert gpu[i].point == pytest.approx(vanish, abs=2e-3)
+    assert gpu[-1].status == qt.NONE and gpu[-1].nodes >= 1
+
+
+@pytest.mark.parametrize("near", [2.0, 1e-4, 5e-7])
+def test_near_far_extremes(gl, near):
+    """The step scene (depths 3..5) with near 2 (ratio 2.5), 1e-4 and 5e-7 (view depth / near up
+    to 1e7, z down to 1e-7): builds agree, traces agree with the brute force, no NaN."""
+    scene, rig = scenes()["step"]
+    rig = StereoRig(rig.pose, ipd=rig.ipd, fov_y=rig.fov_y, size=SIZE, near=near)
+    L = Layers(gl, scene, rig)
+    try:
+        rng = np.random.default_rng(13)
+        for layer in (0, 1):
+            assert_same_tree(L.tracer(**LOSSLESS).levels(layer), L.build(layer))
+            o, d = random_rays(rng, L, layer, 60)
+            ref, gpu = check_against_brute_force(L, o, d, layer)
+            assert sum(t.status == qt.HIT for t in ref) > 20
+    finally:
+        L.release()
+
+
+@pytest.mark.parametrize("size", [(1, 1), (5, 3), (64, 48), (33, 17)])
+def test_image_sizes(gl, size):
+    scene, rig = scenes()["sphere"]
+    L = Layers(gl, scene, rig.with_size(size))
+    try:
+        assert [lv.shape[:2] for lv in L.tracer(**LOSSLESS).levels(0)] == [(h, w) for w, h in qt.level_sizes(*size)]
+        for gammas in (LOSSLESS, LOSSY):
+            assert_same_tree(L.tracer(**gammas).levels(1), L.build(1, **gammas))
+        rng = np.random.default_rng(17)
+        o, d = random_rays(rng, L, 1, 40) if (L.position[1][..., 3] > 0).any() else (np.zeros((1, 3)), -np.ones((1, 3)))
+        check_against_brute_force(L, o, d, 1)
+    finally:
+        L.release()
+
+
+def test_left_right_symmetry(gl):
+    """A scene and rig mirror-symmetric about x = 0: a left-eye ray's result, mirrored, is the
+    right eye's result for the mirrored ray."""
+    v, f, _ = merge(quad((0, 0, -6), (5, 0, 0), (0, 5, 0)), quad((-1.2, 0, -3.5), (0.5, 0, 0), (0, 1.5, 0)),
+                    quad((1.2, 0, -3.5), (0.5, 0, 0), (0, 1.5, 0)), sphere((0, -0.3, -4.5), 0.7))
+    rig = StereoRig(Pose.look_at([0, 0.4, 0.5], [0, 0, -5]), ipd=0.3, fov_y=60, size=SIZE)
+    L = Layers(gl, from_arrays(v, f), rig)
+    try:
+        assert abs(L.scene.origin[0]) < 1e-9
+        rng = np.random.default_rng(21)
+        o, d = random_rays(rng, L, 0, 150)
+        m = np.array([-1.0, 1.0, 1.0])
+        tr = L.tracer(**LOSSLESS)
+        left, right = gpu_traces(tr, o, d, 0), gpu_traces(tr, o * m, d * m, 1)
+        W = SIZE[0]
+        agree = sum(a.status == b.status and (a.status != qt.HIT or (a.pixel == (W - 1 - b.pixel[0], b.pixel[1])
+                    and np.allclose(a.point, [W - b.point[0], b.point[1], b.point[2]], rtol=1e-3, atol=1e-3)))
+                    for a, b in zip(left, right))
+        # Rasterisation is not exactly mirror-symmetric (edge tie rules), so a few rays near
+        # silhouettes may differ.
+        assert agree >= 0.95 * len(o), agree
+        assert sum(a.status == qt.HIT for a in left) > 60
+    finally:
+        L.release()
+
+
+# ------------------------------------------------------------------ lossy trees
+
+def test_gamma_thresholds_visit_fewer_nodes_within_the_bound(gl, analytic):
+    """gamma_norm = cos 10 deg, gamma_dist = 1e-3: fewer nodes visited on average, and every hit
+    lies no more than b = (1 - gamma_dist)^-levels - 1 in front of the leaf surface of its pixel
+    (relative depth): a proxy is within gamma_dist of its children at every point, and levels
+    chain. A hit where the ray enters a node already behind the proxy lies deeper, not nearer."""
+    rig = StereoRig(Pose.look_at([0.3, 1.5, 2.6], [0, 0.8, 0]), ipd=0.064, fov_y=80, size=(48, 36))
+    room = Layers(gl, None, rig)
+    try:
+        for L in (room, analytic["tilted_plane"], analytic["sphere"]):
+            rng = np.random.default_rng(23)
+            o, d = random_rays(rng, L, 0, 200)
+            tr = L.tracer(**LOSSLESS)
+            leaves = qt.decode(tr.levels(0)[0])
+            exact = gpu_traces(tr, o, d, 0)
+            tr = L.tracer(**LOSSY)
+            levels = tr.levels(0)
+            assert sum(qt.decode(lv).plane.sum() for lv in levels[1:]) > 10
+            lossy = gpu_traces(tr, o, d, 0)
+            n_exact, n_lossy = np.mean([t.nodes for t in exact]), np.mean([t.nodes for t in lossy])
+            assert n_lossy < n_exact, (n_lossy, n_exact)
+            bound = (1 - LOSSY["gamma_dist"]) ** -(len(levels) - 1) - 1
+            for t in lossy:
+                if t.status != qt.HIT:
+                    continue
+                x, y = t.pixel
+                assert leaves.plane[y, x]
+                z_leaf = leaves.z0[y, x] * (1 + leaves.sx[y, x] * (t.point[0] - x - 0.5) + leaves.sy[y, x] * (t.point[1] - y - 0.5))
+                assert t.point[2] <= z_leaf * (1 + bound) + 1e-6 * z_leaf
+            same_status = np.mean([a.status == b.status for a, b in zip(exact, lossy)])
+            assert same_status > 0.9
+    finally:
+        room.release()
+
+
+def test_quadtree_pass_is_offered_only_to_effects_that_use_it(gl):
+    r = Renderer(None, gl=gl)
+    try:
+        p = QuadtreePass()
+        assert p.why(r.plan()) is None
+        assert "quadtree" not in r.compiled().pass_names
+        from rayvr.frame import Sizing
+        buf = p.io(r.plan())[1].type
+        assert buf.nbytes(Sizing((37, 29), 2)) == qt.quadtree_bytes(37, 29, 2)
+    finally:
+        r.release()
