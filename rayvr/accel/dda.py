@@ -35,6 +35,11 @@ The march, for a ray (scene-local origin o, direction d) of eye e:
    interval over the step overlaps that slab. thickness = inf makes every pixel a solid height
    field (a ray that passes behind any surface hits it). A relative thickness keeps the test the
    same at every scale (near 1e-4 or 1e7).
+   Ties: a ray that leaves through the side it marches towards ends exactly on a column
+   boundary, and rays from pixel centres with simple slopes cross pixel edges exactly at column
+   centres; so that float rounding (which differs between drivers) decides none of them, a column
+   is tested only if the segment reaches EDGE = 1/256 px into it, and the pixel is picked BIAS =
+   1/256 px further along the ray than the sample.
 6. Result: HIT (pixel, the point on the line where its z reaches z_s, clamped to the step's
    interval), OFFSCREEN (the line left the viewport), NEAR (it reached the near plane), NONE
    (max_steps tests without a hit, or the line ran to infinity, z = 0, on screen). `pixel` and
@@ -61,6 +66,8 @@ from ..timing import settle
 from .gpu import WARMUP_S
 
 HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4  # DDA_HIT ... DDA_NONE in glsl/ssrt/dda.glsl
+EDGE = np.float32(1.0 / 256.0)  # DDA_EDGE: a column is tested if the segment reaches this far (px) into it
+BIAS = np.float32(1.0 / 256.0)  # DDA_BIAS: the pixel is picked this far (px) along the ray from the sample
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
 _LOCAL_SIZE = 64
 _MAX_GROUPS_X = 65535
@@ -202,12 +209,12 @@ def trace_dda(linear_depth, cam: DdaCamera, origins, directions, max_steps: int 
         c = col0[a] + f32(0.5) + sgn[a] * k[a] * stride
         ak = (c - x_lo[a]) * sgn[a]
         a_start = np.maximum(ak - half, f32(0.0))
-        ended = ~(a_start < a_hi[a])
+        ended = ~(a_start + EDGE < a_hi[a])
         status[a[ended]] = end_status[a[ended]]
         a, ak, a_start = a[~ended], ak[~ended], a_start[~ended]
         a_end = np.minimum(ak + half, a_hi[a])
         ap = np.minimum(ak, a_hi[a])
-        p = s_lo[a, :2] + ap[:, None] * Dn[a, :2]
+        p = s_lo[a, :2] + ap[:, None] * Dn[a, :2] + BIAS * np.sign(Dn[a, :2])
         px = np.clip(np.floor(p).astype(np.int64), 0, [W - 1, H - 1]).astype(np.int32)
         pixel[a] = px
         point[a] = s_lo[a] + ap[:, None] * Dn[a]

@@ -39,6 +39,13 @@ layout(binding = GB_UNIT_LINEAR_DEPTH) uniform sampler2DArray dda_linear_depth;
 #define DDA_DEPTH(p) texelFetch(dda_linear_depth, p, 0).x
 #endif
 
+// Ties: a ray leaving through the side it marches towards ends exactly on a column boundary,
+// and rays from pixel centres with simple slopes meet pixel edges exactly at column centres. So
+// rounding (which differs between drivers) decides nothing, a column is tested only if the
+// segment reaches DDA_EDGE px into it, and the pixel is picked DDA_BIAS px further along the ray.
+#define DDA_EDGE (1.0 / 256.0)
+#define DDA_BIAS (1.0 / 256.0)
+
 #define DDA_HIT 1u
 #define DDA_OFFSCREEN 2u
 #define DDA_NEAR 3u
@@ -128,13 +135,13 @@ DdaResult dda_trace(int eye, vec3 origin, vec3 direction, vec2 size, int max_ste
         float c = col0 + 0.5 + sgn * k * stride;
         float ak = (c - x_lo) * sgn;
         float a_start = max(ak - half_stride, 0.0);
-        if (!(a_start < a_hi)) {
+        if (!(a_start + DDA_EDGE < a_hi)) {
             res.status = end_status;
             return res;
         }
         float a_end = min(ak + half_stride, a_hi);
         float ap = min(ak, a_hi);
-        vec2 p = s_lo.xy + ap * Dn.xy;
+        vec2 p = s_lo.xy + ap * Dn.xy + DDA_BIAS * sign(Dn.xy);
         ivec2 px = clamp(ivec2(floor(p)), ivec2(0), last);
         res.pixel = px;
         res.point = s_lo + ap * Dn;
