@@ -194,6 +194,7 @@ def assert_same_tree(gpu_levels, ref_levels):
     the numpy build's float64 then rounded); slopes to one half-float step."""
     for k, (g, r) in enumerate(zip(gpu_levels, ref_levels)):
         a, b = qt.decode(g), qt.decode(r)
+        assert all(np.isfinite(v).all() for v in a[2:]), f"level {k}: NaN or inf in a node"
         assert (a.plane == b.plane).all(), f"level {k}: {(a.plane != b.plane).sum()} nodes differ in kind"
         assert (a.flag == b.flag).all(), f"level {k}: {(a.flag != b.flag).sum()} discontinuity flags differ"
         for v in ("z0", "zmin", "zmax"):
@@ -569,3 +570,51 @@ def test_quadtree_pass_is_offered_only_to_effects_that_use_it(gl):
         assert buf.nbytes(Sizing((37, 29), 2)) == qt.quadtree_bytes(37, 29, 2)
     finally:
         r.release()
+
+
+def test_an_effect_that_uses_the_quadtree_gets_it_built_in_the_frame(gl):
+    """A plugin effect with `uses_quadtree = True` and a pass reading "quadtree" makes the graph
+    keep the quadtree pass; the tree it builds in the frame equals QuadtreeTracer's."""
+    from rayvr.effects import Effect, register, unregister
+    from rayvr.frame import Pass, compose, read
+    from rayvr.materials import parse_config
+
+    class Probe(Pass):
+        name = "qt_probe"
+
+        def why(self, plan):
+            return "effect qt_probe" if "qt_probe" in plan.effects else None
+
+        def io(self, plan):
+            return [read("quadtree"), compose("hdr")]
+
+        def execute(self, fc):
+            pass  # an effect would trace its rays here, through glsl/ssrt/quadtree.glsl
+
+    class QtProbe(Effect):
+        name = "qt_probe"
+        doc = "reads the quadtree (a test plugin)"
+        uses_quadtree = True
+
+        def passes(self):
+            return [QuadtreePass(), Probe()]
+
+    register(QtProbe())
+    try:
+        cfg = parse_config({"default": "qt_probe"}, "<quadtree test>")
+        rig = StereoRig(Pose.look_at([0.3, 1.5, 2.6], [0, 0.8, 0]), ipd=0.064, fov_y=80, size=SIZE)
+        with Renderer(None, cfg, gl=gl) as r:
+            names = r.compiled().pass_names
+            assert names.index("gbuffer") < names.index("quadtree") < names.index("qt_probe")
+            frame = r.render(rig, aux=())
+            assert "quadtree" in frame.timings
+            in_frame = np.frombuffer(r.resource("quadtree").read(), np.uint32)
+            tracer = QuadtreeTracer(r)
+            try:
+                tracer.build(rig)
+                assert np.array_equal(in_frame, np.frombuffer(tracer.nodes.read(), np.uint32))
+                assert qt.decode(tracer.levels(0)[0]).plane.sum() > 500
+            finally:
+                tracer.release()
+    finally:
+        unregister("qt_probe")

@@ -40,7 +40,8 @@ Height-field semantics (single layer): a ray hits where it first passes behind t
 infinity on screen without a hit).
 
 GLSL: glsl/ssrt/quadtree_build.comp (build), glsl/ssrt/quadtree.glsl (decode + traversal),
-glsl/ssrt/quadtree_batch.comp (batch harness, QuadtreeTracer below).
+glsl/ssrt/quadtree_batch.comp (batch harness). The frame-graph pass and the GPU batch tracer
+(QuadtreeTracer): rayvr/passes/quadtree.py.
 """
 from __future__ import annotations
 
