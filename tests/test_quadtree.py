@@ -651,3 +651,12 @@ def test_axis_aligned_rays_and_cell_corners(analytic):
     assert sum(t.status == qt.HIT for t in ref) > 10
     for a, g in zip(ref, gpu):
         assert g.nodes <= 4 * max(a.nodes, 1) + 2 * len(qt.level_sizes(*SIZE)), (a, g)
+
+
+def test_tracer_times_build_and_trace(analytic):
+    L = analytic["step"]
+    rng = np.random.default_rng(1)
+    o, d = random_rays(rng, L, 0, 200)
+    t = L.tracer(**LOSSLESS).time(L.rig, o, d, 0, repeats=2, min_seconds=0.0)
+    assert t["rays"] == 200 and t["rays_per_s"] > 0 and t["build"]["ms"] > 0
+    check_against_brute_force(L, o[:20], d[:20], 0)  # the tracer still traces after timing

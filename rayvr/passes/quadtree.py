@@ -9,6 +9,8 @@ pass reads "quadtree" (binds it at SSBO["quadtree_nodes"], calls `set_tree_unifo
 `set_eye_uniforms`, and includes glsl/ssrt/quadtree.glsl)."""
 from __future__ import annotations
 
+import time
+
 import moderngl
 import numpy as np
 
@@ -144,29 +146,90 @@ class QuadtreeTracer:
         """Trace scene-local rays in layer `eye` (an int or one per ray). Returns status (N,)
         uint32, nodes (N,) uint32, pixel (N, 2) int32 (GL pixel; -1 when no hit), point (N, 3)
         float32 (in S)."""
-        o = np.asarray(origins, np.float32).reshape(-1, 3)
-        d = np.asarray(directions, np.float32).reshape(-1, 3)
-        n = len(o)
-        rays = np.zeros((n, 8), np.float32)
-        rays[:, :3], rays[:, 3], rays[:, 4:7] = o, np.broadcast_to(np.asarray(eye, np.float32), (n,)), d
+        rays = self._pack(origins, directions, eye)
+        n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes())
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
         try:
-            set_tree_uniforms(self.program, self.size)
-            self._set_eyes(self.program)
-            self.nodes.bind_to_storage_buffer(SSBO["quadtree_nodes"])
-            rbuf.bind_to_storage_buffer(SSBO["quadtree_rays"])
-            obuf.bind_to_storage_buffer(SSBO["quadtree_results"])
-            self.program["ray_count"].value = n
-            groups = -(-n // 64)
-            gx = min(groups, 65535)
-            self.program.run(gx, -(-groups // gx), 1)
+            self._bind(rbuf, obuf, n)
+            self._dispatch(n)
             self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
             out = np.frombuffer(obuf.read(), np.uint32).reshape(-1, 8)[:n]
         finally:
             rbuf.release()
             obuf.release()
         return out[:, 0].copy(), out[:, 1].copy(), out[:, 2:4].view(np.int32).copy(), out[:, 4:7].view(np.float32).copy()
+
+    @staticmethod
+    def _pack(origins, directions, eye) -> np.ndarray:
+        o = np.asarray(origins, np.float32).reshape(-1, 3)
+        d = np.asarray(directions, np.float32).reshape(-1, 3)
+        rays = np.zeros((len(o), 8), np.float32)
+        rays[:, :3], rays[:, 3], rays[:, 4:7] = o, np.broadcast_to(np.asarray(eye, np.float32), (len(o),)), d
+        return rays
+
+    def _bind(self, rbuf, obuf, n: int) -> None:
+        set_tree_uniforms(self.program, self.size)
+        self._set_eyes(self.program)
+        self.nodes.bind_to_storage_buffer(SSBO["quadtree_nodes"])
+        rbuf.bind_to_storage_buffer(SSBO["quadtree_rays"])
+        obuf.bind_to_storage_buffer(SSBO["quadtree_results"])
+        self.program["ray_count"].value = n
+
+    def _dispatch(self, n: int) -> None:
+        groups = -(-n // 64)
+        gx = min(groups, 65535)
+        self.program.run(gx, -(-groups // gx), 1)
+
+    def time(self, rig, origins, directions, eye=0, gamma_norm: float = 1.0, gamma_dist: float = 0.0,
+             repeats: int = 10, min_seconds: float = 1.0) -> dict:
+        """GPU ms of the build (all levels, all layers) and of tracing the rays (already on the GPU),
+        after the times settle (timing.settle); median of 5 batches of `repeats` each. llvmpipe's
+        timer queries read ~0 for compute: there the wall time per dispatch stands in."""
+        from ..timing import settle
+
+        gbuffer = self.renderer.resource("gbuffer")
+        rays = self._pack(origins, directions, eye)
+        n = len(rays)
+        rbuf = self.ctx.buffer(rays.tobytes())
+        obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
+        query = self.ctx.query(time=True)
+
+        def timed(fn) -> dict:
+            def one() -> float:
+                with query:
+                    fn()
+                return query.elapsed / 1e6
+            settle(one, min_seconds=min_seconds)
+            gpu, wall = [], []
+            for _ in range(5):
+                t0 = time.perf_counter()
+                with query:
+                    for _ in range(repeats):
+                        fn()
+                gpu.append(query.elapsed / 1e6 / repeats)
+                self.ctx.finish()
+                wall.append((time.perf_counter() - t0) * 1e3 / repeats)
+            g, w = float(np.median(gpu)), float(np.median(wall))
+            return {"gpu_ms": g, "gpu_ms_min": min(gpu), "gpu_ms_max": max(gpu), "wall_ms": w,
+                    "ms": g if g > 0.01 * w else w}
+
+        def build() -> None:
+            self._set_eyes(self.builder.program)
+            self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist)
+
+        def trace() -> None:
+            self._bind(rbuf, obuf, n)
+            self._dispatch(n)
+
+        try:
+            self.build(rig, "both" if gbuffer.layers == 2 else "left", gamma_norm, gamma_dist)
+            out = {"build": timed(build), "trace": timed(trace), "rays": n}
+            out["rays_per_s"] = n / (out["trace"]["ms"] * 1e-3)
+        finally:
+            rbuf.release()
+            obuf.release()
+        return out
 
     def release(self) -> None:
         self.builder.release()
