@@ -31,8 +31,9 @@ children's, its offset the least-squares fit of the children's corner z (the pap
 in S); both tests run on the *encoded* proxy, so what is stored is what was checked. Otherwise the
 parent is an AABB of its children's z ranges, widened by AABB_MARGIN (float rounding must not
 cull a leaf's hit). gamma_dist = 0 never merges (lossless: plane leaves under a max-z tree).
-A merged surface stays within (1 + gamma_dist)^m - 1 relative depth of the leaf planes after m
-merges (each level compares with its children, which were themselves within the bound).
+A proxy is within gamma_dist of its children at every point of the node (the difference of two
+planes is affine: its largest relative value is at a corner), so after m merges the stored surface
+lies within (1 - gamma_dist)^-m - 1 relative depth of the leaf planes.
 
 Height-field semantics (single layer): a ray hits where it first passes behind the surface
 (z_ray < z_surface) in a pixel with geometry. Statuses as in rayvr/accel/dda.py: HIT, OFFSCREEN

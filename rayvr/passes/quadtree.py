@@ -4,7 +4,7 @@ once; and `QuadtreeTracer`, which builds it for a rendered frame and traces ray 
 it (glsl/ssrt/quadtree_batch.comp) for tests and benchmarks.
 
 No effect reads the tree yet, so `why()` offers the pass only to plans with an effect that says
-`uses_quadtree = True`; such an effect returns `QuadtreePass()` among its `passes()` and its own
+`uses_quadtree = True` (and a pinhole camera: S is the planar projection's space); such an effect returns `QuadtreePass()` among its `passes()` and its own
 pass reads "quadtree" (binds it at SSBO["quadtree_nodes"], calls `set_tree_uniforms` and
 `set_eye_uniforms`, and includes glsl/ssrt/quadtree.glsl)."""
 from __future__ import annotations
@@ -80,7 +80,10 @@ class QuadtreePass(Pass):
         from ..effects import EFFECTS
 
         users = [e for e in sorted(plan.effects) if getattr(EFFECTS.get(e), "uses_quadtree", False)]
-        return f"screen-space tracing ({', '.join(users)})" if users else None
+        # Planes in S and straight rays need a planar projection: the pinhole's G-buffer only.
+        if not users or plan.camera != "pinhole":
+            return None
+        return f"screen-space tracing ({', '.join(users)})"
 
     def io(self, plan: FramePlan) -> list:
         return [read("gbuffer"), write("quadtree", QUADTREE)]
