@@ -258,6 +258,12 @@ def cmd_bench(args) -> int:
         peers.run(out, size=(64, 36) if quick else (1280, 720),
                   scenes=("default",) if quick else tuple(args.scenes.split(",")),
                   frames=5 if quick else args.repeat * 4, backend=args.backend)
+    elif args.area == "ssrt":
+        from .bench import ssrt
+
+        ssrt.run(out, size=(64, 48) if quick else args.size,
+                 scenes=("default",) if quick else tuple(args.scenes.split(",")),
+                 repeat=2 if quick else args.repeat, backend=args.backend)
     elif args.area == "crosscheck":
         from .bench import mitsuba_ref
 
@@ -356,9 +362,9 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
-    b.add_argument("area", choices=("gbuffer", "rays", "peers", "tradeoff", "budget", "crosscheck"),
+    b.add_argument("area", choices=("gbuffer", "rays", "ssrt", "peers", "tradeoff", "budget", "crosscheck"),
                    help="gbuffer: layered stereo vs mono G-buffer ms; rays: rays/s vs Embree and the hybrid "
-                        "frame; peers: frames/s against pyrender; "
+                        "frame; ssrt: quadtree screen-space tracing vs the DDA baseline; peers: frames/s against pyrender; "
                         "tradeoff: every knob's GPU ms vs error against the reference; budget: effects per "
                         "material chosen under --budget-ms; crosscheck: the reference vs Mitsuba 3 on the Cornell boxes")
     b.add_argument("--budget-ms", type=_budgets, default=[4.0, 8.0], help="frame budgets for 'budget' (default 4,8)")

@@ -1,0 +1,17 @@
+"""`rayvr bench ssrt --quick` runs end to end (CI smoke test; figures come from the GPU machine)."""
+import json
+import subprocess
+import sys
+
+
+def test_bench_ssrt_quick_writes_quadtree_and_dda_rows(tmp_path):
+    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "ssrt", "--quick", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    result = json.loads((tmp_path / "ssrt.json").read_text())
+    rows = result["rows"]
+    assert {r["tracer"] for r in rows} == {"quadtree", "dda"} and result["meta"]["gl_renderer"]
+    lossless = next(r for r in rows if r["tracer"] == "quadtree" and r["gamma_norm"] == 1.0)
+    merged = next(r for r in rows if r["tracer"] == "quadtree" and r["gamma_norm"] < 1.0)
+    assert merged["nodes_mean"] < lossless["nodes_mean"]  # merged planes skip nodes
+    assert all(r["status_agrees_with_quadtree"] > 0.9 for r in rows if r["tracer"] == "dda")
