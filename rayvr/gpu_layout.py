@@ -49,6 +49,7 @@ SSBO = {
     "wave_paths": 12, "wave_shadows": 13, "wave_args": 14,  # passes/trace_effect.py
     "dda_rays": 15, "dda_results": 16,  # accel/dda.py DdaTracer (glsl/ssrt/dda_batch.comp)
     "quadtree_nodes": 20, "quadtree_rays": 21, "quadtree_results": 22,  # passes/quadtree.py, glsl/ssrt/quadtree*.glsl
+    "hiz_levels": 23, "hiz_rays": 24, "hiz_results": 25,  # accel/hiz.py HizTracer, glsl/ssrt/hiz*.glsl
 }
 # Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
 IMAGE = {"hdr": 0, "ldr": 1}
