@@ -1,0 +1,218 @@
+// Hi-Z screen-space tracing: a hierarchical traversal of a min-max depth pyramid (the baseline
+// beside DDA and the quadtree). rayvr/accel/hiz.py trace_hiz_reference is its numpy mirror, step
+// for step; tests/test_hiz.py compares both with the brute-force height field.
+//
+//   HizResult hiz_trace(int eye, vec3 origin, vec3 direction, int start_level,
+//                       int max_iterations, float thickness_factor);
+//
+//   eye             layer of the pyramid (and index of the camera uniforms of common/camera.glsl)
+//   origin          scene-local ray origin (world - scene origin), as G-buffer positions are
+//   direction       scene-local direction (any length, not zero)
+//   start_level     the level the walk starts on (clamped to [0, hiz_top]); any level is correct
+//   max_iterations  most cells visited; running out is HIZ_NONE
+//   thickness_factor 1 / (1 + thickness) as in ssrt/dda.glsl: a pixel is the slab
+//                   z in [z_s * factor, z_s]; 0 = infinite thickness (a solid height field)
+//
+// Screen space S as in dda.glsl / quadtree.glsl: x, y in pixels (GL, origin bottom-left), z = near
+// / view depth. The ray is projected as quadtree.glsl does (hiz_screen_ray mirrors qt_screen_ray):
+// p(u) = s0 + u sd, u in pixels along the screen. Statuses HIZ_HIT / HIZ_OFFSCREEN / HIZ_NEAR /
+// HIZ_NONE have the values of DDA_* and QT_*. Unlike DDA, the origin's own pixel is tested (as
+// the brute force does). `pixel`/`point` of the hit, else pixel (-1, -1) and the point where the
+// ray left / ended (where it stopped when out of iterations); `iterations` = cells visited.
+//
+// The pyramid (ssrt/hiz_build.comp): level k has ceil(W/2^k) x ceil(H/2^k) cells, each vec2(zmin,
+// zmax) of its pixels' z; background pixels count in neither (a cell of background only is
+// (HIZ_EMPTY, 0): no ray, z > 0, passes below 0).
+//
+// The walk: visit the cell at level k holding p(u); the ray's z over [u, exit] (exit = the first
+// far wall) against the cell's slab [zmin * factor, zmax]. Overlap: move u to where the ray enters
+// the slab and go down a level (at level 0: a hit). Miss: step to the neighbour across the wall
+// that comes first (that axis only: a corner tie costs one empty visit, never a skipped cell) and
+// go up a level. Cells are tracked as integers and u only moves to walls computed by one formula,
+// so no position is nudged (the failure modes of float cell lookups, research notes 1.5).
+#ifndef RAYVR_SSRT_HIZ_GLSL
+#define RAYVR_SSRT_HIZ_GLSL
+#include "../layout.glsl"
+#include "../common/camera.glsl"
+
+#define HIZ_HIT 1u
+#define HIZ_OFFSCREEN 2u
+#define HIZ_NEAR 3u
+#define HIZ_NONE 4u
+#define HIZ_MAX_LEVELS 16
+#define HIZ_EMPTY 3.0e38  // zmin of a cell without geometry (finite: EMPTY * 0 is 0, not NaN)
+#define HIZ_INF 3.0e38
+
+#ifndef HIZ_LEVELS_ACCESS
+#define HIZ_LEVELS_ACCESS readonly
+#endif
+// An SSBO rather than a mipmapped texture: mips are floor(W/2^k) wide, which drops the last
+// column of an odd level; ceil sizes keep every 2 x 2 reduction simple and every pixel covered.
+layout(std430, binding = SSBO_HIZ_LEVELS) HIZ_LEVELS_ACCESS restrict buffer HizLevels { vec2 hiz_cells[]; };
+
+uniform ivec4 hiz_level[HIZ_MAX_LEVELS];  // per level: width, height, index of its first cell in a layer, 0
+uniform int hiz_top;                      // the 1 x 1 level
+uniform uint hiz_layer_cells;             // cells per layer
+
+uint hiz_index(int eye, int k, ivec2 q) {
+    return uint(eye) * hiz_layer_cells + uint(hiz_level[k].z + q.y * hiz_level[k].x + q.x);
+}
+
+struct HizRay { vec3 s0; vec3 sd; float u_lo; float u_hi; uint end; };
+
+// The ray in S, clipped at the near plane and to the image ([u_lo, u_hi]; empty: u_lo > u_hi);
+// `end` is the status of a ray that meets nothing there. As qt_screen_ray (quadtree.glsl).
+HizRay hiz_screen_ray(int eye, vec3 origin, vec3 direction) {
+    HizRay r = HizRay(vec3(0.0), vec3(0.0), 0.0, -1.0, HIZ_NEAR);
+    float n = eye_depth.x;
+    vec4 t = eye_tangents[eye];
+    vec2 size = vec2(hiz_level[0].xy);
+    vec2 k = size / vec2(t.y - t.x, t.w - t.z);
+    mat3 to_view = transpose(eye_rotation[eye]);
+    vec3 o = to_view * (origin - eye_position[eye]);
+    vec3 d = to_view * direction;
+    float da = -o.z, dd = -d.z;
+    float s;
+    if (dd > 0.0)
+        s = max(0.0, (n - da) / dd);
+    else if (da >= n)
+        s = 0.0;
+    else
+        return r;                                   // wholly in front of the near plane
+    vec3 a = o + s * d;
+    da = -a.z;
+    r.s0 = vec3((a.xy / da - t.xz) * k, n / da);
+    vec2 w = (d.xy * da - a.xy * dd) * k;
+    float wlen = length(w);
+    vec2 mag = (abs(d.xy * da) + abs(a.xy * dd)) * k;
+    r.end = dd >= 0.0 ? HIZ_NONE : HIZ_NEAR;
+    float u_max;
+    if (wlen <= 1e-6 * (mag.x + mag.y) || wlen == 0.0) {  // along a pixel's line of sight
+        if (dd == 0.0) {
+            r.end = HIZ_NONE;
+            return r;
+        }
+        r.sd = vec3(0.0, 0.0, (dd > 0.0 ? 0.0 : 1.0) - r.s0.z);
+        u_max = 1.0;
+    } else {
+        r.sd = vec3(w / wlen, -n * dd / wlen);
+        u_max = dd == 0.0 ? HIZ_INF : ((dd > 0.0 ? 0.0 : 1.0) - r.s0.z) / r.sd.z;
+    }
+    float lo = 0.0, hi = u_max;
+    for (int i = 0; i < 2; i++) {
+        float c = r.s0[i], dc = r.sd[i];
+        if (dc != 0.0) {
+            float u0 = -c / dc, u1 = (size[i] - c) / dc;
+            lo = max(lo, min(u0, u1));
+            hi = min(hi, max(u0, u1));
+        } else if (!(c >= 0.0 && c <= size[i])) {
+            lo = 0.0; hi = -1.0;
+        }
+    }
+    r.u_lo = lo;
+    r.u_hi = hi;
+    if (lo > hi || hi < u_max)
+        r.end = HIZ_OFFSCREEN;
+    return r;
+}
+
+// u where the ray meets the wall x = c (axis 0) or y = c (axis 1); HIZ_INF for a ray parallel to
+// it (no infinite reciprocal). The one formula for every wall, so a wall shared by two cells, or
+// by a cell and its child, gives the same u bit for bit.
+float hiz_wall(HizRay r, int axis, float c) {
+    return r.sd[axis] != 0.0 ? (c - r.s0[axis]) / r.sd[axis] : HIZ_INF;
+}
+
+// The child (at level k - 1) of cell q (level k) that holds p(u): which side of each mid line,
+// decided in u (the ray is past the mid line from the u where it crosses it on), so a ray that
+// just stepped across a wall that is the mid line lands in the cell it stepped into.
+ivec2 hiz_child(HizRay r, float u, int k, ivec2 q) {
+    ivec2 c;
+    for (int i = 0; i < 2; i++) {
+        float mid = float((2 * q[i] + 1) << (k - 1));
+        if (r.sd[i] > 0.0)
+            c[i] = u >= hiz_wall(r, i, mid) ? 1 : 0;
+        else if (r.sd[i] < 0.0)
+            c[i] = u >= hiz_wall(r, i, mid) ? 0 : 1;
+        else
+            c[i] = r.s0[i] >= mid ? 1 : 0;
+    }
+    return min(2 * q + c, hiz_level[k - 1].xy - 1);
+}
+
+struct HizResult { uint status; uint iterations; ivec2 pixel; vec3 point; };
+
+HizResult hiz_trace(int eye, vec3 origin, vec3 direction, int start_level, int max_iterations,
+                    float thickness_factor) {
+    HizRay r = hiz_screen_ray(eye, origin, direction);
+    HizResult res = HizResult(r.end, 0u, ivec2(-1), r.s0);
+    if (r.u_lo > r.u_hi)
+        return res;
+    int k = clamp(start_level, 0, hiz_top);
+    float u = r.u_lo;
+    // The start cell holds p(u_lo); on a cell edge, the cell the ray goes into.
+    vec2 p = (r.s0 + u * r.sd).xy;
+    ivec2 q = ivec2(floor(p)) >> k;
+    for (int i = 0; i < 2; i++)
+        if (r.sd[i] < 0.0 && p[i] == float(q[i] << k) && q[i] > 0)
+            q[i]--;
+    q = clamp(q, ivec2(0), hiz_level[k].xy - 1);
+    bool out_of_iterations = true;
+    while (res.iterations < uint(max_iterations)) {
+        res.iterations++;
+        ivec2 lo = q << k;
+        ivec2 hi = min(lo + (1 << k), hiz_level[0].xy);
+        float ux = hiz_wall(r, 0, float(r.sd.x > 0.0 ? hi.x : lo.x));
+        float uy = hiz_wall(r, 1, float(r.sd.y > 0.0 ? hi.y : lo.y));
+        float u_exit = max(min(ux, uy), u);
+        float ub = min(u_exit, r.u_hi);
+        vec2 mm = hiz_cells[hiz_index(eye, k, q)];
+        float slab_lo = mm.x * thickness_factor, slab_hi = mm.y;
+        float za = r.s0.z + u * r.sd.z, zb = r.s0.z + ub * r.sd.z;
+        if (ub > u && min(za, zb) < slab_hi && max(za, zb) >= slab_lo) {
+            // Where the ray enters the slab (it is inside it somewhere in [u, ub], so the
+            // divisions happen only when it moves in z).
+            float ue = u;
+            if (za >= slab_hi)
+                ue = (slab_hi - r.s0.z) / r.sd.z;
+            else if (za < slab_lo)
+                ue = (slab_lo - r.s0.z) / r.sd.z;
+            u = clamp(ue, u, ub);
+            if (k == 0) {
+                res.status = HIZ_HIT;
+                res.pixel = q;
+                res.point = r.s0 + u * r.sd;
+                return res;
+            }
+            q = hiz_child(r, u, k, q);
+            k--;
+            continue;
+        }
+        if (u_exit >= r.u_hi) {
+            out_of_iterations = false;
+            break;
+        }
+        u = u_exit;
+        if (ux <= uy)
+            q.x += r.sd.x > 0.0 ? 1 : -1;
+        else
+            q.y += r.sd.y > 0.0 ? 1 : -1;
+        if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, hiz_level[k].xy))) {
+            out_of_iterations = false;
+            break;
+        }
+        if (k < hiz_top) {  // after a miss, try a coarser cell
+            k++;
+            q >>= 1;
+        }
+    }
+    if (out_of_iterations) {
+        res.status = HIZ_NONE;
+        res.point = r.s0 + u * r.sd;
+    } else {
+        res.point = r.u_hi < HIZ_INF ? r.s0 + r.u_hi * r.sd : r.s0;
+    }
+    return res;
+}
+
+#endif
