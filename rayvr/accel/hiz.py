@@ -19,7 +19,9 @@ Traversal (glsl/ssrt/hiz.glsl hiz_trace, mirrored by `trace_hiz_reference`): sta
 ray enters that slab and go down a level (level 0: HIT); miss: step across the wall that comes
 first (one axis only) and go up a level. Cells are integer indices, u only ever moves to walls
 computed by one formula, and which child holds p(u) is decided in u, so no float position is
-nudged. `iterations` counts cells visited; `max_iterations` reached is NONE.
+nudged. `iterations` counts cells visited; `max_iterations` reached is NONE. `skip_origin`
+starts where the ray leaves its origin's pixel (as the DDA skips the origin's column): for
+reflection rays, whose flat origin pixel would stop them wherever the surface recedes.
 
 `HizTracer(renderer)`: builds the pyramid of the renderer's last frame and traces ray batches
 on the GPU (glsl/ssrt/hiz_batch.comp), with the interface of rayvr/passes/quadtree.py
@@ -95,7 +97,8 @@ def flat_leaves(linear_depth, near: float) -> np.ndarray:
 
 
 def trace_hiz_reference(levels, cam: ScreenCamera, origin, direction, start_level: int = START_LEVEL,
-                        max_iterations: int = MAX_ITERATIONS, thickness: float = np.inf) -> Trace:
+                        max_iterations: int = MAX_ITERATIONS, thickness: float = np.inf,
+                        skip_origin: bool = False) -> Trace:
     """The walk of glsl/ssrt/hiz.glsl hiz_trace, step for step, in float64 (`Trace.nodes` holds
     the iterations). `levels`: pyramid_reference's list (or the GPU's, read back)."""
     ray = screen_ray(cam, origin, direction)
@@ -111,6 +114,14 @@ def trace_hiz_reference(levels, cam: ScreenCamera, origin, direction, start_leve
 
     k = min(max(int(start_level), 0), top)
     u = ray.u_lo
+    if skip_origin and u == 0 and not _moved_to_near(cam, origin, direction):
+        px = [float(np.floor(s0[0])), float(np.floor(s0[1]))]
+        for i in (0, 1):
+            if sd[i] < 0 and s0[i] == px[i]:
+                px[i] -= 1.0
+        u = max(min(wall(0, px[0] + 1 if sd[0] > 0 else px[0]), wall(1, px[1] + 1 if sd[1] > 0 else px[1])), u)
+        if u >= ray.u_hi:
+            return Trace(ray.end, (-1, -1), s0 + ray.u_hi * sd if ray.u_hi < INF else s0, 0)
     p = s0 + u * sd
     q = [int(np.floor(p[0])) >> k, int(np.floor(p[1])) >> k]
     for i in (0, 1):
@@ -165,6 +176,13 @@ def trace_hiz_reference(levels, cam: ScreenCamera, origin, direction, start_leve
     else:
         return Trace(NONE, (-1, -1), s0 + u * sd, it)
     return Trace(ray.end, (-1, -1), s0 + ray.u_hi * sd if ray.u_hi < INF else s0, it)
+
+
+def _moved_to_near(cam: ScreenCamera, origin, direction) -> bool:
+    """Whether screen_ray moved the origin onto the near plane (hiz.glsl HizRay.moved)."""
+    o = cam.rotation.T @ (np.asarray(origin, np.float64) - cam.position)
+    d = cam.rotation.T @ np.asarray(direction, np.float64)
+    return bool(-d[2] > 0 and (cam.near + o[2]) / -d[2] > 0)
 
 
 # ------------------------------------------------------------------ GPU
@@ -254,7 +272,7 @@ class HizTracer:
         rays[:, :3], rays[:, 3], rays[:, 4:7] = o, np.broadcast_to(np.asarray(eye, f32), (len(o),)), d
         return rays
 
-    def _bind(self, rbuf, obuf, n, start_level, max_iterations, thickness) -> None:
+    def _bind(self, rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin) -> None:
         prog = self.program
         set_hiz_uniforms(prog, self.size)
         self._set_eyes(prog)
@@ -265,6 +283,7 @@ class HizTracer:
         prog["start_level"].value = int(start_level)
         prog["max_iterations"].value = int(max_iterations)
         prog["thickness_factor"].value = thickness_factor(thickness)
+        prog["skip_origin"].value = bool(skip_origin)
 
     def _dispatch(self, n: int) -> None:
         groups = -(-n // 64)
@@ -272,14 +291,16 @@ class HizTracer:
         self.program.run(gx, -(-groups // gx), 1)
 
     def trace(self, origins, directions, eye=0, start_level: int = START_LEVEL,
-              max_iterations: int = MAX_ITERATIONS, thickness: float = np.inf) -> HizResult:
-        """Trace scene-local rays in layer `eye` (an int or one per ray)."""
+              max_iterations: int = MAX_ITERATIONS, thickness: float = np.inf,
+              skip_origin: bool = False) -> HizResult:
+        """Trace scene-local rays in layer `eye` (an int or one per ray). skip_origin: start where
+        each ray leaves its origin's pixel (reflection rays, as the DDA does)."""
         rays = self._pack(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes() if n else b"\0" * 32)
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
         try:
-            self._bind(rbuf, obuf, n, start_level, max_iterations, thickness)
+            self._bind(rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin)
             if n:
                 self._dispatch(n)
             self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
@@ -291,8 +312,8 @@ class HizTracer:
                          out[:, 4:7].view(f32).copy())
 
     def time(self, rig, origins, directions, eye=0, start_level: int = START_LEVEL,
-             max_iterations: int = MAX_ITERATIONS, thickness: float = np.inf, repeats: int = 10,
-             min_seconds: float = 1.0) -> dict:
+             max_iterations: int = MAX_ITERATIONS, thickness: float = np.inf, skip_origin: bool = False,
+             repeats: int = 10, min_seconds: float = 1.0) -> dict:
         """As QuadtreeTracer.time: GPU ms of the build (all levels, all layers) and of tracing the
         rays (already on the GPU), after the times settle (timing.settle); median of 5 batches of
         `repeats` each; wall time per dispatch where llvmpipe's timer reads ~0. Adds the mean
@@ -326,12 +347,12 @@ class HizTracer:
                     "ms": g if g > 0.01 * w else w}
 
         def trace() -> None:
-            self._bind(rbuf, obuf, n, start_level, max_iterations, thickness)
+            self._bind(rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin)
             self._dispatch(n)
 
         try:
             self.build(rig, "both" if gbuffer.layers == 2 else "left")
-            res = self.trace(origins, directions, eye, start_level, max_iterations, thickness)
+            res = self.trace(origins, directions, eye, start_level, max_iterations, thickness, skip_origin)
             out = {"build": timed(lambda: self._run_build(gbuffer)), "trace": timed(trace), "rays": n}
             out["rays_per_s"] = n / (out["trace"]["ms"] * 1e-3)
             out["mean_iterations"] = float(res.iterations.mean()) if n else 0.0

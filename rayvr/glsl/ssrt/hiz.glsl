@@ -3,7 +3,7 @@
 // for step; tests/test_hiz.py compares both with the brute-force height field.
 //
 //   HizResult hiz_trace(int eye, vec3 origin, vec3 direction, int start_level,
-//                       int max_iterations, float thickness_factor);
+//                       int max_iterations, float thickness_factor, bool skip_origin);
 //
 //   eye             layer of the pyramid (and index of the camera uniforms of common/camera.glsl)
 //   origin          scene-local ray origin (world - scene origin), as G-buffer positions are
@@ -12,12 +12,16 @@
 //   max_iterations  most cells visited; running out is HIZ_NONE
 //   thickness_factor 1 / (1 + thickness) as in ssrt/dda.glsl: a pixel is the slab
 //                   z in [z_s * factor, z_s]; 0 = infinite thickness (a solid height field)
+//   skip_origin     start where the ray leaves the origin's pixel, as dda.glsl does (a reflection
+//                   ray's origin lies on the surface its pixel shows; a flat pixel would stop it
+//                   at once wherever that surface recedes); no effect on a ray moved onto the
+//                   near plane. false: the brute force's semantics, the origin's pixel tested
 //
 // Screen space S as in dda.glsl / quadtree.glsl: x, y in pixels (GL, origin bottom-left), z = near
 // / view depth. The ray is projected as quadtree.glsl does (hiz_screen_ray mirrors qt_screen_ray):
 // p(u) = s0 + u sd, u in pixels along the screen. Statuses HIZ_HIT / HIZ_OFFSCREEN / HIZ_NEAR /
-// HIZ_NONE have the values of DDA_* and QT_*. Unlike DDA, the origin's own pixel is tested (as
-// the brute force does). `pixel`/`point` of the hit, else pixel (-1, -1) and the point where the
+// HIZ_NONE have the values of DDA_* and QT_*. The origin's own pixel is tested unless skip_origin
+// (the brute force tests it; DDA skips it). `pixel`/`point` of the hit, else pixel (-1, -1) and the point where the
 // ray left / ended (where it stopped when out of iterations); `iterations` = cells visited.
 //
 // The pyramid (ssrt/hiz_build.comp): level k has ceil(W/2^k) x ceil(H/2^k) cells, each vec2(zmin,
@@ -58,12 +62,12 @@ uint hiz_index(int eye, int k, ivec2 q) {
     return uint(eye) * hiz_layer_cells + uint(hiz_level[k].z + q.y * hiz_level[k].x + q.x);
 }
 
-struct HizRay { vec3 s0; vec3 sd; float u_lo; float u_hi; uint end; };
+struct HizRay { vec3 s0; vec3 sd; float u_lo; float u_hi; uint end; bool moved; };
 
 // The ray in S, clipped at the near plane and to the image ([u_lo, u_hi]; empty: u_lo > u_hi);
 // `end` is the status of a ray that meets nothing there. As qt_screen_ray (quadtree.glsl).
 HizRay hiz_screen_ray(int eye, vec3 origin, vec3 direction) {
-    HizRay r = HizRay(vec3(0.0), vec3(0.0), 0.0, -1.0, HIZ_NEAR);
+    HizRay r = HizRay(vec3(0.0), vec3(0.0), 0.0, -1.0, HIZ_NEAR, false);
     float n = eye_depth.x;
     vec4 t = eye_tangents[eye];
     vec2 size = vec2(hiz_level[0].xy);
@@ -80,6 +84,7 @@ HizRay hiz_screen_ray(int eye, vec3 origin, vec3 direction) {
     else
         return r;                                   // wholly in front of the near plane
     vec3 a = o + s * d;
+    r.moved = s > 0.0;                              // onto the near plane
     da = -a.z;
     r.s0 = vec3((a.xy / da - t.xz) * k, n / da);
     vec2 w = (d.xy * da - a.xy * dd) * k;
@@ -143,13 +148,27 @@ ivec2 hiz_child(HizRay r, float u, int k, ivec2 q) {
 struct HizResult { uint status; uint iterations; ivec2 pixel; vec3 point; };
 
 HizResult hiz_trace(int eye, vec3 origin, vec3 direction, int start_level, int max_iterations,
-                    float thickness_factor) {
+                    float thickness_factor, bool skip_origin) {
     HizRay r = hiz_screen_ray(eye, origin, direction);
     HizResult res = HizResult(r.end, 0u, ivec2(-1), r.s0);
     if (r.u_lo > r.u_hi)
         return res;
     int k = clamp(start_level, 0, hiz_top);
     float u = r.u_lo;
+    if (skip_origin && !r.moved && u == 0.0) {
+        // The far walls of the origin's pixel (on a pixel edge, the pixel the ray goes into).
+        vec2 px = floor(r.s0.xy);
+        for (int i = 0; i < 2; i++)
+            if (r.sd[i] < 0.0 && r.s0[i] == px[i])
+                px[i] -= 1.0;
+        float ux = hiz_wall(r, 0, r.sd.x > 0.0 ? px.x + 1.0 : px.x);
+        float uy = hiz_wall(r, 1, r.sd.y > 0.0 ? px.y + 1.0 : px.y);
+        u = max(min(ux, uy), u);
+        if (u >= r.u_hi) {                          // never leaves it: nothing tested
+            res.point = r.u_hi < HIZ_INF ? r.s0 + r.u_hi * r.sd : r.s0;
+            return res;
+        }
+    }
     // The start cell holds p(u_lo); on a cell edge, the cell the ray goes into.
     vec2 p = (r.s0 + u * r.sd).xy;
     ivec2 q = ivec2(floor(p)) >> k;

@@ -16,6 +16,7 @@ uniform uint ray_count;
 uniform int start_level;
 uniform int max_iterations;
 uniform float thickness_factor;  // 1 / (1 + thickness); 0: infinite thickness
+uniform bool skip_origin;        // start where the ray leaves its origin's pixel
 
 void main() {
     uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * LOCAL_SIZE;
@@ -23,7 +24,8 @@ void main() {
         return;
     vec4 a = hiz_rays[2 * i];
     vec4 b = hiz_rays[2 * i + 1];
-    HizResult r = hiz_trace(int(a.w), a.xyz, b.xyz, start_level, max_iterations, thickness_factor);
+    HizResult r = hiz_trace(int(a.w), a.xyz, b.xyz, start_level, max_iterations, thickness_factor,
+                            skip_origin);
     hiz_results[2 * i] = uvec4(r.status, r.iterations, uvec2(r.pixel));
     hiz_results[2 * i + 1] = uvec4(floatBitsToUint(r.point), 0u);
 }
