@@ -4,14 +4,17 @@ import subprocess
 import sys
 
 
-def test_bench_ssrt_quick_writes_quadtree_and_dda_rows(tmp_path):
+def test_bench_ssrt_quick_writes_quadtree_dda_and_hiz_rows(tmp_path):
     run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "ssrt", "--quick", "--out", str(tmp_path)],
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-3000:]
     result = json.loads((tmp_path / "ssrt.json").read_text())
     rows = result["rows"]
-    assert {r["tracer"] for r in rows} == {"quadtree", "dda"} and result["meta"]["gl_renderer"]
+    assert {r["tracer"] for r in rows} == {"quadtree", "dda", "hiz"} and result["meta"]["gl_renderer"]
     lossless = next(r for r in rows if r["tracer"] == "quadtree" and r["gamma_norm"] == 1.0)
     merged = next(r for r in rows if r["tracer"] == "quadtree" and r["gamma_norm"] < 1.0)
     assert merged["nodes_mean"] < lossless["nodes_mean"]  # merged planes skip nodes
     assert all(r["status_agrees_with_quadtree"] > 0.9 for r in rows if r["tracer"] == "dda")
+    hiz = [r for r in rows if r["tracer"] == "hiz"]
+    assert hiz and all(r["grays_s"] > 0 and r["iterations_mean"] > 0 and r["build_ms_per_layer"] > 0 for r in hiz)
+    assert all(r["status_agrees_with_quadtree"] > 0.9 for r in hiz)

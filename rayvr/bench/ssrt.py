@@ -4,9 +4,10 @@ rayvr/accel/dda.py), on the mirror rays of every G-buffer pixel of one eye.
 
 Reports per scene: quadtree build ms per layer (lossless and with merge thresholds), rays/s and
 node visits (mean, p99) of the quadtree trace, the same rays through the DDA at two settings
-(steps per ray, share reaching max_steps), and how often the two agree on the outcome. First
-measurements only: the error against BVH reflections, `warp`, Hi-Z and the gamma sweeps arrive
-with the `ssr` effect (issue 10).
+(steps per ray, share reaching max_steps), the Hi-Z min-max pyramid (rayvr/accel/hiz.py: build
+ms per layer, rays/s, cells visited, share reaching max_iterations), and how often the baselines
+agree with the lossless quadtree on the outcome. First measurements only: the error against BVH
+reflections, `warp` and the gamma sweeps arrive with the `ssr` effect (issue 10).
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..accel.dda import DdaTracer
+from ..accel.hiz import HizTracer
 from ..context import create_context
 from ..passes.quadtree import QuadtreeTracer
 from ..renderer import Renderer
@@ -25,6 +27,7 @@ from .scenes import bench_scenes
 # (gamma_norm as the cosine of the largest normal angle, gamma_dist in z units): lossless first
 GAMMAS = ((1.0, 0.0), (math.cos(math.radians(10.0)), 1e-3))
 DDA_SETTINGS = ((256, 1.0), (64, 4.0))  # (max_steps, stride)
+HIZ_SETTINGS = ((256, 2), (1024, 2))    # (max_iterations, start_level); mirror rays skip their origin's pixel
 
 
 def mirror_rays(frame, eye, origin):
@@ -85,6 +88,28 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=1
                             print(f"  {name:8s} dda steps {steps} stride {stride:g}: {row['grays_s']:.2f} GRays/s, "
                                   f"{row['steps_mean']:.1f} steps, agrees with quadtree "
                                   f"{row['status_agrees_with_quadtree']:.1%}")
+                    hiz = HizTracer(r)
+                    try:
+                        for iters, start in HIZ_SETTINGS:
+                            t = hiz.time(rig, o, d, eye=0, start_level=start, max_iterations=iters, skip_origin=True,
+                                         repeats=repeat)
+                            res = hiz.trace(o, d, eye=0, start_level=start, max_iterations=iters, skip_origin=True)
+                            row = {"scene": name, "size": f"2x{size[0]}x{size[1]}", "rays": len(o), "tracer": "hiz",
+                                   "max_iterations": iters, "start_level": start,
+                                   "build_ms_per_layer": t["build"]["ms"] / 2, "gpu_ms": t["trace"]["ms"],
+                                   "gpu_ms_min": t["trace"]["gpu_ms_min"], "gpu_ms_max": t["trace"]["gpu_ms_max"],
+                                   "grays_s": t["rays_per_s"] / 1e9, "iterations_mean": t["mean_iterations"],
+                                   "iterations_p99": float(np.percentile(res.iterations, 99)),
+                                   "max_iterations_reached": t["max_iterations_reached"],
+                                   "hit_share": float((res.status == 1).mean()),
+                                   "status_agrees_with_quadtree": float((res.status == lossless).mean())}
+                            rows.append(row)
+                            if progress:
+                                print(f"  {name:8s} hiz iterations {iters}: build {row['build_ms_per_layer']:.3f} "
+                                      f"ms/layer, {row['grays_s']:.2f} GRays/s, {row['iterations_mean']:.1f} "
+                                      f"iterations, agrees with quadtree {row['status_agrees_with_quadtree']:.1%}")
+                    finally:
+                        hiz.release()
                 finally:
                     qt.release()
                     dda.release()
