@@ -58,6 +58,7 @@ class Effect:
     params: dict = {}
     traced: bool = False
     reflective: bool = False  # reflection rays that meet it go on (reflections, glossy)
+    uses_quadtree: bool = False  # its rays go through the screen-space quadtree first (ssr)
     shader: str | None = None
     sweep: dict = {}
     reference: dict = {}
@@ -98,8 +99,7 @@ class EffectError(ValueError):
 EFFECTS: dict[str, Effect] = {}  # registration order = ladder order (cheapest first)
 BACKGROUND_EFFECT = 255  # effect-ID value of pixels no geometry covers
 # Rungs of the ladder that later versions add: a config naming one is refused as "not yet".
-PLANNED = {"ssr": "screen-space reflections through the depth quadtree",
-           "path": "path tracing", "photon": "photon-mapped indirect light"}
+PLANNED = {"path": "path tracing", "photon": "photon-mapped indirect light"}
 
 
 def register(effect: Effect) -> Effect:

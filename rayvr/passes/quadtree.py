@@ -73,8 +73,15 @@ class QuadtreePass(Pass):
     name = "quadtree"
     timed_kernels = True
 
-    def __init__(self, gamma_norm: float = 1.0, gamma_dist: float = 0.0):
-        self.gamma_norm, self.gamma_dist = gamma_norm, gamma_dist
+    def __init__(self, gamma_norm: float = 1.0, gamma_dist: float = 0.0, effect: str | None = None):
+        """With `effect`, the thresholds are the strictest its materials ask for, each frame."""
+        self.gamma_norm, self.gamma_dist, self.effect = gamma_norm, gamma_dist, effect
+
+    def thresholds(self, assignments) -> tuple[float, float]:
+        users = [a.params for a in assignments if a.effect == self.effect] if self.effect else []
+        if not users:
+            return self.gamma_norm, self.gamma_dist
+        return max(p["gamma_norm"] for p in users), min(p["gamma_dist"] for p in users)
 
     def why(self, plan: FramePlan) -> str | None:
         from ..effects import EFFECTS
@@ -93,8 +100,8 @@ class QuadtreePass(Pass):
 
     def execute(self, fc) -> None:
         set_eye_uniforms(self.builder.program, fc)
-        self.builder.build(fc.gl.ctx, fc.gbuffer, fc.resource("quadtree"), self.gamma_norm, self.gamma_dist,
-                           stage=fc.stage)
+        gamma_norm, gamma_dist = self.thresholds(fc.gpu_scene.assignments)
+        self.builder.build(fc.gl.ctx, fc.gbuffer, fc.resource("quadtree"), gamma_norm, gamma_dist, stage=fc.stage)
 
     def release(self) -> None:
         self.builder.release()

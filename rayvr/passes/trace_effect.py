@@ -18,6 +18,7 @@ from ..frame import Buffer, FramePlan, Pass, Sizing, compose, read, write
 from ..gpu_layout import IMAGE, SSBO, UNIT
 from .classify import bind_lists
 from .compute import camera_defines, set_eye_uniforms
+from .quadtree import set_tree_uniforms
 
 # Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.
 PATH_BYTES, SLOT_BYTES = 80, 48
@@ -85,7 +86,8 @@ class TraceEffectPass(Pass):
         return f"effect {self.effect.name}" + (f" ({', '.join(names)})" if names else "")
 
     def io(self, plan: FramePlan) -> list:
-        return [read("gbuffer"), read("bvh"), read("rt_lists"), read("rt_list_args"), compose("hdr")] + \
+        screen = [read("quadtree")] if self.effect.uses_quadtree else []
+        return [read("gbuffer"), read("bvh"), read("rt_lists"), read("rt_list_args"), compose("hdr")] + screen + \
             [write(name, t) for name, t in self.buffers.values()]
 
     def setup(self, gl, plan: FramePlan) -> None:
@@ -94,7 +96,9 @@ class TraceEffectPass(Pass):
         trace, shade = "rt/wave_trace.comp", "rt/wave_shade.comp"
         self.programs = {
             "prep": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 0}),
-            "closest": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 1}),
+            # screen-space effects (ssr) find closest hits in the quadtree first (SSR_TRACE)
+            "closest": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 1,
+                                                       "SSR_TRACE": int(self.effect.uses_quadtree)}),
             "shadow": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 2}),
             "shadow_finish": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
             "pixel": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 3}),
@@ -123,6 +127,9 @@ class TraceEffectPass(Pass):
             fc.resource(name).bind_to_storage_buffer(SSBO[f"wave_{part}"])
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
         wave_args = fc.resource(self.buffers["args"][0])
+        if self.effect.uses_quadtree:
+            fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
+            set_tree_uniforms(self.programs["closest"], fc.gbuffer.size)
         barrier = fc.gl.ctx.memory_barrier
 
         def run(name, items=1, **uniforms):

@@ -20,7 +20,9 @@ Surface surface_at_hit(Hit h, vec3 dir, out vec3 ng) {
     ng = normalize(cross(tv.p[1] - tv.p[0], tv.p[2] - tv.p[0]));
     Surface s = triangle_surface(h.prim, tv, vec3(1.0 - h.uv.x - h.uv.y, h.uv.x, h.uv.y), ng, dir, 0.0);
     if (dot(ng, dir) > 0.0) ng = -ng;
-    s.position = bvh_hit_point(h);  // from barycentrics: what offset_ray expects
+    // From barycentrics on the scene triangle (the BVH's copy holds the same vertices in the same
+    // order, so this equals bvh_hit_point): what offset_ray expects; screen-space hits have no slot.
+    s.position = tv.p[0] + h.uv.x * (tv.p[1] - tv.p[0]) + h.uv.y * (tv.p[2] - tv.p[0]);
     s.view_depth = h.t;
     return s;
 }

@@ -31,6 +31,38 @@ void main() {
 layout(local_size_x = RT_LOCAL_SIZE) in;
 #include "../accel/bvh.glsl"
 #if WAVE_STAGE == 1
+#ifndef SSR_TRACE
+#define SSR_TRACE 0
+#endif
+#if SSR_TRACE
+#include "../ssrt/quadtree.glsl"
+#include "../common/gbuffer.glsl"
+#include "../common/scene.glsl"
+
+// The path's ray through the quadtree of the eye that sees its pixel. On a hit the triangle the
+// G-buffer shows at the hit pixel, and the ray's exact crossing of that triangle's plane as
+// barycentrics (as the G-buffer resolve does); false when the screen cannot answer. `mi`: the
+// pixel's material (its `fallback` parameter).
+bool screen_space_hit(uint p, vec3 o, vec3 d, out uint tri, out vec2 uv, out uint mi) {
+    ivec3 px = wave_pixel(p % wave_args[0].w);
+    mi = texelFetch(gb_material, px, 0).x;
+    tri = NO_HIT;
+    uv = vec2(0.0);
+    QtResult r = qt_trace(px.z, o, d);
+    if (r.status != QT_HIT) return false;
+    tri = texelFetch(gb_triangle, ivec3(r.pixel, px.z), 0).x;
+    if (tri == NO_HIT) return false;
+    TriangleVerts tv = scene_triangle(tri);
+    vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], ng = cross(e1, e2);
+    float den = dot(d, ng);
+    if (abs(den) <= 1e-12 * length(ng) * length(d)) return false;
+    vec3 q = o + (dot(tv.p[0] - o, ng) / den) * d - tv.p[0];
+    float inv = 1.0 / dot(ng, ng);
+    uv = clamp(vec2(dot(cross(q, e2), ng), dot(cross(e1, q), ng)) * inv, 0.0, 1.0);
+    if (uv.x + uv.y > 1.0) uv /= uv.x + uv.y;
+    return true;
+}
+#endif
 void main() {
     uint p = wave_index();
     if (p >= wave_args[1].w) return;
@@ -40,6 +72,18 @@ void main() {
         wave_paths[p].hit = uvec4(WAVE_IDLE, BVH_MISS, 0u, 0u);
         return;
     }
+#if SSR_TRACE
+    uint tri, mi;
+    vec2 uv;
+    if (screen_space_hit(p, o.xyz, d.xyz, tri, uv, mi)) {
+        wave_paths[p].hit = uvec4(0u, tri, floatBitsToUint(uv.x), floatBitsToUint(uv.y));  // slot unused
+        return;
+    }
+    if (material_param_int(mi, PARAM_FALLBACK) == 0) {  // no BVH fallback: the background
+        wave_paths[p].hit = uvec4(BVH_MISS, BVH_MISS, 0u, 0u);
+        return;
+    }
+#endif
     Hit h;
     trace_closest(Ray(o.xyz, o.w, d.xyz, d.w), h);
     wave_paths[p].hit = uvec4(h.slot, h.prim, floatBitsToUint(h.uv.x), floatBitsToUint(h.uv.y));
