@@ -10,7 +10,8 @@ def test_bench_ssrt_quick_writes_quadtree_dda_and_hiz_rows(tmp_path):
     assert run.returncode == 0, run.stderr[-3000:]
     result = json.loads((tmp_path / "ssrt.json").read_text())
     rows = result["rows"]
-    assert {r["tracer"] for r in rows} == {"quadtree", "dda", "hiz"} and result["meta"]["gl_renderer"]
+    assert {r["tracer"] for r in rows} == {"quadtree", "dda", "hiz", "frame:reflections", "frame:ssr"}
+    assert result["meta"]["gl_renderer"]
     lossless = next(r for r in rows if r["tracer"] == "quadtree" and r["gamma_norm"] == 1.0)
     merged = next(r for r in rows if r["tracer"] == "quadtree" and r["gamma_norm"] < 1.0)
     assert merged["nodes_mean"] < lossless["nodes_mean"]  # merged planes skip nodes
@@ -18,3 +19,5 @@ def test_bench_ssrt_quick_writes_quadtree_dda_and_hiz_rows(tmp_path):
     hiz = [r for r in rows if r["tracer"] == "hiz"]
     assert hiz and all(r["grays_s"] > 0 and r["iterations_mean"] > 0 and r["build_ms_per_layer"] > 0 for r in hiz)
     assert all(r["status_agrees_with_quadtree"] > 0.9 for r in hiz)
+    ssr = next(r for r in rows if r["tracer"] == "frame:ssr")
+    assert 0 <= ssr["flip_vs_reflections_on_mirrors"] < 1 and ssr["mirror_ms"] > 0 and "quadtree" in ssr["pass_ms"]

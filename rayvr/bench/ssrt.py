@@ -45,6 +45,34 @@ def mirror_rays(frame, eye, origin):
     return o.astype(np.float32), d.astype(np.float32)
 
 
+def effect_frames(gl, scene, rig, name: str, repeat: int) -> list[dict]:
+    """The hybrid frame of `rayvr bench rays` (shadows everywhere, mirrors on MIRRORS) with the
+    mirrors on BVH `reflections` and on `ssr`: GPU ms per pass and mean FLIP of the ssr image
+    against the reflections one over the mirror pixels (both eyes)."""
+    from ..effects import EFFECTS
+    from ..materials import parse_config
+    from . import metrics
+    from .rays import MIRRORS, time_frame
+
+    out, images = [], {}
+    for effect in ("reflections", "ssr"):
+        cfg = parse_config({"default": "shadows", "materials": {m: effect for m in MIRRORS.get(name, ())}},
+                           f"bench:{name}:{effect}")
+        with Renderer(scene, cfg, gl=gl) as r:
+            names, med, total = time_frame(r, rig, repeat, warmup=3)
+            frame = r.render(rig, aux=("effect",))
+        images[effect] = (np.concatenate([frame.left.color, frame.right.color], axis=1),
+                          np.concatenate([frame.left.aux["effect"], frame.right.aux["effect"]], axis=1))
+        mirror_ms = med.get("rt_" + effect, 0.0) + med.get("quadtree", 0.0)
+        out.append({"scene": name, "tracer": f"frame:{effect}", "mirrors": list(MIRRORS.get(name, ())),
+                    "frame_ms": total, "mirror_ms": mirror_ms, "pass_ms": {k: med[k] for k in names if k in med}})
+    ref, ids = images["reflections"]
+    mask = ids == EFFECTS["reflections"].id
+    out[1]["flip_vs_reflections_on_mirrors"] = metrics.flip(ref, images["ssr"][0], mask=mask)
+    out[1]["mirror_pixel_share"] = float(mask.mean())
+    return out
+
+
 def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, backend=None,
         progress=True) -> dict:
     gl = create_context(backend)
@@ -113,6 +141,12 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=1
                 finally:
                     qt.release()
                     dda.release()
+            for row in effect_frames(gl, scene, rig, name, repeat):
+                rows.append(row)
+                if progress:
+                    flip = row.get("flip_vs_reflections_on_mirrors")
+                    print(f"  {name:8s} {row['tracer']:18s} frame {row['frame_ms']:.3f} ms, mirrors {row['mirror_ms']:.3f} ms"
+                          + (f", mean FLIP vs reflections on the mirrors {flip:.4f}" if flip is not None else ""))
         meta = {**device_meta(gl.info()), "bench": "ssrt", "per_eye_size": list(size), "repeat": repeat,
                 "skipped": skipped, "rays": "mirror rays of every covered pixel of the left eye",
                 "what_times_include": "GL timer queries around the dispatches after times settle; rays and "
