@@ -37,6 +37,9 @@ LOOK_RADIANS_PER_PIXEL = 0.004
 MAX_PITCH = math.radians(89.0)
 RECORD_FPS = 30.0  # camera paths are sampled at a fixed rate so replays keep the pace
 MESSAGE_SECONDS = 4.0
+# T steps the `ssr` quadtree thresholds through these (label, gamma_norm as a cosine, gamma_dist)
+QUADTREE_PRESETS = (("lossless", 1.0, 0.0), ("3 deg, 1e-5", math.cos(math.radians(3)), 1e-5),
+                    ("10 deg, 1e-3", math.cos(math.radians(10)), 1e-3), ("25 deg, 1e-1", math.cos(math.radians(25)), 0.1))
 EYE_UNIT, ATLAS_UNIT = 8, 9  # texture units clear of the G-buffer's 0..6
 PICK_BINDING = 7  # SSBO binding clear of the scene's 0..4 and the BVH's 8..
 
@@ -55,7 +58,7 @@ KEYS = (
     ("C", "convergence at the scene centre / parallel eyes"),
     ("[ ]", "convergence nearer / farther"),
     ("O, Shift+O", "global effect override: next / previous (off = the config file)"),
-    ("T", "quadtree thresholds (no quadtree pass yet)"),
+    ("T", "ssr quadtree thresholds: next preset"),
     (", .", "resolution scale down / up"),
     ("Y", "vsync on / off"),
     ("P", "record a camera path on / off (saved on stop; rayvr capture --path)"),
@@ -401,6 +404,7 @@ class Preview:
             raise
         self.materials_path = Path(materials) if materials else None
         self.file_config = materials_mod.MaterialConfig()
+        self.quadtree_preset = 0
         self.config_error: str | None = None
         self._config_stamp = None
         self.out_dir, self.path_file = Path(out_dir), Path(path_file)
@@ -522,10 +526,16 @@ class Preview:
         self._applied_override = effect
 
     def cycle_quadtree_thresholds(self) -> None:
-        # Hook for the `ssr` effect's depth quadtree: when that pass exists, step
-        # (gamma_norm, gamma_dist) through a few presets here, through an override config's
-        # [params.ssr], and show them in the HUD. There is no quadtree pass yet.
-        self.say("quadtree thresholds: no quadtree pass in this rayvr yet (needs the ssr effect)")
+        """T: the next (gamma_norm, gamma_dist) preset for every `ssr` material (the quadtree's
+        plane-merge thresholds: lossless, then coarser), until the config file is reloaded."""
+        self.quadtree_preset = (self.quadtree_preset + 1) % len(QUADTREE_PRESETS)
+        label, gamma_norm, gamma_dist = QUADTREE_PRESETS[self.quadtree_preset]
+        self.file_config = materials_mod.config_with(
+            self.file_config, params={"ssr": {"gamma_norm": gamma_norm, "gamma_dist": gamma_dist}})
+        self._apply_materials()
+        users = "ssr" in self.renderer.effects_in_use()
+        self.say(f"quadtree thresholds: {label} (gamma_norm {gamma_norm:.4f}, gamma_dist {gamma_dist:g})"
+                 + ("" if users else "; no material uses ssr (O overrides every material)"))
 
     # -- actions ------------------------------------------------------------------------
     def say(self, text: str, seconds: float = MESSAGE_SECONDS) -> None:

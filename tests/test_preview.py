@@ -411,7 +411,8 @@ def test_synthetic_key_and_mouse_events_drive_the_window(worker):
     ipd, convergence, scale, gb_size = out["rig"]
     assert math.isclose(ipd, 0.064 * 1.25) and convergence > 0 and scale == 0.75
     assert gb_size == (96, 36)  # 'left' mode: one eye fills the 128x48 window, at scale 0.75
-    assert "no quadtree" in out["quadtree_message"]
+    # T: the next quadtree preset for the ssr materials (none here: the message says so)
+    assert "quadtree thresholds: 3 deg, 1e-5" in out["quadtree_message"] and "no material uses ssr" in out["quadtree_message"]
     assert out["reset"]
     hud = "\n".join(out["hud"])
     for needle in ("ms/frame", "GPU ms", "gbuffer", "left  view", "scale 0.75", "cursor: ", "IPD"):
@@ -585,3 +586,37 @@ def test_app_py_opens_renders_and_closes(display, tmp_path):
                           "--size", "64x48", "--frames", "1"], capture_output=True, text=True, timeout=120,
                          env=env, cwd=tmp_path)
     assert res.returncode == 0 and "cannot read" in res.stderr  # opens anyway, says why
+
+
+def test_quadtree_key_steps_the_ssr_thresholds_of_the_config():
+    """T sets (gamma_norm, gamma_dist) of every ssr material, per-material entries included, and
+    cycles back to lossless."""
+    from rayvr.materials import parse_config
+    from rayvr.preview import QUADTREE_PRESETS, Preview
+
+    class Fake:  # the parts of Preview that T uses, without a window
+        quadtree_preset = 0
+        file_config = parse_config({"materials": {"floor": {"effect": "ssr", "gamma_dist": 0.5}, "wall": "shadows"}},
+                                   "t")
+        messages = []
+
+        def _apply_materials(self):
+            pass
+
+        def say(self, text):
+            self.messages.append(text)
+
+        class renderer:
+            @staticmethod
+            def effects_in_use():
+                return frozenset({"ssr"})
+
+    p = Fake()
+    seen = []
+    for _ in range(len(QUADTREE_PRESETS)):
+        Preview.cycle_quadtree_thresholds(p)
+        a = p.file_config.assign(["floor", "wall"], warn=False)
+        seen.append((a[0].params["gamma_norm"], a[0].params["gamma_dist"]))
+        assert a[1].effect == "shadows" and "gamma_norm" not in a[1].params
+    assert seen == [(g, d) for _, g, d in QUADTREE_PRESETS[1:] + QUADTREE_PRESETS[:1]]
+    assert "no material uses ssr" not in p.messages[-1] and "lossless" in p.messages[-1]

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..camera import StereoRig
-from ..materials import EFFECTS, MaterialConfig, implemented_effects
+from ..materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
 from ..renderer import Renderer, RenderSettings
 from . import metrics
 
@@ -59,24 +59,6 @@ class Measured:
     gpu_ms: float
     image: np.ndarray  # uint8 HxWx3, both eyes side by side, full size
     material: np.ndarray  # uint32 HxW material index per pixel (same layout)
-
-
-def config_with(base: MaterialConfig, default: str | None = None, materials: dict | None = None,
-                params: dict | None = None) -> MaterialConfig:
-    """A copy of `base` with another default effect, per-material effects and effect params."""
-    cfg = MaterialConfig(default=default or base.default, params={k: dict(v) for k, v in base.params.items()},
-                         by_name=dict(base.by_name), by_id=dict(base.by_id), importance_of=dict(base.importance_of),
-                         source=f"{base.source} (variant)")
-    for name, effect in (materials or {}).items():
-        cfg.by_name[name] = (effect, {})
-    for effect, values in (params or {}).items():
-        cfg.params.setdefault(effect, {}).update(values)
-        # Per-material parameters win over [params]: a swept value must reach those too.
-        for table in (cfg.by_name, cfg.by_id):
-            for key, (e, p) in table.items():
-                if e == effect:
-                    table[key] = (e, {**p, **values})
-    return cfg
 
 
 def config_for_assignment(base: MaterialConfig, scene, effects: dict) -> MaterialConfig:
