@@ -59,7 +59,9 @@ UNIT = {"base_color_textures": 9}
 TONEMAPPERS = ("clamp", "reinhard", "aces")
 DEBUG_VIEWS = ("depth", "normal", "albedo", "roughness", "metallic", "emission", "material", "effect",
                "triangle", "position")
-VIEWS = ("color",) + DEBUG_VIEWS
+# Views made by passes of their own (not debug_view.comp): the quadtree's node visits per pixel.
+TRACE_VIEWS = ("quadtree_visits",)
+VIEWS = ("color",) + DEBUG_VIEWS + TRACE_VIEWS
 LIGHT_KINDS = ("point", "directional", "rect")
 NO_HIT = 0xFFFFFFFF
 VERTEX_FLOATS = 8  # position xyz, normal xyz, uv (gpu_scene.interleaved_vertices)

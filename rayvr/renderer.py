@@ -64,11 +64,12 @@ def _as_config(materials) -> materials_mod.MaterialConfig:
 
 
 def candidate_passes(plan: FramePlan) -> list:
-    """The passes a plan may use: the core ones and those of the effects it uses."""
+    """The passes a plan may use: the core ones and those of the effects it uses (an effect's pass
+    named like a core one, e.g. `quadtree`, is that one: the core pass is kept)."""
     out = core_passes()
     for e in effects_mod.EFFECTS.values():
         if e.name in plan.effects:
-            out += e.passes()
+            out += [p for p in e.passes() if p.name not in {q.name for q in out}]
     return out
 
 

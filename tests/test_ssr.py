@@ -72,3 +72,23 @@ def test_ipd_zero_gives_identical_eyes(gl):
     frame, _ = render(gl, "ssr", rig)
     assert np.array_equal(frame.left.aux["hdr"], frame.right.aux["hdr"])
     assert np.isfinite(frame.left.aux["hdr"]).all()
+
+
+def test_quadtree_visits_view(gl, rig):
+    """The debug view of node visits: every covered pixel's mirror ray tests at least one node (the
+    exact count in red), background pixels are black; merged thresholds (an ssr material asking
+    for them) test fewer nodes than the lossless tree."""
+    scene = load()
+
+    def visits(config):
+        with Renderer(scene, parse_config(config, "<visits>"), gl=gl, settings=DARK) as r:
+            frame = r.render(rig, view="quadtree_visits", aux=("triangle",))
+            assert "quadtree" in r.compiled(r.plan(2, "quadtree_visits")).pass_names
+        covered = frame.left.aux["triangle"] != 0xFFFFFFFF
+        red = frame.left.color[..., 0].astype(int)
+        assert (red[covered] >= 1).all() and (frame.left.color[~covered] == 0).all()
+        return red[covered].mean()
+
+    lossless = visits({})
+    merged = visits({"materials": {"floor": {"effect": "ssr", "gamma_norm": 0.9, "gamma_dist": 0.1}}})
+    assert merged < lossless, (merged, lossless)

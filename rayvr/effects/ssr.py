@@ -36,10 +36,9 @@ class ScreenSpaceReflections(Effect):
              "area_samples": AREA_SAMPLES_SWEEP}
     reference = {"mirror": 15}  # models mirrors, less than BVH `reflections` (30) or `glossy` (20)
 
-    def passes(self):
-        from ..passes.quadtree import QuadtreePass
+    def passes(self):  # the quadtree pass is a core one (the visits view uses it too)
         from ..passes.trace_effect import TraceEffectPass
-        return [QuadtreePass(effect=self.name), TraceEffectPass(self)]
+        return [TraceEffectPass(self)]
 
 
 register(ScreenSpaceReflections())

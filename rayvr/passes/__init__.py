@@ -8,9 +8,10 @@ def core_passes() -> list:
     from .debug_view import DebugViewPass
     from .gbuffer_resolve import GBufferResolvePass
     from .primary_rays import PrimaryRaysPass
+    from .quadtree import QuadtreePass, QuadtreeVisitsPass
     from .shade import ShadePass
     from .tonemap import TonemapPass
     from .visibility import VisibilityPass
 
     return [BvhPass(), VisibilityPass(), PrimaryRaysPass(), GBufferResolvePass(), ShadePass(), ClassifyPass(),
-            TonemapPass(), DebugViewPass()]
+            TonemapPass(), DebugViewPass(), QuadtreeVisitsPass(), QuadtreePass(effect="ssr")]

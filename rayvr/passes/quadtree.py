@@ -87,6 +87,8 @@ class QuadtreePass(Pass):
         from ..effects import EFFECTS
 
         users = [e for e in sorted(plan.effects) if getattr(EFFECTS.get(e), "uses_quadtree", False)]
+        if plan.view == "quadtree_visits":
+            users.append("view quadtree_visits")
         # Planes in S and straight rays need a planar projection: the pinhole's G-buffer only.
         if not users or plan.camera != "pinhole":
             return None
@@ -105,6 +107,38 @@ class QuadtreePass(Pass):
 
     def release(self) -> None:
         self.builder.release()
+
+
+class QuadtreeVisitsPass(Pass):
+    """View "quadtree_visits": per pixel, the nodes its mirror ray tests in the quadtree (the
+    thresholds of the scene's ssr materials, else lossless) as an 8-bit image
+    (glsl/ssrt/visits_view.comp: red = the exact count up to 255, green/blue a heat ramp)."""
+
+    name = "quadtree_visits"
+
+    def why(self, plan: FramePlan) -> str | None:
+        return "view = quadtree_visits" if plan.view == "quadtree_visits" and plan.camera == "pinhole" else None
+
+    def io(self, plan: FramePlan) -> list:
+        from .tonemap import LDR
+        return [read("gbuffer"), read("quadtree"), write("ldr", LDR)]
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        self.program = shaders.compute(gl.ctx, "ssrt/visits_view.comp", camera_defines(plan))
+
+    def execute(self, fc) -> None:
+        from ..gpu_layout import IMAGE
+        from .compute import dispatch_per_pixel
+
+        set_eye_uniforms(self.program, fc)
+        set_tree_uniforms(self.program, fc.gbuffer.size)
+        fc.gbuffer.bind_for_reading()
+        fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
+        fc.resource("ldr").bind_to_image(IMAGE["ldr"], read=False, write=True)
+        dispatch_per_pixel(fc, self.program)
+
+    def release(self) -> None:
+        self.program.release()
 
 
 class QuadtreeTracer:
