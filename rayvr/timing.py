@@ -70,3 +70,28 @@ def settle(step, min_seconds: float = 0.3, max_seconds: float = 10.0, window: in
                 return {"runs": len(times), "seconds": elapsed, "settled": True, "last": now}
         if elapsed >= max_seconds:
             return {"runs": len(times), "seconds": elapsed, "settled": False, "last": times[-1]}
+
+
+def time_gpu(ctx, fn, repeats: int = 10, min_seconds: float = 1.0, batches: int = 5) -> dict:
+    """GPU ms of `fn()` (which records GL work) once the times settle: the median of `batches`
+    timer queries around `repeats` calls each, with min and max; `ms` is the wall time per call
+    where the timer reads ~0 (llvmpipe does for compute)."""
+    query = ctx.query(time=True)
+
+    def one() -> float:
+        with query:
+            fn()
+        return query.elapsed / 1e6
+
+    settle(one, min_seconds=min_seconds)
+    gpu, wall = [], []
+    for _ in range(batches):
+        t0 = time.perf_counter()
+        with query:
+            for _ in range(repeats):
+                fn()
+        gpu.append(query.elapsed / 1e6 / repeats)
+        ctx.finish()
+        wall.append((time.perf_counter() - t0) * 1e3 / repeats)
+    g, w = statistics.median(gpu), statistics.median(wall)
+    return {"gpu_ms": g, "gpu_ms_min": min(gpu), "gpu_ms_max": max(gpu), "wall_ms": w, "ms": g if g > 0.01 * w else w}

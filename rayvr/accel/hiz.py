@@ -29,7 +29,6 @@ QuadtreeTracer (build, trace, time).
 """
 from __future__ import annotations
 
-import time
 from typing import NamedTuple
 
 import moderngl
@@ -318,33 +317,16 @@ class HizTracer:
         rays (already on the GPU), after the times settle (timing.settle); median of 5 batches of
         `repeats` each; wall time per dispatch where llvmpipe's timer reads ~0. Adds the mean
         iterations per ray and the share of rays that ran out of them."""
-        from ..timing import settle
+        from ..timing import time_gpu
 
         gbuffer = self.renderer.resource("gbuffer")
         rays = self._pack(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes())
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
-        query = self.ctx.query(time=True)
 
         def timed(fn) -> dict:
-            def one() -> float:
-                with query:
-                    fn()
-                return query.elapsed / 1e6
-            settle(one, min_seconds=min_seconds)
-            gpu, wall = [], []
-            for _ in range(5):
-                t0 = time.perf_counter()
-                with query:
-                    for _ in range(repeats):
-                        fn()
-                gpu.append(query.elapsed / 1e6 / repeats)
-                self.ctx.finish()
-                wall.append((time.perf_counter() - t0) * 1e3 / repeats)
-            g, w = float(np.median(gpu)), float(np.median(wall))
-            return {"gpu_ms": g, "gpu_ms_min": min(gpu), "gpu_ms_max": max(gpu), "wall_ms": w,
-                    "ms": g if g > 0.01 * w else w}
+            return time_gpu(self.ctx, fn, repeats, min_seconds)
 
         def trace() -> None:
             self._bind(rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin)

@@ -9,7 +9,6 @@ pass reads "quadtree" (binds it at SSBO["quadtree_nodes"], calls `set_tree_unifo
 `set_eye_uniforms`, and includes glsl/ssrt/quadtree.glsl)."""
 from __future__ import annotations
 
-import time
 
 import moderngl
 import numpy as np
@@ -230,33 +229,16 @@ class QuadtreeTracer:
         """GPU ms of the build (all levels, all layers) and of tracing the rays (already on the GPU),
         after the times settle (timing.settle); median of 5 batches of `repeats` each. llvmpipe's
         timer queries read ~0 for compute: there the wall time per dispatch stands in."""
-        from ..timing import settle
+        from ..timing import time_gpu
 
         gbuffer = self.renderer.resource("gbuffer")
         rays = self._pack(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes())
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
-        query = self.ctx.query(time=True)
 
         def timed(fn) -> dict:
-            def one() -> float:
-                with query:
-                    fn()
-                return query.elapsed / 1e6
-            settle(one, min_seconds=min_seconds)
-            gpu, wall = [], []
-            for _ in range(5):
-                t0 = time.perf_counter()
-                with query:
-                    for _ in range(repeats):
-                        fn()
-                gpu.append(query.elapsed / 1e6 / repeats)
-                self.ctx.finish()
-                wall.append((time.perf_counter() - t0) * 1e3 / repeats)
-            g, w = float(np.median(gpu)), float(np.median(wall))
-            return {"gpu_ms": g, "gpu_ms_min": min(gpu), "gpu_ms_max": max(gpu), "wall_ms": w,
-                    "ms": g if g > 0.01 * w else w}
+            return time_gpu(self.ctx, fn, repeats, min_seconds)
 
         def build() -> None:
             self._set_eyes(self.builder.program)
