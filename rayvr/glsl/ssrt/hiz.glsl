@@ -38,14 +38,15 @@
 #define RAYVR_SSRT_HIZ_GLSL
 #include "../layout.glsl"
 #include "../common/camera.glsl"
+#include "screen_ray.glsl"
 
-#define HIZ_HIT 1u
-#define HIZ_OFFSCREEN 2u
-#define HIZ_NEAR 3u
-#define HIZ_NONE 4u
+#define HIZ_HIT SSRT_HIT
+#define HIZ_OFFSCREEN SSRT_OFFSCREEN
+#define HIZ_NEAR SSRT_NEAR
+#define HIZ_NONE SSRT_NONE
 #define HIZ_MAX_LEVELS 16
 #define HIZ_EMPTY 3.0e38  // zmin of a cell without geometry (finite: EMPTY * 0 is 0, not NaN)
-#define HIZ_INF 3.0e38
+#define HIZ_INF SSRT_INF
 
 #ifndef HIZ_LEVELS_ACCESS
 #define HIZ_LEVELS_ACCESS readonly
@@ -62,63 +63,10 @@ uint hiz_index(int eye, int k, ivec2 q) {
     return uint(eye) * hiz_layer_cells + uint(hiz_level[k].z + q.y * hiz_level[k].x + q.x);
 }
 
-struct HizRay { vec3 s0; vec3 sd; float u_lo; float u_hi; uint end; bool moved; };
-
-// The ray in S, clipped at the near plane and to the image ([u_lo, u_hi]; empty: u_lo > u_hi);
-// `end` is the status of a ray that meets nothing there. As qt_screen_ray (quadtree.glsl).
+// The ray in S (ssrt/screen_ray.glsl), for this pyramid's image.
+#define HizRay ScreenRay
 HizRay hiz_screen_ray(int eye, vec3 origin, vec3 direction) {
-    HizRay r = HizRay(vec3(0.0), vec3(0.0), 0.0, -1.0, HIZ_NEAR, false);
-    float n = eye_depth.x;
-    vec4 t = eye_tangents[eye];
-    vec2 size = vec2(hiz_level[0].xy);
-    vec2 k = size / vec2(t.y - t.x, t.w - t.z);
-    mat3 to_view = transpose(eye_rotation[eye]);
-    vec3 o = to_view * (origin - eye_position[eye]);
-    vec3 d = to_view * direction;
-    float da = -o.z, dd = -d.z;
-    float s;
-    if (dd > 0.0)
-        s = max(0.0, (n - da) / dd);
-    else if (da >= n)
-        s = 0.0;
-    else
-        return r;                                   // wholly in front of the near plane
-    vec3 a = o + s * d;
-    r.moved = s > 0.0;                              // onto the near plane
-    da = -a.z;
-    r.s0 = vec3((a.xy / da - t.xz) * k, n / da);
-    vec2 w = (d.xy * da - a.xy * dd) * k;
-    float wlen = length(w);
-    vec2 mag = (abs(d.xy * da) + abs(a.xy * dd)) * k;
-    r.end = dd >= 0.0 ? HIZ_NONE : HIZ_NEAR;
-    float u_max;
-    if (wlen <= 1e-6 * (mag.x + mag.y) || wlen == 0.0) {  // along a pixel's line of sight
-        if (dd == 0.0) {
-            r.end = HIZ_NONE;
-            return r;
-        }
-        r.sd = vec3(0.0, 0.0, (dd > 0.0 ? 0.0 : 1.0) - r.s0.z);
-        u_max = 1.0;
-    } else {
-        r.sd = vec3(w / wlen, -n * dd / wlen);
-        u_max = dd == 0.0 ? HIZ_INF : ((dd > 0.0 ? 0.0 : 1.0) - r.s0.z) / r.sd.z;
-    }
-    float lo = 0.0, hi = u_max;
-    for (int i = 0; i < 2; i++) {
-        float c = r.s0[i], dc = r.sd[i];
-        if (dc != 0.0) {
-            float u0 = -c / dc, u1 = (size[i] - c) / dc;
-            lo = max(lo, min(u0, u1));
-            hi = min(hi, max(u0, u1));
-        } else if (!(c >= 0.0 && c <= size[i])) {
-            lo = 0.0; hi = -1.0;
-        }
-    }
-    r.u_lo = lo;
-    r.u_hi = hi;
-    if (lo > hi || hi < u_max)
-        r.end = HIZ_OFFSCREEN;
-    return r;
+    return screen_ray(eye, origin, direction, vec2(hiz_level[0].xy));
 }
 
 // u where the ray meets the wall x = c (axis 0) or y = c (axis 1); HIZ_INF for a ray parallel to

@@ -23,16 +23,17 @@
 #define RAYVR_SSRT_QUADTREE_GLSL
 #include "../layout.glsl"
 #include "../common/camera.glsl"
+#include "screen_ray.glsl"
 
-#define QT_HIT 1u
-#define QT_OFFSCREEN 2u
-#define QT_NEAR 3u
-#define QT_NONE 4u
+#define QT_HIT SSRT_HIT
+#define QT_OFFSCREEN SSRT_OFFSCREEN
+#define QT_NEAR SSRT_NEAR
+#define QT_NONE SSRT_NONE
 #define QT_MAX_LEVELS 16
 #define QT_PLANE_BIT 0x80000000u
 #define QT_FLAG_BIT 1u
 #define QT_HALF_MAX 65504.0
-#define QT_INF 3.0e38
+#define QT_INF SSRT_INF
 
 #ifndef QT_NODES_ACCESS
 #define QT_NODES_ACCESS readonly
@@ -85,65 +86,10 @@ vec4 qt_rect(int k, ivec2 q) {
     return vec4(lo, hi);
 }
 
-// A ray in S: p(u) = s0 + u sd, u in pixels along the screen (|sd.xy| = 1), or u in [0, 1] with
-// sd.xy = 0 for a ray along a pixel's line of sight; [u_lo, u_hi] is on screen and past the near
-// plane (empty: u_lo > u_hi); `end` is the status of a ray that meets nothing there.
-struct QtRay { vec3 s0; vec3 sd; float u_lo; float u_hi; uint end; };
-
+// The ray in S (ssrt/screen_ray.glsl), for this tree's image.
+#define QtRay ScreenRay
 QtRay qt_screen_ray(int eye, vec3 origin, vec3 direction) {
-    QtRay r;
-    r.s0 = vec3(0.0); r.sd = vec3(0.0); r.u_lo = 0.0; r.u_hi = -1.0; r.end = QT_NEAR;
-    float n = eye_depth.x;
-    vec4 t = eye_tangents[eye];
-    vec2 size = vec2(qt_level[0].xy);
-    vec2 k = size / vec2(t.y - t.x, t.w - t.z);          // pixels per tangent unit
-    mat3 to_view = transpose(eye_rotation[eye]);
-    vec3 o = to_view * (origin - eye_position[eye]);
-    vec3 d = to_view * direction;
-    float da = -o.z, dd = -d.z;                          // view depth at the origin and its rate
-    float s;
-    if (dd > 0.0)
-        s = max(0.0, (n - da) / dd);
-    else if (da >= n)
-        s = 0.0;
-    else
-        return r;                                        // wholly in front of the near plane
-    vec3 a = o + s * d;
-    da = -a.z;
-    r.s0 = vec3((a.xy / da - t.xz) * k, n / da);
-    // Screen direction of the projected line (any sign of dd) and dz per pixel along it.
-    vec2 w = (d.xy * da - a.xy * dd) * k;
-    float wlen = length(w);
-    vec2 mag = (abs(d.xy * da) + abs(a.xy * dd)) * k;
-    r.end = dd >= 0.0 ? QT_NONE : QT_NEAR;
-    float u_max;
-    if (wlen <= 1e-6 * (mag.x + mag.y) || wlen == 0.0) {  // along a pixel's line of sight
-        if (dd == 0.0) {
-            r.end = QT_NONE;
-            return r;
-        }
-        r.sd = vec3(0.0, 0.0, (dd > 0.0 ? 0.0 : 1.0) - r.s0.z);
-        u_max = 1.0;
-    } else {
-        r.sd = vec3(w / wlen, -n * dd / wlen);
-        u_max = dd == 0.0 ? QT_INF : ((dd > 0.0 ? 0.0 : 1.0) - r.s0.z) / r.sd.z;
-    }
-    float lo = 0.0, hi = u_max;
-    for (int i = 0; i < 2; i++) {
-        float c = r.s0[i], dc = r.sd[i];
-        if (dc != 0.0) {
-            float u0 = -c / dc, u1 = (size[i] - c) / dc;
-            lo = max(lo, min(u0, u1));
-            hi = min(hi, max(u0, u1));
-        } else if (!(c >= 0.0 && c <= size[i])) {
-            lo = 0.0; hi = -1.0;
-        }
-    }
-    r.u_lo = lo;
-    r.u_hi = hi;
-    if (lo > hi || hi < u_max)
-        r.end = QT_OFFSCREEN;
-    return r;
+    return screen_ray(eye, origin, direction, vec2(qt_level[0].xy));
 }
 
 // First u in [ua, ub] where the ray is behind the plane (z_ray - z_plane is linear in u), or -1.
