@@ -36,7 +36,8 @@ import numpy as np
 
 from .. import shaders
 from ..gpu_layout import SSBO
-from .quadtree import MAX_LEVELS, ScreenCamera, Trace, encode_aabbs, encode_planes, level_offsets, level_sizes, screen_ray
+from .quadtree import (ScreenCamera, Trace, encode_aabbs, encode_planes, level_offsets, level_sizes,
+                       screen_ray, set_level_uniforms)
 
 HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4   # HIZ_HIT ... HIZ_NONE in glsl/ssrt/hiz.glsl (same as DDA_*, QT_*)
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
@@ -188,15 +189,7 @@ def _moved_to_near(cam: ScreenCamera, origin, direction) -> bool:
 
 def set_hiz_uniforms(program, size) -> None:
     """hiz_level, hiz_top, hiz_layer_cells of glsl/ssrt/hiz.glsl for an eye image of `size`."""
-    sizes = level_sizes(*size)
-    offs, per_layer = level_offsets(sizes)
-    table = np.zeros((MAX_LEVELS, 4), np.int32)
-    table[:len(sizes), :2] = sizes
-    table[:len(sizes), 2] = offs
-    for name, value in (("hiz_level", table.tobytes()), ("hiz_top", np.int32(len(sizes) - 1).tobytes()),
-                        ("hiz_layer_cells", np.uint32(per_layer).tobytes())):
-        if name in program:
-            program[name].write(value)
+    set_level_uniforms(program, size, "hiz", "hiz_layer_cells")
 
 
 class HizResult(NamedTuple):

@@ -83,6 +83,21 @@ def level_offsets(sizes) -> tuple[list[int], int]:
     return offs, n
 
 
+def set_level_uniforms(program, size, prefix: str, per_layer_name: str) -> None:
+    """The level table of a screen-space pyramid (the quadtree's, Hi-Z's) for an eye image of
+    `size`: `<prefix>_level[k]` = (width, height, first index of level k in a layer, 0),
+    `<prefix>_top` = the root's level, `per_layer_name` = entries per layer."""
+    sizes = level_sizes(*size)
+    offs, per_layer = level_offsets(sizes)
+    table = np.zeros((MAX_LEVELS, 4), np.int32)
+    table[:len(sizes), :2] = sizes
+    table[:len(sizes), 2] = offs
+    for name, value in ((f"{prefix}_level", table.tobytes()), (f"{prefix}_top", np.int32(len(sizes) - 1).tobytes()),
+                        (per_layer_name, np.uint32(per_layer).tobytes())):
+        if name in program:
+            program[name].write(value)
+
+
 def quadtree_bytes(width: int, height: int, layers: int) -> int:
     return 8 * level_offsets(level_sizes(width, height))[1] * layers
 

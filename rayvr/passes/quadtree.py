@@ -14,7 +14,7 @@ import moderngl
 import numpy as np
 
 from .. import shaders
-from ..accel.quadtree import MAX_LEVELS, level_offsets, level_sizes, quadtree_bytes, unflatten
+from ..accel.quadtree import MAX_LEVELS, level_offsets, level_sizes, quadtree_bytes, set_level_uniforms, unflatten
 from ..frame import Buffer, FramePlan, Pass, read, write
 from ..gpu_layout import SSBO
 from .compute import camera_defines, set_eye_uniforms
@@ -27,15 +27,7 @@ QUADTREE = Buffer(lambda s: quadtree_bytes(s.size[0], s.size[1], s.layers),
 
 def set_tree_uniforms(program, size) -> None:
     """qt_level, qt_top, qt_layer_nodes of glsl/ssrt/quadtree.glsl for an eye image of `size`."""
-    sizes = level_sizes(*size)
-    offs, per_layer = level_offsets(sizes)
-    table = np.zeros((MAX_LEVELS, 4), np.int32)
-    table[:len(sizes), :2] = sizes
-    table[:len(sizes), 2] = offs
-    for name, value in (("qt_level", table.tobytes()), ("qt_top", np.int32(len(sizes) - 1).tobytes()),
-                        ("qt_layer_nodes", np.uint32(per_layer).tobytes())):
-        if name in program:
-            program[name].write(value)
+    set_level_uniforms(program, size, "qt", "qt_layer_nodes")
 
 
 class QuadtreeBuilder:
