@@ -52,6 +52,11 @@ bool screen_space_hit(uint p, vec3 o, vec3 d, out uint tri, out vec2 uv, out uin
     if (r.status != QT_HIT) return false;
     tri = texelFetch(gb_triangle, ivec3(r.pixel, px.z), 0).x;
     if (tri == NO_HIT) return false;
+    // A ray that enters the hit pixel already well behind its surface passed behind a foreground
+    // object (single-layer height field): what it meets is hidden from the screen. Leave it to the
+    // fallback unless the surface is within `thickness` (relative view depth) of the ray there.
+    float z_surface = eye_depth.x / max(texelFetch(gb_position, ivec3(r.pixel, px.z), 0).w, 1e-30);
+    if (z_surface - r.point.z > material_param_float(mi, PARAM_THICKNESS) * z_surface) return false;
     TriangleVerts tv = scene_triangle(tri);
     vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], ng = cross(e1, e2);
     float den = dot(d, ng);
