@@ -88,6 +88,7 @@ class Renderer:
         self.graph = FrameGraph(self.gl, candidate_passes)
         self.reader = Reader(self.gl)
         self._last: FrameContext | None = None
+        self._tiles: dict = {}  # the last (plan, size, config, limits) -> tiles answer
 
     # -- configuration ---------------------------------------------------------------
     def set_materials(self, materials) -> None:
@@ -206,21 +207,28 @@ class Renderer:
         of the eye's frustum, so the pixels are the same rays). Only a planar camera tiles."""
         eye_views = rig.eyes(eyes)
         plan = self.plan(len(eye_views), view, eye_views[0].camera)
+        key = (plan, rig.size, id(self.assignments), self.graph.limits)  # sequences ask once per size
+        if key not in self._tiles:
+            self._tiles = {key: self._plan_tiles(plan, rig.size, len(eye_views))}
+        return self._tiles[key]
+
+    def _plan_tiles(self, plan: FramePlan, size, layers: int) -> list:
         graph = self.graph.compile(plan)
-        w, h = rig.size
-        host = w * h * len(eye_views) * HOST_BYTES_PER_PIXEL
+        tileable = plan.camera == "pinhole"  # a tile is an off-axis part of a planar frustum
+        w, h = size
+        host = w * h * layers * HOST_BYTES_PER_PIXEL
         ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
         if host > ram / 2:
-            raise FrameTooLarge(f"a {w}x{h} eye image ({len(eye_views)} eye(s)) needs about {host / 2**30:.1f} GiB "
+            raise FrameTooLarge(f"a {w}x{h} eye image ({layers} eye(s)) needs about {host / 2**30:.1f} GiB "
                                 f"of host memory for its pixels, of {ram / 2**30:.1f} GiB")
-        if not limit_problems(graph, self.sizing((w, h), len(eye_views)), self.graph.limits):
+        if not limit_problems(graph, self.sizing((w, h), layers), self.graph.limits):
             return [(0, 0, w, h)]
-        if not eye_views[0].camera.rasterizable:
-            check_fits(graph, self.sizing((w, h), len(eye_views)), self.graph.limits)  # raises, saying why
+        if not tileable:
+            check_fits(graph, self.sizing((w, h), layers), self.graph.limits)  # raises, saying why
         nx = ny = 1
-        while limit_problems(graph, self.sizing((-(-w // nx), -(-h // ny)), len(eye_views)), self.graph.limits):
+        while limit_problems(graph, self.sizing((-(-w // nx), -(-h // ny)), layers), self.graph.limits):
             if nx * ny >= MAX_TILES:
-                check_fits(graph, self.sizing((w, h), len(eye_views)), self.graph.limits)
+                check_fits(graph, self.sizing((w, h), layers), self.graph.limits)
             nx, ny = (nx * 2, ny) if -(-w // nx) >= -(-h // ny) else (nx, ny * 2)
         xs = [w * i // nx for i in range(nx + 1)]
         ys = [h * j // ny for j in range(ny + 1)]
