@@ -2,8 +2,11 @@
 format "exr" also the linear HDR colour and the float aux channels as OpenEXR."""
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
+import signal
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -92,6 +95,32 @@ def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) 
             written.append(p)
 
 
+@contextlib.contextmanager
+def interrupts_between_frames():
+    """Ctrl-C during a capture takes effect between frames: the first SIGINT is noted and the
+    returned `check()` raises KeyboardInterrupt at the next safe point, so no file is being
+    written or left out of the count; a second SIGINT interrupts at once."""
+    noted = []
+
+    def on_sigint(signum, frame):
+        if noted:
+            raise KeyboardInterrupt
+        noted.append(signum)
+
+    def check() -> None:
+        if noted:
+            raise KeyboardInterrupt
+
+    if threading.current_thread() is not threading.main_thread():  # signals go to the main thread only
+        yield check
+        return
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield check
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> dict:
     """Render every pose of `job`, write the files, return a summary (files, GPU ms per pass)."""
     check_output_dir(job.out_dir)
@@ -104,15 +133,19 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> d
     rigs = [StereoRig(**{**job.rig.__dict__, "pose": pose}) for pose in job.poses]
     done = 0
     try:
-        # Frames come back pipelined: frame i is written while frame i+1 renders.
-        for i, frame in enumerate(renderer.render_sequence(rigs, eyes=job.eyes, view=job.view, aux=job.render_aux)):
-            write_frame(job, i, frame, files)
-            done += 1
-            timings.append(frame.timings)
-            unavailable.update(frame.timings_unavailable)
-            ran.update(dict.fromkeys(frame.passes))
-            if bar is not None:
-                bar.update(1)
+        with interrupts_between_frames() as check_interrupt:
+            # Frames come back pipelined: frame i is written while frame i+1 renders.
+            for i, frame in enumerate(renderer.render_sequence(rigs, eyes=job.eyes, view=job.view,
+                                                               aux=job.render_aux)):
+                check_interrupt()
+                write_frame(job, i, frame, files)
+                done += 1
+                timings.append(frame.timings)
+                unavailable.update(frame.timings_unavailable)
+                ran.update(dict.fromkeys(frame.passes))
+                if bar is not None:
+                    bar.update(1)
+                check_interrupt()
     except KeyboardInterrupt:
         # Every file is written atomically, so what is there is whole: say what was kept.
         raise CaptureInterrupted(f"interrupted after {done} of {len(job.poses)} frame(s); "
