@@ -53,7 +53,6 @@ the two differ on rays from free space whose hit lies in the origin's column.)
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -62,7 +61,7 @@ import numpy as np
 
 from .. import shaders
 from ..gpu_layout import SSBO
-from ..timing import settle
+from ..timing import time_gpu
 from .gpu import WARMUP_S
 
 HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4  # DDA_HIT ... DDA_NONE in glsl/ssrt/dda.glsl
@@ -302,38 +301,26 @@ class DdaTracer:
 
     def time_trace(self, gbuffer, eyes, scene_origin, origins, directions, eye=0, max_steps: int = 256,
                    stride: float = 1.0, thickness: float = np.inf, repeats: int = 10) -> dict:
-        """GPU ms per dispatch of the batch (rays already on the GPU; timer query after the times
-        settle, as rayvr/accel/gpu.py RayTracer.time_trace), rays/s and the mean steps per ray."""
+        """GPU ms per dispatch of the batch (rays already on the GPU; timing.time_gpu: the median of
+        5 timed batches once the times settle), rays/s and the mean steps per ray."""
         res = self.trace(gbuffer, eyes, scene_origin, origins, directions, eye, max_steps, stride, thickness)
         rays = pack_rays(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes())
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
-        query = self.ctx.query(time=True)
         groups = -(-n // _LOCAL_SIZE)
         gx = min(groups, _MAX_GROUPS_X)
         try:
             gbuffer.bind_for_reading()
             rbuf.bind_to_storage_buffer(SSBO["dda_rays"])
             obuf.bind_to_storage_buffer(SSBO["dda_results"])
-
-            def batch_ms(count=1) -> float:
-                with query:
-                    for _ in range(count):
-                        self.program.run(gx, -(-groups // gx), 1)
-                return query.elapsed / 1e6 / count
-
-            settle(batch_ms, min_seconds=WARMUP_S)
-            t0 = time.perf_counter()
-            gpu = batch_ms(repeats)
-            self.ctx.finish()
-            wall = (time.perf_counter() - t0) / repeats * 1e3
+            t = time_gpu(self.ctx, lambda: self.program.run(gx, -(-groups // gx), 1), repeats, WARMUP_S)
         finally:
             rbuf.release()
             obuf.release()
-        ms = gpu if gpu > 0.01 * wall else wall   # llvmpipe reports ~0 for compute in timer queries
-        return {"rays": n, "gpu_ms": gpu, "wall_ms": wall, "rays_per_s": n / (ms * 1e-3),
-                "mean_steps": float(res.steps.mean()), "max_steps_reached": float((res.steps >= max_steps).mean())}
+        return {"rays": n, "gpu_ms": t["gpu_ms"], "gpu_ms_min": t["gpu_ms_min"], "gpu_ms_max": t["gpu_ms_max"],
+                "wall_ms": t["wall_ms"], "rays_per_s": n / (t["ms"] * 1e-3), "mean_steps": float(res.steps.mean()),
+                "max_steps_reached": float((res.steps >= max_steps).mean())}
 
     def release(self) -> None:
         self.program.release()
