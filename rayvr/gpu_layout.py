@@ -64,6 +64,7 @@ TRACE_VIEWS = ("quadtree_visits",)
 VIEWS = ("color",) + DEBUG_VIEWS + TRACE_VIEWS
 LIGHT_KINDS = ("point", "directional", "rect")
 NO_HIT = 0xFFFFFFFF
+SSRT_RAY_GROUP = 64  # invocations per group of the screen-space batch shaders (glsl/ssrt/*_batch.comp)
 VERTEX_FLOATS = 8  # position xyz, normal xyz, uv (gpu_scene.interleaved_vertices)
 
 
@@ -105,7 +106,8 @@ def glsl_header() -> str:
     out += [f"#define TONEMAP_{k.upper()} {i}" for i, k in enumerate(TONEMAPPERS)]
     out += [f"#define VIEW_{k.upper()} {i}" for i, k in enumerate(DEBUG_VIEWS)]
     out += [f"#define LIGHT_{k.upper()} {i}" for i, k in enumerate(LIGHT_KINDS)]
-    out += [f"#define NO_HIT 0x{NO_HIT:X}u", f"#define VERTEX_FLOATS {VERTEX_FLOATS}"]
+    out += [f"#define NO_HIT 0x{NO_HIT:X}u", f"#define VERTEX_FLOATS {VERTEX_FLOATS}",
+            f"#define SSRT_RAY_GROUP {SSRT_RAY_GROUP}"]
     out += _effect_lines()
     out.append("#endif")
     return "\n".join(out) + "\n"

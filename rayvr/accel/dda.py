@@ -63,13 +63,12 @@ from .. import shaders
 from ..gpu_layout import SSBO
 from ..timing import time_gpu
 from .gpu import WARMUP_S
+from .quadtree import dispatch_per_ray, pack_screen_rays
 
 HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4  # DDA_HIT ... DDA_NONE in glsl/ssrt/dda.glsl
 EDGE = np.float32(1.0 / 256.0)  # DDA_EDGE: a column is tested if the segment reaches this far (px) into it
 BIAS = np.float32(1.0 / 256.0)  # DDA_BIAS: the pixel is picked this far (px) along the ray from the sample
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
-_LOCAL_SIZE = 64
-_MAX_GROUPS_X = 65535
 
 f32 = np.float32
 
@@ -237,18 +236,6 @@ def trace_dda(linear_depth, cam: DdaCamera, origins, directions, max_steps: int 
     return DdaResult(status, pixel, point, steps)
 
 
-def pack_rays(origins, directions, eyes=0) -> np.ndarray:
-    """(N, 8) float32: origin, eye layer (as a float), direction, 0 (what dda_batch.comp reads)."""
-    o = np.asarray(origins, f32).reshape(-1, 3)
-    d = np.asarray(directions, f32).reshape(-1, 3)
-    if d.shape != o.shape:
-        raise ValueError(f"origins {o.shape} and directions {d.shape} differ")
-    rays = np.zeros((len(o), 8), f32)
-    rays[:, 0:3], rays[:, 4:7] = o, d
-    rays[:, 3] = np.broadcast_to(np.asarray(eyes, f32), (len(o),))
-    return rays
-
-
 class DdaTracer:
     """Traces ray batches with glsl/ssrt/dda_batch.comp against a rendered frame's G-buffer.
 
@@ -270,7 +257,7 @@ class DdaTracer:
         for name, value in eyes[0].camera.uniforms(list(eyes), scene_origin).items():
             if name in prog:
                 prog[name].write(np.ascontiguousarray(value).tobytes())
-        rays = pack_rays(origins, directions, eye)
+        rays = pack_screen_rays(origins, directions, eye)
         n = len(rays)
         if n == 0:
             z = np.zeros(0, np.int32)
@@ -285,9 +272,7 @@ class DdaTracer:
         try:
             rbuf.bind_to_storage_buffer(SSBO["dda_rays"])
             obuf.bind_to_storage_buffer(SSBO["dda_results"])
-            groups = -(-n // _LOCAL_SIZE)
-            gx = min(groups, _MAX_GROUPS_X)
-            prog.run(gx, -(-groups // gx), 1)
+            dispatch_per_ray(prog, n)
             self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
             out = np.frombuffer(obuf.read(), np.uint32).reshape(n, 8)
         finally:
@@ -304,17 +289,15 @@ class DdaTracer:
         """GPU ms per dispatch of the batch (rays already on the GPU; timing.time_gpu: the median of
         5 timed batches once the times settle), rays/s and the mean steps per ray."""
         res = self.trace(gbuffer, eyes, scene_origin, origins, directions, eye, max_steps, stride, thickness)
-        rays = pack_rays(origins, directions, eye)
+        rays = pack_screen_rays(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes())
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
-        groups = -(-n // _LOCAL_SIZE)
-        gx = min(groups, _MAX_GROUPS_X)
         try:
             gbuffer.bind_for_reading()
             rbuf.bind_to_storage_buffer(SSBO["dda_rays"])
             obuf.bind_to_storage_buffer(SSBO["dda_results"])
-            t = time_gpu(self.ctx, lambda: self.program.run(gx, -(-groups // gx), 1), repeats, WARMUP_S)
+            t = time_gpu(self.ctx, lambda: dispatch_per_ray(self.program, n), repeats, WARMUP_S)
         finally:
             rbuf.release()
             obuf.release()
@@ -333,5 +316,5 @@ def read_linear_depth(gbuffer, layer: int = 0) -> np.ndarray:
     return data[layer].copy()
 
 
-__all__ = ["trace_dda", "DdaTracer", "DdaCamera", "DdaResult", "pack_rays", "read_linear_depth",
+__all__ = ["trace_dda", "DdaTracer", "DdaCamera", "DdaResult", "read_linear_depth",
            "thickness_factor", "HIT", "OFFSCREEN", "NEAR", "NONE", "STATUS_NAMES"]

@@ -36,7 +36,7 @@ import numpy as np
 
 from .. import shaders
 from ..gpu_layout import SSBO
-from .quadtree import (ScreenCamera, Trace, encode_aabbs, encode_planes, level_offsets, level_sizes,
+from .quadtree import (ScreenCamera, dispatch_per_ray, pack_screen_rays, Trace, encode_aabbs, encode_planes, level_offsets, level_sizes,
                        screen_ray, set_level_uniforms)
 
 HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4   # HIZ_HIT ... HIZ_NONE in glsl/ssrt/hiz.glsl (same as DDA_*, QT_*)
@@ -256,14 +256,6 @@ class HizTracer:
         flat = np.frombuffer(self.cells.read(), f32).reshape(-1, 2)[layer * per_layer:(layer + 1) * per_layer]
         return [flat[o:o + w * h].reshape(h, w, 2).copy() for o, (w, h) in zip(offs, sizes)]
 
-    @staticmethod
-    def _pack(origins, directions, eye) -> np.ndarray:
-        o = np.asarray(origins, f32).reshape(-1, 3)
-        d = np.asarray(directions, f32).reshape(-1, 3)
-        rays = np.zeros((len(o), 8), f32)
-        rays[:, :3], rays[:, 3], rays[:, 4:7] = o, np.broadcast_to(np.asarray(eye, f32), (len(o),)), d
-        return rays
-
     def _bind(self, rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin) -> None:
         prog = self.program
         set_hiz_uniforms(prog, self.size)
@@ -277,24 +269,19 @@ class HizTracer:
         prog["thickness_factor"].value = thickness_factor(thickness)
         prog["skip_origin"].value = bool(skip_origin)
 
-    def _dispatch(self, n: int) -> None:
-        groups = -(-n // 64)
-        gx = min(groups, 65535)
-        self.program.run(gx, -(-groups // gx), 1)
-
     def trace(self, origins, directions, eye=0, start_level: int = START_LEVEL,
               max_iterations: int = MAX_ITERATIONS, thickness: float = np.inf,
               skip_origin: bool = False) -> HizResult:
         """Trace scene-local rays in layer `eye` (an int or one per ray). skip_origin: start where
         each ray leaves its origin's pixel (reflection rays, as the DDA does)."""
-        rays = self._pack(origins, directions, eye)
+        rays = pack_screen_rays(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes() if n else b"\0" * 32)
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
         try:
             self._bind(rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin)
             if n:
-                self._dispatch(n)
+                dispatch_per_ray(self.program, n)
             self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
             out = np.frombuffer(obuf.read(), np.uint32).reshape(-1, 8)[:n]
         finally:
@@ -313,7 +300,7 @@ class HizTracer:
         from ..timing import time_gpu
 
         gbuffer = self.renderer.resource("gbuffer")
-        rays = self._pack(origins, directions, eye)
+        rays = pack_screen_rays(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes())
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
@@ -323,7 +310,7 @@ class HizTracer:
 
         def trace() -> None:
             self._bind(rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin)
-            self._dispatch(n)
+            dispatch_per_ray(self.program, n)
 
         try:
             self.build(rig, "both" if gbuffer.layers == 2 else "left")

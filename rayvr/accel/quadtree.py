@@ -51,6 +51,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..gpu_layout import SSRT_RAY_GROUP
+
 HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4  # QT_HIT ... QT_NONE in glsl/ssrt/quadtree.glsl (same as DDA_*)
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
 PLANE_BIT = 0x80000000
@@ -81,6 +83,26 @@ def level_offsets(sizes) -> tuple[list[int], int]:
         offs.append(n)
         n += w * h
     return offs, n
+
+
+def pack_screen_rays(origins, directions, eyes=0) -> np.ndarray:
+    """(N, 8) float32 rays for the screen-space batch shaders: origin, eye layer (as a float),
+    direction, 0 (dda_batch.comp, hiz_batch.comp and quadtree_batch.comp read this layout)."""
+    o = np.asarray(origins, np.float32).reshape(-1, 3)
+    d = np.asarray(directions, np.float32).reshape(-1, 3)
+    if d.shape != o.shape:
+        raise ValueError(f"origins {o.shape} and directions {d.shape} differ")
+    rays = np.zeros((len(o), 8), np.float32)
+    rays[:, 0:3], rays[:, 4:7] = o, d
+    rays[:, 3] = np.broadcast_to(np.asarray(eyes, np.float32), (len(o),))
+    return rays
+
+
+def dispatch_per_ray(program, n: int) -> None:
+    """One invocation per ray (groups of SSRT_RAY_GROUP, spread over y past GL's 65535 groups in x)."""
+    groups = -(-n // SSRT_RAY_GROUP)
+    gx = min(groups, 65535)
+    program.run(gx, -(-groups // gx), 1)
 
 
 def set_level_uniforms(program, size, prefix: str, per_layer_name: str) -> None:

@@ -14,7 +14,8 @@ import moderngl
 import numpy as np
 
 from .. import shaders
-from ..accel.quadtree import MAX_LEVELS, level_offsets, level_sizes, quadtree_bytes, set_level_uniforms, unflatten
+from ..accel.quadtree import (MAX_LEVELS, dispatch_per_ray, level_offsets, level_sizes, pack_screen_rays, quadtree_bytes,
+                              set_level_uniforms, unflatten)
 from ..frame import Buffer, FramePlan, Pass, read, write
 from ..gpu_layout import SSBO
 from .compute import camera_defines, set_eye_uniforms
@@ -181,27 +182,19 @@ class QuadtreeTracer:
         """Trace scene-local rays in layer `eye` (an int or one per ray). Returns status (N,)
         uint32, nodes (N,) uint32, pixel (N, 2) int32 (GL pixel; -1 when no hit), point (N, 3)
         float32 (in S)."""
-        rays = self._pack(origins, directions, eye)
+        rays = pack_screen_rays(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes())
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
         try:
             self._bind(rbuf, obuf, n)
-            self._dispatch(n)
+            dispatch_per_ray(self.program, n)
             self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
             out = np.frombuffer(obuf.read(), np.uint32).reshape(-1, 8)[:n]
         finally:
             rbuf.release()
             obuf.release()
         return out[:, 0].copy(), out[:, 1].copy(), out[:, 2:4].view(np.int32).copy(), out[:, 4:7].view(np.float32).copy()
-
-    @staticmethod
-    def _pack(origins, directions, eye) -> np.ndarray:
-        o = np.asarray(origins, np.float32).reshape(-1, 3)
-        d = np.asarray(directions, np.float32).reshape(-1, 3)
-        rays = np.zeros((len(o), 8), np.float32)
-        rays[:, :3], rays[:, 3], rays[:, 4:7] = o, np.broadcast_to(np.asarray(eye, np.float32), (len(o),)), d
-        return rays
 
     def _bind(self, rbuf, obuf, n: int) -> None:
         set_tree_uniforms(self.program, self.size)
@@ -211,11 +204,6 @@ class QuadtreeTracer:
         obuf.bind_to_storage_buffer(SSBO["quadtree_results"])
         self.program["ray_count"].value = n
 
-    def _dispatch(self, n: int) -> None:
-        groups = -(-n // 64)
-        gx = min(groups, 65535)
-        self.program.run(gx, -(-groups // gx), 1)
-
     def time(self, rig, origins, directions, eye=0, gamma_norm: float = 1.0, gamma_dist: float = 0.0,
              repeats: int = 10, min_seconds: float = 1.0) -> dict:
         """GPU ms of the build (all levels, all layers) and of tracing the rays (already on the GPU),
@@ -224,7 +212,7 @@ class QuadtreeTracer:
         from ..timing import time_gpu
 
         gbuffer = self.renderer.resource("gbuffer")
-        rays = self._pack(origins, directions, eye)
+        rays = pack_screen_rays(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes())
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
@@ -238,7 +226,7 @@ class QuadtreeTracer:
 
         def trace() -> None:
             self._bind(rbuf, obuf, n)
-            self._dispatch(n)
+            dispatch_per_ray(self.program, n)
 
         try:
             self.build(rig, "both" if gbuffer.layers == 2 else "left", gamma_norm, gamma_dist)

@@ -4,7 +4,8 @@
 // rays at SSBO_QUADTREE_RAYS, per ray vec4(origin, eye layer as a float), vec4(direction, unused),
 // scene-local; results at SSBO_QUADTREE_RESULTS, per ray uvec4(status, nodes tested, pixel x,
 // pixel y as int bits), uvec4(point in S as float bits, 0).
-#define LOCAL_SIZE 64
+#include "../layout.glsl"
+#define LOCAL_SIZE SSRT_RAY_GROUP  // rayvr/gpu_layout.py: the Python side dispatches by it
 layout(local_size_x = LOCAL_SIZE) in;
 
 #include "quadtree.glsl"
