@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .effects import EFFECTS, PARAM_WORDS
-from .gpu_layout import LIGHT_KINDS, SSBO, VERTEX_FLOATS
+from .gpu_layout import LIGHT_KINDS, SSBO
 from .materials import Assignment
 from .scene import Light, Scene
 

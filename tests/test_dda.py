@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from conftest import merge, quad
-from rayvr.accel import dda
 from rayvr.accel.dda import HIT, NEAR, NONE, OFFSCREEN, DdaCamera, DdaTracer, read_linear_depth, trace_dda
 from rayvr.camera import Pose, StereoRig
 from rayvr.renderer import Renderer

@@ -58,7 +58,6 @@ def test_capture_of_an_absurd_size_is_one_line_and_writes_nothing(tmp_path):
 
 
 def test_frames_too_large_even_for_tiles_are_refused_naming_why(gl):
-    from rayvr.camera import StereoRig
 
     with Renderer(load(), gl=gl) as r:
         with pytest.raises(FrameTooLarge, match="GiB of host memory"):
@@ -73,7 +72,6 @@ def test_a_frame_too_large_for_the_device_renders_in_tiles_that_match_the_whole(
     the same rays: colour, depth and aux channels match the frame rendered whole (exactly but for
     rounding without sampled effects; with soft shadows a few points on a seed cell's boundary draw
     other samples, as between the two eyes)."""
-    from rayvr.camera import StereoRig
 
     scene = load()
     rig = StereoRig.for_scene(scene, size=(61, 45), convergence=2.0)

@@ -9,7 +9,6 @@ planar surface rather than constant-depth pixels) 97-100 % agree in status, and 
 on rays that run close along sloped surfaces (test_agreement_with_the_planar_surface)."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest

@@ -356,7 +356,6 @@ def test_depth_discontinuity_is_a_wall(analytic):
     those pixels carry the discontinuity flag."""
     L = analytic["step"]
     for layer in (0, 1):
-        cam = L.cams[layer]
         n = 40
         ys = np.linspace(-1.0, 1.2, n)
         o = np.c_[np.full(n, 1.0), ys, np.full(n, -4.0)] - L.scene.origin
@@ -400,7 +399,6 @@ def test_rays_leaving_the_screen(floor):
     the sky), leave the image: OFFSCREEN at the border."""
     W, H = SIZE
     cam = floor.cams[0]
-    tr = floor.tracer(**LOSSLESS)
     # Through the top-right corner: from a point on the centre line towards the corner's frustum
     # edge at the same depth.
     l, r, b, t = cam.tangents

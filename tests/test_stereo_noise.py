@@ -4,7 +4,6 @@ and a point seen by both eyes draws the same samples."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from rayvr.camera import Pose, StereoRig
 from rayvr.materials import parse_config
