@@ -3,10 +3,12 @@ the G-buffer every frame, one dispatch per level (glsl/ssrt/quadtree_build.comp)
 once; and `QuadtreeTracer`, which builds it for a rendered frame and traces ray batches through
 it (glsl/ssrt/quadtree_batch.comp) for tests and benchmarks.
 
-No effect reads the tree yet, so `why()` offers the pass only to plans with an effect that says
-`uses_quadtree = True` (and a pinhole camera: S is the planar projection's space); such an effect returns `QuadtreePass()` among its `passes()` and its own
-pass reads "quadtree" (binds it at SSBO["quadtree_nodes"], calls `set_tree_uniforms` and
-`set_eye_uniforms`, and includes glsl/ssrt/quadtree.glsl)."""
+The pass is a core one (passes/__init__.py): `why()` offers it to plans with an effect that says
+`uses_quadtree = True` (ssr) or the view "quadtree_visits", with a pinhole camera (S is the planar
+projection's space); the graph keeps it when a pass reads "quadtree" (binds it at
+SSBO["quadtree_nodes"], calls `set_tree_uniforms` and `set_eye_uniforms`, and includes
+glsl/ssrt/quadtree.glsl). An effect's own `QuadtreePass()` among its `passes()` is that core pass.
+`QuadtreeVisitsPass` draws the nodes each pixel's mirror ray tests."""
 from __future__ import annotations
 
 
