@@ -65,6 +65,8 @@ VIEWS = ("color",) + DEBUG_VIEWS + TRACE_VIEWS
 LIGHT_KINDS = ("point", "directional", "rect")
 NO_HIT = 0xFFFFFFFF
 SSRT_RAY_GROUP = 64  # invocations per group of the screen-space batch shaders (glsl/ssrt/*_batch.comp)
+# BVH node layouts (accel/gpu.py) -> node width: binary child pairs (the reference), wide quantized.
+BVH_LAYOUTS = {"bvh2": 2, "bvh4": 4, "bvh8": 8}
 VERTEX_FLOATS = 8  # position xyz, normal xyz, uv (gpu_scene.interleaved_vertices)
 
 

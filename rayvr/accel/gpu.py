@@ -1,9 +1,13 @@
 """The BVH on the GPU: buffer upload (`GpuBvh`) and a batch ray tracer for tests and benchmarks.
 
 A shader that traces rays `#include`s "accel/bvh.glsl" (from a file under glsl/, with the path relative
-to it), builds with `GpuBvh.defines(base)` among its defines, and calls `gpu_bvh.bind(base)` before
+to it), builds with `gpu_bvh.defines(base)` among its defines, and calls `gpu_bvh.bind(base)` before
 dispatching: node buffer at binding `base`, triangle buffer at `base + 1` (default base 8, clear of the
 scene buffers 0..2 of glsl/common/scene.glsl).
+
+Node layouts (`gpu_layout.BVH_LAYOUTS`): `bvh2`, the binary child-pair nodes of bvh.py (the
+reference), and `bvh4` / `bvh8`, wide nodes with quantized child boxes collapsed from it (wide.py).
+All share the triangle buffer, so every layout reports the same triangle slots and IDs.
 """
 from __future__ import annotations
 
@@ -14,9 +18,10 @@ import moderngl
 import numpy as np
 
 from .. import shaders
-from ..gpu_layout import SSBO
+from ..gpu_layout import BVH_LAYOUTS, SSBO
 from ..timing import settle
 from .bvh import Bvh, BufferTooLargeError
+from .wide import WideBvh, build_wide, node_words, pack as pack_wide
 
 DEFAULT_BINDING = SSBO["bvh_nodes"]  # nodes here, triangles at +1 (gpu_layout.SSBO)
 STACK_SIZE = 64            # BVH_STACK_SIZE in glsl/accel/bvh.glsl
@@ -36,24 +41,59 @@ def max_ssbo_bytes(ctx) -> int:
     return int(_moderngl(ctx).info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0)
 
 
-class GpuBvh:
-    """The packed BVH in two shader storage buffers (layout: rayvr/accel/bvh.py docstring)."""
+def check_layout(layout: str) -> int:
+    """The node width of a layout name (2, 4, 8); a clear error for an unknown one."""
+    if layout not in BVH_LAYOUTS:
+        raise ValueError(f"BVH layout must be one of {', '.join(BVH_LAYOUTS)}, got {layout!r}")
+    return BVH_LAYOUTS[layout]
 
-    def __init__(self, ctx, bvh: Bvh, limit: int | None = None):
-        """`limit`: bytes per storage block; default: the device's GL_MAX_SHADER_STORAGE_BLOCK_SIZE."""
+
+def layout_defines(base_binding: int = DEFAULT_BINDING, layout: str = "bvh2", ordered: bool = True) -> dict:
+    """Defines that compile glsl/accel/bvh.glsl for `layout` (nodes at `base_binding`, triangles at +1).
+    `ordered`: wide layouts visit a closest-hit ray's children nearest first (binary always does)."""
+    width = check_layout(layout)
+    d = {"BVH_NODES_BINDING": base_binding, "BVH_TRIS_BINDING": base_binding + 1,
+         "BVH_STACK_SIZE": STACK_SIZE, "BVH_WIDTH": width}
+    if width > 2:
+        d.update(BVH_NODE_VEC4=node_words(width) // 4, BVH_ORDERED=int(ordered))
+    return d
+
+
+class GpuBvh:
+    """The packed BVH in two shader storage buffers (layouts: bvh.py and wide.py docstrings)."""
+
+    def __init__(self, ctx, bvh: Bvh, limit: int | None = None, layout: str = "bvh2"):
+        """`limit`: bytes per storage block; default: the device's GL_MAX_SHADER_STORAGE_BLOCK_SIZE.
+        `layout`: bvh2 (binary, the reference), bvh4 or bvh8 (wide, collapsed from `bvh`)."""
         self.ctx = _moderngl(ctx)
         self.bvh = bvh
+        self.layout = layout
+        self.width = check_layout(layout)
         self.limit = max_ssbo_bytes(self.ctx) if limit is None else int(limit)
         bvh.check_fits(self.limit)
         if bvh.max_depth > STACK_SIZE:
             raise ValueError(f"BVH depth {bvh.max_depth} exceeds the GPU traversal stack ({STACK_SIZE}); "
                              f"build with max_depth <= {STACK_SIZE}")
-        self.nodes = self.ctx.buffer(bvh.pack_nodes().tobytes())
+        self.wide: WideBvh | None = None
+        if self.width > 2:
+            self.wide = build_wide(bvh, self.width)
+            if self.wide.stack_bound > STACK_SIZE:
+                raise ValueError(f"{layout}: a traversal may hold {self.wide.stack_bound} stack entries, more "
+                                 f"than the GPU stack ({STACK_SIZE}); use bvh2 or a shallower build")
+            if self.limit and self.wide.nbytes > self.limit:
+                raise BufferTooLargeError("bvh_nodes", self.wide.nbytes, self.limit)
+        self.nodes = self.ctx.buffer(self._pack_nodes().tobytes())
         self.triangles = self.ctx.buffer(bvh.pack_triangles().tobytes())
+
+    def _pack_nodes(self) -> np.ndarray:
+        if self.wide is None:
+            return self.bvh.pack_nodes()
+        self.wide.packed = pack_wide(self.bvh, self.wide.child)   # same children, new boxes
+        return self.wide.packed
 
     def update(self) -> None:
         """Re-upload boxes and vertices after `bvh.refit(...)` (same topology, same sizes)."""
-        self.nodes.write(self.bvh.pack_nodes().tobytes())
+        self.nodes.write(self._pack_nodes().tobytes())
         self.triangles.write(self.bvh.pack_triangles().tobytes())
 
     def bind(self, base_binding: int = DEFAULT_BINDING) -> None:
@@ -62,8 +102,12 @@ class GpuBvh:
 
     @staticmethod
     def defines(base_binding: int = DEFAULT_BINDING) -> dict:
-        return {"BVH_NODES_BINDING": base_binding, "BVH_TRIS_BINDING": base_binding + 1,
-                "BVH_STACK_SIZE": STACK_SIZE}
+        """Defines of the binary layout (the passes' default); `layout_defines` for the others."""
+        return layout_defines(base_binding)
+
+    def own_defines(self, base_binding: int = DEFAULT_BINDING, ordered: bool = True) -> dict:
+        """Defines for this buffer's layout."""
+        return layout_defines(base_binding, self.layout, ordered)
 
     @property
     def nbytes(self) -> int:
@@ -98,10 +142,12 @@ def pack_rays(origins, directions, tmin=0.0, tmax=np.inf) -> np.ndarray:
 class RayTracer:
     """Traces ray batches through glsl/accel/trace_rays.comp; one program per mode, built lazily."""
 
-    def __init__(self, ctx, gpu_bvh: GpuBvh, base_binding: int = DEFAULT_BINDING):
+    def __init__(self, ctx, gpu_bvh: GpuBvh, base_binding: int = DEFAULT_BINDING, ordered: bool = True):
+        """`ordered`: wide layouts visit closest-hit children nearest first (see layout_defines)."""
         self.ctx = _moderngl(ctx)
         self.gpu_bvh = gpu_bvh
         self.base = base_binding
+        self.ordered = ordered
         self._programs: dict[tuple, moderngl.ComputeShader] = {}
 
     def program(self, mode: str, offset: bool = True) -> moderngl.ComputeShader:
@@ -109,7 +155,7 @@ class RayTracer:
         if key not in self._programs:
             if mode not in MODES:
                 raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
-            defines = dict(GpuBvh.defines(self.base), TRACE_MODE=MODES[mode], OFFSET_RAYS=int(offset),
+            defines = dict(self.gpu_bvh.own_defines(self.base, self.ordered), TRACE_MODE=MODES[mode], OFFSET_RAYS=int(offset),
                            RAYS_BINDING=self.base + 2, HITS_BINDING=self.base + 3)
             self._programs[key] = shaders.compute(self.ctx, "accel/trace_rays.comp", defines)
         return self._programs[key]
@@ -199,5 +245,5 @@ def trace_rays(ctx, bvh_or_gpu, origins, directions, tmin=0.0, tmax=np.inf, mode
             gpu_bvh.release()
 
 
-__all__ = ["GpuBvh", "RayTracer", "Hits", "trace_rays", "pack_rays", "max_ssbo_bytes",
+__all__ = ["GpuBvh", "layout_defines", "check_layout", "RayTracer", "Hits", "trace_rays", "pack_rays", "max_ssbo_bytes",
            "BufferTooLargeError", "MISS", "MODES", "DEFAULT_BINDING", "STACK_SIZE"]

@@ -1,10 +1,12 @@
-// BVH traversal: trace_closest() and trace_any() over the child-pair BVH2 built by rayvr/accel/bvh.py.
+// BVH traversal: trace_closest() and trace_any(), over the layout BVH_WIDTH picks (GpuBvh.defines):
+//   2: the child-pair binary BVH of rayvr/accel/bvh.py (bvh2.glsl), the reference layout;
+//   4, 8: the wide BVHs with quantized child boxes of rayvr/accel/wide.py (bvh_wide.glsl).
+// One traversal body per layout, shared by every ray kind (primary, shadow, reflection, glossy).
 //
 // Buffers (std430, bound by GpuBvh.bind(base) at base and base + 1; pass GpuBvh.defines(base)):
-//   bvh_nodes: 4 vec4 per node: L box (x lo/hi, y lo/hi, z lo/hi), R box, then int bits
-//              (L index, R index, L count, R count); count 0 = internal child at node `index`,
-//              count > 0 = leaf of `count` triangles starting at slot `index`. Node 0 is the root.
-//   bvh_tris:  3 vec4 per reordered triangle: (v0, original id bits), (v1, 0), (v2, 0).
+//   nodes:     the layout's nodes (see its file), root first.
+//   bvh_tris:  3 vec4 per reordered triangle: (v0, original id bits), (v1, 0), (v2, 0); every
+//              layout's leaves are ranges of these slots.
 #ifndef RAYVR_ACCEL_BVH_GLSL
 #define RAYVR_ACCEL_BVH_GLSL
 
@@ -18,7 +20,10 @@
 #define BVH_TRIS_BINDING 9
 #endif
 #ifndef BVH_STACK_SIZE
-#define BVH_STACK_SIZE 64   // >= the build's max_depth (bvh.py caps the depth at it)
+#define BVH_STACK_SIZE 64   // >= the build's max_depth, and the wide layouts' stack bound
+#endif
+#ifndef BVH_WIDTH
+#define BVH_WIDTH 2
 #endif
 
 #ifndef BVH_GLOBAL_STACK
@@ -34,7 +39,6 @@
 int bvh_stack[BVH_STACK_SIZE];
 #endif
 
-layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhNodes { vec4 bvh_nodes[]; };
 layout(std430, binding = BVH_TRIS_BINDING) readonly restrict buffer BvhTriangles { vec4 bvh_tris[]; };
 
 // Zero, NaN or infinite directions and empty [tmin, tmax] intervals trace nothing.
@@ -86,57 +90,11 @@ bool bvh_leaf(RayShear s, int first, int count, float tmin, bool any_hit, inout 
     return found;
 }
 
-// Stack traversal: test both children of a node; leaf children are intersected at once, so only
-// internal nodes are pushed; with two internal children hit, go to the nearer, push the farther.
-bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
-    h.t = r.tmax;
-    h.prim = BVH_MISS;
-    h.slot = BVH_MISS;
-    h.uv = vec2(0.0);
-    if (!bvh_ray_valid(r))
-        return false;
-    RayShear s = ray_shear(r);
-    vec3 inv = bvh_safe_inverse(r.direction);
-#if !BVH_GLOBAL_STACK
-    int bvh_stack[BVH_STACK_SIZE];
+#if BVH_WIDTH == 2
+#include "bvh2.glsl"
+#else
+#include "bvh_wide.glsl"
 #endif
-    int sp = 0;
-    int node = 0;
-    while (true) {
-        vec4 n0 = bvh_nodes[4 * node];
-        vec4 n1 = bvh_nodes[4 * node + 1];
-        vec4 n2 = bvh_nodes[4 * node + 2];
-        ivec4 m = floatBitsToInt(bvh_nodes[4 * node + 3]);
-        float tl, tr;
-        bool hl = bvh_slab(r.origin, inv, vec3(n0.x, n0.z, n1.x), vec3(n0.y, n0.w, n1.y), r.tmin, h.t, tl);
-        bool hr = bvh_slab(r.origin, inv, vec3(n1.z, n2.x, n2.z), vec3(n1.w, n2.y, n2.w), r.tmin, h.t, tr);
-        if (hl && m.z > 0) {
-            if (bvh_leaf(s, m.x, m.z, r.tmin, any_hit, h) && any_hit)
-                return true;
-            hl = false;
-            hr = hr && tr <= h.t;
-        }
-        if (hr && m.w > 0) {
-            if (bvh_leaf(s, m.y, m.w, r.tmin, any_hit, h) && any_hit)
-                return true;
-            hr = false;
-        }
-        if (hl && hr) {
-            bool left_first = tl <= tr;
-            bvh_stack[sp++] = left_first ? m.y : m.x;
-            node = left_first ? m.x : m.y;
-        } else if (hl) {
-            node = m.x;
-        } else if (hr) {
-            node = m.y;
-        } else {
-            if (sp == 0)
-                break;
-            node = bvh_stack[--sp];
-        }
-    }
-    return h.prim != BVH_MISS;
-}
 
 // Closest hit in (tmin, tmax); h.prim = BVH_MISS and h.t = tmax on a miss.
 bool trace_closest(Ray r, out Hit h) {

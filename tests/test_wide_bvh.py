@@ -1,0 +1,181 @@
+"""Wide BVH layouts (accel/wide.py, glsl/accel/bvh_wide.glsl) against the binary reference: the
+numpy walks of both, the GPU traversals of every layout, and Embree."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rayvr.accel.bvh import build_bvh, trace_reference, widen
+from rayvr.accel.gpu import MISS, GpuBvh, RayTracer
+from rayvr.accel.wide import build_wide, collapse, trace_wide_reference, unpack
+from test_traversal_gpu import agreement, cube, embree_closest, embree_scene, load_mesh, rays_at, soup
+
+
+def test_collapse_keeps_every_leaf_once_and_fills_nodes():
+    v, f = soup(1500, seed=2)
+    bvh = build_bvh(v, f, max_leaf_size=2)
+    for width in (4, 8):
+        child = collapse(bvh, width)
+        used = child[child >= 0]
+        leaves = used[bvh.left[used] < 0]
+        # every binary leaf exactly once: the same triangle ranges as the binary tree
+        assert np.array_equal(np.sort(leaves), np.flatnonzero(bvh.left < 0))
+        n = (child >= 0).sum(axis=1)
+        assert n.min() >= 2 and n.max() == width
+        # a node is left underfull only when none of its children can be opened (all leaves)
+        under = child[n < width]
+        assert (bvh.left[under[under >= 0]] < 0).all()
+        # each internal child is a later node (BFS), each node but the root has one parent
+        internal = used[bvh.left[used] >= 0]
+        assert len(internal) == len(child) - 1
+        assert build_wide(bvh, width).stats()["depth"] < bvh.max_depth
+
+
+@pytest.mark.parametrize("offset,scale", [(0.0, 1.0), (1e5, 1.0), (0.0, 1e-3), (-3e4, 40.0)])
+def test_quantized_boxes_contain_the_binary_boxes(offset, scale):
+    v, f = soup(800, seed=5)
+    v = (v * scale + offset).astype(np.float32)
+    bvh = build_bvh(v, f)
+    for width in (4, 8):
+        w = build_wide(bvh, width)
+        lo, hi = w.decode()
+        valid = w.child >= 0
+        blo, bhi = widen(bvh.node_lo[w.child[valid]], bvh.node_hi[w.child[valid]])
+        assert (lo[valid] <= blo).all() and (hi[valid] >= bhi).all()
+        # and stay tight: at most one quantum wider per side (+ an ulp), the quantum at most
+        # 2/255 of the node's extent (a power of two at or above extent/255)
+        _, ebias, _, _, _, _ = unpack(w.packed, width)
+        quantum = np.ldexp(1.0, ebias - 127)
+        q = np.broadcast_to(quantum[:, None, :], lo.shape)[valid]
+        assert ((blo - lo[valid]) <= q * 1.0001).all() and ((hi[valid] - bhi) <= q * 1.0001).all()
+        wlo, whi = widen(bvh.node_lo[w.child], bvh.node_hi[w.child])
+        node_ext = (np.where(valid[..., None], whi, -np.inf).max(1)
+                    - np.where(valid[..., None], wlo, np.inf).min(1)).astype(np.float64)
+        assert (quantum <= np.maximum(node_ext * 2 / 255, 2.0 ** -126) * 1.0001).all()
+        assert np.isfinite(lo[valid]).all() and np.isfinite(hi[valid]).all()
+
+
+@pytest.mark.parametrize("width", [4, 8])
+def test_numpy_wide_walk_matches_binary_reference(width):
+    v, f = soup(1500, seed=1)
+    bvh = build_bvh(v, f)
+    w = build_wide(bvh, width)
+    o, d = rays_at(v, 3000, seed=3)
+    prim, t, _, _ = trace_reference(bvh, o, d)
+    stats = {}
+    wp, wt, _, _ = trace_wide_reference(w, o, d, stats=stats)
+    assert 0.3 < (prim != MISS).mean() < 0.95
+    assert np.array_equal(wp, prim) and np.array_equal(wt, t)   # same float64 triangle tests
+    ref_stats = {}
+    trace_reference(bvh, o, d, stats=ref_stats)
+    assert stats["node_visits"].mean() < ref_stats["pair_node_visits"].mean()   # fewer node fetches
+    occ = trace_wide_reference(w, o, d, tmax=0.6, any_hit=True)
+    assert np.array_equal(occ, trace_reference(bvh, o, d, tmax=0.6, any_hit=True))
+
+
+def gpu_traces(gl, bvh, o, d, **kw):
+    out = {}
+    for layout in ("bvh2", "bvh4", "bvh8"):
+        gb = GpuBvh(gl, bvh, layout=layout)
+        for ordered in ((True, False) if layout != "bvh2" else (True,)):
+            rt = RayTracer(gl, gb, ordered=ordered)
+            out[layout, ordered] = (rt.trace(o, d, **kw), rt.trace(o, d, tmax=kw.get("tmax", np.inf) * 0.5,
+                                                                    mode="any"))
+        gb.release()
+    return out
+
+
+def assert_same_as_binary(out, prim_ref=None, t_ref=None):
+    base, base_any = out["bvh2", True]
+    for key, (h, occ) in out.items():
+        # The same float32 triangle test on the same triangles: identical hits, bit for bit, except
+        # where two triangles tie at the same t (an edge), which traversal order decides.
+        frac, err = agreement(h.prim, h.t, base.prim, base.t, rel=0.0)
+        assert frac == 1.0 and err == 0.0, f"{key}: {frac:.4%} agree with bvh2"
+        assert np.array_equal(occ, base_any), f"{key}: any-hit differs from bvh2"
+        if prim_ref is not None:
+            frac, err = agreement(h.prim, h.t, prim_ref, t_ref)
+            assert frac >= 0.999 and err <= 1e-5
+
+
+def test_gpu_layouts_match_binary_on_soup(gl):
+    v, f = soup(2000, seed=6)
+    bvh = build_bvh(v, f)
+    o, d = rays_at(v, 3000, seed=9)
+    prim, t, _, _ = trace_reference(bvh, o, d)
+    assert_same_as_binary(gpu_traces(gl, bvh, o, d, tmax=np.float32(40.0)), prim, t)
+
+
+def test_gpu_layouts_axis_rays_edges_and_degenerate(gl):
+    v, f = cube()
+    grid = np.array([-1.5, -1.0, -0.5, 0.0, 0.3, 1.0, 1.5], np.float32)
+    a, b = [x.ravel() for x in np.meshgrid(grid, grid)]
+    o, d = [], []
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            oo = np.zeros((len(a), 3), np.float32)
+            oo[:, axis] = -5.0 * sign
+            oo[:, (axis + 1) % 3], oo[:, (axis + 2) % 3] = a, b
+            dd = np.zeros_like(oo)
+            dd[:, axis] = sign
+            o.append(oo)
+            d.append(dd)
+    o.append(np.array([[-5, 1, 0], [-5, 1.0001, 0], [0, 0, 0], [0, 0, 0]], np.float32))
+    d.append(np.array([[1, 0, 0], [1, 0, 0], [0, 0, 0], [np.nan, 0, 1]], np.float32))
+    o, d = np.concatenate(o), np.concatenate(d)
+    bvh = build_bvh(v, f, max_leaf_size=1)
+    out = gpu_traces(gl, bvh, o, d, tmax=np.float32(100.0))
+    assert_same_as_binary(out)
+    h = out["bvh8", True][0]
+    inside = np.concatenate([(np.abs(a) <= 1) & (np.abs(b) <= 1)] * 6)
+    assert (h.prim[:len(inside)][inside] != MISS).all() and np.allclose(h.t[:len(inside)][inside], 4.0)
+    assert h.prim[-4] != MISS and (h.prim[-3:] == MISS).all()
+
+
+def test_gpu_layouts_empty_and_single_triangle(gl):
+    o = np.array([[0.2, 0.2, -1], [5, 5, -1]], np.float32)
+    d = np.array([[0, 0, 1], [0, 0, 1]], np.float32)
+    one = build_bvh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]]))
+    empty = build_bvh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int64))
+    for layout in ("bvh4", "bvh8"):
+        h = RayTracer(gl, GpuBvh(gl, one, layout=layout)).trace(o, d)
+        assert h.prim.tolist() == [0, MISS] and h.t[0] == pytest.approx(1.0)
+        h = RayTracer(gl, GpuBvh(gl, empty, layout=layout)).trace(o, d)
+        assert (h.prim == MISS).all()
+        assert not trace_wide_reference(build_wide(empty, 4 if layout == "bvh4" else 8), o, d, any_hit=True).any()
+
+
+def test_gpu_wide_refit_update(gl):
+    v, f = soup(600, seed=3)
+    bvh = build_bvh(v, f)
+    gb = GpuBvh(gl, bvh, layout="bvh4")
+    rt = RayTracer(gl, gb)
+    moved = (v * 1.3 + np.sin(v[:, [1, 2, 0]])).astype(np.float32)
+    bvh.refit(moved)
+    gb.update()
+    o, d = rays_at(moved, 2000, seed=4)
+    fresh = RayTracer(gl, GpuBvh(gl, build_bvh(moved, f), layout="bvh4")).trace(o, d)
+    h = rt.trace(o, d)
+    frac, err = agreement(h.prim, h.t, fresh.prim, fresh.t, rel=0.0)
+    assert frac == 1.0 and err == 0.0
+
+
+def test_unknown_layout_is_a_clear_error(gl):
+    v, f = soup(10)
+    with pytest.raises(ValueError, match="bvh2, bvh4, bvh8"):
+        GpuBvh(gl, build_bvh(v, f), layout="bvh16")
+
+
+def test_wide_layouts_match_embree_in_sponza(gl):
+    v, f = load_mesh("sponza_dabrovic/sponza.obj")
+    scene = embree_scene(v, f)
+    bvh = build_bvh(v, f)
+    rng = np.random.default_rng(7)
+    lo, hi = v.min(0), v.max(0)
+    o = rng.uniform(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), (3000, 3)).astype(np.float32)
+    d = rng.normal(size=(3000, 3)).astype(np.float32)
+    eprim, et = embree_closest(scene, o, d / np.linalg.norm(d, axis=1, keepdims=True))
+    for layout in ("bvh4", "bvh8"):
+        h = RayTracer(gl, GpuBvh(gl, bvh, layout=layout)).trace(o, d / np.linalg.norm(d, axis=1, keepdims=True))
+        frac, err = agreement(h.prim, h.t, eprim, et)
+        assert frac >= 0.999 and err <= 1e-5, f"{layout}: {frac:.4%} agree with Embree"
