@@ -50,6 +50,8 @@ SSBO = {
     "dda_rays": 15, "dda_results": 16,  # accel/dda.py DdaTracer (glsl/ssrt/dda_batch.comp)
     "quadtree_nodes": 20, "quadtree_rays": 21, "quadtree_results": 22,  # passes/quadtree.py, glsl/ssrt/quadtree*.glsl
     "hiz_levels": 23, "hiz_rays": 24, "hiz_results": 25,  # accel/hiz.py HizTracer, glsl/ssrt/hiz*.glsl
+    "refit_vertices": 26, "refit_index": 27,  # accel/refit.py GpuRefit (glsl/accel/refit.comp)
+    "tile_entries": 28,  # accel/frustum.py tile culling (glsl/accel/tile_cull.comp)
 }
 # Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
 IMAGE = {"hdr": 0, "ldr": 1}

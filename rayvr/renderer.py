@@ -264,15 +264,15 @@ class Renderer:
         timings = self.graph.read_ms(pending.fc)
         return Frame(self.reader.finish(pending), timings, pending.fc.plan.view, tuple(pending.fc.pass_names))
 
-    def update_vertices(self, vertices) -> None:
+    def update_vertices(self, vertices, gpu_refit: bool = False) -> None:
         """Move the scene's vertices (scene-local, same triangles): re-upload them and refit the
-        BVH if one was built."""
+        BVH if one was built (on the host, or with `gpu_refit` in a compute pass: accel/refit.py)."""
         v = np.asarray(vertices, np.float32)
         if v.shape != self.scene.vertices.shape or not np.isfinite(v).all():
             raise ValueError(f"update_vertices needs {self.scene.vertices.shape} finite positions, got {v.shape}")
         self.scene.vertices = np.ascontiguousarray(v)
         self.gpu_scene.upload_vertices()
-        self.accel.refit(v)
+        self.accel.refit(v, on_gpu=gpu_refit)
 
     # -- lifetime --------------------------------------------------------------------
     def release(self) -> None:

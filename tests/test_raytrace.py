@@ -386,7 +386,8 @@ def test_primary_rays_match_embree_and_the_raster_gbuffer(gl, shared_scene, whic
             assert agree.mean() >= 0.995, f"{agree.mean():.4%} raster/traced agreement"
 
 
-def test_refit_moves_what_rays_see(gl):
+@pytest.mark.parametrize("gpu_refit", [False, True])
+def test_refit_moves_what_rays_see(gl, gpu_refit):
     sphere = trimesh.creation.icosphere(subdivisions=2, radius=0.5)
     v, f, part = merge((sphere.vertices + [0, 0, -3], sphere.faces), quad((0, 0, -5), (6, 0, 0), (0, 6, 0)))
     scene = from_arrays(v, f, triangle_material=part, materials=[Material("ball"), Material("wall")])
@@ -395,7 +396,7 @@ def test_refit_moves_what_rays_see(gl):
     before = r.render(rig, aux=("triangle",)).left.aux["triangle"]
     moved = scene.vertices.copy()
     moved[: len(sphere.vertices)] += np.float32([0.8, 0.0, 0.0])
-    r.update_vertices(moved)
+    r.update_vertices(moved, gpu_refit=gpu_refit)
     after = r.render(rig, aux=("triangle",)).left.aux["triangle"]
     r.release()
     ref = Renderer(scene, gl=gl)

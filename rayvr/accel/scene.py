@@ -30,6 +30,7 @@ class SceneAccel:
         self.gl, self.scene = gl, scene
         self.bvh: Bvh | None = None
         self.gpu: GpuBvh | None = None
+        self._refit = None
 
     @property
     def built(self) -> bool:
@@ -41,14 +42,25 @@ class SceneAccel:
             self.gpu = GpuBvh(self.gl.ctx, self.bvh)
         return self.gpu
 
-    def refit(self, vertices) -> None:
-        """Moving geometry (same triangles, new scene-local positions): refit the boxes and
-        re-upload. A BVH not built yet is simply built from the new positions when first needed."""
-        if self.bvh is not None:
+    def refit(self, vertices, on_gpu: bool = False) -> None:
+        """Moving geometry (same triangles, new scene-local positions): refit the boxes on the host
+        and re-upload, or (`on_gpu`) refit on the GPU (accel/refit.py; the host boxes then go stale).
+        A BVH not built yet is simply built from the new positions when first needed."""
+        if self.bvh is None:
+            return
+        if on_gpu:
+            if self._refit is None:
+                from .refit import GpuRefit
+                self._refit = GpuRefit(self.gl.ctx, self.gpu)
+            self._refit.run(np.asarray(vertices, np.float32))
+        else:
             self.bvh.refit(np.asarray(vertices, np.float32))
             self.gpu.update()
 
     def release(self) -> None:
+        if self._refit is not None:
+            self._refit.release()
+            self._refit = None
         if self.gpu is not None:
             self.gpu.release()
         self.gpu = self.bvh = None
