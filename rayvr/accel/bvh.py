@@ -516,56 +516,85 @@ def trace_reference(bvh: Bvh, origins, directions, tmin=0.0, tmax=np.inf, any_hi
     per-ray node fetches of a one-box-per-node BVH2 (`node_visits`: every popped node) and of the
     child-pair layout (`pair_node_visits`: internal nodes whose box the ray enters).
     """
-    o, d, tmin, tbest, ok = _prepare_rays(origins, directions, tmin, tmax)
-    n = len(o)
-    inv = safe_inverse(d)
-    prim = np.full(n, -1, np.int64)
-    u = np.zeros(n)
-    v = np.zeros(n)
-    occluded = np.zeros(n, bool)
-    stack = np.zeros((n, bvh.max_depth + 2), np.int64)
-    sp = ok.astype(np.int64)                                    # root pushed for valid rays
-    visits = np.zeros(n, np.int64)
-    pair_visits = np.zeros(n, np.int64)
-    tris = bvh.triangles().astype(np.float64)
-    active = np.flatnonzero(sp > 0)
-    while len(active):
-        sp[active] -= 1
-        node = stack[active, sp[active]]
-        visits[active] += 1
-        hit_box = _slab(o[active], inv[active], bvh.node_lo[node], bvh.node_hi[node], tmin[active], tbest[active])
+    w = RayWalk(bvh, origins, directions, tmin, tmax, any_hit, bvh.max_depth + 2)
+    w.push(np.flatnonzero(w.ok), np.zeros(int(w.ok.sum()), np.int64))   # the root, for valid rays
+    pair_visits = np.zeros(w.n, np.int64)
+    while True:
+        active, node = w.pop()
+        if len(active) == 0:
+            break
+        hit_box = _slab(w.o[active], w.inv[active], bvh.node_lo[node], bvh.node_hi[node], w.tmin[active],
+                        w.tbest[active])
         r, node = active[hit_box], node[hit_box]
         pair_visits[r] += bvh.left[node] >= 0
         is_leaf = bvh.left[node] < 0
-        lr, ln = r[is_leaf], node[is_leaf]
-        for k in range(int(bvh.count[ln].max()) if len(ln) else 0):
-            m = k < bvh.count[ln]
-            rr, slot = lr[m], bvh.start[ln[m]] + k
-            h, t, uu, vv = intersect_triangles(o[rr], d[rr], tris[slot, 0], tris[slot, 1], tris[slot, 2],
-                                               tmin[rr], tbest[rr])
-            rr, slot = rr[h], slot[h]
-            tbest[rr], u[rr], v[rr] = t[h], uu[h], vv[h]
-            prim[rr] = bvh.prim_ids[slot]
-            occluded[rr] = True
+        ln = node[is_leaf]
+        w.leaf(r[is_leaf], bvh.start[ln], bvh.count[ln])
         ir, inode = r[~is_leaf], node[~is_leaf]
-        stack[ir, sp[ir]] = bvh.right[inode]
-        stack[ir, sp[ir] + 1] = bvh.left[inode]
-        sp[ir] += 2
-        if any_hit:
-            sp[occluded] = 0
-        active = np.flatnonzero(sp > 0)
+        w.push(ir, bvh.right[inode])
+        w.push(ir, bvh.left[inode])
     if stats is not None:
-        stats["node_visits"] = visits
+        stats["node_visits"] = w.visits
         stats["pair_node_visits"] = pair_visits
-    if any_hit:
-        return occluded
-    miss = prim < 0
-    return (np.where(miss, 0xFFFFFFFF, prim).astype(np.uint32), np.where(miss, np.inf, tbest), u, v)
+    return w.result()
 
 
-def _slab(o, inv, lo, hi, tmin, tmax):
-    """Ray-box overlap with near/far planes picked by the sign of the inverse direction."""
-    lo, hi = (x.astype(np.float64) for x in widen(lo, hi))
+class RayWalk:
+    """State of a numpy reference traversal of many rays at once (float64): per-ray stacks of node
+    numbers, the closest hit so far, occlusion. Each layout's reference walk (binary here, wide in
+    wide.py, tile-culled in frustum.py) pops nodes, tests its boxes and calls `leaf` and `push`."""
+
+    def __init__(self, bvh: Bvh, origins, directions, tmin, tmax, any_hit: bool, stack_size: int):
+        self.bvh, self.any_hit = bvh, any_hit
+        self.o, self.d, self.tmin, self.tbest, self.ok = _prepare_rays(origins, directions, tmin, tmax)
+        self.n = n = len(self.o)
+        self.inv = safe_inverse(self.d)
+        self.prim = np.full(n, -1, np.int64)
+        self.u, self.v = np.zeros(n), np.zeros(n)
+        self.occluded = np.zeros(n, bool)
+        self.stack = np.zeros((n, stack_size), np.int64)
+        self.sp = np.zeros(n, np.int64)
+        self.visits = np.zeros(n, np.int64)
+        self.tris = bvh.triangles().astype(np.float64)
+
+    def push(self, rays, nodes) -> None:
+        self.stack[rays, self.sp[rays]] = nodes
+        self.sp[rays] += 1
+
+    def pop(self):
+        """(rays, node each popped): every ray with a non-empty stack (an occluded any-hit ray stops)."""
+        if self.any_hit:
+            self.sp[self.occluded] = 0
+        active = np.flatnonzero(self.sp > 0)
+        self.sp[active] -= 1
+        self.visits[active] += 1
+        return active, self.stack[active, self.sp[active]]
+
+    def leaf(self, rays, first, count) -> None:
+        """Rays against their leaf ranges [first, first + count), keeping the closest hit."""
+        for k in range(int(count.max()) if len(count) else 0):
+            m = k < count
+            rr, slot = rays[m], first[m] + k
+            h, t, uu, vv = intersect_triangles(self.o[rr], self.d[rr], self.tris[slot, 0], self.tris[slot, 1],
+                                               self.tris[slot, 2], self.tmin[rr], self.tbest[rr])
+            rr, slot = rr[h], slot[h]
+            self.tbest[rr], self.u[rr], self.v[rr] = t[h], uu[h], vv[h]
+            self.prim[rr] = self.bvh.prim_ids[slot]
+            self.occluded[rr] = True
+
+    def result(self):
+        """Occlusion (any hit), or (prim, t, u, v) with 0xFFFFFFFF / inf on a miss."""
+        if self.any_hit:
+            return self.occluded
+        miss = self.prim < 0
+        return (np.where(miss, 0xFFFFFFFF, self.prim).astype(np.uint32), np.where(miss, np.inf, self.tbest),
+                self.u, self.v)
+
+
+def _slab(o, inv, lo, hi, tmin, tmax, widened: bool = False):
+    """Ray-box overlap with near/far planes picked by the sign of the inverse direction; boxes are
+    widened by an ulp first unless `widened` says they already contain that ulp (quantized boxes)."""
+    lo, hi = (x.astype(np.float64) for x in ((lo, hi) if widened else widen(lo, hi)))
     pos = inv >= 0
     near = (np.where(pos, lo, hi) - o) * inv
     far = (np.where(pos, hi, lo) - o) * inv

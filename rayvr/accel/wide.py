@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bvh import Bvh, EMPTY_HI, EMPTY_LO, _half_area, _prepare_rays, intersect_triangles, safe_inverse, widen
+from .bvh import Bvh, EMPTY_HI, EMPTY_LO, RayWalk, _half_area, _slab, widen
 
 WIDTHS = (4, 8)
 MAX_LEAF_COUNT = 255  # one byte per child
@@ -250,56 +250,27 @@ def trace_wide_reference(wide: WideBvh, origins, directions, tmin=0.0, tmax=np.i
     """The packed wide BVH walked for all rays at once (float64 slabs on the float32-decoded boxes):
     what glsl/accel/bvh_wide.glsl does, in numpy. Returns what `bvh.trace_reference` returns.
     `stats` receives `node_visits` (wide nodes fetched per ray)."""
-    bvh = wide.bvh
-    o, d, tmin, tbest, ok = _prepare_rays(origins, directions, tmin, tmax)
-    n, W = len(o), wide.width
-    inv = safe_inverse(d)
+    W = wide.width
+    w = RayWalk(wide.bvh, origins, directions, tmin, tmax, any_hit, wide.stack_bound + 1)
+    w.push(np.flatnonzero(w.ok), np.zeros(int(w.ok.sum()), np.int64))
     lo, hi = (x.astype(np.float64) for x in wide.decode())
     _, _, nchild, _, count, index = unpack(wide.packed, W)
-    prim = np.full(n, -1, np.int64)
-    u, v = np.zeros(n), np.zeros(n)
-    occluded = np.zeros(n, bool)
-    stack = np.zeros((n, wide.stack_bound + 1), np.int64)
-    sp = ok.astype(np.int64)
-    visits = np.zeros(n, np.int64)
-    tris = bvh.triangles().astype(np.float64)
-    active = np.flatnonzero(sp > 0)
-    while len(active):
-        sp[active] -= 1
-        node = stack[active, sp[active]]
-        visits[active] += 1
+    while True:
+        active, node = w.pop()
+        if len(active) == 0:
+            break
         for c in range(W):
-            m = (c < nchild[node]) & ~(any_hit & occluded[active])
+            m = (c < nchild[node]) & ~(any_hit & w.occluded[active])
             r, nd = active[m], node[m]
-            pos = inv[r] >= 0
-            near = (np.where(pos, lo[nd, c], hi[nd, c]) - o[r]) * inv[r]
-            far = (np.where(pos, hi[nd, c], lo[nd, c]) - o[r]) * inv[r]
-            enter = np.maximum(near.max(axis=1), tmin[r]) <= np.minimum(far.min(axis=1), tbest[r])
+            enter = _slab(w.o[r], w.inv[r], lo[nd, c], hi[nd, c], w.tmin[r], w.tbest[r], widened=True)
             r, nd = r[enter], nd[enter]
             cnt = count[nd, c]
             leaf = cnt > 0
-            lr, first, lc = r[leaf], index[nd[leaf], c], cnt[leaf]
-            for k in range(int(lc.max()) if len(lc) else 0):
-                m = k < lc
-                rr, slot = lr[m], first[m] + k
-                h, t, uu, vv = intersect_triangles(o[rr], d[rr], tris[slot, 0], tris[slot, 1], tris[slot, 2],
-                                                   tmin[rr], tbest[rr])
-                rr, slot = rr[h], slot[h]
-                tbest[rr], u[rr], v[rr] = t[h], uu[h], vv[h]
-                prim[rr] = bvh.prim_ids[slot]
-                occluded[rr] = True
-            ir = r[~leaf]
-            stack[ir, sp[ir]] = index[nd[~leaf], c]
-            sp[ir] += 1
-        if any_hit:
-            sp[occluded] = 0
-        active = np.flatnonzero(sp > 0)
+            w.leaf(r[leaf], index[nd[leaf], c], cnt[leaf])
+            w.push(r[~leaf], index[nd[~leaf], c])
     if stats is not None:
-        stats["node_visits"] = visits
-    if any_hit:
-        return occluded
-    miss = prim < 0
-    return (np.where(miss, 0xFFFFFFFF, prim).astype(np.uint32), np.where(miss, np.inf, tbest), u, v)
+        stats["node_visits"] = w.visits
+    return w.result()
 
 
 __all__ = ["WideBvh", "WIDTHS", "build_wide", "collapse", "pack", "unpack", "decode_boxes", "node_words",

@@ -37,6 +37,9 @@
 // popped nodes beyond the hit were each slower in the wavefront effect kernels (Sponza rt_shadows
 // 1.17 ms with this traversal, 1.4-3.0 ms with those).
 int bvh_stack[BVH_STACK_SIZE];
+#define BVH_LOCAL_STACK
+#else
+#define BVH_LOCAL_STACK int bvh_stack[BVH_STACK_SIZE];   // one per traversal body
 #endif
 
 layout(std430, binding = BVH_TRIS_BINDING) readonly restrict buffer BvhTriangles { vec4 bvh_tris[]; };
@@ -66,6 +69,19 @@ bool bvh_slab(vec3 o, vec3 inv, vec3 lo, vec3 hi, float tmin, float tmax, out fl
     tnear = max(max(t0.x, t0.y), max(t0.z, tmin));
     float tfar = min(min(t1.x, t1.y), t1.z) * 1.00000024;
     return tnear <= min(tfar, tmax);
+}
+
+// Start of every layout's traversal: h = a miss at tmax; false for a ray that traces nothing.
+bool bvh_begin(Ray r, out Hit h, out RayShear s, out vec3 inv) {
+    h.t = r.tmax;
+    h.prim = BVH_MISS;
+    h.slot = BVH_MISS;
+    h.uv = vec2(0.0);
+    if (!bvh_ray_valid(r))
+        return false;
+    s = ray_shear(r);
+    inv = bvh_safe_inverse(r.direction);
+    return true;
 }
 
 // Test the triangles of one leaf, shrinking h.t on every closer hit.

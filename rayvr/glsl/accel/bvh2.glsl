@@ -10,17 +10,11 @@ layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhNodes { 
 // Stack traversal: test both children of a node; leaf children are intersected at once, so only
 // internal nodes are pushed; with two internal children hit, go to the nearer, push the farther.
 bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
-    h.t = r.tmax;
-    h.prim = BVH_MISS;
-    h.slot = BVH_MISS;
-    h.uv = vec2(0.0);
-    if (!bvh_ray_valid(r))
+    RayShear s;
+    vec3 inv;
+    if (!bvh_begin(r, h, s, inv))
         return false;
-    RayShear s = ray_shear(r);
-    vec3 inv = bvh_safe_inverse(r.direction);
-#if !BVH_GLOBAL_STACK
-    int bvh_stack[BVH_STACK_SIZE];
-#endif
+    BVH_LOCAL_STACK
     int sp = 0;
     int node = 0;
     while (true) {

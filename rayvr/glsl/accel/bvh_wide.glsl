@@ -27,17 +27,11 @@ layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhWide { u
                                              uint ti = ci[i]; ci[i] = ci[j]; ci[j] = ti; }
 
 bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
-    h.t = r.tmax;
-    h.prim = BVH_MISS;
-    h.slot = BVH_MISS;
-    h.uv = vec2(0.0);
-    if (!bvh_ray_valid(r))
+    RayShear s;
+    vec3 inv;
+    if (!bvh_begin(r, h, s, inv))
         return false;
-    RayShear s = ray_shear(r);
-    vec3 inv = bvh_safe_inverse(r.direction);
-#if !BVH_GLOBAL_STACK
-    int bvh_stack[BVH_STACK_SIZE];
-#endif
+    BVH_LOCAL_STACK
     int sp = 0;
     uint node = 0u;
     while (true) {
