@@ -33,8 +33,7 @@ class GpuRefit:
         self.gpu = gpu_bvh
         self.base = base_binding
         bvh = gpu_bvh.bvh
-        defines = {"BVH_NODES_BINDING": base_binding, "BVH_TRIS_BINDING": base_binding + 1,
-                   "REFIT_VERTS_BINDING": SSBO["refit_vertices"], "REFIT_INDEX_BINDING": SSBO["refit_index"]}
+        defines = {"BVH_NODES_BINDING": base_binding, "BVH_TRIS_BINDING": base_binding + 1}
         self.programs = [shaders.compute(self.ctx, "accel/refit.comp", {**defines, "REFIT_STAGE": s}) for s in (0, 1)]
         self.slots = bvh.triangle_count
         self.vertex_count = len(bvh.vertices)

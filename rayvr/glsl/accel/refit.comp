@@ -9,11 +9,19 @@
 //                equals Bvh.pack_nodes() after a numpy refit, bit for bit.
 #define LOCAL_SIZE 64
 layout(local_size_x = LOCAL_SIZE) in;
+#include "../layout.glsl"
+#ifndef BVH_NODES_BINDING
+#define BVH_NODES_BINDING SSBO_BVH_NODES
+#define BVH_TRIS_BINDING SSBO_BVH_TRIANGLES
+#endif
+#ifndef REFIT_STAGE
+#define REFIT_STAGE 0
+#endif
 
 layout(std430, binding = BVH_NODES_BINDING) restrict buffer Nodes { uint nodes[]; };      // 16 words a node
 layout(std430, binding = BVH_TRIS_BINDING) restrict buffer Tris { vec4 tris[]; };         // 3 vec4 a slot
-layout(std430, binding = REFIT_VERTS_BINDING) readonly restrict buffer Verts { vec4 verts[]; };
-layout(std430, binding = REFIT_INDEX_BINDING) readonly restrict buffer Index { uint refit_index[]; };
+layout(std430, binding = SSBO_REFIT_VERTICES) readonly restrict buffer Verts { vec4 verts[]; };
+layout(std430, binding = SSBO_REFIT_INDEX) readonly restrict buffer Index { uint refit_index[]; };
 // stage 0: 3 vertex indices per slot; stage 1: the GPU node numbers of every level, deepest first
 
 uniform uint count;    // slots (stage 0) or nodes of this level (stage 1)
