@@ -44,6 +44,8 @@ class FramePlan:
     camera: str = "pinhole"  # camera model (rayvr/cameras/)
     stereo: str = "dual"  # how the second eye is made: "dual" renders both fully
     output: str = "ldr"
+    accumulate: bool = False  # running mean of samples while still (passes/accumulate.py)
+    denoise: tuple = ()  # effects whose pixels the edge-aware à-trous filters (passes/denoise.py)
     # (effect, (material names, ...)) pairs, for the reasons --graph shows; not part of the key:
     # moving an effect to other materials compiles nothing new.
     users: tuple = field(default=(), compare=False)
@@ -526,6 +528,7 @@ class FrameContext:
     profiler: PassTimer | None = None  # set: passes' kernels are timed one by one (stage names)
     stage_names: list = field(default_factory=list)
     current_pass: str = ""
+    samples: object = None  # rayvr.accumulation.SampleState: this frame's sample index, reset, reprojection
 
     def resource(self, name: str):
         return self.resources[name]

@@ -54,7 +54,11 @@ SSBO = {
     "tile_entries": 28,  # accel/frustum.py tile culling (glsl/accel/tile_cull.comp)
 }
 # Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
-IMAGE = {"hdr": 0, "ldr": 1}
+IMAGE = {"hdr": 0, "ldr": 1,
+         # passes/accumulate.py (glsl/post/accumulate.comp) and passes/denoise.py (glsl/post/denoise.comp)
+         "accum_in": 2, "accum_moments_in": 3, "accum_out": 4, "accum_moments_out": 5,
+         "accum_history_out": 6, "accum_history_moments_out": 7,
+         "denoise_in": 2, "denoise_out": 3, "denoise_moments": 4, "denoise_color": 5}
 # Texture units beside the G-buffer channels' (0..7).
 UNIT = {"base_color_textures": 9}
 

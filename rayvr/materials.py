@@ -4,6 +4,7 @@ A config maps a scene's materials to an effect, by exact name, by numeric materi
 by glob, with per-effect parameters:
 
     default = "raster"            # effect for materials nothing below matches
+    denoise = ["glossy"]          # effects the denoiser filters when it is on (default: every traced one)
 
     [params.shadows]              # defaults for every material using `shadows`
     area_samples = 4
@@ -78,6 +79,7 @@ class MaterialConfig:
     by_id: dict = field(default_factory=dict)  # int -> (effect, params)
     importance_of: dict = field(default_factory=dict)  # rule ("materials.x", "ids.3") -> weight
     source: str = "<defaults>"
+    denoise: tuple | None = None  # effects the denoiser filters (None: every traced effect)
 
     def effect_params(self, effect: str, overrides: dict | None = None) -> dict:
         spec = EFFECTS[effect].params
@@ -123,7 +125,7 @@ def config_with(base: MaterialConfig, default: str | None = None, materials: dic
     """A copy of `base` with another default effect, per-material effects and effect params."""
     cfg = MaterialConfig(default=default or base.default, params={k: dict(v) for k, v in base.params.items()},
                          by_name=dict(base.by_name), by_id=dict(base.by_id), importance_of=dict(base.importance_of),
-                         source=f"{base.source} (variant)")
+                         source=f"{base.source} (variant)", denoise=base.denoise)
     for name, effect in (materials or {}).items():
         cfg.by_name[name] = (effect, {})
     for effect, values in (params or {}).items():
@@ -192,7 +194,19 @@ def _parse_entry(value, where: str, source: str) -> tuple[str, dict, float]:
     raise ConfigError(f"{source}: {where}: expected an effect name or a table, got {type(value).__name__}")
 
 
-TOP_LEVEL_KEYS = ("default", "params", "materials", "ids")
+TOP_LEVEL_KEYS = ("default", "params", "materials", "ids", "denoise")
+
+
+def _check_denoise(value, source: str) -> tuple:
+    """`denoise = ["glossy", ...]`: the traced effects whose pixels the denoiser filters."""
+    traced = [e.name for e in EFFECTS.values() if e.traced]
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise ConfigError(f"{source}: denoise: expected a list of effect names; allowed: {', '.join(traced)}")
+    for v in value:
+        if v not in traced:
+            raise ConfigError(f"{source}: denoise: {short(repr(v))} is not a sampled (traced) effect; "
+                              f"allowed: {', '.join(traced)}")
+    return tuple(dict.fromkeys(value))
 
 
 def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
@@ -220,6 +234,8 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
         effect, params_, importance = _parse_entry(value, f"materials.{short(name)}", source)
         cfg.by_name[name] = (effect, params_)
         cfg.importance_of[f"materials.{name}"] = importance
+    if "denoise" in data:
+        cfg.denoise = _check_denoise(data["denoise"], source)
     ids = data.get("ids", {})
     if not isinstance(ids, dict):
         raise ConfigError(f"{source}: ids: expected a table of index = effect entries")

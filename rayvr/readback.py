@@ -13,6 +13,7 @@ import numpy as np
 
 from .frame import EyeImage
 from .gbuffer import COLOR_CHANNELS, GL_DEPTH_COMPONENT, GL_FLOAT, GL_TEXTURE_2D_ARRAY
+from .passes import radiance
 
 GL_PIXEL_PACK_BUFFER = 0x88EB
 GL_PACK_ALIGNMENT = 0x0D05
@@ -74,7 +75,8 @@ class Reader:
                 buffers[name] = (buf, dtype, comps)
                 continue
             if name == "hdr":  # the linear colour before exposure and tonemapping
-                tex, dtype, comps = fc.resource("hdr"), np.float16, 4
+                name_, fmt = radiance(fc.plan)  # accumulated / denoised where the frame has them
+                tex, dtype, comps = fc.resource(name_), np.float32 if fmt == "rgba32f" else np.float16, 4
             else:
                 ch = next(c for c in COLOR_CHANNELS if c.name == name)
                 tex, dtype, comps = gb.textures[name], _DTYPES[ch.dtype], ch.components

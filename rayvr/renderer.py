@@ -19,6 +19,7 @@ from . import effects as effects_mod
 from . import materials as materials_mod
 from . import scene as scene_mod
 from .accel.scene import SceneAccel
+from .accumulation import Accumulator, sample_seed
 from .camera import StereoRig
 from .cameras import Pinhole
 from .context import GLContext, create_context
@@ -31,6 +32,8 @@ from .passes.classify import pixel_counts
 from .passes.visibility import pick_layer_mode
 from .readback import AUX_CHANNELS, Reader
 from .timing import settle
+
+MAX_DENOISE_ITERATIONS = 6  # step 2^5 = 32 pixels: wider than that the guides no longer hold
 
 PRIMARY_MODES = ("raster", "rays")
 MAX_TILES = 64  # a frame that needs more tiles than this is refused (FrameTooLarge) instead
@@ -46,12 +49,20 @@ class RenderSettings:
     layer_mode: str = "auto"  # auto | vertex | geometry | multiview | passes
     primary: str = "raster"  # primary visibility: raster (visibility pass) | rays (BVH, passes/primary_rays.py)
     seed: int = 0  # random sequence of the sampled effects (area-light points, glossy rays)
+    # Noise (rayvr/accumulation.py, passes/accumulate.py, passes/denoise.py):
+    accumulate: bool = False  # successive frames add samples while nothing changes; any change starts over
+    temporal: bool = False  # with accumulate: a camera move reprojects the history instead of dropping it
+    denoise: bool = False  # edge-aware à-trous filter on the pixels of the effects the config denoises
+    denoise_iterations: int = 4  # à-trous iterations (step 2^i); 1..MAX_ITERATIONS
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
             raise ValueError(f"unknown tonemapper {self.tonemapper!r}; allowed: {', '.join(TONEMAPPERS)}")
         if not (np.isfinite(self.exposure) and self.exposure > 0):
             raise ValueError(f"exposure must be a positive number, got {self.exposure}")
+        if not (isinstance(self.denoise_iterations, int) and 1 <= self.denoise_iterations <= MAX_DENOISE_ITERATIONS):
+            raise ValueError(f"denoise_iterations must be an integer in [1, {MAX_DENOISE_ITERATIONS}], "
+                             f"got {self.denoise_iterations!r}")
         if self.primary not in PRIMARY_MODES:
             raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
 
@@ -89,6 +100,7 @@ class Renderer:
         self.reader = Reader(self.gl)
         self._last: FrameContext | None = None
         self._tiles: dict = {}  # the last (plan, size, config, limits) -> tiles answer
+        self.accumulator = Accumulator()  # which sample a frame is; reset on any change
 
     # -- configuration ---------------------------------------------------------------
     def set_materials(self, materials) -> None:
@@ -98,15 +110,24 @@ class Renderer:
         assignments = config.assign(self.scene.material_names())
         self.config, self.assignments = config, assignments
         self.gpu_scene.set_assignments(assignments)
+        self.accumulator.invalidate()
 
     def effects_in_use(self) -> frozenset:
         return frozenset(a.effect for a in self.assignments)
 
+    def denoised_effects(self) -> frozenset:
+        """The effects in use whose pixels the denoiser filters: the config's `denoise` list
+        (default: every traced effect, the sampled ones)."""
+        traced = {e.name for e in effects_mod.traced_effects()}
+        chosen = traced if self.config.denoise is None else set(self.config.denoise)
+        return frozenset(self.effects_in_use() & traced & chosen)
+
     # -- the frame graph -------------------------------------------------------------
-    def plan(self, layers: int = 2, view: str = "color", camera=None) -> FramePlan:
+    def plan(self, layers: int = 2, view: str = "color", camera=None, accumulate: bool = False) -> FramePlan:
         """The FramePlan this renderer's scene, config and settings give for `layers` eyes seen
         through `camera` (a rayvr.cameras model; default the pinhole). A camera a rasterizer cannot
-        sample (not `rasterizable`) takes ray-cast primary visibility whatever the settings say."""
+        sample (not `rasterizable`) takes ray-cast primary visibility whatever the settings say.
+        `accumulate`: keep a running mean of samples (as `render(spp=N)`) whatever the settings say."""
         camera = camera or Pinhole()
         if view not in VIEWS:
             raise ValueError(f"unknown view {view!r}; allowed: {', '.join(VIEWS)}")
@@ -114,8 +135,11 @@ class Renderer:
         users = tuple((e, tuple(n for n, a in zip(names, self.assignments) if a.effect == e))
                       for e in effects_mod.EFFECTS if e in self.effects_in_use())
         primary = self.settings.primary if camera.rasterizable else "rays"
+        color, st = view == "color", self.settings
+        denoise = tuple(sorted(self.denoised_effects())) if color and st.denoise else ()
         return FramePlan(effects=self.effects_in_use(), view=view, layers=layers, layer_mode=self.layer_mode,
-                         primary=primary, camera=camera.name, users=users)
+                         primary=primary, camera=camera.name, users=users,
+                         accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise)
 
     def compiled(self, plan: FramePlan | None = None):
         """The compiled frame graph of `plan` (default: both eyes, colour): passes in order,
@@ -125,14 +149,20 @@ class Renderer:
     def sizing(self, size, layers: int = 2) -> Sizing:
         return Sizing(tuple(size), layers, self.scene, tuple(self.assignments), self.gl.max_ssbo_bytes)
 
-    def record(self, rig: StereoRig, eyes: str = "both", view: str = "color", profile: bool = False) -> FrameContext:
+    def record(self, rig: StereoRig, eyes: str = "both", view: str = "color", profile: bool = False,
+               sample: int | None = None) -> FrameContext:
         """Run the frame's passes on the GPU (no readback); returns the context for readback.
-        `profile`: time each kernel of multi-kernel passes instead of each pass (read_ms)."""
+        `profile`: time each kernel of multi-kernel passes instead of each pass (read_ms).
+        `sample`: this frame is that sample of an accumulation (0 starts over); None: the
+        accumulator decides (rayvr/accumulation.py: the next sample while nothing changed)."""
         eye_views = rig.eyes(eyes)
-        plan = self.plan(len(eye_views), view, eye_views[0].camera)
+        plan = self.plan(len(eye_views), view, eye_views[0].camera, accumulate=sample is not None)
         graph = self.graph.compile(plan)
-        fc = FrameContext(self.gl, self.scene, self.gpu_scene, self.accel, eye_views, plan, self.settings,
-                          self.sizing(rig.size, len(eye_views)))
+        camera = eye_views[0].camera.uniforms(eye_views, self.scene.origin)
+        state = self.accumulator.next(camera, (plan, rig.size, eyes), self.settings, sample)
+        settings = replace(self.settings, seed=sample_seed(self.settings.seed, state.sample))
+        fc = FrameContext(self.gl, self.scene, self.gpu_scene, self.accel, eye_views, plan, settings,
+                          self.sizing(rig.size, len(eye_views)), samples=state)
         self.graph.execute(graph, fc, profile)
         self._last = fc
         return fc
@@ -171,14 +201,20 @@ class Renderer:
             frame_ms()
         return settle(frame_ms, min_seconds=0.3 if seconds is None else seconds)
 
-    def render(self, rig: StereoRig, eyes: str = "both", view: str = "color", aux=()) -> Frame:
+    def render(self, rig: StereoRig, eyes: str = "both", view: str = "color", aux=(), spp: int = 1,
+               progress=None) -> Frame:
         """Render one frame; `eyes` is 'both', 'left' or 'right'; `aux` names extra channels to
-        read back (AUX_CHANNELS): frame.left.aux[name]."""
-        return next(self.render_sequence([rig], eyes, view, aux))
+        read back (AUX_CHANNELS): frame.left.aux[name]. `spp` > 1: the mean of that many samples
+        (frames with their own sample index, accumulated from a fresh start); `progress(n)` is
+        called as samples are recorded."""
+        return next(self.render_sequence([rig], eyes, view, aux, spp, progress))
 
-    def render_sequence(self, rigs, eyes: str = "both", view: str = "color", aux=()):
-        """Yield one Frame per rig. Frame N is read back while frame N+1 renders (pixel
-        buffers and timer queries are double-buffered), so sequences run at GPU speed."""
+    def render_sequence(self, rigs, eyes: str = "both", view: str = "color", aux=(), spp: int = 1, progress=None):
+        """Yield one Frame per rig (each the mean of `spp` samples). Frame N is read back while
+        frame N+1 renders (pixel buffers and timer queries are double-buffered), so sequences run
+        at GPU speed; a frame's timings are those of its last sample."""
+        if not (isinstance(spp, int) and spp >= 1):
+            raise ValueError(f"spp must be a positive integer, got {spp!r}")
         unknown = [a for a in aux if a not in AUX_CHANNELS]
         if unknown:
             raise ValueError(f"unknown aux channel(s) {', '.join(unknown)}; allowed: {', '.join(AUX_CHANNELS)}")
@@ -191,9 +227,15 @@ class Renderer:
                 if pending is not None:
                     yield self._finish(pending)
                     pending = None
-                yield self._render_tiles(rig, tiles, eyes, view, aux)
+                yield self._render_tiles(rig, tiles, eyes, view, aux, spp, progress)
                 continue
-            fc = self.record(rig, eyes, view)
+            for k in range(spp - 1):  # no readback until the last sample
+                self.record(rig, eyes, view, sample=k)
+                if progress is not None:
+                    progress(1)
+            fc = self.record(rig, eyes, view, sample=spp - 1 if spp > 1 else None)
+            if progress is not None:
+                progress(1)
             started = self.reader.start(fc, tuple(aux), parity=i % 2)
             if pending is not None:
                 yield self._finish(pending)
@@ -234,7 +276,8 @@ class Renderer:
         ys = [h * j // ny for j in range(ny + 1)]
         return [(xs[i], ys[j], xs[i + 1], ys[j + 1]) for j in range(ny) for i in range(nx)]
 
-    def _render_tiles(self, rig: StereoRig, tiles: list, eyes: str, view: str, aux) -> Frame:
+    def _render_tiles(self, rig: StereoRig, tiles: list, eyes: str, view: str, aux, spp: int = 1,
+                      progress=None) -> Frame:
         w, h = rig.size
         full = {e.name: e for e in rig.eyes(eyes)}
         out: dict = {}
@@ -246,7 +289,7 @@ class Renderer:
                 l, r, b, t = e.tangents
                 sub[name] = (l + (r - l) * x0 / w, l + (r - l) * x1 / w,
                              t - (t - b) * y1 / h, t - (t - b) * y0 / h)  # rows go top-down, tangents up
-            part = self.render(replace(rig, size=(x1 - x0, y1 - y0), eye_tangents=sub), eyes, view, aux)
+            part = self.render(replace(rig, size=(x1 - x0, y1 - y0), eye_tangents=sub), eyes, view, aux, spp, progress)
             for k, v in part.timings.items():
                 timings[k] = timings.get(k, 0.0) + v
             passes = part.passes
@@ -271,6 +314,7 @@ class Renderer:
         if v.shape != self.scene.vertices.shape or not np.isfinite(v).all():
             raise ValueError(f"update_vertices needs {self.scene.vertices.shape} finite positions, got {v.shape}")
         self.scene.vertices = np.ascontiguousarray(v)
+        self.accumulator.invalidate()
         self.gpu_scene.upload_vertices()
         self.accel.refit(v, on_gpu=gpu_refit)
 

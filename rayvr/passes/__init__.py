@@ -3,9 +3,11 @@ their own passes (rayvr/effects/); these are the core ones the graph picks from.
 
 
 def core_passes() -> list:
+    from .accumulate import AccumulatePass
     from .bvh import BvhPass
     from .classify import ClassifyPass
     from .debug_view import DebugViewPass
+    from .denoise import DenoisePass
     from .gbuffer_resolve import GBufferResolvePass
     from .primary_rays import PrimaryRaysPass
     from .quadtree import QuadtreePass, QuadtreeVisitsPass
@@ -14,4 +16,15 @@ def core_passes() -> list:
     from .visibility import VisibilityPass
 
     return [BvhPass(), VisibilityPass(), PrimaryRaysPass(), GBufferResolvePass(), ShadePass(), ClassifyPass(),
-            TonemapPass(), DebugViewPass(), QuadtreeVisitsPass(), QuadtreePass(effect="ssr")]
+            AccumulatePass(), DenoisePass(), TonemapPass(), DebugViewPass(), QuadtreeVisitsPass(),
+            QuadtreePass(effect="ssr")]
+
+
+def radiance(plan) -> tuple[str, str]:
+    """The frame's final linear colour (resource, GLSL image format): what tonemap shows and
+    the `hdr` aux channel reads: denoised, else accumulated, else the frame's own samples."""
+    if plan.denoise:
+        return "hdr_denoised", "rgba32f"
+    if plan.accumulate:
+        return "hdr_accum", "rgba32f"
+    return "hdr", "rgba16f"

@@ -5,6 +5,7 @@ from __future__ import annotations
 from .. import shaders
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gpu_layout import IMAGE, TONEMAPPERS
+from . import radiance
 from .compute import dispatch_per_pixel
 
 LDR = Texture("rgba8")  # what frames return and the preview shows
@@ -17,15 +18,16 @@ class TonemapPass(Pass):
         return "view = color" if plan.view == "color" else None
 
     def io(self, plan: FramePlan) -> list:
-        return [read("hdr"), write("ldr", LDR)]
+        return [read(radiance(plan)[0]), write("ldr", LDR)]
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.program = shaders.compute(gl.ctx, "shade/tonemap.comp")
+        self.source, fmt = radiance(plan)  # accumulated or denoised colour where the plan has them
+        self.program = shaders.compute(gl.ctx, "shade/tonemap.comp", {"HDR_FORMAT": fmt})
 
     def execute(self, fc) -> None:
         self.program["exposure"].value = float(fc.settings.exposure)
         self.program["tonemapper"].value = TONEMAPPERS.index(fc.settings.tonemapper)
-        fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=True, write=False)
+        fc.resource(self.source).bind_to_image(IMAGE["hdr"], read=True, write=False)
         fc.resource("ldr").bind_to_image(IMAGE["ldr"], read=False, write=True)
         dispatch_per_pixel(fc, self.program)
 

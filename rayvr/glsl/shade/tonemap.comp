@@ -3,7 +3,10 @@
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../common/color.glsl"
 
-layout(rgba16f, binding = IMAGE_HDR) uniform readonly image2DArray hdr_in;
+#ifndef HDR_FORMAT
+#define HDR_FORMAT rgba16f  // rgba32f when it shows the accumulated or denoised colour
+#endif
+layout(HDR_FORMAT, binding = IMAGE_HDR) uniform readonly image2DArray hdr_in;
 layout(rgba8, binding = IMAGE_LDR) uniform writeonly image2DArray ldr_out;
 uniform float exposure;
 uniform int tonemapper;
