@@ -18,6 +18,7 @@ from dataclasses import astuple, dataclass, replace
 
 import numpy as np
 
+MAX_DENOISE_ITERATIONS = 6  # à-trous steps up to 2^5 = 32 pixels: wider, the guides no longer hold
 HISTORY_CAP = 32  # samples a reprojected history counts for at most while the camera moves (Falcor SVGF)
 
 

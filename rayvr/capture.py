@@ -36,9 +36,12 @@ class CaptureJob:
     out_dir: Path = Path("out")
     prefix: str = "frame"
     format: str = "png"  # FORMATS
+    spp: int = 1  # samples accumulated into each frame (each with its own sample index)
 
     def __post_init__(self):
         check_file_prefix(self.prefix)  # every file stays inside out_dir
+        if not (isinstance(self.spp, int) and self.spp >= 1):
+            raise ValueError(f"spp must be a positive whole number, got {self.spp!r}")
         if self.format not in FORMATS:
             raise ValueError(f"unknown output format {self.format!r}; allowed: {', '.join(FORMATS)}")
         if self.format == "exr":
@@ -126,25 +129,25 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> d
     check_output_dir(job.out_dir)
     files, timings, unavailable, ran = [], [], set(), {}
     bar = None
-    if progress and len(job.poses) > 1:
+    if progress and len(job.poses) * job.spp > 1:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(job.poses), unit="frame", desc="capture")
+        # with --spp the bar counts samples: one frame of many samples is long work too
+        bar = tqdm(total=len(job.poses) * job.spp, unit="sample" if job.spp > 1 else "frame", desc="capture")
     rigs = [StereoRig(**{**job.rig.__dict__, "pose": pose}) for pose in job.poses]
     done = 0
     try:
         with interrupts_between_frames() as check_interrupt:
             # Frames come back pipelined: frame i is written while frame i+1 renders.
             for i, frame in enumerate(renderer.render_sequence(rigs, eyes=job.eyes, view=job.view,
-                                                               aux=job.render_aux)):
+                                                               aux=job.render_aux, spp=job.spp,
+                                                               progress=bar.update if bar else None)):
                 check_interrupt()
                 write_frame(job, i, frame, files)
                 done += 1
                 timings.append(frame.timings)
                 unavailable.update(frame.timings_unavailable)
                 ran.update(dict.fromkeys(frame.passes))
-                if bar is not None:
-                    bar.update(1)
                 check_interrupt()
     except KeyboardInterrupt:
         # Every file is written atomically, so what is there is whole: say what was kept.
@@ -159,7 +162,9 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> d
                "gpu_ms_per_frame": timings, "gl": renderer.gl.info()["renderer"],
                "timings_meaningful": not renderer.gl.is_software,
                "passes": list(ran), "gpu_ms_unavailable": sorted(unavailable),  # timers that read back garbage
-               "size": list(job.rig.size), "eyes": job.eyes}
+               "size": list(job.rig.size), "eyes": job.eyes, "spp": job.spp,
+               "denoise": list(renderer.plan().denoise) if renderer.settings.denoise else [],
+               "gpu_ms_note": "per sample (the last of each frame's samples)" if job.spp > 1 else "per frame"}
     return summary
 
 

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .accumulation import MAX_DENOISE_ITERATIONS
+
 
 def _size(text: str) -> tuple[int, int]:
     try:
@@ -86,6 +88,9 @@ IPD = _number(0, MAX_DISTANCE, lo_open=False)
 DISTANCE = _number(0, MAX_DISTANCE)
 FRAMES = _count(1, MAX_FRAMES)
 BUDGET_MS = _number(0, MAX_BUDGET_MS)
+MAX_SPP = 1 << 20
+SPP = _count(1, MAX_SPP)
+DENOISE_ITERATIONS = _count(1, MAX_DENOISE_ITERATIONS)
 
 
 def add_rig_arguments(p: argparse.ArgumentParser) -> None:
@@ -126,7 +131,9 @@ def cmd_capture(args) -> int:
         openexr()  # the optional package, before any work
     aux = tuple(a for a in (args.aux or "").split(",") if a)
     settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode,
-                              primary=args.primary)
+                              primary=args.primary, denoise=args.denoise or args.denoise_iterations is not None,
+                              denoise_iterations=args.denoise_iterations or RenderSettings.denoise_iterations,
+                              accumulate=args.temporal, temporal=args.temporal)
     with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
         rig = rig_from_args(args, r.scene)
         pick = None
@@ -138,7 +145,7 @@ def cmd_capture(args) -> int:
             if not args.quiet:
                 print(describe_pick(pick))
         poses = poses_for(rig, r.scene, args.frames, args.path)
-        job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format)
+        job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp)
         summary = run_capture(r, job, progress=not args.quiet)
         if pick is not None:
             summary["budget"] = pick
@@ -332,6 +339,16 @@ def build_parser() -> argparse.ArgumentParser:
     seq = c.add_mutually_exclusive_group()
     seq.add_argument("--frames", type=FRAMES, help="N frames of a turntable orbit")
     seq.add_argument("--path", help="camera path file (JSON) to replay")
+    n = c.add_argument_group("noise (accumulation and denoising)")
+    n.add_argument("--spp", type=SPP, default=1,
+                   help="samples per pixel: N frames' samples of the sampled effects accumulated into each image")
+    n.add_argument("--denoise", action="store_true",
+                   help="edge-aware a-trous denoiser on the pixels of the effects the config's `denoise` key "
+                        "lists (default: every traced effect)")
+    n.add_argument("--denoise-iterations", type=DENOISE_ITERATIONS, metavar="K",
+                   help=f"a-trous iterations, 1..{MAX_DENOISE_ITERATIONS} (default 4; implies --denoise)")
+    n.add_argument("--temporal", action="store_true",
+                   help="camera paths: carry each frame's samples into the next by reprojection (pinhole)")
     c.add_argument("--timings", action="store_true", help="print GPU ms per pass")
     c.add_argument("--budget-ms", type=BUDGET_MS, help="pick effects per material to fit this GPU frame time "
                    "(measured on this device against a reference; overrides --materials' effects)")

@@ -4,7 +4,7 @@ A config maps a scene's materials to an effect, by exact name, by numeric materi
 by glob, with per-effect parameters:
 
     default = "raster"            # effect for materials nothing below matches
-    denoise = ["glossy"]          # effects the denoiser filters when it is on (default: every traced one)
+    denoise = ["glossy"]          # effects the denoiser filters when it is on (default: the sampled ones)
 
     [params.shadows]              # defaults for every material using `shadows`
     area_samples = 4
@@ -79,7 +79,7 @@ class MaterialConfig:
     by_id: dict = field(default_factory=dict)  # int -> (effect, params)
     importance_of: dict = field(default_factory=dict)  # rule ("materials.x", "ids.3") -> weight
     source: str = "<defaults>"
-    denoise: tuple | None = None  # effects the denoiser filters (None: every traced effect)
+    denoise: tuple | None = None  # effects the denoiser filters (None: the traced effects marked `denoised`)
 
     def effect_params(self, effect: str, overrides: dict | None = None) -> dict:
         spec = EFFECTS[effect].params

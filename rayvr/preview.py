@@ -26,6 +26,7 @@ import numpy as np
 
 from . import materials as materials_mod
 from . import shaders
+from .accumulation import MAX_DENOISE_ITERATIONS
 from .camera import Pose, StereoRig, save_path
 from .gbuffer import NO_HIT
 
@@ -59,6 +60,10 @@ KEYS = (
     ("[ ]", "convergence nearer / farther"),
     ("O, Shift+O", "global effect override: next / previous (off = the config file)"),
     ("T", "ssr quadtree thresholds: next preset"),
+    ("M", "accumulate samples while still on / off (any change starts over)"),
+    ("N", "denoiser on / off (the config's `denoise` effects)"),
+    ("I, Shift+I", "denoiser iterations more / fewer"),
+    ("G", "temporal reprojection on / off (a move keeps what stays visible)"),
     (", .", "resolution scale down / up"),
     ("Y", "vsync on / off"),
     ("P", "record a camera path on / off (saved on stop; rayvr capture --path)"),
@@ -187,6 +192,10 @@ class ViewState:
     hud: bool = True
     help: bool = False
     override: str | None = None  # effect forced on every material; None = the config file
+    accumulate: bool = True  # samples add up while the view is still (rayvr/accumulation.py)
+    denoise: bool = False
+    denoise_iterations: int = 4
+    temporal: bool = False
     recording: bool = False
     quit: bool = False
 
@@ -262,6 +271,14 @@ class Controls:
             self.actions.append("record")
         elif name == "T":
             self.actions.append("quadtree")
+        elif name == "M":
+            s.accumulate = not s.accumulate
+        elif name == "N":
+            s.denoise = not s.denoise
+        elif name == "I":
+            s.denoise_iterations = max(1, min(MAX_DENOISE_ITERATIONS, s.denoise_iterations + step))
+        elif name == "G":
+            s.temporal = not s.temporal
         elif name == "F12":
             self.actions.append("screenshot")
         elif name == "L":
@@ -610,6 +627,7 @@ class Preview:
             return None
         layout = layout_for(self.state.stereo, fb, self.state.res_scale)
         rig = self.camera.rig(layout.eye_size)
+        self._apply_noise_settings()
         try:
             fc = self.renderer.record(rig, layout.eyes, self.state.view)
         except Exception as exc:
@@ -645,6 +663,15 @@ class Preview:
             self.screenshot(image, layout)
         self.frames += 1
         return image
+
+    def _apply_noise_settings(self) -> None:
+        """The keys' accumulation and denoiser state into the renderer's settings (a change
+        there starts the accumulation over)."""
+        s, st = self.state, self.renderer.settings
+        want = replace(st, accumulate=s.accumulate, denoise=s.denoise, denoise_iterations=s.denoise_iterations,
+                       temporal=s.temporal)
+        if want != st:
+            self.renderer.settings = want
 
     def _draw_eyes(self, fc, layout: Layout, fb) -> None:
         ctx = self.ctx
@@ -708,6 +735,11 @@ class Preview:
         speed = f"speed {cam.speed:.3g}/s" if cam.mode == "fly" else f"distance {cam.distance:.3g}"
         lines.append((f"{cam.mode}  {speed}   IPD {cam.ipd:.4g}  convergence {conv}", white))
         lines.append((self.picked_text(), white))
+        on = lambda b: "on" if b else "off"  # noqa: E731
+        samples = self.renderer.accumulator.sample + 1 if s.accumulate else 1
+        denoise = f"{s.denoise_iterations} iterations" if s.denoise else "off"
+        lines.append((f"samples {samples}  (M accumulate {on(s.accumulate)}, G temporal {on(s.temporal)})   "
+                      f"N denoise {denoise}", white))
         src = self.materials_path.name if self.materials_path else "built-in (all raster)"
         if s.override:
             lines.append((f"effect override: {s.override} on every material   (O: next; off: back to {src})", yellow))

@@ -19,7 +19,7 @@ from . import effects as effects_mod
 from . import materials as materials_mod
 from . import scene as scene_mod
 from .accel.scene import SceneAccel
-from .accumulation import Accumulator, sample_seed
+from .accumulation import MAX_DENOISE_ITERATIONS, Accumulator, sample_seed
 from .camera import StereoRig
 from .cameras import Pinhole
 from .context import GLContext, create_context
@@ -32,8 +32,6 @@ from .passes.classify import pixel_counts
 from .passes.visibility import pick_layer_mode
 from .readback import AUX_CHANNELS, Reader
 from .timing import settle
-
-MAX_DENOISE_ITERATIONS = 6  # step 2^5 = 32 pixels: wider than that the guides no longer hold
 
 PRIMARY_MODES = ("raster", "rays")
 MAX_TILES = 64  # a frame that needs more tiles than this is refused (FrameTooLarge) instead
@@ -117,9 +115,10 @@ class Renderer:
 
     def denoised_effects(self) -> frozenset:
         """The effects in use whose pixels the denoiser filters: the config's `denoise` list
-        (default: every traced effect, the sampled ones)."""
+        (default: the traced effects that declare themselves `denoised`, the sampled ones)."""
         traced = {e.name for e in effects_mod.traced_effects()}
-        chosen = traced if self.config.denoise is None else set(self.config.denoise)
+        chosen = {e.name for e in effects_mod.traced_effects() if e.denoised} if self.config.denoise is None \
+            else set(self.config.denoise)
         return frozenset(self.effects_in_use() & traced & chosen)
 
     # -- the frame graph -------------------------------------------------------------

@@ -76,6 +76,8 @@ def test_capture_one_eye_debug_view_and_path_replay(tmp_path):
     (["--ipd", "nan"], ["--ipd", "finite"]),
     (["--frames", "0"], ["--frames", "from 1 to"]),
     (["--frames", "-3"], ["--frames", "from 1 to"]),
+    (["--spp", "0"], ["--spp", "from 1 to"]),
+    (["--denoise-iterations", "9"], ["--denoise-iterations", "from 1 to 6"]),
 ])
 def test_capture_bad_input_is_a_clear_error(tmp_path, args, words):
     run = rayvr("capture", "--out", str(tmp_path / "o"), "--size", "8x8", *args)
@@ -195,3 +197,20 @@ def test_bench_peers_quick(tmp_path):
     assert run.returncode == 0, run.stderr
     row = json.loads((tmp_path / "peers.json").read_text())["rows"][0]
     assert row["rayvr_fps"] > 0 and (row["pyrender_fps"] or row["pyrender_error"])
+
+
+def test_capture_accumulates_spp_samples_and_denoises(tmp_path):
+    """--spp N: N samples per pixel, each its own sequence (the images differ from 1 sample);
+    --denoise filters the sampled effects' pixels; the summary says so; a progress bar counts samples."""
+    room = "rayvr/assets/default_room.toml"
+    common = ("capture", "--materials", room, "--size", "32x24", "--eye", "left")
+    one = rayvr(*common, "--out", str(tmp_path / "one"), "-q")
+    many = rayvr(*common, "--spp", "3", "--denoise", "--denoise-iterations", "2", "--out", str(tmp_path / "many"))
+    assert one.returncode == 0 and many.returncode == 0, one.stderr + many.stderr
+    assert "3/3" in many.stderr  # tqdm's bar over the samples
+    summary = json.loads((tmp_path / "many" / "frame_timings.json").read_text())
+    assert summary["spp"] == 3 and summary["denoise"] == ["glossy", "shadows"]
+    assert {"accumulate", "denoise"} <= set(summary["passes"])
+    a = np.asarray(Image.open(tmp_path / "one" / "frame_left.png")).astype(int)
+    b = np.asarray(Image.open(tmp_path / "many" / "frame_left.png")).astype(int)
+    assert a.shape == b.shape and np.abs(a - b).mean() > 0.5 and b.std() > 5

@@ -620,3 +620,23 @@ def test_quadtree_key_steps_the_ssr_thresholds_of_the_config():
         assert a[1].effect == "shadows" and "gamma_norm" not in a[1].params
     assert seen == [(g, d) for _, g, d in QUADTREE_PRESETS[1:] + QUADTREE_PRESETS[:1]]
     assert "no material uses ssr" not in p.messages[-1] and "lossless" in p.messages[-1]
+
+
+def test_noise_keys_toggle_accumulation_denoiser_and_temporal_reprojection():
+    from rayvr.accumulation import MAX_DENOISE_ITERATIONS
+
+    c = make_controls()
+    assert c.state.accumulate and not c.state.denoise and not c.state.temporal  # accumulate while still
+    for k in ("M", "N", "G"):
+        tap(c, k)
+    assert not c.state.accumulate and c.state.denoise and c.state.temporal
+    c.key("M", "repeat")  # toggles ignore auto-repeat
+    assert not c.state.accumulate
+    for _ in range(10):
+        tap(c, "I")
+    assert c.state.denoise_iterations == MAX_DENOISE_ITERATIONS
+    for _ in range(10):
+        tap(c, "I", shift=True)
+    assert c.state.denoise_iterations == 1
+    text = " ".join(k for k, _ in KEYS)
+    assert all(k in text for k in ("M", "N", "I, Shift+I", "G"))

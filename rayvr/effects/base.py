@@ -6,6 +6,7 @@ An effect declares, in one place:
                   parameter block (8 words per material, floats included) are generated from them
   traced          True when its own passes shade its pixels from a pixel list (the `classify`
                   pass lists them; the `shade` pass skips them); False: `shade` lights them
+  denoised        (traced effects) whether `--denoise` filters its pixels by default
   passes()        the frame-graph passes it adds (rayvr/passes/); the graph adds what they read
   shader          its GLSL (under rayvr/glsl/, or an absolute path for an effect outside rayvr);
                   for the wavefront effects, the file defining effect_start_paths()
@@ -59,6 +60,8 @@ class Effect:
     traced: bool = False
     reflective: bool = False  # reflection rays that meet it go on (reflections, glossy)
     uses_quadtree: bool = False  # its rays go through the screen-space quadtree first (ssr)
+    denoised: bool = True  # traced: the denoiser filters its pixels unless the config's `denoise` key
+                           # lists others (False for mirror-like rungs, whose detail is no noise)
     shader: str | None = None
     sweep: dict = {}
     reference: dict = {}

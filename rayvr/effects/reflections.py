@@ -10,6 +10,7 @@ class Reflections(Effect):
     doc = "+ ray-traced mirror reflections"
     params = {"bounces": Param(int, 1, 1, 16, "reflection bounces"), "area_samples": AREA_SAMPLES}
     traced = True
+    denoised = False  # mirror reflections are sharp detail, not noise: --denoise leaves them
     reflective = True  # a reflection ray that meets it goes on in its mirror direction
     shader = "effects/reflections.glsl"  # its part of the wavefront pixel event (rt/wave_shade.comp)
     sweep = {"bounces": ((1, 2, 3, 4, 8), (1, 2)), "area_samples": AREA_SAMPLES_SWEEP}

@@ -32,6 +32,7 @@ class ScreenSpaceReflections(Effect):
         "area_samples": AREA_SAMPLES,
     }
     traced = True
+    denoised = False  # mirror reflections are sharp detail, not noise: --denoise leaves them
     reflective = True
     uses_quadtree = True
     shader = "effects/reflections.glsl"  # the same pixel event as `reflections`: one mirror path
