@@ -132,7 +132,7 @@ def test_denoising_lowers_the_error_against_a_converged_reference(gl):
     size = (64, 48)
     with _renderer(gl, seed=1) as r:  # the reference draws other samples than the images it judges
         rig = StereoRig.for_scene(r.scene, size=size)
-        ref = r.render(rig, spp=64, aux=("hdr", "effect"))
+        ref = r.render(rig, spp=32, aux=("hdr", "effect"))
     with _renderer(gl) as r:
         noisy = r.render(rig, aux=("hdr",))
         r.settings = RenderSettings(denoise=True)

@@ -47,6 +47,18 @@ def test_sweep_rows_are_the_metrics_of_the_rendered_images(gl, room):
     assert 0.01 < row["flip"] < 1 and row["ssim"] < 1
 
 
+def test_noise_knobs_are_variants_drawing_other_samples_than_the_reference():
+    """The denoiser and accumulated samples join the sweep (`bench tradeoff --quick` below
+    renders them; tests/test_accumulate.py shows more samples converge)."""
+    base = load_config("rayvr/assets/default_room.toml")
+    vs = T.noise_variants(base, quick=True)
+    assert [v.label for v in vs] == ["denoise.iterations=0", "denoise.iterations=4", "spp=4", "spp+denoise=4"]
+    assert all(v.settings.seed != T.COMPARE_SETTINGS.seed for v in vs)
+    assert vs[1].settings.denoise and vs[1].settings.denoise_iterations == 4 and not vs[0].settings.denoise
+    assert [v.spp for v in vs] == [1, 1, 4, 4] and vs[3].settings.denoise
+    assert len(T.noise_variants(base)) == 10
+
+
 def test_swept_parameters_reach_per_material_entries():
     base = parse_config({"materials": {"gold": {"effect": "glossy", "samples": 8}}})
     cfg = T.config_with(base, params={"glossy": {"samples": 2}})
@@ -97,7 +109,8 @@ def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
     if area == "tradeoff":
         pytest.importorskip("matplotlib")
         assert list(tmp_path.glob("*.png"))
-        assert {r["knob"] for r in result["rows"]} >= {"effect", "resolution_scale"}
+        assert {r["knob"] for r in result["rows"]} >= {"effect", "resolution_scale", "denoise.iterations", "spp",
+                                                       "spp+denoise"}
     else:
         for row in result["rows"]:
             assert row["assignment"] and (row["measured_ms"] > 0)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import fnmatch
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -45,6 +45,7 @@ class Variant:
     settings: RenderSettings = field(default_factory=lambda: COMPARE_SETTINGS)
     scale: float = 1.0  # render at scale x size, compare upscaled to full size
     touches: tuple = ()  # material names this variant changes (the error mask); () = whole image
+    spp: int = 1  # samples accumulated per image (its cost: spp x the GPU ms of one sample)
 
     @property
     def label(self) -> str:
@@ -114,9 +115,9 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         r.warm_up(sized)
         rigs = [sized] * (warmup + repeat)
         totals, last = [], None
-        for i, frame in enumerate(r.render_sequence(rigs, aux=("material",))):
-            if i >= warmup:
-                totals.append(sum(frame.timings.values()))
+        for i, frame in enumerate(r.render_sequence(rigs, aux=("material",), spp=variant.spp)):
+            if i >= warmup:  # an image of spp samples costs spp frames (their last one timed)
+                totals.append(sum(frame.timings.values()) * variant.spp)
             last = frame
     finally:
         if own:
@@ -168,6 +169,22 @@ def variants(scene, base: MaterialConfig, quick: bool = False) -> list[Variant]:
                                    touches=touched))
     for s in ([0.5, 1.0] if quick else [0.5, 0.75, 1.0]):
         out.append(Variant("resolution_scale", s, base, scale=s))
+    return out + noise_variants(base, quick)
+
+
+NOISE_SEED = 1  # the noise knobs draw other samples than the reference (seed 0) they are judged against
+
+
+def noise_variants(base: MaterialConfig, quick: bool = False) -> list[Variant]:
+    """The denoiser (off, then 1..5 à-trous iterations) at one sample a pixel, and accumulated
+    samples per pixel with and without it (the speed of a still view's convergence)."""
+    plain = replace(COMPARE_SETTINGS, seed=NOISE_SEED)
+    out = [Variant("denoise.iterations", k, base,
+                   replace(plain, denoise=k > 0, denoise_iterations=max(k, 1)))
+           for k in ((0, 4) if quick else (0, 1, 2, 3, 4, 5))]
+    for spp in ((4,) if quick else (4, 16)):  # (1 sample: the denoise.iterations rows 0 and 4)
+        out.append(Variant("spp", spp, base, plain, spp=spp))
+        out.append(Variant("spp+denoise", spp, base, replace(plain, denoise=True), spp=spp))
     return out
 
 
