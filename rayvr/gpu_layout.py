@@ -51,7 +51,7 @@ SSBO = {
     "quadtree_nodes": 20, "quadtree_rays": 21, "quadtree_results": 22,  # passes/quadtree.py, glsl/ssrt/quadtree*.glsl
     "hiz_levels": 23, "hiz_rays": 24, "hiz_results": 25,  # accel/hiz.py HizTracer, glsl/ssrt/hiz*.glsl
     "refit_vertices": 26, "refit_index": 27,  # accel/refit.py GpuRefit (glsl/accel/refit.comp)
-    "tile_entries": 28,  # accel/frustum.py tile culling (glsl/accel/tile_cull.comp)
+    "tile_entries": 28, "tile_planes": 29,  # tile frustum culling (accel/gpu.py RayTracer, glsl/accel/tile_cull.comp)
 }
 # Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
 IMAGE = {"hdr": 0, "ldr": 1,
@@ -73,6 +73,9 @@ NO_HIT = 0xFFFFFFFF
 SSRT_RAY_GROUP = 64  # invocations per group of the screen-space batch shaders (glsl/ssrt/*_batch.comp)
 # BVH node layouts (accel/gpu.py) -> node width: binary child pairs (the reference), wide quantized.
 BVH_LAYOUTS = {"bvh2": 2, "bvh4": 4, "bvh8": 8}
+# Tile frustum culling (HVVR): rays a tile (one work group), entry nodes a tile's list holds at most.
+TILE_RAYS = 128
+TILE_ENTRIES = 32
 VERTEX_FLOATS = 8  # position xyz, normal xyz, uv (gpu_scene.interleaved_vertices)
 
 
@@ -115,7 +118,8 @@ def glsl_header() -> str:
     out += [f"#define VIEW_{k.upper()} {i}" for i, k in enumerate(DEBUG_VIEWS)]
     out += [f"#define LIGHT_{k.upper()} {i}" for i, k in enumerate(LIGHT_KINDS)]
     out += [f"#define NO_HIT 0x{NO_HIT:X}u", f"#define VERTEX_FLOATS {VERTEX_FLOATS}",
-            f"#define SSRT_RAY_GROUP {SSRT_RAY_GROUP}"]
+            f"#define SSRT_RAY_GROUP {SSRT_RAY_GROUP}",
+            f"#define DEFAULT_TILE_RAYS {TILE_RAYS}", f"#define DEFAULT_TILE_ENTRIES {TILE_ENTRIES}"]
     out += _effect_lines()
     out.append("#endif")
     return "\n".join(out) + "\n"

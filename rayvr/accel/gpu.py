@@ -11,15 +11,14 @@ All share the triangle buffer, so every layout reports the same triangle slots a
 """
 from __future__ import annotations
 
-import time
 from typing import NamedTuple
 
 import moderngl
 import numpy as np
 
 from .. import shaders
-from ..gpu_layout import BVH_LAYOUTS, SSBO
-from ..timing import settle
+from ..gpu_layout import BVH_LAYOUTS, SSBO, TILE_ENTRIES, TILE_RAYS
+from ..timing import time_gpu
 from .bvh import Bvh, BufferTooLargeError
 from .wide import WideBvh, build_wide, node_words, pack as pack_wide
 
@@ -140,54 +139,102 @@ def pack_rays(origins, directions, tmin=0.0, tmax=np.inf) -> np.ndarray:
 
 
 class RayTracer:
-    """Traces ray batches through glsl/accel/trace_rays.comp; one program per mode, built lazily."""
+    """Traces ray batches through glsl/accel/trace_rays.comp; one program per mode, built lazily.
 
-    def __init__(self, ctx, gpu_bvh: GpuBvh, base_binding: int = DEFAULT_BINDING, ordered: bool = True):
-        """`ordered`: wide layouts visit closest-hit children nearest first (see layout_defines)."""
+    `tiles=True` (binary layout only) culls first: every TILE_RAYS consecutive rays form a tile whose
+    frustum picks its entry nodes (accel/frustum.py, glsl/accel/tile_cull.comp); its rays are traced
+    from those. Order the rays so that a tile's rays are coherent (frustum.tile_order)."""
+
+    def __init__(self, ctx, gpu_bvh: GpuBvh, base_binding: int = DEFAULT_BINDING, ordered: bool = True,
+                 tile_entries: int = TILE_ENTRIES):
+        """`ordered`: wide layouts visit closest-hit children nearest first (see layout_defines);
+        `tile_entries`: the most entry nodes a tile's list holds (tiles=True)."""
         self.ctx = _moderngl(ctx)
         self.gpu_bvh = gpu_bvh
         self.base = base_binding
         self.ordered = ordered
+        self.tile_entries = int(tile_entries)
         self._programs: dict[tuple, moderngl.ComputeShader] = {}
 
-    def program(self, mode: str, offset: bool = True) -> moderngl.ComputeShader:
-        key = (mode, offset)
+    def tile_defines(self) -> dict:
+        return {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": self.tile_entries,
+                "TILE_ENTRIES_BINDING": SSBO["tile_entries"], "TILE_PLANES_BINDING": SSBO["tile_planes"]}
+
+    def program(self, mode: str, offset: bool = True, tiles: bool = False) -> moderngl.ComputeShader:
+        key = (mode, offset, tiles)
         if key not in self._programs:
             if mode not in MODES:
                 raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
-            defines = dict(self.gpu_bvh.own_defines(self.base, self.ordered), TRACE_MODE=MODES[mode], OFFSET_RAYS=int(offset),
-                           RAYS_BINDING=self.base + 2, HITS_BINDING=self.base + 3)
+            if tiles and self.gpu_bvh.width != 2:
+                raise ValueError(f"tile frustum culling walks the bvh2 layout, not {self.gpu_bvh.layout}")
+            defines = dict(self.gpu_bvh.own_defines(self.base, self.ordered), TRACE_MODE=MODES[mode],
+                           OFFSET_RAYS=int(offset), RAYS_BINDING=self.base + 2, HITS_BINDING=self.base + 3,
+                           **(self.tile_defines() if tiles else {}))
             self._programs[key] = shaders.compute(self.ctx, "accel/trace_rays.comp", defines)
         return self._programs[key]
 
+    def cull_program(self) -> moderngl.ComputeShader:
+        key = ("cull",)
+        if key not in self._programs:
+            self._programs[key] = shaders.compute(self.ctx, "accel/tile_cull.comp", dict(
+                self.gpu_bvh.own_defines(self.base), RAYS_BINDING=self.base + 2, **self.tile_defines()))
+        return self._programs[key]
+
+    def _tile_buffers(self, n: int):
+        tiles = -(-n // TILE_RAYS)
+        return (self.ctx.buffer(reserve=max(1, tiles) * (self.tile_entries + 1) * 4),
+                self.ctx.buffer(reserve=max(1, tiles) * 5 * 16))
+
     def trace(self, origins, directions, tmin=0.0, tmax=np.inf, mode: str = "closest",
-              offset: bool = True):
-        """Trace rays; returns Hits, or for mode='any' a bool array (occluded)."""
+              offset: bool = True, tiles: bool = False, tile_info: dict | None = None):
+        """Trace rays; returns Hits, or for mode='any' a bool array (occluded). With `tiles`, the
+        culled traversal; `tile_info` then receives each tile's entry list and frustum planes."""
         rays = pack_rays(origins, directions, tmin, tmax)
         n = len(rays)
         out = np.zeros((n, 4), np.uint32)
         limit = self.gpu_bvh.limit or 2**31
-        chunk = max(1, min(n, limit // rays.itemsize // 8, 1 << 24))
-        prog = self.program(mode, offset)
+        chunk = max(TILE_RAYS, min(n, limit // rays.itemsize // 8, 1 << 24) // TILE_RAYS * TILE_RAYS)
+        prog = self.program(mode, offset, tiles)
         self.gpu_bvh.bind(self.base)
+        infos = []
         for s in range(0, n, chunk):
             part = rays[s:s + chunk]
-            rbuf = self.ctx.buffer(part.tobytes())
-            hbuf = self.ctx.buffer(reserve=len(part) * 16)
+            bufs = [self.ctx.buffer(part.tobytes()), self.ctx.buffer(reserve=len(part) * 16)]
             try:
-                rbuf.bind_to_storage_buffer(self.base + 2)
-                hbuf.bind_to_storage_buffer(self.base + 3)
+                bufs[0].bind_to_storage_buffer(self.base + 2)
+                bufs[1].bind_to_storage_buffer(self.base + 3)
+                if tiles:
+                    bufs += self._tile_buffers(len(part))
+                    self._cull(bufs[2], bufs[3], len(part))
                 self._dispatch(prog, len(part))
-                out[s:s + len(part)] = np.frombuffer(hbuf.read(), np.uint32).reshape(-1, 4)
+                out[s:s + len(part)] = np.frombuffer(bufs[1].read(), np.uint32).reshape(-1, 4)
+                if tiles:
+                    infos.append((np.frombuffer(bufs[2].read(), np.uint32).reshape(-1, self.tile_entries + 1),
+                                  np.frombuffer(bufs[3].read(), np.float32).reshape(-1, 5, 4)))
             finally:
-                rbuf.release()
-                hbuf.release()
+                for b in bufs:
+                    b.release()
+        if tile_info is not None and infos:
+            lists = np.concatenate([i[0] for i in infos])
+            tile_info.update(counts=lists[:, 0].astype(np.int64), entries=lists[:, 1:],
+                             planes=np.concatenate([i[1] for i in infos]))
         if mode == "any":
             return out[:, 0] != 0
         prim = out[:, 0].copy()
         t = out[:, 1].view(np.float32).copy()
         t[prim == MISS] = np.inf
         return Hits(prim, t, out[:, 2].view(np.float32).copy(), out[:, 3].view(np.float32).copy())
+
+    def _cull(self, entries, planes, n: int) -> None:
+        """Tile entry lists of the rays bound at base + 2 (one work group a tile)."""
+        entries.bind_to_storage_buffer(SSBO["tile_entries"])
+        planes.bind_to_storage_buffer(SSBO["tile_planes"])
+        prog = self.cull_program()
+        tiles = -(-n // TILE_RAYS)
+        gx = min(tiles, _MAX_GROUPS_X)
+        prog["ray_count"].value = n
+        prog.run(gx, -(-tiles // gx), 1)
+        self.ctx.memory_barrier()
 
     def _dispatch(self, prog: moderngl.ComputeShader, n: int) -> None:
         groups = -(-n // _LOCAL_SIZE)
@@ -197,41 +244,35 @@ class RayTracer:
         prog.run(gx, gy, 1)
 
     def time_trace(self, origins, directions, tmin=0.0, tmax=np.inf, mode: str = "closest",
-                   repeats: int = 10) -> dict:
-        """Rays already on the GPU, `repeats` dispatches: GPU ms per dispatch (timer query) and rays/s."""
+                   repeats: int = 10, tiles: bool = False) -> dict:
+        """Rays already on the GPU, `repeats` dispatches: GPU ms per dispatch (timer query) and rays/s,
+        after a warm-up until times settle. With `tiles`, a dispatch is the culling plus the trace
+        (`cull_ms`: the culling alone)."""
         rays = pack_rays(origins, directions, tmin, tmax)
         n = len(rays)
-        prog = self.program(mode)
-        rbuf = self.ctx.buffer(rays.tobytes())
-        hbuf = self.ctx.buffer(reserve=n * 16)
+        prog = self.program(mode, tiles=tiles)
+        bufs = [self.ctx.buffer(rays.tobytes()), self.ctx.buffer(reserve=n * 16)]
+        if tiles:
+            bufs += self._tile_buffers(n)
         try:
             self.gpu_bvh.bind(self.base)
-            rbuf.bind_to_storage_buffer(self.base + 2)
-            hbuf.bind_to_storage_buffer(self.base + 3)
-            query = self.ctx.query(time=True)
+            bufs[0].bind_to_storage_buffer(self.base + 2)
+            bufs[1].bind_to_storage_buffer(self.base + 3)
 
-            def one_dispatch_ms() -> float:
-                with query:
-                    self._dispatch(prog, n)
-                return query.elapsed / 1e6  # waits for the GPU
+            def one():
+                if tiles:
+                    self._cull(bufs[2], bufs[3], n)
+                self._dispatch(prog, n)
 
-            settle(one_dispatch_ms, min_seconds=WARMUP_S)  # until the GPU's clocks are up and times agree
-            batches = []  # several timed batches: their spread shows in the result
-            t0 = time.perf_counter()
-            for _ in range(TIMED_BATCHES):
-                with query:
-                    for _ in range(repeats):
-                        self._dispatch(prog, n)
-                batches.append(query.elapsed * 1e-9 / repeats)
-            self.ctx.finish()
-            wall = (time.perf_counter() - t0) / (repeats * TIMED_BATCHES)
-            gpu = float(np.median(batches))
+            t = time_gpu(self.ctx, one, repeats=repeats, min_seconds=WARMUP_S, batches=TIMED_BATCHES)
+            cull = (time_gpu(self.ctx, lambda: self._cull(bufs[2], bufs[3], n), repeats=repeats,
+                             min_seconds=0.2, batches=TIMED_BATCHES)["ms"] if tiles else 0.0)
         finally:
-            rbuf.release()
-            hbuf.release()
-        seconds = gpu if gpu > 0.01 * wall else wall   # llvmpipe reports ~0 for compute in timer queries
-        return {"rays": n, "gpu_ms": gpu * 1e3, "gpu_ms_min": min(batches) * 1e3, "gpu_ms_max": max(batches) * 1e3,
-                "wall_ms": wall * 1e3, "rays_per_s": n / seconds}
+            for b in bufs:
+                b.release()
+        # llvmpipe reports ~0 for compute in timer queries: then `ms` is the wall time
+        return {"rays": n, "gpu_ms": t["gpu_ms"], "gpu_ms_min": t["gpu_ms_min"], "gpu_ms_max": t["gpu_ms_max"],
+                "wall_ms": t["wall_ms"], "rays_per_s": n / (t["ms"] * 1e-3), "cull_ms": cull}
 
 
 def trace_rays(ctx, bvh_or_gpu, origins, directions, tmin=0.0, tmax=np.inf, mode: str = "closest"):

@@ -7,24 +7,29 @@
 
 layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhNodes { vec4 bvh_nodes[]; };
 
-// Stack traversal: test both children of a node; leaf children are intersected at once, so only
-// internal nodes are pushed; with two internal children hit, go to the nearer, push the farther.
-bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
-    RayShear s;
-    vec3 inv;
-    if (!bvh_begin(r, h, s, inv))
-        return false;
+// Box of child `side` (0 left, 1 right) of a node's fetched vec4s.
+void bvh2_child_box(vec4 n0, vec4 n1, vec4 n2, int side, out vec3 lo, out vec3 hi) {
+    lo = side == 0 ? vec3(n0.x, n0.z, n1.x) : vec3(n1.z, n2.x, n2.z);
+    hi = side == 0 ? vec3(n0.y, n0.w, n1.y) : vec3(n1.w, n2.y, n2.w);
+}
+
+// Stack traversal of the subtree under internal node `node`: test both children of a node; leaf
+// children are intersected at once, so only internal nodes are pushed; with two internal children
+// hit, go to the nearer, push the farther. True when an any-hit ray found its hit.
+bool bvh2_walk(Ray r, RayShear s, vec3 inv, bool any_hit, inout Hit h, int node) {
     BVH_LOCAL_STACK
     int sp = 0;
-    int node = 0;
     while (true) {
         vec4 n0 = bvh_nodes[4 * node];
         vec4 n1 = bvh_nodes[4 * node + 1];
         vec4 n2 = bvh_nodes[4 * node + 2];
         ivec4 m = floatBitsToInt(bvh_nodes[4 * node + 3]);
         float tl, tr;
-        bool hl = bvh_slab(r.origin, inv, vec3(n0.x, n0.z, n1.x), vec3(n0.y, n0.w, n1.y), r.tmin, h.t, tl);
-        bool hr = bvh_slab(r.origin, inv, vec3(n1.z, n2.x, n2.z), vec3(n1.w, n2.y, n2.w), r.tmin, h.t, tr);
+        vec3 lo, hi;
+        bvh2_child_box(n0, n1, n2, 0, lo, hi);
+        bool hl = bvh_slab(r.origin, inv, lo, hi, r.tmin, h.t, tl);
+        bvh2_child_box(n0, n1, n2, 1, lo, hi);
+        bool hr = bvh_slab(r.origin, inv, lo, hi, r.tmin, h.t, tr);
         if (hl && m.z > 0) {
             if (bvh_leaf(s, m.x, m.z, r.tmin, any_hit, h) && any_hit)
                 return true;
@@ -50,7 +55,56 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
             node = bvh_stack[--sp];
         }
     }
+    return false;
+}
+
+bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
+    RayShear s;
+    vec3 inv;
+    if (!bvh_begin(r, h, s, inv))
+        return false;
+    return bvh2_walk(r, s, inv, any_hit, h, 0) || h.prim != BVH_MISS;
+}
+
+#if defined(TILE_ENTRIES_BINDING) && !defined(TILE_CULL_WRITER)
+// Tile frustum culling (rayvr/accel/frustum.py, tile_cull.comp): a tile's entry list names the
+// children (parent node << 1 | side) whose boxes meet the tile's frustum, a cut of the tree that
+// covers every triangle a ray of the tile can hit. The ray tests each entry's box, then walks it.
+layout(std430, binding = TILE_ENTRIES_BINDING) readonly restrict buffer TileEntries { uint tile_entries[]; };
+
+bool bvh_traverse_entries(Ray r, bool any_hit, inout Hit h, uint base, uint n) {
+    RayShear s;
+    vec3 inv;
+    if (!bvh_begin(r, h, s, inv))
+        return false;
+    for (uint k = 0u; k < n; ++k) {
+        uint e = tile_entries[base + k];
+        int parent = int(e >> 1u), side = int(e & 1u);
+        vec3 lo, hi;
+        bvh2_child_box(bvh_nodes[4 * parent], bvh_nodes[4 * parent + 1], bvh_nodes[4 * parent + 2], side, lo, hi);
+        float tn;
+        if (!bvh_slab(r.origin, inv, lo, hi, r.tmin, h.t, tn))
+            continue;
+        ivec4 m = floatBitsToInt(bvh_nodes[4 * parent + 3]);
+        int index = side == 0 ? m.x : m.y, count = side == 0 ? m.z : m.w;
+        if (count > 0 ? bvh_leaf(s, index, count, r.tmin, any_hit, h) : bvh2_walk(r, s, inv, any_hit, h, index))
+            if (any_hit)
+                return true;
+    }
     return h.prim != BVH_MISS;
 }
+
+// The tile's entries for ray `ray` (TILE_RAYS rays a tile, TILE_ENTRIES + 1 words a tile: count, entries).
+bool trace_closest_tile(Ray r, uint ray, out Hit h) {
+    uint base = (ray / uint(TILE_RAYS)) * uint(TILE_ENTRIES + 1);
+    return bvh_traverse_entries(r, false, h, base + 1u, tile_entries[base]);
+}
+
+bool trace_any_tile(Ray r, uint ray) {
+    Hit h;
+    uint base = (ray / uint(TILE_RAYS)) * uint(TILE_ENTRIES + 1);
+    return bvh_traverse_entries(r, true, h, base + 1u, tile_entries[base]);
+}
+#endif
 
 #endif

@@ -3,6 +3,7 @@
 // TRACE_MODE 0: closest hit; 1: any hit; 2: closest hit, then a mirror-reflected ray from
 // offset_ray(hit, n); 3: closest hit, then the same direction continued from offset_ray(hit, -n).
 // Modes 2 and 3 report the second ray's hit (self-intersection tests).
+// With TILE_ENTRIES_BINDING (tile frustum culling), the first ray starts from its tile's entry list.
 #ifndef TRACE_MODE
 #define TRACE_MODE 0
 #endif
@@ -33,11 +34,19 @@ void main() {
     vec4 b = rays[2 * i + 1];
     Ray r = Ray(a.xyz, a.w, b.xyz, b.w);
 #if TRACE_MODE == 1
+#ifdef TILE_ENTRIES_BINDING
+    bool occluded = trace_any_tile(r, i);
+#else
     bool occluded = trace_any(r);
+#endif
     hits[i] = uvec4(occluded ? 1u : 0u, 0u, 0u, 0u);
 #else
     Hit h;
+#ifdef TILE_ENTRIES_BINDING
+    trace_closest_tile(r, i, h);
+#else
     trace_closest(r, h);
+#endif
 #if TRACE_MODE >= 2
     if (h.prim != BVH_MISS) {
         vec3 n = bvh_geometric_normal(h.slot);
