@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .accumulation import MAX_DENOISE_ITERATIONS
+from .gpu_layout import BVH_LAYOUTS
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -234,6 +235,14 @@ def _example_config(scene_name: str):
     return path if path.exists() else None
 
 
+def _layouts(text: str) -> tuple[str, ...]:
+    names = tuple(x.strip() for x in text.split(",") if x.strip())
+    bad = [x for x in names if x not in BVH_LAYOUTS]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(f"BVH layouts must be among {', '.join(BVH_LAYOUTS)}, got {text!r}")
+    return names
+
+
 def _budgets(text: str) -> list[float]:
     try:
         values = [float(x) for x in text.split(",")]
@@ -258,7 +267,8 @@ def cmd_bench(args) -> int:
 
         rays.run(out, size=(64, 48) if quick else args.size,
                  scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                 repeat=2 if quick else args.repeat // 2, warmup=1 if quick else 3, backend=args.backend)
+                 repeat=2 if quick else args.repeat // 2, warmup=1 if quick else 3, backend=args.backend,
+                 layouts=args.layouts, tiles=not args.no_tiles)
     elif args.area == "peers":
         from .bench import peers
 
@@ -390,6 +400,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--scenes", default="default,sponza", help="comma-separated: default, sponza")
     b.add_argument("--repeat", type=int, default=50)
     b.add_argument("--quick", action="store_true", help="tiny sizes and few frames (CI smoke test)")
+    b.add_argument("--layouts", type=_layouts, default=tuple(BVH_LAYOUTS),
+                   help=f"rays: BVH node layouts to measure, comma-separated (default {','.join(BVH_LAYOUTS)}; "
+                        f"bvh2, the reference, always runs)")
+    b.add_argument("--no-tiles", action="store_true", help="rays: leave out the tile frustum culling variant")
     b.add_argument("--backend", choices=("egl", "osmesa"))
     b.set_defaults(func=cmd_bench)
 

@@ -214,3 +214,10 @@ def test_capture_accumulates_spp_samples_and_denoises(tmp_path):
     a = np.asarray(Image.open(tmp_path / "one" / "frame_left.png")).astype(int)
     b = np.asarray(Image.open(tmp_path / "many" / "frame_left.png")).astype(int)
     assert a.shape == b.shape and np.abs(a - b).mean() > 0.5 and b.std() > 5
+
+
+def test_bench_rays_bad_layout_is_a_clear_error(tmp_path):
+    run = rayvr("bench", "rays", "--layouts", "bvh2,bvh16", "--out", str(tmp_path / "b"))
+    assert run.returncode == 2, run.stdout + run.stderr
+    assert len(run.stderr.splitlines()) == 1 and "BVH layouts must be among bvh2, bvh4, bvh8" in run.stderr
+    assert not (tmp_path / "b").exists()

@@ -498,7 +498,13 @@ def test_cli_capture_primary_rays_and_bench_rays_quick(tmp_path):
     assert {r["rays_kind"] for r in result["rows"]} == {"primary", "shadow", "reflect"}
     assert all(r["build_s"] > 0 and r["sah_cost"] > 0 for r in result["rows"])
     if "agree_with_embree" in result["rows"][0]:
-        assert min(r["agree_with_embree"] for r in result["rows"]) > 0.99
+        assert min(r["agree_with_embree"] for r in result["rows"] if "agree_with_embree" in r) > 0.99
+    # every traversal variant per kind, each returning the reference's hits
+    from rayvr.bench.rays import VARIANTS
+    for kind in ("primary", "reflect"):
+        assert {r["variant"] for r in result["rows"] if r["rays_kind"] == kind} >= {v[0] for v in VARIANTS}
+    assert all(r["agree_with_bvh2"] == 1.0 for r in result["rows"] if r["variant"] != "bvh2 rows")
+    assert set(result["meta"]["best"]) == {f"default/{k}" for k in ("primary", "shadow", "reflect")}
     frame = result["meta"]["hybrid_frames"][0]
     assert {"rt_shadows", "rt_reflections", "classify"} <= set(frame["pass_ms"]) and frame["mirror_pixel_fraction"] > 0
 

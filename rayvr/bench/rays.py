@@ -9,7 +9,17 @@ Per scene (the benchmark views of rayvr/bench/scenes.py, both eyes of the stereo
   reflect   mirror reflection of each primary ray at its hit (geometric normal), closest hit:
             incoherent secondary rays
 GPU rays/s come from GL timer queries around `repeat` dispatches of rayvr/glsl/accel/trace_rays.comp
-with the rays already on the GPU. Embree (embreex, one scene per process, a fork pool over every host
+with the rays already on the GPU, after a warm-up until times settle.
+
+Traversal variants (`VARIANTS`, picked with `layouts` and `tiles`), each on the same rays of each
+kind: `bvh2` (the binary child-pair nodes, the reference), `bvh2+tiles` (tile frustum culling: the
+cull dispatch plus the trace from the tiles' entry lists, accel/frustum.py), `bvh4`/`bvh8` (wide
+quantized nodes, nearest-first for closest hits) and their `-unordered` forms (closest-hit rays;
+any-hit rays never sort). The camera rays are listed tile by tile (16 x 8 pixel blocks,
+frustum.tile_order), and so are the secondary rays made from their hits; `bvh2 rows` traces the
+primary rays in row order, as runs before the variants did. `agree_with_bvh2` is the fraction of
+rays with the reference's triangle (or occlusion); `speedup_vs_bvh2` its rays/s ratio; `best` in
+the meta names the fastest variant per ray kind and scene. Embree (embreex, one scene per process, a fork pool over every host
 core) traces the same float32 rays; its time is the wall time of the pool's map after a warm-up.
 Agreement with Embree (same triangle / same occlusion) is reported beside the speeds.
 
@@ -30,11 +40,13 @@ import time
 import numpy as np
 
 from ..accel.bvh import offset_ray
+from ..accel.frustum import tile_order
 from ..accel.gpu import MISS, GpuBvh, RayTracer
 from ..accel.scene import build_scene_bvh
 from ..context import create_context
 from ..materials import parse_config
 from ..renderer import Renderer, RenderSettings
+from ..gpu_layout import TILE_ENTRIES, TILE_RAYS
 from .report import device_meta, write_report
 from .scenes import bench_scenes
 
@@ -48,10 +60,20 @@ def hybrid_config(name: str):
                         f"bench:{name}")
 
 
-def primary_rays(rig, origin):
+# (variant, layout, ordered closest hits, tile frustum culling)
+VARIANTS = (("bvh2", "bvh2", True, False), ("bvh2+tiles", "bvh2", True, True),
+            ("bvh4", "bvh4", True, False), ("bvh4-unordered", "bvh4", False, False),
+            ("bvh8", "bvh8", True, False), ("bvh8-unordered", "bvh8", False, False))
+
+
+def primary_rays(rig, origin, tiled: bool = False):
+    """Both eyes' camera rays, in GL rows (bottom-up) as the passes trace, or (`tiled`) listed tile by
+    tile (frustum.tile_order) so that consecutive TILE_RAYS rays are a pixel block."""
     o, d = [], []
     for eye in rig.eyes():
-        dirs = eye.ray_directions()[::-1].reshape(-1, 3)  # GL rows (bottom-up), as the passes trace
+        dirs = eye.ray_directions()[::-1]
+        h, w = dirs.shape[:2]
+        dirs = dirs.reshape(-1, 3)[tile_order(w, h)] if tiled else dirs.reshape(-1, 3)
         d.append(dirs)
         o.append(np.broadcast_to(eye.position - origin, dirs.shape))
     return np.concatenate(o).astype(np.float32), np.concatenate(d).astype(np.float32)
@@ -155,16 +177,24 @@ def time_effect_stages(renderer, rig, repeat=5) -> dict:
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, workers=None,
-        backend=None, progress=True) -> dict:
+        backend=None, progress=True, layouts=("bvh2", "bvh4", "bvh8"), tiles: bool = True) -> dict:
+    """`layouts` and `tiles` pick the traversal variants (VARIANTS); bvh2 is always measured (the
+    reference every variant is compared with)."""
+    layouts = tuple(dict.fromkeys(("bvh2",) + tuple(layouts)))
     workers = workers or os.cpu_count() or 1
+    variants = [v for v in VARIANTS if v[1] in layouts and (tiles or not v[3])]
     gl = create_context(backend)
-    rows, frames, skipped = [], [], {}
+    rows, frames, skipped, best = [], [], {}, {}
     try:
         for name, scene, rig in bench_scenes(scenes, size, skipped):
             bvh = build_scene_bvh(scene)
-            gpu = GpuBvh(gl, bvh)
-            rt = RayTracer(gl, gpu)
-            o, d = primary_rays(rig, scene.origin)
+            gpus = {}
+            for layout in dict.fromkeys(v[1] for v in variants):
+                t0 = time.perf_counter()
+                gpus[layout] = GpuBvh(gl, bvh, layout=layout)
+                gpus[layout].pack_s = time.perf_counter() - t0
+            rt = RayTracer(gl, gpus["bvh2"])
+            o, d = primary_rays(rig, scene.origin, tiled=True)
             hits = rt.trace(o, d)
             rays = {"primary": (o, d, np.float32(3e38), "closest"), **secondary_rays(scene, bvh, o, d, hits)}
             base = {"scene": name, "triangles": scene.triangle_count, "build_s": bvh.build_seconds,
@@ -179,34 +209,57 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                 pool = None
             try:
                 for kind, (ro, rd, tmax, mode) in rays.items():
-                    g = rt.time_trace(ro, rd, tmax=tmax, mode=mode, repeats=repeat)
-                    row = {**base, "rays_kind": kind, "rays": len(ro), "gpu_ms": g["gpu_ms"],
-                           "gpu_ms_min": g["gpu_ms_min"], "gpu_ms_max": g["gpu_ms_max"],
-                           "gpu_grays_s": g["rays_per_s"] / 1e9}
-                    if pool is not None:
-                        ref, secs, trace_secs = embree_trace(pool, workers, kind, len(ro), repeat=3)
-                        mine = rt.trace(ro, rd, tmax=tmax, mode=mode)
-                        if mode == "any":
-                            agree = float((mine == ref).mean())
-                        else:
-                            agree = float((mine.prim == np.where(ref >= 0, ref, -1).astype(np.uint32)).mean())
-                        row.update(embree_ms=secs * 1e3, embree_grays_s=len(ro) / secs / 1e9,
-                                   speedup_vs_embree=(len(ro) / secs) and g["rays_per_s"] / (len(ro) / secs),
-                                   embree_trace_ms=trace_secs * 1e3,
-                                   speedup_vs_embree_trace=g["rays_per_s"] * trace_secs / len(ro),
-                                   agree_with_embree=agree)
-                    rows.append(row)
-                    if progress:
-                        print(f"  {name:8s} {kind:8s} {row['gpu_grays_s']:.3f} GRays/s GPU"
-                              + (f", Embree {row['embree_grays_s']:.3f} ({row['speedup_vs_embree']:.1f}x; "
-                                 f"{row['speedup_vs_embree_trace']:.1f}x its trace calls alone),"
-                                 f" agree {row['agree_with_embree']:.4%}" if pool else ""))
+                    reference = rt.trace(ro, rd, tmax=tmax, mode=mode)
+                    ref_prim = reference if mode == "any" else reference.prim
+                    runs = [(v, ro, rd) for v in variants if not (mode == "any" and v[0].endswith("-unordered"))]
+                    if kind == "primary" and "bvh2" in layouts:
+                        rows_o, rows_d = primary_rays(rig, scene.origin)
+                        runs.append((("bvh2 rows", "bvh2", True, False), rows_o, rows_d))
+                    ref_rate = None
+                    for (variant, layout, ordered, tiled), vo, vd in runs:
+                        vrt = RayTracer(gl, gpus[layout], ordered=ordered)
+                        g = vrt.time_trace(vo, vd, tmax=tmax, mode=mode, repeats=repeat, tiles=tiled)
+                        mine = vrt.trace(vo, vd, tmax=tmax, mode=mode, tiles=tiled)
+                        mine = mine if mode == "any" else mine.prim
+                        agree = float((mine == ref_prim).mean()) if variant != "bvh2 rows" else None
+                        ref_rate = ref_rate or g["rays_per_s"]
+                        w = gpus[layout].wide
+                        row = {**base, "rays_kind": kind, "variant": variant, "layout": layout, "ordered": ordered,
+                               "tiles": tiled, "ray_order": "rows" if variant == "bvh2 rows" else "tiles16x8",
+                               "node_bytes": gpus[layout].nodes.size, "pack_s": gpus[layout].pack_s,
+                               "wide_nodes": w.node_count if w is not None else 0,
+                               "rays": len(vo), "gpu_ms": g["gpu_ms"], "gpu_ms_min": g["gpu_ms_min"],
+                               "gpu_ms_max": g["gpu_ms_max"], "cull_ms": g["cull_ms"],
+                               "gpu_grays_s": g["rays_per_s"] / 1e9, "speedup_vs_bvh2": g["rays_per_s"] / ref_rate,
+                               "agree_with_bvh2": agree}
+                        if pool is not None and variant == "bvh2":
+                            ref, secs, trace_secs = embree_trace(pool, workers, kind, len(ro), repeat=3)
+                            if mode == "any":
+                                eagree = float((reference == ref).mean())
+                            else:
+                                eagree = float((reference.prim == np.where(ref >= 0, ref, -1).astype(np.uint32)).mean())
+                            row.update(embree_ms=secs * 1e3, embree_grays_s=len(ro) / secs / 1e9,
+                                       speedup_vs_embree=(len(ro) / secs) and g["rays_per_s"] / (len(ro) / secs),
+                                       embree_trace_ms=trace_secs * 1e3,
+                                       speedup_vs_embree_trace=g["rays_per_s"] * trace_secs / len(ro),
+                                       agree_with_embree=eagree)
+                        rows.append(row)
+                        key = f"{name}/{kind}"
+                        if variant != "bvh2 rows" and row["gpu_grays_s"] > best.get(key, ("", 0.0))[1]:
+                            best[key] = (variant, row["gpu_grays_s"])
+                        if progress:
+                            print(f"  {name:8s} {kind:8s} {variant:15s} {row['gpu_grays_s']:.3f} GRays/s GPU"
+                                  f" ({row['speedup_vs_bvh2']:.2f}x bvh2" + (f", agree {agree:.4%})" if agree is not None else ")")
+                                  + (f", Embree {row['embree_grays_s']:.3f} ({row['speedup_vs_embree']:.1f}x; "
+                                     f"{row['speedup_vs_embree_trace']:.1f}x its trace calls alone),"
+                                     f" agree {row['agree_with_embree']:.4%}" if "embree_ms" in row else ""))
             finally:
                 if pool is not None:
                     pool.close()
                     pool.join()
                 _WORK.clear()
-                gpu.release()
+                for g in gpus.values():
+                    g.release()
             r = Renderer(scene, hybrid_config(name), gl=gl, settings=RenderSettings())
             try:
                 names, med, total = time_frame(r, rig, repeat, warmup)
@@ -227,9 +280,12 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                 r.release()
         meta = {**device_meta(gl.info()), "bench": "rays", "per_eye_size": list(size), "repeat": repeat,
                 "host_cores": os.cpu_count(), "embree_workers": workers, "skipped": skipped,
+                "variants": [v[0] for v in variants], "tile_rays": TILE_RAYS, "tile_entries": TILE_ENTRIES,
+                "best": {k: {"variant": v, "gpu_grays_s": r} for k, (v, r) in best.items()},
                 "what_times_include": {
-                    "gpu_ms": "GL timer query around the trace dispatches only; rays and BVH already "
-                              "on the GPU, no upload or readback",
+                    "gpu_ms": "GL timer query around the trace dispatches only (with tiles: the cull "
+                              "dispatch too); rays and BVH already on the GPU, no upload or readback",
+                    "cull_ms": "the tile cull dispatch alone (tiles variants)",
                     "embree_ms": "wall time of the parallel map over all host cores (embreex, one "
                                  "rtcIntersect1 per ray); rays already in the workers, hits sent back",
                     "embree_trace_ms": "time inside Embree's trace calls, summed over chunks and "
