@@ -134,7 +134,8 @@ def cmd_capture(args) -> int:
     settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode,
                               primary=args.primary, denoise=args.denoise or args.denoise_iterations is not None,
                               denoise_iterations=args.denoise_iterations or RenderSettings.denoise_iterations,
-                              accumulate=args.temporal, temporal=args.temporal)
+                              accumulate=args.temporal, temporal=args.temporal,
+                              second_layer=args.second_layer)
     with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
         rig = rig_from_args(args, r.scene)
         pick = None
@@ -369,6 +370,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how the stereo G-buffer reaches both layers")
     c.add_argument("--primary", choices=("raster", "rays"), default="raster",
                    help="primary visibility: the raster G-buffer pass, or camera rays through the BVH")
+    c.add_argument("--second-layer", choices=("rays", "peel"), default="rays",
+                   help="how the second depth layer (ssr layers = 2) is made: primary rays continued through the "
+                        "BVH, or depth peeling in the raster (rayvr bench ssrt times both)")
     c.add_argument("--backend", choices=("egl", "osmesa"), help="headless GL backend (default: egl, then osmesa)")
 
     c.add_argument("-q", "--quiet", action="store_true")

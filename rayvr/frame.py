@@ -43,6 +43,8 @@ class FramePlan:
     primary: str = "raster"  # primary visibility: "raster" (visibility pass) or "rays" (BVH)
     camera: str = "pinhole"  # camera model (rayvr/cameras/)
     stereo: str = "dual"  # how the second eye is made: "dual" renders both fully
+    depth_layers: int = 1  # depth layers the screen-space tracers see (2: passes/second_layer.py)
+    second_layer: str = "rays"  # how the second depth layer is made: "rays" (BVH) | "peel" (raster)
     output: str = "ldr"
     accumulate: bool = False  # running mean of samples while still (passes/accumulate.py)
     denoise: tuple = ()  # effects whose pixels the edge-aware à-trous filters (passes/denoise.py)
@@ -70,6 +72,7 @@ class Sizing:
     scene: object = None
     assignments: tuple = ()
     max_ssbo_bytes: int = 0
+    depth_layers: int = 1  # FramePlan.depth_layers
 
     @property
     def pixels(self) -> int:
@@ -377,7 +380,7 @@ def check_fits(graph: CompiledGraph, sizing: Sizing, limits: DeviceLimits) -> No
         mid = (lo + hi) / 2
         size = (max(1, int(w * mid)), max(1, int(h * mid)))
         if limit_problems(graph, Sizing(size, sizing.layers, sizing.scene, sizing.assignments,
-                                        sizing.max_ssbo_bytes), limits):
+                                        sizing.max_ssbo_bytes, sizing.depth_layers), limits):
             hi = mid
         else:
             lo = mid

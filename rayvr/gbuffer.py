@@ -30,6 +30,30 @@ GL_DEPTH = 0x1801
 COLOR_CHANNELS = tuple(c for c in CHANNELS if c.dtype != "depth")
 
 
+def layered_depth_target(gl, fbo, size, layers: int) -> int:
+    """A GL_DEPTH_COMPONENT32F texture array (moderngl has none) attached layered to `fbo`; its name."""
+    raw = gl.raw
+    w, h = size
+    name = ctypes.c_uint()
+    raw.glGenTextures(1, ctypes.byref(name))
+    raw.glBindTexture(GL_TEXTURE_2D_ARRAY, name.value)
+    raw.glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_DEPTH_COMPONENT32F, w, h, layers)
+    raw.glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST)
+    raw.glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST)
+    raw.glBindTexture(GL_TEXTURE_2D_ARRAY, 0)
+    fbo.use()
+    raw.glBindFramebuffer(GL_FRAMEBUFFER, fbo.glo)
+    raw.glFramebufferTexture(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, name.value, 0)
+    status = raw.glCheckFramebufferStatus(GL_FRAMEBUFFER)
+    if status != GL_FRAMEBUFFER_COMPLETE:
+        raise RuntimeError(f"layered framebuffer incomplete (status 0x{status:x})")
+    return name.value
+
+
+def delete_texture(gl, name: int) -> None:
+    gl.raw.glDeleteTextures(1, ctypes.byref(ctypes.c_uint(name)))
+
+
 class GBuffer:
     """The G-buffer textures for one size and layer count, plus the layered visibility framebuffer
     (triangle + depth attachments)."""
@@ -49,21 +73,7 @@ class GBuffer:
         # know the raw depth array attached below, so depth writes must be enabled explicitly.
         self.fbo.depth_mask = True
         # moderngl has no depth texture arrays: make one with raw GL and attach it layered.
-        raw = gl.raw
-        name = ctypes.c_uint()
-        raw.glGenTextures(1, ctypes.byref(name))
-        self.depth_name = name.value
-        raw.glBindTexture(GL_TEXTURE_2D_ARRAY, self.depth_name)
-        raw.glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_DEPTH_COMPONENT32F, w, h, layers)
-        raw.glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST)
-        raw.glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST)
-        raw.glBindTexture(GL_TEXTURE_2D_ARRAY, 0)
-        self.fbo.use()
-        raw.glBindFramebuffer(GL_FRAMEBUFFER, self.fbo.glo)
-        raw.glFramebufferTexture(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, self.depth_name, 0)
-        status = raw.glCheckFramebufferStatus(GL_FRAMEBUFFER)
-        if status != GL_FRAMEBUFFER_COMPLETE:
-            raise RuntimeError(f"layered G-buffer framebuffer incomplete (status 0x{status:x})")
+        self.depth_name = layered_depth_target(gl, self.fbo, self.size, layers)
 
     def attach_multiview(self) -> None:
         """Re-attach triangle and depth as GL_OVR_multiview views (view i = layer i); a
@@ -111,5 +121,4 @@ class GBuffer:
         self.fbo.release()
         for t in self.textures.values():
             t.release()
-        name = ctypes.c_uint(self.depth_name)
-        self.gl.raw.glDeleteTextures(1, ctypes.byref(name))
+        delete_texture(self.gl, self.depth_name)

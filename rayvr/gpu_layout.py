@@ -58,9 +58,10 @@ IMAGE = {"hdr": 0, "ldr": 1,
          # passes/accumulate.py (glsl/post/accumulate.comp) and passes/denoise.py (glsl/post/denoise.comp)
          "accum_in": 2, "accum_moments_in": 3, "accum_out": 4, "accum_moments_out": 5,
          "accum_history_out": 6, "accum_history_moments_out": 7,
-         "denoise_in": 2, "denoise_out": 3, "denoise_moments": 4, "denoise_color": 5}
+         "denoise_in": 2, "denoise_out": 3, "denoise_moments": 4, "denoise_color": 5,
+         "layer2": 2, "layer2_triangle": 3}  # passes/second_layer.py
 # Texture units beside the G-buffer channels' (0..7).
-UNIT = {"base_color_textures": 9}
+UNIT = {"base_color_textures": 9, "layer2": 10, "layer2_triangle": 11, "peel_triangle": 12}
 
 TONEMAPPERS = ("clamp", "reinhard", "aces")
 DEBUG_VIEWS = ("depth", "normal", "albedo", "roughness", "metallic", "emission", "material", "effect",

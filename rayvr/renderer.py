@@ -29,11 +29,13 @@ from .gpu_layout import TONEMAPPERS, VIEWS
 from .gpu_scene import GpuScene
 from .passes import core_passes
 from .passes.classify import pixel_counts
+from .passes.second_layer import depth_layers
 from .passes.visibility import pick_layer_mode
 from .readback import AUX_CHANNELS, Reader
 from .timing import settle
 
 PRIMARY_MODES = ("raster", "rays")
+SECOND_LAYER_MODES = ("rays", "peel")  # passes/second_layer.py
 MAX_TILES = 64  # a frame that needs more tiles than this is refused (FrameTooLarge) instead
 HOST_BYTES_PER_PIXEL = 16  # colour, depth and the pixel buffers they come through, per eye pixel
 
@@ -52,6 +54,9 @@ class RenderSettings:
     temporal: bool = False  # with accumulate: a camera move reprojects the history instead of dropping it
     denoise: bool = False  # edge-aware à-trous filter on the pixels of the effects the config denoises
     denoise_iterations: int = 4  # à-trous iterations (step 2^i); 1..MAX_ITERATIONS
+    # Second depth layer (ssr layers = 2): "rays" continues each primary ray past its first hit
+    # through the BVH, "peel" rasterizes again behind the first layer (rayvr bench ssrt times both).
+    second_layer: str = "rays"
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
@@ -63,6 +68,8 @@ class RenderSettings:
                              f"got {self.denoise_iterations!r}")
         if self.primary not in PRIMARY_MODES:
             raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
+        if self.second_layer not in SECOND_LAYER_MODES:
+            raise ValueError(f"unknown second layer {self.second_layer!r}; allowed: {', '.join(SECOND_LAYER_MODES)}")
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:
@@ -135,10 +142,13 @@ class Renderer:
                       for e in effects_mod.EFFECTS if e in self.effects_in_use())
         primary = self.settings.primary if camera.rasterizable else "rays"
         color, st = view == "color", self.settings
+        # Peeling needs the raster's depth: with ray-cast primaries the second layer is ray-cast too.
+        second = self.settings.second_layer if primary == "raster" else "rays"
         denoise = tuple(sorted(self.denoised_effects())) if color and st.denoise else ()
         return FramePlan(effects=self.effects_in_use(), view=view, layers=layers, layer_mode=self.layer_mode,
                          primary=primary, camera=camera.name, users=users,
-                         accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise)
+                         accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise,
+                         depth_layers=depth_layers(self.assignments), second_layer=second)
 
     def compiled(self, plan: FramePlan | None = None):
         """The compiled frame graph of `plan` (default: both eyes, colour): passes in order,
@@ -146,7 +156,8 @@ class Renderer:
         return self.graph.compile(plan or self.plan())
 
     def sizing(self, size, layers: int = 2) -> Sizing:
-        return Sizing(tuple(size), layers, self.scene, tuple(self.assignments), self.gl.max_ssbo_bytes)
+        return Sizing(tuple(size), layers, self.scene, tuple(self.assignments), self.gl.max_ssbo_bytes,
+                      depth_layers(self.assignments))
 
     def record(self, rig: StereoRig, eyes: str = "both", view: str = "color", profile: bool = False,
                sample: int | None = None) -> FrameContext:

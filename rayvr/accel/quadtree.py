@@ -53,8 +53,8 @@ import numpy as np
 
 from ..gpu_layout import SSRT_RAY_GROUP
 
-HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4  # QT_HIT ... QT_NONE in glsl/ssrt/quadtree.glsl (same as DDA_*)
-STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
+HIT, OFFSCREEN, NEAR, NONE, OCCLUDED = 1, 2, 3, 4, 5  # SSRT_* in glsl/ssrt/screen_ray.glsl (same as DDA_*)
+STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none", OCCLUDED: "occluded"}
 PLANE_BIT = 0x80000000
 FLAG_BIT = 1
 MAX_LEVELS = 16            # QT_MAX_LEVELS: images up to 32768 pixels a side
@@ -436,23 +436,11 @@ def trace_heightfield_reference(leaves: np.ndarray, cam: ScreenCamera, origin, d
     crossings of the pixel grid lines, sorted), each tested against that pixel's leaf plane; the
     first hit wins. `leaves`: level-0 nodes (H, W, 2) (encoded: the tree's own planes)."""
     ray = screen_ray(cam, origin, direction)
-    W, H = cam.size
     if ray.u_lo > ray.u_hi:
         return Trace(ray.end, (-1, -1), ray.s0, 0)
-    us = [ray.u_lo, ray.u_hi]
-    for c, dc, extent in ((ray.s0[0], ray.sd[0], W), (ray.s0[1], ray.sd[1], H)):
-        if dc != 0 and np.isfinite(ray.u_hi):
-            a, b = sorted((c + ray.u_lo * dc, c + ray.u_hi * dc))
-            lines = np.arange(np.ceil(a), np.floor(b) + 1)
-            us += list((lines - c) / dc)
-    us = np.unique(np.clip(us, ray.u_lo, ray.u_hi))
     nd = decode(leaves)
     tested = 0
-    for ua, ub in zip(us[:-1], us[1:]):
-        if not ub > ua:
-            continue
-        m = ray.s0 + 0.5 * (ua + ub) * ray.sd
-        x, y = min(max(int(np.floor(m[0])), 0), W - 1), min(max(int(np.floor(m[1])), 0), H - 1)
+    for ua, ub, x, y in _cells(ray, cam.size):
         tested += 1
         if not nd.plane[y, x]:
             continue
@@ -460,6 +448,22 @@ def trace_heightfield_reference(leaves: np.ndarray, cam: ScreenCamera, origin, d
         if u is not None:
             return Trace(HIT, (x, y), ray.s0 + u * ray.sd, tested)
     return Trace(ray.end, (-1, -1), _end_point(ray), tested)
+
+
+def _cells(ray: ScreenRay, size):
+    """The pixel cells the ray's screen segment crosses, in order: (ua, ub, x, y) between its
+    successive crossings of the pixel grid lines."""
+    W, H = size
+    us = [ray.u_lo, ray.u_hi]
+    for c, dc, extent in ((ray.s0[0], ray.sd[0], W), (ray.s0[1], ray.sd[1], H)):
+        if dc != 0 and np.isfinite(ray.u_hi):
+            a, b = sorted((c + ray.u_lo * dc, c + ray.u_hi * dc))
+            us += list((np.arange(np.ceil(a), np.floor(b) + 1) - c) / dc)
+    us = np.unique(np.clip(us, ray.u_lo, ray.u_hi))
+    for ua, ub in zip(us[:-1], us[1:]):
+        if ub > ua:
+            m = ray.s0 + 0.5 * (ua + ub) * ray.sd
+            yield ua, ub, min(max(int(np.floor(m[0])), 0), W - 1), min(max(int(np.floor(m[1])), 0), H - 1)
 
 
 def _end_point(ray: ScreenRay) -> np.ndarray:
@@ -471,21 +475,65 @@ def _find_msb(v: int) -> int:
     return v.bit_length() - 1  # -1 for 0, as GLSL findMSB
 
 
-def trace_quadtree_reference(levels, cam: ScreenCamera, origin, direction, max_nodes: int | None = None) -> Trace:
-    """The stackless traversal of §4, step for step as glsl/ssrt/quadtree.glsl does it: test the
-    node (AABB: does the ray dip below zmax inside it; plane: does it pass behind the plane); an
-    AABB hit descends into the child holding the ray's entry point (after skipping the part above
-    zmax); a miss moves to the neighbour across the wall the ray leaves by, then climbs
-    findMSB((qx ^ qx') | (qy ^ qy')) levels, to the largest node that starts there."""
-    ray = screen_ray(cam, origin, direction)
+class _Walk(NamedTuple):
+    """What one layer's traversal found in [u_from, u_to]: the first surface hit (u, pixel) or
+    u = inf; the first point deeper than the surface's slab (an occlusion volume, §4.1) or inf;
+    nodes tested; whether the node cap ended it."""
+
+    u_hit: float
+    pixel: tuple
+    u_occ: float
+    nodes: int
+    capped: bool
+
+
+def _deep(ray: ScreenRay, u, z0, sx, sy, xc, yc, thickness) -> bool:
+    """Is p(u) more than `thickness` (relative) behind the plane? (never for an infinite thickness)"""
+    p = ray.s0 + u * ray.sd
+    zs = z0 * (1 + sx * (p[0] - xc) + sy * (p[1] - yc))
+    return bool((zs - p[2]) > thickness * zs)
+
+
+def _cell(ray: ScreenRay, ua, ub, z0, sx, sy, xc, yc, thickness, cont):
+    """Events of one plane over [ua, ub]: (u of the first point in its slab [z (1 - thickness), z]
+    or None, u of the first point deeper than the slab or None). The first point behind the plane
+    (as the height field has it) is one or the other; continuing (`cont`), a ray deeper than the
+    slab may still rise into it before ub."""
+    uf = _plane_interval(ray, ua, ub, z0, sx, sy, xc, yc)
+    if uf is None:
+        return None, None
+    if not _deep(ray, uf, z0, sx, sy, xc, yc, thickness):
+        return uf, None
+    if not cont:
+        return None, uf
+
+    def h(u):  # > 0: deeper than the slab
+        p = ray.s0 + u * ray.sd
+        zs = z0 * (1 + sx * (p[0] - xc) + sy * (p[1] - yc))
+        return (1 - thickness) * zs - p[2]
+    ha, hb = h(uf), h(ub)
+    if hb <= 0 < ha:
+        return uf + (ub - uf) * ha / (ha - hb), uf
+    return None, uf
+
+
+def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float, thickness: float = np.inf,
+          cont: bool = False, max_nodes: int | None = None) -> _Walk:
+    """The stackless traversal of §4 over [u_from, u_to] of one layer's tree, step for step as
+    glsl/ssrt/quadtree.glsl qt_walk does it: test the node (AABB: does the ray dip below zmax
+    inside it; plane: its slab events, _cell); an AABB hit descends into the child holding the
+    ray's entry point (after skipping the part above zmax); a miss moves to the neighbour across
+    the wall the ray leaves by, then climbs findMSB((qx ^ qx') | (qy ^ qy')) levels, to the
+    largest node that starts there. Stops at the first event, or (`cont`) at the first surface
+    hit only, noting the first occlusion on the way; an AABB the ray crosses wholly below
+    zmin (1 - thickness) is then one occlusion, not descended."""
     W, H = cam.size
-    if ray.u_lo > ray.u_hi:
-        return Trace(ray.end, (-1, -1), ray.s0, 0)
     top = len(levels) - 1
     k, qx, qy = top, 0, 0
-    u = ray.u_lo
+    u = u_from
     sx_dir, sy_dir = ray.sd[0], ray.sd[1]
     nodes = 0
+    u_occ = np.inf
     limit = max_nodes or 16 * (W + H) + 64
     while nodes < limit:
         nodes += 1
@@ -494,21 +542,28 @@ def trace_quadtree_reference(levels, cam: ScreenCamera, origin, direction, max_n
         ux = ((x1 if sx_dir > 0 else x0) - ray.s0[0]) / sx_dir if sx_dir != 0 else np.inf
         uy = ((y1 if sy_dir > 0 else y0) - ray.s0[1]) / sy_dir if sy_dir != 0 else np.inf
         u_exit = min(ux, uy)
-        ub = min(u_exit, ray.u_hi)
+        ub = min(u_exit, u_to)
         n = decode(levels[k][qy, qx])
         go_down = False
         if ub > u:
             if n.plane:
-                uh = _plane_interval(ray, u, ub, float(n.z0), float(n.sx), float(n.sy), (x0 + x1) / 2, (y0 + y1) / 2)
+                c = ((x0 + x1) / 2, (y0 + y1) / 2)
+                uh, uo = _cell(ray, u, ub, float(n.z0), float(n.sx), float(n.sy), *c, thickness, cont)
+                if uo is not None:
+                    u_occ = min(u_occ, uo)
+                    if not cont:
+                        return _Walk(np.inf, (-1, -1), u_occ, nodes, False)
                 if uh is not None:
                     p = ray.s0 + uh * ray.sd
                     px = min(max(int(np.floor(p[0])), x0), x1 - 1)
                     py = min(max(int(np.floor(p[1])), y0), y1 - 1)
-                    return Trace(HIT, (px, py), p, nodes)
+                    return _Walk(uh, (px, py), u_occ, nodes, False)
             else:
                 zmax = float(n.zmax)
                 za, zb = ray.s0[2] + u * ray.sd[2], ray.s0[2] + ub * ray.sd[2]
-                if min(za, zb) < zmax:
+                if cont and max(za, zb) < (1 - thickness) * float(n.zmin):
+                    u_occ = min(u_occ, u)      # behind every slab in the node: occluded all through
+                elif min(za, zb) < zmax:
                     if za >= zmax:   # skip the part of the node the ray crosses above zmax
                         u = max(u, min(ub, (zmax - ray.s0[2]) / ray.sd[2]))
                     go_down = k > 0
@@ -523,7 +578,7 @@ def trace_quadtree_reference(levels, cam: ScreenCamera, origin, direction, max_n
             qx = min(2 * qx + cx, ((W + half - 1) >> k) - 1)
             qy = min(2 * qy + cy, ((H + half - 1) >> k) - 1)
             continue
-        if u_exit >= ray.u_hi:
+        if u_exit >= u_to:
             break
         u = u_exit
         nx = qx + ((1 if sx_dir > 0 else -1) if ux <= uy else 0)
@@ -534,11 +589,103 @@ def trace_quadtree_reference(levels, cam: ScreenCamera, origin, direction, max_n
         up = max(_find_msb((qx ^ nx) | (qy ^ ny)), 0)   # findMSB(0) = -1: stay on this level
         up = min(up, top - k)
         k, qx, qy = k + up, nx >> up, ny >> up
-    end = ray.end if nodes < limit else NONE
-    return Trace(end, (-1, -1), _end_point(ray), nodes)
+    return _Walk(np.inf, (-1, -1), u_occ, nodes, nodes >= limit)
+
+
+def trace_quadtree_reference(levels, cam: ScreenCamera, origin, direction, max_nodes: int | None = None) -> Trace:
+    """One layer as a height field (the first point behind the surface): the traversal _walk."""
+    ray = screen_ray(cam, origin, direction)
+    if ray.u_lo > ray.u_hi:
+        return Trace(ray.end, (-1, -1), ray.s0, 0)
+    w = _walk(levels, cam, ray, ray.u_lo, ray.u_hi, max_nodes=max_nodes)
+    if w.u_hit < np.inf:
+        return Trace(HIT, w.pixel, ray.s0 + w.u_hit * ray.sd, w.nodes)
+    return Trace(NONE if w.capped else ray.end, (-1, -1), _end_point(ray), w.nodes)
+
+
+class LayeredTrace(NamedTuple):
+    """A trace through depth layers: status (HIT, OCCLUDED or how it ended), the layer hit
+    (-1 otherwise), the hit pixel (OCCLUDED: the pixel the ray crossed just before, on the
+    near side of the discontinuity, for inpainting; (-1, -1) if none), the point in S (OCCLUDED:
+    where the ray went deeper than the last layer's slab) and the nodes tested."""
+
+    status: int
+    layer: int
+    pixel: tuple
+    point: np.ndarray
+    nodes: int
+
+
+def _before(cam: ScreenCamera, ray: ScreenRay, u: float) -> tuple:
+    """The pixel the ray crossed just before u (inpainting's background side), or (-1, -1)."""
+    if not u > ray.u_lo or not (ray.sd[0] or ray.sd[1]):
+        return (-1, -1)
+    p = ray.s0 + max(u - 1e-3, ray.u_lo) * ray.sd
+    W, H = cam.size
+    return (min(max(int(np.floor(p[0])), 0), W - 1), min(max(int(np.floor(p[1])), 0), H - 1))
+
+
+def trace_layers(layer_levels, cam: ScreenCamera, origin, direction, thickness: float = np.inf) -> LayeredTrace:
+    """The occlusion-aware trace of §4.1 through one or two depth layers' trees, as
+    glsl/ssrt/quadtree.glsl qt_trace_layers does it. A surface is a slab of relative
+    `thickness` behind each layer's planes. One layer: the first point behind the surface; deeper
+    than the slab it is OCCLUDED (the ray passed behind an object). Two layers: the first layer
+    is walked to its first slab hit, noting where the ray first went deeper than a slab; from
+    there to that hit the second layer decides: its first point behind a surface is a hit (in its
+    slab) or OCCLUDED (deeper: behind both layers, unknown); else the first layer's answer holds.
+    Where the second layer is empty the space behind the first is known to be empty."""
+    ray = screen_ray(cam, origin, direction)
+    if ray.u_lo > ray.u_hi:
+        return LayeredTrace(ray.end, -1, (-1, -1), ray.s0, 0)
+    two = len(layer_levels) > 1
+    w = _walk(layer_levels[0], cam, ray, ray.u_lo, ray.u_hi, thickness, cont=two)
+    nodes, layer, u_hit, pixel, u_occ, capped = w.nodes, 0, w.u_hit, w.pixel, w.u_occ, w.capped
+    if two and u_occ < u_hit and not capped:
+        w2 = _walk(layer_levels[1], cam, ray, u_occ, min(u_hit, ray.u_hi), thickness)
+        nodes += w2.nodes
+        if w2.u_hit < np.inf or w2.u_occ < np.inf or w2.capped:
+            layer, u_hit, pixel, u_occ, capped = 1, w2.u_hit, w2.pixel, w2.u_occ, w2.capped
+        else:
+            u_occ = np.inf
+    if u_hit < np.inf:
+        return LayeredTrace(HIT, layer, pixel, ray.s0 + u_hit * ray.sd, nodes)
+    if u_occ < np.inf and not capped:
+        return LayeredTrace(OCCLUDED, -1, _before(cam, ray, u_occ), ray.s0 + u_occ * ray.sd, nodes)
+    return LayeredTrace(NONE if capped else ray.end, -1, (-1, -1), _end_point(ray), nodes)
+
+
+def trace_layers_brute_force(layer_leaves, cam: ScreenCamera, origin, direction,
+                             thickness: float = np.inf) -> LayeredTrace:
+    """The multi-layer height field by brute force: every pixel cell the ray crosses, in order;
+    in each, every layer's plane: the first point in any layer's slab is a hit; the first point
+    deeper than the slab of the last layer given (where that layer has a surface) is OCCLUDED;
+    whichever comes first (the hit on a tie). `layer_leaves`: level-0 nodes per layer."""
+    ray = screen_ray(cam, origin, direction)
+    if ray.u_lo > ray.u_hi:
+        return LayeredTrace(ray.end, -1, (-1, -1), ray.s0, 0)
+    nds = [decode(lv) for lv in layer_leaves]
+    last = len(nds) - 1
+    tested = 0
+    for ua, ub, x, y in _cells(ray, cam.size):
+        tested += 1
+        events = []
+        for li, nd in enumerate(nds):
+            if not nd.plane[y, x]:
+                continue
+            uh, uo = _cell(ray, ua, ub, nd.z0[y, x], nd.sx[y, x], nd.sy[y, x], x + 0.5, y + 0.5, thickness, True)
+            if uh is not None:
+                events.append((uh, 0, li))
+            if uo is not None and li == last:
+                events.append((uo, 1, li))
+        if events:
+            u, kind, li = min(events)
+            if kind == 0:
+                return LayeredTrace(HIT, li, (x, y), ray.s0 + u * ray.sd, tested)
+            return LayeredTrace(OCCLUDED, -1, _before(cam, ray, u), ray.s0 + u * ray.sd, tested)
+    return LayeredTrace(ray.end, -1, (-1, -1), _end_point(ray), tested)
 
 
 __all__ = ["HIT", "OFFSCREEN", "NEAR", "NONE", "STATUS_NAMES", "level_sizes", "level_offsets", "quadtree_bytes",
            "ScreenCamera", "encode_planes", "encode_aabbs", "decode", "leaf_planes", "build_reference",
            "flatten", "unflatten", "screen_ray", "trace_heightfield_reference", "trace_quadtree_reference",
-           "Trace", "ScreenRay", "plane_normals", "node_rects"]
+           "trace_layers", "trace_layers_brute_force", "LayeredTrace", "OCCLUDED", "Trace", "ScreenRay", "plane_normals", "node_rects"]

@@ -11,13 +11,14 @@ def core_passes() -> list:
     from .gbuffer_resolve import GBufferResolvePass
     from .primary_rays import PrimaryRaysPass
     from .quadtree import QuadtreePass, QuadtreeVisitsPass
+    from .second_layer import SecondLayerPass
     from .shade import ShadePass
     from .tonemap import TonemapPass
     from .visibility import VisibilityPass
 
     return [BvhPass(), VisibilityPass(), PrimaryRaysPass(), GBufferResolvePass(), ShadePass(), ClassifyPass(),
             AccumulatePass(), DenoisePass(), TonemapPass(), DebugViewPass(), QuadtreeVisitsPass(),
-            QuadtreePass(effect="ssr")]
+            QuadtreePass(effect="ssr"), SecondLayerPass()]
 
 
 def radiance(plan) -> tuple[str, str]:

@@ -19,31 +19,40 @@ from .. import shaders
 from ..accel.quadtree import (MAX_LEVELS, dispatch_per_ray, level_offsets, level_sizes, pack_screen_rays, quadtree_bytes,
                               set_level_uniforms, unflatten)
 from ..frame import Buffer, FramePlan, Pass, read, write
-from ..gpu_layout import SSBO
+from ..gpu_layout import SSBO, UNIT
 from .compute import camera_defines, set_eye_uniforms
 
 LOCAL = 8  # quadtree_build.comp's local size (x and y)
-QUADTREE = Buffer(lambda s: quadtree_bytes(s.size[0], s.size[1], s.layers),
-                  "8 B per node: ceil(W/2^k) x ceil(H/2^k) nodes on every level k up to 1 x 1, per layer",
+QUADTREE = Buffer(lambda s: quadtree_bytes(s.size[0], s.size[1], s.layers * s.depth_layers),
+                  "8 B per node: ceil(W/2^k) x ceil(H/2^k) nodes on every level k up to 1 x 1, per eye and depth layer",
                   max_extent=1 << (MAX_LEVELS - 1))
 
 
-def set_tree_uniforms(program, size) -> None:
-    """qt_level, qt_top, qt_layer_nodes of glsl/ssrt/quadtree.glsl for an eye image of `size`."""
+def set_tree_uniforms(program, size, eyes: int) -> None:
+    """qt_level, qt_top, qt_layer_nodes, qt_eyes of glsl/ssrt/quadtree.glsl for `eyes` eye images
+    of `size` (tree layer = depth layer x eyes + eye)."""
     set_level_uniforms(program, size, "qt", "qt_layer_nodes")
+    if "qt_eyes" in program:
+        program["qt_eyes"].value = int(eyes)
 
 
 class QuadtreeBuilder:
     """The build program and its per-level dispatches (shared by the pass and QuadtreeTracer)."""
 
-    def __init__(self, ctx, camera_model_defines: dict | None = None):
-        self.program = shaders.compute(ctx, "ssrt/quadtree_build.comp", dict(camera_model_defines or {}))
+    def __init__(self, ctx, camera_model_defines: dict | None = None, depth_layers: int = 1):
+        self.depth_layers = depth_layers
+        self.program = shaders.compute(ctx, "ssrt/quadtree_build.comp",
+                                       {**(camera_model_defines or {}), "QT_DEPTH_LAYERS": depth_layers})
 
-    def build(self, ctx, gbuffer, nodes: moderngl.Buffer, gamma_norm: float, gamma_dist: float, stage=None) -> None:
-        """Fill `nodes` from `gbuffer` (bound for reading here); camera uniforms must be set."""
+    def build(self, ctx, gbuffer, nodes: moderngl.Buffer, gamma_norm: float, gamma_dist: float, stage=None,
+              layer2=None) -> None:
+        """Fill `nodes` from `gbuffer` (bound for reading here) and, with two depth layers, from the
+        `layer2` texture (passes/second_layer.py); camera uniforms must be set."""
         prog = self.program
         w, h = gbuffer.size
-        set_tree_uniforms(prog, (w, h))
+        set_tree_uniforms(prog, (w, h), gbuffer.layers)
+        if self.depth_layers > 1:
+            layer2.use(UNIT["layer2"])
         for name, v in (("gamma_norm", gamma_norm), ("gamma_dist", gamma_dist)):
             if name in prog:
                 prog[name].value = float(v)
@@ -52,7 +61,7 @@ class QuadtreeBuilder:
         for k, (wk, hk) in enumerate(level_sizes(w, h)):
             def run(k=k, wk=wk, hk=hk):
                 prog["qt_build_level"].value = k
-                prog.run((wk + LOCAL - 1) // LOCAL, (hk + LOCAL - 1) // LOCAL, gbuffer.layers)
+                prog.run((wk + LOCAL - 1) // LOCAL, (hk + LOCAL - 1) // LOCAL, gbuffer.layers * self.depth_layers)
                 ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)  # level k + 1 reads it
             (stage or (lambda name, fn: fn()))(f"level{k}", run)
 
@@ -89,15 +98,18 @@ class QuadtreePass(Pass):
         return f"screen-space tracing ({', '.join(users)})"
 
     def io(self, plan: FramePlan) -> list:
-        return [read("gbuffer"), write("quadtree", QUADTREE)]
+        second = [read("layer2")] if plan.depth_layers > 1 else []
+        return [read("gbuffer")] + second + [write("quadtree", QUADTREE)]
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.builder = QuadtreeBuilder(gl.ctx, camera_defines(plan))
+        self.builder = QuadtreeBuilder(gl.ctx, camera_defines(plan), plan.depth_layers)
 
     def execute(self, fc) -> None:
         set_eye_uniforms(self.builder.program, fc)
         gamma_norm, gamma_dist = self.thresholds(fc.gpu_scene.assignments)
-        self.builder.build(fc.gl.ctx, fc.gbuffer, fc.resource("quadtree"), gamma_norm, gamma_dist, stage=fc.stage)
+        layer2 = fc.resource("layer2") if self.builder.depth_layers > 1 else None
+        self.builder.build(fc.gl.ctx, fc.gbuffer, fc.resource("quadtree"), gamma_norm, gamma_dist, stage=fc.stage,
+                           layer2=layer2)
 
     def release(self) -> None:
         self.builder.release()
@@ -125,7 +137,7 @@ class QuadtreeVisitsPass(Pass):
         from .compute import dispatch_per_pixel
 
         set_eye_uniforms(self.program, fc)
-        set_tree_uniforms(self.program, fc.gbuffer.size)
+        set_tree_uniforms(self.program, fc.gbuffer.size, fc.gbuffer.layers)
         fc.gbuffer.bind_for_reading()
         fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
         fc.resource("ldr").bind_to_image(IMAGE["ldr"], read=False, write=True)
@@ -143,12 +155,17 @@ class QuadtreeTracer:
         renderer.render(rig, aux=())
         tracer.build(rig, gamma_norm=1.0, gamma_dist=0.0)
         status, nodes, pixel, point = tracer.trace(origins, directions, eye=0)
+
+    With `depth_layers` = 2 the frame must have had the second layer (a material of ssr with
+    layers = 2): tree layers 2 and 3 are then the eyes' second depth layer, and `trace_layers`
+    traces through both (§4.1).
     """
 
-    def __init__(self, renderer):
+    def __init__(self, renderer, depth_layers: int = 1):
         self.renderer = renderer
         self.ctx = renderer.gl.ctx
-        self.builder = QuadtreeBuilder(self.ctx)
+        self.depth_layers = depth_layers
+        self.builder = QuadtreeBuilder(self.ctx, depth_layers=depth_layers)
         self.program = shaders.compute(self.ctx, "ssrt/quadtree_batch.comp")
         self.nodes: moderngl.Buffer | None = None
         self.size = None
@@ -159,15 +176,18 @@ class QuadtreeTracer:
         gbuffer = self.renderer.resource("gbuffer")
         eye_views = rig.eyes(eyes)
         self._eye_values = eye_views[0].camera.uniforms(eye_views, self.renderer.scene.origin)
-        nbytes = quadtree_bytes(*gbuffer.size, gbuffer.layers)
+        nbytes = quadtree_bytes(*gbuffer.size, gbuffer.layers * self.depth_layers)
         if self.nodes is None or self.nodes.size != nbytes:
             if self.nodes is not None:
                 self.nodes.release()
             self.nodes = self.ctx.buffer(reserve=nbytes)
         self.size, self.layers = tuple(gbuffer.size), gbuffer.layers
         self._set_eyes(self.builder.program)
-        self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist)
+        self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2())
         self.ctx.finish()
+
+    def _layer2(self):
+        return self.renderer.resource("layer2") if self.depth_layers > 1 else None
 
     def _set_eyes(self, program) -> None:
         for name, value in self._eye_values.items():
@@ -175,31 +195,43 @@ class QuadtreeTracer:
                 program[name].write(np.ascontiguousarray(value).tobytes())
 
     def levels(self, layer: int = 0) -> list[np.ndarray]:
-        """The built tree of one layer, read back: (h_k, w_k, 2) uint32 per level, leaves first."""
+        """The built tree of one tree layer (depth layer x eyes + eye), read back: (h_k, w_k, 2)
+        uint32 per level, leaves first."""
         per_layer = level_offsets(level_sizes(*self.size))[1]
         flat = np.frombuffer(self.nodes.read(), np.uint32).reshape(-1, 2)
         return unflatten(flat[layer * per_layer:(layer + 1) * per_layer], self.size)
 
     def trace(self, origins, directions, eye=0):
-        """Trace scene-local rays in layer `eye` (an int or one per ray). Returns status (N,)
-        uint32, nodes (N,) uint32, pixel (N, 2) int32 (GL pixel; -1 when no hit), point (N, 3)
-        float32 (in S)."""
+        """Trace scene-local rays in layer `eye` (an int or one per ray) as a height field. Returns
+        status (N,) uint32, nodes (N,) uint32, pixel (N, 2) int32 (GL pixel; -1 when no hit), point
+        (N, 3) float32 (in S)."""
+        return self.trace_layers(origins, directions, eye)[:4]
+
+    def trace_layers(self, origins, directions, eye=0, layers: int = 1, thickness: float = 3.0e38):
+        """qt_trace_layers through `layers` depth layers with slabs of relative `thickness`: what
+        trace() returns, and the depth layer hit (N,) int32 (-1 for none)."""
         rays = pack_screen_rays(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes())
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
         try:
-            self._bind(rbuf, obuf, n)
+            self._bind(rbuf, obuf, n, layers, thickness)
             dispatch_per_ray(self.program, n)
             self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
             out = np.frombuffer(obuf.read(), np.uint32).reshape(-1, 8)[:n]
         finally:
             rbuf.release()
             obuf.release()
-        return out[:, 0].copy(), out[:, 1].copy(), out[:, 2:4].view(np.int32).copy(), out[:, 4:7].view(np.float32).copy()
+        return (out[:, 0].copy(), out[:, 1].copy(), out[:, 2:4].view(np.int32).copy(),
+                out[:, 4:7].view(np.float32).copy(), out[:, 7].view(np.int32).copy())
 
-    def _bind(self, rbuf, obuf, n: int) -> None:
-        set_tree_uniforms(self.program, self.size)
+    def _bind(self, rbuf, obuf, n: int, layers: int = 1, thickness: float = 3.0e38) -> None:
+        if layers > self.depth_layers:
+            raise ValueError(f"{layers} depth layers asked of a tree built with {self.depth_layers}")
+        set_tree_uniforms(self.program, self.size, self.layers)
+        for name, v in (("trace_layers", int(layers)), ("trace_thickness", float(thickness))):
+            if name in self.program:
+                self.program[name].value = v
         self._set_eyes(self.program)
         self.nodes.bind_to_storage_buffer(SSBO["quadtree_nodes"])
         rbuf.bind_to_storage_buffer(SSBO["quadtree_rays"])
@@ -224,7 +256,7 @@ class QuadtreeTracer:
 
         def build() -> None:
             self._set_eyes(self.builder.program)
-            self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist)
+            self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2())
 
         def trace() -> None:
             self._bind(rbuf, obuf, n)

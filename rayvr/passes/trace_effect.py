@@ -19,6 +19,7 @@ from ..gpu_layout import IMAGE, SSBO, UNIT
 from .classify import bind_lists
 from .compute import camera_defines, set_eye_uniforms
 from .quadtree import set_tree_uniforms
+from .second_layer import bind_second_layer
 
 # Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.
 PATH_BYTES, SLOT_BYTES = 80, 48
@@ -87,6 +88,8 @@ class TraceEffectPass(Pass):
 
     def io(self, plan: FramePlan) -> list:
         screen = [read("quadtree")] if self.effect.uses_quadtree else []
+        if self.effect.uses_quadtree and plan.depth_layers > 1:
+            screen.append(read("layer2_triangle"))
         return [read("gbuffer"), read("bvh"), read("rt_lists"), read("rt_list_args"), compose("hdr")] + screen + \
             [write(name, t) for name, t in self.buffers.values()]
 
@@ -97,7 +100,7 @@ class TraceEffectPass(Pass):
         self.programs = {
             "prep": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 0}),
             # screen-space effects (ssr) find closest hits in the quadtree first (SSR_TRACE)
-            "closest": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 1,
+            "closest": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 1, "QT_DEPTH_LAYERS": plan.depth_layers,
                                                        "SSR_TRACE": int(self.effect.uses_quadtree)}),
             "shadow": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 2}),
             "shadow_finish": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
@@ -129,7 +132,8 @@ class TraceEffectPass(Pass):
         wave_args = fc.resource(self.buffers["args"][0])
         if self.effect.uses_quadtree:
             fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
-            set_tree_uniforms(self.programs["closest"], fc.gbuffer.size)
+            set_tree_uniforms(self.programs["closest"], fc.gbuffer.size, fc.gbuffer.layers)
+            bind_second_layer(fc)
         barrier = fc.gl.ctx.memory_barrier
 
         def run(name, items=1, **uniforms):

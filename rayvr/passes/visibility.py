@@ -29,6 +29,11 @@ def pick_layer_mode(gl, requested: str = "auto") -> str:
 
 class VisibilityPass(Pass):
     name = "visibility"
+    fragment = "gbuffer/visibility.frag"  # passes/second_layer.py peels with its own
+
+    def target(self, fc):
+        """What the draw renders into: clear(), size, attach_multiview() (the G-buffer)."""
+        return fc.gbuffer
 
     def why(self, plan: FramePlan) -> str | None:
         if plan.primary != "raster":
@@ -46,7 +51,7 @@ class VisibilityPass(Pass):
         # Multiview renders exactly LAYERS views; one eye uses the instanced path.
         self.mode = "vertex" if (self.mode == "multiview" and plan.layers != 2) else self.mode
         defines = {"LAYER_MODE": LAYER_MODE_DEFINE[self.mode], "LAYERS": plan.layers}
-        self.program = shaders.program(gl.ctx, "gbuffer/visibility.vert", "gbuffer/visibility.frag",
+        self.program = shaders.program(gl.ctx, "gbuffer/visibility.vert", self.fragment,
                                        "gbuffer/visibility.geom" if self.mode == "geometry" else None, defines)
         self.vao = None
         self._scene = None
@@ -62,7 +67,7 @@ class VisibilityPass(Pass):
 
     def execute(self, fc) -> None:
         ctx, raw = self.gl.ctx, self.gl.raw
-        gb = fc.gbuffer
+        gb = self.target(fc)
         vp = np.zeros((2, 4, 4), np.float32)
         for i, eye in enumerate(fc.eyes):
             vp[i] = eye.view_projection(fc.scene.origin, zero_to_one=self.clip_control).T  # column-major

@@ -39,29 +39,42 @@ layout(local_size_x = RT_LOCAL_SIZE) in;
 #include "../common/gbuffer.glsl"
 #include "../common/scene.glsl"
 
-// The path's ray through the quadtree of the eye that sees its pixel. On a hit the triangle the
-// G-buffer shows at the hit pixel, and the ray's exact crossing of that triangle's plane as
-// barycentrics (as the G-buffer resolve does); false when the screen cannot answer. `mi`: the
-// pixel's material (its `fallback` parameter).
+#if QT_DEPTH_LAYERS > 1
+layout(binding = UNIT_LAYER2_TRIANGLE) uniform usampler2DArray layer2_triangle;  // passes/second_layer.py
+#endif
+
+// The path's ray through the quadtree of the eye that sees its pixel, over the material's
+// `layers` depth layers with slabs of its `thickness` (qt_trace_layers: a ray that passed deeper
+// than the last layer's slab is QT_OCCLUDED). On a hit the triangle the hit layer shows at the
+// hit pixel, and the ray's exact crossing of that triangle's plane as barycentrics (as the
+// G-buffer resolve does). An occluded ray of a material without `fallback` is inpainted: the
+// G-buffer's own point of the pixel just before the occlusion. False when the screen cannot
+// answer. `mi`: the pixel's material.
 bool screen_space_hit(uint p, vec3 o, vec3 d, out uint tri, out vec2 uv, out uint mi) {
     ivec3 px = wave_pixel(p % wave_args[0].w);
     mi = texelFetch(gb_material, px, 0).x;
     tri = NO_HIT;
     uv = vec2(0.0);
-    QtResult r = qt_trace(px.z, o, d);
-    if (r.status != QT_HIT) return false;
-    tri = texelFetch(gb_triangle, ivec3(r.pixel, px.z), 0).x;
+    QtResult r = qt_trace_layers(px.z, o, d, material_param_int(mi, PARAM_LAYERS), material_param_float(mi, PARAM_THICKNESS));
+    ivec3 at = ivec3(r.pixel, px.z);
+    vec3 dir = d;
+    if (r.status == QT_OCCLUDED && material_param_int(mi, PARAM_FALLBACK) == 0 && r.pixel.x >= 0) {
+        vec3 target = texelFetch(gb_position, at, 0).xyz;  // inpainting: the near side's own surface
+        dir = target - o;
+    } else if (r.status != QT_HIT) {
+        return false;
+    }
+#if QT_DEPTH_LAYERS > 1
+    tri = r.layer == 1 ? texelFetch(layer2_triangle, at, 0).x : texelFetch(gb_triangle, at, 0).x;
+#else
+    tri = texelFetch(gb_triangle, at, 0).x;
+#endif
     if (tri == NO_HIT) return false;
-    // A ray that enters the hit pixel already well behind its surface passed behind a foreground
-    // object (single-layer height field): what it meets is hidden from the screen. Leave it to the
-    // fallback unless the surface is within `thickness` (relative view depth) of the ray there.
-    float z_surface = eye_depth.x / max(texelFetch(gb_position, ivec3(r.pixel, px.z), 0).w, 1e-30);
-    if (z_surface - r.point.z > material_param_float(mi, PARAM_THICKNESS) * z_surface) return false;
     TriangleVerts tv = scene_triangle(tri);
     vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], ng = cross(e1, e2);
-    float den = dot(d, ng);
-    if (abs(den) <= 1e-12 * length(ng) * length(d)) return false;
-    vec3 q = o + (dot(tv.p[0] - o, ng) / den) * d - tv.p[0];
+    float den = dot(dir, ng);
+    if (abs(den) <= 1e-12 * length(ng) * length(dir)) return false;
+    vec3 q = o + (dot(tv.p[0] - o, ng) / den) * dir - tv.p[0];
     float inv = 1.0 / dot(ng, ng);
     uv = clamp(vec2(dot(cross(q, e2), ng), dot(cross(e1, q), ng)) * inv, 0.0, 1.0);
     if (uv.x + uv.y > 1.0) uv /= uv.x + uv.y;

@@ -29,6 +29,7 @@
 #define QT_OFFSCREEN SSRT_OFFSCREEN
 #define QT_NEAR SSRT_NEAR
 #define QT_NONE SSRT_NONE
+#define QT_OCCLUDED SSRT_OCCLUDED
 #define QT_MAX_LEVELS 16
 #define QT_PLANE_BIT 0x80000000u
 #define QT_FLAG_BIT 1u
@@ -43,6 +44,7 @@ layout(std430, binding = SSBO_QUADTREE_NODES) QT_NODES_ACCESS restrict buffer Qu
 uniform ivec4 qt_level[QT_MAX_LEVELS];  // per level: width, height, index of its first node in a layer, 0
 uniform int qt_top;                     // the root's level (1 x 1)
 uniform uint qt_layer_nodes;            // nodes per layer
+uniform int qt_eyes = 1;                // eye layers per depth layer (tree layer = depth layer x eyes + eye)
 
 uint qt_index(int eye, int k, ivec2 q) {
     return uint(eye) * qt_layer_nodes + uint(qt_level[k].z + q.y * qt_level[k].x + q.x);
@@ -104,41 +106,71 @@ float qt_plane_hit(QtRay r, float ua, float ub, QtNode n, vec2 c) {
     return -1.0;
 }
 
-struct QtResult { uint status; uint nodes; ivec2 pixel; vec3 point; };
+// Slab events of a plane over [ua, ub] (rayvr/accel/quadtree.py _cell): x = first u in its slab
+// [z (1 - thickness), z] or -1, y = first u deeper than the slab or -1. The first point behind
+// the plane is one or the other; continuing (`cont`), a deep ray may still rise into the slab.
+vec2 qt_cell(QtRay r, float ua, float ub, QtNode n, vec2 c, float thickness, bool cont) {
+    float uf = qt_plane_hit(r, ua, ub, n, c);
+    if (uf < 0.0)
+        return vec2(-1.0);
+    vec3 p = r.s0 + uf * r.sd;
+    float zs = n.z0 * (1.0 + n.sx * (p.x - c.x) + n.sy * (p.y - c.y));
+    if (!((zs - p.z) > thickness * zs))
+        return vec2(uf, -1.0);
+    if (!cont)
+        return vec2(-1.0, uf);
+    vec3 pb = r.s0 + ub * r.sd;
+    float ha = (1.0 - thickness) * zs - p.z;
+    float hb = (1.0 - thickness) * n.z0 * (1.0 + n.sx * (pb.x - c.x) + n.sy * (pb.y - c.y)) - pb.z;
+    return vec2(hb <= 0.0 && ha > 0.0 ? uf + (ub - uf) * ha / (ha - hb) : -1.0, uf);
+}
 
-QtResult qt_trace(int eye, vec3 origin, vec3 direction) {
-    QtRay r = qt_screen_ray(eye, origin, direction);
-    QtResult res;
-    res.status = r.end; res.nodes = 0u; res.pixel = ivec2(-1); res.point = r.s0;
-    if (r.u_lo > r.u_hi)
-        return res;
+// What one layer's walk found in [u_from, u_to]: the first surface hit (u_hit, pixel; u_hit =
+// QT_INF if none), the first point deeper than a slab (u_occ, QT_INF if none), nodes tested,
+// whether the node cap ended it.
+struct QtWalk { float u_hit; ivec2 pixel; float u_occ; uint nodes; bool capped; };
+
+// The stackless traversal of §4 of tree layer `layer` over [u_from, u_to]: plane nodes' slab
+// events (qt_cell), AABB: descend when the ray dips below zmax inside, into the child holding
+// its entry point (after skipping the part above zmax); on a miss the neighbour across the exit
+// wall, then climb findMSB((qx ^ qx') | (qy ^ qy')) levels. Stops at the first event, or
+// (`cont`) at the first surface hit only, noting the first occlusion; an AABB the ray crosses
+// wholly below zmin (1 - thickness) is then one occlusion, not descended.
+QtWalk qt_walk(int layer, QtRay r, float u_from, float u_to, float thickness, bool cont) {
+    QtWalk w = QtWalk(QT_INF, ivec2(-1), QT_INF, 0u, false);
     ivec2 size = qt_level[0].xy;
     int k = qt_top;
     ivec2 q = ivec2(0);
-    float u = r.u_lo;
+    float u = u_from;
     uint limit = uint(16 * (size.x + size.y) + 64);
-    bool hit = false;
-    while (res.nodes < limit) {
-        res.nodes++;
+    while (w.nodes < limit) {
+        w.nodes++;
         vec4 rect = qt_rect(k, q);
         float ux = r.sd.x != 0.0 ? ((r.sd.x > 0.0 ? rect.z : rect.x) - r.s0.x) / r.sd.x : QT_INF;
         float uy = r.sd.y != 0.0 ? ((r.sd.y > 0.0 ? rect.w : rect.y) - r.s0.y) / r.sd.y : QT_INF;
         float u_exit = min(ux, uy);
-        float ub = min(u_exit, r.u_hi);
-        QtNode n = qt_decode(qt_nodes[qt_index(eye, k, q)]);
+        float ub = min(u_exit, u_to);
+        QtNode n = qt_decode(qt_nodes[qt_index(layer, k, q)]);
         bool down = false;
         if (ub > u) {
             if (n.plane) {
-                float uh = qt_plane_hit(r, u, ub, n, 0.5 * (rect.xy + rect.zw));
-                if (uh >= 0.0) {
-                    res.status = QT_HIT;
-                    res.point = r.s0 + uh * r.sd;
-                    res.pixel = clamp(ivec2(floor(res.point.xy)), ivec2(rect.xy), ivec2(rect.zw) - 1);
-                    return res;
+                vec2 e = qt_cell(r, u, ub, n, 0.5 * (rect.xy + rect.zw), thickness, cont);
+                if (e.y >= 0.0) {
+                    w.u_occ = min(w.u_occ, e.y);
+                    if (!cont)
+                        return w;
+                }
+                if (e.x >= 0.0) {
+                    w.u_hit = e.x;
+                    vec3 p = r.s0 + e.x * r.sd;
+                    w.pixel = clamp(ivec2(floor(p.xy)), ivec2(rect.xy), ivec2(rect.zw) - 1);
+                    return w;
                 }
             } else {
                 float za = r.s0.z + u * r.sd.z, zb = r.s0.z + ub * r.sd.z;
-                if (min(za, zb) < n.zmax) {
+                if (cont && max(za, zb) < (1.0 - thickness) * n.zmin) {
+                    w.u_occ = min(w.u_occ, u);  // behind every slab in the node: occluded all through
+                } else if (min(za, zb) < n.zmax) {
                     if (za >= n.zmax)      // skip the part of the node the ray crosses above zmax
                         u = max(u, min(ub, (n.zmax - r.s0.z) / r.sd.z));
                     down = k > 0;
@@ -156,7 +188,7 @@ QtResult qt_trace(int eye, vec3 origin, vec3 direction) {
             q = min(2 * q + c, qt_level[k].xy - 1);
             continue;
         }
-        if (u_exit >= r.u_hi)
+        if (u_exit >= u_to)
             break;
         u = u_exit;
         ivec2 step = ivec2(ux <= uy ? (r.sd.x > 0.0 ? 1 : -1) : 0, uy <= ux ? (r.sd.y > 0.0 ? 1 : -1) : 0);
@@ -170,10 +202,67 @@ QtResult qt_trace(int eye, vec3 origin, vec3 direction) {
         k += up;
         q = nq >> up;
     }
-    if (res.nodes >= limit)
-        res.status = QT_NONE;
-    res.point = r.u_hi < QT_INF ? r.s0 + r.u_hi * r.sd : r.s0;
+    w.capped = w.nodes >= limit;
+    return w;
+}
+
+// status: QT_HIT, QT_OCCLUDED (passed deeper than the last layer's slab) or how the ray ended;
+// layer: the depth layer hit (-1 otherwise); pixel: the hit pixel (QT_OCCLUDED: the pixel crossed
+// just before, for inpainting, or -1); point in S; nodes tested.
+struct QtResult { uint status; uint nodes; ivec2 pixel; vec3 point; int layer; };
+
+// Tree layer of depth layer `depth_layer` seen by `eye` (depth layers after each other).
+int qt_tree_layer(int depth_layer, int eye) { return depth_layer * qt_eyes + eye; }
+
+// The pixel the ray crossed just before u (the near side of an occlusion boundary), or -1.
+ivec2 qt_before(QtRay r, float u) {
+    if (!(u > r.u_lo) || (r.sd.x == 0.0 && r.sd.y == 0.0))
+        return ivec2(-1);
+    vec3 p = r.s0 + max(u - 1e-3, r.u_lo) * r.sd;
+    return clamp(ivec2(floor(p.xy)), ivec2(0), qt_level[0].xy - 1);
+}
+
+// The occlusion-aware trace of §4.1 through `layers` (1 or 2) depth layers, each surface a slab
+// of relative `thickness` (rayvr/accel/quadtree.py trace_layers: the rules and their reasons).
+QtResult qt_trace_layers(int eye, vec3 origin, vec3 direction, int layers, float thickness) {
+    QtRay r = qt_screen_ray(eye, origin, direction);
+    QtResult res = QtResult(r.end, 0u, ivec2(-1), r.s0, -1);
+    if (r.u_lo > r.u_hi)
+        return res;
+    bool two = layers > 1;
+    QtWalk w = qt_walk(qt_tree_layer(0, eye), r, r.u_lo, r.u_hi, thickness, two);
+    res.nodes = w.nodes;
+    int layer = 0;
+    if (two && w.u_occ < w.u_hit && !w.capped) {
+        QtWalk w2 = qt_walk(qt_tree_layer(1, eye), r, w.u_occ, min(w.u_hit, r.u_hi), thickness, false);
+        res.nodes += w2.nodes;
+        if (w2.u_hit < QT_INF || w2.u_occ < QT_INF || w2.capped) {
+            w = w2;
+            layer = 1;
+        } else {
+            w.u_occ = QT_INF;
+        }
+    }
+    if (w.u_hit < QT_INF) {
+        res.status = QT_HIT;
+        res.layer = layer;
+        res.pixel = w.pixel;
+        res.point = r.s0 + w.u_hit * r.sd;
+    } else if (w.u_occ < QT_INF && !w.capped) {
+        res.status = QT_OCCLUDED;
+        res.pixel = qt_before(r, w.u_occ);
+        res.point = r.s0 + w.u_occ * r.sd;
+    } else {
+        res.status = w.capped ? QT_NONE : r.end;
+        res.point = r.u_hi < QT_INF ? r.s0 + r.u_hi * r.sd : r.s0;
+    }
     return res;
+}
+
+// One layer as a height field: the first point behind the surface (statuses as above, never
+// QT_OCCLUDED).
+QtResult qt_trace(int eye, vec3 origin, vec3 direction) {
+    return qt_trace_layers(eye, origin, direction, 1, QT_INF);
 }
 
 #endif

@@ -4,15 +4,24 @@
 // build_reference this mirrors.
 //   level 0: each pixel's plane in S from the G-buffer: z0 = near / view depth (position.w), slopes
 //            from the shading normal (exact for the pixel's planar surface; no finite differences);
+//            tree layers past the eyes (qt_eyes) are the second depth layer's (passes/second_layer.py:
+//            layer2 = world normal facing the eye, view depth);
 //            background pixels are the AABB [0, 0]; the discontinuity flag from the 4 neighbours.
 //   level k: from the (up to 2 x 2) children at level k - 1: a proxy plane when all are planes and
 //            it passes gamma_norm / gamma_dist (gamma_dist = 0: never), else their AABB.
 #define LOCAL 8
+#ifndef QT_DEPTH_LAYERS
+#define QT_DEPTH_LAYERS 1
+#endif
 layout(local_size_x = LOCAL, local_size_y = LOCAL) in;
 
 #define QT_NODES_ACCESS
 #include "quadtree.glsl"
 #include "../common/gbuffer.glsl"
+
+#if QT_DEPTH_LAYERS > 1
+layout(binding = UNIT_LAYER2) uniform sampler2DArray layer2;  // xyz world normal facing the eye, w view depth
+#endif
 
 #define DISCONTINUITY 0.01     // rayvr/accel/quadtree.py DISCONTINUITY
 #define GRAZING 1e-4           // GRAZING
@@ -31,20 +40,30 @@ vec2 tangent_at(int eye, vec2 p) {
     return eye_tangents[eye].xz + p / pixels_per_tangent(eye);
 }
 
-// The pixel's plane: false for background. z0 at the pixel centre, slopes relative to z0.
+// The pixel's plane in tree layer p.z: false for background. z0 at the pixel centre, slopes
+// relative to z0.
 bool leaf_plane(ivec3 p, out float z0, out vec2 s) {
     z0 = 0.0; s = vec2(0.0);
     if (any(lessThan(p.xy, ivec2(0))) || any(greaterThanEqual(p.xy, qt_level[0].xy)))
         return false;
-    float depth = texelFetch(gb_position, p, 0).w;
+    int eye = p.z % qt_eyes;
+    ivec3 e = ivec3(p.xy, eye);
+#if QT_DEPTH_LAYERS > 1
+    bool second = p.z >= qt_eyes;
+    vec4 l2 = second ? texelFetch(layer2, e, 0) : vec4(0.0);
+    float depth = second ? l2.w : texelFetch(gb_position, e, 0).w;
+    vec3 nw = second ? l2.xyz : texelFetch(gb_normal, e, 0).xyz;
+#else
+    float depth = texelFetch(gb_position, e, 0).w;
+    vec3 nw = texelFetch(gb_normal, e, 0).xyz;
+#endif
     if (!(depth > 0.0))
         return false;
-    vec3 nw = texelFetch(gb_normal, p, 0).xyz;
-    vec3 nv = transpose(eye_rotation[p.z]) * (nw * inversesqrt(max(dot(nw, nw), 1e-30)));
-    vec2 t = tangent_at(p.z, vec2(p.xy) + 0.5);
+    vec3 nv = transpose(eye_rotation[eye]) * (nw * inversesqrt(max(dot(nw, nw), 1e-30)));
+    vec2 t = tangent_at(eye, vec2(p.xy) + 0.5);
     float den = min(dot(nv, vec3(t, -1.0)), -GRAZING * length(vec3(t, 1.0)));
     z0 = eye_depth.x / depth;
-    s = nv.xy / den / pixels_per_tangent(p.z);
+    s = nv.xy / den / pixels_per_tangent(eye);
     return true;
 }
 
@@ -76,7 +95,8 @@ uvec2 build_leaf(ivec3 p) {
     return qt_encode_plane(z0, s.x, s.y, flag);
 }
 
-uvec2 build_parent(int eye, int k, ivec2 q) {
+uvec2 build_parent(int layer, int k, ivec2 q) {
+    int eye = layer % qt_eyes;
     int kc = k - 1;
     vec4 rect = qt_rect(k, q);
     vec2 c = 0.5 * (rect.xy + rect.zw);
@@ -91,7 +111,7 @@ uvec2 build_parent(int eye, int k, ivec2 q) {
         exists[i] = all(lessThan(cq, qt_level[kc].xy));
         if (!exists[i])
             continue;
-        ch[i] = qt_decode(qt_nodes[qt_index(eye, kc, cq)]);
+        ch[i] = qt_decode(qt_nodes[qt_index(layer, kc, cq)]);
         crect[i] = qt_rect(kc, cq);
         flag = flag || ch[i].flag;
         float hi = ch[i].zmax, lo = ch[i].zmin;
@@ -153,10 +173,10 @@ uvec2 build_parent(int eye, int k, ivec2 q) {
 }
 
 void main() {
-    int eye = int(gl_GlobalInvocationID.z);
+    int layer = int(gl_GlobalInvocationID.z);  // tree layer: depth layer x qt_eyes + eye
     ivec2 q = ivec2(gl_GlobalInvocationID.xy);
     int k = qt_build_level;
     if (any(greaterThanEqual(q, qt_level[k].xy)))
         return;
-    qt_nodes[qt_index(eye, k, q)] = k == 0 ? build_leaf(ivec3(q, eye)) : build_parent(eye, k, q);
+    qt_nodes[qt_index(layer, k, q)] = k == 0 ? build_leaf(ivec3(q, layer)) : build_parent(layer, k, q);
 }

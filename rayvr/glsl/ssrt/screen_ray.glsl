@@ -11,6 +11,7 @@
 #define SSRT_OFFSCREEN 2u
 #define SSRT_NEAR 3u
 #define SSRT_NONE 4u
+#define SSRT_OCCLUDED 5u  // quadtree layers: passed deeper than the last depth layer's slab
 #define SSRT_INF 3.0e38
 
 // A ray in S: p(u) = s0 + u sd, u in pixels along the screen (|sd.xy| = 1), or u in [0, 1] with
