@@ -52,6 +52,12 @@ SSBO = {
     "hiz_levels": 23, "hiz_rays": 24, "hiz_results": 25,  # accel/hiz.py HizTracer, glsl/ssrt/hiz*.glsl
     "refit_vertices": 26, "refit_index": 27,  # accel/refit.py GpuRefit (glsl/accel/refit.comp)
     "tile_entries": 28, "tile_planes": 29,  # tile frustum culling (accel/gpu.py RayTracer, glsl/accel/tile_cull.comp)
+    # the photon map (passes/photon_*.py, glsl/photon/): traced photons, (cell, slot) keys and their
+    # ping-pong copy, the scanned words (cell counts -> start indices; the sort's digit table),
+    # photons sorted by cell, the kd-tree's array, the lights' emission table; test/bench queries
+    "photons": 40, "photon_keys": 41, "photon_keys_alt": 42, "photon_scan": 43, "photon_map": 44,
+    "photon_kdtree": 45, "photon_lights": 46, "photon_queries": 47, "photon_found": 48,
+    "photon_query_counts": 49,
 }
 # Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
 IMAGE = {"hdr": 0, "ldr": 1,

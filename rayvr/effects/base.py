@@ -102,7 +102,7 @@ class EffectError(ValueError):
 EFFECTS: dict[str, Effect] = {}  # registration order = ladder order (cheapest first)
 BACKGROUND_EFFECT = 255  # effect-ID value of pixels no geometry covers
 # Rungs of the ladder that later versions add: a config naming one is refused as "not yet".
-PLANNED = {"path": "path tracing", "photon": "photon-mapped indirect light"}
+PLANNED = {"path": "path tracing"}
 
 
 def register(effect: Effect) -> Effect:

@@ -129,6 +129,7 @@ class TraceEffectPass(Pass):
         for part, (name, _) in self.buffers.items():
             fc.resource(name).bind_to_storage_buffer(SSBO[f"wave_{part}"])
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
+        self.bind_extra(fc)
         wave_args = fc.resource(self.buffers["args"][0])
         if self.effect.uses_quadtree:
             fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
@@ -172,6 +173,9 @@ class TraceEffectPass(Pass):
                     run("shadow_finish" if fuse else "shadow", 1, wave_items=1)
             if not one_path:
                 run("finish", 0)
+
+    def bind_extra(self, fc) -> None:
+        """What a subclass binds beyond the wavefront's buffers (passes/photon_shade.py: the photon map)."""
 
     def release(self) -> None:
         for p in self.programs.values():

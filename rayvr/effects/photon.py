@@ -1,0 +1,109 @@
+"""`photon`: direct light with shadow rays (as `shadows`) plus photon-mapped indirect light and
+caustics in place of the constant ambient term (photon-mapping paper, in ../shared/papers/).
+
+Per frame, for both eyes at once (one photon map a frame):
+  photon_trace   photons from the lights in proportion to power, through mirror/glossy bounces,
+                 stored on diffuse surfaces (passes/photon_trace.py)
+  photon_cells   the hash grid's cell per photon and the counts per cell (cell = radius)
+  photon_scan    the counts' exclusive prefix sum: start index per cell
+  photon_sort    the photons sorted by cell (GPU radix sort): the photon map
+  photon_kdtree  the kd-tree baseline, built on the CPU (only for the kd-tree estimators)
+  rt_photon      each pixel: direct light + albedo / pi * irradiance from the photons within
+                 `radius` (estimator: all of them, or the k nearest with a heap)
+The photon count, bounces and grid cell are the largest over the `photon` materials; each material
+searches with its own radius and estimator.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..accel.photon_map import ESTIMATORS, MAX_K, GridShape, grid_shape
+from .base import Effect, Param, register
+from .shadows import AREA_SAMPLES, AREA_SAMPLES_SWEEP
+
+DEFAULTS = {"photons": 65536, "radius": 0.02, "estimator": 0, "k": 32, "bounces": 3}
+
+
+@dataclass(frozen=True)
+class PhotonSetup:
+    paths: int  # photon paths emitted
+    stores: int  # photons a path may store (= bounces)
+    radius_scale: float  # scene size: a material's radius parameter times this is its search radius
+    grid: GridShape
+    kdtree: bool  # some material searches the kd-tree
+    sphere: tuple  # the scene's bounding sphere (scene-local centre, radius)
+
+    @property
+    def slots(self) -> int:
+        return self.paths * self.stores
+
+    @staticmethod
+    def seed(frame_seed: int) -> int:
+        return (int(frame_seed) * 0x9E3779B1 + 0x632BE5AB) & 0xFFFFFFFF
+
+
+_BOUNDS: dict = {}
+
+
+def _local_bounds(scene) -> np.ndarray:
+    key = (id(scene), len(scene.vertices))
+    if key not in _BOUNDS:
+        v = scene.vertices
+        _BOUNDS.clear()
+        _BOUNDS[key] = np.stack([v.min(0), v.max(0)]).astype(np.float64) if len(v) else np.zeros((2, 3))
+    return _BOUNDS[key]
+
+
+def photon_setup(sizing) -> PhotonSetup:
+    """The frame's photon map settings from the materials that use `photon` (the largest photon
+    count, bounces and radius; a kd-tree if any material asks for one)."""
+    ps = [a.params for a in sizing.assignments if a.effect == "photon"] or [{}]
+    get = lambda k: [p.get(k, DEFAULTS[k]) for p in ps]
+    lo, hi = _local_bounds(sizing.scene)
+    scale = float(np.linalg.norm(hi - lo)) or 1.0
+    radius = max(get("radius")) * scale
+    return PhotonSetup(paths=int(max(get("photons"))), stores=int(max(get("bounces"))), radius_scale=scale,
+                       grid=grid_shape(lo, hi, radius), kdtree=any(e >= 2 for e in get("estimator")),
+                       sphere=tuple(float(x) for x in (lo + hi) / 2) + (0.5 * scale,))
+
+
+class PhotonEffect(Effect):
+    name = "photon"
+    id = 6
+    doc = "+ photon-mapped indirect light and caustics (GPU hash-grid photon map)"
+    params = {"photons": Param(int, DEFAULTS["photons"], 256, 1 << 22, "photon paths emitted per frame"),
+              "radius": Param(float, DEFAULTS["radius"], 1e-4, 1.0, "search radius, a fraction of the scene's "
+                                                                    "bounding-box diagonal"),
+              "estimator": Param(int, DEFAULTS["estimator"], 0, len(ESTIMATORS) - 1,
+                                 "density estimate: " + ", ".join(f"{i} {e}" for i, e in enumerate(ESTIMATORS))),
+              "k": Param(int, DEFAULTS["k"], 1, MAX_K, "photons the heap keeps (estimators grid_heap, kdtree_heap)"),
+              "bounces": Param(int, DEFAULTS["bounces"], 1, 8, "photons a path stores at most (diffuse bounces)"),
+              "area_samples": AREA_SAMPLES}
+    traced = True
+    shader = "effects/photon.glsl"  # its part of the wavefront pixel event (rt/wave_shade.comp)
+    sweep = {"photons": ((16384, 65536, 262144), (16384, 65536)),
+             "radius": ((0.005, 0.01, 0.02, 0.05), (0.01, 0.02)),
+             "estimator": ((0, 1), (0,)),
+             "area_samples": AREA_SAMPLES_SWEEP}
+    reference = {"diffuse": 40}
+
+    def reference_params(self, quality: dict) -> dict:
+        out = super().reference_params(quality)
+        out.setdefault("photons", 1 << 20)
+        out.setdefault("estimator", 0)
+        return out
+
+    def passes(self):
+        from ..passes.photon_cells import PhotonCellsPass
+        from ..passes.photon_kdtree import PhotonKdTreePass
+        from ..passes.photon_scan import PhotonScanPass
+        from ..passes.photon_shade import PhotonShadePass
+        from ..passes.photon_sort import PhotonSortPass
+        from ..passes.photon_trace import PhotonTracePass
+        return [PhotonTracePass(), PhotonCellsPass(), PhotonScanPass(), PhotonSortPass(), PhotonKdTreePass(),
+                PhotonShadePass(self)]
+
+
+register(PhotonEffect())

@@ -1,0 +1,53 @@
+#version 430
+// Stable LSD radix sort of (key, slot) pairs by key, 8 bits a round (passes/photon_sort.py).
+//   SORT_STAGE 0  histogram: each group of SORT_GROUP pairs counts its digits; the count of digit
+//                 d in group g goes to table[d * groups + g] (digit-major, so that the exclusive
+//                 scan of the table, glsl/photon/scan.comp, is every pair's first destination)
+//   SORT_STAGE 1  scatter: a pair goes to table[d * groups + g] + the number of pairs before it in
+//                 its group with the same digit (counted in shared memory: stable, deterministic)
+//   SORT_STAGE 2  permute: photon_map[i] = photons[slot of the i-th sorted pair]
+#define SORT_GROUP 256
+layout(local_size_x = SORT_GROUP) in;
+#include "photon.glsl"
+
+layout(std430, binding = SSBO_PHOTON_KEYS) readonly restrict buffer KeysIn { uvec2 keys_in[]; };
+layout(std430, binding = SSBO_PHOTON_KEYS_ALT) writeonly restrict buffer KeysOut { uvec2 keys_out[]; };
+layout(std430, binding = SSBO_PHOTON_SCAN) restrict buffer Table { uint table[]; };
+layout(std430, binding = SSBO_PHOTONS) readonly restrict buffer Photons { Photon photons[]; };
+layout(std430, binding = SSBO_PHOTON_MAP) writeonly restrict buffer PhotonMap { Photon photon_map[]; };
+
+uniform uint item_count;
+uniform uint digit_shift;
+
+shared uint digits[SORT_GROUP];
+
+void main() {
+    uint g = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
+    uint groups = gl_NumWorkGroups.x * gl_NumWorkGroups.y;
+    uint t = gl_LocalInvocationID.x;
+    uint i = g * uint(SORT_GROUP) + t;
+#ifndef SORT_STAGE
+#define SORT_STAGE 0
+#endif
+#if SORT_STAGE == 2
+    if (i < item_count) photon_map[i] = photons[keys_in[i].y];
+#else
+    uvec2 kv = i < item_count ? keys_in[i] : uvec2(0u);
+    uint d = i < item_count ? (kv.x >> digit_shift) & 255u : 256u;
+#if SORT_STAGE == 0
+    digits[t] = 0u;
+    barrier();
+    if (d < 256u) atomicAdd(digits[d], 1u);
+    barrier();
+    table[t * groups + g] = digits[t];
+#else
+    digits[t] = d;
+    barrier();
+    if (d < 256u) {
+        uint rank = 0u;
+        for (uint j = 0u; j < t; ++j) rank += digits[j] == d ? 1u : 0u;
+        keys_out[table[d * groups + g] + rank] = kv;
+    }
+#endif
+#endif
+}

@@ -1,0 +1,47 @@
+"""`photon_kdtree`: the paper's baseline photon map, a balanced kd-tree built on the CPU
+(accel/photon_map.build_kdtree) from the traced photons read back, uploaded for the GPU search
+(glsl/photon/kdtree.glsl). Record 0 of the buffer is a header (word 0: the photon count), the
+tree's array follows, each record's extra word its split axis. Only frames with a material on the
+kd-tree estimators build it; the others upload the header alone."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..accel.photon_map import PHOTON_WORDS, build_kdtree, unpack_photons
+from ..frame import Buffer, FramePlan, Pass, read, write
+
+
+def kdtree_records(raw: bytes) -> np.ndarray:
+    """(1 + valid photons, 8) uint32: the header and the kd-tree's array of the stored photons."""
+    rec = np.frombuffer(raw, np.uint32).reshape(-1, PHOTON_WORDS)
+    ph = unpack_photons(rec)
+    keep = rec[ph["extra"] != 0]
+    order, axis = build_kdtree(keep[:, 0:3].view(np.float32))
+    out = np.zeros((len(keep) + 1, PHOTON_WORDS), np.uint32)
+    out[0, 0] = len(keep)
+    out[1:] = keep[order]
+    out[1:, 7] = axis
+    return out
+
+
+class PhotonKdTreePass(Pass):
+    name = "photon_kdtree"
+
+    def why(self, plan: FramePlan) -> str | None:
+        return "effect photon: the kd-tree estimators" if "photon" in plan.effects else None
+
+    def io(self, plan: FramePlan) -> list:
+        from ..effects.photon import photon_setup
+
+        return [read("photons"),
+                write("photon_kdtree", Buffer(lambda s: 32 * (1 + (photon_setup(s).slots if photon_setup(s).kdtree else 0)),
+                                              "32 B per photon slot when a material uses a kd-tree estimator"))]
+
+    def execute(self, fc) -> None:
+        from ..effects.photon import photon_setup
+
+        out = fc.resource("photon_kdtree")
+        if not photon_setup(fc.sizing).kdtree:
+            out.write(np.zeros(PHOTON_WORDS, np.uint32).tobytes())
+            return
+        out.write(kdtree_records(fc.resource("photons").read()).tobytes())

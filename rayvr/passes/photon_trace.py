@@ -1,0 +1,96 @@
+"""`photon_trace`: photons from the scene's lights through the BVH (glsl/photon/trace.comp), once
+per frame for both eyes. Lights emit in proportion to their power (`light_table`); each photon
+path stores up to `bounces` photons on diffuse surfaces after the first hit (direct light is the
+shadow rays' job), having passed through any number of mirror/glossy reflections (caustics)."""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from .. import shaders
+from ..accel.gpu import DEFAULT_BINDING, GpuBvh
+from ..frame import Buffer, FramePlan, Pass, read, write
+from ..gpu_layout import SSBO, UNIT
+from .photon_scan import groups_for
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+TRACE_GROUP = 64
+
+
+def light_power(scene, sphere_radius: float) -> np.ndarray:
+    """(L, 3) emitted power (flux) per light: point 4 pi I; rect pi L A (one-sided Lambertian);
+    directional E pi R^2 over the disc that covers the scene's bounding sphere (radius R)."""
+    out = np.zeros((len(scene.lights), 3))
+    for i, l in enumerate(scene.lights):
+        rad = np.asarray(l.color, np.float64) * l.intensity
+        if l.kind == "point":
+            out[i] = 4 * np.pi * rad
+        elif l.kind == "rect":
+            out[i] = np.pi * rad * 4 * np.linalg.norm(np.cross(l.u, l.v))
+        elif l.kind == "directional":
+            out[i] = rad * np.pi * sphere_radius ** 2
+    return out
+
+
+def light_table(scene, paths: int, sphere_radius: float) -> np.ndarray:
+    """(max(L, 1), 4) float32: the power one photon path from light l carries (flux / (p_l paths)),
+    and the cumulative probability of picking lights 0..l; p_l is proportional to luminous power."""
+    phi = light_power(scene, sphere_radius)
+    table = np.zeros((max(len(phi), 1), 4), np.float32)
+    lum = np.maximum(phi @ LUMINANCE, 0.0) if len(phi) else np.zeros(0)
+    if lum.sum() <= 0:
+        table[:, 3] = 1.0
+        return table
+    p = lum / lum.sum()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        table[: len(phi), :3] = np.where(p[:, None] > 0, phi / (p[:, None] * max(paths, 1)), 0.0)
+    table[: len(phi), 3] = np.cumsum(p)
+    table[len(phi) - 1, 3] = 1.0
+    return table
+
+
+def dispatch_items(program, n: int, group: int) -> None:
+    """ceil(n / group) groups, as rows of at most 65535 (the shader flattens x + y * width)."""
+    g = -(-max(n, 1) // group)
+    x = min(g, 65535)
+    program.run(x, -(-g // x))
+
+
+class PhotonTracePass(Pass):
+    name = "photon_trace"
+
+    def why(self, plan: FramePlan) -> str | None:
+        return "effect photon: one photon map per frame, both eyes" if "photon" in plan.effects else None
+
+    def io(self, plan: FramePlan) -> list:
+        from ..effects.photon import photon_setup
+
+        return [read("bvh"),
+                write("photons", Buffer(lambda s: 32 * photon_setup(s).slots, "32 B per photon slot (paths x bounces)")),
+                write("photon_trace.lights", Buffer(lambda s: 16 * max(len(s.scene.lights), 1), "16 B per light"))]
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        self.program = shaders.compute(gl.ctx, "photon/trace.comp", GpuBvh.defines(DEFAULT_BINDING))
+
+    def execute(self, fc) -> None:
+        from ..effects.photon import photon_setup
+
+        ps = photon_setup(fc.sizing)
+        lights = fc.resource("photon_trace.lights")
+        lights.write(light_table(fc.scene, ps.paths, ps.sphere[3]).tobytes())
+        fc.gpu_scene.bind()
+        fc.gpu_scene.textures.use(UNIT["base_color_textures"])
+        fc.accel.gpu.bind(DEFAULT_BINDING)
+        lights.bind_to_storage_buffer(SSBO["photon_lights"])
+        fc.resource("photons").bind_to_storage_buffer(SSBO["photons"])
+        p = self.program
+        values = {"photon_paths": ps.paths, "photon_stores": ps.stores, "photon_seed": ps.seed(fc.settings.seed),
+                  "scene_sphere": ps.sphere}
+        for k, v in values.items():
+            if k in p:
+                p[k].value = v
+        dispatch_items(p, ps.paths, TRACE_GROUP)
+        fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
+    def release(self) -> None:
+        self.program.release()
