@@ -1,0 +1,122 @@
+"""The `photon` effect rendered: a tall white mirror beside a dark floor under a directional light
+at 45 degrees. The mirror reflects the beam onto the floor between x = -1 and 0 (mirror geometry):
+there the photon map must find the caustic irradiance F E cos 45 (F = 1 for white metal) within
+Monte Carlo error, beyond it nothing; each estimator agrees, the GPU's estimate equals numpy's on
+the same photons, frames are deterministic per seed, and with IPD 0 both eyes are identical."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import merge, quad
+from rayvr.accel import photon_map as pm
+from rayvr.camera import Pose, StereoRig
+from rayvr.materials import parse_config
+from rayvr.renderer import Renderer, RenderSettings
+from rayvr.scene import Light, Material, from_arrays
+
+ALBEDO = 0.01  # a dark floor: photons that bounce off it again are too few to matter (Russian roulette)
+E_BEAM = 1.0  # the directional light's irradiance across the beam
+CAUSTIC = E_BEAM * np.sqrt(0.5)  # reflected beam on the floor: F * E * cos 45
+PHOTONS = 1 << 18
+RADIUS = 0.06  # world units
+
+
+def scene():
+    floor = quad((-0.5, 0, 0), (0.7, 0, 0), (0, 0, -1))  # x in [-1.2, 0.2], faces +y
+    mirror = quad((0, 0.5, 0), (0, 0, 1), (0, 0.5, 0))  # x = 0, y in [0, 1], faces -x
+    v, f, part = merge(floor, mirror)
+    mats = [Material("floor", base_color=(ALBEDO,) * 3 + (1,), roughness=1.0),
+            Material("mirror", base_color=(1, 1, 1, 1), metallic=1.0, roughness=0.0)]
+    d = np.array([1.0, -1.0, 0.0]) / np.sqrt(2)
+    return from_arrays(v, f, triangle_material=part, materials=mats,
+                       lights=[Light("directional", direction=tuple(d), intensity=E_BEAM)])
+
+
+def render(gl, sc, estimator=0, seed=0, ipd=0.0, photons=PHOTONS, eyes="both", effect="photon"):
+    diag = sc.extent
+    floor = {"effect": "photon", "photons": photons, "radius": RADIUS / diag, "estimator": estimator, "k": 64,
+             "bounces": 1} if effect == "photon" else {"effect": effect}
+    cfg = parse_config({"default": "raster", "materials": {"floor": floor, "mirror": {"effect": "reflections"}}}, "t")
+    rig = StereoRig(Pose.look_at((-0.55, 2.4, 0.0), (-0.55, 0.0, 0.0)), ipd=ipd, fov_y=50, size=(40, 30))
+    with Renderer(sc, cfg, gl=gl, settings=RenderSettings(ambient=(0, 0, 0), background=(0, 0, 0), seed=seed)) as r:
+        frame = r.render(rig, eyes=eyes, aux=("hdr", "position", "material"))
+        photons = pm.unpack_photons(r.resource("photons").read()) if effect == "photon" else None
+    return frame, photons
+
+
+def floor_irradiance(frame, direct, sc):
+    """(scene-local positions, photon-mapped irradiance) of the left eye's floor pixels: what the
+    `photon` frame adds to the `shadows` one (the same direct light; no ambient), times pi / albedo."""
+    img = frame.left
+    hdr = img.aux["hdr"][..., :3].astype(np.float64) - direct.left.aux["hdr"][..., :3].astype(np.float64)
+    floor = (img.aux["material"] == 0) & (img.depth > 0)
+    pos = img.aux["position"][floor][:, :3] - sc.origin
+    return pos, hdr[floor] * np.pi / ALBEDO
+
+
+@pytest.fixture(scope="module")
+def room():
+    return scene()
+
+
+@pytest.fixture(scope="module")
+def direct(gl, room):
+    return render(gl, room, effect="shadows")[0]
+
+
+@pytest.fixture(scope="module")
+def grid_frame(gl, room):
+    return render(gl, room)
+
+
+def test_caustic_where_the_mirror_sends_it(room, grid_frame, direct):
+    frame, _ = grid_frame
+    pos, e = floor_irradiance(frame, direct, room)
+    x = pos[:, 0] + room.origin[0]
+    inside = (x > -1 + RADIUS) & (x < -RADIUS)
+    outside = x < -1 - RADIUS
+    assert inside.sum() > 100 and outside.sum() > 10
+    # photons per disc: (beam share on the mirror) * paths / (caustic area) * pi r^2
+    sphere_r = room.extent / 2
+    per_disc = PHOTONS * (2 * np.sqrt(0.5)) / (np.pi * sphere_r ** 2) / 2.0 * np.pi * RADIUS ** 2
+    sigma = 1 / np.sqrt(per_disc)
+    rel = e[inside][:, 0] / CAUSTIC - 1
+    assert abs(np.mean(rel)) < 1.5 * sigma, (np.mean(rel), sigma)  # neighbouring discs overlap: not independent
+    assert np.abs(rel).max() < 5 * sigma, (np.abs(rel).max(), sigma)
+    assert np.abs(e[outside]).max() < 0.02 * CAUSTIC
+    assert np.isfinite(frame.left.aux["hdr"]).all()
+
+
+def test_gpu_estimate_equals_numpy_on_the_same_photons(room, grid_frame, direct):
+    frame, ph = grid_frame
+    pos, e = floor_irradiance(frame, direct, room)
+    valid = ph["extra"] != 0
+    nrm = pm.oct_decode(ph["normal_bits"])
+    pick = np.linspace(0, len(pos) - 1, 25).astype(int)
+    for i in pick:
+        ref = pm.density(ph["position"][valid], nrm[valid], ph["power"][valid], pos[i], (0, 1, 0), RADIUS)
+        assert abs(e[i, 0] - ref[0]) < 3e-3 * CAUSTIC + 2e-3 * ref[0], (e[i], ref)
+
+
+def test_estimators_agree(gl, room, grid_frame, direct):
+    grid = grid_frame[0].left.aux["hdr"][..., :3].astype(np.float64)
+    kd = render(gl, room, estimator=2)[0].left.aux["hdr"][..., :3].astype(np.float64)
+    assert np.abs(kd - grid).max() <= 2e-3 * grid.max()  # the same photons, summed in another order
+    heap = render(gl, room, estimator=1)[0]
+    kd_heap = render(gl, room, estimator=3)[0]
+    assert np.abs(heap.left.aux["hdr"] - kd_heap.left.aux["hdr"]).max() <= 2e-3 * grid.max()  # same k nearest
+    pos, e = floor_irradiance(heap, direct, room)
+    x = pos[:, 0] + room.origin[0]
+    inside = (x > -1 + RADIUS) & (x < -RADIUS)
+    rel = e[inside][:, 0] / CAUSTIC - 1
+    assert abs(np.mean(rel)) < 0.1 and np.abs(rel).max() < 4 / np.sqrt(64)
+
+
+def test_deterministic_per_seed_and_identical_eyes_at_ipd_0(gl, room, grid_frame):
+    frame, _ = grid_frame
+    again, _ = render(gl, room)
+    assert np.array_equal(again.left.aux["hdr"], frame.left.aux["hdr"])
+    assert np.array_equal(frame.left.color, frame.right.color)  # one photon map for both eyes
+    other, _ = render(gl, room, seed=1)
+    assert not np.array_equal(other.left.aux["hdr"], frame.left.aux["hdr"])
