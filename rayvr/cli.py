@@ -282,6 +282,12 @@ def cmd_bench(args) -> int:
         ssrt.run(out, size=(64, 48) if quick else args.size,
                  scenes=("default",) if quick else tuple(args.scenes.split(",")),
                  repeat=2 if quick else args.repeat, backend=args.backend)
+    elif args.area == "photon":
+        from .bench import photon
+
+        photon.run(out, size=(48, 36) if quick else args.size,
+                   scenes=("default",) if quick else tuple(args.scenes.split(",")),
+                   repeat=1 if quick else max(1, args.repeat // 5), quick=quick, backend=args.backend)
     elif args.area == "crosscheck":
         from .bench import mitsuba_ref
 
@@ -393,9 +399,10 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
-    b.add_argument("area", choices=("gbuffer", "rays", "ssrt", "peers", "tradeoff", "budget", "crosscheck"),
+    b.add_argument("area", choices=("gbuffer", "rays", "ssrt", "photon", "peers", "tradeoff", "budget", "crosscheck"),
                    help="gbuffer: layered stereo vs mono G-buffer ms; rays: rays/s vs Embree and the hybrid "
-                        "frame; ssrt: quadtree screen-space tracing vs the DDA baseline; peers: frames/s against pyrender; "
+                        "frame; ssrt: quadtree screen-space tracing vs the DDA baseline; photon: the photon-mapping paper's "
+                        "tables (kd-tree vs hash grid, heap vs no heap: ms per pass, FLIP); peers: frames/s against pyrender; "
                         "tradeoff: every knob's GPU ms vs error against the reference; budget: effects per "
                         "material chosen under --budget-ms; crosscheck: the reference vs Mitsuba 3 on the Cornell boxes")
     b.add_argument("--budget-ms", type=_budgets, default=[4.0, 8.0], help="frame budgets for 'budget' (default 4,8)")

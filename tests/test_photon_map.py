@@ -143,3 +143,41 @@ def test_oct_normals_round_trip():
     n = rng.normal(size=(1000, 3))
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     assert np.abs(pm.oct_decode(pm.oct_encode(n)) - n).max() < 1e-3
+
+
+def test_gpu_sort_in_rows_of_work_groups(gl, monkeypatch):
+    """More work groups than one dispatch row holds (65535 on real GPUs; 7 here): rows of groups,
+    the spare groups of the last row idle, the result still numpy's stable sort."""
+    from rayvr.passes import photon_scan
+    from rayvr.passes.photon_sort import RadixSort, table_words
+
+    monkeypatch.setattr(photon_scan, "MAX_GROUPS", 7)
+    rng = np.random.default_rng(4)
+    n = 5000  # 20 groups of 256: 3 rows of 7
+    keys = np.stack([rng.integers(0, 70_000, n), np.arange(n)], 1).astype(np.uint32)
+    ctx = gl.ctx
+    a, b = ctx.buffer(keys.tobytes()), ctx.buffer(bytes(keys.nbytes))
+    table = ctx.buffer(bytes(4 * table_words(n)))
+    sorter = RadixSort(ctx)
+    out = sorter.sort(a, b, table, n, 17)
+    got = np.frombuffer(out.read(), np.uint32).reshape(n, 2)
+    assert np.array_equal(got, keys[np.argsort(keys[:, 0], kind="stable")])
+    for x in (a, b, table):
+        x.release()
+    sorter.release()
+
+
+def test_lights_emit_in_proportion_to_power():
+    from rayvr.passes.photon_trace import light_power, light_table
+    from rayvr.scene import Light
+
+    class S:
+        lights = [Light("point", intensity=1.0), Light("point", intensity=3.0),
+                  Light("rect", intensity=2.0, u=(0.5, 0, 0), v=(0, 0, 0.25)), Light("rect", u=(1, 0, 0))]  # zero area
+
+    phi = light_power(S, 1.0)
+    assert np.allclose(phi[:, 0], [4 * np.pi, 12 * np.pi, np.pi * 2.0 * 0.5, 0.0])
+    t = light_table(S, 1000, 1.0)
+    assert np.allclose(np.diff(np.concatenate([[0], t[:, 3]])), phi[:, 0] / phi[:, 0].sum(), atol=1e-6)
+    assert np.allclose(t[:3, 0], phi[:, 0].sum() / 1000)  # every path carries the same power
+    assert np.isfinite(t).all()

@@ -10,7 +10,7 @@ import numpy as np
 from .. import shaders
 from ..frame import Buffer, FramePlan, Pass, read, write
 from ..gpu_layout import SSBO
-from .photon_scan import groups_for, scan_words
+from .photon_scan import dispatch_shape, scan_words
 
 
 def set_grid_uniforms(program, grid) -> None:
@@ -36,7 +36,7 @@ class CellKeys:
         for prog, n in zip(self.programs, (grid.cells + 2, count)):
             set_grid_uniforms(prog, grid)
             prog["item_count"].value = n
-            prog.run(groups_for(n, 256))
+            prog.run(*dispatch_shape(n, 256))
             self.ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
 
     def release(self) -> None:

@@ -39,6 +39,14 @@ def groups_for(n: int, per_group: int) -> int:
     return g
 
 
+def dispatch_shape(n: int, per_group: int) -> tuple:
+    """(x, y) work groups for n items, rows of at most MAX_GROUPS (shaders flatten x + y * width;
+    groups past the last item do nothing)."""
+    g = -(-max(n, 1) // per_group)
+    x = min(g, MAX_GROUPS)
+    return x, -(-g // x)
+
+
 class Scan:
     """Exclusive prefix sum in place over the first n words of a buffer (with scan_words(n) words)."""
 

@@ -10,14 +10,20 @@ import moderngl
 from .. import shaders
 from ..frame import Buffer, FramePlan, Pass, compose, read, write
 from ..gpu_layout import SSBO
-from .photon_scan import Scan, groups_for, scan_words
+from .photon_scan import Scan, dispatch_shape, scan_words
 
 SORT_GROUP = 256
 RADIX = 256
 
 
+def sort_groups(n: int) -> tuple:
+    """The sort's work groups (x, y); its digit table has RADIX words per group."""
+    return dispatch_shape(n, SORT_GROUP)
+
+
 def table_words(n: int) -> int:
-    return scan_words(RADIX * groups_for(n, SORT_GROUP))
+    x, y = sort_groups(n)
+    return scan_words(RADIX * x * y)
 
 
 class RadixSort:
@@ -28,7 +34,8 @@ class RadixSort:
 
     def sort(self, keys, alt, table, n: int, bits: int):
         """Sort n (key, slot) pairs by their low `bits` key bits; returns the buffer holding them."""
-        groups = groups_for(n, SORT_GROUP)
+        shape = sort_groups(n)
+        groups = shape[0] * shape[1]
         src, dst = keys, alt
         barrier = self.ctx.memory_barrier
         for shift in range(0, bits, 8):
@@ -38,7 +45,7 @@ class RadixSort:
                 table.bind_to_storage_buffer(SSBO["photon_scan"])
                 prog = self.programs[stage]
                 prog["item_count"].value, prog["digit_shift"].value = n, shift
-                prog.run(groups)
+                prog.run(*shape)
                 barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
                 if stage == 0:
                     self.scan.run(table, RADIX * groups)
@@ -51,7 +58,7 @@ class RadixSort:
         photon_map.bind_to_storage_buffer(SSBO["photon_map"])
         prog = self.programs[2]
         prog["item_count"].value = n
-        prog.run(groups_for(n, SORT_GROUP))
+        prog.run(*sort_groups(n))
         self.ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
 
     def release(self) -> None:

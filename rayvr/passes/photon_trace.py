@@ -11,7 +11,7 @@ from .. import shaders
 from ..accel.gpu import DEFAULT_BINDING, GpuBvh
 from ..frame import Buffer, FramePlan, Pass, read, write
 from ..gpu_layout import SSBO, UNIT
-from .photon_scan import groups_for
+from .photon_scan import dispatch_shape
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 TRACE_GROUP = 64
@@ -49,13 +49,6 @@ def light_table(scene, paths: int, sphere_radius: float) -> np.ndarray:
     return table
 
 
-def dispatch_items(program, n: int, group: int) -> None:
-    """ceil(n / group) groups, as rows of at most 65535 (the shader flattens x + y * width)."""
-    g = -(-max(n, 1) // group)
-    x = min(g, 65535)
-    program.run(x, -(-g // x))
-
-
 class PhotonTracePass(Pass):
     name = "photon_trace"
 
@@ -89,7 +82,7 @@ class PhotonTracePass(Pass):
         for k, v in values.items():
             if k in p:
                 p[k].value = v
-        dispatch_items(p, ps.paths, TRACE_GROUP)
+        p.run(*dispatch_shape(ps.paths, TRACE_GROUP))
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
     def release(self) -> None:

@@ -1,0 +1,171 @@
+"""`rayvr bench photon`: the photon-mapping paper's tables for rayvr's `photon` effect.
+
+Per scene, every diffuse material on `photon` (the scene's mirrors on `reflections`, as in
+`rayvr bench rays`), at the paper's photon counts and radii (Tables 1 and 2 list these cells;
+its radii are in units of a unit box, here r / sqrt(3) of the scene's bounding-box diagonal):
+  Table 1  kd-tree (built on the CPU, searched on the GPU) vs hash grid, both with the k-nearest heap
+  Table 2  hash grid with the heap vs without (all photons within r)
+Each row: GPU ms per pass from GL timer queries after the frame times settle -- photon_trace,
+build (photon_cells + photon_scan: cell keys, counts, start indices), sort (photon_sort), query
+(the density estimate: the rt_photon pass's pixel kernel), the whole rt_photon pass, the frame --
+the kd-tree's CPU build (wall ms, photons read back included), and the error: mean FLIP over the
+photon pixels of both eyes against a many-photon reference (REFERENCE_PHOTONS paths, grid, the
+smallest radius) rendered with another seed. Table 5 (separate eyes vs `reuse`) waits for `reuse`.
+Written as photon.json / photon.md (one table per paper table) under the output folder.
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..context import create_context
+from ..effects import EFFECTS
+from ..materials import parse_config
+from ..renderer import Renderer, RenderSettings
+from .report import device_meta, write_report
+from .scenes import bench_scenes
+
+PAPER_SCALE = 1.0 / math.sqrt(3.0)  # the paper's radii are in a unit box; ours are fractions of the diagonal
+# (photon paths, paper radius) of the paper's Tables 1 and 2
+TABLE1 = ((512 ** 2, 0.02), (512 ** 2, 0.05), (512 ** 2, 0.1), (256 ** 2, 0.05), (256 ** 2, 0.1), (256 ** 2, 0.2),
+          (128 ** 2, 0.05), (128 ** 2, 0.1), (128 ** 2, 0.2))
+TABLE2 = ((512 ** 2, 0.02), (512 ** 2, 0.05), (512 ** 2, 0.1), (256 ** 2, 0.05), (256 ** 2, 0.1), (256 ** 2, 0.2))
+QUICK = ((4096, 0.05), (4096, 0.1))
+REFERENCE_PHOTONS = 1 << 22
+REFERENCE_RADIUS = 0.02
+K = 32  # the heap's size (the paper does not say its k)
+SLOW_FRAME_MS = 2000.0  # a setting slower than this is timed on one frame, not `repeat`
+MIRRORS = {"default": ("mirror*", "gold"), "sponza": ()}
+EMITTERS = {"default": ("light",)}
+BOUNCES = 3
+
+
+def config(name: str, photons: int, radius: float, estimator: str):
+    params = {"photons": photons, "radius": radius * PAPER_SCALE, "k": K, "bounces": BOUNCES,
+              "estimator": ("grid", "grid_heap", "kdtree", "kdtree_heap").index(estimator)}
+    mats = {m: {"effect": "reflections", "bounces": 1} for m in MIRRORS.get(name, ())}
+    mats.update({m: "raster" for m in EMITTERS.get(name, ())})
+    return parse_config({"default": "photon", "params": {"photon": params}, "materials": mats},
+                        f"bench:photon:{name}:{photons}:{radius}:{estimator}")
+
+
+def measure(gl, scene, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
+    """GPU ms per pass (median over `repeat` frames) and per kernel of rt_photon, the stereo
+    colour image and the photon pixels' mask."""
+    from .rays import time_effect_stages
+
+    with Renderer(scene, cfg, gl=gl, settings=RenderSettings(seed=seed)) as r:
+        fc = r.record(rig)
+        first = r.read_ms(fc)
+        slow = sum(first.values()) > SLOW_FRAME_MS
+        ms: dict = {}
+        if slow or gl.is_software:
+            runs = [first]
+        else:
+            r.warm_up(rig, min_frames=warmup)
+            runs = [r.read_ms(r.record(rig)) for _ in range(repeat)]
+        for t in runs:
+            for k, v in t.items():
+                ms.setdefault(k, []).append(v)
+        med = {k: float(np.median(v)) for k, v in ms.items()}
+        stages = time_effect_stages(r, rig, repeat=1 if slow or gl.is_software else min(repeat, 5))
+        frame = r.render(rig, aux=("effect",))
+        kd_cpu = None
+        if any(a.params.get("estimator", 0) >= 2 for a in r.assignments if a.effect == "photon"):
+            from ..passes.photon_kdtree import kdtree_records
+
+            t0 = time.perf_counter()
+            kdtree_records(r.resource("photons").read())
+            kd_cpu = (time.perf_counter() - t0) * 1e3
+    image = np.concatenate([frame.left.color, frame.right.color], axis=1)
+    mask = np.concatenate([frame.left.aux["effect"], frame.right.aux["effect"]], axis=1) == EFFECTS["photon"].id
+    return {"ms": med, "stages": stages, "image": image, "mask": mask, "kd_cpu_ms": kd_cpu, "frames": len(runs)}
+
+
+def row(name, size, photons, radius, estimator, m, ref) -> dict:
+    from . import metrics
+
+    ms = m["ms"]
+    out = {"scene": name, "size": f"2x{size[0]}x{size[1]}", "photons": photons,
+           "photons_side": int(round(math.sqrt(photons))), "radius": radius, "estimator": estimator,
+           "trace_ms": ms.get("photon_trace"), "build_ms": ms.get("photon_cells", 0.0) + ms.get("photon_scan", 0.0),
+           "sort_ms": ms.get("photon_sort"), "query_ms": m["stages"].get("rt_photon.pixel"),
+           "rt_photon_ms": ms.get("rt_photon"), "kd_upload_ms": ms.get("photon_kdtree") if m["kd_cpu_ms"] else None,
+           "kd_cpu_build_ms": m["kd_cpu_ms"], "frame_ms": float(sum(ms.values())), "frames_timed": m["frames"]}
+    out["photon_ms"] = sum(v or 0.0 for k, v in out.items() if k in ("trace_ms", "build_ms", "sort_ms", "rt_photon_ms"))
+    out["flip"] = metrics.flip(ref["image"], m["image"], mask=ref["mask"]) if ref["mask"].any() else None
+    return out
+
+
+def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, warmup=3, quick=False, backend=None,
+        progress=True) -> dict:
+    from tqdm import tqdm
+
+    gl = create_context(backend)
+    rows, skipped = [], {}
+    t1 = QUICK if quick else TABLE1
+    t2 = QUICK if quick else TABLE2
+    jobs = [(1, p, r, e) for p, r in t1 for e in ("kdtree_heap", "grid_heap")] + \
+           [(2, p, r, e) for p, r in t2 for e in ("grid_heap", "grid")]
+    ref_photons = 1 << 16 if quick else REFERENCE_PHOTONS
+    try:
+        for name, scene, rig in bench_scenes(scenes, size, skipped):
+            ref = measure(gl, scene, rig, config(name, ref_photons, REFERENCE_RADIUS, "grid"), seed=1,
+                          repeat=1, warmup=1)
+            done: dict = {}
+            bar = tqdm(jobs, desc=f"bench photon {name}", unit="setting", disable=not progress)
+            for table, photons, radius, est in bar:
+                key = (photons, radius, est)
+                if key not in done:  # grid_heap is in both tables: measured once
+                    m = measure(gl, scene, rig, config(name, photons, radius, est), seed=0, repeat=repeat,
+                                warmup=warmup)
+                    done[key] = row(name, size, photons, radius, est, m, ref)
+                rows.append({"table": table, **done[key]})
+            bar.close()
+        meta = {**device_meta(gl.info()), "bench": "photon", "per_eye_size": list(size), "repeat": repeat,
+                "skipped": skipped, "k": K, "bounces": BOUNCES,
+                "radius_units": "the paper's (a unit box); the effect's radius = r / sqrt(3) of the scene's diagonal",
+                "reference": f"{ref_photons} photon paths, grid, radius {REFERENCE_RADIUS}, seed 1 (variants: seed 0)",
+                "error": "mean FLIP over the photon pixels of both eyes",
+                "times": "GPU ms from GL timer queries (median of the timed frames after warm-up); build = "
+                         "photon_cells + photon_scan; query = the rt_photon pixel kernel (density estimate + "
+                         "direct-light setup); kd_cpu_build_ms = wall ms of the CPU kd-tree build"}
+    finally:
+        gl.release()
+    result = {"meta": meta, "rows": rows}
+    write_report(out_dir, "photon", result)
+    _write_tables(Path(out_dir), rows)
+    return result
+
+
+def _write_tables(out: Path, rows: list) -> None:
+    """photon_tables.md: the paper's Tables 1 and 2 with rayvr's figures (ms = the photon passes:
+    trace + build + sort + rt_photon)."""
+    from .report import _atomic_write
+
+    def cell(r):
+        if r is None:
+            return "-"
+        flip = "-" if r["flip"] is None else f"{r['flip']:.4f}"
+        return f"{r['photon_ms']:.2f} ms (FLIP {flip})"
+
+    lines = ["# Photon map: the paper's tables for rayvr", ""]
+    for table, title, cols in ((1, "Table 1: kd-tree vs hash grid (k-nearest heap)", ("kdtree_heap", "grid_heap")),
+                               (2, "Table 2: heap vs no heap (hash grid)", ("grid_heap", "grid"))):
+        lines += [f"## {title}", "", "| scene | photons | radius | " + " | ".join(cols) + " | query ms |",
+                  "|---|---|---|" + "---|" * (len(cols) + 1)]
+        keys = []
+        for r in rows:
+            k = (r["scene"], r["photons_side"], r["radius"])
+            if r["table"] == table and k not in keys:
+                keys.append(k)
+        for k in keys:
+            by = {r["estimator"]: r for r in rows if r["table"] == table and (r["scene"], r["photons_side"], r["radius"]) == k}
+            q = " / ".join(f"{by[c]['query_ms']:.2f}" if by.get(c) and by[c]["query_ms"] is not None else "-" for c in cols)
+            lines.append(f"| {k[0]} | {k[1]}² | {k[2]} | " + " | ".join(cell(by.get(c)) for c in cols) + f" | {q} |")
+        lines.append("")
+    text = "\n".join(lines)
+    _atomic_write(out / "photon_tables.md", lambda f: f.write(text.encode()))
