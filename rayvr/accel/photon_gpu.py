@@ -11,7 +11,7 @@ from .. import shaders
 from ..gpu_layout import SSBO
 from ..passes.photon_cells import CellKeys, set_grid_uniforms
 from ..passes.photon_kdtree import kdtree_records
-from ..passes.photon_scan import Scan, scan_words
+from ..passes.photon_scan import scan_words
 from ..passes.photon_sort import RadixSort, table_words
 from .photon_map import PHOTON_WORDS, GridShape
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..accel.photon_map import ESTIMATORS, MAX_K, GridShape, grid_shape
+from ..frame import FramePlan, Pass
 from .base import Effect, Param, register
 from .shadows import AREA_SAMPLES
 
@@ -67,6 +68,15 @@ def photon_setup(sizing) -> PhotonSetup:
     return PhotonSetup(paths=int(max(get("photons"))), stores=int(max(get("bounces"))), radius_scale=scale,
                        grid=grid_shape(lo, hi, radius), kdtree=any(e >= 2 for e in get("estimator")),
                        sphere=tuple(float(x) for x in (lo + hi) / 2) + (0.5 * scale,))
+
+
+class PhotonPass(Pass):
+    """A pass of the photon map: needed when a material uses `photon`; `role` says what it makes."""
+
+    role = ""
+
+    def why(self, plan: FramePlan) -> str | None:
+        return f"effect photon: {self.role}" if "photon" in plan.effects else None
 
 
 class PhotonEffect(Effect):

@@ -8,7 +8,8 @@ import moderngl
 import numpy as np
 
 from .. import shaders
-from ..frame import Buffer, FramePlan, Pass, read, write
+from ..effects.photon import PhotonPass, photon_setup
+from ..frame import Buffer, FramePlan, read, write
 from ..gpu_layout import SSBO
 from .photon_scan import dispatch_shape, scan_words
 
@@ -44,15 +45,11 @@ class CellKeys:
             p.release()
 
 
-class PhotonCellsPass(Pass):
+class PhotonCellsPass(PhotonPass):
     name = "photon_cells"
-
-    def why(self, plan: FramePlan) -> str | None:
-        return "effect photon: the hash grid's cells" if "photon" in plan.effects else None
+    role = "the hash grid's cells"
 
     def io(self, plan: FramePlan) -> list:
-        from ..effects.photon import photon_setup
-
         return [read("photons"),
                 write("photon_keys", Buffer(lambda s: 8 * photon_setup(s).slots, "8 B (cell, slot) per photon slot")),
                 write("photon_start", Buffer(lambda s: 4 * scan_words(photon_setup(s).grid.cells + 2),
@@ -62,8 +59,6 @@ class PhotonCellsPass(Pass):
         self.cells = CellKeys(gl.ctx)
 
     def execute(self, fc) -> None:
-        from ..effects.photon import photon_setup
-
         ps = photon_setup(fc.sizing)
         self.cells.run(fc.resource("photons"), fc.resource("photon_keys"), fc.resource("photon_start"),
                        ps.slots, ps.grid)

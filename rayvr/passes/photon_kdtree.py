@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..accel.photon_map import PHOTON_WORDS, build_kdtree, unpack_photons
-from ..frame import Buffer, FramePlan, Pass, read, write
+from ..effects.photon import PhotonPass, photon_setup
+from ..frame import Buffer, FramePlan, read, write
 
 
 def kdtree_records(raw: bytes) -> np.ndarray:
@@ -24,22 +25,16 @@ def kdtree_records(raw: bytes) -> np.ndarray:
     return out
 
 
-class PhotonKdTreePass(Pass):
+class PhotonKdTreePass(PhotonPass):
     name = "photon_kdtree"
-
-    def why(self, plan: FramePlan) -> str | None:
-        return "effect photon: the kd-tree estimators" if "photon" in plan.effects else None
+    role = "the kd-tree estimators"
 
     def io(self, plan: FramePlan) -> list:
-        from ..effects.photon import photon_setup
-
         return [read("photons"),
                 write("photon_kdtree", Buffer(lambda s: 32 * (1 + (photon_setup(s).slots if photon_setup(s).kdtree else 0)),
                                               "32 B per photon slot when a material uses a kd-tree estimator"))]
 
     def execute(self, fc) -> None:
-        from ..effects.photon import photon_setup
-
         out = fc.resource("photon_kdtree")
         if not photon_setup(fc.sizing).kdtree:
             out.write(np.zeros(PHOTON_WORDS, np.uint32).tobytes())

@@ -7,7 +7,8 @@ from __future__ import annotations
 import moderngl
 
 from .. import shaders
-from ..frame import FramePlan, Pass, compose
+from ..effects.photon import PhotonPass, photon_setup
+from ..frame import FramePlan, compose
 from ..gpu_layout import SSBO
 
 SCAN_BLOCK = 1024  # words a group scans (SCAN_GROUP * SCAN_ITEMS in scan.comp)
@@ -73,11 +74,9 @@ class Scan:
             p.release()
 
 
-class PhotonScanPass(Pass):
+class PhotonScanPass(PhotonPass):
     name = "photon_scan"
-
-    def why(self, plan: FramePlan) -> str | None:
-        return "effect photon: the hash grid's start indices" if "photon" in plan.effects else None
+    role = "the hash grid's start indices"
 
     def io(self, plan: FramePlan) -> list:
         return [compose("photon_start")]
@@ -86,8 +85,6 @@ class PhotonScanPass(Pass):
         self.scan = Scan(gl.ctx)
 
     def execute(self, fc) -> None:
-        from ..effects.photon import photon_setup
-
         self.scan.run(fc.resource("photon_start"), photon_setup(fc.sizing).grid.cells + 2)
 
     def release(self) -> None:

@@ -4,6 +4,7 @@ light with shadow rays) plus the photon map's density estimate at each pixel
 indirect light and caustics. Reads the hash grid (photon_map, photon_start) and the kd-tree."""
 from __future__ import annotations
 
+from ..effects.photon import photon_setup
 from ..frame import FramePlan, read
 from ..gpu_layout import SSBO
 from .photon_cells import set_grid_uniforms
@@ -15,8 +16,6 @@ class PhotonShadePass(TraceEffectPass):
         return super().io(plan) + [read("photon_map"), read("photon_start"), read("photon_kdtree")]
 
     def bind_extra(self, fc) -> None:
-        from ..effects.photon import photon_setup
-
         ps = photon_setup(fc.sizing)
         fc.resource("photon_map").bind_to_storage_buffer(SSBO["photon_map"])
         fc.resource("photon_start").bind_to_storage_buffer(SSBO["photon_scan"])

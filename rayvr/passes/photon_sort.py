@@ -8,7 +8,8 @@ from __future__ import annotations
 import moderngl
 
 from .. import shaders
-from ..frame import Buffer, FramePlan, Pass, compose, read, write
+from ..effects.photon import PhotonPass, photon_setup
+from ..frame import Buffer, FramePlan, compose, read, write
 from ..gpu_layout import SSBO
 from .photon_scan import Scan, dispatch_shape, scan_words
 
@@ -67,15 +68,11 @@ class RadixSort:
         self.scan.release()
 
 
-class PhotonSortPass(Pass):
+class PhotonSortPass(PhotonPass):
     name = "photon_sort"
-
-    def why(self, plan: FramePlan) -> str | None:
-        return "effect photon: the hash grid's photon map" if "photon" in plan.effects else None
+    role = "the hash grid's photon map"
 
     def io(self, plan: FramePlan) -> list:
-        from ..effects.photon import photon_setup
-
         return [read("photons"), compose("photon_keys"),
                 write("photon_map", Buffer(lambda s: 32 * photon_setup(s).slots, "32 B per photon slot, cell order")),
                 write("photon_sort.keys", Buffer(lambda s: 8 * photon_setup(s).slots, "8 B per photon slot (ping-pong)")),
@@ -86,8 +83,6 @@ class PhotonSortPass(Pass):
         self.sorter = RadixSort(gl.ctx)
 
     def execute(self, fc) -> None:
-        from ..effects.photon import photon_setup
-
         ps = photon_setup(fc.sizing)
         keys = self.sorter.sort(fc.resource("photon_keys"), fc.resource("photon_sort.keys"),
                                 fc.resource("photon_sort.table"), ps.slots, ps.grid.key_bits)

@@ -9,7 +9,8 @@ import numpy as np
 
 from .. import shaders
 from ..accel.gpu import DEFAULT_BINDING, GpuBvh
-from ..frame import Buffer, FramePlan, Pass, read, write
+from ..effects.photon import PhotonPass, photon_setup
+from ..frame import Buffer, FramePlan, read, write
 from ..gpu_layout import SSBO, UNIT
 from .photon_scan import dispatch_shape
 
@@ -49,15 +50,11 @@ def light_table(scene, paths: int, sphere_radius: float) -> np.ndarray:
     return table
 
 
-class PhotonTracePass(Pass):
+class PhotonTracePass(PhotonPass):
     name = "photon_trace"
-
-    def why(self, plan: FramePlan) -> str | None:
-        return "effect photon: one photon map per frame, both eyes" if "photon" in plan.effects else None
+    role = "one photon map per frame, both eyes"
 
     def io(self, plan: FramePlan) -> list:
-        from ..effects.photon import photon_setup
-
         return [read("bvh"),
                 write("photons", Buffer(lambda s: 32 * photon_setup(s).slots, "32 B per photon slot (paths x bounces)")),
                 write("photon_trace.lights", Buffer(lambda s: 16 * max(len(s.scene.lights), 1), "16 B per light"))]
@@ -66,8 +63,6 @@ class PhotonTracePass(Pass):
         self.program = shaders.compute(gl.ctx, "photon/trace.comp", GpuBvh.defines(DEFAULT_BINDING))
 
     def execute(self, fc) -> None:
-        from ..effects.photon import photon_setup
-
         ps = photon_setup(fc.sizing)
         lights = fc.resource("photon_trace.lights")
         lights.write(light_table(fc.scene, ps.paths, ps.sphere[3]).tobytes())
