@@ -164,7 +164,9 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True) -> d
                "passes": list(ran), "gpu_ms_unavailable": sorted(unavailable),  # timers that read back garbage
                "size": list(job.rig.size), "eyes": job.eyes, "spp": job.spp,
                "denoise": list(renderer.plan().denoise) if renderer.settings.denoise else [],
-               "gpu_ms_note": "per sample (the last of each frame's samples)" if job.spp > 1 else "per frame"}
+               "gpu_ms_note": "per sample (the last of each frame's samples)" if job.spp > 1 else "per frame",
+               "stereo": renderer.settings.stereo,
+               "stereo_counts": renderer.stereo_counts()}  # the last frame's reused pixels or holes
     return summary
 
 

@@ -107,6 +107,15 @@ def add_rig_arguments(p: argparse.ArgumentParser) -> None:
                    help="far plane distance, greater than near (default: infinite, reversed-Z)")
 
 
+def add_stereo_argument(p: argparse.ArgumentParser, more: str = "") -> None:
+    from .stereo import STEREO_MODES
+
+    p.add_argument("--stereo", choices=STEREO_MODES, default="dual",
+                   help="how the second eye is made: dual renders both; warp synthesizes both from a central view "
+                        "through its screen-space quadtree; reuse gives the right eye the left eye's shading where "
+                        f"it sees the same surface{more} (default dual)")
+
+
 def rig_from_args(args, scene):
     from .camera import Pose, StereoRig
 
@@ -135,7 +144,7 @@ def cmd_capture(args) -> int:
                               primary=args.primary, denoise=args.denoise or args.denoise_iterations is not None,
                               denoise_iterations=args.denoise_iterations or RenderSettings.denoise_iterations,
                               accumulate=args.temporal, temporal=args.temporal,
-                              second_layer=args.second_layer)
+                              second_layer=args.second_layer, stereo=args.stereo)
     with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
         rig = rig_from_args(args, r.scene)
         pick = None
@@ -176,7 +185,8 @@ def print_graph(args) -> int:
 
     gl = create_context(args.backend)
     try:
-        with Renderer(args.scene, args.materials, gl=gl, settings=RenderSettings(primary=args.primary)) as r:
+        with Renderer(args.scene, args.materials, gl=gl,
+                      settings=RenderSettings(primary=args.primary, stereo=args.stereo)) as r:
             plan = r.plan(layers=2, view=args.view)
             graph = compile_graph(candidate_passes(plan), plan)  # passes are not built: nothing compiles
             print(graph.dot() if args.graph == "dot" else graph.describe(r.sizing(args.size, plan.layers)), end="")
@@ -288,6 +298,12 @@ def cmd_bench(args) -> int:
         photon.run(out, size=(48, 36) if quick else args.size,
                    scenes=("default",) if quick else tuple(args.scenes.split(",")),
                    repeat=1 if quick else max(1, args.repeat // 5), quick=quick, backend=args.backend)
+    elif args.area == "stereo":
+        from .bench import stereo
+
+        stereo.run(out, size=(64, 48) if quick else args.size,
+                   scenes=("default",) if quick else tuple(args.scenes.split(",")),
+                   repeat=2 if quick else args.repeat, backend=args.backend)
     elif args.area == "crosscheck":
         from .bench import mitsuba_ref
 
@@ -317,6 +333,7 @@ def cmd_preview(args) -> int:
             rig_options[key] = getattr(args, attr)
     look_at = (args.camera[:3], args.camera[3:]) if args.camera else None
     with Preview(args.scene, args.materials, size=args.size, vsync=not args.no_vsync, stereo=args.mode,
+                 stereo_method=args.stereo,
                  view=args.view, res_scale=args.scale, rig_options=rig_options, look_at=look_at,
                  out_dir=args.out, path_file=args.record) as p:
         if args.budget_ms is not None:
@@ -380,6 +397,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how the second depth layer (ssr layers = 2) is made: primary rays continued through the "
                         "BVH, or depth peeling in the raster (rayvr bench ssrt times both)")
     c.add_argument("--backend", choices=("egl", "osmesa"), help="headless GL backend (default: egl, then osmesa)")
+    add_stereo_argument(c)
 
     c.add_argument("-q", "--quiet", action="store_true")
     add_rig_arguments(c)
@@ -396,13 +414,15 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--size", type=_size, default="1440x1600", help="per-eye size the --graph resources are sized for")
     i.add_argument("--view", choices=VIEWS, default="color", help="the view --graph is compiled for")
     i.add_argument("--primary", choices=("raster", "rays"), default="raster", help="primary visibility for --graph")
+    add_stereo_argument(i)
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
-    b.add_argument("area", choices=("gbuffer", "rays", "ssrt", "photon", "peers", "tradeoff", "budget", "crosscheck"),
+    b.add_argument("area", choices=("gbuffer", "rays", "ssrt", "photon", "stereo", "peers", "tradeoff", "budget", "crosscheck"),
                    help="gbuffer: layered stereo vs mono G-buffer ms; rays: rays/s vs Embree and the hybrid "
                         "frame; ssrt: quadtree screen-space tracing vs the DDA baseline; photon: the photon-mapping paper's "
-                        "tables (kd-tree vs hash grid, heap vs no heap: ms per pass, FLIP); peers: frames/s against pyrender; "
+                        "tables (kd-tree vs hash grid, heap vs no heap: ms per pass, FLIP); stereo: the stereo modes dual, warp, "
+                        "reuse (ms per pass, FLIP against dual, holes); peers: frames/s against pyrender; "
                         "tradeoff: every knob's GPU ms vs error against the reference; budget: effects per "
                         "material chosen under --budget-ms; crosscheck: the reference vs Mitsuba 3 on the Cornell boxes")
     b.add_argument("--budget-ms", type=_budgets, default=[4.0, 8.0], help="frame budgets for 'budget' (default 4,8)")
@@ -435,6 +455,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--record", default="camera_path.json", help="camera path file P writes")
     v.add_argument("--frames", type=FRAMES, help="close after N frames (smoke tests)")
     v.add_argument("--budget-ms", type=BUDGET_MS, help="pick effects per material to fit this GPU frame time at start")
+    add_stereo_argument(v, " at start (B cycles)")
     v.set_defaults(func=cmd_preview)
     return p
 

@@ -81,17 +81,19 @@ class Sizing:
 
 @dataclass(frozen=True)
 class Texture:
-    """A layered 2D texture (one layer per eye) of `format`, eye pixels / 2**scale."""
+    """A layered 2D texture (one layer per eye) of `format`, eye pixels / 2**scale; `layers`
+    fixes the layer count (the two warped eyes of a frame that renders one central view)."""
 
     format: str
     scale: int = 0
+    layers: int = 0  # 0: one per rendered eye (Sizing.layers)
 
     def __post_init__(self):
         if self.format not in TEXTURE_FORMATS:
             raise ValueError(f"unknown texture format {self.format!r}; allowed: {', '.join(TEXTURE_FORMATS)}")
 
     def extent(self, s: Sizing) -> tuple:
-        return max(1, s.size[0] >> self.scale), max(1, s.size[1] >> self.scale), s.layers
+        return max(1, s.size[0] >> self.scale), max(1, s.size[1] >> self.scale), self.layers or s.layers
 
     def nbytes(self, s: Sizing) -> int:
         w, h, n = self.extent(s)
@@ -520,7 +522,7 @@ class FrameContext:
     scene: object
     gpu_scene: object
     accel: object  # the scene's BVH (rayvr/accel/scene.py), built by the `bvh` pass when needed
-    eyes: list
+    eyes: list  # the rendered eyes (G-buffer layers): the central one under stereo `warp`
     plan: FramePlan
     settings: object
     sizing: Sizing
@@ -532,6 +534,10 @@ class FrameContext:
     stage_names: list = field(default_factory=list)
     current_pass: str = ""
     samples: object = None  # rayvr.accumulation.SampleState: this frame's sample index, reset, reprojection
+    out_eyes: list = field(default_factory=list)  # the eyes the frame returns (default: `eyes`)
+
+    def __post_init__(self):
+        self.out_eyes = self.out_eyes or list(self.eyes)
 
     def resource(self, name: str):
         return self.resources[name]

@@ -58,6 +58,7 @@ SSBO = {
     "photons": 40, "photon_keys": 41, "photon_keys_alt": 42, "photon_scan": 43, "photon_map": 44,
     "photon_kdtree": 45, "photon_lights": 46, "photon_queries": 47, "photon_found": 48,
     "photon_query_counts": 49,
+    "reuse_map": 50, "warp_counts": 51,  # stereo modes: passes/reuse.py, passes/warp.py (glsl/stereo/)
 }
 # Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
 IMAGE = {"hdr": 0, "ldr": 1,
@@ -65,7 +66,8 @@ IMAGE = {"hdr": 0, "ldr": 1,
          "accum_in": 2, "accum_moments_in": 3, "accum_out": 4, "accum_moments_out": 5,
          "accum_history_out": 6, "accum_history_moments_out": 7,
          "denoise_in": 2, "denoise_out": 3, "denoise_moments": 4, "denoise_color": 5,
-         "layer2": 2, "layer2_triangle": 3}  # passes/second_layer.py
+         "layer2": 2, "layer2_triangle": 3,  # passes/second_layer.py
+         "warp_color": 2, "warp_depth": 3}  # passes/warp.py (glsl/stereo/warp.comp)
 # Texture units beside the G-buffer channels' (0..7).
 UNIT = {"base_color_textures": 9, "layer2": 10, "layer2_triangle": 11, "peel_triangle": 12}
 

@@ -54,6 +54,7 @@ KEYS = (
     ("F", "fly <-> orbit around the scene centre"),
     ("R", "reset camera, IPD and convergence"),
     ("Tab, 1-5", "stereo mode: side-by-side, cross-eyed, anaglyph, left, right"),
+    ("B, Shift+B", "how the second eye is made: dual, warp, reuse (next / previous)"),
     ("V, Shift+V", "next / previous view: colour, then each debug view"),
     ("- =", "IPD smaller / larger"),
     ("C", "convergence at the scene centre / parallel eyes"),
@@ -186,6 +187,7 @@ class ViewState:
     """What the window shows; changed only by `Controls`."""
 
     stereo: str = "side-by-side"
+    method: str = "dual"  # how the second eye is made (rayvr/stereo.py STEREO_MODES)
     view: str = "color"
     res_scale: float = 1.0
     vsync: bool = True
@@ -238,6 +240,9 @@ class Controls:
             i = STEREO_MODES.index(s.stereo)
             i = (i + step) % len(STEREO_MODES) if name == "TAB" else int(name) - 1
             s.stereo = STEREO_MODES[i]
+        elif name == "B":
+            from .stereo import STEREO_MODES as methods
+            s.method = methods[(methods.index(s.method) + step) % len(methods)]
         elif name == "V":
             s.view = self.views[(self.views.index(s.view) + step) % len(self.views)]
         elif name == "O":
@@ -387,7 +392,8 @@ class Preview:
 
     def __init__(self, scene=None, materials=None, *, size=(1280, 720), title=None, visible=True,
                  vsync=True, stereo="side-by-side", view="color", res_scale=None, rig=None,
-                 rig_options=None, look_at=None, out_dir="shots", path_file="camera_path.json", hud=True):
+                 rig_options=None, look_at=None, out_dir="shots", path_file="camera_path.json", hud=True,
+                 stereo_method="dual"):
         import glfw
 
         from .context import create_window_context
@@ -395,6 +401,9 @@ class Preview:
 
         if stereo not in STEREO_MODES:
             raise ValueError(f"unknown stereo mode {stereo!r}; allowed: {', '.join(STEREO_MODES)}")
+        from .stereo import check_mode
+
+        check_mode(stereo_method)
         if res_scale is not None and not (0 < res_scale <= 4):
             raise ValueError(f"resolution scale must be in (0, 4], got {res_scale}")
         self.glfw = glfw
@@ -411,7 +420,7 @@ class Preview:
             gl_name = ctx.info.get("GL_RENDERER", "")
             if res_scale is None:  # a CPU rasterizer is slow: start at half resolution there
                 res_scale = 0.5 if ("llvmpipe" in gl_name or "softpipe" in gl_name) else 1.0
-            state = ViewState(stereo=stereo, view=view, res_scale=res_scale, vsync=vsync, hud=hud)
+            state = ViewState(stereo=stereo, method=stereo_method, view=view, res_scale=res_scale, vsync=vsync, hud=hud)
             self.controls = Controls(self.camera, state)
             self.gl_name = gl_name
             self.scene_name = str(scene) if isinstance(scene, (str, Path)) else self.renderer.scene.name
@@ -628,6 +637,7 @@ class Preview:
         layout = layout_for(self.state.stereo, fb, self.state.res_scale)
         rig = self.camera.rig(layout.eye_size)
         self._apply_noise_settings()
+        self.renderer.set_stereo(self.state.method)
         try:
             fc = self.renderer.record(rig, layout.eyes, self.state.view)
         except Exception as exc:
@@ -679,7 +689,7 @@ class Preview:
         ctx.viewport = (0, 0, fb[0], fb[1])
         ctx.clear(0.0, 0.0, 0.0, 1.0)
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-        tex = fc.resource("ldr")
+        tex = fc.resource(fc.plan.output)  # the warped eyes under stereo warp
         vw, vh = layout.viewports[0][2:4]
         exact = tuple(layout.eye_size) == (vw, vh)  # 1:1 pixels: no filtering, exactly the capture
         f = moderngl.NEAREST if exact else moderngl.LINEAR
@@ -703,7 +713,7 @@ class Preview:
             return
         fc.gbuffer.textures["material"].use(5)
         self.pick_buffer.bind_to_storage_buffer(PICK_BINDING)
-        self.pick_program["texel"].value = texel
+        self.pick_program["texel"].value = (*texel[:2], min(texel[2], fc.gbuffer.layers - 1))  # warp: the central view
         self.pick_program.run(1, 1, 1)
         self.ctx.memory_barrier(moderngl.BUFFER_UPDATE_BARRIER_BIT)
         self.picked = tuple(int(v) for v in np.frombuffer(self.pick_buffer.read(), np.uint32))
@@ -730,7 +740,7 @@ class Preview:
         lines.append((f"GPU ms  {gpu}   total {sum(self.timings.values()):.2f}", white))
         ew, eh = layout.eye_size
         lines.append((f"{s.stereo}  view {s.view}   eye {ew}x{eh} (scale {s.res_scale:g})  window "
-                      f"{fb[0]}x{fb[1]}  vsync {'on' if s.vsync else 'off'}", white))
+                      f"{fb[0]}x{fb[1]}  vsync {'on' if s.vsync else 'off'}   second eye: {s.method}", white))
         conv = f"{cam.convergence:.3g}" if cam.convergence else "parallel"
         speed = f"speed {cam.speed:.3g}/s" if cam.mode == "fly" else f"distance {cam.distance:.3g}"
         lines.append((f"{cam.mode}  {speed}   IPD {cam.ipd:.4g}  convergence {conv}", white))

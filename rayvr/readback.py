@@ -14,6 +14,7 @@ import numpy as np
 from .frame import EyeImage
 from .gbuffer import COLOR_CHANNELS, GL_DEPTH_COMPONENT, GL_FLOAT, GL_TEXTURE_2D_ARRAY
 from .passes import radiance
+from .stereo import WARP_DEPTH
 
 GL_PIXEL_PACK_BUFFER = 0x88EB
 GL_PACK_ALIGNMENT = 0x0D05
@@ -30,7 +31,7 @@ class Pending:
     """A frame whose readbacks are in flight."""
 
     fc: object
-    buffers: dict  # channel -> (moderngl.Buffer, dtype, components)
+    buffers: dict  # channel -> (moderngl.Buffer, dtype, components, layers)
     aux: tuple
 
 
@@ -56,15 +57,17 @@ class Reader:
     def start(self, fc, aux, parity: int) -> Pending:
         gb, raw = fc.gbuffer, self.gl.raw
         w, h = gb.size
+        warped = fc.plan.stereo == "warp"  # the eyes come from the warp pass, the G-buffer is the central view
         buffers = {}
         for name in self.channels_for(fc, aux):
+            layers = len(fc.out_eyes) if warped and name in ("ldr", "linear_depth") else gb.layers
             if name in ("zbuffer", "ldr"):
                 # Read by GL itself: the depth array moderngl does not know, and colour packed to
                 # RGB by the driver (no alpha to strip on the CPU afterwards).
                 depth = name == "zbuffer"
                 dtype, comps = (np.float32, 1) if depth else (np.uint8, 3)
-                buf = self._buffer((parity, name), w * h * gb.layers * comps * np.dtype(dtype).itemsize)
-                texture = gb.depth_name if depth else fc.resource("ldr").glo
+                buf = self._buffer((parity, name), w * h * layers * comps * np.dtype(dtype).itemsize)
+                texture = gb.depth_name if depth else fc.resource(fc.plan.output).glo
                 raw.glBindBuffer(GL_PIXEL_PACK_BUFFER, buf.glo)
                 raw.glPixelStorei(GL_PACK_ALIGNMENT, 1)
                 raw.glBindTexture(GL_TEXTURE_2D_ARRAY, texture)
@@ -72,34 +75,35 @@ class Reader:
                                   GL_FLOAT if depth else GL_UNSIGNED_BYTE, None)
                 raw.glBindTexture(GL_TEXTURE_2D_ARRAY, 0)
                 raw.glBindBuffer(GL_PIXEL_PACK_BUFFER, 0)
-                buffers[name] = (buf, dtype, comps)
+                buffers[name] = (buf, dtype, comps, layers)
                 continue
             if name == "hdr":  # the linear colour before exposure and tonemapping
                 name_, fmt = radiance(fc.plan)  # accumulated / denoised where the frame has them
                 tex, dtype, comps = fc.resource(name_), np.float32 if fmt == "rgba32f" else np.float16, 4
+            elif warped and name == "linear_depth":
+                tex, dtype, comps = fc.resource(WARP_DEPTH), np.float32, 1
             else:
                 ch = next(c for c in COLOR_CHANNELS if c.name == name)
                 tex, dtype, comps = gb.textures[name], _DTYPES[ch.dtype], ch.components
-            nbytes = w * h * gb.layers * comps * np.dtype(dtype).itemsize
+            nbytes = w * h * layers * comps * np.dtype(dtype).itemsize
             buf = self._buffer((parity, name), nbytes)
             tex.read_into(buf, alignment=1)
-            buffers[name] = (buf, dtype, comps)
+            buffers[name] = (buf, dtype, comps, layers)
         return Pending(fc, buffers, tuple(aux))
 
     def finish(self, pending: Pending):
         """Map the buffers and cut them into per-eye numpy images (rows top-down)."""
         fc = pending.fc
         w, h = fc.gbuffer.size
-        layers = fc.gbuffer.layers
         data = {}
-        for name, (buf, dtype, comps) in pending.buffers.items():
+        for name, (buf, dtype, comps, layers) in pending.buffers.items():
             raw = np.empty(buf.size, np.uint8)  # one copy out of the mapped buffer, writable
             buf.read_into(raw)
             # Rows top-down as a view (GL rows go bottom-up): no copy per channel.
             a = raw.view(dtype).reshape(layers, h, w, comps)[:, ::-1]
             data[name] = a.astype(np.float32) if dtype == np.float16 else a
         out = {}
-        for layer, eye in enumerate(fc.eyes):
+        for layer, eye in enumerate(fc.out_eyes):
             color = data["ldr"][layer]
             depth = data["linear_depth"][layer, ..., 0]
             hit = depth > 0

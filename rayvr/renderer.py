@@ -18,6 +18,7 @@ import numpy as np
 from . import effects as effects_mod
 from . import materials as materials_mod
 from . import scene as scene_mod
+from . import stereo as stereo_mod
 from .accel.scene import SceneAccel
 from .accumulation import MAX_DENOISE_ITERATIONS, Accumulator, sample_seed
 from .camera import StereoRig
@@ -57,6 +58,7 @@ class RenderSettings:
     # Second depth layer (ssr layers = 2): "rays" continues each primary ray past its first hit
     # through the BVH, "peel" rasterizes again behind the first layer (rayvr bench ssrt times both).
     second_layer: str = "rays"
+    stereo: str = "dual"  # how the second eye is made: rayvr/stereo.py STEREO_MODES
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
@@ -70,6 +72,7 @@ class RenderSettings:
             raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
         if self.second_layer not in SECOND_LAYER_MODES:
             raise ValueError(f"unknown second layer {self.second_layer!r}; allowed: {', '.join(SECOND_LAYER_MODES)}")
+        stereo_mod.check_mode(self.stereo)
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:
@@ -145,10 +148,17 @@ class Renderer:
         # Peeling needs the raster's depth: with ray-cast primaries the second layer is ray-cast too.
         second = self.settings.second_layer if primary == "raster" else "rays"
         denoise = tuple(sorted(self.denoised_effects())) if color and st.denoise else ()
-        return FramePlan(effects=self.effects_in_use(), view=view, layers=layers, layer_mode=self.layer_mode,
-                         primary=primary, camera=camera.name, users=users,
+        stereo = stereo_mod.effective_mode(self.settings.stereo, layers, camera)
+        warp = stereo == "warp"  # one central view is rendered; the warp pass makes both eyes from it
+        return FramePlan(effects=self.effects_in_use(), view=view, layers=1 if warp else layers,
+                         layer_mode=self.layer_mode, primary=primary, camera=camera.name, stereo=stereo,
+                         output=stereo_mod.WARP_OUTPUT if warp else "ldr", users=users,
                          accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise,
                          depth_layers=depth_layers(self.assignments), second_layer=second)
+
+    def set_stereo(self, mode: str) -> None:
+        """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/stereo.py)."""
+        self.settings.stereo = stereo_mod.check_mode(mode)
 
     def compiled(self, plan: FramePlan | None = None):
         """The compiled frame graph of `plan` (default: both eyes, colour): passes in order,
@@ -171,8 +181,9 @@ class Renderer:
         camera = eye_views[0].camera.uniforms(eye_views, self.scene.origin)
         state = self.accumulator.next(camera, (plan, rig.size, eyes), self.settings, sample)
         settings = replace(self.settings, seed=sample_seed(self.settings.seed, state.sample))
-        fc = FrameContext(self.gl, self.scene, self.gpu_scene, self.accel, eye_views, plan, settings,
-                          self.sizing(rig.size, len(eye_views)), samples=state)
+        fc = FrameContext(self.gl, self.scene, self.gpu_scene, self.accel,
+                          stereo_mod.rendered_eyes(rig, eyes, plan.stereo), plan, settings,
+                          self.sizing(rig.size, plan.layers), samples=state, out_eyes=eye_views)
         self.graph.execute(graph, fc, profile)
         self._last = fc
         return fc
@@ -186,6 +197,21 @@ class Renderer:
         if self._last is None or name not in self._last.resources:
             raise KeyError(f"the last frame has no resource {name!r}")
         return self._last.resource(name)
+
+    def stereo_counts(self) -> dict:
+        """What the last frame's stereo mode did (reads back): under `reuse` the right-eye pixels
+        given the left eye's shading ("reused"); under `warp` each eye's pixels and holes
+        ("holes_left", "holes_right", "offscreen_left", ...); {} under `dual`."""
+        if self._last is None:
+            return {}
+        mode = self._last.plan.stereo
+        if mode == "reuse":
+            from .passes.reuse import reuse_counts
+            return reuse_counts(self._last)
+        if mode == "warp":
+            from .passes.warp import warp_counts
+            return warp_counts(self._last)
+        return {}
 
     def pixel_counts(self) -> dict:
         """Pixels per traced effect in the last recorded frame (its classify pass); {} if none ran."""
@@ -230,6 +256,10 @@ class Renderer:
             raise ValueError(f"unknown aux channel(s) {', '.join(unknown)}; allowed: {', '.join(AUX_CHANNELS)}")
         if "hdr" in aux and view != "color":
             raise ValueError(f"aux channel 'hdr' needs view 'color' (view {view!r} makes no HDR colour)")
+        warped = [a for a in aux if a != "depth"] if self.settings.stereo == "warp" and eyes == "both" else []
+        if warped:
+            raise ValueError(f"aux channel(s) {', '.join(warped)} need stereo dual or reuse: warp makes only "
+                             f"colour and depth per eye (its G-buffer is the central view)")
         pending = None
         for i, rig in enumerate(rigs):
             tiles = self.tiles(rig, eyes, view)
@@ -261,7 +291,7 @@ class Renderer:
         plan = self.plan(len(eye_views), view, eye_views[0].camera)
         key = (plan, rig.size, id(self.assignments), self.graph.limits)  # sequences ask once per size
         if key not in self._tiles:
-            self._tiles = {key: self._plan_tiles(plan, rig.size, len(eye_views))}
+            self._tiles = {key: self._plan_tiles(plan, rig.size, plan.layers)}
         return self._tiles[key]
 
     def _plan_tiles(self, plan: FramePlan, size, layers: int) -> list:
@@ -289,7 +319,7 @@ class Renderer:
     def _render_tiles(self, rig: StereoRig, tiles: list, eyes: str, view: str, aux, spp: int = 1,
                       progress=None) -> Frame:
         w, h = rig.size
-        full = {e.name: e for e in rig.eyes(eyes)}
+        full = {e.name: e for e in rig.eyes(eyes) + ([rig.eye("center")] if eyes == "both" else [])}
         out: dict = {}
         timings: dict = {}
         passes: tuple = ()

@@ -12,13 +12,16 @@ def core_passes() -> list:
     from .primary_rays import PrimaryRaysPass
     from .quadtree import QuadtreePass, QuadtreeVisitsPass
     from .second_layer import SecondLayerPass
+    from .reuse import ReuseCopyPass, ReuseMapPass
     from .shade import ShadePass
     from .tonemap import TonemapPass
     from .visibility import VisibilityPass
+    from .warp import WarpPass
 
     return [BvhPass(), VisibilityPass(), PrimaryRaysPass(), GBufferResolvePass(), ShadePass(), ClassifyPass(),
             AccumulatePass(), DenoisePass(), TonemapPass(), DebugViewPass(), QuadtreeVisitsPass(),
-            QuadtreePass(effect="ssr"), SecondLayerPass()]
+            QuadtreePass(effect="ssr"), SecondLayerPass(), ReuseMapPass(),
+            ReuseCopyPass(), WarpPass()]
 
 
 def radiance(plan) -> tuple[str, str]:

@@ -92,6 +92,8 @@ class QuadtreePass(Pass):
         users = [e for e in sorted(plan.effects) if getattr(EFFECTS.get(e), "uses_quadtree", False)]
         if plan.view == "quadtree_visits":
             users.append("view quadtree_visits")
+        if plan.stereo == "warp":
+            users.append("stereo warp")
         # Planes in S and straight rays need a planar projection: the pinhole's G-buffer only.
         if not users or plan.camera != "pinhole":
             return None

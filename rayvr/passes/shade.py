@@ -8,6 +8,7 @@ from ..effects import EFFECTS
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gpu_layout import IMAGE
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
+from .reuse import bind_reuse, reuse_defines, reuse_reads
 
 HDR = Texture("rgba16f")  # linear radiance, both eyes
 
@@ -20,10 +21,10 @@ class ShadePass(Pass):
         return f"effect raster ({', '.join(raster)}) and the background" if raster else "the background"
 
     def io(self, plan: FramePlan) -> list:
-        return [read("gbuffer"), write("hdr", HDR)]
+        return [read("gbuffer"), write("hdr", HDR)] + reuse_reads(plan)
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.program = shaders.compute(gl.ctx, "shade/direct.comp", camera_defines(plan))
+        self.program = shaders.compute(gl.ctx, "shade/direct.comp", {**camera_defines(plan), **reuse_defines(plan)})
         # Pixels of traced effects get their colour from their own passes.
         self.traced_mask = sum(1 << EFFECTS[e].id for e in plan.effects if e in EFFECTS and EFFECTS[e].traced)
 
@@ -35,6 +36,7 @@ class ShadePass(Pass):
         p["traced_effects"].value = self.traced_mask
         fc.gbuffer.bind_for_reading()
         fc.gpu_scene.bind()
+        bind_reuse(fc)
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
         dispatch_per_pixel(fc, p)
 

@@ -30,6 +30,9 @@
 #endif
 #include "pixel_list.glsl"
 #include "../common/gbuffer.glsl"
+#ifdef STEREO_REUSE
+#include "../stereo/reuse.glsl"
+#endif
 
 layout(local_size_x = CLASSIFY_INVOCATIONS, local_size_y = 1, local_size_z = 1) in;
 
@@ -77,6 +80,9 @@ void main() {
     if (all(lessThan(p.xy, textureSize(gb_material, 0).xy))) {
         uint effect = texelFetch(gb_material, p, 0).y;
         slot = effect < uint(MAX_EFFECT_ID) ? SLOT_OF_EFFECT[effect] : -1;
+#ifdef STEREO_REUSE
+        if (reuse_taken(p, textureSize(gb_material, 0).x)) slot = -1;  // takes the left eye's shading
+#endif
     }
     uint local = 0u;
 #if CLASSIFY_BALLOT != 0

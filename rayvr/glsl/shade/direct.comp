@@ -4,6 +4,9 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../common/gbuffer.glsl"
 #include "../common/lighting.glsl"
 #include "../common/camera.glsl"
+#ifdef STEREO_REUSE
+#include "../stereo/reuse.glsl"
+#endif
 
 layout(rgba16f, binding = IMAGE_HDR) uniform writeonly image2DArray hdr_out;
 uniform vec3 ambient;           // constant ambient radiance (stands in for indirect light)
@@ -13,6 +16,9 @@ uniform uint traced_effects;    // bit e set: effect e's own passes shade those 
 void main() {
     ivec3 p = ivec3(gl_GlobalInvocationID);
     if (any(greaterThanEqual(p.xy, imageSize(hdr_out).xy))) return;
+#ifdef STEREO_REUSE
+    if (reuse_taken(p, imageSize(hdr_out).x)) return;  // takes the left eye's shading (stereo/reuse_copy.comp)
+#endif
     Surface s = gbuffer_fetch(p);
     if (s.triangle != NO_HIT && s.effect < 32u && ((traced_effects >> s.effect) & 1u) != 0u) return;
     vec3 color;

@@ -1,0 +1,95 @@
+"""`rayvr bench stereo`: the stereo modes (rayvr/stereo.py) against each other on the same frame.
+
+Per scene and mode (dual, warp, reuse), the benchmark's effect config (the room's shipped config;
+Sponza's hybrid frame of `rayvr bench rays`, floors on BVH reflections), both eyes:
+  - GPU ms per pass and per frame (median over `repeat` frames after timing.settle warm-up), and
+    the frame of the left eye alone (`mono_ms`); `second_eye_share` = (frame - mono) / mono, the
+    cost of the second eye relative to one eye (dual ~1; the issues' targets: warp <= 0.35,
+    reuse <= 0.40);
+  - mean FLIP of each eye against `dual` with the same seed (what the mode changes: view-dependent
+    shading copied across eyes, resampling, inpainted holes) and against `dual` with another seed
+    (DESIGN: a reference and its variant never share a seed); `noise_floor` is dual against dual
+    with the other seed, the sampling noise both numbers sit on;
+  - warp: hole fraction per eye (disoccluded + off screen) and quadtree nodes per pixel;
+    reuse: the share of right-eye pixels that took the left eye's shading.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..context import create_context
+from ..materials import load_config
+from ..renderer import Renderer, RenderSettings
+from ..scene import ASSETS_DIR
+from ..stereo import STEREO_MODES
+from .rays import hybrid_config, time_frame
+from .report import device_meta, write_report
+from .scenes import bench_scenes
+
+REFERENCE_SEED = 1  # dual with another seed: the reference that does not share the variants' seed 0
+
+
+def bench_config(name: str):
+    return load_config(ASSETS_DIR / "default_room.toml") if name == "default" else hybrid_config(name)
+
+
+def mono_ms(renderer, rig, repeat: int) -> float:
+    """Median GPU ms of a frame of the left eye alone."""
+    renderer.warm_up(rig, "left", min_frames=2)
+    totals = []
+    for _ in range(repeat):
+        fc = renderer.record(rig, "left", "color")
+        totals.append(sum(renderer.read_ms(fc).values()))
+    return float(np.median(totals))
+
+
+def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, backend=None,
+        progress=True) -> dict:
+    from . import metrics
+
+    gl = create_context(backend)
+    rows, skipped = [], {}
+    try:
+        for name, scene, rig in bench_scenes(scenes, size, skipped):
+            with Renderer(scene, bench_config(name), gl=gl) as r:
+                mono = mono_ms(r, rig, repeat)
+                r.settings.seed = REFERENCE_SEED
+                ref = r.render(rig)
+                r.settings.seed = 0
+                images, counts = {}, {}
+                for mode in STEREO_MODES:
+                    r.set_stereo(mode)
+                    names, med, total = time_frame(r, rig, repeat, warmup=3)
+                    images[mode] = r.render(rig)
+                    counts[mode] = r.stereo_counts()
+                    rows.append({"scene": name, "size": f"2x{size[0]}x{size[1]}", "mode": mode, "frame_ms": total,
+                                 "mono_ms": mono, "second_eye_share": (total - mono) / mono if mono > 0 else None,
+                                 "pass_ms": {k: med[k] for k in names if k in med}})
+                r.set_stereo("dual")
+                for row in rows[-len(STEREO_MODES):]:
+                    img = images[row["mode"]]
+                    for eye in ("left", "right"):
+                        row[f"flip_vs_dual_{eye}"] = metrics.flip(images["dual"][eye].color, img[eye].color)
+                        row[f"flip_vs_dual_other_seed_{eye}"] = metrics.flip(ref[eye].color, img[eye].color)
+                    c = counts[row["mode"]]
+                    if row["mode"] == "warp":
+                        for eye in ("left", "right"):
+                            row[f"hole_fraction_{eye}"] = c[f"hole_fraction_{eye}"]
+                            row[f"nodes_per_pixel_{eye}"] = c[f"nodes_{eye}"] / c[f"pixels_{eye}"]
+                    if row["mode"] == "reuse":
+                        row["reused_fraction_right"] = c["reused"] / c["right_pixels"]
+                    row["noise_floor_right"] = metrics.flip(ref.right.color, images["dual"].right.color)
+                    if progress:
+                        print(f"  {name:8s} {row['mode']:6s} frame {row['frame_ms']:.3f} ms (mono {mono:.3f}), "
+                              f"second eye {row['second_eye_share'] or 0:.2f} of one, FLIP vs dual right "
+                              f"{row['flip_vs_dual_right']:.4f}")
+        meta = {**device_meta(gl.info()), "bench": "stereo", "per_eye_size": list(size), "repeat": repeat,
+                "skipped": skipped, "timings_meaningful": not gl.is_software,
+                "configs": {"default": "rayvr/assets/default_room.toml", "other": "bench.rays.hybrid_config"}}
+        result = {"meta": meta, "rows": rows}
+        write_report(out_dir, "stereo", result)
+    finally:
+        gl.release()
+    return result

@@ -1,0 +1,90 @@
+"""Stereo `warp` (Widmer et al. 2015 §5.1, rayvr/stereo.py): the frame renders and shades one
+central view (between the eyes; a one-layer G-buffer, every effect as usual, then its quadtree),
+and this pass synthesizes each eye from it by tracing the eye's camera rays through the central
+quadtree (glsl/stereo/warp.comp, which includes glsl/ssrt/quadtree.glsl). Rays that pass behind a
+foreground object (disocclusions) or leave the central image are holes: counted per eye and
+inpainted from the background side. Writes the eyes' colour ("stereo_ldr", the frame's output:
+alpha 0 marks a hole) and linear view depth ("stereo_depth").
+
+Single layer for now: a second depth layer of the central view (depth peeling or ray-traced, the
+`quadtree` helper's work) would let the holes be traced instead of inpainted.
+"""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from .. import shaders
+from ..frame import Buffer, FramePlan, Pass, Texture, read, write
+from ..gpu_layout import IMAGE, SSBO
+from ..stereo import WARP_DEPTH, WARP_OUTPUT
+from .compute import TILE, camera_defines
+from .quadtree import set_tree_uniforms
+
+THICKNESS = 0.02  # a hit this far (relative z) behind the surface at its pixel passed behind it: a hole
+COUNTS = ("disoccluded", "offscreen", "hits", "nodes")  # per eye, glsl/stereo/warp.comp
+WARP_COUNTS = Buffer(lambda s: 16 * 2, "per eye: holes (disoccluded, off screen), hits, nodes tested")
+
+
+def warp_counts(fc) -> dict:
+    """Per eye of frame `fc` (reads back): pixels, holes by disocclusion and off screen, hits and
+    the nodes their rays tested; "hole_fraction_<eye>" = holes / pixels."""
+    a = np.frombuffer(fc.resource("warp_counts").read(), np.uint32).reshape(2, 4)
+    w, h = fc.gbuffer.size
+    out = {}
+    for i, eye in enumerate(fc.out_eyes):
+        out.update({f"{k}_{eye.name}": int(a[i, j]) for j, k in enumerate(COUNTS)})
+        out[f"pixels_{eye.name}"] = w * h
+        out[f"hole_fraction_{eye.name}"] = (int(a[i, 0]) + int(a[i, 1])) / (w * h)
+    return out
+
+
+def read_holes(fc) -> np.ndarray:
+    """(2, H, W) bool, rows top-down: the warped eyes' holes in frame `fc` (alpha 0; reads back)."""
+    w, h = fc.gbuffer.size
+    tex = fc.resource(WARP_OUTPUT)
+    rgba = np.frombuffer(tex.read(), np.uint8).reshape(2, h, w, 4)[:, ::-1]
+    return rgba[..., 3] == 0
+
+
+class WarpPass(Pass):
+    name = "warp"
+
+    def __init__(self, thickness: float = THICKNESS):
+        self.thickness = thickness
+
+    def why(self, plan: FramePlan) -> str | None:
+        return "stereo = warp" if plan.stereo == "warp" else None
+
+    def io(self, plan: FramePlan) -> list:
+        return [read("gbuffer"), read("quadtree"), read("ldr"), write(WARP_OUTPUT, Texture("rgba8", layers=2)),
+                write(WARP_DEPTH, Texture("r32f", layers=2)), write("warp_counts", WARP_COUNTS)]
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        self.program = shaders.compute(gl.ctx, "stereo/warp.comp", camera_defines(plan))
+
+    def execute(self, fc) -> None:
+        p = self.program
+        center = fc.eyes[0]
+        set_tree_uniforms(p, fc.gbuffer.size)
+        p["warp_thickness"].value = self.thickness
+        fc.gbuffer.bind_for_reading()
+        fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
+        counts = fc.resource("warp_counts")
+        counts.write(bytes(counts.size))
+        counts.bind_to_storage_buffer(SSBO["warp_counts"])
+        fc.resource("ldr").bind_to_image(IMAGE["ldr"], read=True, write=False)
+        fc.resource(WARP_OUTPUT).bind_to_image(IMAGE["warp_color"], read=False, write=True)
+        fc.resource(WARP_DEPTH).bind_to_image(IMAGE["warp_depth"], read=False, write=True)
+        w, h = fc.gbuffer.size
+        for layer, eye in enumerate(fc.out_eyes):
+            # Camera slot 0: the central view (the tree's layer), slot 1: the eye being made.
+            for name, value in center.camera.uniforms([center, eye], fc.scene.origin).items():
+                if name in p:
+                    p[name].write(np.ascontiguousarray(value).tobytes())
+            p["warp_layer"].value = layer
+            p.run((w + TILE - 1) // TILE, (h + TILE - 1) // TILE, 1)
+            fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
+    def release(self) -> None:
+        self.program.release()

@@ -1,0 +1,46 @@
+"""Stereo modes: how the second eye is made (DESIGN.md "Stereo").
+
+    dual    both eyes fully: one layered G-buffer, every pass over both layers
+    reuse   the photon-mapping paper's §3.3: the left eye is shaded; each left hit the right eye
+            also sees (visibility test against the right eye's G-buffer) gives its shading to the
+            right-eye pixel it lands on (passes/reuse.py); only the right-eye pixels left empty are
+            shaded (classify and shade skip the others), for every effect
+    warp    Widmer et al. 2015 §5.1: one central view (between the eyes) is rendered and shaded;
+            each eye is synthesized by tracing its camera rays through the central view's quadtree
+            (passes/warp.py); disocclusions and rays that leave the central image are holes,
+            counted and inpainted from the background side
+
+The mode is a render setting (`RenderSettings.stereo`, `--stereo`); it enters the FramePlan, so
+the frame graph compiles the passes the mode needs and no others. A frame of one eye has no
+second eye to make: it is always `dual`. `warp` and `reuse` project points between planar
+frusta, so they need the pinhole camera model.
+"""
+from __future__ import annotations
+
+STEREO_MODES = ("dual", "warp", "reuse")
+PLANAR_MODES = ("warp", "reuse")  # need a planar (pinhole) projection
+WARP_OUTPUT = "stereo_ldr"  # the warped eyes (the frame's output under `warp`)
+WARP_DEPTH = "stereo_depth"  # each warped eye's linear view depth
+
+
+def check_mode(mode: str) -> str:
+    if mode not in STEREO_MODES:
+        raise ValueError(f"unknown stereo mode {mode!r}; allowed: {', '.join(STEREO_MODES)}")
+    return mode
+
+
+def effective_mode(mode: str, eyes: int, camera) -> str:
+    """The mode a frame of `eyes` eyes through `camera` (a rayvr.cameras model) uses: one eye is
+    always `dual`; a camera a rasterizer cannot sample is refused for warp/reuse."""
+    check_mode(mode)
+    if eyes != 2:
+        return "dual"
+    if mode in PLANAR_MODES and not camera.rasterizable:
+        raise ValueError(f"stereo mode {mode!r} reprojects between planar frusta: it needs the pinhole camera, "
+                         f"not {camera.name!r} (use --stereo dual)")
+    return mode
+
+
+def rendered_eyes(rig, eyes: str, mode: str) -> list:
+    """The eyes whose G-buffer a frame renders: the central eye under `warp`, else the asked ones."""
+    return [rig.eye("center")] if mode == "warp" else rig.eyes(eyes)

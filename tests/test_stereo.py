@@ -1,0 +1,226 @@
+"""Stereo modes beyond `dual` (rayvr/stereo.py): `reuse` (passes/reuse.py) and `warp`
+(passes/warp.py), each against `dual` on the same frame and against an independent reference:
+the numpy reuse map, the central view, mirror symmetry."""
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from conftest import merge, quad
+from rayvr.camera import Pose, StereoRig
+from rayvr.frame import FramePlan, compile_graph
+from rayvr.passes.reuse import read_map, reference_map
+from rayvr.passes.warp import read_holes
+from rayvr.renderer import Renderer, candidate_passes
+from rayvr.scene import from_arrays
+
+SIZE = (64, 48)
+ROOM = "rayvr/assets/default_room.toml"
+STEREO_PASSES = {"reuse_map", "reuse_copy", "warp"}
+
+
+@pytest.fixture(scope="module")
+def room(gl):
+    with Renderer(None, ROOM, gl=gl) as r:
+        yield r
+
+
+@pytest.fixture(scope="module")
+def raster_room(gl):
+    with Renderer(None, None, gl=gl) as r:  # raster only: deterministic, view-dependent specular
+        yield r
+
+
+def render(r, mode, rig, **kw):
+    r.set_stereo(mode)
+    try:
+        return r.render(rig, **kw)
+    finally:
+        r.set_stereo("dual")
+
+
+def mean_abs(a, b) -> float:
+    return float(np.abs(a.astype(int) - b.astype(int)).mean())
+
+
+@pytest.mark.parametrize("effects", [frozenset({"raster"}), frozenset({"shadows", "reflections", "glossy", "ssr"})])
+def test_graph_compiles_only_what_the_mode_needs(effects):
+    names = {m: set(compile_graph(candidate_passes(p), p).pass_names)
+             for m, p in ((m, FramePlan(effects=effects, stereo=m, layers=1 if m == "warp" else 2,
+                                        output="stereo_ldr" if m == "warp" else "ldr"))
+                          for m in ("dual", "warp", "reuse"))}
+    assert not names["dual"] & STEREO_PASSES
+    assert names["reuse"] - names["dual"] == {"reuse_map", "reuse_copy"}
+    assert names["warp"] - names["dual"] <= {"warp", "quadtree"} and "warp" in names["warp"]
+    assert "quadtree" in names["warp"]
+    if "ssr" not in effects:
+        assert "quadtree" not in names["dual"]
+
+
+def test_one_eye_and_debug_views_stay_dual(room):
+    room.set_stereo("reuse")
+    try:
+        assert room.plan(layers=1).stereo == "dual"
+        assert not STEREO_PASSES & set(room.compiled(room.plan(view="normal")).pass_names)
+    finally:
+        room.set_stereo("dual")
+    with pytest.raises(ValueError, match="unknown stereo mode"):
+        room.set_stereo("mono")
+
+
+def test_reuse_ipd0_identical_eyes_and_no_right_pixel_shaded(room):
+    rig = StereoRig.for_scene(room.scene, size=SIZE, ipd=0.0)
+    f = render(room, "reuse", rig, aux=("hdr",))
+    assert np.array_equal(f.left.color, f.right.color)
+    assert np.isfinite(f.left.aux["hdr"]).all() and np.isfinite(f.right.aux["hdr"]).all()
+    counts = room.stereo_counts()
+    covered = int((f.right.depth > 0).sum())
+    # Every covered right pixel takes the left one's shading, but for float rounding at pixel edges.
+    assert covered - 4 <= counts["reused"] <= covered
+    lists = room.pixel_counts()
+    dual = render(room, "dual", rig)
+    assert np.array_equal(dual.left.color, f.left.color)
+    dual_lists = room.pixel_counts()
+    # The traced effects' lists hold the left eye and the few right pixels not taken (dual: both eyes).
+    assert all(dual_lists[e] // 2 <= lists[e] <= dual_lists[e] // 2 + covered - counts["reused"] for e in lists)
+
+
+def test_reuse_map_equals_numpy_and_lists_skip_taken_pixels(room):
+    rig = StereoRig.for_scene(room.scene, size=SIZE)
+    f = render(room, "reuse", rig, aux=("position", "normal", "material", "triangle", "effect"))
+    fc = room._last
+    gpu = read_map(fc)
+    ref = reference_map(f.left, f.right, rig.eye("left"), rig.eye("right"))
+    assert (gpu >= 0).sum() > 0.8 * (f.right.depth > 0).sum()
+    assert (gpu == ref).mean() >= 0.995, (gpu != ref).sum()
+    # No right-eye pixel is both taken and in a traced effect's list; every other traced one is listed.
+    from rayvr.passes.classify import list_slots
+    args = np.frombuffer(room.resource("rt_list_args").read(16 * list_slots()), np.uint32).reshape(-1, 4)
+    packed = np.frombuffer(room.resource("rt_lists").read(), np.uint32)
+    cap = SIZE[0] * SIZE[1] * 2
+    listed = np.zeros((SIZE[1], SIZE[0]), int)
+    for slot, (_, _, _, n) in enumerate(args):
+        v = packed[slot * cap: slot * cap + n]
+        v = v[(v >> 28) == 1]
+        np.add.at(listed, (SIZE[1] - 1 - ((v >> 14) & 0x3FFF), v & 0x3FFF), 1)
+    from rayvr.effects import traced_effects
+    traced = np.isin(f.right.aux["effect"], [e.id for e in traced_effects()])
+    assert listed.max() <= 1
+    assert not (listed.astype(bool) & (gpu >= 0)).any()
+    assert np.array_equal(listed.astype(bool), traced & (gpu < 0))
+
+
+def test_reuse_shades_no_taken_pixel(gl):
+    """Without the copy, a taken right-eye pixel keeps what the HDR target held before: neither
+    `shade` nor a traced effect wrote it."""
+    from rayvr.frame import FrameGraph
+    with Renderer(None, ROOM, gl=gl) as r:
+        r.graph = FrameGraph(gl, lambda plan: [p for p in candidate_passes(plan) if p.name != "reuse_copy"])
+        r.settings.background = (1.0, 0.0, 1.0)
+        rig = StereoRig.for_scene(r.scene, size=SIZE)
+        away = StereoRig(Pose.look_at(r.scene.center + [0, 0, 1e4], r.scene.center + [0, 0, 2e4]), size=SIZE)
+        bg = render(r, "reuse", away).right.color[0, 0]  # every pixel background: magenta in the HDR target
+        r.settings.background = (0.0, 0.0, 0.0)
+        f = render(r, "reuse", rig)
+        taken = read_map(r._last) >= 0
+        magenta = np.all(f.right.color == bg, axis=-1)
+        assert bg[0] > 200 and bg[1] < 50 and bg[2] > 200
+        assert taken.sum() > 100
+        assert magenta[taken].all()
+        assert not magenta[~taken].any()
+
+
+def test_reuse_small_ipd_error_bound(raster_room):
+    rig = StereoRig.for_scene(raster_room.scene, size=SIZE, ipd=0.02)
+    dual, reuse = render(raster_room, "dual", rig), render(raster_room, "reuse", rig)
+    assert np.array_equal(dual.left.color, reuse.left.color)
+    assert np.array_equal(dual.right.depth, reuse.right.depth)
+    # Copied view-dependent shading (specular) and a half-pixel resampling: small.
+    assert mean_abs(dual.right.color, reuse.right.color) < 1.5
+
+
+def test_warp_ipd0_equals_the_central_view(room):
+    rig = StereoRig.for_scene(room.scene, size=SIZE, ipd=0.0)
+    central = render(room, "dual", rig)  # IPD 0: both eyes are the central view
+    f = render(room, "warp", rig)
+    for eye in ("left", "right"):
+        assert np.array_equal(f[eye].color, central[eye].color)
+        np.testing.assert_allclose(f[eye].depth, central[eye].depth, rtol=1e-4)
+    c = room.stereo_counts()
+    assert c["disoccluded_left"] == c["offscreen_left"] == c["disoccluded_right"] == c["offscreen_right"] == 0
+
+
+def test_warp_small_ipd_error_bound_and_holes_counted(raster_room):
+    rig = StereoRig.for_scene(raster_room.scene, size=SIZE, ipd=0.02)
+    dual, warp = render(raster_room, "dual", rig), render(raster_room, "warp", rig)
+    c = raster_room.stereo_counts()
+    holes = read_holes(raster_room._last)
+    for i, eye in enumerate(("left", "right")):
+        assert mean_abs(dual[eye].color, warp[eye].color) < 2.0
+        d = np.abs(dual[eye].depth - warp[eye].depth)
+        both = (dual[eye].depth > 0) & (warp[eye].depth > 0)
+        assert np.median(d[both] / dual[eye].depth[both]) < 1e-3
+        assert np.isfinite(warp[eye].depth).all()
+        assert holes[i].sum() == c[f"disoccluded_{eye}"] + c[f"offscreen_{eye}"]
+        assert c[f"hole_fraction_{eye}"] < 0.01
+
+
+def symmetric_scene():
+    v, f, _ = merge(quad((0, 0, -6), (5, 0, 0), (0, 5, 0)), quad((-1.0, 0, -3.0), (0.4, 0, 0), (0, 1.5, 0)),
+                    quad((1.0, 0, -3.0), (0.4, 0, 0), (0, 1.5, 0)), quad((0, 0, -2.0), (0.3, 0, 0), (0, 0.3, 0)))
+    return from_arrays(v, f)
+
+
+def test_warp_holes_are_disocclusions_and_symmetric(gl):
+    scene = symmetric_scene()
+    rig = StereoRig(Pose.look_at([0, 0, 0.5], [0, 0, -5]), ipd=0.3, fov_y=60, size=(63, 41))
+    with Renderer(scene, None, gl=gl) as r:
+        central = render(r, "dual", replace(rig, ipd=0.0))
+        warp = render(r, "warp", rig)
+        holes = read_holes(r._last)
+        c = r.stereo_counts()
+    assert c["disoccluded_left"] > 0 and c["disoccluded_right"] > 0
+    # Left/right symmetry: the mirrored left eye is the right eye (holes and depth).
+    assert abs(int(holes[0].sum()) - int(holes[1].sum())) <= 2
+    assert (holes[0][:, ::-1] == holes[1]).mean() > 0.995
+    dl, dr = warp.left.depth[:, ::-1], warp.right.depth
+    assert (np.abs(dl - dr) <= 1e-3 * np.maximum(dl, 1e-9)).mean() > 0.98
+    # Holes are rays that passed behind a surface of the central view: beside one of its depth
+    # discontinuities (a nearer and a farther surface, or a surface and the background, within
+    # the disparity of a few pixels).
+    d = central.left.depth
+    for i in range(2):
+        ys, xs = np.nonzero(holes[i])
+        for y, x in zip(ys, xs):
+            w = d[y, max(x - 3, 0):x + 4]
+            assert w.min() == 0 < w.max() or w.max() > 1.2 * w.min(), (i, y, x, w)
+    for eye in ("left", "right"):
+        assert np.isfinite(warp[eye].depth).all()
+
+
+def test_cli_stereo(tmp_path):
+    run = lambda *a: subprocess.run([sys.executable, "-m", "rayvr", *a], capture_output=True, text=True)  # noqa: E731
+    p = run("capture", "--stereo", "warp", "--size", "32x24", "--out", str(tmp_path), "-q")
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "frame_left.png").exists() and (tmp_path / "frame_right.png").exists()
+    p = run("capture", "--stereo", "warp", "--aux", "normal", "--size", "32x24", "--out", str(tmp_path), "-q")
+    assert p.returncode == 2 and "warp" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    p = run("capture", "--stereo", "triple", "--out", str(tmp_path))
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1
+
+
+def test_preview_b_key_cycles_the_stereo_mode():
+    from rayvr.preview import Camera, Controls, ViewState
+
+    rig = StereoRig(Pose.look_at([0.0, 0.0, 5.0], [0.0, 0.0, 0.0]), size=(64, 48))
+    c = Controls(Camera(rig, center=(0.0, 0.0, 0.0), extent=2.0), ViewState())
+    seen = []
+    for _ in range(3):
+        c.key("B", "press")
+        c.key("B", "release")
+        seen.append(c.state.method)
+    assert seen == ["warp", "reuse", "dual"]
+    c.key("B", "press", shift=True)
+    assert c.state.method == "reuse"
