@@ -178,11 +178,11 @@ class Renderer:
         eye_views = rig.eyes(eyes)
         plan = self.plan(len(eye_views), view, eye_views[0].camera, accumulate=sample is not None)
         graph = self.graph.compile(plan)
-        camera = eye_views[0].camera.uniforms(eye_views, self.scene.origin)
+        rendered = stereo_mod.rendered_eyes(rig, eyes, plan.stereo)  # warp: the central view
+        camera = rendered[0].camera.uniforms(rendered, self.scene.origin)
         state = self.accumulator.next(camera, (plan, rig.size, eyes), self.settings, sample)
         settings = replace(self.settings, seed=sample_seed(self.settings.seed, state.sample))
-        fc = FrameContext(self.gl, self.scene, self.gpu_scene, self.accel,
-                          stereo_mod.rendered_eyes(rig, eyes, plan.stereo), plan, settings,
+        fc = FrameContext(self.gl, self.scene, self.gpu_scene, self.accel, rendered, plan, settings,
                           self.sizing(rig.size, plan.layers), samples=state, out_eyes=eye_views)
         self.graph.execute(graph, fc, profile)
         self._last = fc
