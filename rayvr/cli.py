@@ -107,13 +107,17 @@ def add_rig_arguments(p: argparse.ArgumentParser) -> None:
                    help="far plane distance, greater than near (default: infinite, reversed-Z)")
 
 
-def add_stereo_argument(p: argparse.ArgumentParser, more: str = "") -> None:
+def add_stereo_argument(p: argparse.ArgumentParser, more: str = "", warp_layers: bool = False) -> None:
     from .stereo import STEREO_MODES
 
     p.add_argument("--stereo", choices=STEREO_MODES, default="dual",
                    help="how the second eye is made: dual renders both; warp synthesizes both from a central view "
                         "through its screen-space quadtree; reuse gives the right eye the left eye's shading where "
                         f"it sees the same surface{more} (default dual)")
+    if warp_layers:
+        p.add_argument("--warp-layers", type=int, choices=(1, 2), default=2,
+                       help="depth layers of the central view warp traces: 2 (default) finds what lies behind its "
+                            "first surfaces (the second layer, --second-layer), 1 inpaints those disocclusions")
 
 
 def rig_from_args(args, scene):
@@ -144,7 +148,8 @@ def cmd_capture(args) -> int:
                               primary=args.primary, denoise=args.denoise or args.denoise_iterations is not None,
                               denoise_iterations=args.denoise_iterations or RenderSettings.denoise_iterations,
                               accumulate=args.temporal, temporal=args.temporal,
-                              second_layer=args.second_layer, stereo=args.stereo)
+                              second_layer=args.second_layer, stereo=args.stereo,
+                              warp_layers=args.warp_layers)
     with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
         rig = rig_from_args(args, r.scene)
         pick = None
@@ -189,7 +194,7 @@ def print_graph(args) -> int:
                       settings=RenderSettings(primary=args.primary, stereo=args.stereo)) as r:
             plan = r.plan(layers=2, view=args.view)
             graph = compile_graph(candidate_passes(plan), plan)  # passes are not built: nothing compiles
-            print(graph.dot() if args.graph == "dot" else graph.describe(r.sizing(args.size, plan.layers)), end="")
+            print(graph.dot() if args.graph == "dot" else graph.describe(r.sizing(args.size, plan.layers, plan)), end="")
     finally:
         gl.release()
     if args.graph != "dot":
@@ -397,7 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how the second depth layer (ssr layers = 2) is made: primary rays continued through the "
                         "BVH, or depth peeling in the raster (rayvr bench ssrt times both)")
     c.add_argument("--backend", choices=("egl", "osmesa"), help="headless GL backend (default: egl, then osmesa)")
-    add_stereo_argument(c)
+    add_stereo_argument(c, warp_layers=True)
 
     c.add_argument("-q", "--quiet", action="store_true")
     add_rig_arguments(c)

@@ -59,6 +59,7 @@ class RenderSettings:
     # through the BVH, "peel" rasterizes again behind the first layer (rayvr bench ssrt times both).
     second_layer: str = "rays"
     stereo: str = "dual"  # how the second eye is made: rayvr/stereo.py STEREO_MODES
+    warp_layers: int = 2  # depth layers of the central view `warp` traces (2: disocclusions from the second)
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
@@ -73,6 +74,8 @@ class RenderSettings:
         if self.second_layer not in SECOND_LAYER_MODES:
             raise ValueError(f"unknown second layer {self.second_layer!r}; allowed: {', '.join(SECOND_LAYER_MODES)}")
         stereo_mod.check_mode(self.stereo)
+        if self.warp_layers not in (1, 2):
+            raise ValueError(f"warp_layers must be 1 or 2, got {self.warp_layers!r}")
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:
@@ -154,7 +157,8 @@ class Renderer:
                          layer_mode=self.layer_mode, primary=primary, camera=camera.name, stereo=stereo,
                          output=stereo_mod.WARP_OUTPUT if warp else "ldr", users=users,
                          accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise,
-                         depth_layers=depth_layers(self.assignments), second_layer=second)
+                         depth_layers=max(depth_layers(self.assignments), st.warp_layers if warp else 1),
+                         second_layer=second)
 
     def set_stereo(self, mode: str) -> None:
         """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/stereo.py)."""
@@ -165,9 +169,10 @@ class Renderer:
         resources, reasons; `.describe(sizing)` and `.dot()` print it."""
         return self.graph.compile(plan or self.plan())
 
-    def sizing(self, size, layers: int = 2) -> Sizing:
+    def sizing(self, size, layers: int = 2, plan: FramePlan | None = None) -> Sizing:
+        """What `plan`'s resources are sized by (its depth layers: warp may add one)."""
         return Sizing(tuple(size), layers, self.scene, tuple(self.assignments), self.gl.max_ssbo_bytes,
-                      depth_layers(self.assignments))
+                      plan.depth_layers if plan is not None else depth_layers(self.assignments))
 
     def record(self, rig: StereoRig, eyes: str = "both", view: str = "color", profile: bool = False,
                sample: int | None = None) -> FrameContext:
@@ -183,7 +188,7 @@ class Renderer:
         state = self.accumulator.next(camera, (plan, rig.size, eyes), self.settings, sample)
         settings = replace(self.settings, seed=sample_seed(self.settings.seed, state.sample))
         fc = FrameContext(self.gl, self.scene, self.gpu_scene, self.accel, rendered, plan, settings,
-                          self.sizing(rig.size, plan.layers), samples=state, out_eyes=eye_views)
+                          self.sizing(rig.size, plan.layers, plan), samples=state, out_eyes=eye_views)
         self.graph.execute(graph, fc, profile)
         self._last = fc
         return fc
@@ -303,14 +308,14 @@ class Renderer:
         if host > ram / 2:
             raise FrameTooLarge(f"a {w}x{h} eye image ({layers} eye(s)) needs about {host / 2**30:.1f} GiB "
                                 f"of host memory for its pixels, of {ram / 2**30:.1f} GiB")
-        if not limit_problems(graph, self.sizing((w, h), layers), self.graph.limits):
+        if not limit_problems(graph, self.sizing((w, h), layers, plan), self.graph.limits):
             return [(0, 0, w, h)]
         if not tileable:
-            check_fits(graph, self.sizing((w, h), layers), self.graph.limits)  # raises, saying why
+            check_fits(graph, self.sizing((w, h), layers, plan), self.graph.limits)  # raises, saying why
         nx = ny = 1
-        while limit_problems(graph, self.sizing((-(-w // nx), -(-h // ny)), layers), self.graph.limits):
+        while limit_problems(graph, self.sizing((-(-w // nx), -(-h // ny)), layers, plan), self.graph.limits):
             if nx * ny >= MAX_TILES:
-                check_fits(graph, self.sizing((w, h), layers), self.graph.limits)
+                check_fits(graph, self.sizing((w, h), layers, plan), self.graph.limits)
             nx, ny = (nx * 2, ny) if -(-w // nx) >= -(-h // ny) else (nx, ny * 2)
         xs = [w * i // nx for i in range(nx + 1)]
         ys = [h * j // ny for j in range(ny + 1)]

@@ -7,8 +7,9 @@
             shaded (classify and shade skip the others), for every effect
     warp    Widmer et al. 2015 §5.1: one central view (between the eyes) is rendered and shaded;
             each eye is synthesized by tracing its camera rays through the central view's quadtree
-            (passes/warp.py); disocclusions and rays that leave the central image are holes,
-            counted and inpainted from the background side
+            (passes/warp.py), two depth layers by default (the second layer's surfaces shaded
+            as the `raster` rung); rays that pass behind every layer or leave the central image
+            are holes, counted and inpainted from the background side
 
 The mode is a render setting (`RenderSettings.stereo`, `--stereo`); it enters the FramePlan, so
 the frame graph compiles the passes the mode needs and no others. A frame of one eye has no

@@ -13,7 +13,7 @@ from rayvr.camera import Pose, StereoRig
 from rayvr.frame import FramePlan, compile_graph
 from rayvr.passes.reuse import read_map, reference_map
 from rayvr.passes.warp import read_holes
-from rayvr.renderer import Renderer, candidate_passes
+from rayvr.renderer import Renderer, RenderSettings, candidate_passes
 from rayvr.scene import from_arrays
 
 SIZE = (64, 48)
@@ -174,13 +174,21 @@ def symmetric_scene():
 
 
 def test_warp_holes_are_disocclusions_and_symmetric(gl):
+    """One depth layer: rays that pass behind a surface of the central view are holes, beside its
+    depth discontinuities, mirror-symmetric between the eyes. Two layers: those pixels become hits
+    on the second layer, at the depth and in the colour the eye's own (dual) render has there."""
     scene = symmetric_scene()
     rig = StereoRig(Pose.look_at([0, 0, 0.5], [0, 0, -5]), ipd=0.3, fov_y=60, size=(63, 41))
-    with Renderer(scene, None, gl=gl) as r:
+    with Renderer(scene, None, gl=gl, settings=RenderSettings(warp_layers=1)) as r:
         central = render(r, "dual", replace(rig, ipd=0.0))
+        dual = render(r, "dual", rig)
         warp = render(r, "warp", rig)
         holes = read_holes(r._last)
         c = r.stereo_counts()
+        r.settings.warp_layers = 2
+        warp2 = render(r, "warp", rig)
+        holes2 = read_holes(r._last)
+        c2 = r.stereo_counts()
     assert c["disoccluded_left"] > 0 and c["disoccluded_right"] > 0
     # Left/right symmetry: the mirrored left eye is the right eye (holes and depth).
     assert abs(int(holes[0].sum()) - int(holes[1].sum())) <= 2
@@ -196,8 +204,17 @@ def test_warp_holes_are_disocclusions_and_symmetric(gl):
         for y, x in zip(ys, xs):
             w = d[y, max(x - 3, 0):x + 4]
             assert w.min() == 0 < w.max() or w.max() > 1.2 * w.min(), (i, y, x, w)
-    for eye in ("left", "right"):
-        assert np.isfinite(warp[eye].depth).all()
+    # The second layer answers them: fewer holes, and where the one-layer warp had a hole behind a
+    # surface the two-layer warp sees what the eye sees (depth and colour of the eye's own render).
+    assert holes2.sum() < holes.sum() and c2["hits_second_layer_left"] > 0
+    for i, eye in enumerate(("left", "right")):
+        seen = holes[i] & (dual[eye].depth > 0)  # the eye sees a surface there; else the background
+        m = seen & ~holes2[i]
+        assert m.sum() >= 0.8 * seen.sum() > 0
+        assert (warp2[eye].depth[holes[i] & ~seen] == 0).mean() >= 0.8
+        np.testing.assert_allclose(warp2[eye].depth[m], dual[eye].depth[m], rtol=1e-3)
+        assert np.abs(warp2[eye].color[m].astype(int) - dual[eye].color[m].astype(int)).max() <= 2
+        assert np.isfinite(warp[eye].depth).all() and np.isfinite(warp2[eye].depth).all()
 
 
 def test_cli_stereo(tmp_path):

@@ -1,6 +1,6 @@
 """`rayvr bench stereo`: the stereo modes (rayvr/stereo.py) against each other on the same frame.
 
-Per scene and mode (dual, warp, reuse), the benchmark's effect config (the room's shipped config;
+Per scene and mode (dual, warp with two and with one depth layer, reuse), the benchmark's effect config (the room's shipped config;
 Sponza's hybrid frame of `rayvr bench rays`, floors on BVH reflections), both eyes:
   - GPU ms per pass and per frame (median over `repeat` frames after timing.settle warm-up), and
     the frame of the left eye alone (`mono_ms`); `second_eye_share` = (frame - mono) / mono, the
@@ -10,7 +10,8 @@ Sponza's hybrid frame of `rayvr bench rays`, floors on BVH reflections), both ey
     shading copied across eyes, resampling, inpainted holes) and against `dual` with another seed
     (DESIGN: a reference and its variant never share a seed); `noise_floor` is dual against dual
     with the other seed, the sampling noise both numbers sit on;
-  - warp: hole fraction per eye (disoccluded + off screen) and quadtree nodes per pixel;
+  - warp: hole fraction per eye (disoccluded + off screen), the share of pixels found on the
+    central view's second depth layer, and quadtree nodes per pixel;
     reuse: the share of right-eye pixels that took the left eye's shading.
 """
 from __future__ import annotations
@@ -23,11 +24,12 @@ from ..context import create_context
 from ..materials import load_config
 from ..renderer import Renderer, RenderSettings
 from ..scene import ASSETS_DIR
-from ..stereo import STEREO_MODES
 from .rays import hybrid_config, time_frame
 from .report import device_meta, write_report
 from .scenes import bench_scenes
 
+# (mode, warp depth layers), dual first: every other row is judged against it
+VARIANTS = (("dual", 0), ("warp", 2), ("warp", 1), ("reuse", 0))
 REFERENCE_SEED = 1  # dual with another seed: the reference that does not share the variants' seed 0
 
 
@@ -59,30 +61,34 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=2
                 ref = r.render(rig)
                 r.settings.seed = 0
                 images, counts = {}, {}
-                for mode in STEREO_MODES:
+                for mode, layers in VARIANTS:
                     r.set_stereo(mode)
+                    r.settings.warp_layers = layers or 2
                     names, med, total = time_frame(r, rig, repeat, warmup=3)
-                    images[mode] = r.render(rig)
-                    counts[mode] = r.stereo_counts()
-                    rows.append({"scene": name, "size": f"2x{size[0]}x{size[1]}", "mode": mode, "frame_ms": total,
-                                 "mono_ms": mono, "second_eye_share": (total - mono) / mono if mono > 0 else None,
+                    images[mode, layers] = r.render(rig)
+                    counts[mode, layers] = r.stereo_counts()
+                    rows.append({"scene": name, "size": f"2x{size[0]}x{size[1]}", "mode": mode,
+                                 "warp_layers": layers or None, "frame_ms": total, "mono_ms": mono,
+                                 "second_eye_share": (total - mono) / mono if mono > 0 else None,
                                  "pass_ms": {k: med[k] for k in names if k in med}})
                 r.set_stereo("dual")
-                for row in rows[-len(STEREO_MODES):]:
-                    img = images[row["mode"]]
+                for row in rows[-len(VARIANTS):]:
+                    key = (row["mode"], row["warp_layers"] or 0)
+                    img = images[key]
                     for eye in ("left", "right"):
-                        row[f"flip_vs_dual_{eye}"] = metrics.flip(images["dual"][eye].color, img[eye].color)
+                        row[f"flip_vs_dual_{eye}"] = metrics.flip(images["dual", 0][eye].color, img[eye].color)
                         row[f"flip_vs_dual_other_seed_{eye}"] = metrics.flip(ref[eye].color, img[eye].color)
-                    c = counts[row["mode"]]
+                    c = counts[key]
                     if row["mode"] == "warp":
                         for eye in ("left", "right"):
                             row[f"hole_fraction_{eye}"] = c[f"hole_fraction_{eye}"]
+                            row[f"second_layer_fraction_{eye}"] = c[f"hits_second_layer_{eye}"] / c[f"pixels_{eye}"]
                             row[f"nodes_per_pixel_{eye}"] = c[f"nodes_{eye}"] / c[f"pixels_{eye}"]
                     if row["mode"] == "reuse":
                         row["reused_fraction_right"] = c["reused"] / c["right_pixels"]
-                    row["noise_floor_right"] = metrics.flip(ref.right.color, images["dual"].right.color)
+                    row["noise_floor_right"] = metrics.flip(ref.right.color, images["dual", 0].right.color)
                     if progress:
-                        print(f"  {name:8s} {row['mode']:6s} frame {row['frame_ms']:.3f} ms (mono {mono:.3f}), "
+                        print(f"  {name:8s} {row['mode']:6s}{row['warp_layers'] or '':1} frame {row['frame_ms']:.3f} ms (mono {mono:.3f}), "
                               f"second eye {row['second_eye_share'] or 0:.2f} of one, FLIP vs dual right "
                               f"{row['flip_vs_dual_right']:.4f}")
         meta = {**device_meta(gl.info()), "bench": "stereo", "per_eye_size": list(size), "repeat": repeat,

@@ -6,8 +6,9 @@ foreground object (disocclusions) or leave the central image are holes: counted 
 inpainted from the background side. Writes the eyes' colour ("stereo_ldr", the frame's output:
 alpha 0 marks a hole) and linear view depth ("stereo_depth").
 
-Single layer for now: a second depth layer of the central view (depth peeling or ray-traced, the
-`quadtree` helper's work) would let the holes be traced instead of inpainted.
+With two depth layers (FramePlan.depth_layers, RenderSettings.warp_layers) a ray that passes
+behind a first-layer surface continues on the central view's second layer (passes/second_layer.py),
+and a hit there is shaded from the scene like the `raster` rung.
 """
 from __future__ import annotations
 
@@ -16,20 +17,23 @@ import numpy as np
 
 from .. import shaders
 from ..frame import Buffer, FramePlan, Pass, Texture, read, write
-from ..gpu_layout import IMAGE, SSBO
+from ..gpu_layout import IMAGE, SSBO, TONEMAPPERS, UNIT
 from ..stereo import WARP_DEPTH, WARP_OUTPUT
 from .compute import TILE, camera_defines
 from .quadtree import set_tree_uniforms
 
-THICKNESS = 0.02  # a hit this far (relative z) behind the surface at its pixel passed behind it: a hole
-COUNTS = ("disoccluded", "offscreen", "hits", "nodes")  # per eye, glsl/stereo/warp.comp
-WARP_COUNTS = Buffer(lambda s: 16 * 2, "per eye: holes (disoccluded, off screen), hits, nodes tested")
+THICKNESS = 0.02  # each surface of the central view is a slab this deep (relative z); behind it: occluded
+# Per eye, in glsl/stereo/warp.comp's order: holes (passed behind every layer, left the image), hits
+# on the first and the second depth layer, background, nodes tested.
+COUNTS = ("disoccluded", "offscreen", "hits", "hits_second_layer", "background", "nodes")
+WARP_COUNTS = Buffer(lambda s: 4 * len(COUNTS) * 2, "per eye: holes (disoccluded, off screen), hits per layer, "
+                     "background, nodes tested")
 
 
 def warp_counts(fc) -> dict:
     """Per eye of frame `fc` (reads back): pixels, holes by disocclusion and off screen, hits and
     the nodes their rays tested; "hole_fraction_<eye>" = holes / pixels."""
-    a = np.frombuffer(fc.resource("warp_counts").read(), np.uint32).reshape(2, 4)
+    a = np.frombuffer(fc.resource("warp_counts").read(), np.uint32).reshape(2, len(COUNTS))
     w, h = fc.gbuffer.size
     out = {}
     for i, eye in enumerate(fc.out_eyes):
@@ -57,18 +61,28 @@ class WarpPass(Pass):
         return "stereo = warp" if plan.stereo == "warp" else None
 
     def io(self, plan: FramePlan) -> list:
-        return [read("gbuffer"), read("quadtree"), read("ldr"), write(WARP_OUTPUT, Texture("rgba8", layers=2)),
-                write(WARP_DEPTH, Texture("r32f", layers=2)), write("warp_counts", WARP_COUNTS)]
+        second = [read("layer2_triangle")] if plan.depth_layers > 1 else []  # its surfaces are shaded here
+        return [read("gbuffer"), read("quadtree"), read("ldr")] + second + \
+            [write(WARP_OUTPUT, Texture("rgba8", layers=2)), write(WARP_DEPTH, Texture("r32f", layers=2)),
+             write("warp_counts", WARP_COUNTS)]
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.program = shaders.compute(gl.ctx, "stereo/warp.comp", camera_defines(plan))
+        self.layers = plan.depth_layers
+        self.program = shaders.compute(gl.ctx, "stereo/warp.comp", {**camera_defines(plan), "WARP_LAYERS": self.layers})
 
     def execute(self, fc) -> None:
         p = self.program
         center = fc.eyes[0]
-        set_tree_uniforms(p, fc.gbuffer.size)
+        set_tree_uniforms(p, fc.gbuffer.size, 1)
         p["warp_thickness"].value = self.thickness
         fc.gbuffer.bind_for_reading()
+        if self.layers > 1:  # second-layer hits are shaded from the scene (the raster rung)
+            fc.gpu_scene.bind()
+            fc.gpu_scene.textures.use(UNIT["base_color_textures"])
+            fc.resource("layer2_triangle").use(UNIT["layer2_triangle"])
+            p["ambient"].value = tuple(fc.settings.ambient)
+            p["exposure"].value = float(fc.settings.exposure)
+            p["tonemapper"].value = TONEMAPPERS.index(fc.settings.tonemapper)
         fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
         counts = fc.resource("warp_counts")
         counts.write(bytes(counts.size))
