@@ -333,6 +333,37 @@ def test_window_shows_exactly_the_headless_capture(worker, gl):
     assert diff.max() <= 2.5, f"anaglyph: max {diff.max()}"
 
 
+def _window_stereo_methods(size):
+    """The window (side-by-side, HUD off) with each way of making the second eye (B cycles)."""
+    p = _preview(size=size, hud=False)  # all raster: no sampled effect for the preview to accumulate
+    try:
+        out = {}
+        for _ in range(3):
+            p.frame()
+            out[p.state.method] = (p.frame(grab=True), p.last_frame.plan.stereo, p.last_frame.pass_names)
+            _press(p, __import__("glfw").KEY_B)
+        return out, p.camera.rig((1, 1)), "\n".join(t for t, _ in p.hud_lines(p.last_layout, (size[0], size[1])))
+    finally:
+        p.close()
+
+
+def test_window_shows_each_stereo_method_as_captured(worker, gl):
+    from rayvr import Renderer
+    from rayvr.renderer import RenderSettings
+
+    w, h = 64, 48
+    images, rig, hud = worker(_window_stereo_methods, (2 * w, h))
+    assert set(images) == {"dual", "warp", "reuse"} and "second eye: dual" in hud
+    for method, (img, planned, passes) in images.items():
+        assert planned == method
+        assert ("warp" in passes) == (method == "warp") and ("reuse_map" in passes) == (method == "reuse")
+        with Renderer(None, None, gl=gl, settings=RenderSettings(stereo=method)) as r:
+            f = r.render(rig.with_size((w, h)))
+        for half, eye in ((img[:, :w], f.left.color), (img[:, w:], f.right.color)):
+            diff = np.abs(half.astype(int) - eye.astype(int))
+            assert diff.max() <= 2 and diff.mean() < 0.05, (method, diff.max(), diff.mean())
+
+
 def _events():
     import glfw
 
