@@ -144,6 +144,9 @@ def cmd_capture(args) -> int:
 
         openexr()  # the optional package, before any work
     aux = tuple(a for a in (args.aux or "").split(",") if a)
+    if args.stereo == "warp" and args.format == "exr" and args.eye == "both" and args.view == "color":
+        raise ValueError("--format exr writes the linear HDR colour, which --stereo warp does not make "
+                         "(it warps the displayed colour): use --stereo dual or reuse")
     settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode,
                               primary=args.primary, denoise=args.denoise or args.denoise_iterations is not None,
                               denoise_iterations=args.denoise_iterations or RenderSettings.denoise_iterations,

@@ -224,6 +224,8 @@ def test_cli_stereo(tmp_path):
     assert (tmp_path / "frame_left.png").exists() and (tmp_path / "frame_right.png").exists()
     p = run("capture", "--stereo", "warp", "--aux", "normal", "--size", "32x24", "--out", str(tmp_path), "-q")
     assert p.returncode == 2 and "warp" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    p = run("capture", "--stereo", "warp", "--format", "exr", "--out", str(tmp_path))
+    assert p.returncode == 2 and "exr" in p.stderr and len(p.stderr.strip().splitlines()) == 1
     p = run("capture", "--stereo", "triple", "--out", str(tmp_path))
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1
 
@@ -241,3 +243,27 @@ def test_preview_b_key_cycles_the_stereo_mode():
     assert seen == ["warp", "reuse", "dual"]
     c.key("B", "press", shift=True)
     assert c.state.method == "reuse"
+
+
+@pytest.mark.parametrize("mode", ["warp", "reuse"])
+def test_tiled_frames_keep_the_stereo_mode(gl, mode):
+    """A frame too large for the device renders in tiles; each tile is the same mode on an off-axis
+    part of every eye's frustum (the central view's too): at IPD 0 the tiled eyes equal the whole
+    frame's (but for rounding), and at a small IPD they differ only where a ray or a reused hit
+    crossed a tile edge."""
+    from rayvr.frame import DeviceLimits
+
+    with Renderer(None, None, gl=gl, settings=RenderSettings(stereo=mode)) as r:
+        for ipd, bound in ((0.0, 0.01), (0.02, 1.5)):
+            rig = StereoRig.for_scene(r.scene, size=(61, 45), ipd=ipd)
+            r.graph.limits = DeviceLimits.of(gl)
+            whole = r.render(rig)
+            r.graph.limits = DeviceLimits(max_texture_size=32, max_ssbo_bytes=1 << 31, memory_bytes=None)
+            assert len(r.tiles(rig)) == 4
+            tiled = r.render(rig)
+            for eye in ("left", "right"):
+                assert mean_abs(whole[eye].color, tiled[eye].color) <= bound, (ipd, eye)
+                if ipd == 0.0:  # the same rays: equal but for rounding
+                    assert np.abs(whole[eye].color.astype(int) - tiled[eye].color.astype(int)).max() <= 2
+            if ipd == 0.0:
+                assert np.array_equal(tiled.left.color, tiled.right.color)
