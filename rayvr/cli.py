@@ -152,7 +152,7 @@ def cmd_capture(args) -> int:
                               denoise_iterations=args.denoise_iterations or RenderSettings.denoise_iterations,
                               accumulate=args.temporal, temporal=args.temporal,
                               second_layer=args.second_layer, stereo=args.stereo,
-                              warp_layers=args.warp_layers)
+                              warp_layers=args.warp_layers, quadtree_adapt=args.quadtree_adapt)
     with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
         rig = rig_from_args(args, r.scene)
         pick = None
@@ -299,7 +299,7 @@ def cmd_bench(args) -> int:
 
         ssrt.run(out, size=(64, 48) if quick else args.size,
                  scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                 repeat=2 if quick else args.repeat, backend=args.backend)
+                 repeat=2 if quick else args.repeat, backend=args.backend, quick=quick)
     elif args.area == "photon":
         from .bench import photon
 
@@ -404,6 +404,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--second-layer", choices=("rays", "peel"), default="rays",
                    help="how the second depth layer (ssr layers = 2) is made: primary rays continued through the "
                         "BVH, or depth peeling in the raster (rayvr bench ssrt times both)")
+    c.add_argument("--quadtree-adapt", type=_number(0, 1e6, lo_open=False), default=0.0,
+                   help="distance-adaptive quadtree thresholds (Widmer et al. §6): gamma_dist and the normal "
+                        "angle grow by 1 + this x the node's view depth (scene units); 0 = off")
     c.add_argument("--backend", choices=("egl", "osmesa"), help="headless GL backend (default: egl, then osmesa)")
     add_stereo_argument(c, warp_layers=True)
 

@@ -60,6 +60,7 @@ class RenderSettings:
     second_layer: str = "rays"
     stereo: str = "dual"  # how the second eye is made: rayvr/stereo.py STEREO_MODES
     warp_layers: int = 2  # depth layers of the central view `warp` traces (2: disocclusions from the second)
+    quadtree_adapt: float = 0.0  # §6 distance-adaptive quadtree thresholds (accel/quadtree.py adaptive_thresholds)
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
@@ -71,6 +72,8 @@ class RenderSettings:
                              f"got {self.denoise_iterations!r}")
         if self.primary not in PRIMARY_MODES:
             raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
+        if not (np.isfinite(self.quadtree_adapt) and self.quadtree_adapt >= 0):
+            raise ValueError(f"quadtree_adapt must be a number >= 0, got {self.quadtree_adapt}")
         if self.second_layer not in SECOND_LAYER_MODES:
             raise ValueError(f"unknown second layer {self.second_layer!r}; allowed: {', '.join(SECOND_LAYER_MODES)}")
         stereo_mod.check_mode(self.stereo)

@@ -10,10 +10,18 @@ def test_bench_ssrt_quick_writes_quadtree_dda_and_hiz_rows(tmp_path):
     assert run.returncode == 0, run.stderr[-3000:]
     result = json.loads((tmp_path / "ssrt.json").read_text())
     rows = result["rows"]
-    assert {r["tracer"] for r in rows} == {"quadtree", "dda", "hiz", "frame:reflections", "frame:ssr"}
+    frames = {r["tracer"] for r in rows if r["tracer"].startswith("frame:")}
+    assert {r["tracer"] for r in rows} - frames == {"quadtree", "dda", "hiz"}
+    assert {"frame:reflections", "frame:ssr", "frame:ssr:layers2:rays", "frame:ssr:layers2:peel",
+            "frame:ssr:adapt"} <= frames and any(f.startswith("frame:ssr:gamma") for f in frames)
+    peel = next(r for r in rows if r["tracer"] == "frame:ssr:layers2:peel")
+    assert "second_layer" in peel["pass_ms"] and peel["layer2_agrees_with_rays"] > 0.95
+    assert {r["start_level"] for r in rows if r["tracer"] == "quadtree"} == {16, 6, 4}
+    matched = result["meta"]["matched_error"]
+    assert matched and all(0 <= r["quadtree_pixel_agreement"] <= 1 for r in matched)
     assert result["meta"]["gl_renderer"]
     lossless = next(r for r in rows if r["tracer"] == "quadtree" and r["gamma_norm"] == 1.0)
-    merged = next(r for r in rows if r["tracer"] == "quadtree" and r["gamma_norm"] < 1.0)
+    merged = next(r for r in rows if r["tracer"] == "quadtree" and r["gamma_norm"] < 1.0 and r["start_level"] == 16)
     assert merged["nodes_mean"] < lossless["nodes_mean"]  # merged planes skip nodes
     assert all(r["status_agrees_with_quadtree"] > 0.9 for r in rows if r["tracer"] == "dda")
     hiz = [r for r in rows if r["tracer"] == "hiz"]

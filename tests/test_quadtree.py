@@ -661,3 +661,48 @@ def test_tracer_times_build_and_trace(analytic):
     t = L.tracer(**LOSSLESS).time(L.rig, o, d, 0, repeats=2, min_seconds=0.0)
     assert t["rays"] == 200 and t["rays_per_s"] > 0 and t["build"]["ms"] > 0
     check_against_brute_force(L, o[:20], d[:20], 0)  # the tracer still traces after timing
+
+
+@pytest.mark.parametrize("start", [0, 2, 4])
+def test_walks_started_below_the_root_find_the_same(analytic, start):
+    """Starting the walk on a lower level (the node holding the ray's start) changes the nodes
+    tested, not the answer: numpy and GPU against the root start on the lossless tree; on a merged
+    tree a start below a merged plane meets the finer planes first: the same statuses, hits
+    within the merge bound (gamma_dist, relative)."""
+    L = analytic["sphere"]
+    rng = np.random.default_rng(17)
+    o, d = random_rays(rng, L, 0, 60)
+    for gammas, tol in ((LOSSLESS, 1e-5), (LOSSY, 3 * LOSSY["gamma_dist"])):
+        tr = L.tracer(**gammas)
+        levels = tr.levels(0)
+        root = tr.trace_layers(o, d, 0)
+        low = tr.trace_layers(o, d, 0, start_level=start)
+        assert (low[0] == root[0]).all()
+        hit = root[0] == qt.HIT
+        assert np.allclose(low[3][hit][:, 2], root[3][hit][:, 2], rtol=tol, atol=0)
+        assert np.abs(low[3][hit][:, :2] - root[3][hit][:, :2]).max() < 1.0
+        if gammas is LOSSLESS:
+            for i in range(len(o)):
+                a = qt.trace_quadtree_reference(levels, L.cams[0], o[i], d[i])
+                b = qt.trace_quadtree_reference(levels, L.cams[0], o[i], d[i], start_level=start)
+                assert same(a, b), (i, a, b)
+
+
+def test_distance_adaptive_thresholds(analytic):
+    """§6: with gamma_adapt the thresholds grow with the node's view depth: the GPU build equals
+    the numpy one, more nodes merge than with the fixed thresholds, and the far floor (a plane)
+    merges while hits stay within the bound that the grown gamma_dist gives."""
+    L = analytic["sphere"]
+    adapt = dict(LOSSY, gamma_adapt=0.5)
+    tr = L.tracer(**adapt)
+    for layer in (0, 1):
+        assert_same_tree(tr.levels(layer), L.build(layer, **adapt))
+    paper = dict(gamma_norm=math.cos(math.radians(3)), gamma_dist=1e-5)   # the paper's preset
+    planes = sum(qt.decode(lv).plane.sum() for lv in L.build(0, **paper, gamma_adapt=0.5)[1:])
+    fixed = sum(qt.decode(lv).plane.sum() for lv in L.build(0, **paper)[1:])
+    assert planes > fixed, (planes, fixed)
+    gn, gd = qt.adaptive_thresholds(LOSSY["gamma_norm"], LOSSY["gamma_dist"], 0.5, np.array([0.0, 6.0]))
+    assert gd[0] == LOSSY["gamma_dist"] and gd[1] == pytest.approx(4 * LOSSY["gamma_dist"])
+    assert gn[0] == pytest.approx(LOSSY["gamma_norm"]) and gn[1] == pytest.approx(math.cos(math.radians(40)))
+    gn, gd = qt.adaptive_thresholds(LOSSY["gamma_norm"], LOSSY["gamma_dist"], 0.0, np.array([6.0]))
+    assert gd[0] == LOSSY["gamma_dist"] and gn[0] == LOSSY["gamma_norm"]

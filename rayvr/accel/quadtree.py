@@ -266,7 +266,18 @@ def plane_normals(z0, sx, sy, xc, yc, cam: ScreenCamera):
     return n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
 
 
-def build_reference(position, normal, cam: ScreenCamera, gamma_norm: float = 1.0, gamma_dist: float = 0.0):
+def adaptive_thresholds(gamma_norm, gamma_dist, gamma_adapt, view_depth):
+    """The distance-adaptive thresholds of §6: gamma_dist and the angle acos(gamma_norm) grow by
+    the factor 1 + gamma_adapt x view_depth (the node's mean, scene units; the angle capped at
+    90 degrees): far nodes, whose depth errors move hits by fewer pixels, merge more. 0: off."""
+    f = 1.0 + gamma_adapt * view_depth
+    if gamma_adapt <= 0:
+        return np.broadcast_to(gamma_norm, np.shape(f)), np.broadcast_to(gamma_dist, np.shape(f))
+    return np.cos(np.minimum(np.arccos(np.clip(gamma_norm, -1, 1)) * f, np.pi / 2)), gamma_dist * f
+
+
+def build_reference(position, normal, cam: ScreenCamera, gamma_norm: float = 1.0, gamma_dist: float = 0.0,
+                    gamma_adapt: float = 0.0):
     """The numpy build of one layer: list of (h_k, w_k, 2) uint32 node arrays, leaves first."""
     W, H = cam.size
     sizes = level_sizes(W, H)
@@ -275,11 +286,11 @@ def build_reference(position, normal, cam: ScreenCamera, gamma_norm: float = 1.0
     leaf = np.where(geo[..., None], encode_planes(z0, sx, sy, flag), encode_aabbs(0.0, 0.0, flag))
     levels = [leaf]
     for k in range(1, len(sizes)):
-        levels.append(_build_level(levels[-1], k, cam, gamma_norm, gamma_dist))
+        levels.append(_build_level(levels[-1], k, cam, gamma_norm, gamma_dist, gamma_adapt))
     return levels
 
 
-def _build_level(child_nodes, k, cam, gamma_norm, gamma_dist):
+def _build_level(child_nodes, k, cam, gamma_norm, gamma_dist, gamma_adapt=0.0):
     W, H = cam.size
     wk, hk = (W + (1 << k) - 1) >> k, (H + (1 << k) - 1) >> k
     hc, wc = child_nodes.shape[:2]
@@ -327,10 +338,12 @@ def _build_level(child_nodes, k, cam, gamma_norm, gamma_dist):
         zp = q.z0[..., None, None, None] * (1 + q.sx[..., None, None, None] * (xs - xc[..., None, None, None])
                                               + q.sy[..., None, None, None] * (ys - yc[..., None, None, None]))
         rel = np.where(e, np.abs(zp - zc) / zp, 0.0)
-        dist_ok = (np.where(e, zp, 1.0) > 0).all(axis=(2, 3, 4)) & (rel.max(axis=(2, 3, 4)) < gamma_dist)
+        mean_z = np.where(exists, P["z0"], 0.0).sum(axis=(2, 3)) / exists.sum(axis=(2, 3))
+        gn, gd = adaptive_thresholds(gamma_norm, gamma_dist, gamma_adapt, cam.near / mean_z)
+        dist_ok = (np.where(e, zp, 1.0) > 0).all(axis=(2, 3, 4)) & (rel.max(axis=(2, 3, 4)) < gd)
         qn = plane_normals(q.z0, q.sx, q.sy, xc, yc, cam)
         cos = np.where(exists, (cn * qn[:, :, None, None, :]).sum(-1), 1.0).min(axis=(2, 3))
-        ok = all_planes & (pz0 > 0) & np.isfinite(pz0) & dist_ok & (cos >= gamma_norm)
+        ok = all_planes & (pz0 > 0) & np.isfinite(pz0) & dist_ok & (cos >= gn)
     return np.where(ok[..., None], proxy, aabb)
 
 
@@ -518,7 +531,7 @@ def _cell(ray: ScreenRay, ua, ub, z0, sx, sy, xc, yc, thickness, cont):
 
 
 def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float, thickness: float = np.inf,
-          cont: bool = False, max_nodes: int | None = None) -> _Walk:
+          cont: bool = False, max_nodes: int | None = None, start_level: int = MAX_LEVELS) -> _Walk:
     """The stackless traversal of §4 over [u_from, u_to] of one layer's tree, step for step as
     glsl/ssrt/quadtree.glsl qt_walk does it: test the node (AABB: does the ray dip below zmax
     inside it; plane: its slab events, _cell); an AABB hit descends into the child holding the
@@ -526,11 +539,19 @@ def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float,
     the wall the ray leaves by, then climbs findMSB((qx ^ qx') | (qy ^ qy')) levels, to the
     largest node that starts there. Stops at the first event, or (`cont`) at the first surface
     hit only, noting the first occlusion on the way; an AABB the ray crosses wholly below
-    zmin (1 - thickness) is then one occlusion, not descended."""
+    zmin (1 - thickness) is then one occlusion, not descended. The walk starts on `start_level`
+    (capped at the root's) in the node holding p(u_from)."""
     W, H = cam.size
     top = len(levels) - 1
-    k, qx, qy = top, 0, 0
     u = u_from
+    k = min(start_level, top)
+    p0 = ray.s0 + u * ray.sd
+    cell = []
+    for c, dc, extent in ((p0[0], ray.sd[0], W), (p0[1], ray.sd[1], H)):
+        i = int(np.floor(c))
+        i -= 1 if (i == c and dc < 0) else 0             # on a pixel edge: the cell the ray goes into
+        cell.append(min(max(i, 0), extent - 1))
+    qx, qy = min(cell[0] >> k, levels[k].shape[1] - 1), min(cell[1] >> k, levels[k].shape[0] - 1)
     sx_dir, sy_dir = ray.sd[0], ray.sd[1]
     nodes = 0
     u_occ = np.inf
@@ -592,12 +613,13 @@ def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float,
     return _Walk(np.inf, (-1, -1), u_occ, nodes, nodes >= limit)
 
 
-def trace_quadtree_reference(levels, cam: ScreenCamera, origin, direction, max_nodes: int | None = None) -> Trace:
+def trace_quadtree_reference(levels, cam: ScreenCamera, origin, direction, max_nodes: int | None = None,
+                             start_level: int = MAX_LEVELS) -> Trace:
     """One layer as a height field (the first point behind the surface): the traversal _walk."""
     ray = screen_ray(cam, origin, direction)
     if ray.u_lo > ray.u_hi:
         return Trace(ray.end, (-1, -1), ray.s0, 0)
-    w = _walk(levels, cam, ray, ray.u_lo, ray.u_hi, max_nodes=max_nodes)
+    w = _walk(levels, cam, ray, ray.u_lo, ray.u_hi, max_nodes=max_nodes, start_level=start_level)
     if w.u_hit < np.inf:
         return Trace(HIT, w.pixel, ray.s0 + w.u_hit * ray.sd, w.nodes)
     return Trace(NONE if w.capped else ray.end, (-1, -1), _end_point(ray), w.nodes)

@@ -45,7 +45,7 @@ class QuadtreeBuilder:
                                        {**(camera_model_defines or {}), "QT_DEPTH_LAYERS": depth_layers})
 
     def build(self, ctx, gbuffer, nodes: moderngl.Buffer, gamma_norm: float, gamma_dist: float, stage=None,
-              layer2=None) -> None:
+              layer2=None, gamma_adapt: float = 0.0) -> None:
         """Fill `nodes` from `gbuffer` (bound for reading here) and, with two depth layers, from the
         `layer2` texture (passes/second_layer.py); camera uniforms must be set."""
         prog = self.program
@@ -53,7 +53,7 @@ class QuadtreeBuilder:
         set_tree_uniforms(prog, (w, h), gbuffer.layers)
         if self.depth_layers > 1:
             layer2.use(UNIT["layer2"])
-        for name, v in (("gamma_norm", gamma_norm), ("gamma_dist", gamma_dist)):
+        for name, v in (("gamma_norm", gamma_norm), ("gamma_dist", gamma_dist), ("gamma_adapt", gamma_adapt)):
             if name in prog:
                 prog[name].value = float(v)
         gbuffer.bind_for_reading()
@@ -111,7 +111,7 @@ class QuadtreePass(Pass):
         gamma_norm, gamma_dist = self.thresholds(fc.gpu_scene.assignments)
         layer2 = fc.resource("layer2") if self.builder.depth_layers > 1 else None
         self.builder.build(fc.gl.ctx, fc.gbuffer, fc.resource("quadtree"), gamma_norm, gamma_dist, stage=fc.stage,
-                           layer2=layer2)
+                           layer2=layer2, gamma_adapt=fc.settings.quadtree_adapt)
 
     def release(self) -> None:
         self.builder.release()
@@ -173,8 +173,10 @@ class QuadtreeTracer:
         self.size = None
         self._eye_values = None
 
-    def build(self, rig, eyes: str = "both", gamma_norm: float = 1.0, gamma_dist: float = 0.0) -> None:
-        """Build the tree of the last rendered frame (rendered with `rig` and `eyes`)."""
+    def build(self, rig, eyes: str = "both", gamma_norm: float = 1.0, gamma_dist: float = 0.0,
+              gamma_adapt: float = 0.0) -> None:
+        """Build the tree of the last rendered frame (rendered with `rig` and `eyes`); `gamma_adapt`:
+        the distance-adaptive thresholds (accel/quadtree.py adaptive_thresholds)."""
         gbuffer = self.renderer.resource("gbuffer")
         eye_views = rig.eyes(eyes)
         self._eye_values = eye_views[0].camera.uniforms(eye_views, self.renderer.scene.origin)
@@ -185,7 +187,8 @@ class QuadtreeTracer:
             self.nodes = self.ctx.buffer(reserve=nbytes)
         self.size, self.layers = tuple(gbuffer.size), gbuffer.layers
         self._set_eyes(self.builder.program)
-        self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2())
+        self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2(),
+                           gamma_adapt=gamma_adapt)
         self.ctx.finish()
 
     def _layer2(self):
@@ -209,15 +212,16 @@ class QuadtreeTracer:
         (N, 3) float32 (in S)."""
         return self.trace_layers(origins, directions, eye)[:4]
 
-    def trace_layers(self, origins, directions, eye=0, layers: int = 1, thickness: float = 3.0e38):
-        """qt_trace_layers through `layers` depth layers with slabs of relative `thickness`: what
-        trace() returns, and the depth layer hit (N,) int32 (-1 for none)."""
+    def trace_layers(self, origins, directions, eye=0, layers: int = 1, thickness: float = 3.0e38,
+                     start_level: int = MAX_LEVELS):
+        """qt_trace_layers through `layers` depth layers with slabs of relative `thickness`, walks
+        starting on `start_level`: what trace() returns, and the depth layer hit (N,) int32 (-1 for none)."""
         rays = pack_screen_rays(origins, directions, eye)
         n = len(rays)
         rbuf = self.ctx.buffer(rays.tobytes())
         obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
         try:
-            self._bind(rbuf, obuf, n, layers, thickness)
+            self._bind(rbuf, obuf, n, layers, thickness, start_level)
             dispatch_per_ray(self.program, n)
             self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
             out = np.frombuffer(obuf.read(), np.uint32).reshape(-1, 8)[:n]
@@ -227,11 +231,13 @@ class QuadtreeTracer:
         return (out[:, 0].copy(), out[:, 1].copy(), out[:, 2:4].view(np.int32).copy(),
                 out[:, 4:7].view(np.float32).copy(), out[:, 7].view(np.int32).copy())
 
-    def _bind(self, rbuf, obuf, n: int, layers: int = 1, thickness: float = 3.0e38) -> None:
+    def _bind(self, rbuf, obuf, n: int, layers: int = 1, thickness: float = 3.0e38,
+              start_level: int = MAX_LEVELS) -> None:
         if layers > self.depth_layers:
             raise ValueError(f"{layers} depth layers asked of a tree built with {self.depth_layers}")
         set_tree_uniforms(self.program, self.size, self.layers)
-        for name, v in (("trace_layers", int(layers)), ("trace_thickness", float(thickness))):
+        for name, v in (("trace_layers", int(layers)), ("trace_thickness", float(thickness)),
+                        ("qt_start", int(start_level))):
             if name in self.program:
                 self.program[name].value = v
         self._set_eyes(self.program)
@@ -241,10 +247,12 @@ class QuadtreeTracer:
         self.program["ray_count"].value = n
 
     def time(self, rig, origins, directions, eye=0, gamma_norm: float = 1.0, gamma_dist: float = 0.0,
-             repeats: int = 10, min_seconds: float = 1.0) -> dict:
-        """GPU ms of the build (all levels, all layers) and of tracing the rays (already on the GPU),
-        after the times settle (timing.settle); median of 5 batches of `repeats` each. llvmpipe's
-        timer queries read ~0 for compute: there the wall time per dispatch stands in."""
+             repeats: int = 10, min_seconds: float = 1.0, gamma_adapt: float = 0.0, layers: int = 1,
+             thickness: float = 3.0e38, start_level: int = MAX_LEVELS) -> dict:
+        """GPU ms of the build (all levels, all layers) and of tracing the rays (already on the GPU;
+        trace_layers' options), after the times settle (timing.settle); median of 5 batches of
+        `repeats` each. llvmpipe's timer queries read ~0 for compute: there the wall time per
+        dispatch stands in."""
         from ..timing import time_gpu
 
         gbuffer = self.renderer.resource("gbuffer")
@@ -258,14 +266,15 @@ class QuadtreeTracer:
 
         def build() -> None:
             self._set_eyes(self.builder.program)
-            self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2())
+            self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2(),
+                               gamma_adapt=gamma_adapt)
 
         def trace() -> None:
-            self._bind(rbuf, obuf, n)
+            self._bind(rbuf, obuf, n, layers, thickness, start_level)
             dispatch_per_ray(self.program, n)
 
         try:
-            self.build(rig, "both" if gbuffer.layers == 2 else "left", gamma_norm, gamma_dist)
+            self.build(rig, "both" if gbuffer.layers == 2 else "left", gamma_norm, gamma_dist, gamma_adapt)
             out = {"build": timed(build), "trace": timed(trace), "rays": n}
             out["rays_per_s"] = n / (out["trace"]["ms"] * 1e-3)
         finally:

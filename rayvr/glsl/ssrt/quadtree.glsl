@@ -45,6 +45,7 @@ uniform ivec4 qt_level[QT_MAX_LEVELS];  // per level: width, height, index of it
 uniform int qt_top;                     // the root's level (1 x 1)
 uniform uint qt_layer_nodes;            // nodes per layer
 uniform int qt_eyes = 1;                // eye layers per depth layer (tree layer = depth layer x eyes + eye)
+uniform int qt_start = QT_MAX_LEVELS;   // level the walk starts on (capped at the root's): the node holding the ray's start
 
 uint qt_index(int eye, int k, ivec2 q) {
     return uint(eye) * qt_layer_nodes + uint(qt_level[k].z + q.y * qt_level[k].x + q.x);
@@ -139,9 +140,14 @@ struct QtWalk { float u_hit; ivec2 pixel; float u_occ; uint nodes; bool capped; 
 QtWalk qt_walk(int layer, QtRay r, float u_from, float u_to, float thickness, bool cont) {
     QtWalk w = QtWalk(QT_INF, ivec2(-1), QT_INF, 0u, false);
     ivec2 size = qt_level[0].xy;
-    int k = qt_top;
-    ivec2 q = ivec2(0);
     float u = u_from;
+    // Start on level qt_start in the node holding p(u) (on a pixel edge, the one the ray goes
+    // into): below the root the first steps down are skipped; climbs still reach the root.
+    int k = min(qt_start, qt_top);
+    vec2 p0 = (r.s0 + u * r.sd).xy;
+    ivec2 cell = ivec2(floor(p0));
+    cell -= ivec2(float(cell.x) == p0.x && r.sd.x < 0.0 ? 1 : 0, float(cell.y) == p0.y && r.sd.y < 0.0 ? 1 : 0);
+    ivec2 q = min(clamp(cell, ivec2(0), size - 1) >> k, qt_level[k].xy - 1);
     uint limit = uint(16 * (size.x + size.y) + 64);
     while (w.nodes < limit) {
         w.nodes++;

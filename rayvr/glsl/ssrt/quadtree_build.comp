@@ -30,6 +30,7 @@ layout(binding = UNIT_LAYER2) uniform sampler2DArray layer2;  // xyz world norma
 uniform int qt_build_level;
 uniform float gamma_norm;      // cosine: children's normals within this of the proxy's
 uniform float gamma_dist;      // relative depth: children's corners within this of the proxy
+uniform float gamma_adapt;     // §6 distance-adaptive: both thresholds x (1 + gamma_adapt x mean view depth)
 
 vec2 pixels_per_tangent(int eye) {
     vec4 t = eye_tangents[eye];
@@ -106,6 +107,7 @@ uvec2 build_parent(int layer, int k, ivec2 q) {
     vec4 crect[4];
     bool exists[4];
     vec3 mean = vec3(0.0);
+    float zsum = 0.0, count = 0.0;
     for (int i = 0; i < 4; i++) {
         ivec2 cq = 2 * q + ivec2(i & 1, i >> 1);
         exists[i] = all(lessThan(cq, qt_level[kc].xy));
@@ -121,7 +123,9 @@ uvec2 build_parent(int layer, int k, ivec2 q) {
             hi = ch[i].z0 * (1.0 + spread);
             lo = max(ch[i].z0 * (1.0 - spread), 0.0);
             mean += plane_normal(eye, vec2(ch[i].sx, ch[i].sy), 0.5 * (crect[i].xy + crect[i].zw));
+            zsum += ch[i].z0;
         }
+        count += 1.0;
         planes = planes && ch[i].plane;
         zmax = max(zmax, hi);
         zmin = min(zmin, lo);
@@ -169,7 +173,12 @@ uvec2 build_parent(int layer, int k, ivec2 q) {
             worst = max(worst, abs(zp - zc) / zp);
         }
     }
-    return worst < gamma_dist && cosine >= gamma_norm ? proxy : aabb;
+    // §6: coarser far away, where a depth error moves a hit by fewer pixels (rayvr/accel/quadtree.py
+    // adaptive_thresholds).
+    float f = 1.0 + gamma_adapt * eye_depth.x * count / zsum;  // mean z -> view depth near / z
+    float gd = gamma_dist * f;
+    float gn = gamma_adapt > 0.0 ? cos(min(acos(clamp(gamma_norm, -1.0, 1.0)) * f, 1.5707963)) : gamma_norm;
+    return worst < gd && cosine >= gn ? proxy : aabb;
 }
 
 void main() {
