@@ -193,8 +193,9 @@ def print_graph(args) -> int:
 
     gl = create_context(args.backend)
     try:
-        with Renderer(args.scene, args.materials, gl=gl,
-                      settings=RenderSettings(primary=args.primary, stereo=args.stereo)) as r:
+        settings = RenderSettings(primary=args.primary, stereo=args.stereo, accumulate=args.spp > 1,
+                                  denoise=args.denoise)
+        with Renderer(args.scene, args.materials, gl=gl, settings=settings) as r:
             plan = r.plan(layers=2, view=args.view)
             graph = compile_graph(candidate_passes(plan), plan)  # passes are not built: nothing compiles
             print(graph.dot() if args.graph == "dot" else graph.describe(r.sizing(args.size, plan.layers, plan)), end="")
@@ -426,6 +427,8 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--view", choices=VIEWS, default="color", help="the view --graph is compiled for")
     i.add_argument("--primary", choices=("raster", "rays"), default="raster", help="primary visibility for --graph")
     add_stereo_argument(i)
+    i.add_argument("--spp", type=SPP, default=1, help="the --graph of a capture with this many samples a pixel")
+    i.add_argument("--denoise", action="store_true", help="the --graph with the denoiser")
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")

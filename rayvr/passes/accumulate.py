@@ -48,7 +48,8 @@ class AccumulatePass(Pass):
         state = fc.samples
         temporal = bool(fc.settings.temporal) and fc.plan.camera == "pinhole"  # reprojection is planar
         p = self.programs[int(temporal)]
-        p["reset"].value = int(state is None or state.reset)
+        # a moved camera this pass cannot reproject for starts over
+        p["reset"].value = int(state is None or state.reset or (state.moved and not temporal))
         fc.gbuffer.bind_for_reading()
         out, moments = fc.resource("hdr_accum"), fc.resource("accum_moments")
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=True, write=False)
