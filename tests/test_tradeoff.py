@@ -57,6 +57,15 @@ def test_noise_knobs_are_variants_drawing_other_samples_than_the_reference():
     assert vs[1].settings.denoise and vs[1].settings.denoise_iterations == 4 and not vs[0].settings.denoise
     assert [v.spp for v in vs] == [1, 1, 4, 4] and vs[3].settings.denoise
     assert len(T.noise_variants(base)) == 10
+    # A scene whose config samples nothing gets its noise knobs on a sampled rung.
+    scene = load()
+    assert T.noisy_base(scene, base) is base
+    names = scene.material_names()
+    flat = T.noisy_base(scene, parse_config({"default": "raster"}))
+    from rayvr.effects import traced_effects
+
+    last_sampled = [e.name for e in traced_effects() if e.denoised][-1]  # glossy today, path once it lands
+    assert {a.effect for a in flat.assign(names, warn=False)} == {last_sampled}
 
 
 def test_swept_parameters_reach_per_material_entries():

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..camera import StereoRig
+from ..effects import traced_effects
 from ..materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
 from ..renderer import Renderer, RenderSettings
 from . import metrics
@@ -169,10 +170,20 @@ def variants(scene, base: MaterialConfig, quick: bool = False) -> list[Variant]:
                                    touches=touched))
     for s in ([0.5, 1.0] if quick else [0.5, 0.75, 1.0]):
         out.append(Variant("resolution_scale", s, base, scale=s))
-    return out + noise_variants(base, quick)
+    return out + noise_variants(noisy_base(scene, base), quick)
 
 
 NOISE_SEED = 1  # the noise knobs draw other samples than the reference (seed 0) they are judged against
+
+
+def noisy_base(scene, base: MaterialConfig) -> MaterialConfig:
+    """`base` if some material of `scene` uses a sampled (denoised) effect there, else the whole
+    scene on the last such rung of the ladder (the most sampled): noise knobs on a noiseless
+    image would measure nothing."""
+    sampled = [e.name for e in traced_effects() if e.denoised]
+    if not sampled or any(a.effect in sampled for a in base.assign(scene.material_names(), warn=False)):
+        return base
+    return config_with(base, default=sampled[-1], materials={n: sampled[-1] for n in base.by_name})
 
 
 def noise_variants(base: MaterialConfig, quick: bool = False) -> list[Variant]:
