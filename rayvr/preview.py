@@ -746,7 +746,8 @@ class Preview:
         lines.append((f"{cam.mode}  {speed}   IPD {cam.ipd:.4g}  convergence {conv}", white))
         lines.append((self.picked_text(), white))
         on = lambda b: "on" if b else "off"  # noqa: E731
-        samples = self.renderer.accumulator.sample + 1 if s.accumulate else 1
+        accumulating = self.last_frame is not None and self.last_frame.plan.accumulate  # (debug views do not)
+        samples = self.renderer.accumulator.sample + 1 if accumulating else 1
         denoise = f"{s.denoise_iterations} iterations" if s.denoise else "off"
         lines.append((f"samples {samples}  (M accumulate {on(s.accumulate)}, G temporal {on(s.temporal)})   "
                       f"N denoise {denoise}", white))

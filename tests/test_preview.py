@@ -671,3 +671,34 @@ def test_noise_keys_toggle_accumulation_denoiser_and_temporal_reprojection():
     assert c.state.denoise_iterations == 1
     text = " ".join(k for k, _ in KEYS)
     assert all(k in text for k in ("M", "N", "I, Shift+I", "G"))
+
+
+def _accumulating():
+    import glfw
+
+    p = _preview(size=(96, 36), materials="rayvr/assets/default_room.toml", hud=True)
+    try:
+        out = {}
+        for _ in range(3):
+            p.frame()
+        out["still"] = (p.renderer.accumulator.sample, p.last_frame.plan.accumulate,
+                        [t for t, _ in p.hud_lines(p.last_layout, (96, 36)) if t.startswith("samples")])
+        p.on_key(p.window, glfw.KEY_D, 0, glfw.PRESS, 0)  # a move starts over
+        p.frame()
+        p.on_key(p.window, glfw.KEY_D, 0, glfw.RELEASE, 0)
+        out["moved"] = p.renderer.accumulator.sample
+        _press(p, glfw.KEY_N)
+        p.frame()
+        out["denoise"] = (p.last_frame.plan.denoise, p.renderer.settings.denoise, p.renderer.accumulator.sample)
+        return out
+    finally:
+        p.close()
+
+
+def test_preview_accumulates_while_still_and_a_move_starts_over(worker):
+    out = worker(_accumulating)
+    sample, accumulate, hud = out["still"]
+    assert accumulate and sample == 2 and hud and hud[0].startswith("samples 3"), out
+    assert out["moved"] == 0
+    denoised, on, sample = out["denoise"]
+    assert on and set(denoised) == {"shadows", "glossy"} and sample == 0  # a settings change starts over too
