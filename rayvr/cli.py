@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .accumulation import MAX_DENOISE_ITERATIONS
+from .accel.gpu import parse_traversal
 from .gpu_layout import BVH_LAYOUTS
 
 
@@ -152,7 +153,8 @@ def cmd_capture(args) -> int:
                               denoise_iterations=args.denoise_iterations or RenderSettings.denoise_iterations,
                               accumulate=args.temporal, temporal=args.temporal,
                               second_layer=args.second_layer, stereo=args.stereo,
-                              warp_layers=args.warp_layers, quadtree_adapt=args.quadtree_adapt)
+                              warp_layers=args.warp_layers, quadtree_adapt=args.quadtree_adapt,
+                              traversal=args.traversal)
     with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
         rig = rig_from_args(args, r.scene)
         pick = None
@@ -253,6 +255,13 @@ def _example_config(scene_name: str):
 
     path = ASSETS_DIR / ("default_room.toml" if scene_name == "default" else f"{scene_name}.toml")
     return path if path.exists() else None
+
+
+def _traversal(text: str) -> tuple[str, str, str]:
+    try:
+        return parse_traversal(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _layouts(text: str) -> tuple[str, ...]:
@@ -400,6 +409,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--tonemapper", choices=TONEMAPPERS, default="aces")
     c.add_argument("--layer-mode", choices=("auto", "vertex", "geometry", "multiview", "passes"), default="auto",
                    help="how the stereo G-buffer reaches both layers")
+    c.add_argument("--traversal", type=_traversal, default=("bvh2",) * 3, metavar="LAYOUTS",
+                   help="BVH node layout of the traced rays: one for all (bvh2, bvh4, bvh8) or per ray kind, "
+                        "e.g. primary=bvh8,shadow=bvh4,reflect=bvh2 (default bvh2, the reference)")
     c.add_argument("--primary", choices=("raster", "rays"), default="raster",
                    help="primary visibility: the raster G-buffer pass, or camera rays through the BVH")
     c.add_argument("--second-layer", choices=("rays", "peel"), default="rays",

@@ -19,6 +19,7 @@ from . import effects as effects_mod
 from . import materials as materials_mod
 from . import scene as scene_mod
 from . import stereo as stereo_mod
+from .accel.gpu import RAY_KINDS, check_layout, parse_traversal
 from .accel.scene import SceneAccel
 from .accumulation import MAX_DENOISE_ITERATIONS, Accumulator, sample_seed
 from .camera import StereoRig
@@ -61,6 +62,9 @@ class RenderSettings:
     stereo: str = "dual"  # how the second eye is made: rayvr/stereo.py STEREO_MODES
     warp_layers: int = 2  # depth layers of the central view `warp` traces (2: disocclusions from the second)
     quadtree_adapt: float = 0.0  # §6 distance-adaptive quadtree thresholds (accel/quadtree.py adaptive_thresholds)
+    # BVH node layout for primary, shadow and reflection/glossy rays (accel/gpu.py RAY_KINDS:
+    # bvh2, the binary reference, or wide bvh4/bvh8); `bench rays` measures which wins per kind.
+    traversal: tuple = ("bvh2", "bvh2", "bvh2")
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
@@ -70,6 +74,13 @@ class RenderSettings:
         if not (isinstance(self.denoise_iterations, int) and 1 <= self.denoise_iterations <= MAX_DENOISE_ITERATIONS):
             raise ValueError(f"denoise_iterations must be an integer in [1, {MAX_DENOISE_ITERATIONS}], "
                              f"got {self.denoise_iterations!r}")
+        if isinstance(self.traversal, str):
+            self.traversal = parse_traversal(self.traversal)
+        if len(self.traversal) != len(RAY_KINDS):
+            raise ValueError(f"traversal needs a layout for each of {', '.join(RAY_KINDS)}, got {self.traversal!r}")
+        for layout in self.traversal:
+            check_layout(layout)
+        self.traversal = tuple(self.traversal)
         if self.primary not in PRIMARY_MODES:
             raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
         if not (np.isfinite(self.quadtree_adapt) and self.quadtree_adapt >= 0):
@@ -161,7 +172,7 @@ class Renderer:
                          output=stereo_mod.WARP_OUTPUT if warp else "ldr", users=users,
                          accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise,
                          depth_layers=max(depth_layers(self.assignments), st.warp_layers if warp else 1),
-                         second_layer=second)
+                         second_layer=second, traversal=st.traversal)
 
     def set_stereo(self, mode: str) -> None:
         """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/stereo.py)."""

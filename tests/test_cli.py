@@ -78,6 +78,8 @@ def test_capture_one_eye_debug_view_and_path_replay(tmp_path):
     (["--frames", "-3"], ["--frames", "from 1 to"]),
     (["--spp", "0"], ["--spp", "from 1 to"]),
     (["--denoise-iterations", "9"], ["--denoise-iterations", "from 1 to 6"]),
+    (["--traversal", "shadow=bvh3"], ["--traversal", "BVH layout must be one of bvh2, bvh4, bvh8"]),
+    (["--traversal", "eyes=bvh4"], ["--traversal", "unknown ray kind 'eyes'"]),
 ])
 def test_capture_bad_input_is_a_clear_error(tmp_path, args, words):
     run = rayvr("capture", "--out", str(tmp_path / "o"), "--size", "8x8", *args)

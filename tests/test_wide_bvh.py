@@ -179,3 +179,37 @@ def test_wide_layouts_match_embree_in_sponza(gl):
         h = RayTracer(gl, GpuBvh(gl, bvh, layout=layout)).trace(o, d / np.linalg.norm(d, axis=1, keepdims=True))
         frac, err = agreement(h.prim, h.t, eprim, et)
         assert frac >= 0.999 and err <= 1e-5, f"{layout}: {frac:.4%} agree with Embree"
+
+
+@pytest.mark.parametrize("traversal", [("bvh8", "bvh4", "bvh8"), "bvh4"])
+def test_renderer_traversal_per_ray_kind_gives_the_reference_frame(gl, traversal):
+    """Primary rays, shadow rays and mirror/glossy rays each through a wide layout: the same frame
+    as the binary reference (same triangles hit, so the same shading)."""
+    from rayvr.camera import StereoRig
+    from rayvr.materials import parse_config
+    from rayvr.renderer import Renderer, RenderSettings
+    from rayvr.scene import load
+    from test_raytrace import render
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(40, 30))
+    cfg = {"default": "shadows", "materials": {"floor": {"effect": "glossy", "samples": 2},
+                                               "mirror*": {"effect": "reflections", "bounces": 2}}}
+    ref, ref_hdr, _ = render(gl, scene, rig, cfg, RenderSettings(primary="rays"))
+    r = Renderer(scene, parse_config(cfg, "test"), gl=gl, settings=RenderSettings(primary="rays", traversal=traversal))
+    try:
+        wide = r.render(rig, aux=("triangle", "hdr"))
+        hdr = np.stack([wide.left.aux["hdr"], wide.right.aux["hdr"]])
+        passes = {p.name: p for p in r.compiled().passes}
+        wanted = set(r.settings.traversal) - {"bvh2"}
+        assert set(r.accel.wide) == wanted          # the wide node buffers were built and used
+        assert passes["primary_rays"].layout == r.settings.traversal[0]
+        assert passes["rt_reflections"].layouts["shadow"] == r.settings.traversal[1]
+        assert passes["rt_glossy"].layouts["closest"] == r.settings.traversal[2]
+    finally:
+        r.release()
+    assert "rt_shadows" in passes
+    assert np.array_equal(wide.left.aux["triangle"], ref.left.aux["triangle"])
+    assert np.array_equal(wide.right.aux["triangle"], ref.right.aux["triangle"])
+    assert np.abs(hdr - ref_hdr).max() <= 1e-5 * max(1.0, float(ref_hdr.max()))
+    with pytest.raises(ValueError, match="unknown ray kind 'secondary'"):
+        RenderSettings(traversal="secondary=bvh4")

@@ -40,6 +40,22 @@ def max_ssbo_bytes(ctx) -> int:
     return int(_moderngl(ctx).info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0)
 
 
+RAY_KINDS = ("primary", "shadow", "reflect")   # RenderSettings.traversal: a layout for each
+
+
+def parse_traversal(text: str) -> tuple[str, str, str]:
+    """'bvh8' (every ray kind) or 'primary=bvh8,shadow=bvh4' (others bvh2) -> a layout per RAY_KINDS."""
+    out = dict.fromkeys(RAY_KINDS, "bvh2")
+    for part in (x.strip() for x in text.split(",") if x.strip()):
+        kind, _, layout = part.rpartition("=")
+        if kind and kind not in RAY_KINDS:
+            raise ValueError(f"unknown ray kind {kind!r} in {text!r}; allowed: {', '.join(RAY_KINDS)}")
+        check_layout(layout)
+        for k in ((kind,) if kind else RAY_KINDS):
+            out[k] = layout
+    return tuple(out.values())
+
+
 def check_layout(layout: str) -> int:
     """The node width of a layout name (2, 4, 8); a clear error for an unknown one."""
     if layout not in BVH_LAYOUTS:
@@ -286,5 +302,5 @@ def trace_rays(ctx, bvh_or_gpu, origins, directions, tmin=0.0, tmax=np.inf, mode
             gpu_bvh.release()
 
 
-__all__ = ["GpuBvh", "layout_defines", "check_layout", "RayTracer", "Hits", "trace_rays", "pack_rays", "max_ssbo_bytes",
+__all__ = ["GpuBvh", "layout_defines", "check_layout", "parse_traversal", "RAY_KINDS", "RayTracer", "Hits", "trace_rays", "pack_rays", "max_ssbo_bytes",
            "BufferTooLargeError", "MISS", "MODES", "DEFAULT_BINDING", "STACK_SIZE"]

@@ -29,38 +29,52 @@ class SceneAccel:
     def __init__(self, gl, scene):
         self.gl, self.scene = gl, scene
         self.bvh: Bvh | None = None
-        self.gpu: GpuBvh | None = None
+        self.gpu: GpuBvh | None = None   # the binary layout (the reference), always there once built
+        self.wide: dict[str, GpuBvh] = {}   # the wide layouts a plan's traversal asked for
         self._refit = None
 
     @property
     def built(self) -> bool:
         return self.gpu is not None
 
-    def ensure(self) -> GpuBvh:
+    def ensure(self, layouts=()) -> GpuBvh:
+        """Build and upload the BVH once; also the wide `layouts` (collapsed from it) not made yet."""
         if self.gpu is None:
             self.bvh = build_scene_bvh(self.scene)
             self.gpu = GpuBvh(self.gl.ctx, self.bvh)
+        for name in layouts:
+            if name != "bvh2" and name not in self.wide:
+                self.wide[name] = GpuBvh(self.gl.ctx, self.bvh, layout=name)
         return self.gpu
+
+    def layout(self, name: str) -> GpuBvh:
+        """The GPU buffers of layout `name` (ensure() made them)."""
+        return self.gpu if name == "bvh2" else self.wide[name]
 
     def refit(self, vertices, on_gpu: bool = False) -> None:
         """Moving geometry (same triangles, new scene-local positions): refit the boxes on the host
-        and re-upload, or (`on_gpu`) refit on the GPU (accel/refit.py; the host boxes then go stale).
+        and re-upload, or (`on_gpu`, binary layout alone) refit on the GPU (accel/refit.py; the host
+        boxes then go stale).
         A BVH not built yet is simply built from the new positions when first needed."""
         if self.bvh is None:
             return
-        if on_gpu:
+        v = np.asarray(vertices, np.float32)
+        if on_gpu and not self.wide:
             if self._refit is None:
                 from .refit import GpuRefit
                 self._refit = GpuRefit(self.gl.ctx, self.gpu)
-            self._refit.run(np.asarray(vertices, np.float32))
-        else:
-            self.bvh.refit(np.asarray(vertices, np.float32))
-            self.gpu.update()
+            self._refit.run(v)
+        else:   # on the host; wide nodes are always packed there, from the host boxes
+            self.bvh.refit(v)
+            for g in (self.gpu, *self.wide.values()):
+                g.update()
 
     def release(self) -> None:
         if self._refit is not None:
             self._refit.release()
             self._refit = None
-        if self.gpu is not None:
-            self.gpu.release()
+        for g in [self.gpu, *self.wide.values()]:
+            if g is not None:
+                g.release()
+        self.wide = {}
         self.gpu = self.bvh = None

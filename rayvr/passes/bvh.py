@@ -12,4 +12,4 @@ class BvhPass(Pass):
         return [write("bvh", External("scene BVH: binned SAH, built once, refit by update_vertices"))]
 
     def execute(self, fc) -> None:
-        fc.accel.ensure()  # built and uploaded on the first frame only
+        fc.accel.ensure(fc.plan.traversal)  # built and uploaded on the first frame only (each layout)

@@ -4,7 +4,7 @@ and the hit distance (in position.w) for the G-buffer resolve."""
 from __future__ import annotations
 
 from .. import shaders
-from ..accel.gpu import DEFAULT_BINDING, GpuBvh
+from ..accel.gpu import DEFAULT_BINDING, layout_defines
 from ..frame import FramePlan, GBufferChannels, Pass, read, write
 from ..gpu_layout import channel
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
@@ -20,11 +20,13 @@ class PrimaryRaysPass(Pass):
         return [read("bvh"), write("visibility", GBufferChannels(("triangle", "position")))]
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.program = shaders.compute(gl.ctx, "rt/primary.comp", {**GpuBvh.defines(DEFAULT_BINDING), **camera_defines(plan)})
+        self.layout = plan.traversal[0]   # the primary rays' BVH layout
+        self.program = shaders.compute(gl.ctx, "rt/primary.comp", {**layout_defines(DEFAULT_BINDING, self.layout),
+                                                                   **camera_defines(plan)})
 
     def execute(self, fc) -> None:
         set_eye_uniforms(self.program, fc)
-        fc.accel.gpu.bind(DEFAULT_BINDING)
+        fc.accel.layout(self.layout).bind(DEFAULT_BINDING)
         gb = fc.gbuffer
         for name in ("position", "triangle"):
             gb.textures[name].bind_to_image(channel(name).image, read=False, write=True)

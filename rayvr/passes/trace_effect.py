@@ -12,7 +12,7 @@ from __future__ import annotations
 import moderngl
 
 from .. import shaders
-from ..accel.gpu import DEFAULT_BINDING, GpuBvh
+from ..accel.gpu import DEFAULT_BINDING, GpuBvh, layout_defines
 from ..effects import Effect, traced_effects
 from ..frame import Buffer, FramePlan, Pass, Sizing, compose, read, write
 from ..gpu_layout import IMAGE, SSBO, UNIT
@@ -97,13 +97,18 @@ class TraceEffectPass(Pass):
         d = {**GpuBvh.defines(DEFAULT_BINDING), **self.effect.param_defines(), "EFFECT": self.effect.id,
              "RT_SLOT": self.slot, "EFFECT_PATHS": self.effect.shader, **camera_defines(plan)}
         trace, shade = "rt/wave_trace.comp", "rt/wave_shade.comp"
+        # The tracing kernels take the plan's layout for their ray kind; the shading kernels only
+        # read triangles (the same buffer in every layout) and stay on the binary defines.
+        _, shadow, reflect = plan.traversal
+        self.layouts = {"closest": reflect, "shadow": shadow, "shadow_finish": shadow}
+        ds, dr = ({**d, **layout_defines(DEFAULT_BINDING, x)} for x in (shadow, reflect))
         self.programs = {
             "prep": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 0}),
             # screen-space effects (ssr) find closest hits in the quadtree first (SSR_TRACE)
-            "closest": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 1, "QT_DEPTH_LAYERS": plan.depth_layers,
+            "closest": shaders.compute(gl.ctx, trace, {**dr, "WAVE_STAGE": 1, "QT_DEPTH_LAYERS": plan.depth_layers,
                                                        "SSR_TRACE": int(self.effect.uses_quadtree)}),
-            "shadow": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 2}),
-            "shadow_finish": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
+            "shadow": shaders.compute(gl.ctx, trace, {**ds, "WAVE_STAGE": 2}),
+            "shadow_finish": shaders.compute(gl.ctx, trace, {**ds, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
             "pixel": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 3}),
             "finish": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 5}),
         }
@@ -144,6 +149,7 @@ class TraceEffectPass(Pass):
                     p[k].value = v
 
             def go():
+                fc.accel.layout(self.layouts.get(name, "bvh2")).bind(DEFAULT_BINDING)
                 if name == "prep":
                     p.run(1, 1, 1)
                 else:
