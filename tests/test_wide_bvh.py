@@ -160,10 +160,14 @@ def test_gpu_wide_refit_update(gl):
     assert frac == 1.0 and err == 0.0
 
 
-def test_unknown_layout_is_a_clear_error(gl):
-    v, f = soup(10)
+def test_unknown_layout_and_deep_stack_are_clear_errors(gl, monkeypatch):
+    v, f = soup(200)
     with pytest.raises(ValueError, match="bvh2, bvh4, bvh8"):
         GpuBvh(gl, build_bvh(v, f), layout="bvh16")
+    from rayvr.accel import gpu
+    monkeypatch.setitem(gpu.WIDE_STACK_SIZES, 8, 2)   # a tree whose worst case exceeds the GPU stack
+    with pytest.raises(ValueError, match="bvh8: a traversal may hold .* stack entries, more than the GPU stack"):
+        GpuBvh(gl, build_bvh(v, f), layout="bvh8")
 
 
 def test_wide_layouts_match_embree_in_sponza(gl):

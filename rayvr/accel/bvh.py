@@ -37,8 +37,8 @@ traversal's counters (`trace_reference(..., stats=)`) on Sponza (66k triangles):
 per primary ray from the atrium centre (2.34 vs 2.31 kB), 74.2 vs 36.6 for random rays. On an H200
 (EGL, `python -m rayvr.accel.gpu`, 2 x 1440 x 1600 rays) this traversal runs Sponza at 2.9 GRays/s for
 coherent primary rays, 0.75 GRays/s for shadow rays to a point light, 0.19 GRays/s for random rays.
-A wide BVH (BVH4/BVH8 with quantized child boxes: fewer and smaller fetches) is the next step; it is
-not implemented, so the comparison with it is not measured.
+Wide BVHs collapsed from this tree (BVH4/BVH8 with quantized child boxes) are in wide.py; `rayvr
+bench rays` measures them against this layout per ray kind.
 """
 from __future__ import annotations
 

@@ -23,7 +23,10 @@ from .bvh import Bvh, BufferTooLargeError
 from .wide import WideBvh, build_wide, node_words, pack as pack_wide
 
 DEFAULT_BINDING = SSBO["bvh_nodes"]  # nodes here, triangles at +1 (gpu_layout.SSBO)
-STACK_SIZE = 64            # BVH_STACK_SIZE in glsl/accel/bvh.glsl
+STACK_SIZE = 64            # BVH_STACK_SIZE in glsl/accel/bvh.glsl (binary: >= the build's max_depth)
+# A wide traversal pushes up to width - 1 entries a level: its stack per width (checked against the
+# tree's worst case, wide.stack_bound: Sponza needs 34 in bvh4, 51 in bvh8).
+WIDE_STACK_SIZES = {4: 64, 8: 96}
 MISS = 0xFFFFFFFF
 MODES = {"closest": 0, "any": 1, "reflect": 2, "through": 3}
 _LOCAL_SIZE = 64
@@ -68,7 +71,7 @@ def layout_defines(base_binding: int = DEFAULT_BINDING, layout: str = "bvh2", or
     `ordered`: wide layouts visit a closest-hit ray's children nearest first (binary always does)."""
     width = check_layout(layout)
     d = {"BVH_NODES_BINDING": base_binding, "BVH_TRIS_BINDING": base_binding + 1,
-         "BVH_STACK_SIZE": STACK_SIZE, "BVH_WIDTH": width}
+         "BVH_STACK_SIZE": WIDE_STACK_SIZES.get(width, STACK_SIZE), "BVH_WIDTH": width}
     if width > 2:
         d.update(BVH_NODE_VEC4=node_words(width) // 4, BVH_ORDERED=int(ordered))
     return d
@@ -92,9 +95,9 @@ class GpuBvh:
         self.wide: WideBvh | None = None
         if self.width > 2:
             self.wide = build_wide(bvh, self.width)
-            if self.wide.stack_bound > STACK_SIZE:
+            if self.wide.stack_bound > WIDE_STACK_SIZES[self.width]:
                 raise ValueError(f"{layout}: a traversal may hold {self.wide.stack_bound} stack entries, more "
-                                 f"than the GPU stack ({STACK_SIZE}); use bvh2 or a shallower build")
+                                 f"than the GPU stack ({WIDE_STACK_SIZES[self.width]}); use bvh2 or bvh4")
             if self.limit and self.wide.nbytes > self.limit:
                 raise BufferTooLargeError("bvh_nodes", self.wide.nbytes, self.limit)
         self.nodes = self.ctx.buffer(self._pack_nodes().tobytes())

@@ -74,14 +74,22 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
             BVH_CSWAP(3, 6) BVH_CSWAP(1, 2) BVH_CSWAP(3, 4) BVH_CSWAP(5, 6)
 #endif
         }
-        // Farthest first onto the stack, so the nearest (or first stored) is popped next; children
-        // whose entry lies beyond a hit found in this node's leaves are dropped.
+        // Farthest first onto the stack; the nearest (or first stored) is visited next without a
+        // push and pop. Children whose entry lies beyond a hit found in this node's leaves drop out.
+        int next = -1;
         for (int i = BVH_WIDTH - 1; i >= 0; --i)
-            if (ci[i] != BVH_MISS && cd[i] <= h.t)
-                bvh_stack[sp++] = int(ci[i]);
-        if (sp == 0)
-            break;
-        node = uint(bvh_stack[--sp]);
+            if (ci[i] != BVH_MISS && cd[i] <= h.t) {
+                if (next >= 0)
+                    bvh_stack[sp++] = next;
+                next = int(ci[i]);
+            }
+        if (next >= 0) {
+            node = uint(next);
+        } else {
+            if (sp == 0)
+                break;
+            node = uint(bvh_stack[--sp]);
+        }
     }
     return h.prim != BVH_MISS;
 }
