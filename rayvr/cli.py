@@ -313,7 +313,7 @@ def cmd_bench(args) -> int:
     elif args.area == "photon":
         from .bench import photon
 
-        photon.run(out, size=(48, 36) if quick else args.size,
+        photon.run(out, size=(32, 24) if quick else args.size,
                    scenes=("default",) if quick else tuple(args.scenes.split(",")),
                    repeat=1 if quick else max(1, args.repeat // 5), quick=quick, backend=args.backend)
     elif args.area == "stereo":

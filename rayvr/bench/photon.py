@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ import numpy as np
 from ..context import create_context
 from ..effects import EFFECTS
 from ..materials import parse_config
-from ..renderer import Renderer, RenderSettings
+from ..renderer import Renderer
 from .report import device_meta, write_report
 from .scenes import bench_scenes
 
@@ -33,7 +34,7 @@ PAPER_SCALE = 1.0 / math.sqrt(3.0)  # the paper's radii are in a unit box; ours 
 TABLE1 = ((512 ** 2, 0.02), (512 ** 2, 0.05), (512 ** 2, 0.1), (256 ** 2, 0.05), (256 ** 2, 0.1), (256 ** 2, 0.2),
           (128 ** 2, 0.05), (128 ** 2, 0.1), (128 ** 2, 0.2))
 TABLE2 = ((512 ** 2, 0.02), (512 ** 2, 0.05), (512 ** 2, 0.1), (256 ** 2, 0.05), (256 ** 2, 0.1), (256 ** 2, 0.2))
-QUICK = ((4096, 0.05), (4096, 0.1))
+QUICK = ((4096, 0.1),)
 REFERENCE_PHOTONS = 1 << 22
 REFERENCE_RADIUS = 0.02
 K = 32  # the heap's size (the paper does not say its k)
@@ -52,34 +53,37 @@ def config(name: str, photons: int, radius: float, estimator: str):
                         f"bench:photon:{name}:{photons}:{radius}:{estimator}")
 
 
-def measure(gl, scene, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
+def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
     """GPU ms per pass (median over `repeat` frames) and per kernel of rt_photon, the stereo
-    colour image and the photon pixels' mask."""
+    colour image and the photon pixels' mask, with the renderer `r` set to `cfg` and `seed` (one
+    renderer per scene: the programs are built once, every setting has the same frame graph)."""
     from .rays import time_effect_stages
 
-    with Renderer(scene, cfg, gl=gl, settings=RenderSettings(seed=seed)) as r:
-        fc = r.record(rig)
-        first = r.read_ms(fc)
-        slow = sum(first.values()) > SLOW_FRAME_MS
-        ms: dict = {}
-        if slow or gl.is_software:
-            runs = [first]
-        else:
-            r.warm_up(rig, min_frames=warmup)
-            runs = [r.read_ms(r.record(rig)) for _ in range(repeat)]
-        for t in runs:
-            for k, v in t.items():
-                ms.setdefault(k, []).append(v)
-        med = {k: float(np.median(v)) for k, v in ms.items()}
-        stages = time_effect_stages(r, rig, repeat=1 if slow or gl.is_software else min(repeat, 5))
-        frame = r.render(rig, aux=("effect",))
-        kd_cpu = None
-        if any(a.params.get("estimator", 0) >= 2 for a in r.assignments if a.effect == "photon"):
-            from ..passes.photon_kdtree import kdtree_records
+    gl = r.gl
+    r.set_materials(cfg)
+    r.settings = replace(r.settings, seed=seed)
+    fc = r.record(rig)
+    first = r.read_ms(fc)
+    slow = sum(first.values()) > SLOW_FRAME_MS
+    ms: dict = {}
+    if slow or gl.is_software:
+        runs = [first]
+    else:
+        r.warm_up(rig, min_frames=warmup)
+        runs = [r.read_ms(r.record(rig)) for _ in range(repeat)]
+    for t in runs:
+        for k, v in t.items():
+            ms.setdefault(k, []).append(v)
+    med = {k: float(np.median(v)) for k, v in ms.items()}
+    stages = time_effect_stages(r, rig, repeat=1 if slow or gl.is_software else min(repeat, 5))
+    frame = r.render(rig, aux=("effect",))
+    kd_cpu = None
+    if any(a.params.get("estimator", 0) >= 2 for a in r.assignments if a.effect == "photon"):
+        from ..passes.photon_kdtree import kdtree_records
 
-            t0 = time.perf_counter()
-            kdtree_records(r.resource("photons").read())
-            kd_cpu = (time.perf_counter() - t0) * 1e3
+        t0 = time.perf_counter()
+        kdtree_records(r.resource("photons").read())
+        kd_cpu = (time.perf_counter() - t0) * 1e3
     image = np.concatenate([frame.left.color, frame.right.color], axis=1)
     mask = np.concatenate([frame.left.aux["effect"], frame.right.aux["effect"]], axis=1) == EFFECTS["photon"].id
     return {"ms": med, "stages": stages, "image": image, "mask": mask, "kd_cpu_ms": kd_cpu, "frames": len(runs)}
@@ -110,21 +114,21 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, war
     t2 = QUICK if quick else TABLE2
     jobs = [(1, p, r, e) for p, r in t1 for e in ("kdtree_heap", "grid_heap")] + \
            [(2, p, r, e) for p, r in t2 for e in ("grid_heap", "grid")]
-    ref_photons = 1 << 16 if quick else REFERENCE_PHOTONS
+    ref_photons = 1 << 15 if quick else REFERENCE_PHOTONS
     try:
         for name, scene, rig in bench_scenes(scenes, size, skipped):
-            ref = measure(gl, scene, rig, config(name, ref_photons, REFERENCE_RADIUS, "grid"), seed=1,
-                          repeat=1, warmup=1)
-            done: dict = {}
-            bar = tqdm(jobs, desc=f"bench photon {name}", unit="setting", disable=not progress)
-            for table, photons, radius, est in bar:
-                key = (photons, radius, est)
-                if key not in done:  # grid_heap is in both tables: measured once
-                    m = measure(gl, scene, rig, config(name, photons, radius, est), seed=0, repeat=repeat,
-                                warmup=warmup)
-                    done[key] = row(name, size, photons, radius, est, m, ref)
-                rows.append({"table": table, **done[key]})
-            bar.close()
+            with Renderer(scene, config(name, ref_photons, REFERENCE_RADIUS, "grid"), gl=gl) as r:
+                ref = measure(r, rig, config(name, ref_photons, REFERENCE_RADIUS, "grid"), seed=1, repeat=1,
+                              warmup=1)
+                done: dict = {}
+                bar = tqdm(jobs, desc=f"bench photon {name}", unit="setting", disable=not progress)
+                for table, photons, radius, est in bar:
+                    key = (photons, radius, est)
+                    if key not in done:  # grid_heap is in both tables: measured once
+                        m = measure(r, rig, config(name, photons, radius, est), seed=0, repeat=repeat, warmup=warmup)
+                        done[key] = row(name, size, photons, radius, est, m, ref)
+                    rows.append({"table": table, **done[key]})
+                bar.close()
         meta = {**device_meta(gl.info()), "bench": "photon", "per_eye_size": list(size), "repeat": repeat,
                 "skipped": skipped, "k": K, "bounces": BOUNCES,
                 "radius_units": "the paper's (a unit box); the effect's radius = r / sqrt(3) of the scene's diagonal",

@@ -1,0 +1,23 @@
+"""`rayvr bench photon --quick` runs end to end (CI smoke test; figures come from the GPU machine)."""
+import json
+import subprocess
+import sys
+
+
+def test_bench_photon_quick_writes_the_papers_tables(tmp_path):
+    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "photon", "--quick", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    result = json.loads((tmp_path / "photon.json").read_text())
+    rows = result["rows"]
+    assert {(r["table"], r["estimator"]) for r in rows} == {(1, "kdtree_heap"), (1, "grid_heap"), (2, "grid_heap"),
+                                                            (2, "grid")}
+    for r in rows:
+        assert r["trace_ms"] is not None and r["sort_ms"] is not None and r["query_ms"] is not None
+        assert 0 <= r["flip"] < 1
+    kd = next(r for r in rows if r["estimator"] == "kdtree_heap")
+    grid = next(r for r in rows if r["estimator"] == "grid_heap")
+    assert kd["kd_cpu_build_ms"] > 0 and grid["kd_cpu_build_ms"] is None
+    assert abs(kd["flip"] - grid["flip"]) < 0.01  # the same k nearest photons through either map
+    tables = (tmp_path / "photon_tables.md").read_text()
+    assert "Table 1: kd-tree vs hash grid" in tables and "Table 2: heap vs no heap" in tables
