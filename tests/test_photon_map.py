@@ -181,3 +181,14 @@ def test_lights_emit_in_proportion_to_power():
     assert np.allclose(np.diff(np.concatenate([[0], t[:, 3]])), phi[:, 0] / phi[:, 0].sum(), atol=1e-6)
     assert np.allclose(t[:3, 0], phi[:, 0].sum() / 1000)  # every path carries the same power
     assert np.isfinite(t).all()
+
+
+def test_shipped_photon_room_config_puts_the_room_on_photon():
+    from pathlib import Path
+
+    from rayvr.materials import load_config
+    from rayvr.scene import load
+
+    cfg = load_config(Path(__file__).resolve().parents[1] / "rayvr" / "assets" / "photon_room.toml")
+    got = {n: a.effect for n, a in zip(load(None).material_names(), cfg.assign(load(None).material_names()))}
+    assert got["ceiling"] == got["walls"] == "photon" and got["mirror"] == "reflections" and got["light"] == "raster"

@@ -38,7 +38,8 @@ QUICK = ((4096, 0.1),)
 REFERENCE_PHOTONS = 1 << 22
 REFERENCE_RADIUS = 0.02
 K = 32  # the heap's size (the paper does not say its k)
-SLOW_FRAME_MS = 2000.0  # a setting slower than this is timed on one frame, not `repeat`
+SLOW_FRAME_MS = 1000.0  # a setting slower than this is timed on one frame, not `repeat`
+SKIP_FRAME_MS = 10000.0  # an estimator this slow at some setting skips the costlier ones (more photons, larger r)
 MIRRORS = {"default": ("mirror*", "gold"), "sponza": ()}
 EMITTERS = {"default": ("light",)}
 BOUNCES = 3
@@ -56,27 +57,24 @@ def config(name: str, photons: int, radius: float, estimator: str):
 def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
     """GPU ms per pass (median over `repeat` frames) and per kernel of rt_photon, the stereo
     colour image and the photon pixels' mask, with the renderer `r` set to `cfg` and `seed` (one
-    renderer per scene: the programs are built once, every setting has the same frame graph)."""
+    renderer per scene: the programs are built once, every setting has the same frame graph).
+    A setting whose first frame takes over SLOW_FRAME_MS is timed on that frame alone."""
     from .rays import time_effect_stages
 
-    gl = r.gl
     r.set_materials(cfg)
     r.settings = replace(r.settings, seed=seed)
-    fc = r.record(rig)
-    first = r.read_ms(fc)
-    slow = sum(first.values()) > SLOW_FRAME_MS
+    frame = r.render(rig, aux=("effect",))  # deterministic per seed: every frame of it is this image
+    slow = sum(frame.timings.values()) > SLOW_FRAME_MS
     ms: dict = {}
-    if slow or gl.is_software:
-        runs = [first]
+    if slow or r.gl.is_software:
+        runs = [frame.timings]
     else:
         r.warm_up(rig, min_frames=warmup)
         runs = [r.read_ms(r.record(rig)) for _ in range(repeat)]
     for t in runs:
         for k, v in t.items():
             ms.setdefault(k, []).append(v)
-    med = {k: float(np.median(v)) for k, v in ms.items()}
-    stages = time_effect_stages(r, rig, repeat=1 if slow or gl.is_software else min(repeat, 5))
-    frame = r.render(rig, aux=("effect",))
+    stages = {} if slow else time_effect_stages(r, rig, repeat=1 if r.gl.is_software else min(repeat, 5))
     kd_cpu = None
     if any(a.params.get("estimator", 0) >= 2 for a in r.assignments if a.effect == "photon"):
         from ..passes.photon_kdtree import kdtree_records
@@ -86,7 +84,8 @@ def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
         kd_cpu = (time.perf_counter() - t0) * 1e3
     image = np.concatenate([frame.left.color, frame.right.color], axis=1)
     mask = np.concatenate([frame.left.aux["effect"], frame.right.aux["effect"]], axis=1) == EFFECTS["photon"].id
-    return {"ms": med, "stages": stages, "image": image, "mask": mask, "kd_cpu_ms": kd_cpu, "frames": len(runs)}
+    return {"ms": {k: float(np.median(v)) for k, v in ms.items()}, "stages": stages, "image": image, "mask": mask,
+            "kd_cpu_ms": kd_cpu, "frames": len(runs)}
 
 
 def row(name, size, photons, radius, estimator, m, ref) -> dict:
@@ -114,21 +113,33 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, war
     t2 = QUICK if quick else TABLE2
     jobs = [(1, p, r, e) for p, r in t1 for e in ("kdtree_heap", "grid_heap")] + \
            [(2, p, r, e) for p, r in t2 for e in ("grid_heap", "grid")]
+    jobs.sort(key=lambda j: (j[1] * j[2] ** 2, j[0]))  # cheapest first: slow estimators skip what costs more
     ref_photons = 1 << 15 if quick else REFERENCE_PHOTONS
     try:
         for name, scene, rig in bench_scenes(scenes, size, skipped):
+            first = len(rows)
             with Renderer(scene, config(name, ref_photons, REFERENCE_RADIUS, "grid"), gl=gl) as r:
                 ref = measure(r, rig, config(name, ref_photons, REFERENCE_RADIUS, "grid"), seed=1, repeat=1,
                               warmup=1)
                 done: dict = {}
                 bar = tqdm(jobs, desc=f"bench photon {name}", unit="setting", disable=not progress)
+                too_slow: dict = {}  # estimator -> settings whose frame passed SKIP_FRAME_MS
                 for table, photons, radius, est in bar:
                     key = (photons, radius, est)
                     if key not in done:  # grid_heap is in both tables: measured once
-                        m = measure(r, rig, config(name, photons, radius, est), seed=0, repeat=repeat, warmup=warmup)
-                        done[key] = row(name, size, photons, radius, est, m, ref)
+                        if any(p <= photons and q <= radius for p, q in too_slow.get(est, ())):
+                            done[key] = {"scene": name, "photons": photons, "photons_side": int(round(math.sqrt(photons))),
+                                         "radius": radius, "estimator": est, "photon_ms": None, "flip": None,
+                                         "skipped": f"a cheaper setting took over {SKIP_FRAME_MS:.0f} ms a frame"}
+                        else:
+                            m = measure(r, rig, config(name, photons, radius, est), seed=0, repeat=repeat,
+                                        warmup=warmup)
+                            done[key] = row(name, size, photons, radius, est, m, ref)
+                            if done[key]["frame_ms"] > SKIP_FRAME_MS:
+                                too_slow.setdefault(est, []).append((photons, radius))
                     rows.append({"table": table, **done[key]})
                 bar.close()
+            rows[first:] = sorted(rows[first:], key=lambda x: (x["table"], -x["photons"], x["radius"]))  # the paper's order
         meta = {**device_meta(gl.info()), "bench": "photon", "per_eye_size": list(size), "repeat": repeat,
                 "skipped": skipped, "k": K, "bounces": BOUNCES,
                 "radius_units": "the paper's (a unit box); the effect's radius = r / sqrt(3) of the scene's diagonal",
@@ -153,6 +164,8 @@ def _write_tables(out: Path, rows: list) -> None:
     def cell(r):
         if r is None:
             return "-"
+        if r.get("skipped"):
+            return "skipped (slower than 10 s a frame at a cheaper setting)"
         flip = "-" if r["flip"] is None else f"{r['flip']:.4f}"
         return f"{r['photon_ms']:.2f} ms (FLIP {flip})"
 
@@ -168,7 +181,8 @@ def _write_tables(out: Path, rows: list) -> None:
                 keys.append(k)
         for k in keys:
             by = {r["estimator"]: r for r in rows if r["table"] == table and (r["scene"], r["photons_side"], r["radius"]) == k}
-            q = " / ".join(f"{by[c]['query_ms']:.2f}" if by.get(c) and by[c]["query_ms"] is not None else "-" for c in cols)
+            q = " / ".join(f"{by[c]['query_ms']:.2f}" if by.get(c) and by[c].get("query_ms") is not None else "-"
+                           for c in cols)
             lines.append(f"| {k[0]} | {k[1]}² | {k[2]} | " + " | ".join(cell(by.get(c)) for c in cols) + f" | {q} |")
         lines.append("")
     text = "\n".join(lines)

@@ -4,9 +4,13 @@
 //                 d in group g goes to table[d * groups + g] (digit-major, so that the exclusive
 //                 scan of the table, glsl/photon/scan.comp, is every pair's first destination)
 //   SORT_STAGE 1  scatter: a pair goes to table[d * groups + g] + the number of pairs before it in
-//                 its group with the same digit (counted in shared memory: stable, deterministic)
+//                 its group with the same digit (stable, deterministic): the digit counts of the
+//                 earlier chunks of 32 pairs (shared-memory histograms) plus a count within its chunk
 //   SORT_STAGE 2  permute: photon_map[i] = photons[slot of the i-th sorted pair]
 #define SORT_GROUP 256
+#ifndef SORT_STAGE
+#define SORT_STAGE 0
+#endif
 layout(local_size_x = SORT_GROUP) in;
 #include "photon.glsl"
 
@@ -19,16 +23,17 @@ layout(std430, binding = SSBO_PHOTON_MAP) writeonly restrict buffer PhotonMap { 
 uniform uint item_count;
 uniform uint digit_shift;
 
+#define SORT_CHUNK 32
 shared uint digits[SORT_GROUP];
+#if SORT_STAGE == 1
+shared uint chunk_counts[SORT_GROUP / SORT_CHUNK][256];
+#endif
 
 void main() {
     uint g = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
     uint groups = gl_NumWorkGroups.x * gl_NumWorkGroups.y;
     uint t = gl_LocalInvocationID.x;
     uint i = g * uint(SORT_GROUP) + t;
-#ifndef SORT_STAGE
-#define SORT_STAGE 0
-#endif
 #if SORT_STAGE == 2
     if (i < item_count) photon_map[i] = photons[keys_in[i].y];
 #else
@@ -41,11 +46,16 @@ void main() {
     barrier();
     table[t * groups + g] = digits[t];
 #else
+    for (int c = 0; c < SORT_GROUP / SORT_CHUNK; ++c) chunk_counts[c][t] = 0u;
     digits[t] = d;
+    barrier();
+    uint chunk = t / uint(SORT_CHUNK);
+    if (d < 256u) atomicAdd(chunk_counts[chunk][d], 1u);  // counts: the same whatever the order
     barrier();
     if (d < 256u) {
         uint rank = 0u;
-        for (uint j = 0u; j < t; ++j) rank += digits[j] == d ? 1u : 0u;
+        for (uint c = 0u; c < chunk; ++c) rank += chunk_counts[c][d];
+        for (uint j = chunk * uint(SORT_CHUNK); j < t; ++j) rank += digits[j] == d ? 1u : 0u;
         keys_out[table[d * groups + g] + rank] = kv;
     }
 #endif
