@@ -134,3 +134,25 @@ def test_deterministic_per_seed_and_identical_eyes_at_ipd_0(renderer, grid_frame
     assert np.array_equal(again.left.aux["hdr"], frame.left.aux["hdr"])
     other, _ = render(renderer, seed=1, photons=few)
     assert not np.array_equal(other.left.aux["hdr"], frame.left.aux["hdr"])
+
+
+def test_room_ceiling_gets_indirect_light_finite_everywhere(gl):
+    """The built-in room on rayvr/assets/photon_room.toml (fewer photons): the ceiling, which only
+    the constant ambient term lit (the lamp faces down), now gets light that bounced off the floor
+    and walls; nothing is NaN or infinite at any pixel, grazing walls included."""
+    from pathlib import Path
+
+    from rayvr.materials import config_with, load_config
+
+    base = load_config(Path(__file__).resolve().parents[1] / "rayvr" / "assets" / "photon_room.toml")
+    cfg = config_with(base, params={"photon": {"photons": 1 << 14, "radius": 0.05}})
+    dark = RenderSettings(ambient=(0, 0, 0))
+    with Renderer(None, cfg, gl=gl, settings=dark) as r:
+        rig = StereoRig.for_scene(r.scene, size=(32, 24))
+        frame = r.render(rig, aux=("hdr", "material"))
+        names = r.scene.material_names()
+    ceiling = frame.left.aux["material"] == names.index("ceiling")
+    hdr = frame.left.aux["hdr"][..., :3].astype(np.float64)
+    assert ceiling.sum() > 10
+    assert np.isfinite(frame.left.aux["hdr"]).all() and np.isfinite(frame.right.aux["hdr"]).all()
+    assert hdr[ceiling].mean() > 0.02 and (hdr[ceiling].max(1) > 0).mean() > 0.9
