@@ -45,16 +45,15 @@ class PhotonSetup:
         return (int(frame_seed) * 0x9E3779B1 + 0x632BE5AB) & 0xFFFFFFFF
 
 
-_BOUNDS: dict = {}
+_BOUNDS: list = [None, None]  # the vertex array last asked about, its scene-local bounds
 
 
 def _local_bounds(scene) -> np.ndarray:
-    key = (id(scene), len(scene.vertices))
-    if key not in _BOUNDS:
-        v = scene.vertices
-        _BOUNDS.clear()
-        _BOUNDS[key] = np.stack([v.min(0), v.max(0)]).astype(np.float64) if len(v) else np.zeros((2, 3))
-    return _BOUNDS[key]
+    """Scene-local bounds of the vertices, cached per vertex array (moving geometry brings a new one)."""
+    v = scene.vertices
+    if _BOUNDS[0] is not v:
+        _BOUNDS[:] = [v, np.stack([v.min(0), v.max(0)]).astype(np.float64) if len(v) else np.zeros((2, 3))]
+    return _BOUNDS[1]
 
 
 def photon_setup(sizing) -> PhotonSetup:
