@@ -12,8 +12,9 @@ def test_bench_photon_quick_writes_the_papers_tables(tmp_path):
     rows = result["rows"]
     assert {(r["table"], r["estimator"]) for r in rows} == {(1, "kdtree_heap"), (1, "grid_heap"), (2, "grid_heap"),
                                                             (2, "grid")}
-    for r in rows:
-        assert r["trace_ms"] is not None and r["sort_ms"] is not None and r["query_ms"] is not None
+    for r in rows:  # a timer reading llvmpipe garbles under load is left out (None), never a number
+        for k in ("trace_ms", "build_ms", "sort_ms", "query_ms", "rt_photon_ms", "frame_ms"):
+            assert r[k] is None or r[k] >= 0, (k, r[k])
         assert 0 <= r["flip"] < 1
     kd = next(r for r in rows if r["estimator"] == "kdtree_heap")
     grid = next(r for r in rows if r["estimator"] == "grid_heap")
