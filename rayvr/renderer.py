@@ -224,7 +224,7 @@ class Renderer:
         if self._last is None:
             return {}
         mode = self._last.plan.stereo
-        if mode == "reuse":
+        if mode == "reuse" and "reuse_map" in self._last.resources:  # (a debug view shades nothing)
             from .passes.reuse import reuse_counts
             return reuse_counts(self._last)
         if mode == "warp":

@@ -222,6 +222,8 @@ def test_cli_stereo(tmp_path):
     p = run("capture", "--stereo", "warp", "--size", "32x24", "--out", str(tmp_path), "-q")
     assert p.returncode == 0, p.stderr
     assert (tmp_path / "frame_left.png").exists() and (tmp_path / "frame_right.png").exists()
+    p = run("capture", "--stereo", "reuse", "--view", "normal", "--size", "32x24", "--out", str(tmp_path), "-q")
+    assert p.returncode == 0, p.stderr  # a debug view has no shading to reuse: the mode changes nothing
     p = run("capture", "--stereo", "warp", "--aux", "normal", "--size", "32x24", "--out", str(tmp_path), "-q")
     assert p.returncode == 2 and "warp" in p.stderr and len(p.stderr.strip().splitlines()) == 1
     p = run("capture", "--stereo", "warp", "--format", "exr", "--out", str(tmp_path))

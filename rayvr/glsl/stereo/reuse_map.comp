@@ -6,6 +6,9 @@
 // lowest left pixel index: three kernels (REUSE_STAGE 0 clear, 1 nearest distance, 2 owner) make
 // the choice deterministic with 32-bit atomics only.
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#ifndef REUSE_STAGE  // rayvr/passes/reuse.py builds one program per stage
+#define REUSE_STAGE 0
+#endif
 #define REUSE_ACCESS
 #include "reuse.glsl"
 #include "../common/gbuffer.glsl"
