@@ -65,7 +65,7 @@ IMAGE = {"hdr": 0, "ldr": 1,
          # passes/accumulate.py (glsl/post/accumulate.comp) and passes/denoise.py (glsl/post/denoise.comp)
          "accum_in": 2, "accum_moments_in": 3, "accum_out": 4, "accum_moments_out": 5,
          "accum_history_out": 6, "accum_history_moments_out": 7,
-         "denoise_in": 2, "denoise_out": 3, "denoise_moments": 4, "denoise_color": 5,
+         "denoise_in": 2, "denoise_out": 3, "denoise_moments": 4, "denoise_color": 5, "denoise_guide": 6,
          "layer2": 2, "layer2_triangle": 3,  # passes/second_layer.py
          "warp_color": 2, "warp_depth": 3}  # passes/warp.py (glsl/stereo/warp.comp)
 # Texture units beside the G-buffer channels' (0..7).

@@ -33,11 +33,32 @@ def _shift(a: np.ndarray, dx: int, dy: int, fill=0):
     return out
 
 
+def _snorm16(v):
+    return np.round(np.clip(v, -1.0, 1.0) * 32767.0) / 32767.0
+
+
+def octahedral_normal(n: np.ndarray) -> np.ndarray:
+    """Unit normals as the guide stores them: octahedral encoding (Cigolle et al. 2014) in two
+    snorm16, decoded (zero vectors, the background, become +z)."""
+    n = np.asarray(n, np.float64)
+    n = np.where((n * n).sum(-1, keepdims=True) > 0, n, [0.0, 0.0, 1.0])
+    n = n / np.abs(n).sum(-1, keepdims=True)
+    sign = np.where(n[..., :2] >= 0, 1.0, -1.0)
+    e = np.where(n[..., 2:] >= 0, n[..., :2], (1.0 - np.abs(n[..., 1::-1])) * sign)
+    e = _snorm16(e)
+    d = np.concatenate([e, 1.0 - np.abs(e).sum(-1, keepdims=True)], -1)
+    t = np.maximum(-d[..., 2:], 0.0)
+    d[..., :2] += np.where(d[..., :2] >= 0, -t, t)
+    return d / np.sqrt((d * d).sum(-1, keepdims=True))
+
+
 class _Guides:
+    """The edge-stop guides as the GPU packs them: view depth, octahedral snorm16 normal, base
+    colour rounded to 8 bits, effect ID."""
+
     def __init__(self, albedo, normal, depth, effect, p: DenoiseParams):
-        self.albedo = albedo.astype(np.float64)
-        n = normal.astype(np.float64)
-        self.normal = n / np.sqrt(np.maximum((n * n).sum(-1, keepdims=True), 1e-30))
+        self.albedo = np.round(np.clip(albedo.astype(np.float64), 0.0, 1.0) * 255.0) / 255.0
+        self.normal = octahedral_normal(normal)
         self.depth = depth.astype(np.float64)
         self.effect = effect.astype(np.int64)
         self.p = p
@@ -70,12 +91,12 @@ def _demodulate(color, albedo):
     return _finite(color.astype(np.float64)) / np.maximum(albedo, DEMODULATE_FLOOR)
 
 
-def variance(color, samples, moments, g: _Guides) -> np.ndarray:
+def variance(color, samples, moments, albedo, g: _Guides) -> np.ndarray:
     """The variance of each pixel's demodulated luminance: of the mean of its samples from
     MIN_TEMPORAL_SAMPLES on, else the edge-weighted spread of its 7x7 neighbourhood."""
     m1, m2 = moments[..., 0].astype(np.float64), moments[..., 1].astype(np.float64)
     temporal = np.maximum(m2 - m1 * m1, 0.0) / np.maximum(samples, 1.0)
-    lum = _demodulate(color, g.albedo) @ LUMA
+    lum = _demodulate(color, albedo) @ LUMA
     sw, s1, s2 = np.zeros_like(lum), np.zeros_like(lum), np.zeros_like(lum)
     for dy in range(-3, 4):
         for dx in range(-3, 4):
@@ -127,10 +148,11 @@ def denoise(color, samples, moments, albedo, normal, depth, effect, denoised_ids
     colour; normal (H, W, 3); depth (H, W) view depth; effect (H, W) effect IDs; denoised_ids
     the effect IDs to filter. Returns (H, W, 3) float64."""
     g = _Guides(albedo, normal, depth, effect, params)
-    illum = _demodulate(color, g.albedo)
-    var = variance(color, np.asarray(samples, np.float64), moments, g)
+    albedo = albedo.astype(np.float64)  # demodulation: the G-buffer's own base colour
+    illum = _demodulate(color, albedo)
+    var = variance(color, np.asarray(samples, np.float64), moments, albedo, g)
     for i in range(iterations):
         illum, var = atrous_iteration(illum, var, 1 << i, g)
     listed = np.isin(g.effect, list(denoised_ids))
-    out = illum * np.maximum(g.albedo, DEMODULATE_FLOOR)
+    out = illum * np.maximum(albedo, DEMODULATE_FLOOR)
     return np.where(listed[..., None], out, _finite(color.astype(np.float64)))

@@ -212,3 +212,14 @@ def test_gpu_denoiser_keeps_a_rendered_step_sharp(gl, kind):
         assert bleed < 0.1, (kind, col, bleed)
     inner = np.r_[4:mid - 4, mid + 4:ref.shape[1] - 4]
     assert np.abs(clean - ref)[:, inner].mean() < 0.6 * np.abs(noisy - ref)[:, inner].mean()
+
+
+def test_packed_normal_guide_is_within_1e_4_radians():
+    from rayvr.numpy_denoise import octahedral_normal
+
+    n = np.random.default_rng(3).normal(size=(10000, 3))
+    n = np.concatenate([n, np.eye(3), -np.eye(3)])
+    unit = n / np.linalg.norm(n, axis=1, keepdims=True)
+    packed = octahedral_normal(n * 7.0)  # any length: the guide stores directions
+    assert np.degrees(np.arccos(np.clip((packed * unit).sum(1), -1, 1))).max() < np.degrees(1e-4)
+    assert np.allclose(octahedral_normal(np.zeros((1, 3))), [[0, 0, 1]])

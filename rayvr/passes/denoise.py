@@ -37,6 +37,7 @@ class DenoiseParams:
 
 
 DEFAULTS = DenoiseParams()
+GUIDE = Texture("rgba32ui")  # depth, octahedral normal, 8-bit base colour, effect: one fetch per tap
 
 
 class DenoisePass(Pass):
@@ -50,7 +51,8 @@ class DenoisePass(Pass):
 
     def io(self, plan: FramePlan) -> list:
         return [read("gbuffer"), read("rt_lists"), read("rt_list_args"), read("hdr_accum"), read("accum_moments"),
-                write("denoise.ping", ACCUM), write("denoise.pong", ACCUM), write("hdr_denoised", ACCUM)]
+                write("denoise.ping", ACCUM), write("denoise.pong", ACCUM), write("denoise.guide", GUIDE),
+                write("hdr_denoised", ACCUM)]
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.programs = {s: shaders.compute(gl.ctx, "post/denoise.comp", {"DENOISE_STAGE": s}) for s in (0, 1, 2)}
@@ -64,6 +66,7 @@ class DenoisePass(Pass):
         bind_lists(fc)
         color, moments = fc.resource("hdr_accum"), fc.resource("accum_moments")
         out, ping, pong = fc.resource("hdr_denoised"), fc.resource("denoise.ping"), fc.resource("denoise.pong")
+        guide = fc.resource("denoise.guide")
         color.bind_to_image(IMAGE["denoise_color"], read=True, write=False)
         moments.bind_to_image(IMAGE["denoise_moments"], read=True, write=False)
         args = fc.resource("rt_list_args")
@@ -83,7 +86,9 @@ class DenoisePass(Pass):
 
         def passthrough():
             out.bind_to_image(IMAGE["denoise_out"], read=False, write=True)
+            guide.bind_to_image(IMAGE["denoise_guide"], read=False, write=True)
             dispatch_per_pixel(fc, self.programs[0])
+            guide.bind_to_image(IMAGE["denoise_guide"], read=True, write=False)
 
         def prepare():
             ping.bind_to_image(IMAGE["denoise_out"], read=False, write=True)
