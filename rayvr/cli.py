@@ -154,7 +154,8 @@ def cmd_capture(args) -> int:
                               accumulate=args.temporal, temporal=args.temporal,
                               second_layer=args.second_layer, stereo=args.stereo,
                               warp_layers=args.warp_layers, quadtree_adapt=args.quadtree_adapt,
-                              traversal=args.traversal)
+                              traversal=args.traversal,
+                              dof_aperture=args.aperture, dof_focus=args.focus_distance, dof_samples=args.dof_samples)
     with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
         rig = rig_from_args(args, r.scene)
         pick = None
@@ -353,7 +354,8 @@ def cmd_preview(args) -> int:
     with Preview(args.scene, args.materials, size=args.size, vsync=not args.no_vsync, stereo=args.mode,
                  stereo_method=args.stereo,
                  view=args.view, res_scale=args.scale, rig_options=rig_options, look_at=look_at,
-                 out_dir=args.out, path_file=args.record) as p:
+                 out_dir=args.out, path_file=args.record,
+                 dof=(args.aperture, args.focus_distance, args.dof_samples)) as p:
         if args.budget_ms is not None:
             print(p.apply_budget(args.budget_ms))
         p.run(max_frames=args.frames)
@@ -366,6 +368,15 @@ class OneLineErrors(argparse.ArgumentParser):
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} -h)\n")
+
+
+def add_dof_arguments(p) -> None:
+    """Thin-lens depth of field through screen-space rays (passes/dof.py), capture and preview."""
+    p.add_argument("--aperture", type=_number(0, 1e6, lo_open=False), default=0.0,
+                   help="depth of field: lens diameter in scene units (default 0: off; pinhole, stereo dual)")
+    p.add_argument("--focus-distance", type=_number(0, 1e9), default=2.0,
+                   help="depth of field: view depth in focus, scene units (default 2)")
+    p.add_argument("--dof-samples", type=_count(1, 1024), default=16, help="depth of field: lens rays per pixel")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -417,6 +428,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--second-layer", choices=("rays", "peel"), default="rays",
                    help="how the second depth layer (ssr layers = 2) is made: primary rays continued through the "
                         "BVH, or depth peeling in the raster (rayvr bench ssrt times both)")
+    add_dof_arguments(c)
     c.add_argument("--quadtree-adapt", type=_number(0, 1e6, lo_open=False), default=0.0,
                    help="distance-adaptive quadtree thresholds (Widmer et al. §6): gamma_dist and the normal "
                         "angle grow by 1 + this x the node's view depth (scene units); 0 = off")
@@ -482,6 +494,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--frames", type=FRAMES, help="close after N frames (smoke tests)")
     v.add_argument("--budget-ms", type=BUDGET_MS, help="pick effects per material to fit this GPU frame time at start")
     add_stereo_argument(v, " at start (B cycles)")
+    add_dof_arguments(v)
     v.set_defaults(func=cmd_preview)
     return p
 

@@ -45,6 +45,7 @@ class FramePlan:
     stereo: str = "dual"  # how the second eye is made: "dual" renders both fully
     depth_layers: int = 1  # depth layers the screen-space tracers see (2: passes/second_layer.py)
     second_layer: str = "rays"  # how the second depth layer is made: "rays" (BVH) | "peel" (raster)
+    dof: bool = False  # thin-lens depth of field through the quadtree (passes/dof.py)
     output: str = "ldr"
     accumulate: bool = False  # running mean of samples while still (passes/accumulate.py)
     denoise: tuple = ()  # effects whose pixels the edge-aware à-trous filters (passes/denoise.py)

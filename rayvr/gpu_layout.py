@@ -67,7 +67,8 @@ IMAGE = {"hdr": 0, "ldr": 1,
          "accum_history_out": 6, "accum_history_moments_out": 7,
          "denoise_in": 2, "denoise_out": 3, "denoise_moments": 4, "denoise_color": 5, "denoise_guide": 6,
          "layer2": 2, "layer2_triangle": 3,  # passes/second_layer.py
-         "warp_color": 2, "warp_depth": 3}  # passes/warp.py (glsl/stereo/warp.comp)
+         "warp_color": 2, "warp_depth": 3,  # passes/warp.py (glsl/stereo/warp.comp)
+         "dof_in": 2, "dof_out": 3}  # passes/dof.py (glsl/post/dof.comp)
 # Texture units beside the G-buffer channels' (0..7).
 UNIT = {"base_color_textures": 9, "layer2": 10, "layer2_triangle": 11, "peel_triangle": 12}
 

@@ -65,6 +65,10 @@ class RenderSettings:
     # BVH node layout for primary, shadow and reflection/glossy rays (accel/gpu.py RAY_KINDS:
     # bvh2, the binary reference, or wide bvh4/bvh8); `bench rays` measures which wins per kind.
     traversal: tuple = ("bvh2", "bvh2", "bvh2")
+    # Thin-lens depth of field through screen-space rays (passes/dof.py; pinhole, stereo dual):
+    dof_aperture: float = 0.0  # lens diameter, scene units (0: off)
+    dof_focus: float = 2.0  # view depth in focus, scene units
+    dof_samples: int = 16  # lens rays per pixel
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
@@ -83,6 +87,12 @@ class RenderSettings:
         self.traversal = tuple(self.traversal)
         if self.primary not in PRIMARY_MODES:
             raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
+        if not (np.isfinite(self.dof_aperture) and self.dof_aperture >= 0):
+            raise ValueError(f"dof_aperture must be a number >= 0, got {self.dof_aperture}")
+        if not (np.isfinite(self.dof_focus) and self.dof_focus > 0):
+            raise ValueError(f"dof_focus must be a positive number, got {self.dof_focus}")
+        if not 1 <= int(self.dof_samples) <= 1024:
+            raise ValueError(f"dof_samples must be in 1..1024, got {self.dof_samples}")
         if not (np.isfinite(self.quadtree_adapt) and self.quadtree_adapt >= 0):
             raise ValueError(f"quadtree_adapt must be a number >= 0, got {self.quadtree_adapt}")
         if self.second_layer not in SECOND_LAYER_MODES:
@@ -172,7 +182,8 @@ class Renderer:
                          output=stereo_mod.WARP_OUTPUT if warp else "ldr", users=users,
                          accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise,
                          depth_layers=max(depth_layers(self.assignments), st.warp_layers if warp else 1),
-                         second_layer=second, traversal=st.traversal)
+                         second_layer=second, traversal=st.traversal,
+                         dof=color and st.dof_aperture > 0 and stereo == "dual" and camera.name == "pinhole")
 
     def set_stereo(self, mode: str) -> None:
         """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/stereo.py)."""

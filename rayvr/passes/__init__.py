@@ -8,6 +8,7 @@ def core_passes() -> list:
     from .classify import ClassifyPass
     from .debug_view import DebugViewPass
     from .denoise import DenoisePass
+    from .dof import DofPass
     from .gbuffer_resolve import GBufferResolvePass
     from .primary_rays import PrimaryRaysPass
     from .quadtree import QuadtreePass, QuadtreeVisitsPass
@@ -21,12 +22,20 @@ def core_passes() -> list:
     return [BvhPass(), VisibilityPass(), PrimaryRaysPass(), GBufferResolvePass(), ShadePass(), ClassifyPass(),
             AccumulatePass(), DenoisePass(), TonemapPass(), DebugViewPass(), QuadtreeVisitsPass(),
             QuadtreePass(effect="ssr"), SecondLayerPass(), ReuseMapPass(),
-            ReuseCopyPass(), WarpPass()]
+            ReuseCopyPass(), WarpPass(), DofPass()]
 
 
 def radiance(plan) -> tuple[str, str]:
     """The frame's final linear colour (resource, GLSL image format): what tonemap shows and
-    the `hdr` aux channel reads: denoised, else accumulated, else the frame's own samples."""
+    the `hdr` aux channel reads: with depth of field its image (passes/dof.py), else scene_radiance."""
+    if getattr(plan, "dof", False):
+        return "hdr_dof", "rgba32f"
+    return scene_radiance(plan)
+
+
+def scene_radiance(plan) -> tuple[str, str]:
+    """The frame's linear colour before depth of field: denoised, else accumulated, else the
+    frame's own samples."""
     if plan.denoise:
         return "hdr_denoised", "rgba32f"
     if plan.accumulate:

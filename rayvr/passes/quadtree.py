@@ -94,6 +94,8 @@ class QuadtreePass(Pass):
             users.append("view quadtree_visits")
         if plan.stereo == "warp":
             users.append("stereo warp")
+        if plan.dof:
+            users.append("depth of field")
         # Planes in S and straight rays need a planar projection: the pinhole's G-buffer only.
         if not users or plan.camera != "pinhole":
             return None

@@ -1,0 +1,77 @@
+"""Thin-lens depth of field through screen-space rays (passes/dof.py, glsl/post/dof.comp; Widmer
+et al. 2015 §5.2). Analytic checks on the step scene (a quad at view depth ~4 in front of a wall at
+~6): focused on the wall, every lens ray through a wall point in focus meets it there, so wall
+pixels away from the quad keep their colour exactly; the out-of-focus quad's edge blurs into the
+wall over the thin lens's circle of confusion; a vanishing aperture is the pinhole image; IPD 0
+gives identical eyes."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from test_quadtree import scenes
+from rayvr.camera import StereoRig
+from rayvr.renderer import Renderer, RenderSettings
+
+
+def binary_dilation(mask, iterations):
+    """Square (8-neighbour) dilation by `iterations` pixels."""
+    out = mask.copy()
+    for _ in range(iterations):
+        m = np.pad(out, 1)
+        out = np.zeros_like(out)
+        for dy in (0, 1, 2):
+            for dx in (0, 1, 2):
+                out |= m[dy:dy + mask.shape[0], dx:dx + mask.shape[1]]
+    return out
+
+
+def render(gl, scene, rig, **dof):
+    with Renderer(scene, None, gl=gl, settings=RenderSettings(**dof)) as r:
+        frame = r.render(rig, aux=("hdr", "depth"))
+        return frame, r.compiled().pass_names
+
+
+def test_depth_of_field_focus_and_blur(gl):
+    scene, rig = scenes()["step"]
+    sharp, passes = render(gl, scene, rig)
+    assert "dof" not in passes
+    wall_depth = float(np.median(sharp.left.depth[sharp.left.depth > 5.5]))
+    tiny, passes = render(gl, scene, rig, dof_aperture=1e-5, dof_focus=wall_depth, dof_samples=4)
+    assert passes.index("quadtree") < passes.index("dof") < passes.index("tonemap")
+    assert np.abs(tiny.left.aux["hdr"] - sharp.left.aux["hdr"]).max() < 1e-3
+    aperture = 2.5  # a circle of confusion of ~2.4 pixels on the quad (29 rows)
+    blur, _ = render(gl, scene, rig, dof_aperture=aperture, dof_focus=wall_depth, dof_samples=64)
+    a, b = blur.left.aux["hdr"], sharp.left.aux["hdr"]
+    assert np.isfinite(a).all() and np.isfinite(blur.right.aux["hdr"]).all()
+    depth = sharp.left.depth
+    quad = (depth > 0) & (depth < 5.0)
+    wall = depth > 5.5
+    # Circle of confusion of the quad (depth ~4) focused at the wall, in pixels: aperture x
+    # |1 - d_focus / d| / d_focus x pixels per unit of tangent ... with the thin-lens relation
+    # its half-width on screen is (aperture / 2) |1/d - 1/d_focus| x pixels per tangent unit.
+    cam_l, cam_r, _, _ = rig.eyes()[0].tangents
+    ppt = rig.size[0] / (cam_r - cam_l)
+    coc = 0.5 * aperture * abs(1 / 4.0 - 1 / wall_depth) * ppt
+    near_quad = binary_dilation(quad, iterations=int(np.ceil(coc)) + 1)
+    far_wall = wall & ~near_quad
+    assert far_wall.sum() > 100
+    assert np.abs(a[far_wall] - b[far_wall]).max() < 1e-3            # in focus: unchanged
+    edge = quad & binary_dilation(~quad, 1)                            # the quad's border pixels
+    changed = np.abs(a - b).max(-1) > 1e-3
+    assert changed[edge].mean() > 0.5                                  # out of focus: blurred
+    assert not changed[~near_quad].any()                               # and nothing beyond the CoC
+    zero = StereoRig(rig.pose, ipd=0.0, fov_y=60, size=rig.size)
+    z, _ = render(gl, scene, zero, dof_aperture=aperture, dof_focus=wall_depth, dof_samples=8)
+    assert np.array_equal(z.left.aux["hdr"], z.right.aux["hdr"])
+
+
+def test_bad_dof_settings_are_one_line_errors(tmp_path):
+    with pytest.raises(ValueError, match="dof_aperture"):
+        RenderSettings(dof_aperture=-1.0)
+    with pytest.raises(ValueError, match="dof_focus"):
+        RenderSettings(dof_focus=0.0)
+    run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--aperture", "-2", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 2 and "Traceback" not in run.stderr and "--aperture" in run.stderr
