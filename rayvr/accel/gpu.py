@@ -24,9 +24,10 @@ from .wide import WideBvh, build_wide, node_words, pack as pack_wide
 
 DEFAULT_BINDING = SSBO["bvh_nodes"]  # nodes here, triangles at +1 (gpu_layout.SSBO)
 STACK_SIZE = 64            # BVH_STACK_SIZE in glsl/accel/bvh.glsl (binary: >= the build's max_depth)
-# A wide traversal pushes up to width - 1 entries a level: its stack per width (checked against the
-# tree's worst case, wide.stack_bound: Sponza needs 34 in bvh4, 51 in bvh8).
-WIDE_STACK_SIZES = {4: 64, 8: 96}
+# A wide traversal keeps one (node << 8 | child mask) entry a level: its stack per width (checked
+# against the tree's depth, wide.group_stack_bound).
+WIDE_STACK_SIZES = {4: 32, 8: 32}
+WIDE_MAX_NODES = 1 << 24   # a stack entry holds the node index in 24 bits
 MISS = 0xFFFFFFFF
 MODES = {"closest": 0, "any": 1, "reflect": 2, "through": 3}
 _LOCAL_SIZE = 64
@@ -95,9 +96,12 @@ class GpuBvh:
         self.wide: WideBvh | None = None
         if self.width > 2:
             self.wide = build_wide(bvh, self.width)
-            if self.wide.stack_bound > WIDE_STACK_SIZES[self.width]:
-                raise ValueError(f"{layout}: a traversal may hold {self.wide.stack_bound} stack entries, more "
-                                 f"than the GPU stack ({WIDE_STACK_SIZES[self.width]}); use bvh2 or bvh4")
+            if self.wide.group_stack_bound > WIDE_STACK_SIZES[self.width]:
+                raise ValueError(f"{layout}: a traversal may hold {self.wide.group_stack_bound} stack entries, "
+                                 f"more than the GPU stack ({WIDE_STACK_SIZES[self.width]}); use bvh2")
+            if self.wide.node_count > WIDE_MAX_NODES:
+                raise ValueError(f"{layout}: {self.wide.node_count} nodes, more than the traversal stack "
+                                 f"addresses ({WIDE_MAX_NODES}); use bvh2")
             if self.limit and self.wide.nbytes > self.limit:
                 raise BufferTooLargeError("bvh_nodes", self.wide.nbytes, self.limit)
         self.nodes = self.ctx.buffer(self._pack_nodes().tobytes())

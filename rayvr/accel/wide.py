@@ -49,7 +49,8 @@ class WideBvh:
     width: int
     child: np.ndarray       # (N, W) int64: binary node id of each child slot, -1 = none
     packed: np.ndarray      # (N, node_words) uint32
-    stack_bound: int        # the most stack entries any traversal can hold (pushes minus pops)
+    stack_bound: int        # the most stack entries a walk that pushes every entered child can hold
+    group_stack_bound: int  # the GPU's (node, child mask) stack: one entry per level, the depth + 1
 
     @property
     def node_count(self) -> int:
@@ -63,6 +64,7 @@ class WideBvh:
         n = (self.child >= 0).sum(axis=1)
         return {"width": self.width, "nodes": self.node_count, "bytes": self.nbytes,
                 "mean_children": float(n.mean()), "stack_bound": self.stack_bound,
+                "group_stack_bound": self.group_stack_bound,
                 "depth": int(self._depth().max()) if self.node_count else 0}
 
     def _depth(self) -> np.ndarray:
@@ -240,7 +242,8 @@ def stack_bound(bvh: Bvh, child: np.ndarray) -> int:
 
 def build_wide(bvh: Bvh, width: int = 4) -> WideBvh:
     child = collapse(bvh, width)
-    return WideBvh(bvh, width, child, pack(bvh, child), stack_bound(bvh, child))
+    return WideBvh(bvh, width, child, pack(bvh, child), stack_bound(bvh, child),
+                   int(_wide_depth(child, bvh).max()) + 1)
 
 
 # ====================================================================== reference traversal

@@ -3,8 +3,16 @@
 //             planes of one byte per child (lo.x hi.x lo.y hi.y lo.z hi.z), plane = origin + q * 2^(e-127);
 //             one byte per child: leaf triangle count (0 = internal); one word per child: wide node
 //             index (internal) or first triangle slot (leaf). Children are packed first.
-// BVH_ORDERED 1: a closest-hit ray visits the entered internal children nearest first (a sorting
-// network over the entry distances); 0: in stored order. Any-hit rays never sort (BVH_ORDERED_ANY).
+// BVH_ORDERED 1: a closest-hit ray enters its nearest internal child first; 0: the first stored.
+// Any-hit rays never order (BVH_ORDERED_ANY).
+//
+// Why it looks like this (the H200 ran an earlier form with per-child arrays, a sorting network and a
+// push per entered child at 0.05-0.17x of bvh2): every child test is written out by the preprocessor
+// (BVH_CHILD_TEST), so the node's words and the children's entry distances are indexed by constants
+// and stay in registers; leaves and the next child are picked from bit masks (findLSB), their words
+// read again from the buffer (an L1 hit) instead of from a dynamically indexed array; and the stack
+// holds one entry per node group, (node << 8 | mask of its entered children not yet visited), as in
+// Ylitie et al. 2017, so it is at most the tree's depth deep (wide.WideBvh.group_stack_bound).
 #ifndef RAYVR_ACCEL_BVH_WIDE_GLSL
 #define RAYVR_ACCEL_BVH_WIDE_GLSL
 
@@ -21,10 +29,28 @@
 
 layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhWide { uvec4 bvh_wide[]; };
 
+// Word w of the fetched node (w a constant), byte i of plane p, and a node's word read from the buffer.
 #define BVH_WORD(w) nd[(w) >> 2][(w) & 3]
-#define BVH_BYTE(w, i) float((BVH_WORD((w) + ((i) >> 2)) >> (8u * uint((i) & 3))) & 0xFFu)
-#define BVH_CSWAP(i, j) if (cd[j] < cd[i]) { float td = cd[i]; cd[i] = cd[j]; cd[j] = td; \
-                                             uint ti = ci[i]; ci[i] = ci[j]; ci[j] = ti; }
+#define BVH_BYTE(p, i) ((BVH_WORD(4 + (p) * BVH_WQ + ((i) >> 2)) >> (8u * uint((i) & 3))) & 0xFFu)
+#define BVH_NODE_WORD(n, w) bvh_wide[int(n) * BVH_NODE_VEC4 + ((w) >> 2)][(w) & 3]
+#define BVH_CHILD_INDEX(n, i) BVH_NODE_WORD(n, 4 + 7 * BVH_WQ + (i))
+
+// Child i's box against the ray: bit i of `entered` (and of `leaves` for a leaf child), tn[i] its entry.
+#define BVH_CHILD_TEST(i) \
+    if (uint(i) < nchild) { \
+        vec3 lo = org + vec3(float(BVH_BYTE(0, i)), float(BVH_BYTE(2, i)), float(BVH_BYTE(4, i))) * scale; \
+        vec3 hi = org + vec3(float(BVH_BYTE(1, i)), float(BVH_BYTE(3, i)), float(BVH_BYTE(5, i))) * scale; \
+        if (bvh_slab(r.origin, inv, lo, hi, r.tmin, h.t, tn[i])) { \
+            entered |= 1u << (i); \
+            if (BVH_BYTE(6, i) != 0u) leaves |= 1u << (i); \
+        } \
+    }
+// Internal child i: dropped when it starts beyond a hit found in this node's leaves; else the nearest.
+#define BVH_CHILD_NEAREST(i) \
+    if ((inner & (1u << (i))) != 0u) { \
+        if (tn[i] > h.t) inner &= ~(1u << (i)); \
+        else if (tn[i] < nearest_t) { nearest_t = tn[i]; nearest = (i); } \
+    }
 
 bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
     RayShear s;
@@ -34,6 +60,7 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
     BVH_LOCAL_STACK
     int sp = 0;
     uint node = 0u;
+    bool ordered = any_hit ? BVH_ORDERED_ANY != 0 : BVH_ORDERED != 0;
     while (true) {
         uvec4 nd[BVH_NODE_VEC4];
         for (int k = 0; k < BVH_NODE_VEC4; ++k)
@@ -41,60 +68,56 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
         vec3 org = uintBitsToFloat(nd[0].xyz);
         uint e = nd[0].w;
         vec3 scale = uintBitsToFloat(uvec3(e & 0xFFu, (e >> 8) & 0xFFu, (e >> 16) & 0xFFu) << 23u);
-        int nchild = int(e >> 24);
-        float cd[BVH_WIDTH];   // entry distance of each entered internal child (3e38: none)
-        uint ci[BVH_WIDTH];
-        for (int i = 0; i < BVH_WIDTH; ++i) {
-            cd[i] = 3.0e38;
-            ci[i] = BVH_MISS;
-            if (i >= nchild)
-                continue;
-            vec3 lo = org + vec3(BVH_BYTE(4, i), BVH_BYTE(4 + 2 * BVH_WQ, i), BVH_BYTE(4 + 4 * BVH_WQ, i)) * scale;
-            vec3 hi = org + vec3(BVH_BYTE(4 + BVH_WQ, i), BVH_BYTE(4 + 3 * BVH_WQ, i), BVH_BYTE(4 + 5 * BVH_WQ, i)) * scale;
-            float tn;
-            if (!bvh_slab(r.origin, inv, lo, hi, r.tmin, h.t, tn))
-                continue;
-            int count = int(BVH_BYTE(4 + 6 * BVH_WQ, i));
-            uint index = BVH_WORD(4 + 7 * BVH_WQ + i);
-            if (count > 0) {
-                if (bvh_leaf(s, int(index), count, r.tmin, any_hit, h) && any_hit)
-                    return true;
-            } else {
-                cd[i] = tn;
-                ci[i] = index;
-            }
-        }
-        if (any_hit ? BVH_ORDERED_ANY != 0 : BVH_ORDERED != 0) {
-#if BVH_WIDTH == 4
-            BVH_CSWAP(0, 1) BVH_CSWAP(2, 3) BVH_CSWAP(0, 2) BVH_CSWAP(1, 3) BVH_CSWAP(1, 2)
-#else
-            BVH_CSWAP(0, 2) BVH_CSWAP(1, 3) BVH_CSWAP(4, 6) BVH_CSWAP(5, 7) BVH_CSWAP(0, 4)
-            BVH_CSWAP(1, 5) BVH_CSWAP(2, 6) BVH_CSWAP(3, 7) BVH_CSWAP(0, 1) BVH_CSWAP(2, 3)
-            BVH_CSWAP(4, 5) BVH_CSWAP(6, 7) BVH_CSWAP(2, 4) BVH_CSWAP(3, 5) BVH_CSWAP(1, 4)
-            BVH_CSWAP(3, 6) BVH_CSWAP(1, 2) BVH_CSWAP(3, 4) BVH_CSWAP(5, 6)
+        uint nchild = e >> 24;
+        float tn[BVH_WIDTH];
+        uint entered = 0u, leaves = 0u;
+        BVH_CHILD_TEST(0) BVH_CHILD_TEST(1) BVH_CHILD_TEST(2) BVH_CHILD_TEST(3)
+#if BVH_WIDTH == 8
+        BVH_CHILD_TEST(4) BVH_CHILD_TEST(5) BVH_CHILD_TEST(6) BVH_CHILD_TEST(7)
 #endif
+        uint inner = entered & ~leaves;
+        for (uint m = leaves; m != 0u; m &= m - 1u) {   // leaves in stored order
+            int i = findLSB(m);
+            int count = int((BVH_NODE_WORD(node, 4 + 6 * BVH_WQ + (i >> 2)) >> (8u * uint(i & 3))) & 0xFFu);
+            if (bvh_leaf(s, int(BVH_CHILD_INDEX(node, i)), count, r.tmin, any_hit, h) && any_hit)
+                return true;
         }
-        // Farthest first onto the stack; the nearest (or first stored) is visited next without a
-        // push and pop. Children whose entry lies beyond a hit found in this node's leaves drop out.
-        int next = -1;
-        for (int i = BVH_WIDTH - 1; i >= 0; --i)
-            if (ci[i] != BVH_MISS && cd[i] <= h.t) {
-                if (next >= 0)
-                    bvh_stack[sp++] = next;
-                next = int(ci[i]);
-            }
-        if (next >= 0) {
-            node = uint(next);
-        } else {
+        float nearest_t = 3.0e38;
+        int nearest = -1;
+        BVH_CHILD_NEAREST(0) BVH_CHILD_NEAREST(1) BVH_CHILD_NEAREST(2) BVH_CHILD_NEAREST(3)
+#if BVH_WIDTH == 8
+        BVH_CHILD_NEAREST(4) BVH_CHILD_NEAREST(5) BVH_CHILD_NEAREST(6) BVH_CHILD_NEAREST(7)
+#endif
+        uint parent;
+        int i;
+        if (inner != 0u) {   // go down into one entered child, keep its siblings as one entry
+            i = ordered ? nearest : findLSB(inner);
+            inner &= ~(1u << uint(i));
+            if (inner != 0u)
+                bvh_stack[sp++] = int((node << 8) | inner);
+            parent = node;
+        } else {             // next sibling of the innermost group with children left
             if (sp == 0)
                 break;
-            node = uint(bvh_stack[--sp]);
+            uint top = uint(bvh_stack[sp - 1]);
+            parent = top >> 8;
+            uint m = top & 0xFFu;
+            i = findLSB(m);
+            m &= m - 1u;
+            if (m == 0u)
+                --sp;
+            else
+                bvh_stack[sp - 1] = int((parent << 8) | m);
         }
+        node = BVH_CHILD_INDEX(parent, i);
     }
     return h.prim != BVH_MISS;
 }
 
 #undef BVH_WORD
 #undef BVH_BYTE
-#undef BVH_CSWAP
+#undef BVH_NODE_WORD
+#undef BVH_CHILD_INDEX
+#undef BVH_CHILD_TEST
+#undef BVH_CHILD_NEAREST
 #endif
