@@ -242,7 +242,7 @@ def _result(mats, choice, budget_ms, base_ms, costs, errs, feasible) -> BudgetRe
 # --------------------------------------------------------- measured options, then solved
 
 def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
-                         effects=None, repeat=10, min_coverage=1e-4, progress=True, pool=None):
+                         effects=None, repeat=10, min_coverage=1e-4, progress=True, pool=None, measure_all=None):
     """Per material and effect: extra GPU ms over all-`raster` and the error left on its pixels.
 
     One render per effect (the whole scene on that rung) instead of one per material and
@@ -251,9 +251,10 @@ def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
     passes run over compacted pixel lists, so their cost follows pixel counts). Both are
     approximations: reflections also show other materials, and dispatch overheads are shared;
     the chosen assignment is therefore rendered and measured for real afterwards.
-    Materials covering < min_coverage of the image stay `raster`."""
+    Materials covering < min_coverage of the image stay `raster`. `measure_all`: how the
+    per-effect renders are measured (bench.tradeoff.local_measurer by default; Ray workers)."""
     from .bench import metrics
-    from .bench.tradeoff import Variant, config_for_assignment, measure
+    from .bench.tradeoff import Variant, config_for_assignment, local_measurer
     from .effects import implemented_effects
 
     effects = list(effects or implemented_effects())
@@ -269,17 +270,17 @@ def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
         from tqdm import tqdm
 
         bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name}")
-    for e in effects:
-        cfg = config_for_assignment(base, scene, {n: e for n in names})
-        m = measure(gl, scene, rig, Variant("budget", e, cfg), repeat, pool=pool)
-        flip_maps[e] = metrics.flip_map(reference_image.image, m.image, ppd=ppd)
-        extra_ms[e] = m.gpu_ms
-        if e == "raster":
-            raster_ms = m.gpu_ms
+    measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
+    whole_scene = [Variant("budget", e, config_for_assignment(base, scene, {n: e for n in names})) for e in effects]
+    try:
+        for e, m in zip(effects, measure_all(whole_scene, bar)):
+            flip_maps[e] = metrics.flip_map(reference_image.image, m.image, ppd=ppd)
+            extra_ms[e] = m.gpu_ms
+            if e == "raster":
+                raster_ms = m.gpu_ms
+    finally:
         if bar is not None:
-            bar.update(1)
-    if bar is not None:
-        bar.close()
+            bar.close()
     if raster_ms is None:
         raise ValueError("the budget model needs 'raster' among the effects (it is the cost baseline)")
     share = coverage / max(coverage[covered].sum(), 1e-12)

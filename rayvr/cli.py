@@ -5,6 +5,7 @@ import argparse
 import json
 import logging
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -85,6 +86,17 @@ def _prefix(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _worker_counts(text: str) -> str:
+    """argparse type: comma-separated worker counts, each from 1 to 1024 (kept as text)."""
+    try:
+        counts = [int(x) for x in text.split(",")]
+    except ValueError:
+        counts = []
+    if not counts or not all(1 <= c <= 1024 for c in counts):
+        raise argparse.ArgumentTypeError(f"expected worker counts from 1 to 1024, comma-separated, got {text[:40]!r}")
+    return text
+
+
 FOV = _number(0, 360)  # degrees; the camera model refuses what it cannot project (the pinhole: < 180)
 IPD = _number(0, MAX_DISTANCE, lo_open=False)
 DISTANCE = _number(0, MAX_DISTANCE)
@@ -134,47 +146,34 @@ def rig_from_args(args, scene):
     return rig
 
 
-def cmd_capture(args) -> int:
-    from .capture import CaptureJob, poses_for, run_capture, write_summary
-    from .output import check_output_dir
-    from .renderer import Renderer, RenderSettings
+def _file_identity(path) -> dict | None:
+    """A file's identity for resuming a capture: its path, size and modification time."""
+    if path is None:
+        return None
+    try:
+        st = Path(path).stat()
+    except OSError:  # the loader says what is wrong with it
+        return {"path": str(path)}
+    return {"path": str(Path(path).resolve()), "bytes": st.st_size, "mtime_ns": st.st_mtime_ns}
 
-    check_output_dir(args.out)  # fail before any rendering work; the folder is made with the first file
-    if args.format == "exr":
-        from .output import openexr
 
-        openexr()  # the optional package, before any work
-    aux = tuple(a for a in (args.aux or "").split(",") if a)
-    if args.stereo == "warp" and args.format == "exr" and args.eye == "both" and args.view == "color":
-        raise ValueError("--format exr writes the linear HDR colour, which --stereo warp does not make "
-                         "(it warps the displayed colour): use --stereo dual or reuse")
-    settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode,
-                              primary=args.primary, denoise=args.denoise or args.denoise_iterations is not None,
-                              denoise_iterations=args.denoise_iterations or RenderSettings.denoise_iterations,
-                              accumulate=args.temporal, temporal=args.temporal,
-                              second_layer=args.second_layer, stereo=args.stereo,
-                              warp_layers=args.warp_layers, quadtree_adapt=args.quadtree_adapt,
-                              traversal=args.traversal,
-                              dof_aperture=args.aperture, dof_focus=args.focus_distance, dof_samples=args.dof_samples)
-    with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
-        rig = rig_from_args(args, r.scene)
-        pick = None
-        if args.budget_ms is not None:
-            from .budget import auto_config, describe_pick
+def _capture_poses(args, rig, scene):
+    """(poses, per-frame rig overrides or None) of --views, --path, --frames or the rig's pose."""
+    from .capture import poses_for
 
-            config, pick = auto_config(r, rig, args.budget_ms, progress=not args.quiet)
-            r.set_materials(config)
-            if not args.quiet:
-                print(describe_pick(pick))
-        poses = poses_for(rig, r.scene, args.frames, args.path)
-        job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp)
-        summary = run_capture(r, job, progress=not args.quiet)
-        if pick is not None:
-            summary["budget"] = pick
-        summary_path = write_summary(job, summary)
+    if args.views:
+        from .views import views_for
+
+        return views_for(args.views, scene, rig)
+    return poses_for(rig, scene, args.frames, args.path), None
+
+
+def _print_capture(args, summary, summary_path, scene_summary) -> None:
     if not args.quiet:
-        print(f"{r.scene.summary()}")
+        print(scene_summary)
         print(f"wrote {len(summary['files'])} files to {args.out}/ ({summary['frames']} frame(s), {args.eye} eye(s))")
+        counts = [f"{summary[k]} {k}" for k in ("written", "skipped", "retried", "failed") if k in summary]
+        print("frames: " + ", ".join(counts))
     if args.timings:
         print("GPU ms per pass (mean over frames; GL timer queries):")
         for k in summary["passes"]:
@@ -185,6 +184,104 @@ def cmd_capture(args) -> int:
             print("  note: software rasterizer: GL timer queries do not measure GPU work here; "
                   "benchmark on a GPU")
         print(f"timings saved to {summary_path}")
+
+
+def cmd_capture(args) -> int:
+    from .capture import CaptureJob, job_identity, run_capture, write_summary
+    from .output import check_output_dir
+    from .renderer import Renderer, RenderSettings
+
+    if args.workers:
+        from .cluster import require_ray
+
+        require_ray()  # the optional extra, before any work
+        if args.budget_ms is not None:
+            raise ValueError("--budget-ms picks effects on this machine's GPU; run it without --workers and "
+                             "pass the config it reports with --materials")
+        if args.temporal:
+            raise ValueError("--temporal carries each frame's samples into the next, so its frames render in "
+                             "order in one process; leave out --workers")
+    check_output_dir(args.out)  # fail before any rendering work; the folder is made with the first file
+    if args.format == "exr":
+        from .output import openexr
+
+        openexr()  # the optional package, before any work
+    aux = tuple(a for a in (args.aux or "").split(",") if a)
+    if args.stereo == "warp" and args.format == "exr" and args.eye == "both" and args.view == "color":
+        raise ValueError("--format exr writes the linear HDR colour, which --stereo warp does not make "
+                         "(it warps the displayed colour): use --stereo dual or reuse")
+    if args.views and "depth" not in aux:
+        aux += ("depth",)  # a multi-view capture writes depth beside every view
+    settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode,
+                              primary=args.primary, denoise=args.denoise or args.denoise_iterations is not None,
+                              denoise_iterations=args.denoise_iterations or RenderSettings.denoise_iterations,
+                              accumulate=args.temporal, temporal=args.temporal,
+                              second_layer=args.second_layer, stereo=args.stereo,
+                              warp_layers=args.warp_layers, quadtree_adapt=args.quadtree_adapt,
+                              traversal=args.traversal,
+                              dof_aperture=args.aperture, dof_focus=args.focus_distance, dof_samples=args.dof_samples)
+    inputs = {"scene": _file_identity(args.scene), "materials": _file_identity(args.materials),
+              "settings": repr(settings)}
+    if args.workers:
+        return _capture_on_workers(args, aux, settings, inputs)
+    with Renderer(args.scene, args.materials, backend=args.backend, settings=settings) as r:
+        rig = rig_from_args(args, r.scene)
+        pick = None
+        if args.budget_ms is not None:
+            from .budget import auto_config, describe_pick
+
+            config, pick = auto_config(r, rig, args.budget_ms, progress=not args.quiet)
+            r.set_materials(config)
+            inputs["budget"] = pick["assignment"]  # what it picked is what the frames show
+            if not args.quiet:
+                print(describe_pick(pick))
+        poses, overrides = _capture_poses(args, rig, r.scene)
+        job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
+                         rig_overrides=overrides, cameras=bool(args.views))
+        # --temporal carries each frame into the next: only a whole run in order gives the same frames
+        identity = None if args.temporal else job_identity(job, **inputs)
+        summary = run_capture(r, job, progress=not args.quiet, identity=identity)
+        if pick is not None:
+            summary["budget"] = pick
+        summary_path = write_summary(job, summary)
+        if args.views:
+            from .views import write_transforms
+
+            write_transforms(job)
+    _print_capture(args, summary, summary_path, r.scene.summary())
+    return 0
+
+
+def _capture_on_workers(args, aux, settings, inputs) -> int:
+    """`rayvr capture --workers N`: the frames in chunks over N Ray workers."""
+    from . import scene as scene_mod
+    from .capture import CaptureJob, job_identity, write_summary
+    from .cluster import Cluster, WorkerSpec, run_capture_distributed
+
+    from .materials import load_config
+
+    scene = scene_mod.load(args.scene)  # for the rig and the poses; each worker loads its own
+    load_config(args.materials).assign(scene.material_names(), warn=False)  # a bad config fails here, once
+    rig = rig_from_args(args, scene)
+    poses, overrides = _capture_poses(args, rig, scene)
+    job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
+                     rig_overrides=overrides, cameras=bool(args.views))
+    spec = WorkerSpec(args.scene, args.materials, settings, args.backend)
+    with Cluster(args.workers, spec, args.address) as cluster:
+        summary = run_capture_distributed(cluster, job, job_identity(job, **inputs), progress=not args.quiet,
+                                          chunk=args.chunk, crash_file=os.environ.get("RAYVR_TEST_CRASH_ONCE"))
+    summary_path = write_summary(job, summary)
+    if args.views:
+        from .views import write_transforms
+
+        write_transforms(job)
+    _print_capture(args, summary, summary_path, scene.summary())
+    missing = summary["missing_frames"]
+    if missing:
+        shown = ", ".join(map(str, missing[:10])) + (", ..." if len(missing) > 10 else "")
+        print(f"rayvr capture: error: {len(missing)} frame(s) missing after the run ({shown}); "
+              f"rerun the same command to render only those", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -286,6 +383,17 @@ def _budgets(text: str) -> list[float]:
 def cmd_bench(args) -> int:
     out = Path(args.out)
     quick = args.quick
+    if args.workers or args.area == "workers":
+        from .cluster import require_ray
+
+        require_ray()  # the optional extra, before any work
+        if args.area not in ("tradeoff", "budget", "workers"):
+            raise ValueError(f"--workers spreads the tradeoff and budget sweeps; bench {args.area} runs in one process")
+        args.workers_list = [int(x) for x in args.workers.split(",")] if args.workers else None
+        if args.area != "workers":
+            if len(args.workers_list) != 1:
+                raise ValueError(f"bench {args.area} --workers takes one count, got {args.workers!r}")
+            args.workers = args.workers_list[0]
     if args.area == "gbuffer":
         from .bench import gbuffer
 
@@ -323,6 +431,13 @@ def cmd_bench(args) -> int:
         stereo.run(out, size=(64, 48) if quick else args.size,
                    scenes=("default",) if quick else tuple(args.scenes.split(",")),
                    repeat=2 if quick else args.repeat, backend=args.backend)
+    elif args.area == "workers":
+        from .bench import workers
+
+        counts = args.workers_list or [1, 2]
+        workers.run(out, size=(32, 24) if quick else args.size, scenes=("default",) if quick else tuple(args.scenes.split(",")),
+                    frames=8 if quick else args.frames, workers=tuple(counts), address=args.address,
+                    backend=args.backend, base_config=_example_config)
     elif args.area == "crosscheck":
         from .bench import mitsuba_ref
 
@@ -332,7 +447,8 @@ def cmd_bench(args) -> int:
 
         kw = dict(size=(32, 24) if quick else args.size,
                   scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                  repeat=2 if quick else args.repeat // 5, base_config=_example_config, backend=args.backend)
+                  repeat=2 if quick else args.repeat // 5, base_config=_example_config, backend=args.backend,
+                  workers=args.workers, address=args.address)
         if args.area == "tradeoff":
             tradeoff.run(out, quick=quick, **kw)
         else:
@@ -412,6 +528,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"a-trous iterations, 1..{MAX_DENOISE_ITERATIONS} (default 4; implies --denoise)")
     n.add_argument("--temporal", action="store_true",
                    help="camera paths: carry each frame's samples into the next by reprojection (pinhole)")
+    seq.add_argument("--views", metavar="FILE|sphere:N|grid:NxM[:SPACING]",
+                     help="multi-view capture: a views file (JSON poses/intrinsics, or a transforms.json) or N views "
+                          "on a sphere around the scene / an NxM camera array; writes depth, per-view camera files "
+                          "and transforms.json (NeRF / 3D Gaussian splatting layout)")
+    c.add_argument("--workers", type=_count(1, 1024), help="render on N Ray workers, one per GPU (CPU processes "
+                   "where there is none); needs pip install 'rayvr[cluster]'")
+    c.add_argument("--address", help="with --workers: an existing Ray cluster, 'auto' or HOST:PORT "
+                   "(default: start a local one)")
+    c.add_argument("--chunk", type=_count(1, MAX_FRAMES), help="with --workers: frames per task (default: about "
+                   "4 tasks per worker, at most 32 frames)")
     c.add_argument("--timings", action="store_true", help="print GPU ms per pass")
     c.add_argument("--budget-ms", type=BUDGET_MS, help="pick effects per material to fit this GPU frame time "
                    "(measured on this device against a reference; overrides --materials' effects)")
@@ -456,13 +582,15 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
-    b.add_argument("area", choices=("gbuffer", "rays", "ssrt", "photon", "stereo", "peers", "tradeoff", "budget", "crosscheck"),
+    b.add_argument("area", choices=("gbuffer", "rays", "ssrt", "photon", "stereo", "peers", "tradeoff", "budget",
+                                    "crosscheck", "workers"),
                    help="gbuffer: layered stereo vs mono G-buffer ms; rays: rays/s vs Embree and the hybrid "
                         "frame; ssrt: quadtree screen-space tracing vs the DDA baseline; photon: the photon-mapping paper's "
                         "tables (kd-tree vs hash grid, heap vs no heap: ms per pass, FLIP); stereo: the stereo modes dual, warp, "
                         "reuse (ms per pass, FLIP against dual, holes); peers: frames/s against pyrender; "
                         "tradeoff: every knob's GPU ms vs error against the reference; budget: effects per "
-                        "material chosen under --budget-ms; crosscheck: the reference vs Mitsuba 3 on the Cornell boxes")
+                        "material chosen under --budget-ms; crosscheck: the reference vs Mitsuba 3 on the Cornell boxes; "
+                        "workers: frames/s of a capture path in one process and on --workers N,M Ray workers")
     b.add_argument("--budget-ms", type=_budgets, default=[4.0, 8.0], help="frame budgets for 'budget' (default 4,8)")
     b.add_argument("--out", default="bench/results", help="folder for JSON/markdown results")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")
@@ -473,6 +601,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"rays: BVH node layouts to measure, comma-separated (default {','.join(BVH_LAYOUTS)}; "
                         f"bvh2, the reference, always runs)")
     b.add_argument("--no-tiles", action="store_true", help="rays: leave out the tile frustum culling variant")
+    b.add_argument("--workers", type=_worker_counts, help="tradeoff/budget: spread the variants over N Ray workers; "
+                   "workers: the worker counts to time (default 1,2); needs pip install 'rayvr[cluster]'")
+    b.add_argument("--address", help="with --workers: an existing Ray cluster, 'auto' or HOST:PORT")
+    b.add_argument("--frames", type=FRAMES, default=64, help="workers: frames of the capture path (default 64)")
     b.add_argument("--backend", choices=("egl", "osmesa"))
     b.set_defaults(func=cmd_bench)
 
@@ -511,10 +643,11 @@ def main(argv=None) -> int:
     from .output import OutputError
     from .scene import SceneError
     from .shaders import ShaderError
+    from .cluster import ClusterError
 
     try:
         return args.func(args)
-    except (ContextError, ConfigError, SceneError, OutputError, ShaderError, ValueError) as exc:
+    except (ContextError, ConfigError, SceneError, OutputError, ShaderError, ClusterError, ValueError) as exc:
         print(f"rayvr {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:  # Ctrl-C: one line, the shell's status for SIGINT

@@ -179,14 +179,110 @@ def _check_version(ctx: moderngl.Context, backend: str) -> None:
         raise ContextError(f"{backend}: OpenGL {version} is older than the required 4.3 core")
 
 
-def _egl_proc_loader() -> Callable[[str], int | None]:
+def _egl_library():
+    """libEGL with eglGetProcAddress typed."""
     lib = ctypes.util.find_library("EGL")
     if not lib:
         raise ContextError("libEGL not found")
     egl = ctypes.CDLL(lib)
     egl.eglGetProcAddress.restype = ctypes.c_void_p
     egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+    return egl
+
+
+def _egl_proc_loader() -> Callable[[str], int | None]:
+    egl = _egl_library()
     return lambda name: egl.eglGetProcAddress(name.encode())
+
+
+# ------------------------------------------------------------------ which EGL device is which GPU
+# Ray (like any GPU scheduler) names a worker's GPU through CUDA_VISIBLE_DEVICES; EGL lists its
+# devices in its own order (software devices included). EGL_NV_device_cuda says which CUDA device
+# an EGL device is, which is what ties the two together.
+EGL_EXTENSIONS, EGL_CUDA_DEVICE_NV = 0x3055, 0x323A
+EGL_DEVICE_ENV = "RAYVR_EGL_DEVICE"  # an explicit EGL device index wins over the mapping
+
+
+@dataclass(frozen=True)
+class EglDevice:
+    index: int  # position in eglQueryDevicesEXT's list: moderngl's `device_index`
+    extensions: str
+    cuda: int | None  # the CUDA device ordinal EGL_NV_device_cuda reports (None: no answer)
+
+    @property
+    def nvidia(self) -> bool:
+        return "EGL_NV_device_cuda" in self.extensions.split()
+
+
+def egl_devices() -> list[EglDevice]:
+    """The EGL devices (EGL_EXT_device_enumeration/_query), in the order moderngl indexes them."""
+    egl = _egl_library()
+    addr = {n: egl.eglGetProcAddress(n.encode()) for n in
+            ("eglQueryDevicesEXT", "eglQueryDeviceStringEXT", "eglQueryDeviceAttribEXT")}
+    if not (addr["eglQueryDevicesEXT"] and addr["eglQueryDeviceStringEXT"]):
+        raise ContextError("egl: the driver cannot enumerate devices (no EGL_EXT_device_enumeration)")
+    vp, ip = ctypes.c_void_p, ctypes.c_int
+    query_devices = ctypes.CFUNCTYPE(ctypes.c_uint, ip, ctypes.POINTER(vp), ctypes.POINTER(ip))(addr["eglQueryDevicesEXT"])
+    query_string = ctypes.CFUNCTYPE(ctypes.c_char_p, vp, ip)(addr["eglQueryDeviceStringEXT"])
+    query_attrib = (ctypes.CFUNCTYPE(ctypes.c_uint, vp, ip, ctypes.POINTER(ctypes.c_ssize_t))(addr["eglQueryDeviceAttribEXT"])
+                    if addr["eglQueryDeviceAttribEXT"] else None)
+    handles, count = (vp * 64)(), ip(0)
+    if not query_devices(64, handles, ctypes.byref(count)):
+        raise ContextError("egl: eglQueryDevicesEXT failed")
+    out = []
+    for i in range(count.value):
+        ext = (query_string(handles[i], EGL_EXTENSIONS) or b"").decode(errors="replace")
+        value, cuda = ctypes.c_ssize_t(-1), None
+        if query_attrib and "EGL_NV_device_cuda" in ext.split() and query_attrib(handles[i], EGL_CUDA_DEVICE_NV,
+                                                                               ctypes.byref(value)):
+            cuda = int(value.value)
+        out.append(EglDevice(i, ext, cuda))
+    return out
+
+
+def egl_device_for_gpu(devices: list[EglDevice], gpu: str, visible: list[str]) -> int | None:
+    """The EGL device index of CUDA device `gpu` (an entry of CUDA_VISIBLE_DEVICES, `visible`).
+
+    Drivers answer EGL_CUDA_DEVICE_NV in one of two ways: with physical ordinals for every NVIDIA
+    device, or (when they apply CUDA_VISIBLE_DEVICES) with ordinals among the visible devices only,
+    the hidden ones not answering. None when no device speaks EGL_NV_device_cuda (no NVIDIA GPU,
+    e.g. llvmpipe): the default device is then the only sensible one."""
+    nvidia = [d for d in devices if d.nvidia]
+    answered = [d for d in nvidia if d.cuda is not None]
+    if not answered:
+        return None
+    if len(answered) < len(nvidia):  # the driver hides what CUDA_VISIBLE_DEVICES hides
+        if gpu not in visible:
+            raise ContextError(f"GPU {gpu!r} is not among CUDA_VISIBLE_DEVICES={','.join(visible)}")
+        want = visible.index(gpu)
+    else:
+        try:
+            want = int(gpu)
+        except ValueError:
+            raise ContextError(f"GPU {gpu!r} is not a CUDA ordinal; set {EGL_DEVICE_ENV} to its EGL device index "
+                               f"(rayvr info lists them)") from None
+    for d in answered:
+        if d.cuda == want:
+            return d.index
+    seen = ", ".join(f"EGL {d.index} = CUDA {d.cuda}" for d in answered)
+    raise ContextError(f"no EGL device is CUDA device {want} (GPU {gpu!r}); EGL reports {seen}; "
+                       f"set {EGL_DEVICE_ENV} to pick one")
+
+
+def assigned_egl_device(env=None, devices=None) -> int | None:
+    """The EGL device of the GPU this process was given: RAYVR_EGL_DEVICE if set, else the first
+    entry of CUDA_VISIBLE_DEVICES (what Ray sets for a worker) mapped through EGL_NV_device_cuda;
+    None without either (the driver's default device)."""
+    env = os.environ if env is None else env
+    if env.get(EGL_DEVICE_ENV, "").strip():
+        try:
+            return int(env[EGL_DEVICE_ENV])
+        except ValueError:
+            raise ContextError(f"{EGL_DEVICE_ENV} must be an EGL device index, got {env[EGL_DEVICE_ENV]!r}") from None
+    visible = [v.strip() for v in env.get("CUDA_VISIBLE_DEVICES", "").split(",") if v.strip()]
+    if not visible:
+        return None
+    return egl_device_for_gpu(egl_devices() if devices is None else devices, visible[0], visible)
 
 
 def create_egl_context(device_index: int | None = None) -> GLContext:

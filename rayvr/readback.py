@@ -20,6 +20,7 @@ GL_PIXEL_PACK_BUFFER = 0x88EB
 GL_PACK_ALIGNMENT = 0x0D05
 GL_RGB, GL_UNSIGNED_BYTE = 0x1907, 0x1401
 AUX_CHANNELS = ("depth", "zbuffer", "position", "normal", "albedo", "material", "effect", "triangle", "hdr")
+INTEGER_AUX = ("material", "effect", "triangle")  # uint32 IDs; every other aux channel is float
 # aux name -> G-buffer channel it comes from
 _SOURCE = {"zbuffer": "zbuffer", "position": "position", "normal": "normal", "albedo": "albedo",
            "material": "material", "effect": "material", "triangle": "triangle", "hdr": "hdr"}

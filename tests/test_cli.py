@@ -44,7 +44,8 @@ def test_capture_one_eye_debug_view_and_path_replay(tmp_path):
                 "--path", str(tmp_path / "path.json"), "-q")
     assert run.returncode == 0, run.stderr
     assert sorted(os.listdir(tmp_path / "o")) == ["frame_0000_right_normal.png", "frame_0001_right_normal.png",
-                                                   "frame_0002_right_normal.png", "frame_timings.json"]
+                                                   "frame_0002_right_normal.png", "frame_job.json",
+                                                   "frame_timings.json"]  # the job file lets a rerun resume
     frames = [np.asarray(Image.open(tmp_path / "o" / f"frame_000{i}_right_normal.png")) for i in range(3)]
     assert not np.array_equal(frames[0], frames[1])
 
@@ -152,7 +153,8 @@ def test_ctrl_c_during_a_sequence_is_one_line_exit_130_and_keeps_whole_files(tmp
         proc.kill()
     assert proc.returncode == 130, stderr
     assert len(stderr.splitlines()) == 1 and "Traceback" not in stderr, stderr
-    files = sorted(out.iterdir())
+    assert (out / "frame_job.json").exists()  # written before the first frame: a rerun resumes
+    files = sorted(p for p in out.iterdir() if p.name != "frame_job.json")
     assert stderr.startswith("rayvr capture: interrupted after ") and f"the {len(files)} file(s) written" in stderr
     assert 0 < len(files) < 1000 and all(p.suffix == ".png" for p in files)  # no temp file, no summary
     for p in files:

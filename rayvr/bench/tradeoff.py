@@ -133,6 +133,18 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
     return Measured(float(np.median(totals)), image, material)
 
 
+def local_measurer(gl, scene, rig: StereoRig, repeat: int, pool: RendererPool | None = None):
+    """`measure_all(variants, bar)`: each variant measured here, in order, the bar counting them.
+    rayvr.cluster.sweep_measurer is the same over Ray workers (`--workers`)."""
+    def measure_all(variants, bar=None):
+        for v in variants:
+            m = measure(gl, scene, rig, v, repeat, pool=pool)
+            if bar is not None:
+                bar.update(1)
+            yield m
+    return measure_all
+
+
 def material_mask(scene, material_map: np.ndarray, names) -> np.ndarray | None:
     if not names:
         return None
@@ -200,24 +212,25 @@ def noise_variants(base: MaterialConfig, quick: bool = False) -> list[Variant]:
 
 
 def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd: float, repeat=10,
-              progress=True, with_flip=True, pool: RendererPool | None = None) -> tuple[list[dict], Measured]:
+              progress=True, with_flip=True, pool: RendererPool | None = None,
+              measure_all=None) -> tuple[list[dict], Measured]:
+    """The reference measured here, the variants through `measure_all` (default: here too)."""
     ref = measure(gl, scene, rig, reference, repeat, pool=pool)
+    measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
     rows = []
-    iterator = variants_
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=len(variants_), unit="variant", desc=f"tradeoff {scene.name}")
-    for v in iterator:
-        m = measure(gl, scene, rig, v, repeat, pool=pool)
-        rows.append({"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label,
-                     "gpu_ms": m.gpu_ms, **error_row(ref, m, scene, v, ppd, with_flip),
-                     "reference_ms": ref.gpu_ms})
+    try:
+        for v, m in zip(variants_, measure_all(variants_, bar)):
+            rows.append({"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label,
+                         "gpu_ms": m.gpu_ms, **error_row(ref, m, scene, v, ppd, with_flip),
+                         "reference_ms": ref.gpu_ms})
+    finally:
         if bar is not None:
-            bar.update(1)
-    if bar is not None:
-        bar.close()
+            bar.close()
     return rows, ref
 
 
@@ -237,6 +250,26 @@ def _setups(names, size, base_config, skipped, quick=False):
 
 
 @contextlib.contextmanager
+def _workers(workers, address):
+    """A Ray cluster of `workers` sweep workers, or None to measure everything here."""
+    if not workers:
+        yield None
+        return
+    from ..cluster import Cluster, WorkerSpec
+
+    with Cluster(workers, WorkerSpec(capture=False), address) as cluster:
+        yield cluster
+
+
+def _measurer(cluster, name, rig, repeat):
+    if cluster is None:
+        return None
+    from ..cluster import sweep_measurer
+
+    return sweep_measurer(cluster, name, rig, repeat)
+
+
+@contextlib.contextmanager
 def _bench_gl(out_dir, backend):
     """Check the output folder first (fail before any work), then a GL context for the run."""
     from ..context import create_context
@@ -251,21 +284,23 @@ def _bench_gl(out_dir, backend):
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
-        base_config=None, backend=None, progress=True) -> dict:
-    """Sweep every knob on each scene against its reference; write tradeoff.json/.md and plots."""
+        base_config=None, backend=None, progress=True, workers=None, address=None) -> dict:
+    """Sweep every knob on each scene against its reference; write tradeoff.json/.md and plots.
+    `workers`: the variants spread over that many Ray workers (rayvr.cluster), the reference here."""
     from .report import device_meta, write_report
 
     rows, skipped = [], {}
-    with _bench_gl(out_dir, backend) as gl:
+    with _bench_gl(out_dir, backend) as gl, _workers(workers, address) as cluster:
         for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
             with RendererPool(gl) as pool:
                 r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick), ppd, repeat, progress,
-                                 with_flip=True, pool=pool)
+                                 with_flip=True, pool=pool, measure_all=_measurer(cluster, name, rig, repeat))
             for row in r:
                 row["scene"] = name
             rows += r
         meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
-                "ppd": ppd, "skipped": skipped, "error": "vs the scene's reference (rayvr.bench.reference); "
+                "ppd": ppd, "skipped": skipped, "workers": workers or 0,
+                "error": "vs the scene's reference (rayvr.bench.reference); "
                 "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "tradeoff", result)
@@ -274,19 +309,21 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
 
 
 def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
-               ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False) -> dict:
-    """For each budget: the chosen effect per material, its predicted and measured ms and error."""
+               ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False, workers=None,
+               address=None) -> dict:
+    """For each budget: the chosen effect per material, its predicted and measured ms and error.
+    `workers`: the per-effect measurements spread over Ray workers; each pick is confirmed here."""
     from ..budget import choose_under_budget, per_material_options
     from ..output import write_png
     from .report import device_meta, write_report
 
     rows, skipped = [], {}
-    with _bench_gl(out_dir, backend) as gl:
+    with _bench_gl(out_dir, backend) as gl, _workers(workers, address) as cluster:
         for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
             with RendererPool(gl) as pool:
                 ref = measure(gl, scene, rig, reference, repeat, pool=pool)
                 options = per_material_options(gl, scene, rig, ref, base, ppd, repeat=repeat, progress=progress,
-                                               pool=pool)
+                                               pool=pool, measure_all=_measurer(cluster, name, rig, repeat))
                 picks = [choose_under_budget(gl, scene, rig, b, base, ref, ppd, repeat, progress, pool, options)
                          for b in budgets]
             for b, pick in zip(budgets, picks):
@@ -294,7 +331,7 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
                              **{k: v for k, v in pick.items() if k not in ("config", "image")}})
                 write_png(f"{out_dir}/budget_{name}_{b:g}ms.png", pick["image"])
         meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
-                "ppd": ppd, "skipped": skipped,
+                "ppd": ppd, "skipped": skipped, "workers": workers or 0,
                 "model": "per material: extra GPU ms of each effect over all-raster and mean FLIP over its "
                          "pixels vs the reference; total error = sum importance x coverage x error; exact "
                          "multiple-choice knapsack (rayvr.budget)"}

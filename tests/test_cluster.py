@@ -1,0 +1,292 @@
+"""Captures over Ray workers (rayvr/cluster.py): the EGL device each GPU worker takes, the
+dispatch with retries, and on a local Ray with 2 CPU workers: byte-identical frames, a worker
+killed mid-run, resuming, and the missing extra."""
+import json
+import os
+import sys
+
+import numpy as np
+import pytest
+
+from rayvr.camera import orbit, save_path
+from rayvr.cli import main
+from rayvr.context import ContextError, EglDevice, assigned_egl_device, egl_device_for_gpu
+
+NV = "EGL_NV_device_cuda EGL_EXT_device_drm"
+SOFTWARE = EglDevice(0, "EGL_MESA_device_software", None)
+
+
+# ------------------------------------------------------------------ which EGL device is the worker's GPU
+
+def test_egl_device_of_a_cuda_ordinal_when_the_driver_reports_physical_ordinals():
+    # EGL lists the software device first and the GPUs in another order than CUDA.
+    devices = [SOFTWARE, EglDevice(1, NV, 1), EglDevice(2, NV, 0)]
+    assert egl_device_for_gpu(devices, "0", ["0"]) == 2
+    assert egl_device_for_gpu(devices, "1", ["1"]) == 1
+    assert assigned_egl_device({"CUDA_VISIBLE_DEVICES": "1"}, devices) == 1
+    assert assigned_egl_device({"CUDA_VISIBLE_DEVICES": "0,1"}, devices) == 2  # the first visible one
+
+
+def test_egl_device_when_the_driver_applies_cuda_visible_devices():
+    # Ray gave this worker physical GPU 1: the driver numbers the visible GPUs from 0 and hides the rest.
+    devices = [SOFTWARE, EglDevice(1, NV, None), EglDevice(2, NV, 0)]
+    assert egl_device_for_gpu(devices, "1", ["1"]) == 2
+
+
+def test_egl_device_without_nvidia_is_the_default_and_overrides_win():
+    assert egl_device_for_gpu([SOFTWARE], "0", ["0"]) is None  # llvmpipe: the driver's default
+    assert assigned_egl_device({}, [SOFTWARE]) is None
+    assert assigned_egl_device({"CUDA_VISIBLE_DEVICES": ""}, [SOFTWARE]) is None  # Ray's CPU-only workers
+    assert assigned_egl_device({"RAYVR_EGL_DEVICE": "3", "CUDA_VISIBLE_DEVICES": "0"}, []) == 3
+    with pytest.raises(ContextError, match="RAYVR_EGL_DEVICE must be"):
+        assigned_egl_device({"RAYVR_EGL_DEVICE": "gpu0"}, [])
+
+
+def test_egl_device_that_cannot_be_found_is_a_clear_error():
+    devices = [EglDevice(0, NV, 0), EglDevice(1, NV, 1)]
+    with pytest.raises(ContextError, match="no EGL device is CUDA device 5.*EGL 0 = CUDA 0"):
+        egl_device_for_gpu(devices, "5", ["5"])
+    with pytest.raises(ContextError, match="not a CUDA ordinal.*RAYVR_EGL_DEVICE"):
+        egl_device_for_gpu(devices, "GPU-3f2a", ["GPU-3f2a"])
+
+
+def test_this_machines_egl_devices_enumerate():
+    from rayvr.context import egl_devices
+
+    try:
+        devices = egl_devices()
+    except ContextError as exc:
+        pytest.skip(f"no EGL device enumeration here: {exc}")
+    assert [d.index for d in devices] == list(range(len(devices)))
+
+
+# ------------------------------------------------------------------ the dispatch loop, with a fake Ray
+
+class FakeRay:
+    """ray.wait/ray.get over results computed at submit time; a task of a 'dead' worker raises."""
+
+    class exceptions:
+        class RayTaskError(Exception):
+            pass
+
+        class RayActorError(Exception):
+            pass
+
+    def wait(self, refs, num_returns=1):
+        return refs[:1], refs[1:]
+
+    def get(self, ref):
+        kind, value = ref.outcome
+        if kind == "died":
+            raise FakeRay.exceptions.RayActorError("worker died")
+        return value
+
+
+class Ref:
+    def __init__(self, outcome):
+        self.outcome = outcome
+
+
+class FakeActor:
+    """A worker whose `info` ping answers at once (Ray has restarted it)."""
+
+    def __init__(self, k):
+        self.k = k
+        self.info = self
+
+    def remote(self):
+        return Ref(("ok", {}))
+
+    def __eq__(self, other):
+        return other == self.k
+
+
+def fake_cluster(workers):
+    from rayvr.cluster import Cluster
+
+    c = Cluster.__new__(Cluster)
+    c.ray, c.actors, c.started = FakeRay(), [FakeActor(k) for k in range(workers)], False
+    c.dead_errors, c.unavailable = (FakeRay.exceptions.RayActorError,), ()
+    return c
+
+
+def test_a_dead_workers_task_is_retried_with_only_its_unfinished_frames():
+    calls = []
+
+    def submit(actor, chunk):
+        calls.append((actor, chunk))
+        if actor == 0 and len(calls) == 1:
+            return Ref(("died", None))  # worker 0 dies on its first chunk after finishing frame 0
+        return Ref(("ok", chunk))
+
+    finished = {0}
+    results, retried, failed = fake_cluster(2).run([[0, 1, 2], [3, 4]], submit, size=len,
+                                                   retry=lambda c: [i for i in c if i not in finished] or None)
+    assert failed == [] and retried == 2  # frames 1 and 2 ran again, frame 0 did not
+    assert results == {0: [1, 2], 1: [3, 4]}
+    assert (0, [0, 1, 2]) in calls and [c for a, c in calls].count([1, 2]) == 1
+
+
+def test_a_task_that_kills_every_worker_fails_after_max_attempts():
+    from rayvr.cluster import MAX_ATTEMPTS
+
+    results, retried, failed = fake_cluster(2).run([[0], [1]], lambda a, c: Ref(("died", None)) if c == [1] else
+                                                   Ref(("ok", c)), size=len)
+    assert results == {0: [0]} and failed == [1] and retried == MAX_ATTEMPTS - 1
+
+
+# ------------------------------------------------------------------ without the extra
+
+def test_workers_without_ray_is_one_line_naming_the_extra(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    code = main(["capture", "--workers", "2", "--frames", "4", "--size", "8x8", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert "rayvr[cluster]" in err and "--workers needs Ray" in err
+    assert not (tmp_path / "o").exists()  # refused before any work
+
+
+# ------------------------------------------------------------------ resuming (one process, no Ray)
+
+SIZE = (24, 16)
+
+
+def path_job(gl, out, poses, **kw):
+    from rayvr.camera import StereoRig
+    from rayvr.capture import CaptureJob
+    from rayvr.scene import load
+
+    rig = StereoRig.for_scene(load(None), size=SIZE, ipd=0.064)  # what `rayvr capture --path` builds
+    return CaptureJob(rig, poses, out_dir=out, **kw)
+
+
+def frames_on_disk(out):
+    return {p.name: p.read_bytes() for p in sorted(out.glob("frame_*.png"))}
+
+
+def test_a_rerun_renders_only_the_frames_not_complete_on_disk(gl, tmp_path):
+    from rayvr.capture import job_identity, run_capture
+    from rayvr.renderer import Renderer
+
+    poses = orbit([0, 1, -1], 3.0, 0.5, 4)
+    job = path_job(gl, tmp_path, poses)
+    identity = job_identity(job, scene=None)
+    with Renderer(gl=gl) as r:
+        first = run_capture(r, job, progress=False, identity=identity)
+        before = frames_on_disk(tmp_path)
+        (tmp_path / "frame_0002_left.png").unlink()  # one eye lost: frame 2 is incomplete
+        again = run_capture(r, job, progress=False, identity=identity)
+        assert (first["written"], first["skipped"], again["written"], again["skipped"]) == (4, 0, 1, 3)
+        assert [f.rsplit("/", 1)[-1] for f in again["files"]] == ["frame_0002_left.png", "frame_0002_right.png"]
+        assert frames_on_disk(tmp_path) == before
+        other = path_job(gl, tmp_path, poses, aux=("depth",))  # another job in the same folder reuses nothing
+        assert run_capture(r, other, progress=False, identity=job_identity(other, scene=None))["written"] == 4
+        changed = job_identity(job, scene={"path": "elsewhere.glb"})
+        assert run_capture(r, job, progress=False, identity=changed)["written"] == 4
+
+
+# ------------------------------------------------------------------ on a local Ray with 2 CPU workers
+
+@pytest.fixture(scope="module")
+def local_ray():
+    ray = pytest.importorskip("ray", reason="Ray is the cluster extra: pip install 'rayvr[cluster]'")
+    import logging
+
+    from conftest import REPO
+
+    # Workers are new processes: they import this checkout's rayvr.
+    os.environ["PYTHONPATH"] = os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])
+    # 2 CPU workers for the module's cluster and 2 for `bench workers`, which joins this Ray.
+    ray.init(num_cpus=4, include_dashboard=False, logging_level=logging.ERROR, log_to_driver=False)
+    yield ray
+    ray.shutdown()
+
+
+@pytest.fixture(scope="module")
+def reference(gl, tmp_path_factory):
+    """A 16-frame path file and its single-process capture."""
+    from rayvr.capture import run_capture
+    from rayvr.renderer import Renderer
+
+    root = tmp_path_factory.mktemp("cluster")
+    poses = orbit([0, 1, -1], 3.0, 0.5, 16)
+    save_path(root / "path.json", poses)
+    with Renderer(gl=gl) as r:
+        run_capture(r, path_job(gl, root / "single", poses), progress=False)
+    return root, poses, frames_on_disk(root / "single")
+
+
+def test_workers_give_the_same_bytes_as_one_process(local_ray, reference, capsys):
+    root, _, single = reference
+    assert len(single) == 32
+    out = root / "workers"
+    w, h = SIZE
+    assert main(["capture", "--path", str(root / "path.json"), "--size", f"{w}x{h}", "--out", str(out),
+                 "--workers", "2", "--chunk", "3"]) == 0
+    assert "frames: 16 written, 0 skipped, 0 retried, 0 failed" in capsys.readouterr().out
+    assert frames_on_disk(out) == single  # byte for byte, every frame, both eyes
+    summary = json.loads((out / "frame_timings.json").read_text())
+    assert summary["workers"] == 2 and summary["missing_frames"] == [] and len(summary["gpu_ms_per_frame"]) == 16
+
+
+@pytest.fixture(scope="module")
+def cluster(local_ray):
+    from rayvr.cluster import Cluster, WorkerSpec
+
+    with Cluster(2, WorkerSpec()) as c:  # the built-in room; sweeps load benchmark scenes by name
+        assert len({w["pid"] for w in c.ready()}) == 2
+        yield c
+
+
+def test_a_worker_killed_mid_run_still_gives_every_frame_and_a_rerun_skips_them(gl, cluster, reference):
+    from rayvr.capture import job_identity
+    from rayvr.cluster import run_capture_distributed
+
+    root, poses, single = reference
+    out, crash = root / "killed", root / "crashed"
+    job = path_job(gl, out, poses)
+    identity = job_identity(job, scene=None)
+    # The first worker to finish a frame dies (os._exit) with its chunk half done.
+    summary = run_capture_distributed(cluster, job, identity, progress=False, chunk=4, crash_file=str(crash))
+    assert crash.exists() and summary["failed"] == 0 and summary["missing_frames"] == []
+    # Each task the dead worker held goes again: the rest of the chunk it was rendering (not the
+    # frame it had written) and the chunk queued behind it.
+    assert 3 <= summary["retried"] <= 7
+    assert frames_on_disk(out) == single
+    again = run_capture_distributed(cluster, job, identity, progress=False)
+    assert (again["written"], again["skipped"], again["failed"]) == (0, 16, 0)
+
+
+def test_sweep_variants_measured_on_workers_match_this_process(gl, cluster):
+    from rayvr.bench.scenes import bench_scenes
+    from rayvr.bench.tradeoff import RendererPool, Variant, local_measurer, run_sweep, variants
+    from rayvr.cluster import sweep_measurer
+    from rayvr.materials import load_config
+
+    (name, scene, rig), = bench_scenes(["default"], (16, 12), {})
+    chosen = variants(scene, load_config(None), quick=True)[:3]
+    remote = sweep_measurer(cluster, name, rig, repeat=1)
+    with RendererPool(gl) as pool:
+        here = list(local_measurer(gl, scene, rig, 1, pool)(chosen))
+        there = list(remote(chosen))
+        for a, b in zip(here, there):
+            assert np.array_equal(a.image, b.image) and np.array_equal(a.material, b.material)
+        assert len({m.image.tobytes() for m in here}) > 1  # the variants differ
+        rows, _ = run_sweep(gl, scene, rig, Variant("reference", "reference", load_config(None)), chosen, 13.3,
+                            repeat=1, progress=False, with_flip=False, pool=pool, measure_all=remote)
+    assert [r["label"] for r in rows] == [v.label for v in chosen] and all(r["psnr"] > 0 for r in rows)
+
+
+def test_bench_workers_quick_writes_its_result(local_ray, tmp_path):
+    import subprocess
+
+    address = local_ray.get_runtime_context().gcs_address  # the test's Ray: no second one to start
+    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "workers", "--quick", "--workers", "1,2",
+                          "--address", address, "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    result = json.loads((tmp_path / "workers.json").read_text())
+    rows = {(r["mode"], r["workers"]): r for r in result["rows"]}
+    assert set(rows) == {("single process", 0), ("ray workers", 1), ("ray workers", 2)}
+    assert all(r["fps"] > 0 and r["failed"] == 0 for k, r in rows.items() if k[1])
+    assert rows[("ray workers", 2)]["scaling_vs_1_worker"] > 0 and len(rows[("ray workers", 2)]["devices"]) == 2
+    assert [p.name for p in tmp_path.iterdir() if p.is_dir()] == []  # the frames it wrote are gone

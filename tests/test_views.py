@@ -1,0 +1,139 @@
+"""Multi-view captures (rayvr/views.py): view files and generated views, and the transforms.json
+NeRF / 3D Gaussian splatting tools read, checked by back-projecting the depth files through it
+with plain pinhole maths against the world positions rayvr wrote."""
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rayvr.camera import Pose
+from rayvr.views import grid_views, load_views, sphere_views, views_for
+
+
+def rayvr(*args):
+    return subprocess.run([sys.executable, "-m", "rayvr", *args], capture_output=True, text=True, timeout=300)
+
+
+def back_project(frame, top, out, u, v):
+    """World point of pixel (u, v) from transforms.json alone: OpenGL camera axes, linear depth."""
+    k = {key: frame.get(key, top.get(key)) for key in ("fl_x", "fl_y", "cx", "cy")}
+    depth = np.load(out / frame["depth_file_path"])[v, u]
+    x = (u + 0.5 - k["cx"]) / k["fl_x"] * depth
+    y = -(v + 0.5 - k["cy"]) / k["fl_y"] * depth  # rows go down, camera +Y goes up
+    c2w = np.asarray(frame["transform_matrix"])
+    return (c2w @ [x, y, -depth, 1.0])[:3]
+
+
+def check_transforms(out, n_images):
+    t = json.loads((out / "transforms.json").read_text())
+    assert len(t["frames"]) == n_images
+    for frame in t["frames"]:
+        stem = out / frame["file_path"]
+        assert stem.with_suffix(".png").exists()  # NeRF-style: the loaders add ".png"
+        camera = json.loads(stem.with_name(stem.name + "_camera.json").read_text())
+        assert camera["camera_to_world"] == frame["transform_matrix"]
+        world = np.load(stem.with_name(stem.name + "_position.npy"))
+        depth = np.load(out / frame["depth_file_path"])
+        hits = np.argwhere(depth > 0)
+        assert len(hits) > depth.size // 4
+        for v, u in hits[:: max(1, len(hits) // 25)]:
+            np.testing.assert_allclose(back_project(frame, t, out, u, v), world[v, u], atol=2e-3 * depth[v, u])
+    return t
+
+
+def test_sphere_views_write_images_depth_cameras_and_transforms(tmp_path):
+    run = rayvr("capture", "--views", "sphere:3", "--size", "20x14", "--aux", "position", "--out", str(tmp_path), "-q")
+    assert run.returncode == 0, run.stderr
+    t = check_transforms(tmp_path, 6)  # 3 views x 2 eyes, each eye its own camera
+    assert t["w"] == 20 and t["h"] == 14 and math.isclose(t["fl_x"], t["fl_y"])
+    left, right = (np.asarray(f["transform_matrix"])[:3, 3] for f in t["frames"][:2])
+    assert math.isclose(np.linalg.norm(right - left), 0.064, rel_tol=1e-9)  # the IPD apart
+
+
+def test_view_file_intrinsics_reach_the_image_and_transforms_json(tmp_path):
+    views = {"camera_angle_x": 1.0, "views": [
+        {"position": [0.5, 1.4, 3.0], "target": [0, 1, 0], "fl_x": 14.0, "fl_y": 12.0, "cx": 9.0, "cy": 5.0},
+        {"transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 1.2], [0, 0, 1, 3.2], [0, 0, 0, 1]], "w": 20, "h": 14},
+    ]}
+    (tmp_path / "views.json").write_text(json.dumps(views))
+    out = tmp_path / "o"
+    run = rayvr("capture", "--views", str(tmp_path / "views.json"), "--size", "20x14", "--eye", "left", "--ipd", "0",
+                "--aux", "position", "--out", str(out), "-q")
+    assert run.returncode == 0, run.stderr
+    t = check_transforms(out, 2)
+    first, second = ({k: f.get(k, t[k]) for k in ("fl_x", "fl_y", "cx", "cy", "camera_angle_x")} for f in t["frames"])
+    assert (first["fl_x"], first["fl_y"], first["cx"], first["cy"]) == pytest.approx((14.0, 12.0, 9.0, 5.0))
+    assert second["camera_angle_x"] == pytest.approx(1.0)  # the file's default
+    # An independent check of the off-centre view: project its world points with the input intrinsics.
+    world = np.load(out / "frame_0000_left_position.npy")
+    pose = Pose.look_at([0.5, 1.4, 3.0], [0, 1, 0])
+    cam = (world.reshape(-1, 3) - pose.position) @ pose.rotation  # camera coordinates
+    u = 14.0 * cam[:, 0] / -cam[:, 2] + 9.0
+    v = -12.0 * cam[:, 1] / -cam[:, 2] + 5.0
+    hit = np.load(out / "frame_0000_left_depth.npy").ravel() > 0
+    px, py = np.meshgrid(np.arange(20) + 0.5, np.arange(14) + 0.5)
+    np.testing.assert_allclose(u[hit], px.ravel()[hit], atol=0.02)
+    np.testing.assert_allclose(v[hit], py.ravel()[hit], atol=0.02)
+    # transforms.json replays as a views file: the same cameras.
+    poses, overrides = load_views(out / "transforms.json", (20, 14))
+    np.testing.assert_allclose(poses[0].position, [0.5, 1.4, 3.0], atol=1e-12)
+    np.testing.assert_allclose(overrides[0]["eye_tangents"]["left"], (-9 / 14, 11 / 14, -9 / 12, 5 / 12))
+
+
+def test_generated_views():
+    center = np.array([1.0, 2.0, 3.0])
+    sphere = sphere_views(center, 2.0, 50)
+    d = np.array([p.position - center for p in sphere])
+    assert np.allclose(np.linalg.norm(d, axis=1), 2.0)
+    assert abs(d.mean(axis=0)).max() < 0.1  # spread evenly over the sphere
+    for p in sphere:  # each looks at the centre (camera -Z)
+        np.testing.assert_allclose(-p.rotation[:, 2], (center - p.position) / 2.0, atol=1e-9)
+    base = Pose.look_at([0, 0, 5], [0, 0, 0])
+    grid = grid_views(base, 3, 2, 0.1)
+    assert len(grid) == 6 and all(np.array_equal(g.rotation, base.rotation) for g in grid)
+    xy = np.array([g.position[:2] for g in grid])
+    np.testing.assert_allclose(xy[0], [-0.1, 0.05]) and np.testing.assert_allclose(xy[-1], [0.1, -0.05])
+
+
+@pytest.mark.parametrize("views, words", [
+    ("[]", ["non-empty list"]),
+    ("{\"poses\": []}", ["'views' or 'frames'"]),
+    ("not json", ["not a views file"]),
+    ("[{\"position\": [0, 0, 1]}]", ["view 0", "needs 'transform_matrix'"]),
+    ("[{\"position\": [0, 0, 1], \"target\": [0, 0, 0], \"focal\": 3}]", ["view 0", "unknown key 'focal'"]),
+    ("[{\"position\": [0, 0, 1], \"target\": [0, 0, 0], \"w\": 64}]", ["64x16", "--size is 24x16"]),
+    ("[{\"position\": [0, 0, 1], \"target\": [0, 0, 0], \"fov_y\": 60, \"fl_x\": 3}]", ["one of fov_y"]),
+    ("[{\"position\": [0, 0, 1], \"target\": [0, 0, 0], \"fl_x\": 10, \"cx\": 30}]", ["principal point"]),
+    ("[{\"position\": [0, 0, 1], \"target\": [0, 0, 0], \"cy\": 3}]", ["'cy' needs 'fl_x'"]),
+    ("[{\"position\": [0, 0, 1], \"target\": [0, 0, 0], \"fov_y\": \"wide\"}]", ["'fov_y' must be a finite number"]),
+    ("[{\"transform_matrix\": [[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]", ["not a rotation"]),
+    ("[{\"transform_matrix\": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}]", ["4x4"]),
+])
+def test_bad_views_file_names_file_view_and_key(tmp_path, views, words):
+    p = tmp_path / "views.json"
+    p.write_text(views)
+    with pytest.raises(ValueError) as e:
+        load_views(p, (24, 16))
+    assert str(p) in str(e.value) and all(w in str(e.value) for w in words), str(e.value)
+
+
+@pytest.mark.parametrize("spec, words", [("sphere:0", ["sphere:N"]), ("grid:3", ["grid:NxM"]),
+                                         ("grid:2x2:-1", ["positive spacing"])])
+def test_bad_generated_views_spec(spec, words):
+    from rayvr.camera import StereoRig
+    from rayvr.scene import load
+
+    scene = load(None)
+    with pytest.raises(ValueError) as e:
+        views_for(spec, scene, StereoRig.for_scene(scene))
+    assert all(w in str(e.value) for w in words)
+
+
+def test_bad_views_is_one_line_on_the_command_line(tmp_path):
+    (tmp_path / "v.json").write_text("[{\"position\": [0, 0, 1]}]")
+    run = rayvr("capture", "--views", str(tmp_path / "v.json"), "--out", str(tmp_path / "o"))
+    assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1 and "view 0" in run.stderr
+    assert not (tmp_path / "o").exists()
