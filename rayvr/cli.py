@@ -268,6 +268,7 @@ def _capture_on_workers(args, aux, settings, inputs) -> int:
                      rig_overrides=overrides, cameras=bool(args.views))
     spec = WorkerSpec(args.scene, args.materials, settings, args.backend)
     with Cluster(args.workers, spec, args.address) as cluster:
+        cluster.ready()  # a worker that cannot start is one clear error, before any frame
         summary = run_capture_distributed(cluster, job, job_identity(job, **inputs), progress=not args.quiet,
                                           chunk=args.chunk, crash_file=os.environ.get("RAYVR_TEST_CRASH_ONCE"))
     summary_path = write_summary(job, summary)

@@ -155,7 +155,11 @@ class Cluster:
 
     def ready(self) -> list[dict]:
         """Wait until every worker has loaded its scene; where each one runs."""
-        return self._get([a.info.remote() for a in self.actors])
+        try:
+            return self._get([a.info.remote() for a in self.actors])
+        except self.dead_errors as exc:  # its constructor failed (no GL context, no EGL device, no scene)
+            lines = [ln for ln in str(exc).splitlines() if "Error" in ln]
+            raise ClusterError(f"a worker could not start: {(lines or [type(exc).__name__])[-1].strip()}") from None
 
     def _get(self, refs):
         try:

@@ -197,7 +197,14 @@ def local_ray():
     # Workers are new processes: they import this checkout's rayvr.
     os.environ["PYTHONPATH"] = os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])
     # 2 CPU workers for the module's cluster and 2 for `bench workers`, which joins this Ray.
-    ray.init(num_cpus=4, include_dashboard=False, logging_level=logging.ERROR, log_to_driver=False)
+    for attempt in (1, 2):  # Ray gives its raylet 30 s to come up: a busy 2-core machine can miss that once
+        try:
+            ray.init(num_cpus=4, include_dashboard=False, logging_level=logging.ERROR, log_to_driver=False)
+            break
+        except Exception as exc:
+            ray.shutdown()
+            if attempt == 2 or "timed out during startup" not in str(exc):
+                raise
     yield ray
     ray.shutdown()
 
