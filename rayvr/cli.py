@@ -191,6 +191,8 @@ def cmd_capture(args) -> int:
     from .output import check_output_dir
     from .renderer import Renderer, RenderSettings
 
+    if not args.workers and (args.address or args.chunk):
+        raise ValueError("--address and --chunk go with --workers N")
     if args.workers:
         from .cluster import require_ray
 
