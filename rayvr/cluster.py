@@ -286,7 +286,8 @@ def run_capture_distributed(cluster: Cluster, job, identity: dict | None = None,
     meaningful = all(p["timings_meaningful"] for p in parts)
     summary = summarize(job, gl, meaningful, files, timings, ran, unavailable, written=len(timings),
                         skipped=len(done), retried=retried, failed=len(missing), workers=len(cluster.actors),
-                        denoise=parts[0]["denoise"] if parts else [], stereo=parts[0]["stereo"] if parts else None,
+                        denoise=parts[0]["denoise"] if parts else [],
+                        stereo=parts[0]["stereo"] if parts else None,
                         stereo_counts=parts[-1]["stereo_counts"] if parts else {})
     summary["missing_frames"] = missing
     return summary
