@@ -36,11 +36,20 @@ layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhWide { u
 #define BVH_CHILD_INDEX(n, i) BVH_NODE_WORD(n, 4 + 7 * BVH_WQ + (i))
 
 // Child i's box against the ray: bit i of `entered` (and of `leaves` for a leaf child), tn[i] its entry.
+// The ray is carried into the node's quantized frame once a node (Ylitie et al. 2017): a plane
+// org + q * scale is crossed at t = q * (scale / d) + (org - o) / d, one fused multiply-add a plane,
+// with the near/far byte planes picked per node by the direction's signs (wnear/wfar). Rounding in
+// (org - o) / d is absolute, not relative to t, so the node's bases are widened by BVH_MARGIN of
+// their size (> 4 ulp): the test stays conservative, and only triangles decide hits.
+#define BVH_MARGIN 1.0e-6
+#define BVH_NEAR(a, i) float((wnear[a][(i) >> 2] >> (8u * uint((i) & 3))) & 0xFFu)
+#define BVH_FAR(a, i) float((wfar[a][(i) >> 2] >> (8u * uint((i) & 3))) & 0xFFu)
 #define BVH_CHILD_TEST(i) \
     if (uint(i) < nchild) { \
-        vec3 lo = org + vec3(float(BVH_BYTE(0, i)), float(BVH_BYTE(2, i)), float(BVH_BYTE(4, i))) * scale; \
-        vec3 hi = org + vec3(float(BVH_BYTE(1, i)), float(BVH_BYTE(3, i)), float(BVH_BYTE(5, i))) * scale; \
-        if (bvh_slab(r.origin, inv, lo, hi, r.tmin, h.t, tn[i])) { \
+        vec3 t0 = vec3(BVH_NEAR(0, i), BVH_NEAR(1, i), BVH_NEAR(2, i)) * step + base_near; \
+        vec3 t1 = vec3(BVH_FAR(0, i), BVH_FAR(1, i), BVH_FAR(2, i)) * step + base_far; \
+        tn[i] = max(max(t0.x, t0.y), max(t0.z, r.tmin)); \
+        if (tn[i] <= min(min(min(t1.x, t1.y), t1.z) * 1.00000024, h.t)) { \
             entered |= 1u << (i); \
             if (BVH_BYTE(6, i) != 0u) leaves |= 1u << (i); \
         } \
@@ -65,10 +74,19 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
         uvec4 nd[BVH_NODE_VEC4];
         for (int k = 0; k < BVH_NODE_VEC4; ++k)
             nd[k] = bvh_wide[int(node) * BVH_NODE_VEC4 + k];
-        vec3 org = uintBitsToFloat(nd[0].xyz);
         uint e = nd[0].w;
         vec3 scale = uintBitsToFloat(uvec3(e & 0xFFu, (e >> 8) & 0xFFu, (e >> 16) & 0xFFu) << 23u);
         uint nchild = e >> 24;
+        vec3 step = scale * inv;   // exact: scale is a power of two
+        vec3 base = (uintBitsToFloat(nd[0].xyz) - r.origin) * inv;
+        vec3 base_near = base - abs(base) * BVH_MARGIN, base_far = base + abs(base) * BVH_MARGIN;
+        uint wnear[3][BVH_WQ], wfar[3][BVH_WQ];   // byte plane words of each axis' near and far plane
+        for (int a = 0; a < 3; ++a)
+            for (int k = 0; k < BVH_WQ; ++k) {
+                uint wlo = BVH_WORD(4 + 2 * a * BVH_WQ + k), whi = BVH_WORD(4 + (2 * a + 1) * BVH_WQ + k);
+                wnear[a][k] = inv[a] < 0.0 ? whi : wlo;
+                wfar[a][k] = inv[a] < 0.0 ? wlo : whi;
+            }
         float tn[BVH_WIDTH];
         uint entered = 0u, leaves = 0u;
         BVH_CHILD_TEST(0) BVH_CHILD_TEST(1) BVH_CHILD_TEST(2) BVH_CHILD_TEST(3)
@@ -119,5 +137,8 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
 #undef BVH_NODE_WORD
 #undef BVH_CHILD_INDEX
 #undef BVH_CHILD_TEST
+#undef BVH_NEAR
+#undef BVH_FAR
+#undef BVH_MARGIN
 #undef BVH_CHILD_NEAREST
 #endif
