@@ -101,8 +101,14 @@ def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
         raster = next(x for x in o.options if x.effect == "raster")
         assert raster.cost_ms == 0.0
 
+    # A budget of the base frame leaves nothing for traced effects: wherever every traced option was
+    # measured to cost something, raster must be chosen (under timer noise on a loaded machine a
+    # traced option can read 0 ms, and then it legitimately fits).
     tight = solve_budget(options, budget_ms=base_ms, base_ms=base_ms)
-    assert set(tight.assignment.values()) == {"raster"}
+    assert tight.feasible and tight.total_ms <= base_ms + 1e-9
+    for o in options:
+        if all(x.cost_ms > 0 for x in o.options if x.effect != "raster"):
+            assert tight.assignment[o.name] == "raster", o.name
     generous = solve_budget(options, budget_ms=1e9, base_ms=base_ms)
     assert generous.error <= tight.error
 
