@@ -507,6 +507,12 @@ def _deep(ray: ScreenRay, u, z0, sx, sy, xc, yc, thickness) -> bool:
     return bool((zs - p[2]) > thickness * zs)
 
 
+def _behind(ray: ScreenRay, u, z0, sx, sy, xc, yc) -> bool:
+    """Is p(u) behind the plane (z_ray < z_plane)?"""
+    p = ray.s0 + u * ray.sd
+    return bool(p[2] - z0 * (1 + sx * (p[0] - xc) + sy * (p[1] - yc)) < 0)
+
+
 def _cell(ray: ScreenRay, ua, ub, z0, sx, sy, xc, yc, thickness, cont):
     """Events of one plane over [ua, ub]: (u of the first point in its slab [z (1 - thickness), z]
     or None, u of the first point deeper than the slab or None). The first point behind the plane
@@ -567,7 +573,9 @@ def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float,
         n = decode(levels[k][qy, qx])
         go_down = False
         if ub > u:
-            if n.plane:
+            if n.plane and k > 0 and _behind(ray, u, float(n.z0), float(n.sx), float(n.sy), (x0 + x1) / 2, (y0 + y1) / 2):
+                go_down = True   # entered behind a proxy: its error, or a surface? its leaves decide
+            elif n.plane:
                 c = ((x0 + x1) / 2, (y0 + y1) / 2)
                 uh, uo = _cell(ray, u, ub, float(n.z0), float(n.sx), float(n.sy), *c, thickness, cont)
                 if uo is not None:

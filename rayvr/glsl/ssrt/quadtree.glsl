@@ -159,8 +159,12 @@ QtWalk qt_walk(int layer, QtRay r, float u_from, float u_to, float thickness, bo
         QtNode n = qt_decode(qt_nodes[qt_index(layer, k, q)]);
         bool down = false;
         if (ub > u) {
-            if (n.plane) {
-                vec2 e = qt_cell(r, u, ub, n, 0.5 * (rect.xy + rect.zw), thickness, cont);
+            vec2 c = 0.5 * (rect.xy + rect.zw);
+            vec3 pu = r.s0 + u * r.sd;
+            if (n.plane && k > 0 && pu.z - n.z0 * (1.0 + n.sx * (pu.x - c.x) + n.sy * (pu.y - c.y)) < 0.0) {
+                down = true;  // entered behind a proxy: its error, or a surface? its leaves decide
+            } else if (n.plane) {
+                vec2 e = qt_cell(r, u, ub, n, c, thickness, cont);
                 if (e.y >= 0.0) {
                     w.u_occ = min(w.u_occ, e.y);
                     if (!cont)
