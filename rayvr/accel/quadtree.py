@@ -545,7 +545,10 @@ def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float,
     the wall the ray leaves by, then climbs findMSB((qx ^ qx') | (qy ^ qy')) levels, to the
     largest node that starts there. Stops at the first event, or (`cont`) at the first surface
     hit only, noting the first occlusion on the way; an AABB the ray crosses wholly below
-    zmin (1 - thickness) is then one occlusion, not descended. The walk starts on `start_level`
+    zmin (1 - thickness) is then one occlusion, not descended. A merged plane (level > 0) the ray
+    enters already behind is descended like an AABB: a proxy lies up to gamma_dist off its leaves,
+    so a ray starting on the surface (a mirror ray) may start behind it; taking that as a hit made
+    the mirror see itself. Only crossings of a proxy are hits on it. The walk starts on `start_level`
     (capped at the root's) in the node holding p(u_from)."""
     W, H = cam.size
     top = len(levels) - 1

@@ -136,7 +136,9 @@ struct QtWalk { float u_hit; ivec2 pixel; float u_occ; uint nodes; bool capped; 
 // its entry point (after skipping the part above zmax); on a miss the neighbour across the exit
 // wall, then climb findMSB((qx ^ qx') | (qy ^ qy')) levels. Stops at the first event, or
 // (`cont`) at the first surface hit only, noting the first occlusion; an AABB the ray crosses
-// wholly below zmin (1 - thickness) is then one occlusion, not descended.
+// wholly below zmin (1 - thickness) is then one occlusion, not descended. A merged plane (k > 0)
+// the ray enters already behind is descended too: a mirror ray starting on the surface may start
+// behind its own pixel's proxy (up to gamma_dist off); only crossings of a proxy are hits.
 QtWalk qt_walk(int layer, QtRay r, float u_from, float u_to, float thickness, bool cont) {
     QtWalk w = QtWalk(QT_INF, ivec2(-1), QT_INF, 0u, false);
     ivec2 size = qt_level[0].xy;
