@@ -14,8 +14,8 @@ with the rays already on the GPU, after a warm-up until times settle.
 Traversal variants (`VARIANTS`, picked with `layouts` and `tiles`), each on the same rays of each
 kind: `bvh2` (the binary child-pair nodes, the reference), `bvh2+tiles` (tile frustum culling: the
 cull dispatch plus the trace from the tiles' entry lists, accel/frustum.py), `bvh4`/`bvh8` (wide
-quantized nodes, nearest-first for closest hits) and their `-unordered` forms (closest-hit rays;
-any-hit rays never sort). The camera rays are listed tile by tile (16 x 8 pixel blocks,
+quantized nodes, nearest-first for closest and any hits) and their `-unordered` forms (timed on closest-hit
+rays only). The camera rays are listed tile by tile (16 x 8 pixel blocks,
 frustum.tile_order), and so are the secondary rays made from their hits; `bvh2 rows` traces the
 primary rays in row order, as runs before the variants did. `agree_with_bvh2` is the fraction of
 rays with the reference's triangle (or occlusion); `speedup_vs_bvh2` its rays/s ratio; `best` in

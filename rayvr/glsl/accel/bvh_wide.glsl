@@ -4,7 +4,8 @@
 //             one byte per child: leaf triangle count (0 = internal); one word per child: wide node
 //             index (internal) or first triangle slot (leaf). Children are packed first.
 // BVH_ORDERED 1: a closest-hit ray enters its nearest internal child first; 0: the first stored.
-// Any-hit rays never order (BVH_ORDERED_ANY).
+// Any-hit rays follow BVH_ORDERED (BVH_ORDERED_ANY): on the H200 stored order made shadow rays
+// 0.78-0.92x of bvh2 (bench/results/h200/2026-11-30/traversal/run2), and bvh2 orders them too.
 //
 // Why it looks like this (the H200 ran an earlier form with per-child arrays, a sorting network and a
 // push per entered child at 0.05-0.17x of bvh2): every child test is written out by the preprocessor
@@ -23,7 +24,7 @@
 #define BVH_ORDERED 1
 #endif
 #ifndef BVH_ORDERED_ANY
-#define BVH_ORDERED_ANY 0
+#define BVH_ORDERED_ANY BVH_ORDERED
 #endif
 #define BVH_WQ (BVH_WIDTH / 4)   // words per byte plane
 
