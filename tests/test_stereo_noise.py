@@ -11,7 +11,9 @@ from rayvr.renderer import Renderer, RenderSettings
 from rayvr.scene import load
 
 NOISY = {"default": "shadows", "params": {"shadows": {"area_samples": 1}},
-         "materials": {"gold": {"effect": "glossy", "samples": 1}, "floor": {"effect": "glossy", "samples": 1}}}
+         "materials": {"gold": {"effect": "glossy", "samples": 1}, "floor": {"effect": "glossy", "samples": 1},
+                       "ceiling": {"effect": "path", "samples": 1}, "wall*": {"effect": "path", "samples": 1},
+                       "mirror*": {"effect": "reflections"}}}
 
 
 def _render(gl, rig, seed=0):
@@ -22,7 +24,13 @@ def _render(gl, rig, seed=0):
 
 
 def test_ipd_zero_gives_identical_eyes_with_sampled_effects(gl):
+    """Every sampled effect of the ladder (soft shadows, glossy, path) in one view."""
+    from rayvr.effects import EFFECTS
+
     scene = load()
+    used = {e for e in ("shadows", "glossy", "path", "reflections") if e in EFFECTS}
+    names = scene.material_names()
+    assert {"ceiling", "gold", "floor"} <= set(names) and used == {"shadows", "glossy", "path", "reflections"}
     rig = StereoRig.for_scene(scene, size=(48, 36), ipd=0.0)
     left, right = _render(gl, rig)
     assert np.array_equal(left, right)

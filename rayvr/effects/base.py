@@ -10,6 +10,8 @@ An effect declares, in one place:
   passes()        the frame-graph passes it adds (rayvr/passes/); the graph adds what they read
   shader          its GLSL (under rayvr/glsl/, or an absolute path for an effect outside rayvr);
                   for the wavefront effects, the file defining effect_start_paths()
+  shader_defines  defines its programs get (LIGHT_MIS: its light samples are weighed by MIS
+                  against its BSDF samples, glsl/common/mis.glsl)
   sweep           parameter -> (full, quick) values for `rayvr bench tradeoff`
   reference       material class ("mirror", "glossy", "diffuse") -> rank: the reference image
                   gives each material the highest-ranked registered effect for its class
@@ -63,6 +65,7 @@ class Effect:
     denoised: bool = True  # traced: the denoiser filters its pixels unless the config's `denoise` key
                            # lists others (False for mirror-like rungs, whose detail is no noise)
     shader: str | None = None
+    shader_defines: dict = {}
     sweep: dict = {}
     reference: dict = {}
 
@@ -102,7 +105,7 @@ class EffectError(ValueError):
 EFFECTS: dict[str, Effect] = {}  # registration order = ladder order (cheapest first)
 BACKGROUND_EFFECT = 255  # effect-ID value of pixels no geometry covers
 # Rungs of the ladder that later versions add: a config naming one is refused as "not yet".
-PLANNED = {"path": "path tracing"}
+PLANNED: dict[str, str] = {}  # every rung of the ladder is implemented now
 
 
 def register(effect: Effect) -> Effect:

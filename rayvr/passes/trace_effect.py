@@ -1,4 +1,4 @@
-"""`rt_<effect>`: a traced effect (shadows, reflections, glossy) as a wavefront over its pixel list,
+"""`rt_<effect>`: a traced effect (shadows, reflections, glossy, path) as a wavefront over its pixel list,
 both eyes at once: shading kernels (glsl/rt/wave_shade.comp, with the effect's own part included
 from Effect.shader, e.g. glsl/effects/glossy.glsl) write rays into buffers, lean kernels
 (rt/wave_trace.comp) trace them. Per batch of the effect's pixel list:
@@ -50,7 +50,7 @@ class WaveShape:
 
     def __init__(self, effect: Effect, s: Sizing):
         prm = effect_maxima(s.assignments, effect.name)
-        self.bounces = prm["bounces"] if effect.reflective else 0
+        self.bounces = prm["bounces"] if "bounces" in effect.params else 0  # hit events after the pixel's
         self.paths_per_pixel = prm["samples"] if "samples" in effect.params else 1
         lights = s.scene.lights if s.scene is not None else ()
         self.slots = sum(prm["area_samples"] if l.kind == "rect" else 1 for l in lights) or 1
@@ -94,7 +94,7 @@ class TraceEffectPass(Pass):
             [write(name, t) for name, t in self.buffers.values()]
 
     def setup(self, gl, plan: FramePlan) -> None:
-        d = {**GpuBvh.defines(DEFAULT_BINDING), **self.effect.param_defines(), "EFFECT": self.effect.id,
+        d = {**GpuBvh.defines(DEFAULT_BINDING), **self.effect.param_defines(), "EFFECT": self.effect.id, **self.effect.shader_defines,
              "RT_SLOT": self.slot, "EFFECT_PATHS": self.effect.shader, **camera_defines(plan)}
         trace, shade = "rt/wave_trace.comp", "rt/wave_shade.comp"
         # The tracing kernels take the plan's layout for their ray kind; the shading kernels only
@@ -112,7 +112,7 @@ class TraceEffectPass(Pass):
             "pixel": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 3}),
             "finish": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 5}),
         }
-        if self.effect.reflective:
+        if "bounces" in self.effect.params:  # it follows rays past the pixel's surface
             self.programs["hit"] = shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 4})
 
     def execute(self, fc) -> None:

@@ -7,6 +7,7 @@
 #define RAYVR_LIGHTING_GLSL
 #include "scene.glsl"
 #include "brdf.glsl"
+#include "mis.glsl"
 
 #ifndef RECT_LIGHT_GRID
 #define RECT_LIGHT_GRID 4  // raster: fixed NxN points per rect light (soft, noise-free)
@@ -14,6 +15,12 @@
 
 #ifndef HAS_LIGHT_VISIBILITY
 vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist) { return contribution; }
+#endif
+
+#ifdef LIGHT_MIS
+// The effect's BRDF x cos for a rect-light sample of pdf `light_pdf` (count x solid-angle pdf),
+// weighed by MIS against its own BSDF samples (mis.glsl mis_bsdf_samples; glsl/effects/*.glsl).
+vec3 light_mis_brdf_cos(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, float roughness, float light_pdf);
 #endif
 
 // Points on a rect light, in [0,1]^2. A pass that samples them itself (randomly, per pixel)
@@ -48,6 +55,7 @@ vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float
             vec3 c = li.position_kind.xyz, u = li.u.xyz, w = li.v.xyz;
             vec3 ln = normalize(cross(u, w));
             float area = 4.0 * length(cross(u, w));
+            if (!(area > 0.0)) continue;  // a zero-area light emits nothing (and has no normal)
             int N = rect_light_sample_count();
             for (int k = 0; k < N; ++k) {
                 vec2 s = rect_light_sample(k, N) * 2.0 - 1.0;
@@ -59,7 +67,12 @@ vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float
                 vec3 l = d / dist;
                 float cos_light = dot(ln, -l);
                 if (cos_light <= 0.0) continue;
+#ifdef LIGHT_MIS
+                vec3 f = light_mis_brdf_cos(n, v, l, base_color, metallic, roughness,
+                                            float(N) * dist2 / (cos_light * area));
+#else
                 vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
+#endif
                 if (!any(greaterThan(f, vec3(0.0)))) continue;
                 sum += shadowed(f * li.radiance.rgb * cos_light / dist2 * (area / float(N)), p, n, l, dist);
             }

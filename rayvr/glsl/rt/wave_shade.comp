@@ -8,9 +8,12 @@
 //                + ambient, as `raster` does
 //   reflections  + a mirror ray that follows up to `bounces` reflective surfaces, each hit shaded
 //                with its own direct light and shadows; misses see the background
-//   glossy       + `samples` GGX rays (VNDF importance sampling), each followed like a mirror ray
+//   glossy       + `samples` GGX rays (VNDF importance sampling), each followed like a mirror ray;
+//                rect lights by MIS of light and GGX samples
+//   path         paths: light samples and BSDF samples at every vertex (MIS), Russian roulette
 // A reflective surface (effect reflections or glossy) met along a reflection ray continues it in
-// its mirror direction while bounces remain; any other surface ends it.
+// its mirror direction while bounces remain; any other surface ends it. An effect that shades
+// path vertices itself (path) defines EFFECT_PATH_VERTEX and path_vertex_begin/_end instead.
 //   WAVE_STAGE 3  pixel: light the G-buffer surface, start the pixel's paths
 //   WAVE_STAGE 4  hit: light each path's hit (bounce wave_bounce), continue or end the path
 //   WAVE_STAGE 5  finish: the pixel's colour = sum of its paths' radiance
@@ -70,8 +73,38 @@ uint pixel_setup(ivec3 px, out uint rng) {
     rng = rng_seed_surface(position.xyz, footprint, frame_seed);
     shadow_area_samples = max(material_param_int(mi, PARAM_AREA_SAMPLES), 1);
     shadow_lattice_shift = rng_next2(rng);
+#ifdef LIGHT_MIS  // the pixel's light samples against its `samples` BSDF rays
+    mis_bsdf_samples = float(max(material_param_int(mi, PARAM_SAMPLES), 1));
+#endif
     return mi;
 }
+
+#if WAVE_STAGE == 4 && !defined(EFFECT_PATH_VERTEX)
+// The hit event of the reflection effects: mirror rays (delta directions) take no part in MIS.
+void path_vertex_begin(uint p, uint mi, inout uint rng) {
+    mis_bsdf_samples = 0.0;
+}
+
+// The hit's emission (MIS-weighted against the light samples when the ray was a BSDF sample:
+// radiance.w > 0, glossy's first bounce) and ambient term; a reflective surface continues the
+// ray in its mirror direction while bounces remain, any other ends it.
+void path_vertex_end(uint p, Surface s, vec3 v, vec3 hng, uint mi, inout uint rng, vec3 throughput) {
+    vec3 emission = s.emission * emission_mis_weight(wave_paths[p].origin.xyz, -v, s.position,
+                                                     wave_paths[p].radiance.w, float(shadow_area_samples));
+    int bounces = max(material_param_int(mi, PARAM_BOUNCES), 1);
+    if (!is_reflective(s.effect) || wave_bounce >= bounces - 1) {
+        wave_paths[p].radiance.rgb += throughput * (emission + ambient * s.base_color);
+        end_path(p);
+        return;
+    }
+    wave_paths[p].radiance.rgb += throughput * (emission + ambient * s.base_color * (1.0 - s.metallic));
+    vec3 weight = throughput * fresnel_schlick(mix(vec3(0.04), s.base_color, s.metallic), dot(s.normal, v));
+    vec3 dir = reflect(-v, s.normal);
+    if (dot(dir, hng) <= 0.0) dir = reflect(dir, hng);  // shading normal sent it under the surface
+    start_path(p, s.position, hng, dir, weight);
+    wave_paths[p].radiance.w = 0.0;  // a mirror direction: no light sample could find it
+}
+#endif
 
 #if WAVE_STAGE == 3
 void main() {
@@ -108,6 +141,7 @@ void main() {
     ivec3 px = wave_pixel(p % n);
     uint rng;
     uint mi = pixel_setup(px, rng);
+    path_vertex_begin(p, mi, rng);
     vec3 dir = wave_paths[p].direction.xyz;
     vec3 throughput = wave_paths[p].throughput.rgb;
     Hit h;
@@ -117,22 +151,11 @@ void main() {
     h.uv = uintBitsToFloat(hb.zw);
     vec3 hng;
     Surface s = surface_at_hit(h, dir, hng);
-    vec3 v = -dir;
     shadow_begin(p, throughput, hng);
-    direct_light(s.position, s.normal, v, s.base_color, s.metallic, s.roughness);
+    direct_light(s.position, s.normal, -dir, s.base_color, s.metallic, s.roughness);
     wave_paths[p].throughput.w = uintBitsToFloat(shadow_stored());
     if (wave_last_chunk == 0u) return;
-    int bounces = max(material_param_int(mi, PARAM_BOUNCES), 1);
-    if (!is_reflective(s.effect) || wave_bounce >= bounces - 1) {
-        wave_paths[p].radiance.rgb += throughput * (s.emission + ambient * s.base_color);
-        end_path(p);
-        return;
-    }
-    wave_paths[p].radiance.rgb += throughput * (s.emission + ambient * s.base_color * (1.0 - s.metallic));
-    vec3 weight = throughput * fresnel_schlick(mix(vec3(0.04), s.base_color, s.metallic), dot(s.normal, v));
-    dir = reflect(dir, s.normal);
-    if (dot(dir, hng) <= 0.0) dir = reflect(dir, hng);  // shading normal sent it under the surface
-    start_path(p, s.position, hng, dir, weight);
+    path_vertex_end(p, s, -dir, hng, mi, rng, throughput);
 }
 
 #else  // WAVE_STAGE 5
