@@ -355,13 +355,13 @@ def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repea
     current config. Returns the config and the summary (predicted and measured ms and FLIP)."""
     from .bench import metrics
     from .bench.reference import reference_config
-    from .bench.tradeoff import BENCH_QUALITY, RendererPool, Variant, measure
+    from .bench.tradeoff import BENCH_QUALITY, RendererPool, measure, reference_variant
 
     ppd = metrics.DEFAULT_PPD if ppd is None else ppd
 
     gl, scene = renderer.gl, renderer.scene
-    reference = Variant("reference", "reference",
-                        reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
+    reference = reference_variant(
+        reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
     with RendererPool(gl) as pool:
         ref = measure(gl, scene, rig, reference, repeat=1, warmup=1, pool=pool)
         pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)

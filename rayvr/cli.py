@@ -105,6 +105,7 @@ BUDGET_MS = _number(0, MAX_BUDGET_MS)
 MAX_SPP = 1 << 20
 SPP = _count(1, MAX_SPP)
 DENOISE_ITERATIONS = _count(1, MAX_DENOISE_ITERATIONS)
+SEED = _count(0, 2**32 - 1)  # the shaders' frame_seed is a uint
 
 
 def add_rig_arguments(p: argparse.ArgumentParser) -> None:
@@ -220,7 +221,7 @@ def cmd_capture(args) -> int:
                               accumulate=args.temporal, temporal=args.temporal,
                               second_layer=args.second_layer, stereo=args.stereo,
                               warp_layers=args.warp_layers, quadtree_adapt=args.quadtree_adapt,
-                              traversal=args.traversal,
+                              traversal=args.traversal, seed=args.seed,
                               dof_aperture=args.aperture, dof_focus=args.focus_distance, dof_samples=args.dof_samples)
     inputs = {"scene": _file_identity(args.scene), "materials": _file_identity(args.materials),
               "settings": repr(settings)}
@@ -474,7 +475,7 @@ def cmd_preview(args) -> int:
                  stereo_method=args.stereo,
                  view=args.view, res_scale=args.scale, rig_options=rig_options, look_at=look_at,
                  out_dir=args.out, path_file=args.record,
-                 dof=(args.aperture, args.focus_distance, args.dof_samples)) as p:
+                 dof=(args.aperture, args.focus_distance, args.dof_samples), seed=args.seed) as p:
         if args.budget_ms is not None:
             print(p.apply_budget(args.budget_ms))
         p.run(max_frames=args.frames)
@@ -542,6 +543,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--chunk", type=_count(1, MAX_FRAMES), help="with --workers: frames per task (default: about "
                    "4 tasks per worker, at most 32 frames)")
     c.add_argument("--timings", action="store_true", help="print GPU ms per pass")
+    c.add_argument("--seed", type=SEED, default=0, help="random sequence of the sampled effects (default 0): "
+                   "the same seed gives the same image")
     c.add_argument("--budget-ms", type=BUDGET_MS, help="pick effects per material to fit this GPU frame time "
                    "(measured on this device against a reference; overrides --materials' effects)")
     c.add_argument("--exposure", type=_number(0, MAX_EXPOSURE), default=1.0,
@@ -626,6 +629,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--convergence", type=DISTANCE, help="zero-parallax distance (default: parallel eyes)")
     v.add_argument("--out", default="shots", help="screenshot folder (default ./shots)")
     v.add_argument("--record", default="camera_path.json", help="camera path file P writes")
+    v.add_argument("--seed", type=SEED, default=0, help="random sequence of the sampled effects (default 0)")
     v.add_argument("--frames", type=FRAMES, help="close after N frames (smoke tests)")
     v.add_argument("--budget-ms", type=BUDGET_MS, help="pick effects per material to fit this GPU frame time at start")
     add_stereo_argument(v, " at start (B cycles)")

@@ -141,3 +141,20 @@ def test_capture_budget_mode_records_the_choice(tmp_path):
     assert set(pick["assignment"]) >= {"mirror", "floor"}
     # With all the time in the world nothing stays on the bottom rung where a better one exists.
     assert pick["assignment"]["mirror"] != "raster"
+
+
+def test_reference_and_variants_draw_different_samples():
+    """A variant that shared the reference's seed would share its noise and score too well
+    (16-sample variants beat 32-sample ones): the reference has a seed of its own, nothing else."""
+    import dataclasses
+
+    from rayvr.bench.tradeoff import COMPARE_SETTINGS, reference_variant, variants
+    from rayvr.materials import parse_config
+    from rayvr.scene import load
+
+    scene = load()
+    base = parse_config({"default": "shadows"}, "<t>")
+    ref = reference_variant(base)
+    assert ref.settings.seed != COMPARE_SETTINGS.seed
+    assert dataclasses.replace(ref.settings, seed=COMPARE_SETTINGS.seed) == COMPARE_SETTINGS
+    assert {v.settings.seed for v in variants(scene, base, quick=True)} == {COMPARE_SETTINGS.seed}

@@ -434,6 +434,22 @@ def cornell_rig(scene: Scene, size=(256, 256), fov_y: float = 40.0) -> StereoRig
     return StereoRig(Pose.look_at(eye, c), ipd=0.0, fov_y=fov_y, convergence=None, near=0.05, size=tuple(size))
 
 
+def surface_mask(scene: Scene, centre_hits) -> np.ndarray:
+    """Pixels whose centre sees a non-emissive surface (lights and background are left out of
+    radiance ratios and the exposure)."""
+    emitter_px = centre_hits.material < 0
+    for i, m in enumerate(scene.materials):
+        if m.is_emissive:
+            emitter_px |= centre_hits.material == i
+    return ~emitter_px & np.isfinite(centre_hits.t)
+
+
+def exposure_for(reference: np.ndarray, surf: np.ndarray) -> float:
+    """One exposure for both images: the 99th percentile of the reference's surfaces maps to 0.9."""
+    lum = reference.mean(-1)
+    return 0.9 / max(float(np.percentile(lum[surf], 99)) if surf.any() else 1.0, 1e-6)
+
+
 @dataclass
 class Comparison:
     name: str
@@ -459,11 +475,15 @@ def crosscheck_scene(gl, scene: Scene, rig: StereoRig, *, spp=256, supersample=4
     rayvr runs with bounces = 1 to match (more only adds reflective-to-reflective chains).
     A full path-traced image (max_depth 8) measures what neither models (indirect light).
     `available` restricts rayvr's effects (e.g. ["raster"]: then the `unshadowed` mask, where
-    no shadow ray would be blocked, is where the two must agree)."""
+    no shadow ray would be blocked, is where the two must agree); by default every effect but
+    `path` (the direct-light ladder; `crosscheck_gi` compares `path`)."""
+    from ..effects import implemented_effects
     from ..renderer import Renderer
     from . import metrics
 
     mi = _mi()
+    if available is None:
+        available = [e for e in implemented_effects() if e != "path"]
     # Per pixel the reference's sample counts: each of the supersample^2 sub-pixels takes its share.
     base = ref_mod.QUICK_QUALITY if quick else ref_mod.REFERENCE_QUALITY
     share = lambda k: max(4, base[k] // int(supersample) ** 2)  # noqa: E731
@@ -498,14 +518,8 @@ def crosscheck_scene(gl, scene: Scene, rig: StereoRig, *, spp=256, supersample=4
     t_mitsuba = time.perf_counter() - t0
 
     centre_hits = primary_hits(full, eye, 1)
-    emitter_px = centre_hits.material < 0  # lights and background: excluded from radiance ratios
-    for i, m in enumerate(scene.materials):
-        if m.is_emissive:
-            emitter_px |= centre_hits.material == i
-    surf = ~emitter_px & np.isfinite(centre_hits.t)
-    # One exposure for both: the 99th percentile of the reference's surfaces maps to 0.9.
-    lum = theirs.mean(-1)
-    exposure = 0.9 / max(float(np.percentile(lum[surf], 99)) if surf.any() else 1.0, 1e-6)
+    surf = surface_mask(scene, centre_hits)
+    exposure = exposure_for(theirs, surf)
     ppd = ppd or metrics.DEFAULT_PPD
     masks = {"surfaces": surf}
     if reflective and (cover > 0.99).any():
@@ -536,6 +550,53 @@ def crosscheck_scene(gl, scene: Scene, rig: StereoRig, *, spp=256, supersample=4
                 "rayvr_supersample": s, "size": f"{w}x{h}", "exposure": exposure,
                 "rayvr_s": t_rayvr, "mitsuba_s": t_mitsuba})
     row["materials"] = ref_mod.describe(choices)
+    return Comparison(scene.name, ours, theirs, row, exposure, fmap)
+
+
+GI_BOUNCES = 6  # rayvr `path` bounces after the first surface = Mitsuba max_depth - 2
+
+
+def crosscheck_gi(gl, scene: Scene, rig: StereoRig, *, spp=64, supersample=2, seed=0, ppd=None,
+                  bounces: int = GI_BOUNCES) -> Comparison:
+    """Full global illumination: rayvr's `path` on every material against Mitsuba's `path`
+    integrator (max_depth = bounces + 2, both NEE + BSDF sampling with MIS) at equal samples per
+    pixel (rayvr: supersample^2 pixel-centre sub-pixels x spp / supersample^2 paths). The noise
+    floor is Mitsuba against itself with another seed at the same spp: rayvr passes when its FLIP
+    against Mitsuba is within that + 0.01 (`gi_within_noise`)."""
+    from ..materials import parse_config
+    from ..renderer import Renderer
+    from . import metrics
+
+    mi = _mi()
+    s = int(supersample)
+    paths = max(1, int(spp) // (s * s))
+    config = parse_config({"default": "path", "params": {"path": {"samples": paths, "bounces": int(bounces),
+                                                                   "area_samples": 1}}}, "<crosscheck gi>")
+    eye = rig.eye("left")
+    t0 = time.perf_counter()
+    renderer = Renderer(scene, config, gl=gl, settings=ref_mod.reference_settings(seed=seed))
+    try:
+        ours = rayvr_hdr(renderer, rig, s)
+    finally:
+        renderer.release()
+    t_rayvr = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    full = mi.load_dict(scene_dict(scene, eye, spp, seed))
+    theirs = render(full, integrator("path", bounces + 2), spp, seed + 11)
+    again = render(full, integrator("path", bounces + 2), spp, seed + 12)
+    t_mitsuba = time.perf_counter() - t0
+    surf = surface_mask(scene, primary_hits(full, eye, 1))
+    exposure = exposure_for(theirs, surf)
+    ppd = ppd or metrics.DEFAULT_PPD
+    a, b = ours * exposure, theirs * exposure
+    fmap = metrics.flip_map(b, a, ppd=ppd)
+    flip, noise = float(fmap.mean()), metrics.flip(b, again * exposure, ppd=ppd)
+    row = {"gi_flip": flip, "gi_flip_mitsuba_noise": noise, "gi_within_noise": bool(flip <= noise + 0.01),
+           "gi_psnr": metrics.psnr(b, a),
+           "gi_radiance_ratio": float(ours[surf].mean() / max(theirs[surf].mean(), 1e-12)) if surf.any() else None,
+           "gi_spp": paths * s * s, "gi_bounces": int(bounces), "gi_mitsuba": f"path(max_depth={int(bounces) + 2})",
+           "gi_rayvr": f"path(samples={paths}, bounces={int(bounces)}, area_samples=1) x {s}x{s} sub-pixels",
+           "gi_rayvr_s": t_rayvr, "gi_mitsuba_s": t_mitsuba}
     return Comparison(scene.name, ours, theirs, row, exposure, fmap)
 
 
@@ -570,23 +631,23 @@ RESIDUALS = {
                           "(ceiling next to it, wall tops at grazing angles) few points integrate a steep "
                           "1/d^2 cos cos function: up to ~20 % off there with the 4x4 grid.",
     "missing_indirect": "Neither side of the matched comparison has diffuse interreflection; gi_radiance_ratio and "
-                        "flip_vs_path_gi compare rayvr's reference with a full Mitsuba path tracer (max_depth 8): "
-                        "the colour bleeding and the lit shadows that rayvr's ladder below `path` does not model.",
+                        "flip_vs_path_gi compare that direct-light reference with a full Mitsuba path tracer "
+                        "(max_depth 8). The gi_* columns compare rayvr's `path` itself (global illumination) with "
+                        "Mitsuba's path tracer at equal samples.",
     "brdf_model": "Metals use Mitsuba's principled (identical to brdf.glsl); dielectrics a blend of Lambert and a "
                   "GGX dielectric lobe: within 0.7-1.4 % of brdf.glsl, rayvr's (1 - F(v.h)) diffuse weight is a "
                   "constant 0.96, and Mitsuba's Fresnel is the exact dielectric one, not Schlick's; Smith G "
                   "(Mitsuba separable vs rayvr height-correlated) differs at grazing angles.",
-    "light_in_mirror_twice": "rayvr's reflections/glossy add the traced reflection to the full direct light: a light "
-                             "seen in a glossy or mirror surface is counted by the GGX highlight and again by the "
-                             "reflection ray hitting the emitter; Mitsuba's MIS counts it once. Look for a brighter "
-                             "light reflection in rayvr.",
+    "light_in_mirror_twice": "rayvr's `reflections` add the traced mirror ray to the full direct light: a light seen "
+                             "in a mirror is counted by the (very sharp) GGX highlight and again by the mirror ray "
+                             "hitting the emitter. `glossy` and `path` weigh both by MIS (power heuristic) as "
+                             "Mitsuba does.",
     "reflection_model": "Past the first hit rayvr follows reflection rays in the mirror direction with Schlick F(n.v) "
                         "weights; Mitsuba samples the GGX lobe at every vertex. Its one-bounce term is added by "
                         "sub-pixel coverage, approximate on pixels that mix reflective and other materials.",
-    "glossy_fireflies": "rayvr's glossy effect samples the GGX lobe without multiple importance sampling: the few rays "
-                        "that hit the small, bright ceiling light make white speckles on the sharp metals (Mirror "
-                        "tallBox, Sphere spheres; roughness 0.21/0.32); Mitsuba samples the emitter too. This and "
-                        "the light counted twice dominate flip_reflective and the Sphere box's radiance_ratio > 1.",
+    "glossy_fireflies": "rayvr's glossy effect now samples the ceiling light both ways with MIS; the speckles that "
+                        "GGX rays alone made on the sharp metals (Mirror tallBox, Sphere spheres) fall with "
+                        "area_samples.",
     "duplicate_triangles": "CornellBox-Original's tallBox front face is stored twice (coincident triangles 6/7 and "
                            "12/13). rayvr's shadow rays self-intersect on one of them: a speckled dark triangle and "
                            "a streak on that face, absent in Mitsuba (same geometry). A rayvr bug, not sampling.",
@@ -629,11 +690,13 @@ def run(out_dir, quick: bool = False, progress: bool = True, gl=None, boxes=None
                 skipped[name] = f"{path} not found (the shared scenes folder is absent)"
             else:
                 scene = load_cornell(path)
-                cmp = crosscheck_scene(gl, scene, cornell_rig(scene, size), spp=spp, supersample=ss, quick=quick)
-                png = out / f"crosscheck_{name}.png"
-                side_by_side(cmp, png, scale=max(1, 256 // size[0]))
-                files.append(png.name)
-                rows.append({"box": name, **cmp.row})
+                rig = cornell_rig(scene, size)
+                cmp = crosscheck_scene(gl, scene, rig, spp=spp, supersample=ss, quick=quick)
+                gi = crosscheck_gi(gl, scene, rig, spp=spp, supersample=ss)
+                for c, png in ((cmp, out / f"crosscheck_{name}.png"), (gi, out / f"crosscheck_gi_{name}.png")):
+                    side_by_side(c, png, scale=max(1, 256 // size[0]))
+                    files.append(png.name)
+                rows.append({"box": name, **cmp.row, **gi.row})
             if bar:
                 bar.update(1)
         if bar:
@@ -642,7 +705,11 @@ def run(out_dir, quick: bool = False, progress: bool = True, gl=None, boxes=None
                 "benchmark": "crosscheck", "quick": quick, "mitsuba": _mitsuba_version(),
                 "what": "rayvr's reference (rayvr.bench.reference, bounces 1, no ambient) vs Mitsuba 3 in the same "
                         "light transport, linear radiance at one exposure; FLIP at the headset's ppd",
-                "pngs": "rayvr | Mitsuba | FLIP map (magma), same exposure, sRGB",
+                "pngs": "rayvr | Mitsuba | FLIP map (magma), same exposure, sRGB; crosscheck_gi_*: rayvr `path` | "
+                        "Mitsuba `path`",
+                "gi": "gi_*: rayvr `path` on every material vs Mitsuba `path` (max_depth = bounces + 2) at equal "
+                      "samples per pixel; gi_within_noise: gi_flip <= gi_flip_mitsuba_noise (two Mitsuba seeds) "
+                      "+ 0.01",
                 "residuals": RESIDUALS, "skipped": skipped}
         result = {"meta": meta, "rows": rows}
         write_report(out, "crosscheck", result)

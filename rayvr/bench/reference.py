@@ -2,7 +2,8 @@
 
 Every material is put in a class and gets the registered effect that ranks highest for that
 class (each effect declares its place: `Effect.reference`, rayvr/effects/), at reference quality
-(`Effect.reference_params`). With today's effects:
+(`Effect.reference_params`). With today's effects `path` ranks first for every class (many paths,
+full global illumination); without it (`available`, e.g. a direct-light comparison):
 
 * mirror (metallic, roughness < MIRROR_ROUGHNESS)       -> `reflections`, many bounces
 * glossy (rough metal, or a dielectric with roughness
@@ -11,8 +12,7 @@ class (each effect declares its place: `Effect.reference`, rayvr/effects/), at r
 
 An effect that is not available falls back down its class's ranking (a mirror to `glossy`,
 then `shadows`, then `raster`), never to an effect that does not model the class (a glossy
-surface is never rendered as a perfect mirror). `path` (when implemented and asked for)
-replaces all of it.
+surface is never rendered as a perfect mirror).
 
 `reference_settings()` gives RenderSettings for comparisons with other renderers: no ambient
 term (it stands in for indirect light, which no direct-light reference has), black background,
@@ -57,8 +57,7 @@ class ReferenceChoice:
     params: dict
 
 
-def reference_choices(scene, quick: bool = False, use_path: bool = False,
-                      available=None, quality: dict | None = None) -> list[ReferenceChoice]:
+def reference_choices(scene, quick: bool = False, available=None, quality: dict | None = None) -> list[ReferenceChoice]:
     """One choice per scene material (index order). `available` defaults to implemented_effects();
     `quality` overrides entries of REFERENCE_QUALITY/QUICK_QUALITY (e.g. {"bounces": 1})."""
     have = set(implemented_effects() if available is None else available)
@@ -67,19 +66,16 @@ def reference_choices(scene, quick: bool = False, use_path: bool = False,
     for m in scene.materials:
         kind = material_class(m)
         best = chain(kind)
-        if use_path and "path" in have:
-            best = ("path",) + best
         effect = next((e for e in best if e in have), "raster")
         params = EFFECTS[effect].reference_params(q) if effect in EFFECTS else {}
         out.append(ReferenceChoice(m.name, kind, best[0], effect, params))
     return out
 
 
-def reference_config(scene, quick: bool = False, use_path: bool = False, available=None,
-                     quality: dict | None = None) -> MaterialConfig:
+def reference_config(scene, quick: bool = False, available=None, quality: dict | None = None) -> MaterialConfig:
     """A validated MaterialConfig giving each material its reference effect. Entries are keyed
     by material index ([ids]) so names with glob characters cannot match other materials."""
-    return config_from_choices(reference_choices(scene, quick, use_path, available, quality))
+    return config_from_choices(reference_choices(scene, quick, available, quality))
 
 
 def config_from_choices(choices: list[ReferenceChoice]) -> MaterialConfig:
