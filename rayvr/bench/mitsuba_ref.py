@@ -392,6 +392,18 @@ def rayvr_hdr(renderer, rig: StereoRig, supersample: int = 1) -> np.ndarray:
     return img.reshape(h, s, w, s, 3).mean(axis=(1, 3))
 
 
+def timed_rayvr_hdr(gl, scene, config, settings, rig: StereoRig, supersample: int = 1) -> tuple:
+    """rayvr_hdr with a Renderer made for it (released after), and the seconds it took."""
+    from ..renderer import Renderer
+
+    t0 = time.perf_counter()
+    renderer = Renderer(scene, config, gl=gl, settings=settings)
+    try:
+        return rayvr_hdr(renderer, rig, supersample), time.perf_counter() - t0
+    finally:
+        renderer.release()
+
+
 # --------------------------------------------------------------------------------- Cornell boxes
 
 CORNELL_DIR = "cornell_box"
@@ -478,7 +490,6 @@ def crosscheck_scene(gl, scene: Scene, rig: StereoRig, *, spp=256, supersample=4
     no shadow ray would be blocked, is where the two must agree); by default every effect but
     `path` (the direct-light ladder; `crosscheck_gi` compares `path`)."""
     from ..effects import implemented_effects
-    from ..renderer import Renderer
     from . import metrics
 
     mi = _mi()
@@ -491,13 +502,7 @@ def crosscheck_scene(gl, scene: Scene, rig: StereoRig, *, spp=256, supersample=4
         "bounces": 1, "area_samples": share("area_samples"), "samples": share("samples")})
     config = ref_mod.config_from_choices(choices)
     eye = rig.eye("left")
-    t0 = time.perf_counter()
-    renderer = Renderer(scene, config, gl=gl, settings=ref_mod.reference_settings())
-    try:
-        ours = rayvr_hdr(renderer, rig, supersample)
-    finally:
-        renderer.release()
-    t_rayvr = time.perf_counter() - t0
+    ours, t_rayvr = timed_rayvr_hdr(gl, scene, config, ref_mod.reference_settings(), rig, supersample)
 
     t0 = time.perf_counter()
     reflective = {i for i, c in enumerate(choices) if c.effect in REFLECTIVE}
@@ -564,7 +569,6 @@ def crosscheck_gi(gl, scene: Scene, rig: StereoRig, *, spp=64, supersample=2, se
     floor is Mitsuba against itself with another seed at the same spp: rayvr passes when its FLIP
     against Mitsuba is within that + 0.01 (`gi_within_noise`)."""
     from ..materials import parse_config
-    from ..renderer import Renderer
     from . import metrics
 
     mi = _mi()
@@ -573,13 +577,7 @@ def crosscheck_gi(gl, scene: Scene, rig: StereoRig, *, spp=64, supersample=2, se
     config = parse_config({"default": "path", "params": {"path": {"samples": paths, "bounces": int(bounces),
                                                                    "area_samples": 1}}}, "<crosscheck gi>")
     eye = rig.eye("left")
-    t0 = time.perf_counter()
-    renderer = Renderer(scene, config, gl=gl, settings=ref_mod.reference_settings(seed=seed))
-    try:
-        ours = rayvr_hdr(renderer, rig, s)
-    finally:
-        renderer.release()
-    t_rayvr = time.perf_counter() - t0
+    ours, t_rayvr = timed_rayvr_hdr(gl, scene, config, ref_mod.reference_settings(seed=seed), rig, s)
     t0 = time.perf_counter()
     full = mi.load_dict(scene_dict(scene, eye, spp, seed))
     theirs = render(full, integrator("path", bounces + 2), spp, seed + 11)

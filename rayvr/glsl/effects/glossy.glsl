@@ -18,19 +18,14 @@ vec3 light_mis_brdf_cos(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic,
 void effect_start_paths(uint i, Surface s, vec3 v, vec3 ng, uint mi, inout uint rng) {
     wave_paths[i].radiance = vec4(s.emission + ambient * s.base_color * (1.0 - s.metallic), 0.0);
     vec3 f0 = mix(vec3(0.04), s.base_color, s.metallic);
-    uint n = wave_args[0].w;
     int samples = max(material_param_int(mi, PARAM_SAMPLES), 1);
     float alpha = max(s.roughness * s.roughness, 1e-3);
     mat3 tbn = basis_around(s.normal);
     vec3 v_local = v * tbn;  // transpose(tbn) * v
     v_local.z = max(v_local.z, 1e-4);
     for (int j = 0; j < int(wave_paths_per_pixel); ++j) {
-        uint p = uint(j) * n + i;
-        if (j > 0) wave_paths[p].radiance = vec4(0.0);
-        if (j >= samples) {
-            end_path(p);
-            continue;
-        }
+        uint p;
+        if (!pixel_path(i, j, samples, p)) continue;
         vec3 m = tbn * sample_ggx_vndf(normalize(v_local), alpha, rng_next2(rng));
         vec3 l = reflect(-v, m);
         float n_l = dot(s.normal, l);

@@ -35,15 +35,10 @@ void path_scatter(uint p, Surface s, vec3 v, vec3 ng, inout uint rng, vec3 throu
 
 void effect_start_paths(uint i, Surface s, vec3 v, vec3 ng, uint mi, inout uint rng) {
     wave_paths[i].radiance = vec4(s.emission, 0.0);
-    uint n = wave_args[0].w;
     int samples = max(material_param_int(mi, PARAM_SAMPLES), 1);
     for (int j = 0; j < int(wave_paths_per_pixel); ++j) {
-        uint p = uint(j) * n + i;
-        if (j > 0) wave_paths[p].radiance = vec4(0.0);
-        if (j >= samples) {
-            end_path(p);
-            continue;
-        }
+        uint p;
+        if (!pixel_path(i, j, samples, p)) continue;
         uint r = path_rng(rng, uint(j), 0);
         path_scatter(p, s, v, ng, r, vec3(1.0 / float(samples)), float(samples));
     }

@@ -57,6 +57,16 @@ void end_path(uint p) {
     wave_paths[p].direction.w = -1.0;
 }
 
+// Path j of pixel i (of n), for effects with `samples` paths per pixel (glossy, path): clears its
+// radiance (path 0's is the pixel's own, set by the caller) and ends it when j >= samples.
+bool pixel_path(uint i, int j, int samples, out uint p) {
+    p = uint(j) * wave_args[0].w + i;
+    if (j > 0) wave_paths[p].radiance = vec4(0.0);
+    if (j < samples) return true;
+    end_path(p);
+    return false;
+}
+
 // The effect's own part of the pixel event (Effect.shader, e.g. glsl/effects/glossy.glsl):
 //   void effect_start_paths(uint i, Surface s, vec3 v, vec3 ng, uint mi, inout uint rng)
 // sets the radiance the pixel starts with and starts its reflection paths (start_path/end_path).
