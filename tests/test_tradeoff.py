@@ -157,4 +157,4 @@ def test_reference_and_variants_draw_different_samples():
     ref = reference_variant(base)
     assert ref.settings.seed != COMPARE_SETTINGS.seed
     assert dataclasses.replace(ref.settings, seed=COMPARE_SETTINGS.seed) == COMPARE_SETTINGS
-    assert {v.settings.seed for v in variants(scene, base, quick=True)} == {COMPARE_SETTINGS.seed}
+    assert ref.settings.seed not in {v.settings.seed for v in variants(scene, base, quick=True)}

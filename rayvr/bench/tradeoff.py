@@ -197,7 +197,7 @@ def variants(scene, base: MaterialConfig, quick: bool = False) -> list[Variant]:
     return out + noise_variants(noisy_base(scene, base), quick)
 
 
-NOISE_SEED = 1  # the noise knobs draw other samples than the reference (seed 0) they are judged against
+NOISE_SEED = 1  # the noise knobs draw other samples than the other variants (and the reference: REFERENCE_SEED)
 
 
 def noisy_base(scene, base: MaterialConfig) -> MaterialConfig:

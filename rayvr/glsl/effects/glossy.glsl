@@ -5,8 +5,10 @@
 // emitter: MIS (power heuristic, common/mis.glsl) weighs the GGX lobe's share of each, so its
 // highlight is counted once (the Lambert lobe is only light-sampled: weight 1).
 
-// lighting.glsl's rect-light samples (LIGHT_MIS): the specular lobe weighed against the
-// surface's mis_bsdf_samples VNDF rays.
+// Included without LIGHT_MIS (ssr's glossy rays), the light samples and GGX rays are not weighed.
+#ifdef LIGHT_MIS
+// lighting.glsl's rect-light samples: the specular lobe weighed against the surface's
+// mis_bsdf_samples VNDF rays.
 vec3 light_mis_brdf_cos(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic, float roughness, float light_pdf) {
     vec3 diffuse, spec;
     brdf_cos_lobes(n, v, l, base_color, metallic, roughness, diffuse, spec);
@@ -14,6 +16,7 @@ vec3 light_mis_brdf_cos(vec3 n, vec3 v, vec3 l, vec3 base_color, float metallic,
     float bsdf_pdf = mis_bsdf_samples * ggx_vndf_pdf(n, v, l, max(roughness * roughness, 1e-3));
     return diffuse + spec * power_heuristic(light_pdf, bsdf_pdf);
 }
+#endif
 
 void effect_start_paths(uint i, Surface s, vec3 v, vec3 ng, uint mi, inout uint rng) {
     wave_paths[i].radiance = vec4(s.emission + ambient * s.base_color * (1.0 - s.metallic), 0.0);
@@ -35,6 +38,8 @@ void effect_start_paths(uint i, Surface s, vec3 v, vec3 ng, uint mi, inout uint 
         }
         vec3 weight = fresnel_schlick(f0, dot(v, m)) * smith_g2_over_g1(v_local.z, n_l, alpha);
         start_path(p, s.position, ng, l, weight / float(samples));
+#ifdef LIGHT_MIS
         wave_paths[p].radiance.w = float(samples) * ggx_vndf_pdf(s.normal, v, l, alpha);  // for MIS at its hit
+#endif
     }
 }
