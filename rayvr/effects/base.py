@@ -61,6 +61,7 @@ class Effect:
     params: dict = {}
     traced: bool = False
     reflective: bool = False  # reflection rays that meet it go on (reflections, glossy)
+    path_vertices: bool = False  # its shader shades every hit of its paths itself (path; EFFECT_PATH_VERTEX)
     uses_quadtree: bool = False  # its rays go through the screen-space quadtree first (ssr)
     denoised: bool = True  # traced: the denoiser filters its pixels unless the config's `denoise` key
                            # lists others (False for mirror-like rungs, whose detail is no noise)

@@ -15,6 +15,7 @@ class Path(Effect):
               "rr_start": Param(int, 3, 1, 64, "bounce from which Russian roulette may end a path"),
               "area_samples": Param(int, 1, 1, 1024, "light samples per rect light at each vertex")}
     traced = True
+    path_vertices = True  # follows its paths for `bounces` hit events (not `reflective`: a mirror ray ends on it)
     shader = "effects/path.glsl"  # its part of the wavefront pixel event (rt/wave_shade.comp)
     shader_defines = {"LIGHT_MIS": 1}
     sweep = {"samples": ((1, 2, 4, 8, 16), (1, 4)), "bounces": ((1, 2, 4, 8), (1, 4)),

@@ -45,12 +45,17 @@ def effect_maxima(assignments, effect: str) -> dict:
     return out
 
 
+def follows_rays(effect: Effect) -> bool:
+    """Its rays go on past the pixel's surface for `bounces` hit events (reflections, glossy, path)."""
+    return effect.reflective or effect.path_vertices
+
+
 class WaveShape:
     """How an effect's wavefront is cut for one frame: batches, shadow chunks, path counts."""
 
     def __init__(self, effect: Effect, s: Sizing):
         prm = effect_maxima(s.assignments, effect.name)
-        self.bounces = prm["bounces"] if "bounces" in effect.params else 0  # hit events after the pixel's
+        self.bounces = prm["bounces"] if follows_rays(effect) else 0  # hit events after the pixel's
         self.paths_per_pixel = prm["samples"] if "samples" in effect.params else 1
         lights = s.scene.lights if s.scene is not None else ()
         self.slots = sum(prm["area_samples"] if l.kind == "rect" else 1 for l in lights) or 1
@@ -112,7 +117,7 @@ class TraceEffectPass(Pass):
             "pixel": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 3}),
             "finish": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 5}),
         }
-        if "bounces" in self.effect.params:  # it follows rays past the pixel's surface
+        if follows_rays(self.effect):
             self.programs["hit"] = shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 4})
 
     def execute(self, fc) -> None:
