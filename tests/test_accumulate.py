@@ -20,8 +20,13 @@ NOISY = {"default": "shadows", "params": {"shadows": {"area_samples": 1}},
 SIZE = (32, 24)
 
 
-def _renderer(gl, **settings):
-    return Renderer(load(), parse_config(NOISY, "<noisy>"), gl=gl, settings=RenderSettings(**settings))
+# Soft shadows alone: every sample's weight is bounded, so the RMS error's fall is not decided by a
+# few GGX fireflies (with the glossy floor it ranged 1.5-2.9x per 4x samples over seed pairs).
+SOFT = {"default": "shadows", "params": {"shadows": {"area_samples": 1}}, "materials": {"light": "raster"}}
+
+
+def _renderer(gl, config=NOISY, **settings):
+    return Renderer(load(), parse_config(config, "<noisy>"), gl=gl, settings=RenderSettings(**settings))
 
 
 def _samples(r) -> np.ndarray:
@@ -56,11 +61,11 @@ def _both(frame) -> np.ndarray:
 
 
 def test_accumulation_converges_like_one_over_sqrt_n(gl):
-    with _renderer(gl, seed=11) as r:  # the reference draws other samples than the images it judges
+    with _renderer(gl, SOFT, seed=11) as r:  # the reference draws other samples than the images it judges
         rig = StereoRig.for_scene(r.scene, size=SIZE)
         ref = _both(r.render(rig, spp=REF_SPP, aux=("hdr",)))
     err = {}
-    with _renderer(gl) as r:
+    with _renderer(gl, SOFT) as r:
         for n in (1, 4, 16):
             img = _both(r.render(rig, spp=n, aux=("hdr",)))
             err[n] = float(np.sqrt(((img - ref) ** 2).mean()))

@@ -104,13 +104,13 @@ def test_white_furnace_converges_to_the_analytic_radiance(gl, furnace, bounces):
     assert abs(got.mean() - expected) < 5 * sigma + 0.01 * expected, (got.mean(), expected, sigma)
 
 
-def lamp_scene(as_light: bool, roughness=0.3, zero_area=False):
+def lamp_scene(as_light: bool, roughness=0.3, zero_area=False, metallic=1.0):
     """A rough white metal floor (y = 0) under a square emitter facing down; the emitter is a
     rect light (light samples + GGX rays, MIS) or only glowing geometry (GGX rays alone)."""
     floor = quad((0, 0, 0), (4, 0, 0), (0, 0, -4))
     lamp = quad((0.0, 1.0, -1.0), (0.4, 0, 0), (0, 0, 0.4))  # faces -y: cross(u, v) = -y
     v, f, part = merge(floor, lamp)
-    mats = [Material("floor", base_color=(1, 1, 1, 1), metallic=1.0, roughness=roughness),
+    mats = [Material("floor", base_color=(1, 1, 1, 1), metallic=metallic, roughness=roughness),
             Material("lamp", base_color=(0, 0, 0, 1), emission=(4.0, 4.0, 4.0))]
     lights = None if as_light else [Light("point", intensity=0.0)]
     if zero_area:
@@ -141,6 +141,25 @@ def test_mis_glossy_converges_to_bsdf_only_sampling(gl):
         "effect": "shadows", "area_samples": 256}}}).left.aux
     c = light_only["hdr"][floor].mean(-1).astype(np.float64)
     assert c[lit].mean() == pytest.approx(b[lit].mean(), rel=0.1)
+
+
+@pytest.mark.parametrize("metallic,roughness", [(1.0, 0.3), (0.0, 0.8)])
+def test_path_direct_light_is_the_light_sampled_direct_light(gl, metallic, roughness):
+    """Floor and lamp only (the lamp reflects nothing, the rest is black void): all the light a
+    path brings to the floor is the lamp's direct light, found by light samples and BSDF rays and
+    weighed by MIS. It must equal `shadows` with many light samples (no BSDF rays, no MIS) within
+    the noise, for a glossy metal and a rough dielectric floor."""
+    rig = StereoRig(Pose.look_at((0.0, 1.2, 1.6), (0.0, 0.0, -1.2)), ipd=0.0, fov_y=50, size=(40, 30))
+    scene = lamp_scene(True, roughness, metallic=metallic)
+    ref = render(gl, scene, rig, {"default": "raster", "materials": {"floor": {
+        "effect": "shadows", "area_samples": 256}}}).left.aux
+    got = render(gl, scene, rig, {"default": "raster", "materials": {"floor": {
+        "effect": "path", "samples": 16, "bounces": 2}}}, seed=9).left.aux
+    floor = (ref["material"] == 0) & (got["material"] == 0)
+    a, b = got["hdr"][floor].mean(-1).astype(np.float64), ref["hdr"][floor].mean(-1).astype(np.float64)
+    assert np.isfinite(a).all() and b.mean() > 0.05
+    assert a.mean() == pytest.approx(b.mean(), rel=0.03)
+    assert np.abs(a - b).mean() < 0.25 * b.mean()  # per pixel: 16 paths of a glossy highlight are noisy
 
 
 def test_path_at_grazing_views_and_zero_area_lights_is_finite(gl):

@@ -13,11 +13,14 @@ class Path(Effect):
     params = {"samples": Param(int, 1, 1, 1024, "paths per pixel per frame"),
               "bounces": Param(int, 4, 1, 64, "bounces after the pixel's surface (Mitsuba max_depth - 2)"),
               "rr_start": Param(int, 3, 1, 64, "bounce from which Russian roulette may end a path"),
-              "area_samples": Param(int, 1, 1, 1024, "light samples per rect light at each vertex")}
+              "area_samples": Param(int, 1, 1, 1024, "light samples per rect light at each vertex (x samples at "
+                                                     "the pixel's surface: one set per path)")}
     traced = True
     path_vertices = True  # follows its paths for `bounces` hit events (not `reflective`: a mirror ray ends on it)
     shader = "effects/path.glsl"  # its part of the wavefront pixel event (rt/wave_shade.comp)
-    shader_defines = {"LIGHT_MIS": 1}
+    # The pixel's surface takes area_samples light samples per path (as Mitsuba's path tracer does
+    # per camera sample), not per pixel: at equal samples its direct light is as converged.
+    shader_defines = {"LIGHT_MIS": 1, "PIXEL_LIGHT_SAMPLES_PER_PATH": 1}
     sweep = {"samples": ((1, 2, 4, 8, 16), (1, 4)), "bounces": ((1, 2, 4, 8), (1, 4)),
              "area_samples": ((1, 2, 4), (1,))}
     reference = {"mirror": 40, "glossy": 40, "diffuse": 40}  # the most accurate rung for every class

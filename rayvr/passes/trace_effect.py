@@ -58,7 +58,8 @@ class WaveShape:
         self.bounces = prm["bounces"] if follows_rays(effect) else 0  # hit events after the pixel's
         self.paths_per_pixel = prm["samples"] if "samples" in effect.params else 1
         lights = s.scene.lights if s.scene is not None else ()
-        self.slots = sum(prm["area_samples"] if l.kind == "rect" else 1 for l in lights) or 1
+        per_rect = prm["area_samples"] * (prm["samples"] if effect.shader_defines.get("PIXEL_LIGHT_SAMPLES_PER_PATH") else 1)
+        self.slots = sum(per_rect if l.kind == "rect" else 1 for l in lights) or 1
         limit = min(s.max_ssbo_bytes or WAVE_BUFFER_BYTES, WAVE_BUFFER_BYTES)
         self.capacity_pixels = s.pixels
         self.batch, self.chunk = wave_plan(s.pixels, self.paths_per_pixel, self.slots, limit)

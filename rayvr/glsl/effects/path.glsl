@@ -1,6 +1,7 @@
 // `path` (rayvr/effects/path.py) in the wavefront of rt/wave_shade.comp: `samples` paths per
 // pixel (path j of pixel i is item j * n + i). At every vertex: the surface's emission, next-event
-// estimation (lighting.glsl's light samples, `area_samples` per rect light, shadow rays) and one
+// estimation (lighting.glsl's light samples, `area_samples` per rect light, shadow rays; at the
+// pixel's own surface area_samples x samples, one stratified lattice for all its paths) and one
 // BSDF sample (common/mis.glsl: Lambert or GGX lobe) to go on; rect lights are found both ways and
 // weighed by the power heuristic. Russian roulette from bounce `rr_start`, at most `bounces`
 // bounces after the pixel's surface. No ambient term: the traced paths are the indirect light.
@@ -56,16 +57,17 @@ void path_vertex_begin(uint p, uint mi, inout uint rng) {
 }
 
 void path_vertex_end(uint p, Surface s, vec3 v, vec3 hng, uint mi, inout uint rng, vec3 throughput) {
+    float samples = float(max(material_param_int(mi, PARAM_SAMPLES), 1));
+    // light samples the previous vertex took (the pixel's surface: a set per path)
+    float light_count = float(shadow_area_samples) * (wave_bounce == 0 ? samples : 1.0);
     wave_paths[p].radiance.rgb += throughput * s.emission *
-        emission_mis_weight(wave_paths[p].origin.xyz, -v, s.position, wave_paths[p].radiance.w,
-                            float(shadow_area_samples));
+        emission_mis_weight(wave_paths[p].origin.xyz, -v, s.position, wave_paths[p].radiance.w, light_count);
     if (path_last_vertex(mi)) {
         end_path(p);
         return;
     }
     if (wave_bounce + 1 >= material_param_int(mi, PARAM_RR_START)) {
         // survive with the path's weight relative to one sample's (throughput x samples), at most 0.95
-        float samples = float(max(material_param_int(mi, PARAM_SAMPLES), 1));
         float q = min(max(throughput.r, max(throughput.g, throughput.b)) * samples, 0.95);
         if (!(rng_next(rng) < q)) {
             end_path(p);

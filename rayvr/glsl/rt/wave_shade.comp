@@ -86,6 +86,9 @@ uint pixel_setup(ivec3 px, out uint rng) {
 #ifdef LIGHT_MIS  // the pixel's light samples against its `samples` BSDF rays
     mis_bsdf_samples = float(max(material_param_int(mi, PARAM_SAMPLES), 1));
 #endif
+#if WAVE_STAGE == 3 && defined(PIXEL_LIGHT_SAMPLES_PER_PATH)  // a set of light samples per path
+    shadow_area_samples *= max(material_param_int(mi, PARAM_SAMPLES), 1);
+#endif
     return mi;
 }
 
