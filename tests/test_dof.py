@@ -3,7 +3,7 @@ et al. 2015 §5.2). Analytic checks on the step scene (a quad at view depth ~4 i
 ~6): focused on the wall, every lens ray through a wall point in focus meets it there, so wall
 pixels away from the quad keep their colour exactly; the out-of-focus quad's edge blurs into the
 wall over the thin lens's circle of confusion; a vanishing aperture is the pinhole image; IPD 0
-gives identical eyes."""
+gives identical eyes. The GPU gather equals the numpy reference (passes/dof.py gather_reference)."""
 import subprocess
 import sys
 
@@ -75,3 +75,33 @@ def test_bad_dof_settings_are_one_line_errors(tmp_path):
     run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--aperture", "-2", "--out", str(tmp_path)],
                          capture_output=True, text=True, timeout=60)
     assert run.returncode == 2 and "Traceback" not in run.stderr and "--aperture" in run.stderr
+
+
+def test_gpu_gather_equals_numpy_reference(gl):
+    """dof.comp against passes/dof.py gather_reference (numpy: the same lens points from the
+    surface's random stream, lens rays traced by the numpy quadtree traversal) on the step scene's
+    left eye, from the frame's own G-buffer, tree and colour: per pixel the same mean colour
+    (float32 vs float64 traces may pick the neighbouring pixel for a ray exactly on an edge: a few
+    pixels may differ)."""
+    from rayvr.accel import quadtree as qt
+    from rayvr.passes import scene_radiance
+    from rayvr.passes.dof import gather_reference
+
+    scene, rig = scenes()["step"]
+    settings = RenderSettings(dof_aperture=2.5, dof_focus=5.8, dof_samples=3, seed=7)
+    with Renderer(scene, None, gl=gl, settings=settings) as r:
+        r.render(rig, aux=())
+        w, h = rig.size
+        name, fmt = scene_radiance(r.compiled().plan)
+        dtype = np.float16 if fmt == "rgba16f" else np.float32
+        src = np.frombuffer(r.resource(name).read(), dtype).reshape(2, h, w, 4).astype(np.float64)
+        got = np.frombuffer(r.resource("hdr_dof").read(), np.float32).reshape(2, h, w, 4)[0, ..., :3]
+        pos = np.frombuffer(r.resource("gbuffer").textures["position"].read(), np.float32).reshape(2, h, w, 4)[0]
+        flat = np.frombuffer(r.resource("quadtree").read(), np.uint32).reshape(-1, 2)
+        levels = qt.unflatten(flat[:qt.level_offsets(qt.level_sizes(w, h))[1]], (w, h))
+        cam = qt.ScreenCamera.from_eye(rig.eyes()[0], r.scene.origin)
+    ref = gather_reference(src[0], pos, levels, cam, 2.5, 5.8, 3, seed=7)
+    assert np.isfinite(got).all()
+    close = np.abs(got - ref).max(-1) <= 1e-3 * (1 + np.abs(ref).max(-1))
+    assert close.mean() >= 0.98, (close.mean(), np.abs(got - ref).max())
+    assert (np.abs(ref - src[0, ..., :3]).max(-1) > 1e-3).mean() > 0.2   # the blur changes pixels (38 % here)

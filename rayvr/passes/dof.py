@@ -3,8 +3,11 @@ glsl/post/dof.comp): each pixel's lens rays (RenderSettings dof_aperture, dof_fo
 dof_samples) from points of the lens disk through the pixel ray's point in focus, traced through
 the frame's quadtree, gathering the frame's final colour where they meet the screen (the hit
 pixel; behind a foreground object, the near side of the discontinuity: inpainting). Writes
-`hdr_dof`, which tonemap then shows (passes/__init__.py radiance). Pinhole camera, stereo `dual`."""
+`hdr_dof`, which tonemap then shows (passes/__init__.py radiance). Pinhole camera, stereo `dual`.
+gather_reference below is the numpy reference of the shader (tests/test_dof.py compares them)."""
 from __future__ import annotations
+
+import numpy as np
 
 from .. import shaders
 from ..frame import FramePlan, Pass, Texture, read, write
@@ -47,3 +50,77 @@ class DofPass(Pass):
 
     def release(self) -> None:
         self.program.release()
+
+
+# ------------------------------------------------------------------ numpy reference (tests)
+
+def _pcg_hash(v):
+    """common/random.glsl pcg_hash on uint32 (numpy arrays or ints)."""
+    v = np.asarray(v, np.uint64) & 0xFFFFFFFF
+    state = (v * 747796405 + 2891336453) & 0xFFFFFFFF
+    word = (((state >> ((state >> 28) + 4)) ^ state) * 277803737) & 0xFFFFFFFF
+    return (word >> 22) ^ word
+
+
+def _seed_surface(p, footprint, frame):
+    """common/random.glsl rng_seed_surface (float32 as on the GPU)."""
+    level = np.floor(np.log2(np.maximum(np.float32(footprint), np.float32(1e-30)))).astype(np.int64)
+    cell = np.clip(np.floor(np.asarray(p, np.float32) * np.float32(2.0 ** -float(level))), -2.0e9, 2.0e9).astype(np.int64)
+    h = _pcg_hash(int(level) & 0xFFFFFFFF ^ int(_pcg_hash(frame)))
+    for c in (cell[2], cell[1], cell[0]):
+        h = _pcg_hash((int(c) & 0xFFFFFFFF) ^ int(h))
+    return int(h)
+
+
+def _concentric_disk(u):
+    """Shirley & Chiu's concentric map of [0, 1)^2 onto the unit disk (dof.comp concentric_disk)."""
+    a = 2.0 * np.asarray(u, np.float64) - 1.0
+    if a[0] == 0 and a[1] == 0:
+        return np.zeros(2)
+    if abs(a[0]) > abs(a[1]):
+        r, phi = a[0], np.pi / 4 * (a[1] / a[0])
+    else:
+        r, phi = a[1], np.pi / 2 - np.pi / 4 * (a[0] / a[1])
+    return r * np.array([np.cos(phi), np.sin(phi)])
+
+
+def gather_reference(image, position, levels, cam, aperture: float, focus: float, samples: int, seed: int = 0,
+                     thickness: float = THICKNESS) -> np.ndarray:
+    """The numpy reference of dof.comp for one eye: `image` (H, W, >= 3) the colour before depth
+    of field, `position` (H, W, 4) the G-buffer positions (w = view depth, 0: background), both in
+    GL row order (bottom-up), `levels` that eye's quadtree (rayvr/accel/quadtree.py), `cam` its
+    ScreenCamera. Per pixel the same lens points (the surface point's random stream), the lens
+    rays traced by quadtree.trace_layers (one layer), the colour gathered where they meet the
+    screen; (H, W, 3) float64."""
+    from ..accel import quadtree as qt
+
+    H, W = image.shape[:2]
+    l, r, b, t = cam.tangents
+    fwd = -cam.rotation[:, 2]
+    out = np.zeros((H, W, 3))
+    n = max(int(samples), 1)
+    for y in range(H):
+        for x in range(W):
+            d = cam.rotation @ np.array([l + (r - l) * (x + 0.5) / W, b + (t - b) * (y + 0.5) / H, -1.0])
+            d /= np.linalg.norm(d)
+            f = cam.position + d * (focus / (d @ fwd))
+            geo = position[y, x, 3] > 0
+            point = position[y, x, :3] if geo else f
+            depth = position[y, x, 3] if geo else focus
+            state = _seed_surface(point, np.float32(depth) * np.float32(t - b) / np.float32(H), seed)
+            total = np.zeros(3)
+            for _ in range(n):
+                u = []
+                for _ in range(2):
+                    state = int(_pcg_hash(state))
+                    u.append((state >> 8) / 16777216.0)
+                lens = cam.position + cam.rotation @ np.array([*(_concentric_disk(u) * 0.5 * aperture), 0.0])
+                tr = qt.trace_layers([levels], cam, lens, f - lens, thickness)
+                if tr.status in (qt.HIT, qt.OCCLUDED) and tr.pixel[0] >= 0:
+                    px, py = tr.pixel
+                else:
+                    px = min(max(int(np.floor(tr.point[0])), 0), W - 1)
+                    py = min(max(int(np.floor(tr.point[1])), 0), H - 1)
+                total += image[py, px, :3]
+            out[y, x] = total / n
+    return out
