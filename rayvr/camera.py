@@ -114,6 +114,7 @@ class EyeView:
     far: float | None
     size: tuple  # (width, height) in pixels
     camera: CameraModel = field(default_factory=Pinhole)
+    fov_y: float | None = None  # the rig's vertical field of view, degrees (non-planar models use it)
 
     def view_matrix(self, origin=(0.0, 0.0, 0.0)) -> np.ndarray:
         """World-minus-`origin` -> eye space, float64."""
@@ -212,7 +213,7 @@ class StereoRig:
             shift = -offset / self.convergence if self.convergence else 0.0
             tangents = (-t * a + shift, t * a + shift, -t, t)
         return EyeView(name, position, self.pose.rotation.copy(), tangents, self.near, self.far, self.size,
-                       self.camera)
+                       self.camera, self.fov_y)
 
     def eyes(self, which: str = "both") -> list[EyeView]:
         if which == "both":

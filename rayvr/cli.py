@@ -134,10 +134,46 @@ def add_stereo_argument(p: argparse.ArgumentParser, more: str = "", warp_layers:
                             "first surfaces (the second layer, --second-layer), 1 inpaints those disocclusions")
 
 
+def add_camera_arguments(p: argparse.ArgumentParser, msaa_default: int | None = 1) -> None:
+    """The camera model and its sub-rays (capture, preview, bench, info --graph)."""
+    from .cameras import CAMERA_MODELS
+    from .cameras.sampling import SAMPLE_COUNTS
+
+    g = p.add_argument_group("camera model and anti-aliasing")
+    g.add_argument("--camera-model", choices=tuple(CAMERA_MODELS), default="pinhole",
+                   help="how each eye makes its rays; every model but the pinhole casts its primary rays "
+                        "(" + "; ".join(f"{n}: {m.doc}" for n, m in CAMERA_MODELS.items() if m.doc) + ")")
+    g.add_argument("--camera-param", action="append", metavar="KEY=VALUE",
+                   help="a camera model parameter, repeatable: distorted coefficients=K1,K2,K3[/K1,K2,K3/K1,K2,K3] "
+                        "center=CX,CY samples=FILE; wide mapping=spherical|equidistant fov_x=DEG; foveated "
+                        "gaze=X,Y fovea_mar=DEG mar_slope=S fovea_radius=DEG; dof aperture=R focus=D")
+    g.add_argument("--msaa", type=int, choices=SAMPLE_COUNTS, default=msaa_default,
+                   help="sub-rays per sample (anti-aliasing; casts primary rays): shading once per pixel per "
+                        "distinct triangle, or per sub-ray with --ssaa")
+    g.add_argument("--ssaa", action="store_true", help="shade every sub-ray of --msaa N (supersampling)")
+
+
+def camera_from_args(args):
+    """The camera model --camera-model and --camera-param ask for."""
+    from .cameras import get_camera_model, parse_camera_params
+
+    return get_camera_model(args.camera_model, **parse_camera_params(args.camera_model, args.camera_param))
+
+
+def settings_from_args(args, **kw):
+    """RenderSettings from the flags a command has (the others keep their defaults)."""
+    from .renderer import RenderSettings
+
+    for key in ("exposure", "tonemapper", "layer_mode", "primary", "msaa", "ssaa"):
+        if getattr(args, key, None) is not None:
+            kw.setdefault(key, getattr(args, key))
+    return RenderSettings(**kw)
+
+
 def rig_from_args(args, scene):
     from .camera import Pose, StereoRig
 
-    kw = {"ipd": args.ipd}
+    kw = {"ipd": args.ipd, "camera": camera_from_args(args)}
     for key, attr in (("fov_y", "fov"), ("convergence", "convergence"), ("near", "near"), ("far", "far")):
         if getattr(args, attr) is not None:
             kw[key] = getattr(args, attr)
@@ -222,7 +258,8 @@ def cmd_capture(args) -> int:
                               second_layer=args.second_layer, stereo=args.stereo,
                               warp_layers=args.warp_layers, quadtree_adapt=args.quadtree_adapt,
                               traversal=args.traversal, seed=args.seed,
-                              dof_aperture=args.aperture, dof_focus=args.focus_distance, dof_samples=args.dof_samples)
+                              dof_aperture=args.aperture, dof_focus=args.focus_distance, dof_samples=args.dof_samples,
+                              msaa=args.msaa, ssaa=args.ssaa)
     inputs = {"scene": _file_identity(args.scene), "materials": _file_identity(args.materials),
               "settings": repr(settings)}
     if args.workers:
@@ -293,14 +330,14 @@ def print_graph(args) -> int:
     """`rayvr info SCENE --materials FILE --graph [dot]`: the compiled frame graph."""
     from .context import create_context
     from .frame import compile_graph
-    from .renderer import Renderer, RenderSettings, candidate_passes
+    from .renderer import Renderer, candidate_passes
 
+    camera = camera_from_args(args)
     gl = create_context(args.backend)
     try:
-        settings = RenderSettings(primary=args.primary, stereo=args.stereo, accumulate=args.spp > 1,
-                                  denoise=args.denoise)
+        settings = settings_from_args(args, stereo=args.stereo, accumulate=args.spp > 1, denoise=args.denoise)
         with Renderer(args.scene, args.materials, gl=gl, settings=settings) as r:
-            plan = r.plan(layers=2, view=args.view)
+            plan = r.plan(layers=2, view=args.view, camera=camera)
             graph = compile_graph(candidate_passes(plan), plan)  # passes are not built: nothing compiles
             print(graph.dot() if args.graph == "dot" else graph.describe(r.sizing(args.size, plan.layers, plan)), end="")
     finally:
@@ -411,6 +448,17 @@ def cmd_bench(args) -> int:
                  scenes=("default",) if quick else tuple(args.scenes.split(",")),
                  repeat=2 if quick else args.repeat // 2, warmup=1 if quick else 3, backend=args.backend,
                  layouts=args.layouts, tiles=not args.no_tiles)
+    elif args.area == "primary":
+        from .bench import primary
+
+        # A --camera-model / --camera-param / --fov given: that camera (and the raster reference) only.
+        custom = args.camera_model != "pinhole" or args.camera_param or args.fov is not None
+        counts = (args.msaa,) if args.msaa else (1, 4) if quick else primary.SAMPLE_COUNTS
+        primary.run(out, size=(32, 24) if quick else args.size,
+                    scenes=("default",) if quick else tuple(args.scenes.split(",")),
+                    repeat=2 if quick else args.repeat // 2, warmup=1 if quick else 3, counts=counts,
+                    ssaa=(args.msaa,) if args.ssaa and args.msaa else () if quick else (4,),
+                    custom=(camera_from_args(args), args.fov) if custom else None, backend=args.backend)
     elif args.area == "peers":
         from .bench import peers
 
@@ -466,7 +514,7 @@ def cmd_bench(args) -> int:
 def cmd_preview(args) -> int:
     from .preview import Preview
 
-    rig_options = {"ipd": args.ipd}
+    rig_options = {"ipd": args.ipd, "camera": camera_from_args(args)}
     for key, attr in (("fov_y", "fov"), ("convergence", "convergence")):
         if getattr(args, attr) is not None:
             rig_options[key] = getattr(args, attr)
@@ -475,7 +523,7 @@ def cmd_preview(args) -> int:
                  stereo_method=args.stereo,
                  view=args.view, res_scale=args.scale, rig_options=rig_options, look_at=look_at,
                  out_dir=args.out, path_file=args.record,
-                 dof=(args.aperture, args.focus_distance, args.dof_samples), seed=args.seed) as p:
+                 dof=(args.aperture, args.focus_distance, args.dof_samples), seed=args.seed, settings=settings_from_args(args)) as p:
         if args.budget_ms is not None:
             print(p.apply_budget(args.budget_ms))
         p.run(max_frames=args.frames)
@@ -569,6 +617,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     c.add_argument("-q", "--quiet", action="store_true")
     add_rig_arguments(c)
+    add_camera_arguments(c)
     c.set_defaults(func=cmd_capture)
 
     i = sub.add_parser("info", help="GL vendor, renderer, version, limits, extensions; a scene's material effects")
@@ -585,13 +634,15 @@ def build_parser() -> argparse.ArgumentParser:
     add_stereo_argument(i)
     i.add_argument("--spp", type=SPP, default=1, help="the --graph of a capture with this many samples a pixel")
     i.add_argument("--denoise", action="store_true", help="the --graph with the denoiser")
+    add_camera_arguments(i)
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
-    b.add_argument("area", choices=("gbuffer", "rays", "ssrt", "photon", "stereo", "peers", "tradeoff", "budget",
-                                    "crosscheck", "workers"),
+    b.add_argument("area", choices=("gbuffer", "rays", "primary", "ssrt", "photon", "stereo", "peers", "tradeoff",
+                                    "budget", "crosscheck", "workers"),
                    help="gbuffer: layered stereo vs mono G-buffer ms; rays: rays/s vs Embree and the hybrid "
-                        "frame; ssrt: quadtree screen-space tracing vs the DDA baseline; photon: the photon-mapping paper's "
+                        "frame; primary: ray-cast primary visibility per camera model and sub-rays per sample "
+                        "(ms per pass, sub-rays/s) against the raster G-buffer; ssrt: quadtree screen-space tracing vs the DDA baseline; photon: the photon-mapping paper's "
                         "tables (kd-tree vs hash grid, heap vs no heap: ms per pass, FLIP); stereo: the stereo modes dual, warp, "
                         "reuse (ms per pass, FLIP against dual, holes); peers: frames/s against pyrender; "
                         "tradeoff: every knob's GPU ms vs error against the reference; budget: effects per "
@@ -612,6 +663,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--address", help="with --workers: an existing Ray cluster, 'auto' or HOST:PORT")
     b.add_argument("--frames", type=FRAMES, default=64, help="workers: frames of the capture path (default 64)")
     b.add_argument("--backend", choices=("egl", "osmesa"))
+    b.add_argument("--fov", type=FOV, help="primary: vertical field of view of the --camera-model row")
+    add_camera_arguments(b, msaa_default=None)
     b.set_defaults(func=cmd_bench)
 
     v = sub.add_parser("preview", help="desktop stereo preview window (glfw); H in the window lists the keys")
@@ -634,6 +687,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--budget-ms", type=BUDGET_MS, help="pick effects per material to fit this GPU frame time at start")
     add_stereo_argument(v, " at start (B cycles)")
     add_dof_arguments(v)
+    add_camera_arguments(v)
     v.set_defaults(func=cmd_preview)
     return p
 

@@ -42,6 +42,10 @@ class FramePlan:
     layer_mode: str = "vertex"  # how the G-buffer reaches its layers: vertex | geometry | multiview | passes
     primary: str = "raster"  # primary visibility: "raster" (visibility pass) or "rays" (BVH)
     camera: str = "pinhole"  # camera model (rayvr/cameras/)
+    samples: int = 1  # sub-rays per camera sample (cameras/sampling.py SAMPLE_COUNTS)
+    shading: str = "msaa"  # with samples > 1: "msaa" shades once per distinct triangle, "ssaa" every sub-ray
+    channels: int = 1  # colour channel sets of the camera model (cast and shaded one after another)
+    reconstruct: bool = False  # the camera's samples are sparse: filled in for display (foveated)
     stereo: str = "dual"  # how the second eye is made: "dual" renders both fully
     depth_layers: int = 1  # depth layers the screen-space tracers see (2: passes/second_layer.py)
     second_layer: str = "rays"  # how the second depth layer is made: "rays" (BVH) | "peel" (raster)
@@ -53,6 +57,12 @@ class FramePlan:
     # (effect, (material names, ...)) pairs, for the reasons --graph shows; not part of the key:
     # moving an effect to other materials compiles nothing new.
     users: tuple = field(default=(), compare=False)
+
+    @property
+    def sampled(self) -> bool:
+        """The frame's colour is made of several rounds of samples, or of sparse samples: it is
+        accumulated (passes/sample_accumulate.py) and resolved for display (sample_resolve.py)."""
+        return self.samples > 1 or self.channels > 1 or self.reconstruct
 
     def materials_using(self, effect: str) -> tuple:
         return next((names for e, names in self.users if e == effect), ())
@@ -210,6 +220,25 @@ class CompiledGraph:
     @property
     def pass_names(self) -> list:
         return [p.name for p in self.passes]
+
+    @property
+    def rounds(self) -> set:
+        """Names of the passes a sampled frame runs once per round: `sample_accumulate` and every
+        pass it depends on (empty when the graph accumulates nothing)."""
+        if "sample_accumulate" not in self.pass_names:
+            return set()
+        writers = {}
+        for p in self.passes:
+            for a in self.io[p.name]:
+                if a.mode in ("write", "compose"):
+                    writers.setdefault(a.resource, []).append(p.name)
+        out, stack = set(), ["sample_accumulate"]
+        while stack:
+            name = stack.pop()
+            if name not in out:
+                out.add(name)
+                stack += [w for a in self.io[name] if a.mode in ("read", "compose") for w in writers.get(a.resource, [])]
+        return out
 
     def describe(self, sizing: Sizing) -> str:
         """The graph as text: passes in order with why they run, then the resources."""
@@ -518,6 +547,34 @@ class Frame:
 
 
 @dataclass
+class Round:
+    """Which part of a sampled frame (FramePlan.sampled) the passes upstream of
+    `sample_accumulate` make now: FrameGraph.execute runs them once per round, per colour channel
+    set, then per slot (an SSAA sub-ray, or an MSAA triangle slot) from `slots` - 1 down to 0;
+    primary_rays says how many slots a channel needs in its first round (`start`)."""
+
+    channel: int = 0
+    slot: int = 0
+    slots: int = 1
+    first: bool = True  # the channel's first round
+    index: int = 0  # rounds of this frame before this one
+    active: bool = False  # the frame runs rounds (its graph accumulates samples)
+
+    def start(self, slots: int) -> None:
+        self.slots = slots if self.active else 1
+        self.slot = self.slots - 1
+
+    def next(self) -> "Round":
+        return Round(self.channel, self.slot - 1, self.slots, False, self.index + 1, self.active)
+
+
+def channel_order(channels: int) -> list:
+    """Colour channel sets in the order a frame casts them: green last, so the G-buffer the frame
+    keeps (depth, aux) is the middle wavelength's."""
+    return [0, 2, 1] if channels == 3 else list(range(channels))
+
+
+@dataclass
 class FrameContext:
     """What passes see while a frame is recorded (and what readback reads afterwards)."""
 
@@ -541,6 +598,8 @@ class FrameContext:
 
     def __post_init__(self):
         self.out_eyes = self.out_eyes or list(self.eyes)
+    round: Round = field(default_factory=Round)
+    timer_keys: list = field(default_factory=list)  # (timer query key, pass name): a pass times once per round
 
     def resource(self, name: str):
         return self.resources[name]
@@ -555,6 +614,8 @@ class FrameContext:
             fn()
             return
         name = f"{self.current_pass}.{kernel}" if kernel else self.current_pass
+        if self.round.index:
+            name += f"#{self.round.index}"
         if name not in self.stage_names:
             self.stage_names.append(name)
         self.profiler.run(name, fn)
@@ -594,20 +655,50 @@ class FrameGraph:
         timer.next_frame()
         fc.timer_slot = timer.slot
         fc.profiler = self.kernel_timer if profile else None
-        for p in graph.passes:
+        fc.timer_keys = []
+
+        def run(p) -> None:
             fc.current_pass = p.name
             if profile and p.timed_kernels:  # timer queries do not nest: its kernels are timed, it is not
                 p.execute(fc)
             elif profile:
-                fc.stage("", lambda p=p: p.execute(fc))
+                fc.stage("", lambda: p.execute(fc))
             else:
-                timer.run(p.name, lambda p=p: p.execute(fc))
+                key = f"{p.name}#{fc.round.index}" if fc.round.index else p.name
+                fc.timer_keys.append((key, p.name))
+                timer.run(key, lambda: p.execute(fc))
+
+        rounds = graph.rounds
+        if rounds:  # a sampled frame: what sample_accumulate depends on runs once per round
+            index = 0
+            for ch in channel_order(graph.plan.channels):
+                fc.round = Round(ch, index=index, active=True)
+                while True:
+                    for p in graph.passes:
+                        if p.name in rounds:
+                            run(p)
+                    index += 1
+                    if fc.round.slot <= 0:
+                        break
+                    fc.round = fc.round.next()
+        for p in graph.passes:
+            if p.name not in rounds:
+                run(p)
 
     def read_ms(self, fc: FrameContext) -> dict:
-        """GPU ms per pass (or per kernel for a profiled frame); waits for the GPU."""
+        """GPU ms per pass (or per kernel for a profiled frame), summed over a sampled frame's
+        rounds; waits for the GPU."""
         if fc.profiler is not None:
-            return self.kernel_timer.read_ms(fc.stage_names, fc.timer_slot, fc.recorded_at)
-        return self.timer.read_ms(fc.pass_names, fc.timer_slot, fc.recorded_at)
+            got = self.kernel_timer.read_ms(fc.stage_names, fc.timer_slot, fc.recorded_at)
+            keys = [(k, k.split("#")[0]) for k in fc.stage_names]
+        else:
+            keys = fc.timer_keys or [(n, n) for n in fc.pass_names]
+            got = self.timer.read_ms([k for k, _ in keys], fc.timer_slot, fc.recorded_at)
+        out: dict = {}
+        for key, name in keys:
+            if key in got:
+                out[name] = out.get(name, 0.0) + got[key]
+        return out
 
     def release(self) -> None:
         for graph in self._compiled.values():

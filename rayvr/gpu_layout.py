@@ -59,6 +59,7 @@ SSBO = {
     "photon_kdtree": 45, "photon_lights": 46, "photon_queries": 47, "photon_found": 48,
     "photon_query_counts": 49,
     "reuse_map": 50, "warp_counts": 51,  # stereo modes: passes/reuse.py, passes/warp.py (glsl/stereo/)
+    "msaa_hits": 30, "msaa_count": 31,  # passes/primary_rays.py: distinct triangles per pixel (MSAA for rays)
 }
 # Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
 IMAGE = {"hdr": 0, "ldr": 1,
@@ -68,15 +69,20 @@ IMAGE = {"hdr": 0, "ldr": 1,
          "denoise_in": 2, "denoise_out": 3, "denoise_moments": 4, "denoise_color": 5, "denoise_guide": 6,
          "layer2": 2, "layer2_triangle": 3,  # passes/second_layer.py
          "warp_color": 2, "warp_depth": 3,  # passes/warp.py (glsl/stereo/warp.comp)
-         "dof_in": 2, "dof_out": 3}  # passes/dof.py (glsl/post/dof.comp)
+         "dof_in": 2, "dof_out": 3,  # passes/dof.py (glsl/post/dof.comp)
+         # passes/sample_accumulate.py, sample_resolve.py; sample_weight beside the G-buffer
+         # images (0..6) primary_rays writes with it
+         "sample_sum": 2, "frame_hdr": 3, "sample_weight": 7}
 # Texture units beside the G-buffer channels' (0..7).
-UNIT = {"base_color_textures": 9, "layer2": 10, "layer2_triangle": 11, "peel_triangle": 12}
+UNIT = {"base_color_textures": 9, "layer2": 10, "layer2_triangle": 11, "peel_triangle": 12,
+        "camera_samples": 13}  # camera_samples: cameras/distorted.py sample files
 
 TONEMAPPERS = ("clamp", "reinhard", "aces")
 DEBUG_VIEWS = ("depth", "normal", "albedo", "roughness", "metallic", "emission", "material", "effect",
                "triangle", "position")
-# Views made by passes of their own (not debug_view.comp): the quadtree's node visits per pixel.
-TRACE_VIEWS = ("quadtree_visits",)
+# Views made by passes of their own (not debug_view.comp): the quadtree's node visits per pixel,
+# the camera model's sample pattern (passes/sample_pattern.py).
+TRACE_VIEWS = ("quadtree_visits", "samples")
 VIEWS = ("color",) + DEBUG_VIEWS + TRACE_VIEWS
 LIGHT_KINDS = ("point", "directional", "rect")
 NO_HIT = 0xFFFFFFFF

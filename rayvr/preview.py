@@ -393,8 +393,9 @@ class Preview:
     def __init__(self, scene=None, materials=None, *, size=(1280, 720), title=None, visible=True,
                  vsync=True, stereo="side-by-side", view="color", res_scale=None, rig=None,
                  rig_options=None, look_at=None, out_dir="shots", path_file="camera_path.json", hud=True,
-                 stereo_method="dual", dof=None, seed=0):
-        """`dof`: (aperture, focus distance, samples) of the thin-lens depth of field (passes/dof.py)."""
+                 stereo_method="dual", dof=None, seed=0, settings=None):
+        """`dof`: (aperture, focus distance, samples) of the thin-lens depth of field (passes/dof.py);
+        `settings`: the RenderSettings to start from (camera sub-rays: msaa, ssaa)."""
         import glfw
 
         from .context import create_window_context
@@ -414,7 +415,7 @@ class Preview:
             # file opens the window with the error in the HUD instead of failing.
             from .renderer import RenderSettings
 
-            self.renderer = Renderer(scene, None, gl=self.gl, settings=RenderSettings(seed=seed))
+            self.renderer = Renderer(scene, None, gl=self.gl, settings=replace(settings or RenderSettings(), seed=seed))
             if dof is not None:
                 self.renderer.settings = replace(self.renderer.settings, dof_aperture=dof[0], dof_focus=dof[1],
                                                  dof_samples=dof[2])

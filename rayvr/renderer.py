@@ -24,6 +24,7 @@ from .accel.scene import SceneAccel
 from .accumulation import MAX_DENOISE_ITERATIONS, Accumulator, sample_seed
 from .camera import StereoRig
 from .cameras import Pinhole
+from .cameras.sampling import check_count
 from .context import GLContext, create_context
 from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameTooLarge, Sizing, check_fits,
                     limit_problems)
@@ -69,6 +70,8 @@ class RenderSettings:
     dof_aperture: float = 0.0  # lens diameter, scene units (0: off)
     dof_focus: float = 2.0  # view depth in focus, scene units
     dof_samples: int = 16  # lens rays per pixel
+    msaa: int = 1  # sub-rays per camera sample (cameras/sampling.py SAMPLE_COUNTS): rayvr's anti-aliasing
+    ssaa: bool = False  # shade every sub-ray (else once per pixel per distinct triangle: MSAA)
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
@@ -100,6 +103,7 @@ class RenderSettings:
         stereo_mod.check_mode(self.stereo)
         if self.warp_layers not in (1, 2):
             raise ValueError(f"warp_layers must be 1 or 2, got {self.warp_layers!r}")
+        check_count(self.msaa)
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:
@@ -162,7 +166,8 @@ class Renderer:
     def plan(self, layers: int = 2, view: str = "color", camera=None, accumulate: bool = False) -> FramePlan:
         """The FramePlan this renderer's scene, config and settings give for `layers` eyes seen
         through `camera` (a rayvr.cameras model; default the pinhole). A camera a rasterizer cannot
-        sample (not `rasterizable`) takes ray-cast primary visibility whatever the settings say.
+        sample (not `rasterizable`), or sub-rays per sample (settings.msaa > 1: anti-aliasing), take
+        ray-cast primary visibility whatever the settings say.
         `accumulate`: keep a running mean of samples (as `render(spp=N)`) whatever the settings say."""
         camera = camera or Pinhole()
         if view not in VIEWS:
@@ -170,12 +175,16 @@ class Renderer:
         names = self.scene.material_names()
         users = tuple((e, tuple(n for n, a in zip(names, self.assignments) if a.effect == e))
                       for e in effects_mod.EFFECTS if e in self.effects_in_use())
-        primary = self.settings.primary if camera.rasterizable else "rays"
+        samples = self.settings.msaa
+        primary = self.settings.primary if camera.rasterizable and samples == 1 else "rays"
         color, st = view == "color", self.settings
         # Peeling needs the raster's depth: with ray-cast primaries the second layer is ray-cast too.
         second = self.settings.second_layer if primary == "raster" else "rays"
         denoise = tuple(sorted(self.denoised_effects())) if color and st.denoise else ()
         stereo = stereo_mod.effective_mode(self.settings.stereo, layers, camera)
+        if stereo != "dual" and samples > 1:  # their passes read one G-buffer, not a frame of rounds
+            raise ValueError(f"stereo mode {stereo!r} reprojects one sample per pixel: it cannot take --msaa "
+                             f"{samples} (use --stereo dual)")
         warp = stereo == "warp"  # one central view is rendered; the warp pass makes both eyes from it
         return FramePlan(effects=self.effects_in_use(), view=view, layers=1 if warp else layers,
                          layer_mode=self.layer_mode, primary=primary, camera=camera.name, stereo=stereo,
@@ -183,7 +192,9 @@ class Renderer:
                          accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise,
                          depth_layers=max(depth_layers(self.assignments), st.warp_layers if warp else 1),
                          second_layer=second, traversal=st.traversal,
-                         dof=color and st.dof_aperture > 0 and stereo == "dual" and camera.name == "pinhole")
+                         dof=color and st.dof_aperture > 0 and stereo == "dual" and camera.name == "pinhole",
+                         samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
+                         channels=camera.channels, reconstruct=camera.sparse)
 
     def set_stereo(self, mode: str) -> None:
         """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/stereo.py)."""

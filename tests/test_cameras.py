@@ -107,13 +107,18 @@ def test_centre_ray_of_a_symmetric_eye_follows_the_forward_axis():
 
 # ---------------------------------------------------------------- (3) GLSL == numpy
 
-def glsl_rays(gl, rig, origin):
-    """Run glsl/cameras/camera_rays.comp for both eyes; arrays (eye, row top-down, col, 4, 3)."""
+def glsl_rays(gl, rig, origin, channel=0, subsample=None):
+    """Run glsl/cameras/camera_rays.comp for both eyes; arrays (eye, row top-down, col, 4, 3) and
+    (eye, row, col, 2): valid, footprint. `subsample` (i, n): sub-ray i of the n-point set."""
     model = rig.camera
     w, h = rig.size
-    prog = shaders.compute(gl.ctx, "cameras/camera_rays.comp", model.defines())
-    set_eye_uniforms(prog, SimpleNamespace(eyes=rig.eyes(), scene=SimpleNamespace(origin=origin)))
+    n = 1 if subsample is None else subsample[1]
+    prog = shaders.compute(gl.ctx, "cameras/camera_rays.comp", {**model.defines(), "CAMERA_SUBSAMPLES": n})
+    fc = SimpleNamespace(eyes=rig.eyes(), scene=SimpleNamespace(origin=origin), gl=gl,
+                         round=SimpleNamespace(channel=channel))
+    set_eye_uniforms(prog, fc)
     prog["image_size"].value = (w, h)
+    prog["subsample"].value = -1 if subsample is None else subsample[0]
     buf = gl.ctx.buffer(reserve=2 * h * w * 4 * 16)
     try:
         buf.bind_to_storage_buffer(0)
@@ -122,18 +127,19 @@ def glsl_rays(gl, rig, origin):
     finally:
         buf.release()
         prog.release()
-    return out[:, ::-1, :, :, :3].astype(np.float64), out[:, ::-1, :, 0, 3]  # GL rows are bottom-up
+    out = out[:, ::-1]  # GL rows are bottom-up
+    return out[..., :3].astype(np.float64), np.stack([out[:, :, :, 0, 3], out[:, :, :, 1, 3]], axis=-1)
 
 
 @pytest.mark.parametrize("make_rig", [converged_rig, hmd_rig], ids=["convergence", "hmd_tangents"])
 def test_glsl_camera_ray_matches_numpy(gl, make_rig):
     rig = make_rig()
     origin = np.array([0.5, -1.0, 2.0])  # the GLSL side is scene-local
-    out, valid = glsl_rays(gl, rig, origin)
+    out, flags = glsl_rays(gl, rig, origin)
     for i, eye in enumerate(rig.eyes()):
         rays = eye.camera.rays(eye)
         origins, dirs, dir_x, dir_y = (out[i, :, :, k] for k in range(4))
-        np.testing.assert_array_equal(valid[i] == 1.0, rays.valid)
+        np.testing.assert_array_equal(flags[i, ..., 0] == 1.0, rays.valid)
         np.testing.assert_allclose(origins, rays.origins - origin, atol=1e-6)
         np.testing.assert_allclose(dirs, rays.directions, atol=1e-6)
         # The neighbours are the next column's and the row above's (GL +y) rays ...
@@ -146,7 +152,7 @@ def test_glsl_camera_ray_matches_numpy(gl, make_rig):
 
 
 def test_glsl_unknown_camera_model_fails_to_build(gl):
-    with pytest.raises(shaders.ShaderError, match="glsl/common/camera.glsl:20 ?: .*unknown CAMERA_MODEL"):
+    with pytest.raises(shaders.ShaderError, match="glsl/common/camera.glsl:25 ?: .*unknown CAMERA_MODEL"):
         shaders.compute(gl.ctx, "cameras/camera_rays.comp", {"CAMERA_MODEL": "CAMERA_NOPE"})
 
 
@@ -163,7 +169,7 @@ def test_registry_lists_models_with_their_glsl():
 
 @pytest.mark.parametrize("make", [lambda: get_camera_model("fisheye"), lambda: StereoRig(camera="fisheye")])
 def test_unknown_camera_model_is_one_clear_error(make):
-    with pytest.raises(ValueError, match=r"unknown camera model 'fisheye'; allowed: pinhole"):
+    with pytest.raises(ValueError, match=r"unknown camera model 'fisheye'; allowed: pinhole, distorted, wide, foveated, dof"):
         make()
 
 

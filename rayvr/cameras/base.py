@@ -4,38 +4,46 @@ numpy reference (`rays`) and once in GLSL (the file named by `glsl`), and the tw
 Conventions shared by every model:
 - numpy arrays are image rows top-down, as EyeView.ray_directions and the frames returned to
   users; pixel (x, y) has its centre at (x + 0.5, y + 0.5).
-- GLSL works in GL image coordinates: x right, y *up* (row 0 is the bottom row), centres at +0.5.
+- A model's own maths (`ray_at`, and its GLSL twin `camera_ray_at`) works in GL image
+  coordinates: x right, y *up* (row 0 is the bottom row), centres at +0.5, so the numpy and GLSL
+  code read alike; `rays()` turns that into top-down arrays.
 - numpy origins are world positions (float64); GLSL origins are scene-local (world minus the
   scene origin, which is what `uniforms(eyes, origin)` subtracts), as every G-buffer position is.
 
+A camera *sample* is a pixel of the eye image (the G-buffer is one sample per pixel). A model may
+leave pixels without a sample (`footprint` 0: outside a fisheye's sphere, between a foveated
+pattern's samples) and may give a sample a footprint wider than a pixel (foveated). Sub-rays
+(MSAA/SSAA for rays, thin-lens positions) come from the low-discrepancy set of sampling.py:
+sub-ray i of N goes through `centre + offset_i * footprint` and lens point `lens_i`.
+
 The GLSL contract (a model's file is included by glsl/common/camera.glsl, which declares the
-per-eye uniforms below; the model may declare more, named camera_*):
+per-eye uniforms and builds camera_ray / camera_subray / the neighbours from these two; the
+model may declare more uniforms, named camera_*):
 
-    // false: this sample makes no ray (e.g. outside a fisheye's image circle)
-    bool camera_ray(int eye, vec2 pixel, vec2 size, out vec3 origin, out vec3 direction);
-    // directions of the auxiliary rays one pixel right (+x) and one pixel up (+y, GL) of
-    // `pixel`, from the same origin (Mitsuba's d_x / d_y): the texture-LOD footprint
-    void camera_ray_neighbours(int eye, vec2 pixel, vec2 size, out vec3 direction_x, out vec3 direction_y);
+    // the ray through continuous image position `pixel` and unit-disk lens point `lens`;
+    // false where that position makes no ray (e.g. beyond a fisheye's 180 degrees)
+    bool camera_ray_at(int eye, vec2 pixel, vec2 size, vec2 lens, out vec3 origin, out vec3 direction);
+    // the footprint side (pixels) of the sample at pixel centre `pixel`; 0: no sample there
+    float camera_footprint(int eye, vec2 pixel, vec2 size);
 
-Room for sampled models (HVVR's camera-as-samples, not built yet):
-- `samples_per_pixel` S: a lens-distorted or foveated model lists S sample positions per pixel
-  (HVVR: position in the pixel plus an ellipse footprint). Its `rays` would return arrays of
-  shape (H, W, S, 3) (valid (H, W, S)); with S == 1 the sample axis is dropped, as here.
-- `channels` C: per-colour-channel sample sets for chromatic correction (HVVR puts sample n in
-  channel n mod C; C = 3 is RGB). `rays(eye, channel=c)` returns channel c's set; on the GPU the
-  primary rays are cast once per channel set and the resolve takes channel c's colour from set c.
-  The sample lists would live in an SSBO the model fills, with its GLSL `camera_ray` reading the
-  sample for (pixel, sample, channel) instead of mapping the pixel centre.
+Per-colour-channel sample sets (HMD chromatic pre-correction, HVVR's split-colour samples):
+`channels` C > 1 makes the frame cast its primary rays once per channel (`rays(eye, channel=c)`,
+GLSL uniform camera_channel) and take channel c of each set's colour (passes/sample_accumulate.py).
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from .sampling import subsamples
+
 if TYPE_CHECKING:  # rayvr.camera imports this package; the eye is only a type here
     from ..camera import EyeView, StereoRig
+
+DIFFERENCE_STEP = 1e-3  # pixels: central differences of ray_at give the footprints (error ~1e-9)
 
 
 @dataclass(frozen=True)
@@ -44,9 +52,10 @@ class CameraRays:
 
     origins     (H, W, 3) float64 world positions
     directions  (H, W, 3) unit directions
-    ddx, ddy    (H, W, 3) footprints: the derivative of the unit direction per pixel along +x
-                (one column right) and along +y of the array (one row *down*); GL's "up"
-                neighbour is therefore direction - ddy. Both are orthogonal to the direction.
+    ddx, ddy    (H, W, 3) footprints: the derivative of the unit direction per footprint step
+                (one pixel, or a foveated sample's spacing) along +x (one column right) and along
+                +y of the array (one row *down*); GL's "up" neighbour is therefore direction - ddy.
+                Both are orthogonal to the direction.
     valid       (H, W) bool: False where the sample makes no ray (its other values are then
                 meaningless)
     """
@@ -58,16 +67,30 @@ class CameraRays:
     valid: np.ndarray
 
 
+def pixel_grid(size) -> tuple[np.ndarray, np.ndarray]:
+    """GL coordinates (x right, y up) of the pixel centres, as (H, W) arrays rows top-down."""
+    w, h = size
+    x = np.broadcast_to(np.arange(w) + 0.5, (h, w))
+    y = np.broadcast_to((h - np.arange(h) - 0.5)[:, None], (h, w))
+    return x, y
+
+
+def normalize(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
 class CameraModel:
     """Base of every camera model. Instances are immutable values (models are frozen
-    dataclasses), one per rig; per-eye parameters (an HMD's lens per eye) are keyed by
-    EyeView.name inside the model."""
+    dataclasses whose fields are the model's parameters), one per rig; per-eye parameters (an
+    HMD's lens per eye) are derived from EyeView.name inside the model."""
 
     name: ClassVar[str]
     rasterizable: ClassVar[bool] = False  # only a planar pinhole can be rasterized
     glsl: ClassVar[str]  # the model's GLSL file, relative to rayvr/glsl/
-    samples_per_pixel: ClassVar[int] = 1  # see the module notes
-    channels: ClassVar[int] = 1
+    channels: ClassVar[int] = 1  # colour channel sets (a model may make it a property)
+    sparse: ClassVar[bool] = False  # samples leave pixels between them, filled in for display (passes/sample_resolve.py)
+    doc: ClassVar[str] = ""
 
     @property
     def glsl_define(self) -> str:
@@ -78,16 +101,50 @@ class CameraModel:
         """Shader defines for programs that include common/camera.glsl."""
         return {"CAMERA_MODEL": self.glsl_define}
 
+    @classmethod
+    def parameters(cls) -> dict:
+        """{name: (type, default)} of the model's parameters (its dataclass fields)."""
+        return {f.name: (f.type, f.default) for f in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) else {}
+
     def check_rig(self, rig: "StereoRig") -> None:
         """Refuse rig settings this model cannot render (ValueError); nothing by default."""
 
-    def rays(self, eye: "EyeView", channel: int = 0) -> CameraRays:
+    # -- numpy reference --------------------------------------------------------------
+    def ray_at(self, eye: "EyeView", channel: int, x, y, lens) -> tuple:
+        """Rays through GL image positions (x, y) (arrays of one shape) and lens point `lens`
+        (2 numbers, unit disk): (origins (..., 3) world, unit directions (..., 3), valid (...))."""
         raise NotImplementedError
+
+    def footprint(self, eye: "EyeView", channel: int = 0) -> np.ndarray:
+        """(H, W) rows top-down: the footprint side in pixels of the sample at each pixel,
+        0 where there is no sample. One sample per pixel by default."""
+        return np.ones(eye.size[::-1])
+
+    def rays(self, eye: "EyeView", channel: int = 0, subsample: tuple | None = None) -> CameraRays:
+        """The rays of every sample of `eye` (rows top-down): through the sample centres and the
+        lens centre, or sub-ray `subsample` = (i, n) of the low-discrepancy set (sampling.py)."""
+        self._check_channel(channel)
+        x, y = pixel_grid(eye.size)
+        f = self.footprint(eye, channel)
+        offset, lens = np.zeros(2), np.zeros(2)
+        if subsample is not None:
+            offsets, lenses = subsamples(subsample[1])
+            offset, lens = offsets[subsample[0]], lenses[subsample[0]]
+        x, y = x + offset[0] * f, y + offset[1] * f
+        origins, d, valid = self.ray_at(eye, channel, x, y, lens)
+        h = DIFFERENCE_STEP * np.where(f > 0, f, 1.0)[..., None]
+        hs = h[..., 0]
+        ddx = (self.ray_at(eye, channel, x + hs, y, lens)[1] - self.ray_at(eye, channel, x - hs, y, lens)[1]) / (2 * h) * f[..., None]
+        ddy = -(self.ray_at(eye, channel, x, y + hs, lens)[1] - self.ray_at(eye, channel, x, y - hs, lens)[1]) / (2 * h) * f[..., None]
+        ddx -= d * np.sum(ddx * d, axis=-1, keepdims=True)  # derivatives of unit vectors are orthogonal to them
+        ddy -= d * np.sum(ddy * d, axis=-1, keepdims=True)
+        return CameraRays(np.broadcast_to(origins, d.shape), d, ddx, ddy, valid & (f > 0))
 
     def _check_channel(self, channel: int) -> None:
         if not 0 <= channel < self.channels:
             raise ValueError(f"camera model {self.name!r} has {self.channels} channel set(s), got channel {channel}")
 
+    # -- GPU ----------------------------------------------------------------------------
     def uniforms(self, eyes: list["EyeView"], origin) -> dict:
         """Values of the per-eye uniforms of glsl/common/camera.glsl (float32 numpy arrays,
         GLSL layout), for up to two eyes (index = layer). A model with its own uniforms adds
@@ -102,6 +159,9 @@ class CameraModel:
         for i, eye in enumerate(eyes):
             position[i] = eye.position - origin  # float64 subtraction first: far-off rigs stay exact
             rotation[i] = eye.rotation.T  # GLSL mat3 is column-major
-            tangents[i] = eye.tangents
+            tangents[i] = np.nan_to_num(np.asarray(eye.tangents, np.float64), posinf=3e38, neginf=-3e38)
         return {"eye_position": position, "eye_rotation": rotation, "eye_tangents": tangents,
                 "eye_depth": np.array([eyes[0].near, eyes[0].far or 0.0], np.float32)}
+
+    def bind(self, gl) -> None:
+        """Bind GL resources the model's GLSL reads (textures); nothing by default."""

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import CameraModel, CameraRays
+from .base import CameraModel, CameraRays, normalize
 
 # Largest frustum tangent (x / -z at an image edge) the pinhole takes. Beyond it float32 clip
 # coordinates (raster) and pixel-ray directions (rays) lose the pixel and the two primary
@@ -18,10 +18,18 @@ from .base import CameraModel, CameraRays
 MAX_TANGENT = 1e5
 
 
+def planar_directions(eye, x, y) -> np.ndarray:
+    """World unit directions through GL image positions (x, y) of the eye's planar frustum."""
+    w, h = eye.size
+    l, r, b, t = eye.tangents
+    v = np.stack(np.broadcast_arrays(l + np.asarray(x) / w * (r - l), b + np.asarray(y) / h * (t - b), -1.0), axis=-1)
+    return normalize(v @ eye.rotation.T)
+
+
 def _wide_angle_advice() -> str:
     from . import CAMERA_MODELS  # the registry imports this module
 
-    wide = [name for name, model in CAMERA_MODELS.items() if not model.rasterizable]
+    wide = [name for name, model in CAMERA_MODELS.items() if getattr(model, "wide_angle", False)]
     return (f"use a wide-angle camera model ({', '.join(wide)})" if wide else
             "wider views need a wide-angle camera model, which this rayvr does not have yet")
 
@@ -54,7 +62,13 @@ class Pinhole(CameraModel):
             raise ValueError(f"{what}; planar projection precision ends at tangent {MAX_TANGENT:.0e}: raster and "
                              f"ray-cast visibility disagree beyond it; {_wide_angle_advice()}")
 
-    def rays(self, eye, channel: int = 0) -> CameraRays:
+    def ray_at(self, eye, channel, x, y, lens):
+        d = planar_directions(eye, x, y)
+        return np.asarray(eye.position, np.float64), d, np.ones(d.shape[:-1], bool)
+
+    def rays(self, eye, channel: int = 0, subsample=None) -> CameraRays:
+        if subsample is not None:  # sub-rays: the generic path (finite-difference footprints)
+            return super().rays(eye, channel, subsample)
         self._check_channel(channel)
         w, h = eye.size
         l, r, b, t = eye.tangents

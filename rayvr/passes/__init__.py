@@ -14,6 +14,9 @@ def core_passes() -> list:
     from .quadtree import QuadtreePass, QuadtreeVisitsPass
     from .second_layer import SecondLayerPass
     from .reuse import ReuseCopyPass, ReuseMapPass
+    from .sample_accumulate import SampleAccumulatePass
+    from .sample_pattern import SamplePatternPass
+    from .sample_resolve import SampleResolvePass
     from .shade import ShadePass
     from .tonemap import TonemapPass
     from .visibility import VisibilityPass
@@ -22,7 +25,8 @@ def core_passes() -> list:
     return [BvhPass(), VisibilityPass(), PrimaryRaysPass(), GBufferResolvePass(), ShadePass(), ClassifyPass(),
             AccumulatePass(), DenoisePass(), TonemapPass(), DebugViewPass(), QuadtreeVisitsPass(),
             QuadtreePass(effect="ssr"), SecondLayerPass(), ReuseMapPass(),
-            ReuseCopyPass(), WarpPass(), DofPass()]
+            ReuseCopyPass(), WarpPass(), DofPass(), SampleAccumulatePass(), SampleResolvePass(),
+            SamplePatternPass()]
 
 
 def radiance(plan) -> tuple[str, str]:
@@ -40,4 +44,10 @@ def scene_radiance(plan) -> tuple[str, str]:
         return "hdr_denoised", "rgba32f"
     if plan.accumulate:
         return "hdr_accum", "rgba32f"
-    return "hdr", "rgba16f"
+    return frame_colour(plan), "rgba16f"
+
+
+def frame_colour(plan) -> str:
+    """This frame's own linear colour: `hdr`, or for a sampled frame (sub-rays per sample, colour
+    channel sets, sparse samples) the weighted sum of its rounds (passes/sample_resolve.py)."""
+    return "frame_hdr" if plan.sampled else "hdr"

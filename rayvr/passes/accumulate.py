@@ -14,6 +14,7 @@ from .. import shaders
 from ..accumulation import HISTORY_CAP
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gpu_layout import IMAGE
+from . import frame_colour
 from .compute import dispatch_per_pixel
 
 ACCUM = Texture("rgba32f")  # float32: a mean over thousands of samples keeps its last bits
@@ -27,7 +28,7 @@ class AccumulatePass(Pass):
         return "accumulation of samples" if plan.accumulate and plan.view == "color" else None
 
     def io(self, plan: FramePlan) -> list:
-        return [read("gbuffer"), read("hdr"), write("hdr_accum", ACCUM), write("accum_moments", ACCUM)]
+        return [read("gbuffer"), read(frame_colour(plan)), write("hdr_accum", ACCUM), write("accum_moments", ACCUM)]
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.gl = gl
@@ -52,7 +53,7 @@ class AccumulatePass(Pass):
         p["reset"].value = int(state is None or state.reset or (state.moved and not temporal))
         fc.gbuffer.bind_for_reading()
         out, moments = fc.resource("hdr_accum"), fc.resource("accum_moments")
-        fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=True, write=False)
+        fc.resource(frame_colour(fc.plan)).bind_to_image(IMAGE["hdr"], read=True, write=False)
         out.bind_to_image(IMAGE["accum_out"], read=False, write=True)
         moments.bind_to_image(IMAGE["accum_moments_out"], read=False, write=True)
         if temporal:

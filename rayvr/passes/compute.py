@@ -9,23 +9,28 @@ TILE = 8  # local_size_x/y of every per-pixel compute shader
 
 def dispatch_per_pixel(fc, program: moderngl.ComputeShader) -> None:
     """One invocation per pixel per layer, then make the writes visible to what follows."""
-    w, h = fc.gbuffer.size
-    program.run((w + TILE - 1) // TILE, (h + TILE - 1) // TILE, fc.gbuffer.layers)
+    w, h = fc.sizing.size
+    program.run((w + TILE - 1) // TILE, (h + TILE - 1) // TILE, fc.sizing.layers)
     fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
 
 def camera_defines(plan) -> dict:
-    """CAMERA_MODEL for programs that include glsl/common/camera.glsl (the plan's camera model)."""
-    from ..cameras import get_camera_model
+    """CAMERA_MODEL and CAMERA_SUBSAMPLES for programs that include glsl/common/camera.glsl (the
+    plan's camera model and sub-rays per sample)."""
+    from ..cameras import CAMERA_MODELS
 
-    return get_camera_model(plan.camera).defines()
+    return {"CAMERA_MODEL": "CAMERA_" + CAMERA_MODELS[plan.camera].name.upper(), "CAMERA_SUBSAMPLES": plan.samples}
 
 
 def set_eye_uniforms(program, fc) -> None:
     """The per-eye camera block of glsl/common/camera.glsl, with the values the eyes' camera
-    model gives (rayvr/cameras/base.py uniforms). Uniforms the shader does not use are skipped:
-    GLSL compilers drop them."""
-    values = fc.eyes[0].camera.uniforms(fc.eyes, fc.scene.origin)
+    model gives (rayvr/cameras/base.py uniforms), the colour channel set of this frame round
+    (fc.round) and the model's textures. Uniforms the shader does not use are skipped: GLSL
+    compilers drop them."""
+    model = fc.eyes[0].camera
+    values = model.uniforms(fc.eyes, fc.scene.origin)
+    values["camera_channel"] = np.array([getattr(getattr(fc, "round", None), "channel", 0)], np.int32)
     for name, value in values.items():
         if name in program:
             program[name].write(value if isinstance(value, bytes) else np.ascontiguousarray(value).tobytes())
+    model.bind(fc.gl)

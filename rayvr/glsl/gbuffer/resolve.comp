@@ -7,7 +7,8 @@
 // Normal, material and base colour come from common/triangle_surface.glsl, which secondary-ray
 // hits (rt/hit_surface.glsl) share.
 // PRIMARY_RAYS 1: the triangle IDs come from rt/primary.comp, which leaves the hit distance in
-// position.w instead of a depth buffer.
+// position.w instead of a depth buffer, and in position.x the camera sub-ray it hit with (uint
+// bits; cameras/sampling.glsl): the resolve casts the same sub-ray.
 #ifndef PRIMARY_RAYS
 #define PRIMARY_RAYS 0
 #endif
@@ -42,7 +43,9 @@ void main() {
     if (any(greaterThanEqual(p.xy, ivec2(size)))) return;
     uint tri = imageLoad(img_triangle, p).x;
 #if PRIMARY_RAYS
-    float ray_t = imageLoad(img_position, p).w;
+    vec4 primary = imageLoad(img_position, p);
+    float ray_t = primary.w;
+    uint sub = floatBitsToUint(primary.x);
     if (tri == NO_HIT) {
 #else
     float z = texelFetch(gb_depth, p, 0).x;
@@ -59,13 +62,17 @@ void main() {
     }
     int eye = p.z;
     vec3 o, d;
+#if PRIMARY_RAYS
+    camera_subray(eye, vec2(p.xy) + 0.5, size, sub, o, d);
+#else
     camera_ray(eye, vec2(p.xy) + 0.5, size, o, d);
+#endif
     TriangleVerts tv = scene_triangle(tri);
     vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0];
     vec3 ng = cross(e1, e2);
     float t;
     vec2 b = plane_barycentrics(o, d, tv.p[0], e1, e2, ng, t);
-    float view_dist_along = dot(d, eye_forward(eye));
+    float view_dist_along = camera_depth_per_distance(eye, d);
     if (!(abs(dot(d, ng)) > 1e-7 * length(ng)) || !(t > 0.0)) {
         // Seen edge-on: the plane hit is ill-conditioned; take the distance from the depth buffer.
 #if PRIMARY_RAYS
@@ -86,7 +93,11 @@ void main() {
     if (materials[mi].texture_layer >= 0) {
         float tx, ty;
         vec3 d_x, d_y;
+#if PRIMARY_RAYS
+        camera_subray_neighbours(eye, vec2(p.xy) + 0.5, size, sub, d_x, d_y);
+#else
         camera_ray_neighbours(eye, vec2(p.xy) + 0.5, size, d_x, d_y);
+#endif
         vec2 bx = plane_barycentrics(o, d_x, tv.p[0], e1, e2, ng, tx);
         vec2 by = plane_barycentrics(o, d_y, tv.p[0], e1, e2, ng, ty);
         vec2 duv1 = tv.uv[1] - tv.uv[0], duv2 = tv.uv[2] - tv.uv[0];

@@ -1,0 +1,24 @@
+#version 430
+// One round of a sampled frame (passes/sample_accumulate.py): adds each pixel's colour of this
+// round, times its weight (primary_rays: 1/N per SSAA sub-ray, coverage per MSAA triangle, 0 where
+// the camera has no sample), to the frame's sum; a colour-channel round adds only its channel.
+layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"
+
+layout(rgba16f, binding = IMAGE_HDR) uniform readonly image2DArray hdr_in;
+layout(r32f, binding = IMAGE_SAMPLE_WEIGHT) uniform readonly image2DArray weight_in;
+layout(rgba32f, binding = IMAGE_SAMPLE_SUM) uniform image2DArray sum;
+uniform int first;    // the frame's first round: start from zero
+uniform int channel;  // -1: all three; else this colour channel only
+
+void main() {
+    ivec3 p = ivec3(gl_GlobalInvocationID);
+    if (any(greaterThanEqual(p.xy, imageSize(sum).xy))) return;
+    vec4 acc = first != 0 ? vec4(0.0) : imageLoad(sum, p);
+    float w = imageLoad(weight_in, p).x;
+    vec3 c = imageLoad(hdr_in, p).rgb;
+    if (channel < 0) acc.rgb += w * c;
+    else acc[channel] += w * c[channel];
+    if (channel <= 0) acc.a += w;  // the weight of one channel set: 0 where no sample was made
+    imageStore(sum, p, acc);
+}

@@ -1,0 +1,57 @@
+"""The camera models and sub-rays from the command line and in `rayvr bench primary`."""
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from test_cli import rayvr
+
+
+def test_capture_wide_fov_past_180_with_msaa(tmp_path):
+    run = rayvr("capture", "--size", "24x16", "--out", str(tmp_path), "--camera-model", "wide", "--fov", "200",
+                "--camera-param", "mapping=equidistant", "--camera-param", "fov_x=300", "--msaa", "4", "--timings")
+    assert run.returncode == 0, run.stderr
+    img = np.asarray(Image.open(tmp_path / "frame_left.png"))
+    assert img.shape[:2] == (16, 24) and img.std() > 0
+    for name in ("primary_rays", "sample_accumulate", "sample_resolve"):
+        assert name in run.stdout
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--fov", "200"], ["fov_y must be in (0, 180) degrees for a planar projection", "(wide)"]),
+    (["--camera-model", "dof", "--camera-param", "blur=2"], ["camera parameter 'blur=2'", "aperture, focus"]),
+    (["--camera-model", "dof", "--camera-param", "aperture=-1"], ["aperture must be a finite radius >= 0"]),
+    (["--camera-model", "distorted", "--camera-param", "samples=/nonexistent/lens.txt"],
+     ["/nonexistent/lens.txt: cannot read the camera sample file"]),
+    (["--camera-model", "distorted", "--camera-param", "coefficients=-0.9"], ["folds over"]),
+    (["--camera-model", "wide", "--fov", "190"], ["spherical mapping spans at most 180 degrees"]),
+    (["--msaa", "3"], ["--msaa", "invalid choice"]),
+])
+def test_bad_camera_input_is_one_clear_line(tmp_path, args, words):
+    run = rayvr("capture", "--out", str(tmp_path / "o"), "--size", "8x8", *args)
+    lines = run.stderr.splitlines()
+    assert run.returncode == 2 and len(lines) == 1 and lines[0].startswith("rayvr capture: error: ") and \
+        all(w in lines[0] for w in words), run.stdout + run.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_info_graph_shows_the_sample_rounds():
+    run = rayvr("info", "--graph", "--size", "64x48", "--camera-model", "distorted", "--msaa", "8")
+    assert run.returncode == 0, run.stderr
+    assert "8 sub-rays per sample, msaa; 3 colour channel sets (distorted camera)" in run.stdout
+    assert "msaa_hits" in run.stdout and "frame_hdr" in run.stdout
+
+
+def test_bench_primary_reports_each_model_and_sub_ray_count(tmp_path):
+    from rayvr.bench import primary
+
+    result = primary.run(tmp_path, size=(16, 12), scenes=("default",), repeat=1, warmup=1, counts=(1, 4), ssaa=(),
+                         configs=("raster_gbuffer", "distorted_chromatic"), progress=False)
+    rows = {(r["config"], r["sub_rays_per_sample"]): r for r in result["rows"]}
+    assert set(rows) == {("raster_gbuffer", 1), ("distorted_chromatic", 1), ("distorted_chromatic", 4)}
+    assert rows["distorted_chromatic", 4]["sub_rays"] == 2 * 16 * 12 * 4 * 3  # both eyes, 3 channel sets
+    assert rows["raster_gbuffer", 1]["visibility_ms"] >= 0 and "gbuffer" in rows["raster_gbuffer", 1]["pass_ms"]
+    assert rows["distorted_chromatic", 4]["rounds"] >= 3  # at least one shading round per channel set
+    meta = json.loads((tmp_path / "primary.json").read_text())["meta"]
+    assert meta["bench"] == "primary" and meta["gl_renderer"]
