@@ -750,7 +750,10 @@ class Preview:
                       f"{fb[0]}x{fb[1]}  vsync {'on' if s.vsync else 'off'}   second eye: {s.method}", white))
         conv = f"{cam.convergence:.3g}" if cam.convergence else "parallel"
         speed = f"speed {cam.speed:.3g}/s" if cam.mode == "fly" else f"distance {cam.distance:.3g}"
-        lines.append((f"{cam.mode}  {speed}   IPD {cam.ipd:.4g}  convergence {conv}", white))
+        st = self.renderer.settings
+        aa = f"{st.msaa}x {'ssaa' if st.ssaa else 'msaa'}" if st.msaa > 1 else "no anti-aliasing"
+        lines.append((f"{cam.mode}  {speed}   IPD {cam.ipd:.4g}  convergence {conv}   "
+                      f"camera {cam.home.camera.name}, {aa}", white))
         lines.append((self.picked_text(), white))
         on = lambda b: "on" if b else "off"  # noqa: E731
         accumulating = self.last_frame is not None and self.last_frame.plan.accumulate  # (debug views do not)
