@@ -24,21 +24,8 @@ uniform int dof_samples;
 uniform float dof_thickness;  // relative depth of each surface's slab
 uniform uint frame_seed;
 
-// Shirley & Chiu's concentric map of [0, 1)^2 onto the unit disk.
-vec2 concentric_disk(vec2 u) {
-    vec2 a = 2.0 * u - 1.0;
-    if (a.x == 0.0 && a.y == 0.0)
-        return vec2(0.0);
-    float r, phi;
-    if (abs(a.x) > abs(a.y)) {
-        r = a.x;
-        phi = 0.78539816 * (a.y / a.x);
-    } else {
-        r = a.y;
-        phi = 1.5707963 - 0.78539816 * (a.x / a.y);
-    }
-    return r * vec2(cos(phi), sin(phi));
-}
+// concentric_disk (Shirley & Chiu's map of [0, 1)^2 onto the unit disk): cameras/sampling.glsl,
+// through common/camera.glsl.
 
 void main() {
     ivec3 p = ivec3(gl_GlobalInvocationID);
