@@ -73,7 +73,7 @@ def _seed_surface(p, footprint, frame):
 
 
 def _concentric_disk(u):
-    """Shirley & Chiu's concentric map of [0, 1)^2 onto the unit disk (dof.comp concentric_disk)."""
+    """Shirley & Chiu's concentric map of [0, 1)^2 onto the unit disk (glsl/cameras/sampling.glsl concentric_disk)."""
     a = 2.0 * np.asarray(u, np.float64) - 1.0
     if a[0] == 0 and a[1] == 0:
         return np.zeros(2)
