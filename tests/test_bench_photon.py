@@ -16,6 +16,8 @@ def test_bench_photon_quick_writes_the_papers_tables(tmp_path):
         for k in ("trace_ms", "build_ms", "sort_ms", "query_ms", "rt_photon_ms", "frame_ms"):
             assert r[k] is None or r[k] >= 0, (k, r[k])
         assert 0 <= r["flip"] < 1
+        # the search replayed in numpy: the 27 cells hold every photon within r and more
+        assert r["visited"] >= r["accepted"] > 0, (r["visited"], r["accepted"])
     kd = next(r for r in rows if r["estimator"] == "kdtree_heap")
     grid = next(r for r in rows if r["estimator"] == "grid_heap")
     assert kd["kd_cpu_build_ms"] > 0 and grid["kd_cpu_build_ms"] is None

@@ -2,15 +2,16 @@
 
 Per scene, every diffuse material on `photon` (the scene's mirrors on `reflections`, as in
 `rayvr bench rays`), at the paper's photon counts and radii (Tables 1 and 2 list these cells;
-its radii are in units of a unit box, here r / sqrt(3) of the scene's bounding-box diagonal):
+its radii are in its scenes' units, as the effect's: metres in the room and Sponza):
   Table 1  kd-tree (built on the CPU, searched on the GPU) vs hash grid, both with the k-nearest heap
   Table 2  hash grid with the heap vs without (all photons within r)
 Each row: GPU ms per pass from GL timer queries after the frame times settle -- photon_trace,
 build (photon_cells + photon_scan: cell keys, counts, start indices), sort (photon_sort), query
 (the density estimate: the rt_photon pass's pixel kernel), the whole rt_photon pass, the frame --
 the kd-tree's CPU build (wall ms, photons read back included), and the error: mean FLIP over the
-photon pixels of both eyes against a many-photon reference (REFERENCE_PHOTONS paths, grid, the
-smallest radius) rendered with another seed. Table 5 (separate eyes vs `reuse`) waits for `reuse`.
+photon pixels of both eyes against a many-photon reference (REFERENCE_PHOTONS paths, grid,
+REFERENCE_RADIUS) with another photon map (map_seed) but the variants' frame seed, so that the
+direct light's shadow-ray samples are the same and the error is the photon map's alone. Table 5 (separate eyes vs `reuse`) waits for `reuse`.
 Written as photon.json / photon.md (one table per paper table) under the output folder.
 """
 from __future__ import annotations
@@ -29,14 +30,14 @@ from ..renderer import Renderer
 from .report import device_meta, write_report
 from .scenes import bench_scenes
 
-PAPER_SCALE = 1.0 / math.sqrt(3.0)  # the paper's radii are in a unit box; ours are fractions of the diagonal
 # (photon paths, paper radius) of the paper's Tables 1 and 2
 TABLE1 = ((512 ** 2, 0.02), (512 ** 2, 0.05), (512 ** 2, 0.1), (256 ** 2, 0.05), (256 ** 2, 0.1), (256 ** 2, 0.2),
           (128 ** 2, 0.05), (128 ** 2, 0.1), (128 ** 2, 0.2))
 TABLE2 = ((512 ** 2, 0.02), (512 ** 2, 0.05), (512 ** 2, 0.1), (256 ** 2, 0.05), (256 ** 2, 0.1), (256 ** 2, 0.2))
-QUICK = ((4096, 0.1),)
+QUICK = ((4096, 0.5),)  # ~20 photons a query in the room at 64² paths
 REFERENCE_PHOTONS = 1 << 22
-REFERENCE_RADIUS = 0.02
+REFERENCE_RADIUS = 0.05  # metres: ~16x the photons of 512^2 at 0.05 within it
+REFERENCE_MAP_SEED = 1  # the reference's photon map differs; its direct light (frame seed 0) is the variants'
 K = 32  # the heap's size (the paper does not say its k)
 SLOW_FRAME_MS = 1000.0  # a setting slower than this is timed on one frame, not `repeat`
 KD_FRAMES = 3  # frames timed for the kd-tree settings (each builds its tree on the CPU)
@@ -46,8 +47,8 @@ EMITTERS = {"default": ("light",)}
 BOUNCES = 3
 
 
-def config(name: str, photons: int, radius: float, estimator: str):
-    params = {"photons": photons, "radius": radius * PAPER_SCALE, "k": K, "bounces": BOUNCES,
+def config(name: str, photons: int, radius: float, estimator: str, map_seed: int = 0):
+    params = {"photons": photons, "radius": radius, "k": K, "bounces": BOUNCES, "map_seed": map_seed,
               "estimator": ("grid", "grid_heap", "kdtree", "kdtree_heap").index(estimator)}
     mats = {m: {"effect": "reflections", "bounces": 1} for m in MIRRORS.get(name, ())}
     mats.update({m: "raster" for m in EMITTERS.get(name, ())})
@@ -64,7 +65,7 @@ def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
 
     r.set_materials(cfg)
     r.settings = replace(r.settings, seed=seed)
-    frame = r.render(rig, aux=("effect",))  # deterministic per seed: every frame of it is this image
+    frame = r.render(rig, aux=("effect", "position"))  # deterministic per seed: every frame of it is this image
     slow = sum(frame.timings.values()) > SLOW_FRAME_MS
     kd = any(a.params.get("estimator", 0) >= 2 for a in r.assignments if a.effect == "photon")
     ms: dict = {}
@@ -89,8 +90,35 @@ def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
         kd_cpu = (time.perf_counter() - t0) * 1e3
     image = np.concatenate([frame.left.color, frame.right.color], axis=1)
     mask = np.concatenate([frame.left.aux["effect"], frame.right.aux["effect"]], axis=1) == EFFECTS["photon"].id
-    return {"ms": {k: float(np.median(v)) for k, v in ms.items()}, "stages": stages, "image": image, "mask": mask,
+    visits = query_counts(r, rig, frame.left)
+    return {**visits, "ms": {k: float(np.median(v)) for k, v in ms.items()}, "stages": stages, "image": image, "mask": mask,
             "kd_cpu_ms": kd_cpu, "frames": len(runs)}
+
+
+QUERY_SAMPLES = 256  # photon pixels per setting whose search is replayed in numpy
+
+
+def query_counts(r: Renderer, rig, eye) -> dict:
+    """Photons a query visits (the 9 runs of the hash grid) and accepts (within r), mean over
+    QUERY_SAMPLES photon pixels of the eye, replayed in numpy (accel/photon_map) on the frame's own
+    photon map: what the query's cost follows."""
+    from ..accel import photon_map as pm
+    from ..effects.photon import photon_setup
+
+    pix = eye.aux["effect"] == EFFECTS["photon"].id
+    if not pix.any():
+        return {"visited": None, "accepted": None}
+    ps = photon_setup(r.sizing(rig.size))
+    radius = max(a.params.get("radius") for a in r.assignments if a.effect == "photon")
+    ph = pm.unpack_photons(r.resource("photons").read())
+    pos = ph["position"][ph["extra"] != 0]
+    order, start = pm.build_grid(ps.grid, pm.grid_cells(ps.grid, pos))
+    pos = pos[order]
+    q = eye.aux["position"][pix][:, :3] - r.scene.origin
+    q = q[np.linspace(0, len(q) - 1, min(QUERY_SAMPLES, len(q))).astype(int)]
+    visited = [sum(int(start[b]) - int(start[a]) for a, b in pm.neighbour_runs(ps.grid, x)) for x in q]
+    accepted = [len(pm.grid_query(ps.grid, pos, start, x, radius)) for x in q]
+    return {"visited": float(np.mean(visited)), "accepted": float(np.mean(accepted))}
 
 
 def row(name, size, photons, radius, estimator, m, ref) -> dict:
@@ -102,7 +130,8 @@ def row(name, size, photons, radius, estimator, m, ref) -> dict:
            "trace_ms": ms.get("photon_trace"), "build_ms": ms.get("photon_cells", 0.0) + ms.get("photon_scan", 0.0),
            "sort_ms": ms.get("photon_sort"), "query_ms": m["stages"].get("rt_photon.pixel"),
            "rt_photon_ms": ms.get("rt_photon"), "kd_upload_ms": ms.get("photon_kdtree") if m["kd_cpu_ms"] else None,
-           "kd_cpu_build_ms": m["kd_cpu_ms"], "frame_ms": float(sum(ms.values())), "frames_timed": m["frames"]}
+           "kd_cpu_build_ms": m["kd_cpu_ms"], "frame_ms": float(sum(ms.values())), "frames_timed": m["frames"],
+           "visited": m["visited"], "accepted": m["accepted"]}
     out["photon_ms"] = sum(v or 0.0 for k, v in out.items() if k in ("trace_ms", "build_ms", "sort_ms", "rt_photon_ms"))
     out["flip"] = metrics.flip(ref["image"], m["image"], mask=ref["mask"]) if ref["mask"].any() else None
     return out
@@ -124,8 +153,10 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, war
         for name, scene, rig in bench_scenes(scenes, size, skipped):
             first = len(rows)
             with Renderer(scene, config(name, ref_photons, REFERENCE_RADIUS, "grid"), gl=gl) as r:
-                ref = measure(r, rig, config(name, ref_photons, REFERENCE_RADIUS, "grid"), seed=1, repeat=1,
-                              warmup=1)
+                # the same frame seed as the variants (the same direct-light samples: with seed 1 its
+                # shadow-ray noise alone was FLIP ~0.13 here), another photon map (map_seed)
+                ref = measure(r, rig, config(name, ref_photons, REFERENCE_RADIUS, "grid", REFERENCE_MAP_SEED),
+                              seed=0, repeat=1, warmup=1)
                 done: dict = {}
                 bar = tqdm(jobs, desc=f"bench photon {name}", unit="setting", disable=not progress)
                 too_slow: dict = {}  # estimator -> settings whose frame passed SKIP_FRAME_MS
@@ -147,8 +178,9 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, war
             rows[first:] = sorted(rows[first:], key=lambda x: (x["table"], -x["photons"], x["radius"]))  # the paper's order
         meta = {**device_meta(gl.info()), "bench": "photon", "per_eye_size": list(size), "repeat": repeat,
                 "skipped": skipped, "k": K, "bounces": BOUNCES,
-                "radius_units": "the paper's (a unit box); the effect's radius = r / sqrt(3) of the scene's diagonal",
-                "reference": f"{ref_photons} photon paths, grid, radius {REFERENCE_RADIUS}, seed 1 (variants: seed 0)",
+                "radius_units": "scene units (metres), as the paper's",
+                "reference": f"{ref_photons} photon paths, grid, radius {REFERENCE_RADIUS}, frame seed 0 as the variants "
+                             f"(the same direct light), photon map_seed {REFERENCE_MAP_SEED} (variants: 0)",
                 "error": "mean FLIP over the photon pixels of both eyes",
                 "times": "GPU ms from GL timer queries (median of the timed frames after warm-up); build = "
                          "photon_cells + photon_scan; query = the rt_photon pixel kernel (density estimate + "
@@ -163,7 +195,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, war
 
 def _write_tables(out: Path, rows: list) -> None:
     """photon_tables.md: the paper's Tables 1 and 2 with rayvr's figures (ms = the photon passes:
-    trace + build + sort + rt_photon)."""
+    trace + build + sort + rt_photon; photons a query accepts / visits, mean over sampled pixels)."""
     from .report import _atomic_write
 
     def cell(r):
@@ -172,7 +204,8 @@ def _write_tables(out: Path, rows: list) -> None:
         if r.get("skipped"):
             return "skipped (slower than 10 s a frame at a cheaper setting)"
         flip = "-" if r["flip"] is None else f"{r['flip']:.4f}"
-        return f"{r['photon_ms']:.2f} ms (FLIP {flip})"
+        seen = "" if r.get("visited") is None else f", {r['accepted']:.0f}/{r['visited']:.0f} photons"
+        return f"{r['photon_ms']:.2f} ms (FLIP {flip}{seen})"
 
     lines = ["# Photon map: the paper's tables for rayvr", ""]
     for table, title, cols in ((1, "Table 1: kd-tree vs hash grid (k-nearest heap)", ("kdtree_heap", "grid_heap")),

@@ -24,25 +24,25 @@ from ..frame import FramePlan, Pass
 from .base import Effect, Param, register
 from .shadows import AREA_SAMPLES
 
-DEFAULTS = {"photons": 65536, "radius": 0.02, "estimator": 0, "k": 32, "bounces": 3}
+DEFAULTS = {"photons": 65536, "radius": 0.1, "estimator": 0, "k": 32, "bounces": 3, "map_seed": 0}
 
 
 @dataclass(frozen=True)
 class PhotonSetup:
     paths: int  # photon paths emitted
     stores: int  # photons a path may store (= bounces)
-    radius_scale: float  # scene size: a material's radius parameter times this is its search radius
     grid: GridShape
     kdtree: bool  # some material searches the kd-tree
+    estimators: int  # bit i: some material uses estimator i (rt_photon compiles only those)
     sphere: tuple  # the scene's bounding sphere (scene-local centre, radius)
+    map_seed: int = 0  # mixed into the frame seed for the photon map alone (the pixels' samples keep theirs)
 
     @property
     def slots(self) -> int:
         return self.paths * self.stores
 
-    @staticmethod
-    def seed(frame_seed: int) -> int:
-        return (int(frame_seed) * 0x9E3779B1 + 0x632BE5AB) & 0xFFFFFFFF
+    def seed(self, frame_seed: int) -> int:
+        return ((int(frame_seed) + 0x2545F491 * self.map_seed) * 0x9E3779B1 + 0x632BE5AB) & 0xFFFFFFFF
 
 
 _BOUNDS: list = [None, None]  # the vertex array last asked about, its scene-local bounds
@@ -63,10 +63,12 @@ def photon_setup(sizing) -> PhotonSetup:
     get = lambda k: [p.get(k, DEFAULTS[k]) for p in ps]
     lo, hi = _local_bounds(sizing.scene)
     scale = float(np.linalg.norm(hi - lo)) or 1.0
-    radius = max(get("radius")) * scale
-    return PhotonSetup(paths=int(max(get("photons"))), stores=int(max(get("bounces"))), radius_scale=scale,
+    radius = max(get("radius"))
+    return PhotonSetup(paths=int(max(get("photons"))), stores=int(max(get("bounces"))),
                        grid=grid_shape(lo, hi, radius), kdtree=any(e >= 2 for e in get("estimator")),
-                       sphere=tuple(float(x) for x in (lo + hi) / 2) + (0.5 * scale,))
+                       estimators=sum(1 << e for e in set(get("estimator"))),
+                       sphere=tuple(float(x) for x in (lo + hi) / 2) + (0.5 * scale,),
+                       map_seed=int(max(get("map_seed"))))
 
 
 class PhotonPass(Pass):
@@ -83,19 +85,21 @@ class PhotonEffect(Effect):
     id = 6
     doc = "+ photon-mapped indirect light and caustics (GPU hash-grid photon map)"
     params = {"photons": Param(int, DEFAULTS["photons"], 256, 1 << 22, "photon paths emitted per frame"),
-              "radius": Param(float, DEFAULTS["radius"], 1e-4, 1.0, "search radius, a fraction of the scene's "
-                                                                    "bounding-box diagonal"),
+              "radius": Param(float, DEFAULTS["radius"], 1e-4, 100.0, "search radius in scene units (metres); "
+                                                                    "the paper's 0.02-0.2"),
               "estimator": Param(int, DEFAULTS["estimator"], 0, len(ESTIMATORS) - 1,
                                  "density estimate: " + ", ".join(f"{i} {e}" for i, e in enumerate(ESTIMATORS))),
               "k": Param(int, DEFAULTS["k"], 1, MAX_K, "photons the heap keeps (estimators grid_heap, kdtree_heap)"),
               "bounces": Param(int, DEFAULTS["bounces"], 1, 8, "photons a path stores at most (diffuse bounces)"),
+              "map_seed": Param(int, DEFAULTS["map_seed"], 0, 1 << 30,
+                                "another photon map for the same frame seed (direct light unchanged)"),
               "area_samples": AREA_SAMPLES}
     traced = True
     shader = "effects/photon.glsl"  # its part of the wavefront pixel event (rt/wave_shade.comp)
-    # `rayvr bench tradeoff`: the paper's photon counts (128^2 .. 512^2) and radii (0.02 .. 0.2 of a
-    # unit box: / sqrt(3) of the diagonal), and the heap; --quick renders one of each.
+    # `rayvr bench tradeoff`: the paper's photon counts (128^2 .. 512^2) and radii (0.02 .. 0.2 scene
+    # units, as the paper's), and the heap; --quick renders one of each.
     sweep = {"photons": ((16384, 65536, 262144), (16384,)),
-             "radius": ((0.01, 0.02, 0.05, 0.1), (0.02,)),
+             "radius": ((0.02, 0.05, 0.1, 0.2), (0.1,)),
              "estimator": ((0, 1), (1,))}
     # Not the reference for any class: a density estimate is biased (blurred by its radius); the
     # converged reference for indirect light is path tracing. `rayvr bench photon` judges it

@@ -102,6 +102,7 @@ class TraceEffectPass(Pass):
     def setup(self, gl, plan: FramePlan) -> None:
         d = {**GpuBvh.defines(DEFAULT_BINDING), **self.effect.param_defines(), "EFFECT": self.effect.id, **self.effect.shader_defines,
              "RT_SLOT": self.slot, "EFFECT_PATHS": self.effect.shader, **camera_defines(plan)}
+        self.shade_defines = d  # a subclass may compile variants of the shading kernels
         trace, shade = "rt/wave_trace.comp", "rt/wave_shade.comp"
         # The tracing kernels take the plan's layout for their ray kind; the shading kernels only
         # read triangles (the same buffer in every layout) and stay on the binary defines.

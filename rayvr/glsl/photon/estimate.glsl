@@ -5,24 +5,37 @@
 //   1 grid_heap    the k nearest within r (a max-heap of k), disc through the k-th (Jensen)
 //   2 kdtree       every photon within r, through the kd-tree
 //   3 kdtree_heap  the k nearest, through the kd-tree (the paper's baseline)
-// accel/photon_map.density is the numpy reference.
+// accel/photon_map.density is the numpy reference. PHOTON_ESTIMATORS (bit i: estimator i may be
+// asked for; passes/photon_shade.py compiles the frame's set) leaves out the heap and the kd-tree
+// walk when no material uses them: the grid-only kernel carries no heap arrays (registers).
 #ifndef RAYVR_PHOTON_ESTIMATE_GLSL
 #define RAYVR_PHOTON_ESTIMATE_GLSL
 #include "grid.glsl"
 #include "kdtree.glsl"
 
 #define PHOTON_MAX_K 64
+#ifndef PHOTON_ESTIMATORS
+#define PHOTON_ESTIMATORS 15
+#endif
+#define PHOTON_HEAP ((PHOTON_ESTIMATORS & 10) != 0)    // grid_heap or kdtree_heap
+#define PHOTON_KDTREE ((PHOTON_ESTIMATORS & 12) != 0)  // kdtree or kdtree_heap
 
 float est_r2;
 vec3 est_normal;
 vec3 est_sum;
+#if PHOTON_HEAP
 int est_k;  // 0: no heap
 int heap_n;
 float heap_d2[PHOTON_MAX_K];
 vec3 heap_power[PHOTON_MAX_K];
 
 float photon_search_r2() { return est_k > 0 && heap_n == est_k ? heap_d2[0] : est_r2; }
+#else
+const int est_k = 0;
+float photon_search_r2() { return est_r2; }
+#endif
 
+#if PHOTON_HEAP
 void heap_sift_down(int i) {
     while (true) {
         int l = 2 * i + 1, r = l + 1, m = i;
@@ -34,6 +47,7 @@ void heap_sift_down(int i) {
         i = m;
     }
 }
+#endif
 
 void photon_visit(uint index, Photon p, float d2) {
     if (dot(photon_normal(p), est_normal) <= 0.0) return;
@@ -41,6 +55,7 @@ void photon_visit(uint index, Photon p, float d2) {
         est_sum += photon_power(p);
         return;
     }
+#if PHOTON_HEAP
     if (heap_n < est_k) {  // sift up
         int i = heap_n++;
         while (i > 0 && heap_d2[(i - 1) / 2] < d2) {
@@ -55,6 +70,7 @@ void photon_visit(uint index, Photon p, float d2) {
         heap_power[0] = photon_power(p);
         heap_sift_down(0);
     }
+#endif
 }
 
 // Irradiance at q (scene-local) on the side n faces, radius r, estimator as above, heap size k.
@@ -62,15 +78,22 @@ vec3 photon_irradiance(vec3 q, vec3 n, float r, int estimator, int k) {
     est_r2 = r * r;
     est_normal = n;
     est_sum = vec3(0.0);
+#if PHOTON_HEAP
     est_k = (estimator == 1 || estimator == 3) ? clamp(k, 1, PHOTON_MAX_K) : 0;
     heap_n = 0;
+#endif
+#if PHOTON_KDTREE
     if (estimator >= 2) kdtree_search(q);
-    else grid_search(q);
+    else
+#endif
+    grid_search(q);
     float area_r2 = est_r2;
+#if PHOTON_HEAP
     if (est_k > 0) {
         for (int i = 0; i < heap_n; ++i) est_sum += heap_power[i];
         if (heap_n == est_k) area_r2 = heap_d2[0];
     }
+#endif
     return area_r2 > 0.0 ? est_sum / (PI * area_r2) : vec3(0.0);
 }
 
