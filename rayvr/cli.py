@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .accumulation import MAX_DENOISE_ITERATIONS
-from .accel.gpu import parse_traversal
+from .accel.gpu import DEFAULT_TRAVERSAL, parse_traversal
 from .gpu_layout import BVH_LAYOUTS
 
 
@@ -600,9 +600,10 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--tonemapper", choices=TONEMAPPERS, default="aces")
     c.add_argument("--layer-mode", choices=("auto", "vertex", "geometry", "multiview", "passes"), default="auto",
                    help="how the stereo G-buffer reaches both layers")
-    c.add_argument("--traversal", type=_traversal, default=("bvh2",) * 3, metavar="LAYOUTS",
+    c.add_argument("--traversal", type=_traversal, default=DEFAULT_TRAVERSAL, metavar="LAYOUTS",
                    help="BVH node layout of the traced rays: one for all (bvh2, bvh4, bvh8) or per ray kind, "
-                        "e.g. primary=bvh8,shadow=bvh4,reflect=bvh2 (default bvh2, the reference)")
+                        "e.g. primary=bvh8,shadow=bvh4,reflect=bvh2; kinds not named keep the default "
+                        "primary=bvh4,shadow=bvh2,reflect=bvh4 (the fastest on the H200; bvh2 is the reference)")
     c.add_argument("--primary", choices=("raster", "rays"), default="raster",
                    help="primary visibility: the raster G-buffer pass, or camera rays through the BVH")
     c.add_argument("--second-layer", choices=("rays", "peel"), default="rays",

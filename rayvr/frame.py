@@ -28,6 +28,8 @@ from typing import Callable
 import moderngl
 import numpy as np
 
+from .accel.gpu import DEFAULT_TRAVERSAL
+
 from .gpu_layout import CHANNELS
 from .timing import TimerQuery, valid_elapsed_ns
 
@@ -53,7 +55,7 @@ class FramePlan:
     output: str = "ldr"
     accumulate: bool = False  # running mean of samples while still (passes/accumulate.py)
     denoise: tuple = ()  # effects whose pixels the edge-aware à-trous filters (passes/denoise.py)
-    traversal: tuple = ("bvh2", "bvh2", "bvh2")  # BVH layout per ray kind (accel/gpu.py RAY_KINDS)
+    traversal: tuple = DEFAULT_TRAVERSAL  # BVH layout per ray kind (accel/gpu.py RAY_KINDS)
     # (effect, (material names, ...)) pairs, for the reasons --graph shows; not part of the key:
     # moving an effect to other materials compiles nothing new.
     users: tuple = field(default=(), compare=False)

@@ -19,7 +19,7 @@ from . import effects as effects_mod
 from . import materials as materials_mod
 from . import scene as scene_mod
 from . import stereo as stereo_mod
-from .accel.gpu import RAY_KINDS, check_layout, parse_traversal
+from .accel.gpu import DEFAULT_TRAVERSAL, RAY_KINDS, check_layout, parse_traversal
 from .accel.scene import SceneAccel
 from .accumulation import MAX_DENOISE_ITERATIONS, Accumulator, sample_seed
 from .camera import StereoRig
@@ -64,8 +64,9 @@ class RenderSettings:
     warp_layers: int = 2  # depth layers of the central view `warp` traces (2: disocclusions from the second)
     quadtree_adapt: float = 0.0  # §6 distance-adaptive quadtree thresholds (accel/quadtree.py adaptive_thresholds)
     # BVH node layout for primary, shadow and reflection/glossy rays (accel/gpu.py RAY_KINDS:
-    # bvh2, the binary reference, or wide bvh4/bvh8); `bench rays` measures which wins per kind.
-    traversal: tuple = ("bvh2", "bvh2", "bvh2")
+    # bvh2, the binary reference, or wide bvh4/bvh8); the default is what `bench rays` measured
+    # fastest per kind on the H200 (accel/gpu.py DEFAULT_TRAVERSAL).
+    traversal: tuple = DEFAULT_TRAVERSAL
     # Thin-lens depth of field through screen-space rays (passes/dof.py; pinhole, stereo dual):
     dof_aperture: float = 0.0  # lens diameter, scene units (0: off)
     dof_focus: float = 2.0  # view depth in focus, scene units

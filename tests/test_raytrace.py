@@ -392,11 +392,14 @@ def test_refit_moves_what_rays_see(gl, gpu_refit):
     v, f, part = merge((sphere.vertices + [0, 0, -3], sphere.faces), quad((0, 0, -5), (6, 0, 0), (0, 6, 0)))
     scene = from_arrays(v, f, triangle_material=part, materials=[Material("ball"), Material("wall")])
     rig = StereoRig(Pose(), ipd=0.1, fov_y=60, size=(32, 24))
-    r = Renderer(scene, gl=gl, settings=RenderSettings(primary="rays"))
+    # The GPU refit serves bvh2 alone; the default traversal (wide primary rays) refits on the host.
+    r = Renderer(scene, gl=gl, settings=RenderSettings(primary="rays", **({"traversal": "bvh2"} if gpu_refit else {})))
     before = r.render(rig, aux=("triangle",)).left.aux["triangle"]
+    assert (r.accel._refit is None) and (bool(r.accel.wide) != gpu_refit)
     moved = scene.vertices.copy()
     moved[: len(sphere.vertices)] += np.float32([0.8, 0.0, 0.0])
     r.update_vertices(moved, gpu_refit=gpu_refit)
+    assert (r.accel._refit is not None) == gpu_refit
     after = r.render(rig, aux=("triangle",)).left.aux["triangle"]
     r.release()
     ref = Renderer(scene, gl=gl)

@@ -198,7 +198,7 @@ def test_renderer_traversal_per_ray_kind_gives_the_reference_frame(gl, traversal
     rig = StereoRig.for_scene(scene, size=(40, 30))
     cfg = {"default": "shadows", "materials": {"floor": {"effect": "glossy", "samples": 2},
                                                "mirror*": {"effect": "reflections", "bounces": 2}}}
-    ref, ref_hdr, _ = render(gl, scene, rig, cfg, RenderSettings(primary="rays"))
+    ref, ref_hdr, _ = render(gl, scene, rig, cfg, RenderSettings(primary="rays", traversal="bvh2"))
     r = Renderer(scene, parse_config(cfg, "test"), gl=gl, settings=RenderSettings(primary="rays", traversal=traversal))
     try:
         wide = r.render(rig, aux=("triangle", "hdr"))

@@ -45,11 +45,16 @@ def max_ssbo_bytes(ctx) -> int:
 
 
 RAY_KINDS = ("primary", "shadow", "reflect")   # RenderSettings.traversal: a layout for each
+# The renderer's layout per ray kind: the fastest on the H200 (bench rays, room and Sponza,
+# bench/results/h200/2026-11-30/traversal/run3): bvh4 for primary (1.00x, 1.06x of bvh2) and reflection
+# rays (1.02x, 1.15x; bvh8 1.04x, 1.11x), bvh2 for shadow rays (bvh4 0.78x, 0.92x).
+DEFAULT_TRAVERSAL = ("bvh4", "bvh2", "bvh4")
 
 
 def parse_traversal(text: str) -> tuple[str, str, str]:
-    """'bvh8' (every ray kind) or 'primary=bvh8,shadow=bvh4' (others bvh2) -> a layout per RAY_KINDS."""
-    out = dict.fromkeys(RAY_KINDS, "bvh2")
+    """'bvh8' (every ray kind) or 'primary=bvh8,shadow=bvh4' (others as DEFAULT_TRAVERSAL) -> a layout
+    per RAY_KINDS."""
+    out = dict(zip(RAY_KINDS, DEFAULT_TRAVERSAL))
     for part in (x.strip() for x in text.split(",") if x.strip()):
         kind, _, layout = part.rpartition("=")
         if kind and kind not in RAY_KINDS:
@@ -309,5 +314,5 @@ def trace_rays(ctx, bvh_or_gpu, origins, directions, tmin=0.0, tmax=np.inf, mode
             gpu_bvh.release()
 
 
-__all__ = ["GpuBvh", "layout_defines", "check_layout", "parse_traversal", "RAY_KINDS", "RayTracer", "Hits", "trace_rays", "pack_rays", "max_ssbo_bytes",
+__all__ = ["GpuBvh", "layout_defines", "check_layout", "parse_traversal", "RAY_KINDS", "DEFAULT_TRAVERSAL", "RayTracer", "Hits", "trace_rays", "pack_rays", "max_ssbo_bytes",
            "BufferTooLargeError", "MISS", "MODES", "DEFAULT_BINDING", "STACK_SIZE"]
