@@ -18,6 +18,8 @@ from dataclasses import astuple, dataclass, replace
 
 import numpy as np
 
+from .pcg import pcg_hash
+
 MAX_DENOISE_ITERATIONS = 6  # à-trous steps up to 2^5 = 32 pixels: wider, the guides no longer hold
 HISTORY_CAP = 32  # samples a reprojected history counts for at most while the camera moves (Falcor SVGF)
 
@@ -29,9 +31,7 @@ def sample_seed(seed: int, sample: int) -> int:
         return int(seed) & 0xFFFFFFFF
     v = (int(seed) * 0x9E3779B9 + int(sample) * 0x85EBCA6B + 0x68E31DA4) & 0xFFFFFFFF
     for _ in range(2):
-        state = (v * 747796405 + 2891336453) & 0xFFFFFFFF
-        word = (((state >> ((state >> 28) + 4)) ^ state) * 277803737) & 0xFFFFFFFF
-        v = (word >> 22) ^ word
+        v = pcg_hash(v)
     return v
 
 

@@ -10,8 +10,10 @@ from __future__ import annotations
 import numpy as np
 
 from .. import shaders
+from ..cameras.sampling import concentric_disk
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gpu_layout import IMAGE, SSBO
+from ..pcg import pcg_hash
 from . import scene_radiance
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 from .quadtree import set_tree_uniforms
@@ -54,34 +56,14 @@ class DofPass(Pass):
 
 # ------------------------------------------------------------------ numpy reference (tests)
 
-def _pcg_hash(v):
-    """common/random.glsl pcg_hash on uint32 (numpy arrays or ints)."""
-    v = np.asarray(v, np.uint64) & 0xFFFFFFFF
-    state = (v * 747796405 + 2891336453) & 0xFFFFFFFF
-    word = (((state >> ((state >> 28) + 4)) ^ state) * 277803737) & 0xFFFFFFFF
-    return (word >> 22) ^ word
-
-
 def _seed_surface(p, footprint, frame):
     """common/random.glsl rng_seed_surface (float32 as on the GPU)."""
     level = np.floor(np.log2(np.maximum(np.float32(footprint), np.float32(1e-30)))).astype(np.int64)
     cell = np.clip(np.floor(np.asarray(p, np.float32) * np.float32(2.0 ** -float(level))), -2.0e9, 2.0e9).astype(np.int64)
-    h = _pcg_hash(int(level) & 0xFFFFFFFF ^ int(_pcg_hash(frame)))
+    h = pcg_hash(int(level) & 0xFFFFFFFF ^ int(pcg_hash(frame)))
     for c in (cell[2], cell[1], cell[0]):
-        h = _pcg_hash((int(c) & 0xFFFFFFFF) ^ int(h))
+        h = pcg_hash((int(c) & 0xFFFFFFFF) ^ int(h))
     return int(h)
-
-
-def _concentric_disk(u):
-    """Shirley & Chiu's concentric map of [0, 1)^2 onto the unit disk (glsl/cameras/sampling.glsl concentric_disk)."""
-    a = 2.0 * np.asarray(u, np.float64) - 1.0
-    if a[0] == 0 and a[1] == 0:
-        return np.zeros(2)
-    if abs(a[0]) > abs(a[1]):
-        r, phi = a[0], np.pi / 4 * (a[1] / a[0])
-    else:
-        r, phi = a[1], np.pi / 2 - np.pi / 4 * (a[0] / a[1])
-    return r * np.array([np.cos(phi), np.sin(phi)])
 
 
 def gather_reference(image, position, levels, cam, aperture: float, focus: float, samples: int, seed: int = 0,
@@ -112,9 +94,9 @@ def gather_reference(image, position, levels, cam, aperture: float, focus: float
             for _ in range(n):
                 u = []
                 for _ in range(2):
-                    state = int(_pcg_hash(state))
+                    state = int(pcg_hash(state))
                     u.append((state >> 8) / 16777216.0)
-                lens = cam.position + cam.rotation @ np.array([*(_concentric_disk(u) * 0.5 * aperture), 0.0])
+                lens = cam.position + cam.rotation @ np.array([*(np.array(concentric_disk(*u)) * 0.5 * aperture), 0.0])
                 tr = qt.trace_layers([levels], cam, lens, f - lens, thickness)
                 if tr.status in (qt.HIT, qt.OCCLUDED) and tr.pixel[0] >= 0:
                     px, py = tr.pixel
