@@ -298,8 +298,10 @@ def test_camera_parameters_from_text():
         ((0.1, 0.2), (0.2, 0.3), (0.3, 0.4))
     assert parse_camera_params("wide", ["mapping=equidistant", "fov_x=210"]) == {"mapping": "equidistant", "fov_x": 210.0}
     assert parse_camera_params("foveated", ["gaze=0.4,0.5"]) == {"gaze": (0.4, 0.5)}
-    with pytest.raises(ValueError, match="KEY one of aperture, focus"):
+    with pytest.raises(ValueError, match="the dof camera has no parameter 'blur'; allowed: aperture, focus"):
         parse_camera_params("dof", ["blur=1"])
+    with pytest.raises(ValueError, match="expected KEY=VALUE with KEY one of aperture, focus"):
+        parse_camera_params("dof", ["focus"])
     with pytest.raises(ValueError, match="cannot read 'x' as a number"):
         parse_camera_params("dof", ["focus=x"])
     with pytest.raises(ValueError, match="has no parameter 'focus'; allowed: mapping, fov_x"):

@@ -43,9 +43,12 @@ def parse_camera_params(name: str, items) -> dict:
     for item in items or ():
         key, sep, text = item.partition("=")
         key = key.strip()
-        if not sep or key not in fields:
-            raise ValueError(f"camera parameter {item!r}: expected KEY=VALUE with KEY one of "
-                             f"{', '.join(fields) or '(none: the ' + name + ' camera has no parameters)'}")
+        allowed = ', '.join(fields) or '(none: the ' + name + ' camera has no parameters)'
+        if not sep:
+            raise ValueError(f"camera parameter {item!r}: expected KEY=VALUE with KEY one of {allowed}")
+        if key not in fields:
+            raise ValueError(f"camera parameter {item!r}: the {name} camera has no parameter {key!r}; "
+                             f"allowed: {allowed}")
         default = fields[key].default
         text = text.strip()
         try:
