@@ -411,6 +411,28 @@ def _layouts(text: str) -> tuple[str, ...]:
     return names
 
 
+def _primary_configs(text: str) -> tuple[str, ...]:
+    from .bench.primary import CONFIGS
+
+    names = tuple(x.strip() for x in text.split(",") if x.strip())
+    if not names or any(x not in CONFIGS for x in names):
+        raise argparse.ArgumentTypeError(f"primary configs must be among {', '.join(CONFIGS)}, got {text!r}")
+    return names
+
+
+def _sample_counts(text: str) -> tuple[int, ...]:
+    from .cameras.sampling import SAMPLE_COUNTS
+
+    try:
+        counts = tuple(int(x) for x in text.split(","))
+    except ValueError:
+        counts = ()
+    if not counts or any(n not in SAMPLE_COUNTS for n in counts):
+        raise argparse.ArgumentTypeError(f"sub-ray counts must be among {', '.join(map(str, SAMPLE_COUNTS))}, "
+                                         f"got {text!r}")
+    return counts
+
+
 def _budgets(text: str) -> list[float]:
     try:
         values = [float(x) for x in text.split(",")]
@@ -453,12 +475,13 @@ def cmd_bench(args) -> int:
 
         # A --camera-model / --camera-param / --fov given: that camera (and the raster reference) only.
         custom = args.camera_model != "pinhole" or args.camera_param or args.fov is not None
-        counts = (args.msaa,) if args.msaa else (1, 4) if quick else primary.SAMPLE_COUNTS
+        counts = args.counts or ((args.msaa,) if args.msaa else (1, 4) if quick else primary.SAMPLE_COUNTS)
         primary.run(out, size=(32, 24) if quick else args.size,
                     scenes=("default",) if quick else tuple(args.scenes.split(",")),
                     repeat=2 if quick else args.repeat // 2, warmup=1 if quick else 3, counts=counts,
                     ssaa=(args.msaa,) if args.ssaa and args.msaa else () if quick else (4,),
-                    custom=(camera_from_args(args), args.fov) if custom else None, backend=args.backend)
+                    custom=(camera_from_args(args), args.fov) if custom else None, backend=args.backend,
+                    **({"configs": args.configs} if args.configs else {}))
     elif args.area == "peers":
         from .bench import peers
 
@@ -665,6 +688,11 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--frames", type=FRAMES, default=64, help="workers: frames of the capture path (default 64)")
     b.add_argument("--backend", choices=("egl", "osmesa"))
     b.add_argument("--fov", type=FOV, help="primary: vertical field of view of the --camera-model row")
+    b.add_argument("--configs", type=_primary_configs,
+                   help="primary: the rows to measure, comma-separated (default all: raster_gbuffer, pinhole, "
+                        "distorted, distorted_chromatic, foveated, wide_210x130, dof_near, dof_mid, dof_far)")
+    b.add_argument("--counts", type=_sample_counts,
+                   help="primary: sub-rays per sample to measure, comma-separated (default 1,4,8,16,32)")
     add_camera_arguments(b, msaa_default=None)
     b.set_defaults(func=cmd_bench)
 

@@ -53,3 +53,22 @@ def test_bench_primary_reports_each_model_and_sub_ray_count(tmp_path):
     assert rows["distorted_chromatic", 4]["rounds"] >= 3  # at least one shading round per channel set
     meta = json.loads((tmp_path / "primary.json").read_text())["meta"]
     assert meta["bench"] == "primary" and meta["gl_renderer"]
+
+
+def test_bench_primary_measures_only_the_rows_asked_for(tmp_path):
+    run = rayvr("bench", "primary", "--quick", "--configs", "pinhole", "--counts", "4", "--out", str(tmp_path))
+    assert run.returncode == 0, run.stderr
+    rows = json.loads((tmp_path / "primary.json").read_text())["rows"]
+    assert [(r["config"], r["sub_rays_per_sample"], r["shading"]) for r in rows] == [("pinhole", 4, "msaa")]
+    assert rows[0]["rounds"] >= 1 and rows[0]["sub_rays"] == 2 * 32 * 24 * 4
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--configs", "pinhol"], ["--configs", "'pinhol'", "raster_gbuffer, pinhole"]),
+    (["--counts", "4,3"], ["--counts", "1, 4, 8, 16, 32", "'4,3'"]),
+])
+def test_bench_primary_bad_subset_is_one_clear_line(tmp_path, args, words):
+    run = rayvr("bench", "primary", "--quick", "--out", str(tmp_path / "o"), *args)
+    lines = run.stderr.splitlines()
+    assert run.returncode == 2 and len(lines) == 1 and all(w in lines[0] for w in words), run.stderr
+    assert not (tmp_path / "o").exists()

@@ -142,7 +142,8 @@ def test_msaa_frames_run_one_shading_round_per_distinct_triangle(gl, room):
         r.gl.ctx.finish()
         rounds = fc.round.index + 1
         timings = r.read_ms(fc)
-        hits = np.frombuffer(r.resource("msaa_hits").read(), np.uint32).reshape(2, 24, 32, 8, 4)
+        # slot-major: slot k of every pixel, then slot k + 1
+        hits = np.moveaxis(np.frombuffer(r.resource("msaa_hits").read(), np.uint32).reshape(8, 2, 24, 32, 4), 0, 3)
     counts = (hits[..., 0, 2] >> 8) & 255
     assert rounds == counts.max() >= 2  # the room's edges: several triangles in some pixels
     masks = hits[..., 1]

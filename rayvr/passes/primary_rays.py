@@ -50,6 +50,7 @@ class PrimaryRaysPass(Pass):
             out.append(write("sample_weight", SAMPLE_WEIGHT))
         if uses_msaa(plan):
             slots = msaa_slots(plan)
+            # Slot-major: slot k of every pixel, then slot k + 1 (coalesced writes and reads).
             out += [write("msaa_hits", Buffer(lambda s, n=slots: s.pixels * n * 16, f"{slots} x 16 bytes per pixel")),
                     write("msaa_count", Buffer(lambda s: 4, "4 bytes"))]
         return out

@@ -9,7 +9,7 @@
 //   ray; SSAA: the frame round's sub-ray, weight 1 / CAMERA_SUBSAMPLES).
 // PRIMARY_MODE 1 (MSAA, trace): all CAMERA_SUBSAMPLES sub-rays; the distinct triangles they hit
 //   (the background counts as one) with their coverage masks go to msaa_hits, most covered first,
-//   at most MSAA_SLOTS; the largest count of any pixel to msaa_count.
+//   at most MSAA_SLOTS; the largest count of any pixel to msaa_count (one atomic per workgroup).
 // PRIMARY_MODE 2 (MSAA, select): slot `msaa_slot` of each pixel's list becomes its visibility,
 //   shaded at the sub-ray of its mask nearest the mask's mean_offset, weighted by its coverage.
 #ifndef PRIMARY_MODE
@@ -32,10 +32,15 @@ layout(r32ui, binding = GB_IMAGE_TRIANGLE) uniform writeonly uimage2DArray img_t
 layout(r32f, binding = IMAGE_SAMPLE_WEIGHT) uniform writeonly image2DArray img_weight;
 #endif
 #if PRIMARY_MODE != 0
-// Per pixel MSAA_SLOTS entries: (triangle, coverage mask, representative sub-ray | count << 8 |
+// Per pixel MSAA_SLOTS entries, slot-major (HIT below): (triangle, coverage mask, representative sub-ray | count << 8 |
 // covered sub-rays << 16 (entry 0 only), hit distance bits).
 layout(std430, binding = SSBO_MSAA_HITS) buffer MsaaHits { uvec4 msaa_hits[]; };
 layout(std430, binding = SSBO_MSAA_COUNT) buffer MsaaCount { uint msaa_count; };
+#endif
+#if PRIMARY_MODE == 1
+// The workgroup's largest count: one global atomic per workgroup, not one per pixel (every
+// invocation of the frame contending for one address was a fixed cost of each MSAA frame).
+shared uint group_count;
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
 uniform int msaa_slot;  // PRIMARY_MODE 2
@@ -58,26 +63,19 @@ void store(ivec3 p, uint tri, uint sub, float t, float weight) {
 #endif
 }
 
-void main() {
-    ivec3 p = ivec3(gl_GlobalInvocationID);
-    ivec2 size = imageSize(img_triangle).xy;
-    if (any(greaterThanEqual(p.xy, size))) return;
-    vec2 pixel = vec2(p.xy) + 0.5;
-    bool sample_here = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
-#if PRIMARY_MODE == 0
-    vec3 o, d;
-    Hit h;
-    h.prim = BVH_MISS;
-    h.t = 0.0;
-    if (camera_subray(p.z, pixel, vec2(size), uint(subsample), o, d)) cast_primary(p.z, o, d, h);
-    // A pixel without a sample (foveated) weighs nothing: the resolve fills it for display.
-    store(p, h.prim, uint(subsample), h.t, sample_here ? 1.0 / float(CAMERA_SUBSAMPLES) : 0.0);
-#else
-    uint base = uint((p.z * size.y + p.y) * size.x + p.x) * uint(MSAA_SLOTS);
+#if PRIMARY_MODE != 0
+// Slot-major entries (slot k of every pixel, then slot k + 1): neighbouring invocations write and
+// read neighbouring entries.
+#define HIT(k) msaa_hits[index + uint(k) * pixels]
+#endif
 #if PRIMARY_MODE == 1
+// All sub-rays of the sample at pixel p; its distinct triangles to msaa_hits; their number.
+uint msaa_trace(ivec3 p, ivec2 size, uint index, uint pixels) {
+    vec2 pixel_center = vec2(p.xy) + 0.5;
+    bool sample_here = camera_footprint(p.z, pixel_center, vec2(size)) > 0.0;
     if (!sample_here) {  // no sample at this pixel (foveated): an empty list, filled for display
-        msaa_hits[base] = uvec4(BVH_MISS, 0u, 0u, 0u);
-        return;
+        HIT(0) = uvec4(BVH_MISS, 0u, 0u, 0u);
+        return 0u;
     }
     uint tris[CAMERA_SUBSAMPLES];
     float ts[CAMERA_SUBSAMPLES];
@@ -86,7 +84,7 @@ void main() {
         Hit h;
         h.prim = BVH_MISS;
         h.t = 0.0;
-        if (camera_subray(p.z, pixel, vec2(size), uint(i), o, d)) cast_primary(p.z, o, d, h);
+        if (camera_subray(p.z, pixel_center, vec2(size), uint(i), o, d)) cast_primary(p.z, o, d, h);
         tris[i] = h.prim;
         ts[i] = h.t;
     }
@@ -124,14 +122,43 @@ void main() {
             if ((masks[k] & (1u << uint(i))) != 0u && dot(e, e) < best_d) { best = i; best_d = dot(e, e); }
         }
         uint meta = uint(best) | (rank == 0 ? (uint(n) << 8) | (covered << 16) : 0u);
-        msaa_hits[base + uint(rank)] = uvec4(ids[k], masks[k], meta, floatBitsToUint(ts[best]));
+        HIT(rank) = uvec4(ids[k], masks[k], meta, floatBitsToUint(ts[best]));
     }
-    atomicMax(msaa_count, uint(n));
+    return uint(n);
+}
+#endif
+
+void main() {
+    ivec3 p = ivec3(gl_GlobalInvocationID);
+    ivec3 extent = imageSize(img_triangle);
+    ivec2 size = extent.xy;
+    bool inside = all(lessThan(p.xy, size));
+#if PRIMARY_MODE != 0
+    uint pixels = uint(extent.x * extent.y * extent.z), index = uint((p.z * size.y + p.y) * size.x + p.x);
+#endif
+#if PRIMARY_MODE == 1
+    if (gl_LocalInvocationIndex == 0u) group_count = 0u;
+    barrier();
+    if (inside) atomicMax(group_count, msaa_trace(p, size, index, pixels));
+    barrier();
+    if (gl_LocalInvocationIndex == 0u && group_count > 0u) atomicMax(msaa_count, group_count);
 #else
-    uvec4 head = msaa_hits[base];
+    if (!inside) return;
+    vec2 pixel = vec2(p.xy) + 0.5;
+#if PRIMARY_MODE == 0
+    vec3 o, d;
+    Hit h;
+    h.prim = BVH_MISS;
+    h.t = 0.0;
+    bool sample_here = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
+    if (camera_subray(p.z, pixel, vec2(size), uint(subsample), o, d)) cast_primary(p.z, o, d, h);
+    // A pixel without a sample (foveated) weighs nothing: the resolve fills it for display.
+    store(p, h.prim, uint(subsample), h.t, sample_here ? 1.0 / float(CAMERA_SUBSAMPLES) : 0.0);
+#else
+    uvec4 head = HIT(0);
     uint n = (head.z >> 8) & 255u, covered = head.z >> 16;
     if (uint(msaa_slot) < n) {
-        uvec4 e = msaa_hits[base + uint(msaa_slot)];
+        uvec4 e = HIT(msaa_slot);
         store(p, e.x, e.z & 255u, uintBitsToFloat(e.w), float(bitCount(e.y)) / float(max(covered, 1u)));
     } else {
         store(p, BVH_MISS, 0u, 0.0, 0.0);  // nothing in this slot: shaded as background, weighs nothing
