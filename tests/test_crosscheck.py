@@ -198,8 +198,8 @@ def test_path_matches_mitsuba_path_tracer_on_the_cornell_box(gl, variant, shared
     """Full global illumination: `path` on every material vs Mitsuba's `path` integrator at equal
     samples: the light is neither lost nor gained (mean radiance within 5 %), no NaN, and FLIP
     near Mitsuba's own seed-to-seed FLIP. Measured here (32 px, 64 spp): 0.243 vs Mitsuba's 0.220,
-    most of the excess on the tallBox's duplicated front face (RESIDUALS duplicate_triangles: a
-    rayvr self-intersection bug outside `path`), so the bound is noise + 0.05, not the issue's
+    most of the excess in the speckles on the tallBox's front face (RESIDUALS tallbox_speckles: a
+    rayvr shadow-ray bug outside `path`), so the bound is noise + 0.05, not the issue's
     + 0.01 (`rayvr bench crosscheck` reports gi_within_noise per box)."""
     sc = M.load_cornell(shared_scene(ORIGINAL))
     cmp = M.crosscheck_gi(gl, sc, M.cornell_rig(sc, (32, 32)), spp=64, supersample=2, bounces=4)

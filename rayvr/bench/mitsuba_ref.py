@@ -646,9 +646,12 @@ RESIDUALS = {
     "glossy_fireflies": "rayvr's glossy effect now samples the ceiling light both ways with MIS; the speckles that "
                         "GGX rays alone made on the sharp metals (Mirror tallBox, Sphere spheres) fall with "
                         "area_samples.",
-    "duplicate_triangles": "CornellBox-Original's tallBox front face is stored twice (coincident triangles 6/7 and "
-                           "12/13). rayvr's shadow rays self-intersect on one of them: a speckled dark triangle and "
-                           "a streak on that face, absent in Mitsuba (same geometry). A rayvr bug, not sampling.",
+    "tallbox_speckles": "rayvr shows a speckled dark triangle and a streak on CornellBox-Original's tallBox front "
+                        "face, absent in Mitsuba (same geometry): a rayvr bug, not sampling. Not the file's "
+                        "coincident twin triangles (each box's 'Bottom Face' reuses another face's corners): "
+                        "dropping them leaves every figure and picture identical, and a floor stored twice "
+                        "does not self-shadow. Unverified suspect: shadow rays to light samples behind the "
+                        "face's plane leave it from the back (shadow_rays.glsl flips the normal to the light).",
     "edges": "rayvr is rendered at supersample^2 pixel-centre samples per pixel and box-averaged; Mitsuba box-filters "
              "random positions: edges agree to the sampling noise of both.",
     "scene_data": "CornellBox-Glossy.obj has relative indices (trimesh resolved them wrongly: every wall on the "
