@@ -37,7 +37,7 @@ import numpy as np
 from .. import shaders
 from ..gpu_layout import SSBO
 from .quadtree import (ScreenCamera, dispatch_per_ray, pack_screen_rays, Trace, encode_aabbs, encode_planes, level_offsets, level_sizes,
-                       screen_ray, set_level_uniforms)
+                       screen_ray, set_level_uniforms, time_build_and_trace)
 
 HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4   # HIZ_HIT ... HIZ_NONE in glsl/ssrt/hiz.glsl (same as DDA_*, QT_*)
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
@@ -297,31 +297,16 @@ class HizTracer:
         rays (already on the GPU), after the times settle (timing.settle); median of 5 batches of
         `repeats` each; wall time per dispatch where llvmpipe's timer reads ~0. Adds the mean
         iterations per ray and the share of rays that ran out of them."""
-        from ..timing import time_gpu
-
         gbuffer = self.renderer.resource("gbuffer")
-        rays = pack_screen_rays(origins, directions, eye)
-        n = len(rays)
-        rbuf = self.ctx.buffer(rays.tobytes())
-        obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
-
-        def timed(fn) -> dict:
-            return time_gpu(self.ctx, fn, repeats, min_seconds)
-
-        def trace() -> None:
-            self._bind(rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin)
-            dispatch_per_ray(self.program, n)
-
-        try:
-            self.build(rig, "both" if gbuffer.layers == 2 else "left")
-            res = self.trace(origins, directions, eye, start_level, max_iterations, thickness, skip_origin)
-            out = {"build": timed(lambda: self._run_build(gbuffer)), "trace": timed(trace), "rays": n}
-            out["rays_per_s"] = n / (out["trace"]["ms"] * 1e-3)
-            out["mean_iterations"] = float(res.iterations.mean()) if n else 0.0
-            out["max_iterations_reached"] = float((res.iterations >= max_iterations).mean()) if n else 0.0
-        finally:
-            rbuf.release()
-            obuf.release()
+        self.build(rig, "both" if gbuffer.layers == 2 else "left")
+        res = self.trace(origins, directions, eye, start_level, max_iterations, thickness, skip_origin)
+        out = time_build_and_trace(
+            self.ctx, self.program, origins, directions, eye, lambda: self._run_build(gbuffer),
+            lambda rbuf, obuf, n: self._bind(rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin),
+            repeats, min_seconds)
+        n = out["rays"]
+        out["mean_iterations"] = float(res.iterations.mean()) if n else 0.0
+        out["max_iterations_reached"] = float((res.iterations >= max_iterations).mean()) if n else 0.0
         return out
 
     def release(self) -> None:

@@ -105,6 +105,33 @@ def dispatch_per_ray(program, n: int) -> None:
     program.run(gx, -(-groups // gx), 1)
 
 
+def time_build_and_trace(ctx, program, origins, directions, eye, build, bind, repeats: int,
+                         min_seconds: float) -> dict:
+    """GPU ms of a screen-space tracer's `build()` and of tracing the rays with `program` (the rays
+    packed and uploaded once; `bind(rays, results, n)` binds them before each dispatch), after the
+    times settle (timing.time_gpu: median of 5 batches of `repeats`); the quadtree and Hi-Z
+    tracers' `time`. Returns {"build", "trace", "rays", "rays_per_s"}."""
+    from ..timing import time_gpu
+
+    rays = pack_screen_rays(origins, directions, eye)
+    n = len(rays)
+    rbuf = ctx.buffer(rays.tobytes())
+    obuf = ctx.buffer(reserve=max(n, 1) * 32)
+
+    def trace() -> None:
+        bind(rbuf, obuf, n)
+        dispatch_per_ray(program, n)
+
+    try:
+        out = {"build": time_gpu(ctx, build, repeats, min_seconds), "trace": time_gpu(ctx, trace, repeats, min_seconds),
+               "rays": n}
+    finally:
+        rbuf.release()
+        obuf.release()
+    out["rays_per_s"] = n / (out["trace"]["ms"] * 1e-3)
+    return out
+
+
 def set_level_uniforms(program, size, prefix: str, per_layer_name: str) -> None:
     """The level table of a screen-space pyramid (the quadtree's, Hi-Z's) for an eye image of
     `size`: `<prefix>_level[k]` = (width, height, first index of level k in a layer, 0),
@@ -718,7 +745,7 @@ def trace_layers_brute_force(layer_leaves, cam: ScreenCamera, origin, direction,
     return LayeredTrace(ray.end, -1, (-1, -1), _end_point(ray), tested)
 
 
-__all__ = ["HIT", "OFFSCREEN", "NEAR", "NONE", "STATUS_NAMES", "level_sizes", "level_offsets", "quadtree_bytes",
+__all__ = ["time_build_and_trace", "HIT", "OFFSCREEN", "NEAR", "NONE", "STATUS_NAMES", "level_sizes", "level_offsets", "quadtree_bytes",
            "ScreenCamera", "encode_planes", "encode_aabbs", "decode", "leaf_planes", "build_reference",
            "flatten", "unflatten", "screen_ray", "trace_heightfield_reference", "trace_quadtree_reference",
            "trace_layers", "trace_layers_brute_force", "LayeredTrace", "OCCLUDED", "Trace", "ScreenRay", "plane_normals", "node_rects"]

@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import shaders
 from ..accel.quadtree import (MAX_LEVELS, dispatch_per_ray, level_offsets, level_sizes, pack_screen_rays, quadtree_bytes,
-                              set_level_uniforms, unflatten)
+                              set_level_uniforms, unflatten, time_build_and_trace)
 from ..frame import Buffer, FramePlan, Pass, read, write
 from ..gpu_layout import SSBO, UNIT
 from .compute import camera_defines, set_eye_uniforms
@@ -255,34 +255,17 @@ class QuadtreeTracer:
         trace_layers' options), after the times settle (timing.settle); median of 5 batches of
         `repeats` each. llvmpipe's timer queries read ~0 for compute: there the wall time per
         dispatch stands in."""
-        from ..timing import time_gpu
-
         gbuffer = self.renderer.resource("gbuffer")
-        rays = pack_screen_rays(origins, directions, eye)
-        n = len(rays)
-        rbuf = self.ctx.buffer(rays.tobytes())
-        obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
-
-        def timed(fn) -> dict:
-            return time_gpu(self.ctx, fn, repeats, min_seconds)
 
         def build() -> None:
             self._set_eyes(self.builder.program)
             self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2(),
                                gamma_adapt=gamma_adapt)
 
-        def trace() -> None:
-            self._bind(rbuf, obuf, n, layers, thickness, start_level)
-            dispatch_per_ray(self.program, n)
-
-        try:
-            self.build(rig, "both" if gbuffer.layers == 2 else "left", gamma_norm, gamma_dist, gamma_adapt)
-            out = {"build": timed(build), "trace": timed(trace), "rays": n}
-            out["rays_per_s"] = n / (out["trace"]["ms"] * 1e-3)
-        finally:
-            rbuf.release()
-            obuf.release()
-        return out
+        self.build(rig, "both" if gbuffer.layers == 2 else "left", gamma_norm, gamma_dist, gamma_adapt)
+        return time_build_and_trace(self.ctx, self.program, origins, directions, eye, build,
+                                    lambda rbuf, obuf, n: self._bind(rbuf, obuf, n, layers, thickness, start_level),
+                                    repeats, min_seconds)
 
     def release(self) -> None:
         self.builder.release()
