@@ -180,18 +180,22 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=1
                                       f"{row['build_ms_per_layer']:.3f} ms/layer, {row['grays_s']:.2f} GRays/s, "
                                       f"nodes {row['nodes_mean']:.1f} mean")
                     gb = r.resource("gbuffer")
+
+                    def baseline_row(tracer: str, res, **measured) -> dict:
+                        """A DDA or Hi-Z row: what was measured, and how its answers agree with the quadtree's."""
+                        return {"scene": name, "size": f"2x{size[0]}x{size[1]}", "rays": len(o), "tracer": tracer,
+                                **measured, "hit_share": float((res.status == 1).mean()),
+                                "status_agrees_with_quadtree": float((res.status == lossless).mean()),
+                                "pixel_agrees_with_quadtree": pixel_agreement(res.status, res.pixel, lossless,
+                                                                              lossless_pixel)}
+
                     for steps, stride in DDA_SETTINGS:
                         t = dda.time_trace(gb, rig.eyes(), scene.origin, o, d, eye=0, max_steps=steps, stride=stride,
                                            repeats=repeat)
                         res = dda.trace(gb, rig.eyes(), scene.origin, o, d, eye=0, max_steps=steps, stride=stride)
-                        row = {"scene": name, "size": f"2x{size[0]}x{size[1]}", "rays": len(o), "tracer": "dda",
-                               "max_steps": steps, "stride": stride, "gpu_ms": t["gpu_ms"],
-                               "grays_s": t["rays_per_s"] / 1e9, "steps_mean": t["mean_steps"],
-                               "max_steps_reached": t["max_steps_reached"],
-                               "hit_share": float((res.status == 1).mean()),
-                               "status_agrees_with_quadtree": float((res.status == lossless).mean()),
-                               "pixel_agrees_with_quadtree": pixel_agreement(res.status, res.pixel, lossless,
-                                                                             lossless_pixel)}
+                        row = baseline_row("dda", res, max_steps=steps, stride=stride, gpu_ms=t["gpu_ms"],
+                                           grays_s=t["rays_per_s"] / 1e9, steps_mean=t["mean_steps"],
+                                           max_steps_reached=t["max_steps_reached"])
                         rows.append(row)
                         if progress:
                             print(f"  {name:8s} dda steps {steps} stride {stride:g}: {row['grays_s']:.2f} GRays/s, "
@@ -203,17 +207,13 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), repeat=1
                             t = hiz.time(rig, o, d, eye=0, start_level=start, max_iterations=iters, skip_origin=True,
                                          repeats=repeat)
                             res = hiz.trace(o, d, eye=0, start_level=start, max_iterations=iters, skip_origin=True)
-                            row = {"scene": name, "size": f"2x{size[0]}x{size[1]}", "rays": len(o), "tracer": "hiz",
-                                   "max_iterations": iters, "start_level": start,
-                                   "build_ms_per_layer": t["build"]["ms"] / 2, "gpu_ms": t["trace"]["ms"],
-                                   "gpu_ms_min": t["trace"]["gpu_ms_min"], "gpu_ms_max": t["trace"]["gpu_ms_max"],
-                                   "grays_s": t["rays_per_s"] / 1e9, "iterations_mean": t["mean_iterations"],
-                                   "iterations_p99": float(np.percentile(res.iterations, 99)),
-                                   "max_iterations_reached": t["max_iterations_reached"],
-                                   "hit_share": float((res.status == 1).mean()),
-                                   "status_agrees_with_quadtree": float((res.status == lossless).mean()),
-                                   "pixel_agrees_with_quadtree": pixel_agreement(res.status, res.pixel, lossless,
-                                                                                 lossless_pixel)}
+                            row = baseline_row(
+                                "hiz", res, max_iterations=iters, start_level=start,
+                                build_ms_per_layer=t["build"]["ms"] / 2, gpu_ms=t["trace"]["ms"],
+                                gpu_ms_min=t["trace"]["gpu_ms_min"], gpu_ms_max=t["trace"]["gpu_ms_max"],
+                                grays_s=t["rays_per_s"] / 1e9, iterations_mean=t["mean_iterations"],
+                                iterations_p99=float(np.percentile(res.iterations, 99)),
+                                max_iterations_reached=t["max_iterations_reached"])
                             rows.append(row)
                             if progress:
                                 print(f"  {name:8s} hiz iterations {iters}: build {row['build_ms_per_layer']:.3f} "
