@@ -36,8 +36,8 @@ import numpy as np
 
 from .. import shaders
 from ..gpu_layout import SSBO
-from .quadtree import (ScreenCamera, dispatch_per_ray, pack_screen_rays, Trace, encode_aabbs, encode_planes, level_offsets, level_sizes,
-                       screen_ray, set_level_uniforms, time_build_and_trace)
+from .quadtree import (ScreenCamera, Trace, encode_aabbs, encode_planes, level_offsets, level_sizes,
+                       screen_ray, set_level_uniforms, time_build_and_trace, trace_screen_rays)
 
 HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4   # HIZ_HIT ... HIZ_NONE in glsl/ssrt/hiz.glsl (same as DDA_*, QT_*)
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
@@ -274,19 +274,9 @@ class HizTracer:
               skip_origin: bool = False) -> HizResult:
         """Trace scene-local rays in layer `eye` (an int or one per ray). skip_origin: start where
         each ray leaves its origin's pixel (reflection rays, as the DDA does)."""
-        rays = pack_screen_rays(origins, directions, eye)
-        n = len(rays)
-        rbuf = self.ctx.buffer(rays.tobytes() if n else b"\0" * 32)
-        obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
-        try:
-            self._bind(rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin)
-            if n:
-                dispatch_per_ray(self.program, n)
-            self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
-            out = np.frombuffer(obuf.read(), np.uint32).reshape(-1, 8)[:n]
-        finally:
-            rbuf.release()
-            obuf.release()
+        out = trace_screen_rays(
+            self.ctx, self.program, origins, directions, eye,
+            lambda rbuf, obuf, n: self._bind(rbuf, obuf, n, start_level, max_iterations, thickness, skip_origin))
         return HizResult(out[:, 0].copy(), out[:, 1].copy(), out[:, 2:4].view(np.int32).copy(),
                          out[:, 4:7].view(f32).copy())
 

@@ -49,6 +49,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import moderngl
 import numpy as np
 
 from ..gpu_layout import SSRT_RAY_GROUP
@@ -103,6 +104,25 @@ def dispatch_per_ray(program, n: int) -> None:
     groups = -(-n // SSRT_RAY_GROUP)
     gx = min(groups, 65535)
     program.run(gx, -(-groups // gx), 1)
+
+
+def trace_screen_rays(ctx, program, origins, directions, eye, bind) -> np.ndarray:
+    """Run a screen-space tracer once: the rays packed and uploaded, `bind(rays, results, n)`,
+    one invocation per ray, the results read back as (N, 8) uint32 words (the quadtree's and
+    Hi-Z's result layout: status, count, pixel x y, point xyz, layer)."""
+    rays = pack_screen_rays(origins, directions, eye)
+    n = len(rays)
+    rbuf = ctx.buffer(rays.tobytes() if n else b"\0" * 32)
+    obuf = ctx.buffer(reserve=max(n, 1) * 32)
+    try:
+        bind(rbuf, obuf, n)
+        if n:
+            dispatch_per_ray(program, n)
+        ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+        return np.frombuffer(obuf.read(), np.uint32).reshape(-1, 8)[:n]
+    finally:
+        rbuf.release()
+        obuf.release()
 
 
 def time_build_and_trace(ctx, program, origins, directions, eye, build, bind, repeats: int,
@@ -745,7 +765,7 @@ def trace_layers_brute_force(layer_leaves, cam: ScreenCamera, origin, direction,
     return LayeredTrace(ray.end, -1, (-1, -1), _end_point(ray), tested)
 
 
-__all__ = ["time_build_and_trace", "HIT", "OFFSCREEN", "NEAR", "NONE", "STATUS_NAMES", "level_sizes", "level_offsets", "quadtree_bytes",
+__all__ = ["trace_screen_rays", "time_build_and_trace", "HIT", "OFFSCREEN", "NEAR", "NONE", "STATUS_NAMES", "level_sizes", "level_offsets", "quadtree_bytes",
            "ScreenCamera", "encode_planes", "encode_aabbs", "decode", "leaf_planes", "build_reference",
            "flatten", "unflatten", "screen_ray", "trace_heightfield_reference", "trace_quadtree_reference",
            "trace_layers", "trace_layers_brute_force", "LayeredTrace", "OCCLUDED", "Trace", "ScreenRay", "plane_normals", "node_rects"]

@@ -16,8 +16,8 @@ import moderngl
 import numpy as np
 
 from .. import shaders
-from ..accel.quadtree import (MAX_LEVELS, dispatch_per_ray, level_offsets, level_sizes, pack_screen_rays, quadtree_bytes,
-                              set_level_uniforms, unflatten, time_build_and_trace)
+from ..accel.quadtree import (MAX_LEVELS, level_offsets, level_sizes, quadtree_bytes,
+                              set_level_uniforms, unflatten, time_build_and_trace, trace_screen_rays)
 from ..frame import Buffer, FramePlan, Pass, read, write
 from ..gpu_layout import SSBO, UNIT
 from .compute import camera_defines, set_eye_uniforms
@@ -218,18 +218,8 @@ class QuadtreeTracer:
                      start_level: int = MAX_LEVELS):
         """qt_trace_layers through `layers` depth layers with slabs of relative `thickness`, walks
         starting on `start_level`: what trace() returns, and the depth layer hit (N,) int32 (-1 for none)."""
-        rays = pack_screen_rays(origins, directions, eye)
-        n = len(rays)
-        rbuf = self.ctx.buffer(rays.tobytes())
-        obuf = self.ctx.buffer(reserve=max(n, 1) * 32)
-        try:
-            self._bind(rbuf, obuf, n, layers, thickness, start_level)
-            dispatch_per_ray(self.program, n)
-            self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
-            out = np.frombuffer(obuf.read(), np.uint32).reshape(-1, 8)[:n]
-        finally:
-            rbuf.release()
-            obuf.release()
+        out = trace_screen_rays(self.ctx, self.program, origins, directions, eye,
+                                lambda rbuf, obuf, n: self._bind(rbuf, obuf, n, layers, thickness, start_level))
         return (out[:, 0].copy(), out[:, 1].copy(), out[:, 2:4].view(np.int32).copy(),
                 out[:, 4:7].view(np.float32).copy(), out[:, 7].view(np.int32).copy())
 
