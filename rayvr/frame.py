@@ -615,11 +615,14 @@ class FrameContext:
         if self.profiler is None:
             fn()
             return
-        name = f"{self.current_pass}.{kernel}" if kernel else self.current_pass
-        if self.round.index:
-            name += f"#{self.round.index}"
-        if name not in self.stage_names:
-            self.stage_names.append(name)
+        base = f"{self.current_pass}.{kernel}" if kernel else self.current_pass
+        # A kernel run again in this frame (each batch, bounce, chunk, round) gets its own query
+        # ("name#k"); read_ms sums them under the base name.
+        name = base
+        repeat = sum(1 for n in self.stage_names if n.split("#")[0] == base)
+        if repeat:
+            name += f"#{repeat}"
+        self.stage_names.append(name)
         self.profiler.run(name, fn)
 
 

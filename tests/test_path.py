@@ -190,3 +190,18 @@ def test_path_is_deterministic_per_seed(gl):
     for e in ("left", "right"):
         assert np.array_equal(a[e].aux["hdr"], b[e].aux["hdr"])
         assert not np.array_equal(a[e].aux["hdr"], c[e].aux["hdr"])
+
+
+def test_a_profiled_frame_times_every_bounce_of_a_kernel(gl):
+    """Each bounce runs the `closest` kernel again: every run gets its own timer query and read_ms
+    sums them (one shared query kept only the last run: rt_glossy's last, empty batch read 0.01 ms)."""
+    rig = StereoRig(Pose.look_at((0.0, 1.2, 1.6), (0.0, 0.0, -1.2)), ipd=0.064, fov_y=50, size=(24, 18))
+    cfg = {"default": "path", "params": {"path": {"bounces": 3}}}
+    with Renderer(lamp_scene(True), parse_config(cfg, "<test>"), gl=gl, settings=RenderSettings(**DARK)) as r:
+        fc = r.record(rig, "both", "color", profile=True)
+        names = [n for n in fc.stage_names if n.split("#")[0] == "rt_path.closest"]
+        ms = r.read_ms(fc)
+        each = r.graph.kernel_timer.read_ms(names, fc.timer_slot)
+    assert len(names) == 3 and len(set(names)) == 3
+    assert ms["rt_path.closest"] == pytest.approx(sum(each.values()))
+    assert ms["rt_path.closest"] > max(each.values())

@@ -8,7 +8,7 @@ import moderngl
 import numpy as np
 
 from .. import shaders
-from ..accel.gpu import DEFAULT_BINDING, GpuBvh
+from ..accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effects.photon import PhotonPass, photon_setup
 from ..frame import Buffer, FramePlan, read, write
 from ..gpu_layout import SSBO, UNIT
@@ -60,7 +60,9 @@ class PhotonTracePass(PhotonPass):
                 write("photon_trace.lights", Buffer(lambda s: 16 * max(len(s.scene.lights), 1), "16 B per light"))]
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.program = shaders.compute(gl.ctx, "photon/trace.comp", GpuBvh.defines(DEFAULT_BINDING))
+        # photon paths are closest-hit rays like reflections: the plan's layout for that ray kind
+        self.layout = plan.traversal[2]
+        self.program = shaders.compute(gl.ctx, "photon/trace.comp", layout_defines(DEFAULT_BINDING, self.layout))
 
     def execute(self, fc) -> None:
         ps = photon_setup(fc.sizing)
@@ -68,7 +70,7 @@ class PhotonTracePass(PhotonPass):
         lights.write(light_table(fc.scene, ps.paths, ps.sphere[3]).tobytes())
         fc.gpu_scene.bind()
         fc.gpu_scene.textures.use(UNIT["base_color_textures"])
-        fc.accel.gpu.bind(DEFAULT_BINDING)
+        fc.accel.layout(self.layout).bind(DEFAULT_BINDING)
         lights.bind_to_storage_buffer(SSBO["photon_lights"])
         fc.resource("photons").bind_to_storage_buffer(SSBO["photons"])
         p = self.program
