@@ -411,12 +411,17 @@ def _layouts(text: str) -> tuple[str, ...]:
     return names
 
 
-def _primary_configs(text: str) -> tuple[str, ...]:
-    from .bench.primary import CONFIGS
-
+def _names(text: str) -> tuple[str, ...]:
     names = tuple(x.strip() for x in text.split(",") if x.strip())
-    if not names or any(x not in CONFIGS for x in names):
-        raise argparse.ArgumentTypeError(f"primary configs must be among {', '.join(CONFIGS)}, got {text!r}")
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
+    return names
+
+
+def _bench_configs(area: str, names, allowed) -> tuple[str, ...] | None:
+    """`--configs` of bench `area`, checked against its `allowed` names (None: not given)."""
+    if names is not None and any(x not in allowed for x in names):
+        raise ValueError(f"bench {area} --configs must be among {', '.join(allowed)}, got {','.join(names)!r}")
     return names
 
 
@@ -481,7 +486,7 @@ def cmd_bench(args) -> int:
                     repeat=2 if quick else args.repeat // 2, warmup=1 if quick else 3, counts=counts,
                     ssaa=(args.msaa,) if args.ssaa and args.msaa else () if quick else (4,),
                     custom=(camera_from_args(args), args.fov) if custom else None, backend=args.backend,
-                    **({"configs": args.configs} if args.configs else {}))
+                    **({"configs": _bench_configs("primary", args.configs, primary.CONFIGS)} if args.configs else {}))
     elif args.area == "peers":
         from .bench import peers
 
@@ -500,6 +505,14 @@ def cmd_bench(args) -> int:
         photon.run(out, size=(32, 24) if quick else args.size,
                    scenes=("default",) if quick else tuple(args.scenes.split(",")),
                    repeat=1 if quick else max(1, args.repeat // 5), quick=quick, backend=args.backend)
+    elif args.area == "gi":
+        from .bench import gi
+
+        gi.run(out, size=(32, 24) if quick else args.size,
+               scenes=("default",) if quick else tuple(args.scenes.split(",")),
+               repeat=1 if quick else max(1, args.repeat // 5), warmup=1 if quick else 3, quick=quick,
+               parts=_bench_configs("gi", args.configs, gi.PARTS) or gi.PARTS, reference_spp=args.reference_spp,
+               reference_photons=args.reference_photons, backend=args.backend)
     elif args.area == "stereo":
         from .bench import stereo
 
@@ -662,12 +675,14 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
-    b.add_argument("area", choices=("gbuffer", "rays", "primary", "ssrt", "photon", "stereo", "peers", "tradeoff",
+    b.add_argument("area", choices=("gbuffer", "rays", "primary", "ssrt", "photon", "gi", "stereo", "peers", "tradeoff",
                                     "budget", "crosscheck", "workers"),
                    help="gbuffer: layered stereo vs mono G-buffer ms; rays: rays/s vs Embree and the hybrid "
                         "frame; primary: ray-cast primary visibility per camera model and sub-rays per sample "
                         "(ms per pass, sub-rays/s) against the raster G-buffer; ssrt: quadtree screen-space tracing vs the DDA baseline; photon: the photon-mapping paper's "
-                        "tables (kd-tree vs hash grid, heap vs no heap: ms per pass, FLIP); stereo: the stereo modes dual, warp, "
+                        "tables (kd-tree vs hash grid, heap vs no heap: ms per pass, FLIP); gi: issue 11's global "
+                        "illumination figures (the photon tables over 128²-512² x 0.02-0.2 m, Table 5 dual vs reuse, "
+                        "path at 1/4/16 spp with and without the denoiser; targets met or missed); stereo: the stereo modes dual, warp, "
                         "reuse (ms per pass, FLIP against dual, holes); peers: frames/s against pyrender; "
                         "tradeoff: every knob's GPU ms vs error against the reference; budget: effects per "
                         "material chosen under --budget-ms; crosscheck: the reference vs Mitsuba 3 on the Cornell boxes; "
@@ -688,9 +703,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--frames", type=FRAMES, default=64, help="workers: frames of the capture path (default 64)")
     b.add_argument("--backend", choices=("egl", "osmesa"))
     b.add_argument("--fov", type=FOV, help="primary: vertical field of view of the --camera-model row")
-    b.add_argument("--configs", type=_primary_configs,
+    b.add_argument("--configs", type=_names,
                    help="primary: the rows to measure, comma-separated (default all: raster_gbuffer, pinhole, "
-                        "distorted, distorted_chromatic, foveated, wide_210x130, dof_near, dof_mid, dof_far)")
+                        "distorted, distorted_chromatic, foveated, wide_210x130, dof_near, dof_mid, dof_far); "
+                        "gi: the parts to measure (default all: photon, reuse, path)")
+    b.add_argument("--reference-spp", type=_count(16, 1 << 16),
+                   help="gi: samples per pixel of the path reference (default 1024; --quick 64)")
+    b.add_argument("--reference-photons", type=_count(256, 1 << 22),
+                   help="gi: photon paths of the photon tables' reference (default 4194304; --quick 32768)")
     b.add_argument("--counts", type=_sample_counts,
                    help="primary: sub-rays per sample to measure, comma-separated (default 1,4,8,16,32)")
     add_camera_arguments(b, msaa_default=None)

@@ -192,3 +192,25 @@ def test_map_seed_changes_the_photon_map_not_the_direct_light(gl):
         assert (img - direct)[mask].min() >= -tol  # the same direct light, plus indirect light
         assert (img - direct)[mask].mean() > 0.01 * direct[mask].mean()
     assert (maps[0] - other_direct)[mask].min() < -100 * tol  # another frame seed: other shadow samples
+
+
+def test_kdtree_is_built_again_only_for_other_photons(renderer, monkeypatch):
+    """passes/photon_kdtree.py keeps its tree while the photons stay the same (a still view: the
+    bench times many frames of one map), and builds it again when they change: what it uploads is
+    always the tree of this frame's photons."""
+    from rayvr.passes import photon_kdtree
+
+    builds, build = [], photon_kdtree.kdtree_records
+
+    def counted(raw):
+        builds.append(1)
+        return build(raw)
+
+    monkeypatch.setattr(photon_kdtree, "kdtree_records", counted)
+    few = 1 << 13
+    for seed, built in ((0, 1), (0, 1), (1, 2)):
+        render(renderer, estimator=2, seed=seed, photons=few)
+        want = build(renderer.resource("photons").read()).ravel()
+        tree = np.frombuffer(renderer.resource("photon_kdtree").read(), np.uint32)
+        assert len(builds) == built
+        assert np.array_equal(tree[:want.size], want)

@@ -183,8 +183,9 @@ def _check(name: str, result) -> None:
         raise TypeError("result['rows'] must be a list of dicts")
 
 
-def write_report(out_dir, name: str, result: dict, plots: list[dict] | None = None) -> dict:
-    """Write ``name.json``, ``name.md`` and the requested plots under `out_dir`.
+def write_report(out_dir, name: str, result: dict, plots: list[dict] | None = None, md: str | None = None) -> dict:
+    """Write ``name.json``, ``name.md`` (`md`, or the meta and rows as a table) and the requested
+    plots under `out_dir`.
 
     Each plot spec is ``{"x": col, "y": col, "group": col (optional), "title": str (optional),
     "pareto": bool (optional), "logx"/"logy": bool (optional), "file": stem (optional)}``; the
@@ -201,8 +202,8 @@ def write_report(out_dir, name: str, result: dict, plots: list[dict] | None = No
     text = json.dumps(data, indent=2, allow_nan=False) + "\n"
     paths: dict = {"json": out / f"{name}.json", "md": out / f"{name}.md", "plots": []}
     _atomic_write(paths["json"], lambda f: f.write(text.encode()))
-    md = markdown(name, result)
-    _atomic_write(paths["md"], lambda f: f.write(md.encode()))
+    text_md = markdown(name, result) if md is None else md
+    _atomic_write(paths["md"], lambda f: f.write(text_md.encode()))
 
     if plots:
         try:
