@@ -161,7 +161,8 @@ def kept_rows(path: Path, meta: dict, measured: set) -> tuple[list, dict]:
     om = old.get("meta", {}) if isinstance(old, dict) else {}
     if any(om.get(k) != meta.get(k) for k in ("gl_renderer", "gl_version", "per_eye_size", "quick")):
         return [], {}
-    rows = [r for r in old.get("rows", []) if isinstance(r, dict) and (r.get("part"), r.get("scene")) not in measured]
+    rows = [r for r in old.get("rows", []) if isinstance(r, dict) and r.get("part") in PARTS
+            and (r.get("part"), r.get("scene")) not in measured]
     return rows, (om.get("parts") or {}) if rows else {}
 
 
@@ -266,7 +267,7 @@ def targets(rows: list) -> list:
                                                  (f"> {DENOISE_EXTRA_MS:g} ms extra", not cheap)) if bad)
                 out.append((f"denoised 1 spp: lower FLIP than undenoised {max(SPP)} spp, ≤ {DENOISE_EXTRA_MS:g} ms extra",
                             r["scene"], f"FLIP {r['flip']:.4f} vs {sixteen['flip']:.4f}, "
-                                        f"+{r['denoise_extra_ms']:.2f} ms", _verdict(lower and cheap, why)))
+                                        f"{r['denoise_extra_ms']:+.2f} ms", _verdict(lower and cheap, why)))
         if r.get("part") == "reuse" and r["mode"] == "reuse":
             share, flip = r["second_eye_share"], r["flip_vs_dual_right"]
             ok_share, ok_flip = share is not None and share <= REUSE_SHARE, flip <= REUSE_FLIP

@@ -9,8 +9,8 @@ gi` measures issue 11's full grid, GRID, through `scene_rows` here):
 Each row: GPU ms per pass from GL timer queries after the frame times settle -- photon_trace,
 build (photon_cells + photon_scan: cell keys, counts, start indices), sort (photon_sort), query
 (the density estimate: the rt_photon pass's pixel kernel), the whole rt_photon pass, the frame --
-and the photon map's cost `map_ms` = trace + build + sort + query (kd-tree: trace + its upload +
-query, its CPU build apart), apart from `shadow_ms`, the direct light's shadow rays (rt_photon's
+and the photon map's cost `map_ms` = trace + build + sort + query (kd-tree: trace + query, its
+CPU build apart), apart from `shadow_ms`, the direct light's shadow rays (rt_photon's
 shadow kernels, which every effect with shadows pays); the kd-tree's CPU build (wall ms, photons
 read back included), and the error: mean FLIP over the
 photon pixels of both eyes against a many-photon reference (REFERENCE_PHOTONS paths, grid,
@@ -72,7 +72,8 @@ def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
     """GPU ms per pass (median over `repeat` frames after warm-up) and per kernel of rt_photon,
     the stereo colour image and the photon pixels' mask, with the renderer `r` set to `cfg` and
     `seed` (one renderer per scene: the programs are built once, every setting has the same frame
-    graph). A setting whose first frame takes over SLOW_FRAME_MS is timed on that frame alone.
+    graph). A setting whose first frame takes over SLOW_FRAME_MS is timed on that frame alone (and
+    its kernels on one more).
     A kd-tree setting builds its tree on the CPU once (passes/photon_kdtree.py keeps it while the
     photons stay the same); kd_cpu_ms times one such build."""
     from .rays import time_effect_stages
@@ -91,7 +92,7 @@ def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
     for t in runs:
         for k, v in t.items():
             ms.setdefault(k, []).append(v)
-    stages = {} if slow else time_effect_stages(r, rig, repeat=1 if r.gl.is_software else min(repeat, 5))
+    stages = time_effect_stages(r, rig, repeat=1 if slow or r.gl.is_software else min(repeat, 5))
     kd_cpu = None
     if kd:
         from ..passes.photon_kdtree import kdtree_records
@@ -147,8 +148,9 @@ def row(name, size, photons, radius, estimator, m, ref) -> dict:
            "kd_cpu_build_ms": m["kd_cpu_ms"], "frame_ms": float(sum(ms.values())), "frames_timed": m["frames"],
            "visited": m["visited"], "accepted": m["accepted"]}
     out["photon_ms"] = sum(v or 0.0 for k, v in out.items() if k in ("trace_ms", "build_ms", "sort_ms", "rt_photon_ms"))
-    # the photon map's cost: what its estimator runs (the kd-tree's CPU build is apart: kd_cpu_build_ms)
-    parts = ("trace_ms", "kd_upload_ms", "query_ms") if kd else ("trace_ms", "build_ms", "sort_ms", "query_ms")
+    # the photon map's GPU cost: what its estimator runs; the kd-tree's CPU build is apart (kd_cpu_build_ms;
+    # its pass's timer, kd_upload_ms, also spans the GPU waiting for the photons' readback)
+    parts = ("trace_ms", "query_ms") if kd else ("trace_ms", "build_ms", "sort_ms", "query_ms")
     out["map_ms"] = None if any(out[k] is None for k in parts) else sum(out[k] for k in parts)
     out["flip"] = metrics.flip(ref["image"], m["image"], mask=ref["mask"]) if ref["mask"].any() else None
     return out
@@ -207,7 +209,7 @@ def meta(gl, size, repeat, skipped, ref_photons) -> dict:
             "times": "GPU ms from GL timer queries (median of the timed frames after warm-up); build = "
                      "photon_cells + photon_scan; query = the rt_photon pixel kernel (the density estimate and "
                      "the direct light's setup); shadow = rt_photon's shadow kernels (the direct light's "
-                     "shadow rays); map = trace + build + sort + query (kd-tree: trace + upload + query); "
+                     "shadow rays); map = trace + build + sort + query (kd-tree: trace + query; its CPU build apart); "
                      "kd_cpu_build_ms = wall ms of the CPU kd-tree build"}
 
 
