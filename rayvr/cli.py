@@ -478,15 +478,19 @@ def cmd_bench(args) -> int:
     elif args.area == "primary":
         from .bench import primary
 
-        # A --camera-model / --camera-param / --fov given: that camera (and the raster reference) only.
+        # A --camera-model / --camera-param / --fov given: that camera (and the raster reference) only;
+        # any subset (that, --configs, --counts, --msaa): the bench views' rows alone, not Table 5's.
         custom = args.camera_model != "pinhole" or args.camera_param or args.fov is not None
-        counts = args.counts or ((args.msaa,) if args.msaa else (1, 4) if quick else primary.SAMPLE_COUNTS)
+        subset = custom or args.configs or args.counts or args.msaa
+        counts = args.counts or ((args.msaa,) if args.msaa else (1, 4) if quick else None)
         primary.run(out, size=(32, 24) if quick else args.size,
                     scenes=("default",) if quick else tuple(args.scenes.split(",")),
                     repeat=2 if quick else args.repeat // 2, warmup=1 if quick else 3, counts=counts,
                     ssaa=(args.msaa,) if args.ssaa and args.msaa else () if quick else (4,),
                     custom=(camera_from_args(args), args.fov) if custom else None, backend=args.backend,
-                    **({"configs": _bench_configs("primary", args.configs, primary.CONFIGS)} if args.configs else {}))
+                    configs=_bench_configs("primary", args.configs, primary.CONFIGS),
+                    suites=("views",) if subset else primary.SUITES,
+                    table5_size=(24, 16) if quick else primary.TABLE5_SIZE, tiles=not args.no_tiles)
     elif args.area == "peers":
         from .bench import peers
 
@@ -696,7 +700,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--layouts", type=_layouts, default=tuple(BVH_LAYOUTS),
                    help=f"rays: BVH node layouts to measure, comma-separated (default {','.join(BVH_LAYOUTS)}; "
                         f"bvh2, the reference, always runs)")
-    b.add_argument("--no-tiles", action="store_true", help="rays: leave out the tile frustum culling variant")
+    b.add_argument("--no-tiles", action="store_true", help="rays, primary: leave out the tile frustum culling variant")
     b.add_argument("--workers", type=_worker_counts, help="tradeoff/budget: spread the variants over N Ray workers; "
                    "workers: the worker counts to time (default 1,2); needs pip install 'rayvr[cluster]'")
     b.add_argument("--address", help="with --workers: an existing Ray cluster, 'auto' or HOST:PORT")
@@ -704,15 +708,16 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--backend", choices=("egl", "osmesa"))
     b.add_argument("--fov", type=FOV, help="primary: vertical field of view of the --camera-model row")
     b.add_argument("--configs", type=_names,
-                   help="primary: the rows to measure, comma-separated (default all: raster_gbuffer, pinhole, "
-                        "distorted, distorted_chromatic, foveated, wide_210x130, dof_near, dof_mid, dof_far); "
-                        "gi: the parts to measure (default all: photon, reuse, path)")
+                   help="primary: the bench views' rows to measure, comma-separated, alone (default: the paper's "
+                        "Table 5 rows at 2160x1200, then raster_gbuffer, pinhole at --size; among raster_gbuffer, "
+                        "pinhole, distorted, distorted_chromatic, foveated, wide_210x130, dof_0.5m, dof_0.25m, "
+                        "dof_0.1m); gi: the parts to measure (default all: photon, reuse, path)")
     b.add_argument("--reference-spp", type=_count(16, 1 << 16),
                    help="gi: samples per pixel of the path reference (default 1024; --quick 64)")
     b.add_argument("--reference-photons", type=_count(256, 1 << 22),
                    help="gi: photon paths of the photon tables' reference (default 4194304; --quick 32768)")
     b.add_argument("--counts", type=_sample_counts,
-                   help="primary: sub-rays per sample to measure, comma-separated (default 1,4,8,16,32)")
+                   help="primary: sub-rays per sample of the bench views' rows, comma-separated (default 1,4,16)")
     add_camera_arguments(b, msaa_default=None)
     b.set_defaults(func=cmd_bench)
 

@@ -45,7 +45,8 @@ def test_bench_primary_reports_each_model_and_sub_ray_count(tmp_path):
     from rayvr.bench import primary
 
     result = primary.run(tmp_path, size=(16, 12), scenes=("default",), repeat=1, warmup=1, counts=(1, 4), ssaa=(),
-                         configs=("raster_gbuffer", "distorted_chromatic"), progress=False)
+                         configs=("raster_gbuffer", "distorted_chromatic"), progress=False, suites=("views",),
+                         tiles=False)
     rows = {(r["config"], r["sub_rays_per_sample"]): r for r in result["rows"]}
     assert set(rows) == {("raster_gbuffer", 1), ("distorted_chromatic", 1), ("distorted_chromatic", 4)}
     assert rows["distorted_chromatic", 4]["sub_rays"] == 2 * 16 * 12 * 4 * 3  # both eyes, 3 channel sets
@@ -53,6 +54,48 @@ def test_bench_primary_reports_each_model_and_sub_ray_count(tmp_path):
     assert rows["distorted_chromatic", 4]["rounds"] >= 3  # at least one shading round per channel set
     meta = json.loads((tmp_path / "primary.json").read_text())["meta"]
     assert meta["bench"] == "primary" and meta["gl_renderer"]
+
+
+def test_bench_primary_table5_rows_are_written_one_by_one(tmp_path, monkeypatch):
+    """Table 5's rows in the paper's order, each written (JSON and markdown) as soon as it is
+    measured: a run cut short keeps them. Its pinhole rows carry the standalone trace of the
+    camera's rays without and with tile culling, which agree."""
+    from rayvr.bench import primary
+
+    done, real = [], primary.time_frame
+
+    def cut_after_three(*args, **kwargs):
+        if len(done) == 3:
+            raise KeyboardInterrupt  # a time limit
+        done.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(primary, "time_frame", cut_after_three)
+    with pytest.raises(KeyboardInterrupt):
+        primary.run(tmp_path, scenes=("default",), repeat=1, warmup=1, suites=("table5",), table5_size=(16, 8),
+                    progress=False)
+    rows = json.loads((tmp_path / "primary.json").read_text())["rows"]
+    assert [(r["config"], r["sub_rays_per_sample"]) for r in rows] == list(primary.TABLE5[:3])
+    assert all(r["size"] == "2x16x8" and r["suite"] == "table5" for r in rows)
+    assert rows[2]["sub_rays"] == 2 * 16 * 8 * 8 and rows[2]["rounds"] >= 1
+    assert rows[1]["tiles_agree"] == 1.0 and rows[1]["trace_rays"] == 2 * 16 * 8
+    assert "| pinhole |" in (tmp_path / "primary.md").read_text()
+
+
+def test_bench_primary_marks_each_target_met_or_missed():
+    from rayvr.bench.primary import targets
+
+    def row(scene, config, n, rate=None, vis=1.0, suite="views"):
+        return {"suite": suite, "scene": scene, "config": config, "sub_rays_per_sample": n, "shading": "msaa",
+                "size": "2x8x8", "sub_grays_s": rate, "visibility_ms": vis, "primary_ms": vis, "rounds": 2,
+                "total_ms": vis}
+    got = targets([row("room", "raster_gbuffer", 1, vis=1.5), row("room", "pinhole", 1, 4.5),
+                   row("room", "pinhole", 4, 9.0, vis=1.4), row("room", "pinhole", 16, 9.9),
+                   row("sponza", "raster_gbuffer", 1, vis=2.0), row("sponza", "pinhole", 1, 3.9),
+                   row("sponza", "pinhole", 4, 4.0, vis=2.5)])
+    verdicts = {k.split(" (")[0].split(":")[0]: v.split(":")[0] for k, v in got.items()}
+    assert verdicts == {"coherent primary rays >= 4 GRays/s on every bench view": "MISSED",  # sponza 3.9
+                        ">= 10 G sub-rays/s at 16x": "MISSED", "room": "met", "sponza": "MISSED"}
 
 
 def test_bench_primary_measures_only_the_rows_asked_for(tmp_path):

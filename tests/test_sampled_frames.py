@@ -153,6 +153,49 @@ def test_msaa_frames_run_one_shading_round_per_distinct_triangle(gl, room):
     assert set(timings) >= {"primary_rays", "gbuffer", "shade", "sample_accumulate", "sample_resolve", "tonemap"}
 
 
+@pytest.mark.parametrize("n", [4, 32])
+def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n):
+    """The MSAA trace (one invocation per sub-ray, merged per pixel in shared memory; a 30x22 image
+    leaves partial pixel blocks) against passes/primary_rays.msaa_lists over numpy traces of the
+    model's own sub-rays: the same distinct triangles, coverage masks, counts and order; the
+    representative sub-ray is one nearest its mask's mean offset, its distance that sub-ray's."""
+    from rayvr.cameras.sampling import subsamples
+    from rayvr.passes.primary_rays import msaa_lists
+
+    w, h, slots = 30, 22, min(n, 8)
+    rig = StereoRig(ROOM_POSE, ipd=0.064, fov_y=90, size=(w, h), near=1e-3)
+    with Renderer(room, gl=gl, settings=RenderSettings(msaa=n)) as r:
+        r.record(rig)
+        r.gl.ctx.finish()
+        got = np.frombuffer(r.resource("msaa_hits").read(), np.uint32).reshape(slots, 2, h, w, 4)
+    bvh = build_bvh(room.vertices, room.indices)
+    offsets, _ = subsamples(n)
+    for e, eye in enumerate(rig.eyes()):
+        tris, ts = [], []
+        for i in range(n):  # numpy's traversal of sub-ray i of every pixel, GL rows (bottom-up) as the GPU's
+            rays = Pinhole().rays(eye, 0, (i, n))
+            prim, t, _, _ = trace_reference(bvh, (rays.origins - room.origin).reshape(-1, 3),
+                                            rays.directions.reshape(-1, 3), tmin=1e-4)
+            tris.append(np.asarray(prim, np.uint32).reshape(h, w)[::-1])
+            ts.append(np.asarray(t, np.float32).reshape(h, w)[::-1])
+        ref = msaa_lists(np.stack(tris, -1), np.stack(ts, -1), offsets, slots)
+        mine = got[:, e]
+        count = (mine[0, ..., 2] >> 8) & 255
+        assert count.max() >= 2 and (count >= 1).all()  # edges in view; every pixel has its list
+        same = (mine[..., :2] == ref[..., :2]).all(axis=(0, -1)) & (mine[0, ..., 2] >> 8 == ref[0, ..., 2] >> 8)
+        assert same.mean() >= 0.97, same.mean()  # sub-rays grazing an edge may go either way
+        for y, x in zip(*np.nonzero(same)):
+            for k in range(count[y, x]):
+                tri, mask, meta, tbits = (int(v) for v in mine[k, y, x])
+                bits = [i for i in range(n) if mask >> i & 1]
+                dist = ((offsets[bits] - offsets[bits].mean(0)) ** 2).sum(1)
+                best = meta & 255
+                assert best in bits and dist[bits.index(best)] <= dist.min() + 1e-6
+                if tri != NO_HIT:
+                    t = np.frombuffer(np.uint32(tbits).tobytes(), np.float32)[0]
+                    np.testing.assert_allclose(t, ts[best][y, x], rtol=1e-4)
+
+
 # ------------------------------------------------------------- channels, lens, foveation
 
 def test_chromatic_channels_are_each_cast_on_their_own_rays(gl):

@@ -1,20 +1,38 @@
 """`rayvr bench primary`: ray-cast primary visibility per camera model and sub-ray count, against
 the raster G-buffer of the same view (the physical reference).
 
-Per scene (the benchmark views of rayvr/bench/scenes.py, both eyes of the stereo rig) and per row
-of CONFIGS x sub-ray counts: the frame (all-`raster` materials, so shading is one cheap pass and
-the figures are about visibility) is rendered through the Renderer's frame graph; GPU ms per pass
-are medians over `repeat` frames after a warm-up that lasts until frame times settle
-(rays.time_frame), and `primary_ms` is the primary-ray kernels alone (the MSAA `trace` kernel, or
-the `cast` kernel summed over the rounds), from frames timed kernel by kernel. `sub_rays` counts
-the camera rays a frame casts (samples x sub-rays x colour channel sets); `sub_grays_s` is
-sub_rays / primary_ms. MSAA frames shade once per pixel per distinct triangle: `rounds` is how many
-shading rounds the frame needed (the most distinct triangles any pixel saw, per channel set).
+Two suites, per scene (the benchmark views of rayvr/bench/scenes.py, both eyes of the stereo rig):
+- `table5`: the HVVR paper's Table 5 rows at its 2160x1200 (two 1080x1200 eyes): normal 8/16/32x,
+  pre-distorted 32x, post-distorted chromatic 16x and 32x, foveated 32x, wide 210x130 32x, thin-lens
+  DoF (3 mm lens) focused at 0.5, 0.25 and 0.1 m, 16x; beside the raster G-buffer and 1x pinhole rays.
+- `views`: the bench views at `size` per eye (2x1440x1600): CONFIGS x sub-ray counts (MSAA) and
+  SSAA 4x; `--configs/--counts` (or a `custom` camera) measure a subset of these alone.
+
+Per row, the frame (all-`raster` materials, so shading is one cheap pass and the figures are about
+visibility) is rendered through one Renderer per scene (the BVH built once); GPU ms per pass are
+medians over `repeat` frames after a warm-up that lasts until frame times settle (rays.time_frame),
+and `primary_ms` is the primary-ray kernels alone (the MSAA `trace` kernel, or the `cast` kernel
+summed over the rounds), from frames timed kernel by kernel. `sub_rays` counts the camera rays a
+frame casts (samples x sub-rays x colour channel sets); `sub_grays_s` is sub_rays / primary_ms.
+MSAA frames shade once per pixel per distinct triangle: `rounds` is how many shading rounds the
+frame needed (the most distinct triangles any pixel saw, per channel set). `visibility_ms` is what
+makes the G-buffer: `visibility` + `gbuffer` passes (raster), `primary_rays` + `gbuffer` summed over
+the rounds (rays).
+
+Tile frustum culling (accel/frustum.py) traces rays listed in a buffer (accel/gpu.py RayTracer); the
+frame's `primary_rays` pass makes its rays in the kernel and traces each from the BVH root, so culling
+does not apply to it. Each camera's central rays (one per sample, tile order) are therefore also
+traced on their own, without and with culling (`trace_grays_s`, `trace_tiles_grays_s`, `cull_ms`).
+
+The JSON and markdown are rewritten (atomically) after every row: a run cut short keeps its rows.
+The markdown's meta lists the issue's targets, each met or missed on the rows measured.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..accel.frustum import tile_order
+from ..accel.gpu import GpuBvh, RayTracer
 from ..camera import StereoRig
 from ..cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
 from ..cameras.sampling import SAMPLE_COUNTS
@@ -24,20 +42,26 @@ from .rays import time_frame
 from .report import device_meta, write_report
 from .scenes import bench_scenes
 
-# name -> (camera model, fov_y or None for the view's, primary visibility); the paper's Table 5
-# rows where rayvr has them: pinhole (rays, and the raster reference), pre-distorted (one set and
-# chromatic), foveated, wide 210x130, thin lens at three focus distances.
+# name -> (camera model, fov_y or None for the view's, primary visibility)
 CONFIGS = {
     "raster_gbuffer": (Pinhole(), None, "raster"),
     "pinhole": (Pinhole(), None, "rays"),
-    "distorted": (Distorted(coefficients=(0.22, 0.24, 0.0)), None, "rays"),
-    "distorted_chromatic": (Distorted(), None, "rays"),
+    "distorted": (Distorted(coefficients=(0.22, 0.24, 0.0)), None, "rays"),  # pre-distorted: one grid
+    "distorted_chromatic": (Distorted(), None, "rays"),  # post-distorted chromatic: a grid per channel set
     "foveated": (Foveated(), None, "rays"),
     "wide_210x130": (Wide(fov_x=210.0), 130.0, "rays"),
-    "dof_near": (ThinLens(aperture=0.02, focus=1.0), None, "rays"),
-    "dof_mid": (ThinLens(aperture=0.02, focus=4.0), None, "rays"),
-    "dof_far": (ThinLens(aperture=0.02, focus=16.0), None, "rays"),
+    "dof_0.5m": (ThinLens(aperture=0.0015, focus=0.5), None, "rays"),  # the paper's 3 mm lens
+    "dof_0.25m": (ThinLens(aperture=0.0015, focus=0.25), None, "rays"),
+    "dof_0.1m": (ThinLens(aperture=0.0015, focus=0.1), None, "rays"),
 }
+VIEW_CONFIGS = ("raster_gbuffer", "pinhole")  # the views suite's default rows
+VIEW_COUNTS = (1, 4, 16)
+TABLE5_SIZE = (1080, 1200)  # per eye: the paper's 2160 x 1200
+# (config, sub-rays per sample), in the paper's order
+TABLE5 = (("raster_gbuffer", 1), ("pinhole", 1), ("pinhole", 8), ("pinhole", 16), ("pinhole", 32),
+          ("distorted", 32), ("distorted_chromatic", 16), ("distorted_chromatic", 32), ("foveated", 32),
+          ("wide_210x130", 32), ("dof_0.5m", 16), ("dof_0.25m", 16), ("dof_0.1m", 16))
+SUITES = ("table5", "views")
 
 
 def samples_per_frame(rig: StereoRig) -> int:
@@ -56,55 +80,143 @@ def primary_kernel_ms(renderer, rig, repeat=5) -> tuple[float, int]:
     return float(np.median(ms)), rounds
 
 
-def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, counts=SAMPLE_COUNTS,
-        ssaa=(4,), configs=tuple(CONFIGS), custom=None, backend=None, progress=True) -> dict:
-    """`custom` = (camera model, fov_y or None): that camera instead of CONFIGS' (beside the raster
-    reference), as `rayvr bench primary --camera-model ... --camera-param ...` asks."""
+def central_rays(rig, origin):
+    """Both eyes' central camera rays (channel set 0), tile by tile (frustum.tile_order), GL rows;
+    a sample without a ray gets a zero direction (traced as nothing)."""
+    o, d = [], []
+    for eye in rig.eyes():
+        r = rig.camera.rays(eye, 0)
+        w, h = eye.size
+        dirs = np.where(r.valid[..., None], r.directions, 0.0)[::-1].reshape(-1, 3)
+        org = (np.broadcast_to(r.origins, dirs.reshape(h, w, 3).shape)[::-1] - origin).reshape(-1, 3)
+        order = tile_order(w, h)
+        o.append(org[order])
+        d.append(dirs[order])
+    return np.concatenate(o).astype(np.float32), np.concatenate(d).astype(np.float32)
+
+
+def tile_culling(gl, gpu_bvh, rig, origin, repeat) -> dict:
+    """The camera's central rays traced standalone (binary BVH) without and with tile culling."""
+    o, d = central_rays(rig, origin)
+    rt = RayTracer(gl.ctx, gpu_bvh)
+    plain = rt.time_trace(o, d, repeats=repeat)
+    culled = rt.time_trace(o, d, repeats=repeat, tiles=True)
+    same = float((rt.trace(o, d).prim == rt.trace(o, d, tiles=True).prim).mean())
+    return {"trace_rays": len(o), "trace_grays_s": plain["rays_per_s"] / 1e9,
+            "trace_tiles_grays_s": culled["rays_per_s"] / 1e9, "cull_ms": culled["cull_ms"], "tiles_agree": same}
+
+
+def targets(rows) -> dict:
+    """The issue's targets for this bench, each 'met'/'missed' with the figures, on the rows measured."""
+    out = {}
+
+    def verdict(ok, text):
+        return ("met: " if ok else "MISSED: ") + text
+
+    views = [r for r in rows if r["suite"] == "views"]
+    one = [r for r in views if r["config"] == "pinhole" and r["sub_rays_per_sample"] == 1 and r.get("sub_grays_s")]
+    if one:
+        worst = min(one, key=lambda r: r["sub_grays_s"])
+        out["coherent primary rays >= 4 GRays/s on every bench view (1x pinhole cast)"] = verdict(
+            worst["sub_grays_s"] >= 4.0, ", ".join(f"{r['scene']} {r['sub_grays_s']:.2f}" for r in one))
+    at16 = [r for r in rows if r.get("shading") == "msaa" and r["sub_rays_per_sample"] == 16
+            and r["config"] == "pinhole" and r.get("sub_grays_s")]
+    if at16:
+        out[">= 10 G sub-rays/s at 16x (pinhole MSAA trace)"] = verdict(
+            min(r["sub_grays_s"] for r in at16) >= 10.0,
+            ", ".join(f"{r['scene']} {r['size']} {r['sub_grays_s']:.2f}" for r in at16))
+    for r in views:
+        if r["config"] == "pinhole" and r["sub_rays_per_sample"] == 4 and r["shading"] == "msaa":
+            ref = next((x for x in views if x["scene"] == r["scene"] and x["config"] == "raster_gbuffer"), None)
+            if ref is not None:
+                out[f"{r['scene']}: 4x MSAA pinhole visibility <= 1x raster G-buffer"] = verdict(
+                    r["visibility_ms"] <= ref["visibility_ms"],
+                    f"{r['visibility_ms']:.3f} ms (primary_rays + gbuffer, {r['rounds']} rounds; trace alone "
+                    f"{r['primary_ms']:.3f}) vs {ref['visibility_ms']:.3f} ms (visibility + gbuffer); frames "
+                    f"{r['total_ms']:.3f} vs {ref['total_ms']:.3f} ms")
+    return out
+
+
+def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, counts=None,
+        ssaa=(4,), configs=None, custom=None, backend=None, progress=True, suites=SUITES,
+        table5_size=TABLE5_SIZE, tiles=True) -> dict:
+    """`configs`/`counts` (views suite rows; default VIEW_CONFIGS x VIEW_COUNTS); `custom` =
+    (camera model, fov_y or None): that camera instead (beside the raster reference), as
+    `rayvr bench primary --camera-model ... --camera-param ...` asks. `tiles`: also trace each
+    camera's central rays standalone without and with tile culling."""
     table = dict(CONFIGS)
     if custom is not None:
         table["custom"] = (custom[0], custom[1], "rays")
         configs = ("raster_gbuffer", "custom")
+    configs = configs or VIEW_CONFIGS
+    counts = counts or VIEW_COUNTS
+    plan = []  # (suite, per-eye size, config, sub-rays, shade every sub-ray)
+    if "table5" in suites:
+        plan += [("table5", tuple(table5_size), c, n, False) for c, n in TABLE5]
+    if "views" in suites:
+        for c in configs:
+            raster = table[c][2] == "raster"
+            plan += [("views", tuple(size), c, n, False) for n in ((1,) if raster else counts)]
+            plan += [("views", tuple(size), c, n, True) for n in ([] if raster else ssaa) if n > 1]
     gl = create_context(backend)
     rows, skipped = [], {}
+    result = {"meta": {}, "rows": rows}
     try:
-        for name, scene, view in bench_scenes(scenes, size, skipped):
-            for cname in configs:
-                model, fov, primary = table[cname]
-                rig = StereoRig(view.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=view.size,
-                                camera=model)
-                samples = samples_per_frame(rig)
-                runs = [(1, False)] if primary == "raster" else \
-                    [(n, False) for n in counts] + [(n, True) for n in ssaa if n > 1]
-                for n, shade_all in runs:
-                    settings = RenderSettings(primary=primary, msaa=n, ssaa=shade_all)
-                    with Renderer(scene, gl=gl, settings=settings) as r:
-                        names, med, total = time_frame(r, rig, repeat, warmup)
-                        row = {"scene": name, "config": cname, "camera": model.name, "primary": primary,
-                               "sub_rays_per_sample": n, "shading": "ssaa" if shade_all else "msaa",
-                               "size": f"2x{size[0]}x{size[1]}", "total_ms": total,
-                               "pass_ms": {k: med[k] for k in names if k in med}}
-                        if primary == "rays":
-                            kernel, rounds = primary_kernel_ms(r, rig)
-                            sub_rays = samples * n * model.channels
-                            row.update(samples=samples, channels=model.channels, sub_rays=sub_rays,
-                                       primary_ms=kernel, rounds=rounds,
-                                       sub_grays_s=sub_rays / (kernel * 1e6) if kernel > 0 else None)
-                        else:
-                            row["visibility_ms"] = med.get("visibility", 0.0) + med.get("gbuffer", 0.0)
-                    rows.append(row)
-                    if progress:
-                        rate = f", {row['sub_grays_s']:.3f} G sub-rays/s" if row.get("sub_grays_s") else ""
-                        print(f"  {name:8s} {cname:20s} {n:2d}x {row['shading']} frame {total:.3f} ms{rate}")
-        meta = {**device_meta(gl.info()), "bench": "primary", "per_eye_size": list(size), "repeat": repeat,
+        meta = {**device_meta(gl.info()), "bench": "primary", "per_eye_size": list(size),
+                "table5_per_eye_size": list(table5_size), "suites": list(suites), "repeat": repeat,
                 "skipped": skipped, "materials": "all raster (visibility, not shading, is measured)",
                 "what_times_include": {
                     "pass_ms": "GL timer query per pass, summed over a sampled frame's rounds; medians",
                     "primary_ms": "the primary-ray kernels alone (MSAA trace / per-round cast), kernel "
                                   "by kernel; BVH already on the GPU",
+                    "visibility_ms": "raster: visibility + gbuffer passes; rays: primary_rays (trace, select) "
+                                     "+ gbuffer, summed over the rounds",
                     "msaa_note": "an MSAA frame reads back one number (its rounds) after the trace: a "
-                                 "GPU sync the frame total includes"}}
+                                 "GPU sync the frame total includes",
+                    "tile_culling": "not applicable to the frame's primary_rays pass (rays made in the kernel, "
+                                    "traced from the BVH root); trace_* columns: the camera's central rays "
+                                    "(one per sample) traced standalone by accel/gpu.py RayTracer, binary BVH, "
+                                    "without / with tile frustum culling (cull_ms: the cull dispatch)"}}
+        result["meta"] = meta
+        for name, scene, view in bench_scenes(scenes, size, skipped):
+            with Renderer(scene, gl=gl) as r:
+                culled = {}  # (config, size) -> tile-culling columns
+                for suite, eye_size, cname, n, shade_all in plan:
+                    model, fov, primary = table[cname]
+                    rig = StereoRig(view.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=eye_size,
+                                    camera=model)
+                    r.settings = RenderSettings(primary=primary, msaa=n, ssaa=shade_all)
+                    names, med, total = time_frame(r, rig, repeat, warmup)
+                    row = {"suite": suite, "scene": name, "config": cname, "camera": model.name, "primary": primary,
+                           "sub_rays_per_sample": n, "shading": "ssaa" if shade_all else "msaa",
+                           "size": f"2x{eye_size[0]}x{eye_size[1]}", "total_ms": total,
+                           "pass_ms": {k: med[k] for k in names if k in med}}
+                    if primary == "rays":
+                        kernel, rounds = primary_kernel_ms(r, rig)
+                        samples = samples_per_frame(rig)
+                        sub_rays = samples * n * model.channels
+                        row.update(samples=samples, channels=model.channels, sub_rays=sub_rays, primary_ms=kernel,
+                                   rounds=rounds, sub_grays_s=sub_rays / (kernel * 1e6) if kernel > 0 else None,
+                                   visibility_ms=med.get("primary_rays", 0.0) + med.get("gbuffer", 0.0))
+                        key = (cname, eye_size)
+                        if tiles and (suite == "table5" or n == 1) and not shade_all:
+                            if key not in culled:
+                                r.accel.ensure()
+                                culled[key] = tile_culling(gl, r.accel.gpu, rig, scene.origin, max(2, repeat // 4))
+                            row.update(culled[key])
+                    else:
+                        row["visibility_ms"] = med.get("visibility", 0.0) + med.get("gbuffer", 0.0)
+                    rows.append(row)
+                    meta["targets"] = targets(rows)
+                    write_report(out_dir, "primary", result)  # after every row: a cut run keeps what it did
+                    if progress:
+                        rate = f", {row['sub_grays_s']:.3f} G sub-rays/s" if row.get("sub_grays_s") else ""
+                        cull = (f"; standalone {row['trace_grays_s']:.2f} / tiles {row['trace_tiles_grays_s']:.2f} GRays/s"
+                                if "trace_grays_s" in row else "")
+                        print(f"  {suite:6s} {name:8s} {cname:20s} {n:2d}x {row['shading']} {row['size']} frame "
+                              f"{total:.3f} ms, visibility {row['visibility_ms']:.3f} ms{rate}{cull}", flush=True)
     finally:
         gl.release()
-    result = {"meta": meta, "rows": rows}
+    meta["targets"] = targets(rows)
     write_report(out_dir, "primary", result)
     return result

@@ -7,13 +7,16 @@ Sampled frames (FramePlan.sampled) run in rounds (frame.py FrameGraph.execute): 
 channel set, then per sub-ray (SSAA: each round casts one sub-ray of every sample) or per slot
 of the distinct triangles the sub-rays hit (MSAA: the first round of a channel casts all N
 sub-rays, keeps the distinct triangles with their coverage masks, and learns how many rounds
-the frame needs, the most any pixel has; each round then shades one triangle per pixel). Each
+the frame needs, the most any pixel has; each round then shades one triangle per pixel). The MSAA
+trace casts one sub-ray per invocation (a workgroup: a block of pixels times their sub-rays) and
+merges each pixel's hits in shared memory; `msaa_lists` is the numpy twin of that merge. Each
 round also writes every pixel's weight in the frame's colour (`sample_weight`), which
 `sample_accumulate` applies. Slots run from the last to 0, so the G-buffer the frame keeps (for
 depth and aux channels) is each pixel's most covered triangle.
 """
 from __future__ import annotations
 
+import moderngl
 import numpy as np
 
 from .. import shaders
@@ -23,7 +26,50 @@ from ..gpu_layout import IMAGE, SSBO, channel
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
+MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
 SAMPLE_WEIGHT = Texture("r32f")
+NO_HIT = 0xFFFFFFFF  # BVH_MISS
+
+
+def msaa_block(samples: int) -> tuple[int, int]:
+    """Pixels (w, h) of an MSAA trace workgroup: MSAA_GROUP / samples pixels, as square as a power of two allows."""
+    pixels = max(1, MSAA_GROUP // samples)
+    w = 1 << (pixels.bit_length() // 2)
+    return w, pixels // w
+
+
+def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int,
+               sampled: np.ndarray | None = None) -> np.ndarray:
+    """Numpy twin of primary.comp's MSAA merge: per pixel, from its N sub-rays' triangles `tris`
+    (..., N) (NO_HIT: background) and distances `ts`, the list msaa_hits holds, (slots, ..., 4)
+    uint32 entries (triangle, coverage mask, representative sub-ray | count << 8 | covered << 16
+    (entry 0 only), distance bits), most covered first, ties in order of first sub-ray; unused
+    entries zero. `offsets` (N, 2): the sub-rays' footprint offsets (cameras/sampling.subsamples);
+    the representative is the sub-ray nearest the mean offset of its mask (the first of equally
+    near ones). `sampled` (...): False where the pixel has no sample (an empty list)."""
+    tris = np.asarray(tris, np.uint32)
+    shape, n_sub = tris.shape[:-1], tris.shape[-1]
+    flat_t, flat_d = tris.reshape(-1, n_sub), np.asarray(ts, np.float32).reshape(-1, n_sub)
+    ok = np.ones(len(flat_t), bool) if sampled is None else np.asarray(sampled, bool).reshape(-1)
+    out = np.zeros((slots, len(flat_t), 4), np.uint32)
+    out[0, :, 0] = NO_HIT
+    for px in np.flatnonzero(ok):
+        ids, masks = [], []
+        for i, tri in enumerate(flat_t[px]):
+            if tri in ids:
+                masks[ids.index(tri)] |= 1 << i
+            elif len(ids) < slots:
+                ids.append(tri)
+                masks.append(1 << i)
+        pop = [bin(m).count("1") for m in masks]
+        order = sorted(range(len(ids)), key=lambda k: (-pop[k], k))
+        for rank, k in enumerate(order):
+            bits = [i for i in range(n_sub) if masks[k] >> i & 1]
+            dist = ((offsets[bits] - offsets[bits].mean(0)) ** 2).sum(1)
+            best = bits[int(np.argmin(dist))]
+            meta = best | ((len(ids) << 8) | (sum(pop) << 16) if rank == 0 else 0)
+            out[rank, px] = (ids[k], masks[k], meta, flat_d[px, best].view(np.uint32))
+    return out.reshape((slots,) + shape + (4,))
 
 
 def msaa_slots(plan: FramePlan) -> int:
@@ -57,11 +103,19 @@ class PrimaryRaysPass(Pass):
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.layout = plan.traversal[0]   # the primary rays' BVH layout
+        self.block = msaa_block(plan.samples)
         base = {**layout_defines(DEFAULT_BINDING, self.layout), **camera_defines(plan), "SAMPLED": int(plan.sampled),
-                "MSAA_SLOTS": msaa_slots(plan)}
+                "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
+                "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples}
         self.msaa = uses_msaa(plan)
         self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
                          for mode in ((1, 2) if self.msaa else (0,))}
+        # msaa_count is zeroed and read back through copies (GPU-side), never written or read by the
+        # CPU itself: the CPU reading it every frame made the NVIDIA driver keep it in host memory,
+        # and each atomic on it then took ~1.1 us across the bus (H200: 80 ms for one per
+        # workgroup of the 2x1440x1600 MSAA trace, 1.8 ms with these copies;
+        # bench/results/h200/2026-11-30/primary/README.md).
+        self.count_io = [gl.ctx.buffer(bytes(4)), gl.ctx.buffer(reserve=4)] if self.msaa else []  # zero, readback
 
     def execute(self, fc) -> None:
         rnd = fc.round
@@ -83,13 +137,21 @@ class PrimaryRaysPass(Pass):
         count = fc.resource("msaa_count")
         count.bind_to_storage_buffer(SSBO["msaa_count"])
         if rnd.first:
-            count.write(np.zeros(1, np.uint32).tobytes())
-            fc.stage("trace", lambda: dispatch_per_pixel(fc, self.programs[1]))
+            zero, readback = self.count_io
+            fc.gl.ctx.copy_buffer(count, zero)
+            fc.stage("trace", lambda: self.dispatch_trace(fc))
+            fc.gl.ctx.copy_buffer(readback, count)
             # The rounds this channel needs: the most distinct triangles any pixel saw (waits for the GPU).
-            rnd.start(max(1, int(np.frombuffer(count.read(), np.uint32)[0])) if rnd.active else 1)
+            rnd.start(max(1, int(np.frombuffer(readback.read(), np.uint32)[0])) if rnd.active else 1)
         self.programs[2]["msaa_slot"].value = rnd.slot
         fc.stage("select", lambda: dispatch_per_pixel(fc, self.programs[2]))
 
+    def dispatch_trace(self, fc) -> None:
+        """One workgroup per block of pixels (msaa_block), one invocation per sub-ray."""
+        (w, h), (bw, bh) = fc.sizing.size, self.block
+        self.programs[1].run(-(-w // bw), -(-h // bh), fc.sizing.layers)
+        fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
     def release(self) -> None:
-        for p in self.programs.values():
+        for p in [*self.programs.values(), *self.count_io]:
             p.release()

@@ -7,9 +7,15 @@
 //
 // PRIMARY_MODE 0: one ray per sample, sub-ray `subsample` of CAMERA_SUBSAMPLES (1x: the central
 //   ray; SSAA: the frame round's sub-ray, weight 1 / CAMERA_SUBSAMPLES).
-// PRIMARY_MODE 1 (MSAA, trace): all CAMERA_SUBSAMPLES sub-rays; the distinct triangles they hit
-//   (the background counts as one) with their coverage masks go to msaa_hits, most covered first,
-//   at most MSAA_SLOTS; the largest count of any pixel to msaa_count (one atomic per workgroup).
+// PRIMARY_MODE 1 (MSAA, trace): all CAMERA_SUBSAMPLES sub-rays, one invocation each (a workgroup
+//   is a block of MSAA_BLOCK_W x MSAA_BLOCK_H pixels times their sub-rays); then one invocation per
+//   pixel merges its sub-rays' hits from shared memory: the distinct triangles (the background
+//   counts as one) with their coverage masks go to msaa_hits, most covered first, at most
+//   MSAA_SLOTS; the largest count of any pixel to msaa_count (at most one atomic per workgroup).
+//   passes/primary_rays.py msaa_lists is the numpy twin of the merge. (On the H200 this runs at the
+//   speed of the first version, one invocation per pixel looping over its sub-rays, 1.8 ms at 4x in
+//   the room view, 3.5 % faster at 16x; that version's ~80 ms frames came from msaa_count, see
+//   primary_rays.py.)
 // PRIMARY_MODE 2 (MSAA, select): slot `msaa_slot` of each pixel's list becomes its visibility,
 //   shaded at the sub-ray of its mask nearest the mask's mean_offset, weighted by its coverage.
 #ifndef PRIMARY_MODE
@@ -21,7 +27,11 @@
 #ifndef MSAA_SLOTS
 #define MSAA_SLOTS 1
 #endif
+#if PRIMARY_MODE == 1
+layout(local_size_x = MSAA_GROUP) in;  // = MSAA_BLOCK_W * MSAA_BLOCK_H * CAMERA_SUBSAMPLES (a literal: GLSL 4.30)
+#else
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#endif
 #include "../layout.glsl"
 #include "../accel/bvh.glsl"
 #include "../common/camera.glsl"
@@ -38,9 +48,11 @@ layout(std430, binding = SSBO_MSAA_HITS) buffer MsaaHits { uvec4 msaa_hits[]; };
 layout(std430, binding = SSBO_MSAA_COUNT) buffer MsaaCount { uint msaa_count; };
 #endif
 #if PRIMARY_MODE == 1
-// The workgroup's largest count: one global atomic per workgroup, not one per pixel (every
-// invocation of the frame contending for one address was a fixed cost of each MSAA frame).
+// The workgroup's largest count: at most one global atomic per workgroup, not one per pixel.
 shared uint group_count;
+shared uint sub_tri[MSAA_GROUP];   // each sub-ray's triangle (BVH_MISS: background) and distance,
+shared float sub_t[MSAA_GROUP];    //   pixel-major: the block's pixel j has entries j * N .. j * N + N - 1
+shared vec2 sub_offset[CAMERA_SUBSAMPLES];  // camera_subpixel(i), computed once per workgroup
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
 uniform int msaa_slot;  // PRIMARY_MODE 2
@@ -69,34 +81,23 @@ void store(ivec3 p, uint tri, uint sub, float t, float weight) {
 #define HIT(k) msaa_hits[index + uint(k) * pixels]
 #endif
 #if PRIMARY_MODE == 1
-// All sub-rays of the sample at pixel p; its distinct triangles to msaa_hits; their number.
-uint msaa_trace(ivec3 p, ivec2 size, uint index, uint pixels) {
-    vec2 pixel_center = vec2(p.xy) + 0.5;
-    bool sample_here = camera_footprint(p.z, pixel_center, vec2(size)) > 0.0;
-    if (!sample_here) {  // no sample at this pixel (foveated): an empty list, filled for display
-        HIT(0) = uvec4(BVH_MISS, 0u, 0u, 0u);
+// The sample at pixel p, whose sub-rays' hits are sub_tri/sub_t[base ..]: its distinct triangles
+// to msaa_hits; their number.
+uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base) {
+    if (!(camera_footprint(p.z, vec2(p.xy) + 0.5, vec2(size)) > 0.0)) {
+        HIT(0) = uvec4(BVH_MISS, 0u, 0u, 0u);  // no sample at this pixel (foveated): an empty list, filled for display
         return 0u;
-    }
-    uint tris[CAMERA_SUBSAMPLES];
-    float ts[CAMERA_SUBSAMPLES];
-    for (int i = 0; i < CAMERA_SUBSAMPLES; i++) {
-        vec3 o, d;
-        Hit h;
-        h.prim = BVH_MISS;
-        h.t = 0.0;
-        if (camera_subray(p.z, pixel_center, vec2(size), uint(i), o, d)) cast_primary(p.z, o, d, h);
-        tris[i] = h.prim;
-        ts[i] = h.t;
     }
     // Distinct triangles and their coverage masks (sub-ray i is bit i).
     uint ids[MSAA_SLOTS], masks[MSAA_SLOTS];
     int n = 0;
     for (int i = 0; i < CAMERA_SUBSAMPLES; i++) {
+        uint tri = sub_tri[base + uint(i)];
         int k = 0;
-        while (k < n && ids[k] != tris[i]) k++;
+        while (k < n && ids[k] != tri) k++;
         if (k == n) {
             if (n == MSAA_SLOTS) continue;  // more triangles than slots: this sub-ray is dropped
-            ids[n] = tris[i];
+            ids[n] = tri;
             masks[n] = 0u;
             n++;
         }
@@ -110,26 +111,35 @@ uint msaa_trace(ivec3 p, ivec2 size, uint index, uint pixels) {
         int rank = 0;
         for (int j = 0; j < n; j++)
             rank += int(bitCount(masks[j]) > bitCount(masks[k]) || (bitCount(masks[j]) == bitCount(masks[k]) && j < k));
-        // The sub-ray nearest the mean of the mask's footprint offsets: shaded for all of them.
+        // The sub-ray nearest the mean of the mask's footprint offsets: shaded for all of them
+        // (the mask's bits in increasing order; the first of equally near ones).
         vec2 mean_offset = vec2(0.0);
-        for (int i = 0; i < CAMERA_SUBSAMPLES; i++)
-            if ((masks[k] & (1u << uint(i))) != 0u) mean_offset += camera_subpixel(uint(i));
+        for (uint m = masks[k]; m != 0u; m &= m - 1u) mean_offset += sub_offset[findLSB(m)];
         mean_offset /= float(bitCount(masks[k]));
         int best = 0;
         float best_d = 1e30;
-        for (int i = 0; i < CAMERA_SUBSAMPLES; i++) {
-            vec2 e = camera_subpixel(uint(i)) - mean_offset;
-            if ((masks[k] & (1u << uint(i))) != 0u && dot(e, e) < best_d) { best = i; best_d = dot(e, e); }
+        for (uint m = masks[k]; m != 0u; m &= m - 1u) {
+            int i = findLSB(m);
+            vec2 e = sub_offset[i] - mean_offset;
+            if (dot(e, e) < best_d) { best = i; best_d = dot(e, e); }
         }
         uint meta = uint(best) | (rank == 0 ? (uint(n) << 8) | (covered << 16) : 0u);
-        HIT(rank) = uvec4(ids[k], masks[k], meta, floatBitsToUint(ts[best]));
+        HIT(rank) = uvec4(ids[k], masks[k], meta, floatBitsToUint(sub_t[base + uint(best)]));
     }
     return uint(n);
 }
 #endif
 
 void main() {
+#if PRIMARY_MODE == 1
+    // Invocation -> (pixel of the workgroup's block, sub-ray): a pixel's sub-rays are neighbouring
+    // invocations (one warp traces a few neighbouring pixels' sub-rays: coherent rays).
+    uint lid = gl_LocalInvocationIndex, sub = lid % uint(CAMERA_SUBSAMPLES), j = lid / uint(CAMERA_SUBSAMPLES);
+    ivec3 p = ivec3(ivec2(gl_WorkGroupID.xy) * ivec2(MSAA_BLOCK_W, MSAA_BLOCK_H) +
+                    ivec2(j % uint(MSAA_BLOCK_W), j / uint(MSAA_BLOCK_W)), gl_WorkGroupID.z);
+#else
     ivec3 p = ivec3(gl_GlobalInvocationID);
+#endif
     ivec3 extent = imageSize(img_triangle);
     ivec2 size = extent.xy;
     bool inside = all(lessThan(p.xy, size));
@@ -137,11 +147,21 @@ void main() {
     uint pixels = uint(extent.x * extent.y * extent.z), index = uint((p.z * size.y + p.y) * size.x + p.x);
 #endif
 #if PRIMARY_MODE == 1
-    if (gl_LocalInvocationIndex == 0u) group_count = 0u;
+    if (lid == 0u) group_count = 0u;
+    if (lid < uint(CAMERA_SUBSAMPLES)) sub_offset[lid] = camera_subpixel(lid);
+    vec3 o, d;
+    Hit h;
+    h.prim = BVH_MISS;
+    h.t = 0.0;
+    if (inside && camera_subray(p.z, vec2(p.xy) + 0.5, vec2(size), sub, o, d)) cast_primary(p.z, o, d, h);
+    sub_tri[lid] = h.prim;
+    sub_t[lid] = h.t;
     barrier();
-    if (inside) atomicMax(group_count, msaa_trace(p, size, index, pixels));
+    if (inside && sub == 0u) atomicMax(group_count, msaa_merge(p, size, index, pixels, lid));
     barrier();
-    if (gl_LocalInvocationIndex == 0u && group_count > 0u) atomicMax(msaa_count, group_count);
+    // One round is the least a frame runs (primary_rays.py): only a count above 1 needs telling, and
+    // only when it is above what is already there (most workgroups see one triangle per pixel).
+    if (lid == 0u && group_count > 1u && group_count > msaa_count) atomicMax(msaa_count, group_count);
 #else
     if (!inside) return;
     vec2 pixel = vec2(p.xy) + 0.5;
