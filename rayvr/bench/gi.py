@@ -55,6 +55,10 @@ PHOTON_PATHS, PHOTON_RADIUS, PHOTON_MS = photon.TARGET
 PATH_SCENE, PATH_MS = "sponza", 11.0  # path 1 spp, 4 bounces, NEE+MIS on Sponza <= 11 ms (a 90 Hz frame)
 DENOISE_EXTRA_MS = 1.5  # denoised 1 spp below undenoised 16 spp in FLIP, at <= 1.5 ms more than 1 spp
 REUSE_SHARE, REUSE_FLIP = 0.40, 0.02  # reuse: right eye <= 40 % of the left's cost at FLIP <= 0.02 against dual
+TARGETS = {"photon": f"512² photons, r = {PHOTON_RADIUS}: photon map ≤ {PHOTON_MS:g} ms, both eyes",
+           "path": f"path 1 spp, {BOUNCES} bounces, NEE+MIS ≤ {PATH_MS:g} ms (issue: on Sponza)",
+           "denoise": f"denoised 1 spp: lower FLIP than undenoised {max(SPP)} spp, ≤ {DENOISE_EXTRA_MS:g} ms extra",
+           "reuse": f"reuse: right eye ≤ {REUSE_SHARE:.0%} of the left eye's cost at FLIP ≤ {REUSE_FLIP:g} vs dual"}
 
 
 def path_config(name: str, samples: int):
@@ -242,21 +246,21 @@ def _verdict(ok: bool, why: str = "") -> str:
 
 
 def targets(rows: list) -> list:
-    """(target, where, measured, verdict) per measured row that issue 11 sets a target for."""
+    """(target, where, measured, verdict) per measured row that issue 11 sets a target for, then
+    each target no row measured."""
     out, seen = [], set()
     for r in rows:
         if r.get("part") == "photon" and (r["photons"], r["radius"]) == (PHOTON_PATHS, PHOTON_RADIUS) \
                 and (r["scene"], r["estimator"]) not in seen:  # grid_heap is in both tables
             seen.add((r["scene"], r["estimator"]))
             ms = r.get("map_ms")
-            out.append((f"512² photons, r = {PHOTON_RADIUS}: photon map ≤ {PHOTON_MS:g} ms, both eyes",
-                        f"{r['scene']}, {r['estimator']}",
+            out.append((TARGETS["photon"], f"{r['scene']}, {r['estimator']}",
                         r.get("skipped") or "not measured" if ms is None else
                         f"{ms:.2f} ms (+ {_f(r.get('shadow_ms'))} ms shadow rays)",
                         "-" if ms is None else _verdict(ms <= PHOTON_MS)))
         if r.get("part") == "path" and r["spp"] == 1 and not r["denoise"]:
-            out.append((f"path 1 spp, {BOUNCES} bounces, NEE+MIS ≤ {PATH_MS:g} ms (issue: on Sponza)",
-                        r["scene"], f"frame {r['frame_ms']:.2f} ms (rt_path {_f(r.get('rt_path_ms'))} ms)",
+            out.append((TARGETS["path"], r["scene"],
+                        f"frame {r['frame_ms']:.2f} ms (rt_path {_f(r.get('rt_path_ms'))} ms)",
                         _verdict(r["frame_ms"] <= PATH_MS)))
         if r.get("part") == "path" and r["spp"] == 1 and r["denoise"]:
             sixteen = next((q for q in rows if q.get("part") == "path" and q["scene"] == r["scene"]
@@ -265,18 +269,17 @@ def targets(rows: list) -> list:
                 lower, cheap = r["flip"] < sixteen["flip"], r["denoise_extra_ms"] <= DENOISE_EXTRA_MS
                 why = ", ".join(w for w, bad in (("FLIP not lower", not lower),
                                                  (f"> {DENOISE_EXTRA_MS:g} ms extra", not cheap)) if bad)
-                out.append((f"denoised 1 spp: lower FLIP than undenoised {max(SPP)} spp, ≤ {DENOISE_EXTRA_MS:g} ms extra",
-                            r["scene"], f"FLIP {r['flip']:.4f} vs {sixteen['flip']:.4f}, "
+                out.append((TARGETS["denoise"], r["scene"], f"FLIP {r['flip']:.4f} vs {sixteen['flip']:.4f}, "
                                         f"{r['denoise_extra_ms']:+.2f} ms", _verdict(lower and cheap, why)))
         if r.get("part") == "reuse" and r["mode"] == "reuse":
             share, flip = r["second_eye_share"], r["flip_vs_dual_right"]
             ok_share, ok_flip = share is not None and share <= REUSE_SHARE, flip <= REUSE_FLIP
             why = ", ".join(w for w, bad in ((f"share > {REUSE_SHARE:.0%}", not ok_share),
                                              (f"FLIP > {REUSE_FLIP:g}", not ok_flip)) if bad)
-            out.append((f"reuse: right eye ≤ {REUSE_SHARE:.0%} of the left eye's cost at FLIP ≤ {REUSE_FLIP:g} vs dual",
-                        f"{r['scene']}, {r['effect']}", f"{_f(share, '.0%')} of the left, FLIP {flip:.4f} (right eye)",
+            out.append((TARGETS["reuse"], f"{r['scene']}, {r['effect']}",
+                        f"{_f(share, '.0%')} of the left, FLIP {flip:.4f} (right eye)",
                         _verdict(ok_share and ok_flip, why)))
-    return out
+    return out + [(t, "-", "not measured in this run", "-") for t in TARGETS.values() if t not in {o[0] for o in out}]
 
 
 def markdown(result: dict, plot_note: str | None = None) -> str:
@@ -294,7 +297,7 @@ def markdown(result: dict, plot_note: str | None = None) -> str:
         lines += ["Skipped scenes: " + "; ".join(f"{k}: {v}" for k, v in meta["skipped"].items()), ""]
     lines += ["## Targets (issue 11: the H200 at 2x1440x1600)", "", "| target | where | measured | verdict |",
               "|---|---|---|---|"]
-    lines += [f"| {' | '.join(t)} |" for t in targets(rows)] or ["| (no target's row measured yet) | | | |"]
+    lines += [f"| {' | '.join(t)} |" for t in targets(rows)]
     lines.append("")
     ph = [r for r in rows if r.get("part") == "photon"]
     if ph:
@@ -306,7 +309,7 @@ def markdown(result: dict, plot_note: str | None = None) -> str:
                   "mean over the right eye against dual with the same seed (the left eye is shaded as in dual); "
                   "noise floor: dual against dual with another seed.", "",
                   "| scene | effect | setting | mode | frame ms | left eye ms | right eye ms | right / left | "
-                  "FLIP vs dual (right) | noise floor | right pixels reused |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+                  "FLIP vs dual (right) | noise floor | right pixels reused |", "|" + "---|" * 11]
         for r in t5:
             lines.append(f"| {r['scene']} | {r['effect']} | {r['setting']} | {r['mode']} | {r['frame_ms']:.2f} | "
                          f"{r['left_ms']:.2f} | {r['right_ms']:.2f} | {_f(r['second_eye_share'], '.0%')} | "
@@ -333,8 +336,8 @@ def markdown(result: dict, plot_note: str | None = None) -> str:
         lines += ["## Plots", "", plot_note, ""]
     secs = meta.get("seconds", {})
     if len(secs) > 1:
-        lines += ["Wall seconds per part and scene: " + ", ".join(f"{k} {v:.0f}" for k, v in secs.items() if k != "total"),
-                  ""]
+        lines += ["Wall seconds per part and scene: "
+                  + ", ".join(f"{k} {v:.0f}" for k, v in secs.items() if k != "total"), ""]
     return "\n".join(lines)
 
 
