@@ -210,11 +210,14 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, war
         if kept:
             meta["kept_rows"] = f"{len(kept)} rows of parts/scenes this run did not measure, from the earlier gi.json"
 
+        note = [None]  # the plots' markdown note, from the last time they were drawn
+
         def write(plots: bool = False) -> None:
             meta["seconds"]["total"] = time.perf_counter() - t_start
             result = {"meta": meta, "rows": kept + rows}
-            note = draw_plots(out, result["rows"]) if plots else None
-            write_report(out, "gi", result, md=markdown(result, note))
+            if plots:
+                note[0] = draw_plots(out, result["rows"])
+            write_report(out, "gi", result, md=markdown(result, note[0]))
 
         write()
         measure = {"photon": lambda *a: photon_part(*a, quick, repeat, warmup, reference_photons, progress),
