@@ -479,6 +479,32 @@ def test_soft_shadow_converges_with_more_samples(gl):
     assert err[64] < 0.25 * err[1], err
 
 
+@pytest.mark.parametrize("effect", ["shadows", "path"])
+def test_rays_leave_a_lit_face_seen_from_afar_without_hitting_it(gl, effect):
+    """A lone face, tilted like CornellBox-Original's tallBox front and crossing the z = 0 plane,
+    under a point light, seen from 6 units away: nothing can block its light nor return any, so
+    shadow rays (`shadows`) and shadow + BSDF rays (`path`, black background) must give exactly
+    the unshadowed analytic point-light shading of `raster` on every pixel. The G-buffer's point
+    is eye + t * dir, off the plane by rounding errors of the eye's distance; started from there,
+    rays left the face by offset_ray's few ulps of |z| (< 1e-7 where |z| ~ 0.05) and hit it
+    again: dark speckles (a third of the face's pixels)."""
+    n = np.array([0.3, 0.0, 0.95]) / np.linalg.norm([0.3, 0.0, 0.95])
+    u = np.cross([0.0, 1.0, 0.0], n) * 0.3
+    v, f = quad((0.0, 0.0, 0.0), u, (0.0, 0.6, 0.0))
+    if np.cross(u, (0.0, 0.6, 0.0)) @ n < 0:
+        f = f[:, ::-1]
+    scene = from_arrays(v, f, materials=[Material("face", base_color=(0.8, 0.8, 0.8, 1.0), roughness=0.7)],
+                        lights=[Light("point", intensity=3.0, position=(0.4, 1.5, 1.2))])
+    rig = StereoRig(Pose.look_at((0.3, 0.2, 6.0), (0.0, 0.0, 0.0)), ipd=0.0, fov_y=8, size=(32, 32))
+    frame, ref, _ = render(gl, scene, rig, everything("raster"), DARK)
+    face = frame.left.aux["material"] == 0
+    assert face.mean() > 0.3 and ref[0][face].min() > 0.01
+    cfg = everything(effect, area_samples=1) if effect == "shadows" else everything(effect, samples=4, bounces=2)
+    _, got, _ = render(gl, scene, rig, cfg, DARK)
+    ratio = got[0][face].mean(-1) / ref[0][face].mean(-1)
+    assert np.abs(ratio - 1.0).max() < 2e-3, f"{(np.abs(ratio - 1) > 2e-3).sum()} of {face.sum()} pixels off"
+
+
 # ------------------------------------------------------------------------------ command line
 
 def test_cli_capture_primary_rays_and_bench_rays_quick(tmp_path):

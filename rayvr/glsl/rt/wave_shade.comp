@@ -126,6 +126,7 @@ void main() {
     ivec3 px = wave_pixel(i);
     Surface s = gbuffer_fetch(px);
     vec3 v = normalize(eye_position[px.z] - s.position);
+    s.position = point_on_triangle(s.triangle, s.position);  // where its rays start
     vec3 ng = triangle_normal(s.triangle);
     if (dot(ng, v) < 0.0) ng = -ng;
     uint rng;
