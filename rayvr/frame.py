@@ -553,7 +553,8 @@ class Round:
     """Which part of a sampled frame (FramePlan.sampled) the passes upstream of
     `sample_accumulate` make now: FrameGraph.execute runs them once per round, per colour channel
     set, then per slot (an SSAA sub-ray, or an MSAA triangle slot) from `slots` - 1 down to 0;
-    primary_rays says how many slots a channel needs in its first round (`start`)."""
+    primary_rays says how many slots a channel needs in its first round (`start`), or, when that
+    takes a GPU readback, once the first round is recorded (`start_later`)."""
 
     channel: int = 0
     slot: int = 0
@@ -561,10 +562,21 @@ class Round:
     first: bool = True  # the channel's first round
     index: int = 0  # rounds of this frame before this one
     active: bool = False  # the frame runs rounds (its graph accumulates samples)
+    pending: object = None  # start_later's function, until resolve()
 
     def start(self, slots: int) -> None:
         self.slots = slots if self.active else 1
         self.slot = self.slots - 1
+
+    def start_later(self, slots) -> None:
+        """`slots()` gives start's count after this round's passes are recorded (FrameGraph.execute
+        calls resolve()): a readback there finds the GPU busy with the round, not idle."""
+        self.pending = slots
+
+    def resolve(self) -> None:
+        if self.pending is not None:
+            slots, self.pending = self.pending, None
+            self.start(slots())
 
     def next(self) -> "Round":
         return Round(self.channel, self.slot - 1, self.slots, False, self.index + 1, self.active)
@@ -683,6 +695,7 @@ class FrameGraph:
                         if p.name in rounds:
                             run(p)
                     index += 1
+                    fc.round.resolve()
                     if fc.round.slot <= 0:
                         break
                     fc.round = fc.round.next()

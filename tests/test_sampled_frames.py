@@ -196,6 +196,41 @@ def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n):
                     np.testing.assert_allclose(t, ts[best][y, x], rtol=1e-4)
 
 
+def test_msaa_rounds_are_counted_once_the_first_round_is_recorded(gl, room, monkeypatch):
+    """The CPU reads the MSAA round count after the first round's passes are all recorded (the GPU
+    works through them meanwhile), once per frame; the rounds are still one per distinct triangle."""
+    from rayvr.passes.sample_accumulate import SampleAccumulatePass
+
+    events = []
+    accumulate = SampleAccumulatePass.execute
+    monkeypatch.setattr(SampleAccumulatePass, "execute", lambda self, fc: (events.append("accumulate"),
+                                                                          accumulate(self, fc))[1])
+
+    class LoggedReadback:  # the pass's readback buffer, its reads logged
+        def __init__(self, buf):
+            self.buf, self.mglo = buf, buf.mglo
+
+        def read(self):
+            events.append("read")
+            return self.buf.read()
+
+        def release(self):
+            self.buf.release()
+
+    rig = StereoRig(ROOM_POSE, ipd=0.064, fov_y=90, size=(32, 24), near=1e-3)
+    with Renderer(room, gl=gl, settings=RenderSettings(msaa=8)) as r:
+        r.record(rig)  # compiles the graph
+        (prim,) = [p for g in r.graph._compiled.values() for p in g.passes if p.name == "primary_rays"]
+        prim.count_io[1] = LoggedReadback(prim.count_io[1])
+        events.clear()
+        fc = r.record(rig)
+        r.gl.ctx.finish()
+        hits = np.frombuffer(r.resource("msaa_hits").read(), np.uint32).reshape(8, 2, 24, 32, 4)
+    rounds = fc.round.index + 1
+    assert rounds == ((hits[0, ..., 2] >> 8) & 255).max() >= 2
+    assert events == ["accumulate", "read"] + ["accumulate"] * (rounds - 1)
+
+
 # ------------------------------------------------------------- channels, lens, foveation
 
 def test_chromatic_channels_are_each_cast_on_their_own_rays(gl):

@@ -7,7 +7,9 @@ Sampled frames (FramePlan.sampled) run in rounds (frame.py FrameGraph.execute): 
 channel set, then per sub-ray (SSAA: each round casts one sub-ray of every sample) or per slot
 of the distinct triangles the sub-rays hit (MSAA: the first round of a channel casts all N
 sub-rays, keeps the distinct triangles with their coverage masks, and learns how many rounds
-the frame needs, the most any pixel has; each round then shades one triangle per pixel). The MSAA
+the frame needs, the most any pixel has; each round then shades one triangle per pixel). The CPU
+reads that count once the first round is recorded (Round.start_later), so the GPU works through
+the round meanwhile; the first round's select takes its slot from the count on the GPU. The MSAA
 trace casts one sub-ray per invocation (a workgroup: a block of pixels times their sub-rays) and
 merges each pixel's hits in shared memory; `msaa_lists` is the numpy twin of that merge. Each
 round also writes every pixel's weight in the frame's colour (`sample_weight`), which
@@ -141,9 +143,15 @@ class PrimaryRaysPass(Pass):
             fc.gl.ctx.copy_buffer(count, zero)
             fc.stage("trace", lambda: self.dispatch_trace(fc))
             fc.gl.ctx.copy_buffer(readback, count)
-            # The rounds this channel needs: the most distinct triangles any pixel saw (waits for the GPU).
-            rnd.start(max(1, int(np.frombuffer(readback.read(), np.uint32)[0])) if rnd.active else 1)
-        self.programs[2]["msaa_slot"].value = rnd.slot
+            # The rounds this channel needs: the most distinct triangles any pixel saw. Read once the
+            # whole first round is recorded (the GPU is busy with it meanwhile); that round's select
+            # takes its slot, the last one, from msaa_count on the GPU.
+            if rnd.active:
+                rnd.start_later(lambda: max(1, int(np.frombuffer(readback.read(), np.uint32)[0])))
+            else:
+                rnd.start(1)
+        # Slot = count - 1 - this: rounds of this channel set before this one; -1: slot 0 (no rounds).
+        self.programs[2]["msaa_round"].value = (0 if rnd.first else rnd.slots - 1 - rnd.slot) if rnd.active else -1
         fc.stage("select", lambda: dispatch_per_pixel(fc, self.programs[2]))
 
     def dispatch_trace(self, fc) -> None:

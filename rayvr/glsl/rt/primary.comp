@@ -16,8 +16,10 @@
 //   speed of the first version, one invocation per pixel looping over its sub-rays, 1.8 ms at 4x in
 //   the room view, 3.5 % faster at 16x; that version's ~80 ms frames came from msaa_count, see
 //   primary_rays.py.)
-// PRIMARY_MODE 2 (MSAA, select): slot `msaa_slot` of each pixel's list becomes its visibility,
-//   shaded at the sub-ray of its mask nearest the mask's mean_offset, weighted by its coverage.
+// PRIMARY_MODE 2 (MSAA, select): slot msaa_count - 1 - `msaa_round` of each pixel's list (slot 0
+//   for msaa_round -1) becomes its visibility, shaded at the sub-ray of its mask nearest the mask's
+//   mean_offset, weighted by its coverage. The slot comes from the GPU's count: the CPU reads the
+//   count only after the channel set's first round is recorded.
 #ifndef PRIMARY_MODE
 #define PRIMARY_MODE 0
 #endif
@@ -55,7 +57,7 @@ shared float sub_t[MSAA_GROUP];    //   pixel-major: the block's pixel j has ent
 shared vec2 sub_offset[CAMERA_SUBSAMPLES];  // camera_subpixel(i), computed once per workgroup
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
-uniform int msaa_slot;  // PRIMARY_MODE 2
+uniform int msaa_round;  // PRIMARY_MODE 2
 
 // Closest hit of one camera ray; false: the sample makes no ray.
 bool cast_primary(int eye, vec3 o, vec3 d, out Hit h) {
@@ -177,8 +179,9 @@ void main() {
 #else
     uvec4 head = HIT(0);
     uint n = (head.z >> 8) & 255u, covered = head.z >> 16;
-    if (uint(msaa_slot) < n) {
-        uvec4 e = HIT(msaa_slot);
+    uint slot = msaa_round < 0 ? 0u : max(msaa_count, 1u) - 1u - uint(msaa_round);
+    if (slot < n) {
+        uvec4 e = HIT(slot);
         store(p, e.x, e.z & 255u, uintBitsToFloat(e.w), float(bitCount(e.y)) / float(max(covered, 1u)));
     } else {
         store(p, BVH_MISS, 0u, 0.0, 0.0);  // nothing in this slot: shaded as background, weighs nothing
