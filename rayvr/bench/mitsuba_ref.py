@@ -661,7 +661,11 @@ RESIDUALS = {
                   "and blue, base 0.065 and 0.05; the green wall's red and blue) the direct light near the box's "
                   "front top is 14-20 % lower in rayvr (both BSDFs integrated over the light in numpy at "
                   "(-1.01, 1.7, 0.8): 0.83), 1-4 % on the same wall's main channel and on grey surfaces: a difference of "
-                  "the two models, not of the light transport; below Mitsuba's seed-to-seed FLIP at 64 spp.",
+                  "the two models, not of the light transport; below Mitsuba's seed-to-seed FLIP at 64 spp. With "
+                  "every bounce the box loses ~1 % more (the ceiling, lit only indirectly, ~4 % darker): on the "
+                  "Original box at 48 px and 1024 spp rayvr is +0.016 over the floor, +0.004 when a local "
+                  "experiment gives rayvr's dielectrics Mitsuba's lobe (exact Fresnel, separable Smith G, "
+                  "diffuse 0.96 x base).",
     "light_in_mirror_twice": "rayvr's `reflections` add the traced mirror ray to the full direct light: a light seen "
                              "in a mirror is counted by the (very sharp) GGX highlight and again by the mirror ray "
                              "hitting the emitter. `glossy` and `path` weigh both by MIS (power heuristic) as "
@@ -676,7 +680,10 @@ RESIDUALS = {
              "positions. The direct-light comparison renders rayvr at supersample^2 centres per pixel; the gi_* one "
              "at s x s centres with one path each (s = gi_supersample(spp): 8 x 8 at 64 spp), so a light's edge "
              "covers a pixel to within 1/64 on rayvr's side and to Mitsuba's sampling noise on its side. Radiance "
-             "ratios and the exposure leave out pixels any of whose 4 x 4 sub-pixel centres sees a light.",
+             "ratios and the exposure leave out pixels any of whose 4 x 4 sub-pixel centres sees a light. Left: a "
+             "light edge parallel to the sub-pixel rows crosses a row of pixels at one fraction, which fixed "
+             "centres count to 1/(2s) (8 x 8: 0.125 where Mitsuba sees 0.17), the same error along the row; it "
+             "shows above Mitsuba's noise only at many samples (1024 spp).",
     "scene_data": "CornellBox-Glossy.obj has relative indices (trimesh resolved them wrongly: every wall on the "
                   "light quad); rayvr's own OBJ reader reads it. Its MTL has no light material: the crosscheck "
                   "gives the quad the Sphere box's Ke 10 10 10. MTL Ns maps to roughness (Ns 1000 -> 0.21), so the "
