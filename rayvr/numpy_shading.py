@@ -4,8 +4,8 @@ What it models (float64, vectorised over the pixels of one eye):
   * primary visibility: the eye's pixel-centre rays (`EyeView.ray_directions`, from the eye
     position in scene-local coordinates) traced through the numpy BVH (`trace_reference`);
   * the surface: shading normal interpolated from `scene.normals` with the hit's barycentrics
-    (the geometric normal when the interpolation vanishes), turned to face the eye (two-sided, by
-    the geometric normal, as the G-buffer does); base colour, metallic, roughness and emission
+    (the geometric normal when the interpolation vanishes), turned to the geometric normal's side
+    and then to face the eye (two-sided, by the geometric normal, as the G-buffer does); base colour, metallic, roughness and emission
     are the material's constants;
   * the BRDF: metallic-roughness microfacet model, GGX normal distribution with alpha =
     roughness^2 (at least 1e-3), Smith height-correlated masking-shadowing, Schlick Fresnel with
@@ -176,6 +176,7 @@ def shade_eye(scene, eye, effect="raster", *, ambient=(0.03, 0.03, 0.03), backgr
     ni = np.einsum("pk,pki->pi", weights, scene.normals[scene.indices[tri]].astype(np.float64))
     length2 = _dot(ni, ni)
     n = np.where((length2 > 1e-20)[:, None], ni / np.sqrt(np.maximum(length2, 1e-300))[:, None], ng)
+    n = np.where((_dot(n, ng) < 0)[:, None], -n, n)        # normals wound against the triangle: to ng's side
     facing_away = _dot(ng, d) > 0
     n = np.where(facing_away[:, None], -n, n)
     ng = np.where(facing_away[:, None], -ng, ng)            # geometric normal on the eye's side

@@ -195,3 +195,42 @@ def test_no_nan_anywhere(gl):
                 for name, arr in img.aux.items():
                     if arr.dtype.kind == "f":
                         assert np.isfinite(arr).all(), (view, name)
+
+
+@pytest.mark.parametrize("wound", ["towards", "away"])
+def test_file_normals_against_the_winding_shade_the_side_in_view(gl, wound):
+    """A file's vertex normals may point against the triangles' winding (mirrored meshes, flipped
+    exports). Shading is two-sided: the side in view gets the normal turned towards the viewer,
+    whichever way the file wound it (Mitsuba's `twosided` flips by the shading normal alike), so
+    such a quad under a point light shades exactly as with normals along its winding; before, the
+    normal was flipped by the geometric side only and turned away: the lit quad came out black."""
+    from rayvr.scene import Light
+    verts, faces = quad((0.0, 0.0, -3.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0))  # winding faces +z
+    if wound == "away":  # the camera sees the triangles' back
+        faces = faces[:, ::-1]
+    rig = StereoRig(Pose.look_at((0.2, 0.1, 0.0), (0.0, 0.0, -3.0)), ipd=0.06, fov_y=40, size=(24, 18))
+    light = [Light("point", intensity=4.0, position=(0.5, 0.8, -1.0))]
+    cfg = parse_config({"default": "raster"}, "<test>")
+    out = {}
+    for sign in (1.0, -1.0):
+        n = np.tile([0.0, 0.0, sign], (4, 1))
+        sc = from_arrays(verts, faces, normals=n, materials=[Material("m", roughness=0.6)], lights=light)
+        with Renderer(sc, cfg, gl=gl, settings=RenderSettings(ambient=(0.0, 0.0, 0.0))) as r:
+            f = r.render(rig, eyes="both", aux=("hdr", "normal", "material"))
+        out[sign] = f
+    for e in ("left", "right"):
+        quad_px = out[1.0][e].aux["material"] == 0
+        assert quad_px.mean() > 0.3
+        for sign in (1.0, -1.0):
+            nz = out[sign][e].aux["normal"][..., 2][quad_px]
+            assert (nz > 0.99).all(), (sign, e, nz.min())  # towards the camera (+z)
+        a, b = out[1.0][e].aux["hdr"][quad_px], out[-1.0][e].aux["hdr"][quad_px]
+        assert a.mean() > 0.05 and np.array_equal(a, b)
+    # the numpy reference (rayvr/numpy_shading.py) turns the normal the same way
+    from rayvr.numpy_shading import shade_eye
+    sc = from_arrays(verts, faces, normals=np.tile([0.0, 0.0, -1.0 if wound == "towards" else 1.0], (4, 1)),
+                     materials=[Material("m", roughness=0.6)], lights=light)
+    ref = shade_eye(sc, rig.eye("left"), "raster", ambient=(0.0, 0.0, 0.0))
+    both = (ref["material"] == 0) & (out[1.0]["left"].aux["material"] == 0)
+    got = out[1.0]["left"].aux["hdr"][both].astype(np.float64)
+    assert np.abs(got - ref["hdr"][both]).max() < 0.01 * ref["hdr"][both].max()

@@ -46,4 +46,13 @@ TriangleVerts scene_triangle(uint tri) {
     return t;
 }
 
+// Shading normal of a two-sided surface from the interpolated vertex normal ni (any length; zero:
+// the geometric normal ng): turned to ng's side first (a file's normals may be wound against its
+// triangles), then to face against the view direction d. Mitsuba's `twosided` shades alike.
+vec3 two_sided_normal(vec3 ni, vec3 ng, vec3 d) {
+    vec3 n = dot(ni, ni) > 1e-20 ? normalize(ni) : normalize(ng);
+    if (dot(n, ng) < 0.0) n = -n;
+    return dot(ng, d) > 0.0 ? -n : n;
+}
+
 #endif

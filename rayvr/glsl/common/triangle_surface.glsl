@@ -16,12 +16,11 @@ vec2 triangle_uv(TriangleVerts tv, vec3 w) {
 
 // Triangle `tri` (vertices tv, geometric normal ng of any length, wound v0 -> v1 -> v2) at weights
 // w (of v0, v1, v2), seen along direction d: every Surface field but position and view_depth.
-// Two-sided: the normal is turned to face against d. A zero interpolated normal falls back to ng.
+// Two-sided: the normal is turned to face against d (scene.glsl two_sided_normal).
 // The base colour texture is read at level `lod`.
 Surface triangle_surface(uint tri, TriangleVerts tv, vec3 w, vec3 ng, vec3 d, float lod) {
     vec3 ni = w.x * tv.n[0] + w.y * tv.n[1] + w.z * tv.n[2];
-    vec3 n = dot(ni, ni) > 1e-20 ? normalize(ni) : normalize(ng);
-    if (dot(ng, d) > 0.0) n = -n;
+    vec3 n = two_sided_normal(ni, ng, d);
     uint mi = triangle_material[tri];
     Material m = materials[mi];
     vec4 base = m.base_color;

@@ -59,9 +59,7 @@ void main() {
             vec2 b = vec2(dot(cross(q, e2), ng), dot(cross(e1, q), ng)) / dot(ng, ng);
             vec3 w = max(vec3(1.0 - b.x - b.y, b), 0.0);
             vec3 ni = (w.x * tv.n[0] + w.y * tv.n[1] + w.z * tv.n[2]) / (w.x + w.y + w.z);
-            vec3 n = dot(ni, ni) > 1e-20 ? normalize(ni) : normalize(ng);
-            if (dot(ng, d) > 0.0) n = -n;  // facing the eye, as common/triangle_surface.glsl turns them
-            layer = vec4(n, t * along);
+            layer = vec4(two_sided_normal(ni, ng, d), t * along);  // as triangle_surface.glsl turns it
         } else {
             tri = NO_HIT;  // seen edge-on: no plane to trace
         }
