@@ -41,6 +41,10 @@ class ContextError(RuntimeError):
     """No OpenGL context could be made (or it is too old)."""
 
 
+class GpuError(ContextError):
+    """The GL reported an error while a frame was drawn (out of memory, a failed dispatch)."""
+
+
 # Raw GL entry points rayvr needs beyond moderngl: name -> (restype, argtypes).
 _u, _i, _p = ctypes.c_uint, ctypes.c_int, ctypes.c_void_p
 _RAW_SIGNATURES: dict[str, tuple] = {
@@ -111,6 +115,37 @@ class GLContext:
     backend: str
     raw: RawGL
     _release: Callable[[], None] = field(default=lambda: None, repr=False)
+    _parking: object = field(default=None, repr=False)
+
+    def release_framebuffer(self, fbo) -> None:
+        """Release `fbo`. If moderngl still counts it as the bound framebuffer, a live 1x1 one
+        is bound first: moderngl rebinds its current framebuffer by name after some calls, and a
+        deleted name there is GL_INVALID_OPERATION in the next Renderer on this context."""
+        if getattr(self.ctx.fbo, "glo", None) == fbo.glo:
+            if self._parking is None:
+                self._parking = self.ctx.framebuffer([self.ctx.renderbuffer((1, 1))])
+            self._parking.use()
+        fbo.release()
+
+    def gl_errors(self) -> list[str]:
+        """The GL errors raised since the last call (glGetError until GL_NO_ERROR), named."""
+        names = {0x0500: "GL_INVALID_ENUM", 0x0501: "GL_INVALID_VALUE", 0x0502: "GL_INVALID_OPERATION",
+                 0x0505: "GL_OUT_OF_MEMORY", 0x0506: "GL_INVALID_FRAMEBUFFER_OPERATION"}
+        out: list[str] = []
+        while len(out) < 16:  # a lost context may never return GL_NO_ERROR
+            code = self.raw.glGetError()
+            if code == 0:
+                break
+            out.append(names.get(code, f"GL error {code:#06x}"))
+        return out
+
+    def check_frame(self, where: str) -> None:
+        """Raise GpuError when the GL reported an error while `where` was drawn: a frame whose
+        dispatches failed would otherwise come back as a plausible but wrong (often black) image."""
+        errors = self.gl_errors()
+        if errors:
+            raise GpuError(f"{where}: the OpenGL driver reported {', '.join(dict.fromkeys(errors))} "
+                           f"({self.ctx.info.get('GL_RENDERER', 'unknown renderer')}); the image would be wrong")
 
     @property
     def extensions(self) -> set[str]:

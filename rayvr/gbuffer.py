@@ -118,7 +118,7 @@ class GBuffer:
         self._bind_depth()
 
     def release(self) -> None:
-        self.fbo.release()
+        self.gl.release_framebuffer(self.fbo)
         for t in self.textures.values():
             t.release()
         delete_texture(self.gl, self.depth_name)

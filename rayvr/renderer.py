@@ -303,6 +303,7 @@ class Renderer:
             raise ValueError(f"aux channel(s) {', '.join(warped)} need stereo dual or reuse: warp makes only "
                              f"colour and depth per eye (its G-buffer is the central view)")
         pending = None
+        self.gl.gl_errors()  # what earlier calls left (queries of optional limits) is not this frame's
         for i, rig in enumerate(rigs):
             tiles = self.tiles(rig, eyes, view)
             if len(tiles) > 1:  # too large for the device at once: tile by tile, not pipelined
@@ -387,7 +388,9 @@ class Renderer:
 
     def _finish(self, pending) -> Frame:
         timings = self.graph.read_ms(pending.fc)
-        return Frame(self.reader.finish(pending), timings, pending.fc.plan.view, tuple(pending.fc.pass_names))
+        frame = Frame(self.reader.finish(pending), timings, pending.fc.plan.view, tuple(pending.fc.pass_names))
+        self.gl.check_frame(f"a {'x'.join(map(str, pending.fc.sizing.size))} frame")
+        return frame
 
     def update_vertices(self, vertices, gpu_refit: bool = False) -> None:
         """Move the scene's vertices (scene-local, same triangles): re-upload them and refit the

@@ -71,3 +71,50 @@ def test_gbuffer_suite_passes_under_osmesa():
                          env=env, capture_output=True, text=True, timeout=600, cwd=here.parent)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
     assert " passed" in run.stdout and "skipped" not in run.stdout.splitlines()[-1]
+
+
+def test_a_gl_error_during_a_frame_is_an_error_not_an_image(gl):
+    """A failed GL call while a frame is drawn (here an out-of-range buffer binding made from a
+    pass, as an exhausted device or a too-large dispatch would) raises GpuError naming the
+    error; a clean frame raises nothing, and errors left from before the frame do not count."""
+    from rayvr import scene as scene_mod
+    from rayvr.camera import StereoRig
+    from rayvr.context import GpuError
+    from rayvr.renderer import Renderer
+
+    scene = scene_mod.load(None)
+    rig = StereoRig.for_scene(scene, size=(16, 12))
+    with Renderer(scene, gl=gl) as r:
+        r.render(rig)  # clean
+        gl.raw.glBindBuffer(0xDEAD, 0)  # GL_INVALID_ENUM before the frame: not the frame's
+        r.render(rig)
+        tonemap = next(p for p in r.graph.compile(r.plan(2, "color", rig.eyes()[0].camera)).passes if p.name == "tonemap")
+        original = tonemap.execute
+
+        def failing(fc):
+            original(fc)
+            gl.raw.glBindBuffer(0xDEAD, 0)
+        tonemap.execute = failing
+        with pytest.raises(GpuError, match="GL_INVALID_ENUM"):
+            r.render(rig)
+        tonemap.execute = original
+        assert np.asarray(r.render(rig).left.color).any()  # the next frame is fine again
+
+
+def test_a_released_renderer_leaves_no_dead_framebuffer_bound(gl):
+    """Renderers come and go on one context (benchmarks, tests): after one is released, the
+    next one's frames (with accumulation, whose readback made moderngl rebind its current
+    framebuffer by name) report no GL error, and moderngl's current framebuffer is alive."""
+    from rayvr import scene as scene_mod
+    from rayvr.camera import StereoRig
+    from rayvr.renderer import Renderer
+
+    scene = scene_mod.load(None)
+    rig = StereoRig.for_scene(scene, size=(16, 12))
+    with Renderer(scene, gl=gl) as first:
+        first.render(rig, spp=2)
+    gl.gl_errors()
+    with Renderer(scene, gl=gl) as second:
+        for spp in (1, 2, 3):
+            second.render(rig, spp=spp)  # GpuError if a frame's GL calls failed
+    assert gl.gl_errors() == []

@@ -58,7 +58,7 @@ class _PeelTarget:
         raise RuntimeError("the peel raster does not draw multiview")
 
     def release(self) -> None:
-        self.fbo.release()
+        self.gl.release_framebuffer(self.fbo)
         self.triangle.release()
         delete_texture(self.gl, self.depth_name)
 
