@@ -165,6 +165,9 @@ def test_warp_small_ipd_error_bound_and_holes_counted(raster_room):
         assert np.isfinite(warp[eye].depth).all()
         assert holes[i].sum() == c[f"disoccluded_{eye}"] + c[f"offscreen_{eye}"]
         assert c[f"hole_fraction_{eye}"] < 0.01
+    assert c["hits_left"] > 0 and c["nodes_right"] > 0
+    render(raster_room, "warp", rig)
+    assert raster_room.stereo_counts() == c  # the counts start from zero every frame
 
 
 def symmetric_scene():

@@ -69,6 +69,10 @@ class WarpPass(Pass):
     def setup(self, gl, plan: FramePlan) -> None:
         self.layers = plan.depth_layers
         self.program = shaders.compute(gl.ctx, "stereo/warp.comp", {**camera_defines(plan), "WARP_LAYERS": self.layers})
+        # The counts are zeroed by a GPU copy, not written by the CPU every frame: a buffer the CPU
+        # writes or reads every frame may live in host memory, where each of the pass's atomics
+        # crosses the bus (what made the MSAA trace take 80 ms; passes/primary_rays.py).
+        self.zero = gl.ctx.buffer(bytes(WARP_COUNTS.nbytes(None)))
 
     def execute(self, fc) -> None:
         p = self.program
@@ -85,7 +89,7 @@ class WarpPass(Pass):
             p["tonemapper"].value = TONEMAPPERS.index(fc.settings.tonemapper)
         fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
         counts = fc.resource("warp_counts")
-        counts.write(bytes(counts.size))
+        fc.gl.ctx.copy_buffer(counts, self.zero)
         counts.bind_to_storage_buffer(SSBO["warp_counts"])
         fc.resource("ldr").bind_to_image(IMAGE["ldr"], read=True, write=False)
         fc.resource(WARP_OUTPUT).bind_to_image(IMAGE["warp_color"], read=False, write=True)
@@ -102,3 +106,4 @@ class WarpPass(Pass):
 
     def release(self) -> None:
         self.program.release()
+        self.zero.release()
