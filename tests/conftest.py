@@ -3,7 +3,10 @@ the context current when they were made; mixing contexts in one process breaks t
 RAYVR_GL_BACKEND=osmesa runs the same tests under OSMesa."""
 from __future__ import annotations
 
+import json
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +37,19 @@ def shared_scene():
             pytest.skip(f"{p} not found: the shared scenes folder is absent")
         return p
     return get
+
+
+def run_rayvr(*args, timeout=300):
+    """`python -m rayvr ARGS` in a child process (the CLI as a user runs it), output captured."""
+    return subprocess.run([sys.executable, "-m", "rayvr", *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def quick_bench(bench: str, out, *args, timeout=300) -> dict:
+    """`rayvr bench BENCH --quick --out OUT ARGS` must succeed; its BENCH.json."""
+    run = run_rayvr("bench", bench, "--quick", "--out", out, *args, timeout=timeout)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return json.loads((Path(out) / f"{bench}.json").read_text())
 
 
 def quad(center, u, v):

@@ -1,15 +1,14 @@
 """`rayvr bench gi --quick` end to end on llvmpipe (figures come from the GPU machine): every
 table written with finite ms and FLIP, the path reference drawn with other seeds than the
-variants, more samples and the denoiser giving lower error, `reuse` shading fewer right-eye pixels
-for less, each target judged in gi.md, and a run stopped midway keeping its rows."""
+variants, more samples and the denoiser giving lower error, `reuse` shading fewer right-eye
+pixels, each target judged in gi.md, and a run stopped midway keeping its rows."""
 import json
 import math
 import shutil
-import subprocess
-import sys
 
 import pytest
 
+from conftest import quick_bench, run_rayvr
 from rayvr.accumulation import sample_seed
 
 
@@ -25,10 +24,7 @@ def finite(*values):
 def quick(tmp_path_factory):
     pytest.importorskip("flip_evaluator")
     out = tmp_path_factory.mktemp("gi")
-    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "gi", "--quick", "--out", str(out)],
-                         capture_output=True, text=True, timeout=300)
-    assert run.returncode == 0, run.stderr[-3000:]
-    return out, json.loads((out / "gi.json").read_text())
+    return out, quick_bench("gi", out)
 
 
 def test_every_table_is_written_with_finite_ms_and_flip(quick):
@@ -140,7 +136,6 @@ def test_a_stopped_run_keeps_its_rows_and_split_runs_add_up(quick, gl, monkeypat
 
 
 def test_unknown_part_is_one_line():
-    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "gi", "--configs", "photon,paths"],
-                         capture_output=True, text=True, timeout=60)
+    run = run_rayvr("bench", "gi", "--configs", "photon,paths", timeout=60)
     assert run.returncode == 2
     assert run.stderr.count("\n") == 1 and "photon, reuse, path" in run.stderr and "Traceback" not in run.stderr

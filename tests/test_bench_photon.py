@@ -1,14 +1,9 @@
 """`rayvr bench photon --quick` runs end to end (CI smoke test; figures come from the GPU machine)."""
-import json
-import subprocess
-import sys
+from conftest import quick_bench
 
 
 def test_bench_photon_quick_writes_the_papers_tables(tmp_path):
-    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "photon", "--quick", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=300)
-    assert run.returncode == 0, run.stderr[-3000:]
-    result = json.loads((tmp_path / "photon.json").read_text())
+    result = quick_bench("photon", tmp_path)
     rows = result["rows"]
     assert {(r["table"], r["estimator"]) for r in rows} == {(1, "kdtree_heap"), (1, "grid_heap"), (2, "grid_heap"),
                                                             (2, "grid")}

@@ -1,14 +1,9 @@
 """`rayvr bench ssrt --quick` runs end to end (CI smoke test; figures come from the GPU machine)."""
-import json
-import subprocess
-import sys
+from conftest import quick_bench
 
 
 def test_bench_ssrt_quick_writes_quadtree_dda_and_hiz_rows(tmp_path):
-    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "ssrt", "--quick", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=300)
-    assert run.returncode == 0, run.stderr[-3000:]
-    result = json.loads((tmp_path / "ssrt.json").read_text())
+    result = quick_bench("ssrt", tmp_path)
     rows = result["rows"]
     frames = {r["tracer"] for r in rows if r["tracer"].startswith("frame:")}
     assert {r["tracer"] for r in rows} - frames == {"quadtree", "dda", "hiz"}

@@ -2,12 +2,12 @@
 `OpenEXR` package, rayvr[exr]); integer channels stay NPY; files written atomically."""
 import os
 import stat
-import subprocess
 import sys
 
 import numpy as np
 import pytest
 
+from conftest import run_rayvr
 from rayvr import cli
 from rayvr.camera import StereoRig
 from rayvr.output import OutputError, write_exr
@@ -83,9 +83,8 @@ def test_write_exr_is_atomic_and_gets_the_umask(tmp_path, monkeypatch):
 
 def test_cli_exr_files(tmp_path):
     pytest.importorskip("OpenEXR")
-    run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--format", "exr", "--aux", "depth,material",
-                          "--size", "16x12", "--eye", "left", "--out", str(tmp_path), "-q"],
-                         capture_output=True, text=True, timeout=300)
+    run = run_rayvr("capture", "--format", "exr", "--aux", "depth,material", "--size", "16x12", "--eye", "left",
+                    "--out", tmp_path, "-q")
     assert run.returncode == 0, run.stderr
     assert sorted(os.listdir(tmp_path)) == ["frame_left.exr", "frame_left.png", "frame_left_depth.exr",
                                             "frame_left_material.npy", "frame_timings.json"]

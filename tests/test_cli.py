@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from conftest import run_rayvr
 from rayvr.camera import orbit, save_path
 
 
-def rayvr(*args, timeout=300):
-    return subprocess.run([sys.executable, "-m", "rayvr", *args], capture_output=True, text=True, timeout=timeout)
+rayvr = run_rayvr  # the CLI in a child process (conftest)
 
 
 def test_capture_default_scene_stereo_pair_with_aux(tmp_path):

@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 
+from conftest import quick_bench
 from rayvr.camera import orbit, save_path
 from rayvr.cli import main
 from rayvr.context import ContextError, EglDevice, assigned_egl_device, egl_device_for_gpu
@@ -285,13 +286,8 @@ def test_sweep_variants_measured_on_workers_match_this_process(gl, cluster):
 
 
 def test_bench_workers_quick_writes_its_result(local_ray, tmp_path):
-    import subprocess
-
     address = local_ray.get_runtime_context().gcs_address  # the test's Ray: no second one to start
-    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "workers", "--quick", "--workers", "1,2",
-                          "--address", address, "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
-    assert run.returncode == 0, run.stderr
-    result = json.loads((tmp_path / "workers.json").read_text())
+    result = quick_bench("workers", tmp_path, "--workers", "1,2", "--address", address)
     rows = {(r["mode"], r["workers"]): r for r in result["rows"]}
     assert set(rows) == {("single process", 0), ("ray workers", 1), ("ray workers", 2)}
     assert all(r["fps"] > 0 and r["failed"] == 0 for k, r in rows.items() if k[1])

@@ -2,6 +2,7 @@
 absurd nesting and oversized files are refused with one ConfigError naming the file."""
 import pytest
 
+from conftest import run_rayvr
 from rayvr.materials import ECHO_LIMIT, MAX_CONFIG_BYTES, ConfigError, load_config, parse_config, short
 
 HUGE = "x" * 10_000_000  # 10 MB
@@ -71,11 +72,8 @@ def test_text_that_is_not_utf8_is_a_config_error(tmp_path):
 
 
 def test_cli_shows_one_short_line_for_a_huge_config_value(tmp_path):
-    import subprocess
-    import sys
 
     p = tmp_path / "big.toml"
     p.write_text(f'[materials]\nfloor = "{"z" * (MAX_CONFIG_BYTES // 2)}"\n')
-    run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--materials", str(p), "--out",
-                          str(tmp_path / "o"), "--size", "8x8"], capture_output=True, text=True, timeout=300)
+    run = run_rayvr("capture", "--materials", p, "--out", tmp_path / "o", "--size", "8x8")
     assert run.returncode == 2 and len(run.stderr.splitlines()) == 1 and len(run.stderr) < 700, run.stderr[:300]

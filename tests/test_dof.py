@@ -4,12 +4,11 @@ et al. 2015 §5.2). Analytic checks on the step scene (a quad at view depth ~4 i
 pixels away from the quad keep their colour exactly; the out-of-focus quad's edge blurs into the
 wall over the thin lens's circle of confusion; a vanishing aperture is the pinhole image; IPD 0
 gives identical eyes. The GPU gather equals the numpy reference (passes/dof.py gather_reference)."""
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from conftest import run_rayvr
 from test_quadtree import scenes
 from rayvr.camera import StereoRig
 from rayvr.renderer import Renderer, RenderSettings
@@ -72,8 +71,7 @@ def test_bad_dof_settings_are_one_line_errors(tmp_path):
         RenderSettings(dof_aperture=-1.0)
     with pytest.raises(ValueError, match="dof_focus"):
         RenderSettings(dof_focus=0.0)
-    run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--aperture", "-2", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=60)
+    run = run_rayvr("capture", "--aperture", "-2", "--out", tmp_path, timeout=60)
     assert run.returncode == 2 and "Traceback" not in run.stderr and "--aperture" in run.stderr
 
 

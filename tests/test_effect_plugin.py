@@ -4,14 +4,13 @@ Also: the compiled graph prunes what a scene does not need, as `rayvr info --gra
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import moderngl
 import numpy as np
 import pytest
 
+from conftest import run_rayvr
 from rayvr import shaders
 from rayvr.camera import StereoRig
 from rayvr.effects import Effect, Param, register, traced_effects, unregister
@@ -116,7 +115,7 @@ def test_registry_refuses_clashes(flat):
 
 
 def _graph(*args):
-    run = subprocess.run([sys.executable, "-m", "rayvr", "info", *args], capture_output=True, text=True, timeout=300)
+    run = run_rayvr("info", *args)
     assert run.returncode == 0, run.stderr
     return run.stdout
 

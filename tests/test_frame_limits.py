@@ -3,12 +3,10 @@ exit 0: its position channel is exactly 2 GiB), and frames too large even for th
 before anything is allocated, naming what does not fit."""
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 
+from conftest import run_rayvr
 from rayvr.camera import StereoRig
 from rayvr.frame import (RESOURCE_BYTES_LIMIT, DeviceLimits, FrameTooLarge, Sizing, check_fits, compile_graph,
                          limit_problems)
@@ -49,8 +47,7 @@ def test_texture_side_storage_buffer_and_memory_limits(gl):
 
 def test_capture_of_an_absurd_size_is_one_line_and_writes_nothing(tmp_path):
     out = tmp_path / "o"
-    run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--size", "100000x100000", "--out", str(out)],
-                         capture_output=True, text=True, timeout=120)
+    run = run_rayvr("capture", "--size", "100000x100000", "--out", out, timeout=120)
     assert run.returncode == 2
     lines = [line for line in run.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "size" in lines[0] and "Traceback" not in run.stderr, run.stderr

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from conftest import merge, quad
+from conftest import merge, quad, quick_bench, run_rayvr
 from rayvr.accel.bvh import offset_ray
 from rayvr.camera import Pose, StereoRig
 from rayvr.gbuffer import NO_HIT
@@ -509,21 +509,15 @@ def test_rays_leave_a_lit_face_seen_from_afar_without_hitting_it(gl, effect):
 
 def test_cli_capture_primary_rays_and_bench_rays_quick(tmp_path):
     import json
-    import subprocess
-    import sys
     cfg = tmp_path / "m.toml"
     cfg.write_text('default = "shadows"\n[materials]\n"mirror*" = { effect = "reflections", bounces = 2 }\n')
-    run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--primary", "rays", "--materials", str(cfg),
-                          "--size", "32x24", "--out", str(tmp_path / "o"), "--aux", "triangle", "--timings"],
-                         capture_output=True, text=True, timeout=300)
+    run = run_rayvr("capture", "--primary", "rays", "--materials", cfg, "--size", "32x24", "--out", tmp_path / "o",
+                    "--aux", "triangle", "--timings")
     assert run.returncode == 0, run.stderr
     summary = json.loads((tmp_path / "o" / "frame_timings.json").read_text())
     assert {"bvh", "primary_rays", "classify", "rt_shadows", "rt_reflections"} <= set(summary["passes"])
     assert "visibility" not in summary["passes"]
-    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", "rays", "--quick", "--out", str(tmp_path / "b")],
-                         capture_output=True, text=True, timeout=300)
-    assert run.returncode == 0, run.stderr
-    result = json.loads((tmp_path / "b" / "rays.json").read_text())
+    result = quick_bench("rays", tmp_path / "b")
     assert {r["rays_kind"] for r in result["rows"]} == {"primary", "shadow", "reflect"}
     assert all(r["build_s"] > 0 and r["sah_cost"] > 0 for r in result["rows"])
     if "agree_with_embree" in result["rows"][0]:

@@ -1,14 +1,12 @@
 """Stereo modes beyond `dual` (rayvr/stereo.py): `reuse` (passes/reuse.py) and `warp`
 (passes/warp.py), each against `dual` on the same frame and against an independent reference:
 the numpy reuse map, the central view, mirror symmetry."""
-import subprocess
-import sys
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from conftest import merge, quad
+from conftest import merge, quad, run_rayvr
 from rayvr.camera import Pose, StereoRig
 from rayvr.frame import FramePlan, compile_graph
 from rayvr.passes.reuse import read_map, reference_map
@@ -221,7 +219,7 @@ def test_warp_holes_are_disocclusions_and_symmetric(gl):
 
 
 def test_cli_stereo(tmp_path):
-    run = lambda *a: subprocess.run([sys.executable, "-m", "rayvr", *a], capture_output=True, text=True)  # noqa: E731
+    run = run_rayvr
     p = run("capture", "--stereo", "warp", "--size", "32x24", "--out", str(tmp_path), "-q")
     assert p.returncode == 0, p.stderr
     assert (tmp_path / "frame_left.png").exists() and (tmp_path / "frame_right.png").exists()

@@ -1,11 +1,10 @@
 """The speed/accuracy machinery end to end at tiny sizes (llvmpipe): sweeps, budget choice."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from conftest import quick_bench, run_rayvr
 from rayvr.bench import metrics
 from rayvr.bench import tradeoff as T
 from rayvr.camera import StereoRig
@@ -115,10 +114,7 @@ def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
 
 @pytest.mark.parametrize("area", ["tradeoff", "budget"])
 def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
-    run = subprocess.run([sys.executable, "-m", "rayvr", "bench", area, "--quick", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=900)
-    assert run.returncode == 0, run.stderr[-3000:]
-    result = json.loads((tmp_path / f"{area}.json").read_text())
+    result = quick_bench(area, tmp_path, timeout=900)
     assert result["rows"] and result["meta"]["gl_renderer"]
     assert (tmp_path / f"{area}.md").exists()
     if area == "tradeoff":
@@ -132,8 +128,7 @@ def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
 
 
 def test_capture_budget_mode_records_the_choice(tmp_path):
-    run = subprocess.run([sys.executable, "-m", "rayvr", "capture", "--size", "24x16", "--budget-ms", "1e6",
-                          "--out", str(tmp_path), "-q"], capture_output=True, text=True, timeout=900)
+    run = run_rayvr("capture", "--size", "24x16", "--budget-ms", "1e6", "--out", tmp_path, "-q", timeout=900)
     assert run.returncode == 0, run.stderr[-3000:]
     summary = json.loads((tmp_path / "frame_timings.json").read_text())
     pick = summary["budget"]

@@ -3,18 +3,16 @@ NeRF / 3D Gaussian splatting tools read, checked by back-projecting the depth fi
 with plain pinhole maths against the world positions rayvr wrote."""
 import json
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from conftest import run_rayvr
 from rayvr.camera import Pose
 from rayvr.views import grid_views, load_views, sphere_views, views_for
 
 
-def rayvr(*args):
-    return subprocess.run([sys.executable, "-m", "rayvr", *args], capture_output=True, text=True, timeout=300)
+rayvr = run_rayvr  # the CLI in a child process (conftest)
 
 
 def back_project(frame, top, out, u, v):
