@@ -75,6 +75,8 @@ _RAW_SIGNATURES: dict[str, tuple] = {
     "glGetQueryObjectui64v": (None, (_u, _u, ctypes.POINTER(ctypes.c_uint64))),
 }
 GL_GPU_MEMORY_INFO_DEDICATED_VIDMEM_NVX = 0x9047  # kB
+GL_ERROR_NAMES = {0x0500: "GL_INVALID_ENUM", 0x0501: "GL_INVALID_VALUE", 0x0502: "GL_INVALID_OPERATION",
+                  0x0505: "GL_OUT_OF_MEMORY", 0x0506: "GL_INVALID_FRAMEBUFFER_OPERATION"}  # glGetError codes
 
 
 class RawGL:
@@ -129,14 +131,12 @@ class GLContext:
 
     def gl_errors(self) -> list[str]:
         """The GL errors raised since the last call (glGetError until GL_NO_ERROR), named."""
-        names = {0x0500: "GL_INVALID_ENUM", 0x0501: "GL_INVALID_VALUE", 0x0502: "GL_INVALID_OPERATION",
-                 0x0505: "GL_OUT_OF_MEMORY", 0x0506: "GL_INVALID_FRAMEBUFFER_OPERATION"}
         out: list[str] = []
         while len(out) < 16:  # a lost context may never return GL_NO_ERROR
             code = self.raw.glGetError()
             if code == 0:
                 break
-            out.append(names.get(code, f"GL error {code:#06x}"))
+            out.append(GL_ERROR_NAMES.get(code, f"GL error {code:#06x}"))
         return out
 
     def check_frame(self, where: str) -> None:
