@@ -31,14 +31,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..accel.frustum import tile_order
 from ..accel.gpu import GpuBvh, RayTracer
 from ..camera import StereoRig
 from ..cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
 from ..cameras.sampling import SAMPLE_COUNTS
 from ..context import create_context
 from ..renderer import Renderer, RenderSettings
-from .rays import time_frame
+from .rays import primary_rays, time_frame
 from .report import device_meta, write_report
 from .scenes import bench_scenes
 
@@ -80,24 +79,9 @@ def primary_kernel_ms(renderer, rig, repeat=5) -> tuple[float, int]:
     return float(np.median(ms)), rounds
 
 
-def central_rays(rig, origin):
-    """Both eyes' central camera rays (channel set 0), tile by tile (frustum.tile_order), GL rows;
-    a sample without a ray gets a zero direction (traced as nothing)."""
-    o, d = [], []
-    for eye in rig.eyes():
-        r = rig.camera.rays(eye, 0)
-        w, h = eye.size
-        dirs = np.where(r.valid[..., None], r.directions, 0.0)[::-1].reshape(-1, 3)
-        org = (np.broadcast_to(r.origins, dirs.reshape(h, w, 3).shape)[::-1] - origin).reshape(-1, 3)
-        order = tile_order(w, h)
-        o.append(org[order])
-        d.append(dirs[order])
-    return np.concatenate(o).astype(np.float32), np.concatenate(d).astype(np.float32)
-
-
 def tile_culling(gl, gpu_bvh, rig, origin, repeat) -> dict:
     """The camera's central rays traced standalone (binary BVH) without and with tile culling."""
-    o, d = central_rays(rig, origin)
+    o, d = primary_rays(rig, origin, tiled=True)
     rt = RayTracer(gl.ctx, gpu_bvh)
     plain = rt.time_trace(o, d, repeats=repeat)
     culled = rt.time_trace(o, d, repeats=repeat, tiles=True)

@@ -67,15 +67,19 @@ VARIANTS = (("bvh2", "bvh2", True, False), ("bvh2+tiles", "bvh2", True, True),
 
 
 def primary_rays(rig, origin, tiled: bool = False):
-    """Both eyes' camera rays, in GL rows (bottom-up) as the passes trace, or (`tiled`) listed tile by
-    tile (frustum.tile_order) so that consecutive TILE_RAYS rays are a pixel block."""
+    """Both eyes' central camera rays of the rig's camera model (channel set 0), in GL rows
+    (bottom-up) as the passes trace, or (`tiled`) listed tile by tile (frustum.tile_order) so that
+    consecutive TILE_RAYS rays are a pixel block; a sample without a ray (foveated) gets a zero
+    direction, traced as nothing."""
     o, d = [], []
     for eye in rig.eyes():
-        dirs = eye.ray_directions()[::-1]
-        h, w = dirs.shape[:2]
-        dirs = dirs.reshape(-1, 3)[tile_order(w, h)] if tiled else dirs.reshape(-1, 3)
-        d.append(dirs)
-        o.append(np.broadcast_to(eye.position - origin, dirs.shape))
+        r = rig.camera.rays(eye, 0)
+        w, h = eye.size
+        dirs = np.where(r.valid[..., None], r.directions, 0.0)[::-1].reshape(-1, 3)
+        org = (np.broadcast_to(r.origins, (h, w, 3))[::-1] - origin).reshape(-1, 3)
+        order = tile_order(w, h) if tiled else slice(None)
+        o.append(org[order])
+        d.append(dirs[order])
     return np.concatenate(o).astype(np.float32), np.concatenate(d).astype(np.float32)
 
 
