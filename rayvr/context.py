@@ -73,7 +73,13 @@ _RAW_SIGNATURES: dict[str, tuple] = {
     "glBeginQuery": (None, (_u, _u)),
     "glEndQuery": (None, (_u,)),
     "glGetQueryObjectui64v": (None, (_u, _u, ctypes.POINTER(ctypes.c_uint64))),
+    # Fences: how many frames may be queued on the GPU (GLContext.fence).
+    "glFenceSync": (_p, (_u, _u)),
+    "glClientWaitSync": (_u, (_p, _u, ctypes.c_uint64)),
+    "glDeleteSync": (None, (_p,)),
 }
+GL_SYNC_GPU_COMMANDS_COMPLETE, GL_SYNC_FLUSH_COMMANDS_BIT = 0x9117, 0x1
+GL_ALREADY_SIGNALED, GL_TIMEOUT_EXPIRED, GL_CONDITION_SATISFIED, GL_WAIT_FAILED = 0x911A, 0x911B, 0x911C, 0x911D
 GL_GPU_MEMORY_INFO_DEDICATED_VIDMEM_NVX = 0x9047  # kB
 GL_ERROR_NAMES = {0x0500: "GL_INVALID_ENUM", 0x0501: "GL_INVALID_VALUE", 0x0502: "GL_INVALID_OPERATION",
                   0x0505: "GL_OUT_OF_MEMORY", 0x0506: "GL_INVALID_FRAMEBUFFER_OPERATION"}  # glGetError codes
@@ -110,6 +116,30 @@ class RawGL:
 
 
 @dataclass
+class Fence:
+    """A GL sync object: `wait()` returns once the GPU has run every command before it."""
+
+    raw: RawGL
+    sync: int | None
+
+    def wait(self) -> None:
+        try:
+            while True:  # short waits, flushing the first time: a driver may cap one wait's length
+                status = self.raw.glClientWaitSync(self.sync, GL_SYNC_FLUSH_COMMANDS_BIT, 100_000_000)
+                if status in (GL_ALREADY_SIGNALED, GL_CONDITION_SATISFIED):
+                    return
+                if status != GL_TIMEOUT_EXPIRED:
+                    raise GpuError(f"waiting for the GPU failed (glClientWaitSync returned {status:#06x})")
+        finally:
+            self.release()
+
+    def release(self) -> None:
+        if self.sync:
+            self.raw.glDeleteSync(self.sync)
+            self.sync = None
+
+
+@dataclass
 class GLContext:
     """A moderngl context plus what rayvr needs to know about it."""
 
@@ -138,6 +168,10 @@ class GLContext:
                 break
             out.append(GL_ERROR_NAMES.get(code, f"GL error {code:#06x}"))
         return out
+
+    def fence(self) -> "Fence":
+        """A fence after every command recorded so far (Fence.wait blocks until the GPU passed it)."""
+        return Fence(self.raw, self.raw.glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0))
 
     def check_frame(self, where: str) -> None:
         """Raise GpuError when the GL reported an error while `where` was drawn: a frame whose

@@ -118,3 +118,58 @@ def test_a_released_renderer_leaves_no_dead_framebuffer_bound(gl):
         for spp in (1, 2, 3):
             second.render(rig, spp=spp)  # GpuError if a frame's GL calls failed
     assert gl.gl_errors() == []
+
+
+def test_a_fence_wait_returns_once_the_gpu_has_run_the_work_before_it(gl):
+    """GLContext.fence: after wait() a compute shader's writes recorded before the fence are
+    there (read without any other synchronising call), and the sync object is deleted."""
+    shader = gl.ctx.compute_shader("""#version 430
+        layout(local_size_x = 64) in;
+        layout(std430, binding = 0) buffer Out { uint v[]; };
+        void main() { uint i = gl_GlobalInvocationID.x; uint x = i; for (int k = 0; k < 64; ++k) x = x * 1664525u + 1013904223u; v[i] = x; }""")
+    n = 1 << 14
+    buf = gl.ctx.buffer(reserve=4 * n)
+    buf.bind_to_storage_buffer(0)
+    shader.run(n // 64)
+    fence = gl.fence()
+    fence.wait()
+    assert fence.sync is None
+    expected = np.arange(n, dtype=np.uint64)
+    for _ in range(64):
+        expected = (expected * 1664525 + 1013904223) % (1 << 32)
+    assert np.array_equal(np.frombuffer(buf.read(), np.uint32), expected.astype(np.uint32))
+    fence.release()  # a second release is harmless
+    buf.release()
+    shader.release()
+
+
+def test_an_accumulation_keeps_at_most_two_samples_queued_on_the_gpu(gl, monkeypatch):
+    """render(spp=N) waits for sample k - SAMPLES_IN_FLIGHT before recording more: on the H200 a
+    fresh Renderer that queued ~20 s of samples unsynchronised read back the previous Renderer's
+    image with 0 ms timings and no GL error. Here: no more than SAMPLES_IN_FLIGHT fences are
+    outstanding when a sample is recorded, and every fence is waited for or released."""
+    from rayvr import scene as scene_mod
+    from rayvr.camera import StereoRig
+    from rayvr.context import GLContext
+    from rayvr.renderer import SAMPLES_IN_FLIGHT, Renderer
+
+    made, open_at_record = [], []
+    real_fence = GLContext.fence
+
+    def counting_fence(self):
+        f = real_fence(self)
+        made.append(f)
+        return f
+    monkeypatch.setattr(GLContext, "fence", counting_fence)
+    scene = scene_mod.load(None)
+    rig = StereoRig.for_scene(scene, size=(16, 12))
+    with Renderer(scene, gl=gl) as r:
+        real_record = r.record
+
+        def record(*a, **k):
+            open_at_record.append(sum(f.sync is not None for f in made))
+            return real_record(*a, **k)
+        r.record = record
+        r.render(rig, spp=7)
+    assert len(open_at_record) == 7 and max(open_at_record) == SAMPLES_IN_FLIGHT
+    assert len(made) == 6 and all(f.sync is None for f in made)
