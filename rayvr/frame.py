@@ -74,7 +74,7 @@ class FramePlan:
 
 # GLSL image format -> (components, moderngl dtype, bytes per texel)
 TEXTURE_FORMATS = {"rgba8": (4, "f1", 4), "rgba16f": (4, "f2", 8), "rgba32f": (4, "f4", 16),
-                   "r32f": (1, "f4", 4), "r32ui": (1, "u4", 4), "rg32ui": (2, "u4", 8),
+                   "r32f": (1, "f4", 4), "rg32f": (2, "f4", 8), "r32ui": (1, "u4", 4), "rg32ui": (2, "u4", 8),
                    "rgba32ui": (4, "u4", 16)}
 
 

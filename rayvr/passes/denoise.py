@@ -7,9 +7,14 @@ albedo (demodulated, so texture and colour edges stay sharp), `iterations` times
 B3-spline kernel whose taps lie 2^i pixels apart, each tap weighted by depth (against the
 plane of the centre), normal, albedo and luminance scaled by the estimated standard deviation
 of the noise (temporal moments of the samples, or a 7x7 spatial estimate before 4 samples), and
-multiplies the albedo back. Only the listed pixels of the denoised effects are filtered (indirect
-dispatches over the classify pass's lists) and only taps on pixels of the same effect count, so
-a `raster` wall never blurs into a `glossy` floor. Writes `hdr_denoised`, which tonemap shows.
+multiplies the albedo back. Only pixels of the denoised effects are filtered and only taps on
+pixels of the same effect count, so a `raster` wall never blurs into a `glossy` floor. Writes
+`hdr_denoised`, which tonemap shows.
+
+The kernels run over 16x16 tiles of the image (not the classify pass's pixel lists): a work
+group loads its tile and apron into workgroup memory once and takes every tap from there; an
+à-trous step of 2^i works on the lattice of pixels 2^i apart, so its taps stay in the tile. A
+tile without a denoised pixel stops after one fetch a pixel.
 """
 from __future__ import annotations
 
@@ -18,12 +23,13 @@ from dataclasses import dataclass
 import moderngl
 
 from .. import shaders
-from ..effects import traced_effects
+from ..effects import EFFECTS
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gpu_layout import IMAGE
 from .accumulate import ACCUM
-from .classify import ARGS_BYTES, bind_lists
 from .compute import dispatch_per_pixel
+
+DENOISE_TILE = 16  # TILE of glsl/post/denoise.comp: one work group filters 16x16 lattice points
 
 
 @dataclass(frozen=True)
@@ -38,6 +44,8 @@ class DenoiseParams:
 
 DEFAULTS = DenoiseParams()
 GUIDE = Texture("rgba32ui")  # depth, octahedral normal, 8-bit base colour, effect: one fetch per tap
+GRADIENT = Texture("rg32f")  # the view depth's screen-space gradient, once per frame
+VARIANCE = Texture("r32f")  # the variance blurred 3x3, once per iteration
 
 
 class DenoisePass(Pass):
@@ -50,38 +58,33 @@ class DenoisePass(Pass):
         return f"denoise on ({', '.join(plan.denoise)})"
 
     def io(self, plan: FramePlan) -> list:
-        return [read("gbuffer"), read("rt_lists"), read("rt_list_args"), read("hdr_accum"), read("accum_moments"),
+        return [read("gbuffer"), read("hdr_accum"), read("accum_moments"),
                 write("denoise.ping", ACCUM), write("denoise.pong", ACCUM), write("denoise.guide", GUIDE),
-                write("hdr_denoised", ACCUM)]
+                write("denoise.gradient", GRADIENT), write("denoise.variance", VARIANCE), write("hdr_denoised", ACCUM)]
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.programs = {s: shaders.compute(gl.ctx, "post/denoise.comp", {"DENOISE_STAGE": s}) for s in (0, 1, 2)}
-        self.slots = {e.name: i for i, e in enumerate(traced_effects())}
+        self.programs = {s: shaders.compute(gl.ctx, "post/denoise.comp", {"DENOISE_STAGE": s}) for s in (0, 1, 2, 3)}
 
     def execute(self, fc) -> None:
         iterations = int(fc.settings.denoise_iterations)
-        denoised = fc.plan.denoise
-        params = DEFAULTS
+        mask = sum(1 << EFFECTS[name].id for name in fc.plan.denoise)
         fc.gbuffer.bind_for_reading()
-        bind_lists(fc)
         color, moments = fc.resource("hdr_accum"), fc.resource("accum_moments")
         out, ping, pong = fc.resource("hdr_denoised"), fc.resource("denoise.ping"), fc.resource("denoise.pong")
         guide = fc.resource("denoise.guide")
         color.bind_to_image(IMAGE["denoise_color"], read=True, write=False)
         moments.bind_to_image(IMAGE["denoise_moments"], read=True, write=False)
-        args = fc.resource("rt_list_args")
-        w, h = fc.gbuffer.size
+        fc.resource("denoise.gradient").bind_to_image(IMAGE["denoise_gradient"], read=True, write=True)
+        fc.resource("denoise.variance").bind_to_image(IMAGE["denoise_variance"], read=True, write=True)
         for p in self.programs.values():
-            for k, v in params.__dict__.items():
+            for k, v in {**DEFAULTS.__dict__, "denoise_effects": mask}.items():
                 if k in p:
                     p[k].value = v
-            if "rt_capacity" in p:
-                p["rt_capacity"].value = w * h * fc.gbuffer.layers
+        w, h = fc.sizing.size
 
-        def over_lists(p):
-            for name in denoised:
-                p["denoise_slot"].value = self.slots[name]
-                p.run_indirect(args, offset=ARGS_BYTES * self.slots[name])
+        def over_tiles(p, step=1):
+            blocks = lambda n: -(-n // (DENOISE_TILE * step)) * step  # noqa: E731
+            p.run(blocks(w), blocks(h), fc.sizing.layers)
             fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
         def passthrough():
@@ -92,7 +95,7 @@ class DenoisePass(Pass):
 
         def prepare():
             ping.bind_to_image(IMAGE["denoise_out"], read=False, write=True)
-            over_lists(self.programs[1])
+            over_tiles(self.programs[1])
 
         fc.stage("passthrough", passthrough)
         fc.stage("prepare", prepare)
@@ -101,12 +104,13 @@ class DenoisePass(Pass):
             last = i == iterations - 1
 
             def iterate(i=i, src=src, dst=dst, last=last):
-                p = self.programs[2]
+                src.bind_to_image(IMAGE["denoise_in"], read=True, write=False)
+                over_tiles(self.programs[2])  # the variance blur of this iteration's input
+                p = self.programs[3]
                 p["step_size"].value = 1 << i
                 p["last_iteration"].value = int(last)
-                src.bind_to_image(IMAGE["denoise_in"], read=True, write=False)
                 (out if last else dst).bind_to_image(IMAGE["denoise_out"], read=False, write=True)
-                over_lists(p)
+                over_tiles(p, 1 << i)
             fc.stage(f"atrous{i}", iterate)
             src, dst = dst, src
 
