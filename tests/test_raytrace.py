@@ -3,6 +3,7 @@ pixel lists, analytic mirrors, bounce counts, cross-checks against Embree, soft-
 Small images: these run on llvmpipe."""
 from __future__ import annotations
 
+import moderngl
 import numpy as np
 import pytest
 import trimesh
@@ -566,3 +567,40 @@ def test_classify_lists_every_traced_pixel_once_in_each_aggregation_mode(gl, bal
                 assert tuple(args[4 * s:4 * s + 3]) == ((-(-n // 64), 1, 1) if n else (0, 1, 1))
     finally:
         r.release()
+
+
+def test_hit_events_run_only_the_shadow_chunks_their_rays_fill(gl, monkeypatch):
+    """path with several paths a pixel: the pixel event lights its surface with a set of light
+    samples per path (area_samples x samples slots per rect light), a hit event with area_samples.
+    Under a limit that cuts the slots into chunks of one, the bounces run the hit kernel over the
+    hit's chunks only (they were run over all of the pixel event's: 4 x the work here) and the
+    image is the one rendered in one go."""
+    from rayvr.passes import trace_effect
+    scene = load()
+    rects = sum(light.kind == "rect" for light in scene.lights)
+    others = len(scene.lights) - rects
+    assert rects >= 1
+    rig = StereoRig.for_scene(scene, size=(24, 18))
+    cfg = {"default": "path", "params": {"path": {"samples": 4, "bounces": 2, "area_samples": 2}}}
+    _, whole, _ = render(gl, scene, rig, cfg)
+    monkeypatch.setattr(trace_effect, "WAVE_BUFFER_BYTES", 24 * 18 * 2 * 4 * trace_effect.SLOT_BYTES)
+    hits = []
+    real_run = moderngl.ComputeShader.run_indirect
+
+    with Renderer(scene, parse_config(cfg, "<t>"), gl=gl) as r:
+        plan = r.plan(2, "color", rig.eyes()[0].camera)
+        shape = trace_effect.WaveShape(EFFECTS["path"], r.sizing(rig.size, 2, plan))
+        assert shape.slots == rects * 2 * 4 + others and shape.hit_slots == rects * 2 + others
+        assert shape.chunk == 1 and len(shape.hit_chunks) == shape.hit_slots < len(shape.chunks)
+        hit_program = next(p for p in r.graph.compile(plan).passes if p.name == "rt_path").programs["hit"]
+
+        def counting(self, *a, **k):
+            if self is hit_program:
+                hits.append(1)
+            return real_run(self, *a, **k)
+        monkeypatch.setattr(moderngl.ComputeShader, "run_indirect", counting)
+        frame = r.render(rig, aux=("hdr",))
+        split = np.stack([frame.left.aux["hdr"], frame.right.aux["hdr"]])
+    batches = -(-24 * 18 * 2 // shape.batch)
+    assert len(hits) == batches * 2 * shape.hit_slots
+    assert np.allclose(split, whole, rtol=2e-3, atol=1e-4), np.abs(split - whole).max()

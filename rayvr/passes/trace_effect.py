@@ -60,6 +60,9 @@ class WaveShape:
         lights = s.scene.lights if s.scene is not None else ()
         per_rect = prm["area_samples"] * (prm["samples"] if effect.shader_defines.get("PIXEL_LIGHT_SAMPLES_PER_PATH") else 1)
         self.slots = sum(per_rect if l.kind == "rect" else 1 for l in lights) or 1
+        # A hit event lights its surface with `area_samples` points per rect light, never the
+        # pixel event's set per path: its shadow rays fill the first hit_slots slots only.
+        self.hit_slots = min(self.slots, sum(prm["area_samples"] if l.kind == "rect" else 1 for l in lights) or 1)
         limit = min(s.max_ssbo_bytes or WAVE_BUFFER_BYTES, WAVE_BUFFER_BYTES)
         self.capacity_pixels = s.pixels
         self.batch, self.chunk = wave_plan(s.pixels, self.paths_per_pixel, self.slots, limit)
@@ -67,7 +70,13 @@ class WaveShape:
 
     @property
     def chunks(self) -> list:
+        """(first slot, count) of each chunk of the pixel event's shadow slots."""
         return [(k, min(self.chunk, self.slots - k)) for k in range(0, self.slots, self.chunk)]
+
+    @property
+    def hit_chunks(self) -> list:
+        """The chunks a hit event's shadow rays fall in (the last one ends the path)."""
+        return [(k, min(self.chunk, self.hit_slots - k)) for k in range(0, self.hit_slots, self.chunk)]
 
 
 class TraceEffectPass(Pass):
@@ -164,7 +173,7 @@ class TraceEffectPass(Pass):
                 barrier(moderngl.ALL_BARRIER_BITS)
             fc.stage(name, go)
 
-        one_path, bounces, chunks = shape.paths_per_pixel == 1, shape.bounces, shape.chunks
+        one_path, bounces, chunks, hit_chunks = shape.paths_per_pixel == 1, shape.bounces, shape.chunks, shape.hit_chunks
         for base in range(0, n_pixels, shape.batch):
             for p in self.programs.values():
                 if "wave_batch_base" in p:
@@ -178,8 +187,8 @@ class TraceEffectPass(Pass):
                     wave_slot_count=count)
             for b in range(bounces):
                 run("closest", 1)
-                for ci, (first, count) in enumerate(chunks):
-                    last = ci == len(chunks) - 1
+                for ci, (first, count) in enumerate(hit_chunks):
+                    last = ci == len(hit_chunks) - 1
                     run("hit", 1, wave_bounce=b, wave_last_chunk=int(last), wave_slot_first=first,
                         wave_slot_count=count)
                     fuse = last and b == bounces - 1 and one_path
