@@ -423,8 +423,8 @@ def test_wave_batches_and_shadow_chunks_give_the_same_image(gl, monkeypatch):
                          "mirror*": {"effect": "reflections", "bounces": 3}}}
     _, whole, _ = render(gl, scene, rig, cfg)
     limit = 30_000
-    batch, chunk = trace_effect.wave_plan(40 * 30 * 2, 2, 3, limit)
-    assert batch < 40 * 30 * 2 and chunk < 3  # the limit does split both ways
+    batch, _, hit_chunk = trace_effect.wave_plan(40 * 30 * 2, 2, 3, limit)
+    assert batch < 40 * 30 * 2 and hit_chunk < 3  # the limit does split both ways
     monkeypatch.setattr(trace_effect, "WAVE_BUFFER_BYTES", limit)
     _, split, _ = render(gl, scene, rig, cfg)
     assert np.allclose(split, whole, rtol=2e-3, atol=1e-4), np.abs(split - whole).max()
@@ -434,9 +434,12 @@ def test_wave_plan_respects_the_limit():
     from rayvr.passes.trace_effect import PATH_BYTES, SLOT_BYTES, wave_plan
     for pixels, paths, slots, limit in ((4_608_000, 1, 4, 1 << 30), (4_608_000, 16, 64, 128 << 20),
                                         (100, 1, 2, 1 << 30), (10_000, 4, 1024, 200_000)):
-        batch, chunk = wave_plan(pixels, paths, slots, limit)
-        assert 1 <= batch <= pixels and 1 <= chunk <= slots
-        assert batch * paths * PATH_BYTES <= limit and batch * paths * chunk * SLOT_BYTES <= limit
+        batch, pixel_chunk, hit_chunk = wave_plan(pixels, paths, slots, limit, hit_slots=max(1, slots // 4))
+        assert 1 <= batch <= pixels and 1 <= pixel_chunk <= slots and 1 <= hit_chunk <= max(1, slots // 4)
+        assert batch * paths * PATH_BYTES <= limit
+        # a pixel event's slot rows hold the batch's pixels, a hit event's its paths
+        assert batch * pixel_chunk * SLOT_BYTES <= limit and batch * paths * hit_chunk * SLOT_BYTES <= limit
+        assert pixel_chunk == slots or (pixel_chunk + 1) * batch * SLOT_BYTES > limit  # as large as fits
 
 
 # ------------------------------------------------------------------------------ robustness, convergence
@@ -569,12 +572,13 @@ def test_classify_lists_every_traced_pixel_once_in_each_aggregation_mode(gl, bal
         r.release()
 
 
-def test_hit_events_run_only_the_shadow_chunks_their_rays_fill(gl, monkeypatch):
+def test_shadow_chunks_follow_each_events_own_rays(gl, monkeypatch):
     """path with several paths a pixel: the pixel event lights its surface with a set of light
-    samples per path (area_samples x samples slots per rect light), a hit event with area_samples.
-    Under a limit that cuts the slots into chunks of one, the bounces run the hit kernel over the
-    hit's chunks only (they were run over all of the pixel event's: 4 x the work here) and the
-    image is the one rendered in one go."""
+    samples per path (area_samples x samples slots per rect light) in rows of the batch's pixels,
+    a hit event with area_samples in rows of its paths. Under a limit that fits one hit slot per
+    path, the bounces run the hit kernel over the hit's chunks only (they ran over all of the
+    pixel event's: 4 x the work here), the pixel event's chunks are `samples` times as large as
+    a hit's, and the image is the one rendered in one go."""
     from rayvr.passes import trace_effect
     scene = load()
     rects = sum(light.kind == "rect" for light in scene.lights)
@@ -591,7 +595,9 @@ def test_hit_events_run_only_the_shadow_chunks_their_rays_fill(gl, monkeypatch):
         plan = r.plan(2, "color", rig.eyes()[0].camera)
         shape = trace_effect.WaveShape(EFFECTS["path"], r.sizing(rig.size, 2, plan))
         assert shape.slots == rects * 2 * 4 + others and shape.hit_slots == rects * 2 + others
-        assert shape.chunk == 1 and len(shape.hit_chunks) == shape.hit_slots < len(shape.chunks)
+        assert shape.hit_chunk == 1 and len(shape.hit_chunks) == shape.hit_slots
+        assert shape.chunk == min(shape.slots, 4 * shape.hit_chunk * 24 * 18 * 2 // shape.batch)
+        assert len(shape.chunks) < shape.slots
         hit_program = next(p for p in r.graph.compile(plan).passes if p.name == "rt_path").programs["hit"]
 
         def counting(self, *a, **k):

@@ -26,13 +26,18 @@ PATH_BYTES, SLOT_BYTES = 80, 48
 WAVE_BUFFER_BYTES = 1 << 30  # largest wavefront buffer: the device's storage-block limit or this
 
 
-def wave_plan(pixel_capacity: int, paths_per_pixel: int, slots: int, limit: int) -> tuple[int, int]:
-    """(pixels per batch, shadow slots per chunk) so that no wavefront buffer exceeds `limit` bytes."""
+def wave_plan(pixel_capacity: int, paths_per_pixel: int, slots: int, limit: int,
+              hit_slots: int | None = None) -> tuple[int, int, int]:
+    """(pixels per batch, shadow slots per chunk of a pixel event, of a hit event) so that no
+    wavefront buffer exceeds `limit` bytes. A pixel event's slots are rows of the batch's pixels,
+    a hit event's rows of its paths (`hit_slots`: a hit's shadow rays, default `slots`)."""
+    hit_slots = slots if hit_slots is None else hit_slots
     batch = max(1, min(pixel_capacity, limit // (PATH_BYTES * paths_per_pixel)))
-    chunk = max(1, min(slots, limit // (SLOT_BYTES * batch * paths_per_pixel)))
-    if chunk * SLOT_BYTES * batch * paths_per_pixel > limit:
+    if SLOT_BYTES * batch * paths_per_pixel > limit:  # not even one slot of every path fits
         batch = max(1, limit // (SLOT_BYTES * paths_per_pixel))
-    return batch, chunk
+    pixel_chunk = max(1, min(slots, limit // (SLOT_BYTES * batch)))
+    hit_chunk = max(1, min(hit_slots, limit // (SLOT_BYTES * batch * paths_per_pixel)))
+    return batch, pixel_chunk, hit_chunk
 
 
 def effect_maxima(assignments, effect: str) -> dict:
@@ -65,8 +70,14 @@ class WaveShape:
         self.hit_slots = min(self.slots, sum(prm["area_samples"] if l.kind == "rect" else 1 for l in lights) or 1)
         limit = min(s.max_ssbo_bytes or WAVE_BUFFER_BYTES, WAVE_BUFFER_BYTES)
         self.capacity_pixels = s.pixels
-        self.batch, self.chunk = wave_plan(s.pixels, self.paths_per_pixel, self.slots, limit)
+        self.batch, self.chunk, self.hit_chunk = wave_plan(s.pixels, self.paths_per_pixel, self.slots, limit,
+                                                           self.hit_slots)
         self.capacity = self.batch * self.paths_per_pixel  # paths the buffers hold
+
+    @property
+    def shadow_slots(self) -> int:
+        """ShadowSlot records the shadow buffer holds: the larger of the two events' chunks."""
+        return max(self.batch * self.chunk, self.capacity * self.hit_chunk)
 
     @property
     def chunks(self) -> list:
@@ -76,7 +87,7 @@ class WaveShape:
     @property
     def hit_chunks(self) -> list:
         """The chunks a hit event's shadow rays fall in (the last one ends the path)."""
-        return [(k, min(self.chunk, self.hit_slots - k)) for k in range(0, self.hit_slots, self.chunk)]
+        return [(k, min(self.hit_chunk, self.hit_slots - k)) for k in range(0, self.hit_slots, self.hit_chunk)]
 
 
 class TraceEffectPass(Pass):
@@ -90,7 +101,7 @@ class TraceEffectPass(Pass):
         self.buffers = {
             "paths": (f"{key}.paths", Buffer(lambda s: WaveShape(effect, s).capacity * PATH_BYTES,
                                              "80 B per path of a batch")),
-            "shadows": (f"{key}.shadows", Buffer(lambda s: (w := WaveShape(effect, s)).capacity * w.chunk * SLOT_BYTES,
+            "shadows": (f"{key}.shadows", Buffer(lambda s: WaveShape(effect, s).shadow_slots * SLOT_BYTES,
                                                  "48 B per shadow ray of a batch's chunk")),
             "args": (f"{key}.args", Buffer(lambda s: 32, "2 indirect dispatches")),
         }
@@ -181,18 +192,18 @@ class TraceEffectPass(Pass):
             run("prep")
             for ci, (first, count) in enumerate(chunks):
                 last = ci == len(chunks) - 1
-                run("pixel", 0, wave_slot_first=first, wave_slot_count=count)
+                run("pixel", 0, wave_slot_first=first, wave_slot_count=count, wave_slot_stride=shape.batch)
                 fuse = last and bounces == 0 and one_path
                 run("shadow_finish" if fuse else "shadow", 0, wave_items=0, wave_slot_first=first,
-                    wave_slot_count=count)
+                    wave_slot_count=count, wave_slot_stride=shape.batch)
             for b in range(bounces):
                 run("closest", 1)
                 for ci, (first, count) in enumerate(hit_chunks):
                     last = ci == len(hit_chunks) - 1
                     run("hit", 1, wave_bounce=b, wave_last_chunk=int(last), wave_slot_first=first,
-                        wave_slot_count=count)
+                        wave_slot_count=count, wave_slot_stride=shape.capacity)
                     fuse = last and b == bounces - 1 and one_path
-                    run("shadow_finish" if fuse else "shadow", 1, wave_items=1)
+                    run("shadow_finish" if fuse else "shadow", 1, wave_items=1, wave_slot_stride=shape.capacity)
             if not one_path:
                 run("finish", 0)
 

@@ -45,7 +45,7 @@ vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist) {
     int k = shadow_calls++ - int(wave_slot_first);
     if (k >= 0 && k < int(wave_slot_count)) {  // this chunk of the slots
         Ray r = shadow_ray(p, to_light, dist);
-        wave_shadows[uint(k) * wave_capacity + shadow_item] =
+        wave_shadows[uint(k) * wave_slot_stride + shadow_item] =
             ShadowSlot(vec4(r.origin, r.tmin), vec4(r.direction, r.tmax), vec4(c, 0.0));
     }
     return vec3(0.0);

@@ -5,8 +5,10 @@
 // Items: the pixels of a batch of the effect's pixel list, i in [0, n) with n = wave_args[0].w,
 // and their paths p = j * n + i, j < wave_paths_per_pixel (glossy: one per GGX sample; otherwise
 // one). A pixel's own shading event uses item i; the events along path p use item p.
-// Shadow slot k of item q: wave_shadows[k * wave_capacity + q] (rays of neighbouring pixels for
-// the same light sample lie side by side: coherent loads, coherent rays).
+// Shadow slot k of item q: wave_shadows[k * wave_slot_stride + q] (rays of neighbouring pixels for
+// the same light sample lie side by side: coherent loads, coherent rays). The stride is the
+// event's item capacity: the batch's pixels for a pixel event, its paths for a hit event, so a
+// pixel event's many light samples (a set per path) take chunks `paths` times as large.
 #ifndef RAYVR_RT_WAVE_GLSL
 #define RAYVR_RT_WAVE_GLSL
 #include "pixel_list.glsl"
@@ -32,7 +34,8 @@ layout(std430, binding = SSBO_WAVE_SHADOWS) restrict buffer WaveShadows { Shadow
 // [0]: dispatch over the batch's pixels, [1]: over its paths; w = item count.
 layout(std430, binding = SSBO_WAVE_ARGS) restrict buffer WaveArgs { uvec4 wave_args[2]; };
 
-uniform uint wave_capacity;         // paths the buffers hold (row stride of the shadow slots)
+uniform uint wave_capacity;         // paths the buffers hold
+uniform uint wave_slot_stride;      // items per row of the shadow slots (this event's capacity)
 uniform uint wave_paths_per_pixel;  // paths per pixel (the effect's largest sample count)
 uniform uint wave_slot_first;       // shadow rays [first, first + count) of each surface go to
 uniform uint wave_slot_count;       //   slots 0.. of this chunk; the others are skipped

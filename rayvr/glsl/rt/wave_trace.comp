@@ -117,7 +117,7 @@ void main() {
     uint n = floatBitsToUint(wave_paths[q].throughput.w);
     vec3 sum = vec3(0.0);
     for (uint k = 0u; k < n; ++k) {
-        uint at = k * wave_capacity + q;
+        uint at = k * wave_slot_stride + q;
         vec4 o = wave_shadows[at].origin;
         vec4 d = wave_shadows[at].direction;
         if (!trace_any(Ray(o.xyz, o.w, d.xyz, d.w)))
