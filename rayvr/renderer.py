@@ -25,7 +25,7 @@ from .accumulation import MAX_DENOISE_ITERATIONS, Accumulator, sample_seed
 from .camera import StereoRig
 from .cameras import Pinhole
 from .cameras.sampling import check_count
-from .context import GLContext, create_context
+from .context import GLContext, GpuError, create_context
 from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameTooLarge, Sizing, check_fits,
                     limit_problems)
 from .gpu_layout import TONEMAPPERS, VIEWS
@@ -42,6 +42,14 @@ SECOND_LAYER_MODES = ("rays", "peel")  # passes/second_layer.py
 MAX_TILES = 64  # a frame that needs more tiles than this is refused (FrameTooLarge) instead
 HOST_BYTES_PER_PIXEL = 16  # colour, depth and the pixel buffers they come through, per eye pixel
 SAMPLES_IN_FLIGHT = 2  # samples of an accumulation queued on the GPU before the next is recorded
+
+
+def work_dropped(timings: dict) -> bool:
+    """Whether a hardware GPU's pass timings say the frame's commands never ran: most passes at
+    exactly 0 ns (a pass that records nothing still reads about 1 us there). Seen on the H200
+    when a fresh Renderer had queued ~20 s of samples: stale pixels, no GL error."""
+    zeros = sum(v == 0.0 for v in timings.values())
+    return len(timings) >= 2 and zeros * 2 > len(timings)
 
 
 @dataclass
@@ -402,7 +410,12 @@ class Renderer:
     def _finish(self, pending) -> Frame:
         timings = self.graph.read_ms(pending.fc)
         frame = Frame(self.reader.finish(pending), timings, pending.fc.plan.view, tuple(pending.fc.pass_names))
-        self.gl.check_frame(f"a {'x'.join(map(str, pending.fc.sizing.size))} frame")
+        where = f"a {'x'.join(map(str, pending.fc.sizing.size))} frame"
+        self.gl.check_frame(where)
+        if not self.gl.is_software and work_dropped(timings):
+            raise GpuError(f"{where}: the GPU timed {sum(v == 0.0 for v in timings.values())} of its "
+                           f"{len(timings)} passes at 0 ns, so their commands did not run; the image "
+                           f"would be an earlier one ({self.gl.ctx.info.get('GL_RENDERER', 'unknown renderer')})")
         return frame
 
     def update_vertices(self, vertices, gpu_refit: bool = False) -> None:

@@ -173,3 +173,29 @@ def test_an_accumulation_keeps_at_most_two_samples_queued_on_the_gpu(gl, monkeyp
         r.render(rig, spp=7)
     assert len(open_at_record) == 7 and max(open_at_record) == SAMPLES_IN_FLIGHT
     assert len(made) == 6 and all(f.sync is None for f in made)
+
+
+def test_a_frame_whose_passes_all_read_0_ns_on_a_gpu_is_an_error(gl, monkeypatch):
+    """The H200 once returned an earlier Renderer's image for a frame whose passes all timed 0 ns
+    (its commands never ran) with no GL error: on a hardware GPU such a frame raises GpuError.
+    A pass that records nothing (the bvh pass once built) may read 0 alone; llvmpipe, whose
+    timers can read 0 for short passes, is not checked."""
+    from rayvr import scene as scene_mod
+    from rayvr.camera import StereoRig
+    from rayvr.context import GLContext, GpuError
+    from rayvr.renderer import Renderer, work_dropped
+
+    assert work_dropped({"bvh": 0.001, "visibility": 0.0, "shade": 0.0, "tonemap": 0.0})
+    assert not work_dropped({"bvh": 0.0, "visibility": 2.2, "shade": 0.05, "tonemap": 0.05})
+    assert not work_dropped({"tonemap": 0.0})  # one pass says too little
+    scene = scene_mod.load(None)
+    rig = StereoRig.for_scene(scene, size=(16, 12))
+    with Renderer(scene, gl=gl) as r:
+        r.render(rig)
+        monkeypatch.setattr(GLContext, "is_software", property(lambda self: False))
+        real = r.graph.read_ms
+        monkeypatch.setattr(r.graph, "read_ms", lambda fc: {k: 0.0 for k in real(fc)})
+        with pytest.raises(GpuError, match="0 ns"):
+            r.render(rig)
+        monkeypatch.setattr(r.graph, "read_ms", lambda fc: {k: max(v, 1e-3) for k, v in real(fc).items()})
+        assert np.asarray(r.render(rig).left.color).any()
