@@ -86,6 +86,11 @@ def test_reuse_shades_fewer_right_eye_pixels(quick):
         assert reuse["reused_fraction_right"] > 0.5
         assert reuse["flip_vs_dual_left"] == 0 and dual["flip_vs_dual_right"] == 0  # the left eye is dual's
         assert reuse["flip_vs_dual_right"] > 0  # view-dependent shading copied across
+        assert dual["flip_vs_dual_converged_right"] == 0 and reuse["converged_spp"] == dual["converged_spp"] > 1
+    # accumulated, most of the noise goes: what is left of reuse's error is the error it makes
+    path_reuse, path_dual = by["path", "reuse"], by["path", "dual"]
+    assert path_reuse["flip_vs_dual_converged_right"] < path_reuse["flip_vs_dual_right"]
+    assert path_dual["noise_floor_converged_right"] < path_dual["noise_floor_right"]
     # Its cost is not asserted here: on llvmpipe at 32x24 the right eye's ms (the stereo frame minus
     # the left-eye frame) is within the timers' noise and once came out the other way round; the
     # shares are the H200 bench's figures (bench/results/h200/2026-11-30/gi).

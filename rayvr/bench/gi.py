@@ -55,6 +55,9 @@ PHOTON_PATHS, PHOTON_RADIUS, PHOTON_MS = photon.TARGET
 PATH_SCENE, PATH_MS = "sponza", 11.0  # path 1 spp, 4 bounces, NEE+MIS on Sponza <= 11 ms (a 90 Hz frame)
 DENOISE_EXTRA_MS = 1.5  # denoised 1 spp below undenoised 16 spp in FLIP, at <= 1.5 ms more than 1 spp
 REUSE_SHARE, REUSE_FLIP = 0.40, 0.02  # reuse: right eye <= 40 % of the left's cost at FLIP <= 0.02 against dual
+# Table 5 also compares reuse with dual accumulated over this many samples: the error reuse makes
+# (view-dependent shading, resampling) without the 1-sample noise both images carry
+CONVERGED_SPP, QUICK_CONVERGED_SPP = 256, 4
 TARGETS = {"photon": f"512² photons, r = {PHOTON_RADIUS}: photon map ≤ {PHOTON_MS:g} ms, both eyes",
            "path": f"path 1 spp, {BOUNCES} bounces, NEE+MIS ≤ {PATH_MS:g} ms (issue: on Sponza)",
            "denoise": f"denoised 1 spp: lower FLIP than undenoised {max(SPP)} spp, ≤ {DENOISE_EXTRA_MS:g} ms extra",
@@ -104,10 +107,11 @@ def reuse_part(gl, name, scene, rig, quick, repeat, progress):
     from tqdm import tqdm
 
     configs = table5_configs(name, quick)
+    spp = QUICK_CONVERGED_SPP if quick else CONVERGED_SPP
     for effect in tqdm(configs, desc=f"table 5 {name}", unit="effect", disable=not progress):
         setting, cfg = configs[effect]
         with Renderer(scene, cfg, gl=gl, settings=RenderSettings(seed=VARIANT_SEED)) as r:
-            for row in stereo.mode_rows(r, rig, name, MODES, repeat, progress=False):
+            for row in stereo.mode_rows(r, rig, name, MODES, repeat, progress=False, converged_spp=spp):
                 yield {"part": "reuse", "table": 5, "effect": effect, "setting": setting, **row}
 
 
@@ -275,12 +279,15 @@ def targets(rows: list) -> list:
                 out.append((TARGETS["denoise"], r["scene"], f"FLIP {r['flip']:.4f} vs {sixteen['flip']:.4f}, "
                                         f"{r['denoise_extra_ms']:+.2f} ms", _verdict(lower and cheap, why)))
         if r.get("part") == "reuse" and r["mode"] == "reuse":
-            share, flip = r["second_eye_share"], r["flip_vs_dual_right"]
+            # judged on the converged images where measured: the error reuse itself makes
+            converged = r.get("flip_vs_dual_converged_right")
+            share, flip = r["second_eye_share"], r["flip_vs_dual_right"] if converged is None else converged
             ok_share, ok_flip = share is not None and share <= REUSE_SHARE, flip <= REUSE_FLIP
             why = ", ".join(w for w, bad in ((f"share > {REUSE_SHARE:.0%}", not ok_share),
                                              (f"FLIP > {REUSE_FLIP:g}", not ok_flip)) if bad)
+            at = "1 spp" if converged is None else f"{r['converged_spp']} spp, 1 spp {r['flip_vs_dual_right']:.4f}"
             out.append((TARGETS["reuse"], f"{r['scene']}, {r['effect']}",
-                        f"{_f(share, '.0%')} of the left, FLIP {flip:.4f} (right eye)",
+                        f"{_f(share, '.0%')} of the left, FLIP {flip:.4f} (right eye, {at})",
                         _verdict(ok_share and ok_flip, why)))
     return out + [(t, "-", "not measured in this run", "-") for t in TARGETS.values() if t not in {o[0] for o in out}]
 
@@ -309,14 +316,20 @@ def markdown(result: dict, plot_note: str | None = None) -> str:
     if t5:
         lines += ["## Table 5: separate eyes (dual) vs reuse", "",
                   "Left eye: a frame of the left eye alone; right eye: what the stereo frame adds to it. FLIP: "
-                  "mean over the right eye against dual with the same seed (the left eye is shaded as in dual); "
-                  "noise floor: dual against dual with another seed.", "",
+                  "mean over the right eye against dual with the same seed (the left eye is shaded as in dual), "
+                  "at 1 spp and with both accumulated over N spp (the error the mode makes, without most of the "
+                  "noise); noise floor: dual against dual with another seed.", "",
                   "| scene | effect | setting | mode | frame ms | left eye ms | right eye ms | right / left | "
-                  "FLIP vs dual (right) | noise floor | right pixels reused |", "|" + "---|" * 11]
+                  "FLIP vs dual (right), 1 spp | noise floor | FLIP vs dual (right), N spp | noise floor, N spp | "
+                  "right pixels reused |", "|" + "---|" * 13]
         for r in t5:
+            n = r.get("converged_spp")
+            converged = "-" if n is None else f"{r['flip_vs_dual_converged_right']:.4f} (N = {n})"
             lines.append(f"| {r['scene']} | {r['effect']} | {r['setting']} | {r['mode']} | {r['frame_ms']:.2f} | "
                          f"{r['left_ms']:.2f} | {r['right_ms']:.2f} | {_f(r['second_eye_share'], '.0%')} | "
                          f"{r['flip_vs_dual_right']:.4f} | {r['noise_floor_right']:.4f} | "
+                         f"{converged} | "
+                         f"{_f(r.get('noise_floor_converged_right'), '.4f')} | "
                          f"{_f(r.get('reused_fraction_right'), '.1%')} |")
         lines.append("")
     pa = [r for r in rows if r.get("part") == "path"]

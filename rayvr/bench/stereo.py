@@ -47,12 +47,16 @@ def mono_ms(renderer, rig, repeat: int) -> float:
     return float(np.median(totals))
 
 
-def mode_rows(r: Renderer, rig, name: str, variants=VARIANTS, repeat: int = 20, progress=True) -> list:
+def mode_rows(r: Renderer, rig, name: str, variants=VARIANTS, repeat: int = 20, progress=True,
+              converged_spp: int = 0) -> list:
     """One row per (mode, warp layers) of `variants` (dual first: the others are judged against it)
     for the renderer `r` as configured: ms per pass and frame, each eye's ms (`left_ms`: the left
     eye alone; `right_ms`: what the second eye adds to it), FLIP of each eye against dual with the
     same seed and with REFERENCE_SEED, and what the mode did (holes, reused pixels). `rayvr bench
-    gi` calls it for its Table 5."""
+    gi` calls it for its Table 5. `converged_spp` > 0: also the right eye's FLIP against dual with
+    both accumulated over that many samples (`flip_vs_dual_converged_right`: the error the mode
+    makes, view-dependent shading and resampling, with the sampling noise mostly gone; its floor
+    `noise_floor_converged_right` is dual against dual with the other seed at that count)."""
     from . import metrics
 
     size = rig.size
@@ -62,19 +66,25 @@ def mode_rows(r: Renderer, rig, name: str, variants=VARIANTS, repeat: int = 20, 
     r.settings.seed = REFERENCE_SEED
     ref = r.render(rig)
     r.settings.seed = seed
-    images, counts = {}, {}
+    images, counts, converged = {}, {}, {}
     for mode, layers in variants:
         r.set_stereo(mode)
         r.settings.warp_layers = layers or 2
         names, med, total = time_frame(r, rig, repeat, warmup=3)
         images[mode, layers] = r.render(rig)
         counts[mode, layers] = r.stereo_counts()
+        if converged_spp:
+            converged[mode, layers] = r.render(rig, spp=converged_spp).right.color
         rows.append({"scene": name, "size": f"2x{size[0]}x{size[1]}", "mode": mode,
                      "warp_layers": layers or None, "frame_ms": total, "mono_ms": mono,
                      "left_ms": mono, "right_ms": total - mono,
                      "second_eye_share": (total - mono) / mono if mono > 0 else None,
                      "pass_ms": {k: med[k] for k in names if k in med}})
     r.set_stereo("dual")
+    if converged_spp:
+        r.settings.seed = REFERENCE_SEED
+        converged_ref = r.render(rig, spp=converged_spp).right.color
+        r.settings.seed = seed
     for row in rows:
         key = (row["mode"], row["warp_layers"] or 0)
         img = images[key]
@@ -90,6 +100,10 @@ def mode_rows(r: Renderer, rig, name: str, variants=VARIANTS, repeat: int = 20, 
         if row["mode"] == "reuse":
             row["reused_fraction_right"] = c["reused"] / c["right_pixels"]
         row["noise_floor_right"] = metrics.flip(ref.right.color, images["dual", 0].right.color)
+        if converged_spp:
+            row["converged_spp"] = converged_spp
+            row["flip_vs_dual_converged_right"] = metrics.flip(converged["dual", 0], converged[key])
+            row["noise_floor_converged_right"] = metrics.flip(converged_ref, converged["dual", 0])
         if progress:
             print(f"  {name:8s} {row['mode']:6s}{row['warp_layers'] or '':1} frame {row['frame_ms']:.3f} ms (mono {mono:.3f}), "
                   f"second eye {row['second_eye_share'] or 0:.2f} of one, FLIP vs dual right "
