@@ -50,6 +50,9 @@ import numpy as np
 EMPTY_LO = np.float32(3.0e38)   # inverted box for an empty child slot: lo > hi, never entered
 EMPTY_HI = np.float32(-3.0e38)
 NODE_BYTES = 64
+BUILDS = ("sah", "sbvh")    # build_bvh without / with spatial splits (RenderSettings.bvh_build)
+SPLIT_ALPHA = 1e-5          # SBVH: try spatial splits where object children overlap > alpha x root area
+MAX_DUPLICATION = 0.3       # SBVH: at most 30 % more triangle references than triangles
 TRIANGLE_BYTES = 48
 
 
@@ -83,6 +86,12 @@ class Bvh:
 
     @property
     def triangle_count(self) -> int:
+        """The caller's triangles (an SBVH holds more references: `reference_count`)."""
+        return int(self.params.get("triangles", len(self.prim_ids)))
+
+    @property
+    def reference_count(self) -> int:
+        """Leaf slots: one per triangle, more where spatial splits cut triangles (sbvh.py)."""
         return int(len(self.prim_ids))
 
     @property
@@ -100,7 +109,7 @@ class Bvh:
     # ------------------------------------------------------------------ quality
     def sah_cost(self, traversal_cost: float = 1.0, triangle_cost: float = 1.0) -> float:
         """Expected cost of a random ray hitting the root: sum of area-weighted node and triangle tests."""
-        if self.triangle_count == 0:
+        if self.reference_count == 0:
             return 0.0
         area = _half_area(self.node_lo.astype(np.float64), self.node_hi.astype(np.float64))
         root = max(area[0], np.finfo(np.float64).tiny)
@@ -112,6 +121,8 @@ class Bvh:
         leaves = self.left < 0
         return {
             "triangles": self.triangle_count,
+            "references": self.reference_count,
+            "build": "sbvh" if self.params.get("spatial_splits") else "sah",
             "nodes": self.node_count,
             "leaves": int(leaves.sum()),
             "gpu_nodes": self.gpu_node_count,
@@ -130,7 +141,7 @@ class Bvh:
         if vertices.shape != self.vertices.shape:
             raise ValueError(f"refit needs {self.vertices.shape[0]} vertices, got {vertices.shape[0]}")
         self.vertices = vertices
-        if self.triangle_count == 0:
+        if self.reference_count == 0:
             return
         tri = vertices[self.indices]
         tlo, thi = tri.min(axis=1), tri.max(axis=1)
@@ -152,7 +163,7 @@ class Bvh:
 
     def gpu_sizes(self) -> dict[str, int]:
         return {"bvh_nodes": self.gpu_node_count * NODE_BYTES,
-                "bvh_triangles": max(1, self.triangle_count) * TRIANGLE_BYTES}
+                "bvh_triangles": max(1, self.reference_count) * TRIANGLE_BYTES}
 
     def check_fits(self, max_ssbo_bytes: int) -> None:
         """Raise BufferTooLargeError when a GPU buffer exceeds the device's storage-block limit."""
@@ -184,8 +195,8 @@ class Bvh:
 
     def pack_triangles(self) -> np.ndarray:
         """(T, 12) float32: v0.xyz + original id bits, v1.xyz, v2.xyz (one zero triangle if empty)."""
-        out = np.zeros((max(1, self.triangle_count), 12), np.float32)
-        if self.triangle_count:
+        out = np.zeros((max(1, self.reference_count), 12), np.float32)
+        if self.reference_count:
             out.reshape(-1, 3, 4)[:, :, :3] = self.triangles()
             out[:, 3].view(np.uint32)[:] = self.prim_ids
         return out
@@ -250,23 +261,42 @@ def _segment_positions(starts: np.ndarray, counts: np.ndarray) -> tuple[np.ndarr
 
 
 def build_bvh(vertices, indices, *, bins: int = 16, max_leaf_size: int = 8, max_depth: int = 64,
-              traversal_cost: float = 1.0, triangle_cost: float = 1.0) -> Bvh:
+              traversal_cost: float = 1.0, triangle_cost: float = 1.0, spatial_splits: bool = False,
+              split_alpha: float = SPLIT_ALPHA, max_duplication: float = MAX_DUPLICATION,
+              progress: bool = False) -> Bvh:
     """Binned-SAH BVH over triangles `indices` (T,3) of `vertices` (V,3), in scene-local coordinates.
 
     `traversal_cost`/`triangle_cost` weigh a child-pair node test against a triangle test in the SAH.
     Degenerate (zero-area) triangles are kept: the intersection test never reports them.
+    `spatial_splits`: the SBVH build (sbvh.py): spatial splits tried where an object split's children
+    overlap by more than `split_alpha` x the root's area, with at most `max_duplication` x T extra
+    triangle references; `progress` shows its tqdm bar.
     """
     t0 = time.perf_counter()
     V = _check_vertices(vertices)
     I = _check_indices(indices, len(V))
     T = len(I)
+    if not (np.isfinite(split_alpha) and split_alpha >= 0):
+        raise ValueError(f"split_alpha must be a number >= 0, got {split_alpha!r}")
+    if not (np.isfinite(max_duplication) and max_duplication >= 0):
+        raise ValueError(f"max_duplication must be a number >= 0, got {max_duplication!r}")
     params = dict(bins=bins, max_leaf_size=max_leaf_size, max_depth=max_depth,
-                  traversal_cost=traversal_cost, triangle_cost=triangle_cost)
+                  traversal_cost=traversal_cost, triangle_cost=triangle_cost, triangles=T,
+                  spatial_splits=bool(spatial_splits))
+    if spatial_splits:
+        params.update(split_alpha=float(split_alpha), max_duplication=float(max_duplication))
     if T == 0:  # one empty leaf with an inverted box: every ray misses
         return Bvh(np.full((1, 3), EMPTY_LO), np.full((1, 3), EMPTY_HI), np.full(1, -1, np.int32),
                    np.full(1, -1, np.int32), np.zeros(1, np.int32), np.zeros(1, np.int32),
                    np.zeros(1, np.int32), np.zeros(0, np.uint32), I, V, time.perf_counter() - t0, params)
 
+    if spatial_splits:
+        from .sbvh import build_sbvh
+        bvh = build_sbvh(V, I, bins=bins, max_leaf_size=max_leaf_size, max_depth=max_depth,
+                         traversal_cost=traversal_cost, triangle_cost=triangle_cost, split_alpha=split_alpha,
+                         max_duplication=max_duplication, progress=progress, params=params)
+        bvh.build_seconds = time.perf_counter() - t0
+        return bvh
     tri = V[I]
     tlo, thi = tri.min(axis=1), tri.max(axis=1)                 # float32, exact: boxes stay conservative
     cen = (tlo + thi) * np.float32(0.5)
@@ -361,7 +391,15 @@ def build_bvh(vertices, indices, *, bins: int = 16, max_leaf_size: int = 8, max_
         count_list.append(c_count)
         depth += 1
 
-    # Flatten (ids are BFS order), then renumber to depth-first preorder for locality.
+    bvh = _finish(lo_list, hi_list, start_list, count_list, left_list, right_list, order, I, V, params)
+    bvh.build_seconds = time.perf_counter() - t0
+    return bvh
+
+
+def _finish(lo_list, hi_list, start_list, count_list, left_list, right_list, slots, I, V, params) -> Bvh:
+    """The Bvh from per-level node records (BFS ids, levels contiguous; a leaf's references are
+    slots[start:start + count]), renumbered to depth-first preorder for locality, with the reference
+    slots reordered so that leaves lie in preorder too (the identity for the in-place SAH build)."""
     lo = np.concatenate(lo_list).astype(np.float32)
     hi = np.concatenate(hi_list).astype(np.float32)
     start = np.concatenate(start_list)
@@ -375,22 +413,26 @@ def build_bvh(vertices, indices, *, bins: int = 16, max_leaf_size: int = 8, max_
     pre = _preorder(left, right, level_sizes)
     inv = np.empty_like(pre)
     inv[pre] = np.arange(len(pre))
+    leaves = inv[leaf[inv]]                                     # leaves in preorder
+    pos, _, offsets = _segment_positions(start[leaves], count[leaves])
+    slots = np.asarray(slots)[pos]
+    start = start.copy()
+    start[leaves] = offsets
 
     def remap(ids):
         return np.where(ids >= 0, pre[np.maximum(ids, 0)], -1)[inv].astype(np.int32)
 
-    bvh = Bvh(lo[inv], hi[inv], remap(left), remap(right), start[inv].astype(np.int32),
-              count[inv].astype(np.int32), depth_of[inv].astype(np.int32),
-              order.astype(np.uint32), I[order], V, 0.0, params)
-    bvh.build_seconds = time.perf_counter() - t0
-    return bvh
+    return Bvh(lo[inv], hi[inv], remap(left), remap(right), start[inv].astype(np.int32),
+               count[inv].astype(np.int32), depth_of[inv].astype(np.int32),
+               slots.astype(np.uint32), I[slots], V, 0.0, params)
 
 
-def _binned_sah(c, plo, phi, seg, counts, B):
+def _binned_sah(c, plo, phi, seg, counts, B, boxes: bool = False):
     """Best SAH split of each node (prims grouped by node, `seg` = node of each) over B bins per axis.
 
     Returns per-prim bins (n,3), and per node: best cost (sum of area x count, inf when all
-    centroids share a bin), axis and split bin (prims with bin > split go right).
+    centroids share a bin), axis and split bin (prims with bin > split go right); with `boxes`, also
+    the best split's two child boxes (lo, hi) x (left, right), each (A,3) (the SBVH's overlap test).
     """
     A = len(counts)
     offsets = np.zeros(A, np.int64)
@@ -401,6 +443,8 @@ def _binned_sah(c, plo, phi, seg, counts, B):
     b = ((c - cmin[seg]) * scale[seg]).astype(np.int64)
     np.clip(b, 0, B - 1, out=b)
     cost = np.full((A, 3, B - 1), np.inf, np.float32)
+    if boxes:
+        kept = np.zeros((4, A, 3, B - 1, 3), np.float32)        # llo, lhi, rlo, rhi per axis and plane
     with np.errstate(invalid="ignore", over="ignore"):
         for axis in range(3):
             key = seg * B + b[:, axis]
@@ -418,9 +462,14 @@ def _binned_sah(c, plo, phi, seg, counts, B):
             nr = counts[:, None] - nl
             c_axis = _half_area(llo[:, :-1], lhi[:, :-1]) * nl + _half_area(rlo[:, 1:], rhi[:, 1:]) * nr
             cost[:, axis] = np.where((nl > 0) & (nr > 0), c_axis, np.inf)
+            if boxes:
+                kept[:, :, axis] = llo[:, :-1], lhi[:, :-1], rlo[:, 1:], rhi[:, 1:]
     flat = cost.reshape(A, -1)
     best = flat.argmin(axis=1)
-    return b, flat[np.arange(A), best].astype(np.float64), best // (B - 1), best % (B - 1)
+    out = b, flat[np.arange(A), best].astype(np.float64), best // (B - 1), best % (B - 1)
+    if boxes:
+        out += (kept.reshape(4, A, -1, 3)[:, np.arange(A), best],)
+    return out
 
 
 def _preorder(left: np.ndarray, right: np.ndarray, level_sizes: list[int]) -> np.ndarray:
@@ -513,8 +562,9 @@ def trace_reference(bvh: Bvh, origins, directions, tmin=0.0, tmax=np.inf, any_hi
 
     Returns (prim, t, u, v): original triangle id (0xFFFFFFFF = miss), distance (inf on miss) and
     barycentrics; with any_hit=True returns a bool array (occluded). `stats`, when given, receives
-    per-ray node fetches of a one-box-per-node BVH2 (`node_visits`: every popped node) and of the
-    child-pair layout (`pair_node_visits`: internal nodes whose box the ray enters).
+    per-ray node fetches of a one-box-per-node BVH2 (`node_visits`: every popped node), of the
+    child-pair layout (`pair_node_visits`: internal nodes whose box the ray enters) and the
+    ray-triangle tests (`triangle_tests`: slots of every leaf entered).
     """
     w = RayWalk(bvh, origins, directions, tmin, tmax, any_hit, bvh.max_depth + 2)
     w.push(np.flatnonzero(w.ok), np.zeros(int(w.ok.sum()), np.int64))   # the root, for valid rays
@@ -536,6 +586,7 @@ def trace_reference(bvh: Bvh, origins, directions, tmin=0.0, tmax=np.inf, any_hi
     if stats is not None:
         stats["node_visits"] = w.visits
         stats["pair_node_visits"] = pair_visits
+        stats["triangle_tests"] = w.tests
     return w.result()
 
 
@@ -555,6 +606,7 @@ class RayWalk:
         self.stack = np.zeros((n, stack_size), np.int64)
         self.sp = np.zeros(n, np.int64)
         self.visits = np.zeros(n, np.int64)
+        self.tests = np.zeros(n, np.int64)   # ray-triangle tests (leaf slots), per ray
         self.tris = bvh.triangles().astype(np.float64)
 
     def push(self, rays, nodes) -> None:
@@ -572,6 +624,7 @@ class RayWalk:
 
     def leaf(self, rays, first, count) -> None:
         """Rays against their leaf ranges [first, first + count), keeping the closest hit."""
+        np.add.at(self.tests, rays, count)
         for k in range(int(count.max()) if len(count) else 0):
             m = k < count
             rr, slot = rays[m], first[m] + k

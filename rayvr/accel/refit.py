@@ -35,7 +35,7 @@ class GpuRefit:
         bvh = gpu_bvh.bvh
         defines = {"BVH_NODES_BINDING": base_binding, "BVH_TRIS_BINDING": base_binding + 1}
         self.programs = [shaders.compute(self.ctx, "accel/refit.comp", {**defines, "REFIT_STAGE": s}) for s in (0, 1)]
-        self.slots = bvh.triangle_count
+        self.slots = bvh.reference_count
         self.vertex_count = len(bvh.vertices)
         self.index = self.ctx.buffer(np.ascontiguousarray(bvh.indices, np.uint32).tobytes() or b"\0" * 4)
         # GPU node numbers (internal nodes in preorder) grouped by tree level, deepest first.

@@ -252,7 +252,8 @@ def trace_wide_reference(wide: WideBvh, origins, directions, tmin=0.0, tmax=np.i
                          stats: dict | None = None):
     """The packed wide BVH walked for all rays at once (float64 slabs on the float32-decoded boxes):
     what glsl/accel/bvh_wide.glsl does, in numpy. Returns what `bvh.trace_reference` returns.
-    `stats` receives `node_visits` (wide nodes fetched per ray)."""
+    `stats` receives `node_visits` (wide nodes fetched per ray, children in slot order: no
+    nearest-first) and `triangle_tests`."""
     W = wide.width
     w = RayWalk(wide.bvh, origins, directions, tmin, tmax, any_hit, wide.stack_bound + 1)
     w.push(np.flatnonzero(w.ok), np.zeros(int(w.ok.sum()), np.int64))
@@ -273,6 +274,7 @@ def trace_wide_reference(wide: WideBvh, origins, directions, tmin=0.0, tmax=np.i
             w.push(r[~leaf], index[nd[~leaf], c])
     if stats is not None:
         stats["node_visits"] = w.visits
+        stats["triangle_tests"] = w.tests
     return w.result()
 
 

@@ -1,0 +1,244 @@
+"""Spatial splits (accel/sbvh.py): exact clipping, SAH quality, duplication budget, and traversal of the
+duplicated references (numpy, every GPU layout, Embree, refit) against brute force."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rayvr.accel.bvh import _half_area, build_bvh, intersect_triangles, trace_brute_force, trace_reference
+from rayvr.accel.gpu import MISS, GpuBvh, RayTracer
+from rayvr.accel.refit import GpuRefit
+from rayvr.accel.sbvh import clip_boxes
+from rayvr.accel.wide import build_wide, trace_wide_reference
+from test_traversal_gpu import embree_closest, embree_scene
+
+TREE = ("node_lo", "node_hi", "left", "right", "count", "depth", "prim_ids", "indices")
+
+
+def slivers(n=64, seed=0, width=0.01):
+    """n long thin triangles along the cube's diagonal, slightly shifted: every box is ~ the cube."""
+    rng = np.random.default_rng(seed)
+    base = np.array([[0, 0, 0], [1, 1, 1], [width, 0, 0]], np.float64)
+    return (base[None] + rng.uniform(-0.1, 0.1, (n, 1, 3))).reshape(-1, 3).astype(np.float32), \
+        np.arange(3 * n).reshape(n, 3)
+
+
+def thin_mesh(n=300, seed=3):
+    """Long thin triangles in random directions (length ~2 in a box of 4) over a few small ones."""
+    rng = np.random.default_rng(seed)
+    c = rng.uniform(-2, 2, (n, 3))
+    axis = rng.normal(size=(n, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    side = np.cross(axis, rng.normal(size=(n, 3)))
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    long = np.arange(n) < n * 3 // 4
+    half = np.where(long, 1.0, 0.1)[:, None]
+    v = np.stack([c - half * axis, c + half * axis, c + 0.04 * side], 1)
+    return v.reshape(-1, 3).astype(np.float32), np.arange(3 * n).reshape(n, 3)
+
+
+def rays_to_triangles(v, f, n, seed):
+    """Half the rays aimed at random points on random triangles (thin ones are hit), half at random."""
+    rng = np.random.default_rng(seed)
+    tri = v[f].astype(np.float64)
+    lo, hi = v.min(0), v.max(0)
+    c, r = (lo + hi) / 2, np.linalg.norm(hi - lo)
+    o = c + rng.normal(size=(n, 3)) * r
+    k = rng.integers(0, len(f), n)
+    a, b = rng.random((2, n, 1))
+    a, b = np.where(a + b > 1, 1 - a, a), np.where(a + b > 1, 1 - b, b)
+    target = tri[k, 0] + a * (tri[k, 1] - tri[k, 0]) + b * (tri[k, 2] - tri[k, 0])
+    target[n // 2:] = c + rng.normal(size=(n - n // 2, 3)) * r * 0.3
+    return o.astype(np.float32), (target - o).astype(np.float32)   # the rays the GPU traces
+
+
+def assert_same_hits(prim, t, ref_prim, ref_t, tri=None, o=None, d=None, tol=1e-5):
+    """Same triangle and distance (1e-5 relative) for every ray; a different triangle only as a tie
+    (the room has coplanar overlapping quads, found in whatever order): with the rays and triangles
+    `tri` given, that triangle must be hit at the reference's distance too."""
+    assert np.array_equal(prim == MISS, ref_prim == MISS)
+    hit = ref_prim != MISS
+    assert (np.abs(t[hit] - ref_t[hit]) <= tol * np.maximum(1.0, ref_t[hit])).all()
+    other = np.flatnonzero(prim != ref_prim)
+    if len(other):
+        assert tri is not None, f"{len(other)} rays hit another triangle"
+        k = tri[prim[other]].astype(np.float64)
+        h, tt, _, _ = intersect_triangles(o[other], d[other], k[:, 0], k[:, 1], k[:, 2], 0.0, np.inf)
+        assert h.all() and np.allclose(tt, ref_t[other], rtol=max(tol, 1e-6), atol=0)
+
+
+def test_clip_boxes_analytic_and_sampled():
+    # right triangle (0,0,0) (2,0,0) (0,2,0) cut to 0.5 <= x <= 1: corners (.5,0) (1,0) (1,1) (.5,1.5)
+    tri = np.array([[[0, 0, 0], [2, 0, 0], [0, 2, 0]]], np.float64)
+    lo, hi = clip_boxes(tri, 0, np.array([0.5]), np.array([1.0]))
+    assert np.allclose(lo, [[0.5, 0, 0]]) and np.allclose(hi, [[1.0, 1.5, 0]])
+    lo, hi = clip_boxes(tri, 1, np.array([3.0]), np.array([4.0]))     # the slab misses it: empty
+    assert (lo > hi).all()
+    # random triangles and slabs: the box is that of a polygon clipper's result (Sutherland-Hodgman,
+    # one triangle at a time) and holds every sampled point of the cut
+    rng = np.random.default_rng(5)
+    tri = rng.normal(size=(200, 3, 3))
+    axis = 1
+    a = rng.normal(size=200) * 0.5
+    b = a + rng.uniform(0.05, 1.0, 200)
+    lo, hi = clip_boxes(tri, axis, a, b)
+    w = rng.dirichlet(np.ones(3), 4000)                                # barycentric samples
+    pts = np.einsum("sk,tkc->tsc", w, tri)
+    inside = (pts[..., axis] >= a[:, None]) & (pts[..., axis] <= b[:, None])
+    for t in range(len(tri)):
+        poly = clip_polygon(clip_polygon(list(tri[t]), axis, a[t], 1.0), axis, b[t], -1.0)
+        if not poly:
+            assert (lo[t] > hi[t]).all() and not inside[t].any()
+            continue
+        assert np.allclose(lo[t], np.min(poly, 0), rtol=0, atol=1e-12)
+        assert np.allclose(hi[t], np.max(poly, 0), rtol=0, atol=1e-12)
+        p = pts[t][inside[t]]
+        assert (lo[t] <= p.min(0, initial=np.inf) + 1e-12).all() and (p.max(0, initial=-np.inf) <= hi[t] + 1e-12).all()
+
+
+def clip_polygon(poly, axis, c, sign):
+    """The part of a convex polygon (list of points) where sign * (x[axis] - c) >= 0."""
+    out = []
+    for p, q in zip(poly, poly[1:] + poly[:1]):
+        dp, dq = sign * (p[axis] - c), sign * (q[axis] - c)
+        if dp >= 0:
+            out.append(p)
+        if dp * dq < 0:
+            out.append(p + (q - p) * (dp / (dp - dq)))
+    return out
+
+
+def test_spatial_splits_beat_the_object_split_bound_on_diagonal_slivers():
+    v, f = slivers(64)
+    tri = v[f].astype(np.float64)
+    # Any BVH without spatial splits holds each triangle whole in one leaf whose box contains the
+    # triangle's box: its SAH cost is at least the sum of the triangle boxes' areas over the root's.
+    bound = _half_area(tri.min(1), tri.max(1)).sum() / _half_area(tri.min((0, 1)), tri.max((0, 1)))
+    sah = build_bvh(v, f)
+    assert sah.sah_cost() >= bound
+    sbvh = build_bvh(v, f, spatial_splits=True)
+    assert sbvh.sah_cost() < sah.sah_cost()
+    assert len(f) < sbvh.reference_count <= 1.3 * len(f)              # the default budget: +30 %
+    doubled = build_bvh(v, f, spatial_splits=True, max_duplication=1.0)
+    assert doubled.sah_cost() < bound                                   # beyond any object-split BVH
+    assert doubled.reference_count <= 2 * len(f)
+    assert build_bvh(v, f, spatial_splits=True, max_duplication=0.0).reference_count == len(f)
+
+
+def test_every_point_of_every_triangle_lies_in_a_leaf_of_its_references():
+    v, f = thin_mesh(120)
+    bvh = build_bvh(v, f, spatial_splits=True, max_duplication=1.0)
+    assert bvh.reference_count > len(f) and bvh.triangle_count == len(f)
+    assert np.array_equal(np.unique(bvh.prim_ids), np.arange(len(f)))
+    assert np.array_equal(bvh.indices, f[bvh.prim_ids])                # each slot: the full triangle
+    leaves = np.flatnonzero(bvh.left < 0)
+    slot_leaf = np.repeat(leaves, bvh.count[leaves])[np.argsort(np.repeat(bvh.start[leaves], bvh.count[leaves]),
+                                                                 kind="stable")]
+    w = np.random.default_rng(6).dirichlet(np.ones(3), 300)
+    for t in range(len(f)):
+        pts = w @ v[f[t]].astype(np.float64)
+        boxes = slot_leaf[bvh.prim_ids == t]
+        lo, hi = bvh.node_lo[boxes], bvh.node_hi[boxes]
+        held = ((pts[:, None] >= lo[None]) & (pts[:, None] <= hi[None])).all(-1).any(1)
+        assert held.all(), f"triangle {t}: {int((~held).sum())} points outside its references' leaves"
+
+
+def test_without_spatial_splits_the_reference_build_is_the_sah_tree():
+    # the SBVH's per-level reference lists against the SAH build's in-place partition
+    v, f = thin_mesh(300)
+    a = build_bvh(v, f)
+    b = build_bvh(v, f, spatial_splits=True, split_alpha=1e30)
+    assert all(np.array_equal(getattr(a, k), getattr(b, k)) for k in TREE)
+    leaf = a.left < 0
+    assert np.array_equal(a.start[leaf], b.start[leaf])
+
+
+def test_bad_sbvh_parameters_are_rejected():
+    v, f = slivers(4)
+    with pytest.raises(ValueError, match="split_alpha"):
+        build_bvh(v, f, spatial_splits=True, split_alpha=-1)
+    with pytest.raises(ValueError, match="max_duplication"):
+        build_bvh(v, f, spatial_splits=True, max_duplication=float("nan"))
+
+
+@pytest.fixture(scope="module")
+def meshes():
+    """(name, vertices, faces, SBVH, SAH BVH, rays, brute-force closest hits) for the thin mesh and the room."""
+    from rayvr import scene as scene_mod
+    room = scene_mod.load(None)
+    out = []
+    for name, (v, f), n in (("thin", thin_mesh(300), 1500), ("room", (room.vertices, room.indices), 600)):
+        sbvh = build_bvh(v, f, spatial_splits=True)
+        assert sbvh.reference_count > len(f), f"{name}: no spatial split was made"
+        o, d = rays_to_triangles(v, f, n, seed=7)
+        out.append((name, v, f, sbvh, build_bvh(v, f), o, d, trace_brute_force(v, f, o, d)))
+    return out
+
+
+def test_numpy_traversals_return_the_brute_force_hits(meshes):
+    for name, v, f, sbvh, sah, o, d, ref in meshes:
+        assert 0.3 < (ref[0] != MISS).mean() < 0.98, name
+        tri = v[f]
+        prim, t, _, _ = trace_reference(sbvh, o, d)
+        assert_same_hits(prim, t, ref[0], ref[1], tri, o, d)
+        assert_same_hits(*trace_reference(sah, o, d)[:2], prim, t, tri, o, d)
+        for width in (4, 8):
+            assert_same_hits(*trace_wide_reference(build_wide(sbvh, width), o, d)[:2], ref[0], ref[1], tri, o, d)
+        tmax = np.where(ref[0] != MISS, ref[1], 1.0) * np.random.default_rng(8).uniform(0.5, 1.5, len(o))
+        occ = np.isfinite(trace_brute_force(v, f, o, d, tmax=tmax)[1])
+        assert np.array_equal(trace_reference(sbvh, o, d, tmax=tmax, any_hit=True), occ)
+
+
+def gpu_hits(gl, bvh, o, d, layout="bvh2", **kw):
+    g = GpuBvh(gl, bvh, layout=layout)
+    try:
+        return RayTracer(gl, g).trace(o, d, **kw)
+    finally:
+        g.release()
+
+
+def test_gpu_layouts_return_the_brute_force_hits(gl, meshes):
+    # Against the SAH BVH's GPU hits: the same float32 triangle test, so the same t exactly; against
+    # brute force (float64) to float32 accuracy (thin triangles: 1e-4 relative).
+    for name, v, f, sbvh, sah, o, d, ref in meshes:
+        base = gpu_hits(gl, sah, o, d)
+        assert_same_hits(base.prim, base.t, ref[0], ref[1], v[f], o, d, tol=1e-4)
+        tmax = np.where(ref[0] != MISS, ref[1], 1.0) * np.random.default_rng(9).uniform(0.5, 1.5, len(o))
+        occ = np.isfinite(trace_brute_force(v, f, o, d, tmax=tmax)[1])
+        for layout, tiles in (("bvh2", False), ("bvh2", True), ("bvh4", False), ("bvh8", False)):
+            h = gpu_hits(gl, sbvh, o, d, layout, tiles=tiles)
+            assert_same_hits(h.prim, h.t, base.prim, base.t, v[f], o, d, tol=0.0)
+            if not tiles:
+                assert np.array_equal(gpu_hits(gl, sbvh, o, d, layout, tmax=tmax, mode="any"), occ), (name, layout)
+
+
+def test_sbvh_agrees_with_embree(meshes):
+    name, v, f, sbvh, _, o, d, _ = meshes[0]
+    prim, t = embree_closest(embree_scene(v, f), o, d)
+    mine, tm, _, _ = trace_reference(sbvh, o, d)
+    assert (mine == prim).mean() >= 0.999
+    same = (mine == prim) & (prim != MISS)
+    assert np.allclose(tm[same], t[same], rtol=1e-5)
+
+
+def test_refit_of_duplicated_references_stays_conservative(gl):
+    v, f = thin_mesh(200)
+    moved = (v * 1.2 + 0.3 * np.sin(v[:, [1, 2, 0]] * 2.0)).astype(np.float32)
+    o, d = rays_to_triangles(moved, f, 1000, seed=10)
+    ref = trace_brute_force(moved, f, o, d)
+    host = build_bvh(v, f, spatial_splits=True)
+    assert host.reference_count > len(f)
+    host.refit(moved)
+    assert_same_hits(*trace_reference(host, o, d)[:2], ref[0], ref[1])
+    g = GpuBvh(gl, build_bvh(v, f, spatial_splits=True))
+    refit = GpuRefit(gl, g)
+    try:
+        refit.run(moved)
+        assert np.array_equal(refit.read_nodes().view(np.uint32), host.pack_nodes().view(np.uint32))
+        h = RayTracer(gl, g).trace(o, d)
+        assert_same_hits(h.prim, h.t, ref[0], ref[1], moved[f], o, d, tol=1e-4)
+        base = gpu_hits(gl, build_bvh(moved, f), o, d)               # a fresh build, same float32 test
+        assert_same_hits(h.prim, h.t, base.prim, base.t, moved[f], o, d, tol=0.0)
+    finally:
+        refit.release()
+        g.release()
