@@ -20,6 +20,7 @@ from . import materials as materials_mod
 from . import scene as scene_mod
 from . import stereo as stereo_mod
 from .accel.gpu import DEFAULT_TRAVERSAL, RAY_KINDS, check_layout, parse_traversal
+from .accel.bvh import BUILDS
 from .accel.scene import SceneAccel
 from .accumulation import MAX_DENOISE_ITERATIONS, Accumulator, sample_seed
 from .camera import StereoRig
@@ -76,6 +77,9 @@ class RenderSettings:
     # bvh2, the binary reference, or wide bvh4/bvh8); the default is what `bench rays` measured
     # fastest per kind on the H200 (accel/gpu.py DEFAULT_TRAVERSAL).
     traversal: tuple = DEFAULT_TRAVERSAL
+    # How the BVH is built (accel/bvh.py BUILDS): "sah", the binned SAH, or "sbvh", with spatial
+    # splits (accel/sbvh.py: lower SAH cost, more triangle references, a longer build).
+    bvh_build: str = "sah"
     # Thin-lens depth of field through screen-space rays (passes/dof.py; pinhole, stereo dual):
     dof_aperture: float = 0.0  # lens diameter, scene units (0: off)
     dof_focus: float = 2.0  # view depth in focus, scene units
@@ -98,6 +102,8 @@ class RenderSettings:
         for layout in self.traversal:
             check_layout(layout)
         self.traversal = tuple(self.traversal)
+        if self.bvh_build not in BUILDS:
+            raise ValueError(f"unknown BVH build {self.bvh_build!r}; allowed: {', '.join(BUILDS)}")
         if self.primary not in PRIMARY_MODES:
             raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
         if not (np.isfinite(self.dof_aperture) and self.dof_aperture >= 0):
@@ -201,7 +207,7 @@ class Renderer:
                          output=stereo_mod.WARP_OUTPUT if warp else "ldr", users=users,
                          accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise,
                          depth_layers=max(depth_layers(self.assignments), st.warp_layers if warp else 1),
-                         second_layer=second, traversal=st.traversal,
+                         second_layer=second, traversal=st.traversal, bvh_build=st.bvh_build,
                          dof=color and st.dof_aperture > 0 and stereo == "dual" and camera.name == "pinhole",
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
                          channels=camera.channels, reconstruct=camera.sparse)

@@ -242,3 +242,48 @@ def test_refit_of_duplicated_references_stays_conservative(gl):
     finally:
         refit.release()
         g.release()
+
+
+def test_renderer_sbvh_frame_equals_the_sah_frame(gl):
+    """--bvh-build sbvh through RenderSettings: ray-cast primary visibility, shadows and mirror rays hit
+    the same scene triangles as on the SAH BVH (the G-buffer's triangle IDs are original IDs)."""
+    from rayvr.camera import StereoRig
+    from rayvr.materials import parse_config
+    from rayvr.renderer import Renderer, RenderSettings
+    from rayvr.scene import load
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(32, 24))
+    cfg = parse_config({"default": "shadows", "materials": {"mirror*": {"effect": "reflections", "bounces": 2}}},
+                       "test")
+    r = Renderer(scene, cfg, gl=gl, settings=RenderSettings(primary="rays", bvh_build="sbvh"))
+    try:
+        frames = {}
+        for build in ("sbvh", "sah"):          # the second switches the build: a rebuild
+            r.settings = RenderSettings(primary="rays", bvh_build=build)
+            f = r.render(rig, aux=("triangle", "hdr"))
+            frames[build] = (np.stack([f.left.aux["triangle"], f.right.aux["triangle"]]),
+                             np.stack([f.left.aux["hdr"], f.right.aux["hdr"]]))
+            assert r.accel.build == build
+            assert (r.accel.bvh.reference_count > scene.triangle_count) == (build == "sbvh")
+    finally:
+        r.release()
+    assert np.array_equal(frames["sbvh"][0], frames["sah"][0])
+    hdr = frames["sah"][1]
+    assert np.abs(frames["sbvh"][1] - hdr).max() <= 1e-5 * max(1.0, float(hdr.max()))
+    with pytest.raises(ValueError, match="unknown BVH build 'kd'"):
+        RenderSettings(bvh_build="kd")
+
+
+def test_bench_bvh_and_cli_flag(tmp_path):
+    from conftest import quick_bench, run_rayvr
+    result = quick_bench("bvh", tmp_path)
+    rows = result["rows"]
+    assert {r["bvh_build"] for r in rows} == {"sah", "sbvh"}
+    assert {r["rays_kind"] for r in rows} == {"primary", "shadow", "reflect"}
+    for r in rows:
+        assert r["agree_with_first_build"] >= 0.99 and r["pair_node_visits"] > 0
+        assert 1.0 <= r["references_per_triangle"] <= 1.3
+    sah = {r["rays_kind"]: r for r in rows if r["bvh_build"] == "sah"}
+    assert all(r["sah_cost"] < sah[r["rays_kind"]]["sah_cost"] for r in rows if r["bvh_build"] == "sbvh")
+    bad = run_rayvr("capture", "--bvh-build", "kd", "--out", tmp_path / "x")
+    assert bad.returncode != 0 and "invalid choice: 'kd'" in bad.stderr and "Traceback" not in bad.stderr

@@ -11,6 +11,10 @@ holds at most `max_leaf_size` triangles; a node whose centroids all coincide is 
 depth is capped at `max_depth` (the GPU stack size). Triangles are reordered so that every leaf is
 one contiguous range; `prim_ids` maps a reordered slot back to the caller's triangle ID.
 
+`build_bvh(..., spatial_splits=True)` is the SBVH (sbvh.py): nodes may also split at planes that cut
+triangles, so a triangle may fill several slots (`reference_count` >= `triangle_count`), each holding
+the whole triangle and its original ID; everything that reads leaves works on slots and is unchanged.
+
 The binary tree is stored in depth-first preorder (`left`, `right`, `start`, `count`, boxes), which
 is what the reference traversal walks and what `refit` updates.
 
@@ -333,13 +337,8 @@ def build_bvh(vertices, indices, *, bins: int = 16, max_leaf_size: int = 8, max_
             p = prims[in_g]
             b[in_g], best_cost[nodes], split_axis[nodes], split_bin[nodes] = _binned_sah(
                 cen[p], tlo[p], thi[p], local[seg[in_g]], level_count[nodes], int(g))
-        node_area = np.maximum(_half_area(level_lo.astype(np.float64), level_hi), 1e-300)
-        valid = np.isfinite(best_cost)
-        split_sah = traversal_cost + triangle_cost * best_cost / node_area
-        leaf_sah = triangle_cost * level_count
-        make_leaf = ((level_count <= 1) | (depth >= max_depth)
-                     | ((level_count <= max_leaf_size) & (~valid | (leaf_sah <= split_sah))))
-        halve = ~make_leaf & ~valid                             # coincident centroids: split by position
+        make_leaf, halve = _leaf_or_split(best_cost, level_lo, level_hi, level_count, depth >= max_depth,
+                                          max_leaf_size, traversal_cost, triangle_cost)
 
         left_ids = np.full(A, -1, np.int64)
         right_ids = np.full(A, -1, np.int64)
@@ -449,15 +448,7 @@ def _binned_sah(c, plo, phi, seg, counts, B, boxes: bool = False):
         for axis in range(3):
             key = seg * B + b[:, axis]
             cnt = np.bincount(key, minlength=A * B).reshape(A, B)
-            blo = np.full((A * B, 3), np.inf, np.float32)
-            bhi = np.full((A * B, 3), -np.inf, np.float32)
-            for k in range(3):
-                np.minimum.at(blo[:, k], key, plo[:, k])
-                np.maximum.at(bhi[:, k], key, phi[:, k])
-            blo, bhi = blo.reshape(A, B, 3), bhi.reshape(A, B, 3)
-            llo, lhi = np.minimum.accumulate(blo, axis=1), np.maximum.accumulate(bhi, axis=1)
-            rlo = np.minimum.accumulate(blo[:, ::-1], axis=1)[:, ::-1]
-            rhi = np.maximum.accumulate(bhi[:, ::-1], axis=1)[:, ::-1]
+            llo, lhi, rlo, rhi = _bin_sweep(key, plo, phi, A, B)
             nl = np.cumsum(cnt, axis=1)[:, :-1]
             nr = counts[:, None] - nl
             c_axis = _half_area(llo[:, :-1], lhi[:, :-1]) * nl + _half_area(rlo[:, 1:], rhi[:, 1:]) * nr
@@ -470,6 +461,28 @@ def _binned_sah(c, plo, phi, seg, counts, B, boxes: bool = False):
     if boxes:
         out += (kept.reshape(4, A, -1, 3)[:, np.arange(A), best],)
     return out
+
+
+def _leaf_or_split(best_cost, lo, hi, count, too_deep: bool, max_leaf_size, traversal_cost, triangle_cost):
+    """Per node of a level: becomes a leaf (one triangle, too deep, or few enough triangles that the
+    SAH prefers a leaf), or is split by position (`halve`: no split plane separates its primitives)."""
+    valid = np.isfinite(best_cost)
+    split_sah = traversal_cost + triangle_cost * best_cost / np.maximum(_half_area(lo.astype(np.float64), hi), 1e-300)
+    make_leaf = (count <= 1) | too_deep | ((count <= max_leaf_size) & (~valid | (triangle_cost * count <= split_sah)))
+    return make_leaf, ~make_leaf & ~valid
+
+
+def _bin_sweep(key, lo, hi, A: int, B: int):
+    """Boxes (lo, hi) binned by `key` = node * B + bin: each node's prefix boxes (bins 0..k) and suffix
+    boxes (bins k..B-1), (A, B, 3) each: llo, lhi, rlo, rhi."""
+    blo = np.full((A * B, 3), np.inf, np.float32)
+    bhi = np.full((A * B, 3), -np.inf, np.float32)
+    for k in range(3):
+        np.minimum.at(blo[:, k], key, lo[:, k])
+        np.maximum.at(bhi[:, k], key, hi[:, k])
+    blo, bhi = blo.reshape(A, B, 3), bhi.reshape(A, B, 3)
+    return (np.minimum.accumulate(blo, axis=1), np.maximum.accumulate(bhi, axis=1),
+            np.minimum.accumulate(blo[:, ::-1], axis=1)[:, ::-1], np.maximum.accumulate(bhi[:, ::-1], axis=1)[:, ::-1])
 
 
 def _preorder(left: np.ndarray, right: np.ndarray, level_sizes: list[int]) -> np.ndarray:

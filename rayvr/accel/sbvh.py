@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bvh import _binned_sah, _finish, _half_area, _segment_positions
+from .bvh import _bin_sweep, _binned_sah, _finish, _half_area, _leaf_or_split, _segment_positions
 
 
 def clip_boxes(tri: np.ndarray, axis: int, lo: np.ndarray, hi: np.ndarray):
@@ -114,16 +114,7 @@ def _spatial_sah(tri64, r_lo, r_hi, seg, counts, node_lo, node_hi, B):
         if len(cut):
             cr = ref[cut]
             plo[cut], phi[cut] = _clip_refs(tri64[cr], r_lo[cr], r_hi[cr], axis, blo[cut], bhi[cut])
-        key = s * B + pos
-        bin_lo = np.full((A * B, 3), np.inf, np.float32)
-        bin_hi = np.full((A * B, 3), -np.inf, np.float32)
-        for k in range(3):
-            np.minimum.at(bin_lo[:, k], key, plo[:, k])
-            np.maximum.at(bin_hi[:, k], key, phi[:, k])
-        bin_lo, bin_hi = bin_lo.reshape(A, B, 3), bin_hi.reshape(A, B, 3)
-        llo, lhi = np.minimum.accumulate(bin_lo, axis=1), np.maximum.accumulate(bin_hi, axis=1)
-        rlo = np.minimum.accumulate(bin_lo[:, ::-1], axis=1)[:, ::-1]
-        rhi = np.maximum.accumulate(bin_hi[:, ::-1], axis=1)[:, ::-1]
+        llo, lhi, rlo, rhi = _bin_sweep(s * B + pos, plo, phi, A, B)
         nl = np.cumsum(enter, axis=1)[:, :-1]                   # refs starting at or left of the plane
         nr = counts[:, None] - np.cumsum(leave, axis=1)[:, :-1]   # refs ending right of it
         with np.errstate(invalid="ignore", over="ignore"):
@@ -228,14 +219,9 @@ def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle
                 last = np.zeros((len(seg), 3), np.int64)
                 first[in_c], last[in_c] = f, l
         best_cost = np.where(spatial, s_cost, o_cost)
-        node_area = np.maximum(_half_area(level_lo.astype(np.float64), level_hi), 1e-300)
-        valid = np.isfinite(best_cost)
-        split_sah = traversal_cost + triangle_cost * best_cost / node_area
-        leaf_sah = triangle_cost * level_count
-        make_leaf = ((level_count <= 1) | (depth >= max_depth)
-                     | ((level_count <= max_leaf_size) & (~valid | (leaf_sah <= split_sah))))
+        make_leaf, halve = _leaf_or_split(best_cost, level_lo, level_hi, level_count, depth >= max_depth,
+                                          max_leaf_size, traversal_cost, triangle_cost)
         spatial &= ~make_leaf
-        halve = ~make_leaf & ~valid                             # coincident centroids: split by position
         total_refs += int(s_dups[spatial].sum())
         spatial_nodes += int(spatial.sum())
 

@@ -10,18 +10,21 @@ import logging
 
 import numpy as np
 
-from .bvh import Bvh, build_bvh
+from .bvh import BUILDS, Bvh, build_bvh
 from .gpu import GpuBvh
 
 log = logging.getLogger(__name__)
 
 
-def build_scene_bvh(scene) -> Bvh:
-    """Binned-SAH BVH over the scene's triangles in scene-local coordinates (the space of the
-    G-buffer's positions); hit IDs are the scene's triangle IDs."""
-    bvh = build_bvh(scene.vertices, scene.indices)
-    log.info("%s: BVH of %d triangles built in %.3f s (SAH cost %.1f)", scene.name, bvh.triangle_count,
-             bvh.build_seconds, bvh.sah_cost())
+def build_scene_bvh(scene, build: str = "sah", progress: bool = True) -> Bvh:
+    """BVH over the scene's triangles in scene-local coordinates (the space of the G-buffer's
+    positions); hit IDs are the scene's triangle IDs. `build`: "sah" (binned SAH) or "sbvh" (with
+    spatial splits, accel/sbvh.py; `progress`: its tqdm bar)."""
+    if build not in BUILDS:
+        raise ValueError(f"unknown BVH build {build!r}; allowed: {', '.join(BUILDS)}")
+    bvh = build_bvh(scene.vertices, scene.indices, spatial_splits=build == "sbvh", progress=progress)
+    log.info("%s: %s BVH of %d triangles (%d references) built in %.3f s (SAH cost %.1f)", scene.name, build,
+             bvh.triangle_count, bvh.reference_count, bvh.build_seconds, bvh.sah_cost())
     return bvh
 
 
@@ -29,6 +32,7 @@ class SceneAccel:
     def __init__(self, gl, scene):
         self.gl, self.scene = gl, scene
         self.bvh: Bvh | None = None
+        self.build: str | None = None    # how self.bvh was built (bvh.BUILDS)
         self.gpu: GpuBvh | None = None   # the binary layout (the reference), always there once built
         self.wide: dict[str, GpuBvh] = {}   # the wide layouts a plan's traversal asked for
         self._refit = None
@@ -37,10 +41,14 @@ class SceneAccel:
     def built(self) -> bool:
         return self.gpu is not None
 
-    def ensure(self, layouts=()) -> GpuBvh:
-        """Build and upload the BVH once; also the wide `layouts` (collapsed from it) not made yet."""
+    def ensure(self, layouts=(), build: str = "sah") -> GpuBvh:
+        """Build (`build`: bvh.BUILDS) and upload the BVH once; also the wide `layouts` (collapsed from
+        it) not made yet. Another `build` than the one made rebuilds from the current positions."""
+        if self.gpu is not None and build != self.build:
+            self.release()      # the scene's vertices are current (Renderer.update_vertices)
         if self.gpu is None:
-            self.bvh = build_scene_bvh(self.scene)
+            self.bvh = build_scene_bvh(self.scene, build)
+            self.build = build
             self.gpu = GpuBvh(self.gl.ctx, self.bvh)
         for name in layouts:
             if name != "bvh2" and name not in self.wide:
@@ -77,4 +85,4 @@ class SceneAccel:
             if g is not None:
                 g.release()
         self.wide = {}
-        self.gpu = self.bvh = None
+        self.gpu = self.bvh = self.build = None

@@ -22,6 +22,9 @@ rays with the reference's triangle (or occlusion); `speedup_vs_bvh2` its rays/s 
 the meta names the fastest variant per ray kind and scene. Embree (embreex, one scene per process, a fork pool over every host
 core) traces the same float32 rays; its time is the wall time of the pool's map after a warm-up.
 Agreement with Embree (same triangle / same occlusion) is reported beside the speeds.
+`builds` (`--bvh-build sah,sbvh`) runs every variant on each build's BVH (variants of builds after
+the first are named "sbvh:bvh2", ...; rows carry `bvh_build`, `references` and `sah_cost`): SAH vs
+spatial splits (accel/sbvh.py) per layout and ray kind, on the same rays.
 
 The hybrid frame renders the scene with `shadows` on every material and mirror `reflections` on
 the reflective ones (MIRRORS), through the Renderer's frame graph: raster G-buffer, classify,
@@ -181,28 +184,34 @@ def time_effect_stages(renderer, rig, repeat=5) -> dict:
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, workers=None,
-        backend=None, progress=True, layouts=("bvh2", "bvh4", "bvh8"), tiles: bool = True) -> dict:
+        backend=None, progress=True, layouts=("bvh2", "bvh4", "bvh8"), tiles: bool = True,
+        builds=("sah",)) -> dict:
     """`layouts` and `tiles` pick the traversal variants (VARIANTS); bvh2 is always measured (the
-    reference every variant is compared with)."""
+    reference every variant is compared with). `builds` (bvh.BUILDS): each variant runs on a BVH of
+    each build; the first build's bvh2 is the reference (rays, agreement, speedups, Embree)."""
     layouts = tuple(dict.fromkeys(("bvh2",) + tuple(layouts)))
+    builds = tuple(dict.fromkeys(builds))
     workers = workers or os.cpu_count() or 1
     variants = [v for v in VARIANTS if v[1] in layouts and (tiles or not v[3])]
     gl = create_context(backend)
     rows, frames, skipped, best = [], [], {}, {}
     try:
         for name, scene, rig in bench_scenes(scenes, size, skipped):
-            bvh = build_scene_bvh(scene)
+            bvhs = {b: build_scene_bvh(scene, b, progress=progress) for b in builds}
             gpus = {}
-            for layout in dict.fromkeys(v[1] for v in variants):
-                t0 = time.perf_counter()
-                gpus[layout] = GpuBvh(gl, bvh, layout=layout)
-                gpus[layout].pack_s = time.perf_counter() - t0
-            rt = RayTracer(gl, gpus["bvh2"])
+            for b in builds:
+                for layout in dict.fromkeys(v[1] for v in variants):
+                    t0 = time.perf_counter()
+                    gpus[b, layout] = GpuBvh(gl, bvhs[b], layout=layout)
+                    gpus[b, layout].pack_s = time.perf_counter() - t0
+            bvh = bvhs[builds[0]]
+            rt = RayTracer(gl, gpus[builds[0], "bvh2"])
             o, d = primary_rays(rig, scene.origin, tiled=True)
             hits = rt.trace(o, d)
             rays = {"primary": (o, d, np.float32(3e38), "closest"), **secondary_rays(scene, bvh, o, d, hits)}
-            base = {"scene": name, "triangles": scene.triangle_count, "build_s": bvh.build_seconds,
-                    "sah_cost": bvh.sah_cost(), "gpu_nodes": bvh.gpu_node_count, "max_depth": bvh.max_depth}
+            base = {b: {"scene": name, "triangles": scene.triangle_count, "bvh_build": b,
+                        "references": x.reference_count, "build_s": x.build_seconds, "sah_cost": x.sah_cost(),
+                        "gpu_nodes": x.gpu_node_count, "max_depth": x.max_depth} for b, x in bvhs.items()}
             _WORK.update(vertices=np.ascontiguousarray(scene.vertices, np.float32),
                          indices=np.ascontiguousarray(scene.indices, np.int32), rays=rays)
             try:
@@ -215,28 +224,30 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                 for kind, (ro, rd, tmax, mode) in rays.items():
                     reference = rt.trace(ro, rd, tmax=tmax, mode=mode)
                     ref_prim = reference if mode == "any" else reference.prim
-                    runs = [(v, ro, rd) for v in variants if not (mode == "any" and v[0].endswith("-unordered"))]
+                    runs = [(b, v, ro, rd) for b in builds for v in variants
+                            if not (mode == "any" and v[0].endswith("-unordered"))]
                     if kind == "primary" and "bvh2" in layouts:
                         rows_o, rows_d = primary_rays(rig, scene.origin)
-                        runs.append((("bvh2 rows", "bvh2", True, False), rows_o, rows_d))
+                        runs.insert(1, (builds[0], ("bvh2 rows", "bvh2", True, False), rows_o, rows_d))
                     ref_rate = None
-                    for (variant, layout, ordered, tiled), vo, vd in runs:
-                        vrt = RayTracer(gl, gpus[layout], ordered=ordered)
+                    for b, (variant, layout, ordered, tiled), vo, vd in runs:
+                        vrt = RayTracer(gl, gpus[b, layout], ordered=ordered)
                         g = vrt.time_trace(vo, vd, tmax=tmax, mode=mode, repeats=repeat, tiles=tiled)
                         mine = vrt.trace(vo, vd, tmax=tmax, mode=mode, tiles=tiled)
                         mine = mine if mode == "any" else mine.prim
                         agree = float((mine == ref_prim).mean()) if variant != "bvh2 rows" else None
                         ref_rate = ref_rate or g["rays_per_s"]
-                        w = gpus[layout].wide
-                        row = {**base, "rays_kind": kind, "variant": variant, "layout": layout, "ordered": ordered,
+                        w = gpus[b, layout].wide
+                        label = variant if b == builds[0] else f"{b}:{variant}"
+                        row = {**base[b], "rays_kind": kind, "variant": label, "layout": layout, "ordered": ordered,
                                "tiles": tiled, "ray_order": "rows" if variant == "bvh2 rows" else "tiles16x8",
-                               "node_bytes": gpus[layout].nodes.size, "pack_s": gpus[layout].pack_s,
+                               "node_bytes": gpus[b, layout].nodes.size, "pack_s": gpus[b, layout].pack_s,
                                "wide_nodes": w.node_count if w is not None else 0,
                                "rays": len(vo), "gpu_ms": g["gpu_ms"], "gpu_ms_min": g["gpu_ms_min"],
                                "gpu_ms_max": g["gpu_ms_max"], "cull_ms": g["cull_ms"],
                                "gpu_grays_s": g["rays_per_s"] / 1e9, "speedup_vs_bvh2": g["rays_per_s"] / ref_rate,
                                "agree_with_bvh2": agree}
-                        if pool is not None and variant == "bvh2":
+                        if pool is not None and label == "bvh2":
                             ref, secs, trace_secs = embree_trace(pool, workers, kind, len(ro), repeat=3)
                             if mode == "any":
                                 eagree = float((reference == ref).mean())
@@ -250,9 +261,9 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                         rows.append(row)
                         key = f"{name}/{kind}"
                         if variant != "bvh2 rows" and row["gpu_grays_s"] > best.get(key, ("", 0.0))[1]:
-                            best[key] = (variant, row["gpu_grays_s"])
+                            best[key] = (label, row["gpu_grays_s"])
                         if progress:
-                            print(f"  {name:8s} {kind:8s} {variant:15s} {row['gpu_grays_s']:.3f} GRays/s GPU"
+                            print(f"  {name:8s} {kind:8s} {label:20s} {row['gpu_grays_s']:.3f} GRays/s GPU"
                                   f" ({row['speedup_vs_bvh2']:.2f}x bvh2" + (f", agree {agree:.4%})" if agree is not None else ")")
                                   + (f", Embree {row['embree_grays_s']:.3f} ({row['speedup_vs_embree']:.1f}x; "
                                      f"{row['speedup_vs_embree_trace']:.1f}x its trace calls alone),"
@@ -264,27 +275,29 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                 _WORK.clear()
                 for g in gpus.values():
                     g.release()
-            r = Renderer(scene, hybrid_config(name), gl=gl, settings=RenderSettings())
-            try:
-                names, med, total = time_frame(r, rig, repeat, warmup)
-                stages = time_effect_stages(r, rig)
-                counts = r.pixel_counts()
-                pixels = 2 * size[0] * size[1]
-                frames.append({"scene": name, "size": f"2x{size[0]}x{size[1]}", "passes": names,
-                               "pass_ms": {k: med[k] for k in names if k in med}, "total_ms": total,
-                               "mirror_pixel_fraction": counts["reflections"] / pixels,
-                               "shadow_pixel_fraction": counts["shadows"] / pixels,
-                               "effect_kernel_ms": stages,
-                               "config": {"default": "shadows", "reflections": list(MIRRORS.get(name, ()))}})
-                if progress:
-                    print(f"  {name:8s} hybrid frame {total:.3f} ms: "
-                          + ", ".join(f"{k} {v:.3f}" for k, v in frames[-1]["pass_ms"].items()))
-                    print(f"  {name:8s} effect kernels: " + ", ".join(f"{k} {v:.3f}" for k, v in stages.items()))
-            finally:
-                r.release()
+            for b in builds:   # the hybrid frame on each build's BVH
+                r = Renderer(scene, hybrid_config(name), gl=gl, settings=RenderSettings(bvh_build=b))
+                try:
+                    names, med, total = time_frame(r, rig, repeat, warmup)
+                    stages = time_effect_stages(r, rig)
+                    counts = r.pixel_counts()
+                    pixels = 2 * size[0] * size[1]
+                    frames.append({"scene": name, "bvh_build": b, "size": f"2x{size[0]}x{size[1]}", "passes": names,
+                                   "pass_ms": {k: med[k] for k in names if k in med}, "total_ms": total,
+                                   "mirror_pixel_fraction": counts["reflections"] / pixels,
+                                   "shadow_pixel_fraction": counts["shadows"] / pixels,
+                                   "effect_kernel_ms": stages,
+                                   "config": {"default": "shadows", "reflections": list(MIRRORS.get(name, ()))}})
+                    if progress:
+                        print(f"  {name:8s} hybrid frame ({b}) {total:.3f} ms: "
+                              + ", ".join(f"{k} {v:.3f}" for k, v in frames[-1]["pass_ms"].items()))
+                        print(f"  {name:8s} effect kernels: " + ", ".join(f"{k} {v:.3f}" for k, v in stages.items()))
+                finally:
+                    r.release()
         meta = {**device_meta(gl.info()), "bench": "rays", "per_eye_size": list(size), "repeat": repeat,
                 "host_cores": os.cpu_count(), "embree_workers": workers, "skipped": skipped,
-                "variants": [v[0] for v in variants], "tile_rays": TILE_RAYS, "tile_entries": TILE_ENTRIES,
+                "variants": [v[0] for v in variants], "bvh_builds": list(builds),
+                "tile_rays": TILE_RAYS, "tile_entries": TILE_ENTRIES,
                 "best": {k: {"variant": v, "gpu_grays_s": r} for k, (v, r) in best.items()},
                 "what_times_include": {
                     "gpu_ms": "GL timer query around the trace dispatches only (with tiles: the cull "

@@ -9,7 +9,8 @@ class BvhPass(Pass):
     name = "bvh"
 
     def io(self, plan: FramePlan) -> list:
-        return [write("bvh", External("scene BVH: binned SAH, built once, refit by update_vertices"))]
+        return [write("bvh", External("scene BVH: binned SAH or SBVH, built once, refit by update_vertices"))]
 
     def execute(self, fc) -> None:
-        fc.accel.ensure(fc.plan.traversal)  # built and uploaded on the first frame only (each layout)
+        # built and uploaded on the first frame only (each layout; again if the build changes)
+        fc.accel.ensure(fc.plan.traversal, fc.plan.bvh_build)
