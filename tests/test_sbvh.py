@@ -8,7 +8,7 @@ import pytest
 from rayvr.accel.bvh import _half_area, build_bvh, intersect_triangles, trace_brute_force, trace_reference
 from rayvr.accel.gpu import MISS, GpuBvh, RayTracer
 from rayvr.accel.refit import GpuRefit
-from rayvr.accel.sbvh import clip_boxes
+from rayvr.accel.sbvh import _unsplit, clip_boxes
 from rayvr.accel.wide import build_wide, trace_wide_reference
 from test_traversal_gpu import embree_closest, embree_scene
 
@@ -106,6 +106,18 @@ def clip_polygon(poly, axis, c, sign):
         if dp * dq < 0:
             out.append(p + (q - p) * (dp / (dp - dq)))
     return out
+
+
+def test_reference_unsplitting_moves_a_barely_cut_reference_whole():
+    # children [0,1] and [1,2] along x of a unit cube section, 10 references each (half areas 3 and 3)
+    child = [np.array([[0.0, 0, 0]]), np.array([[1.0, 1, 1]]), np.array([[1.0, 0, 0]]), np.array([[2.0, 1, 1]])]
+    counts = [np.array([10]), np.array([10])]
+    side = lambda lo, hi: int(_unsplit(np.array([lo], float), np.array([hi], float), child, counts)[0])  # noqa: E731
+    # [0.5, 1.01]: left grows to half area 3.03: 30.3 + 27 < 60 -> whole to the left
+    assert side([0.5, 0, 0], [1.01, 1, 1]) == 0
+    assert side([0.99, 0, 0], [1.5, 1, 1]) == 1
+    # [0.2, 1.8]: either side grows to half area 4.6: 46 + 27 > 60 -> stays in both
+    assert side([0.2, 0, 0], [1.8, 1, 1]) == 2
 
 
 def test_spatial_splits_beat_the_object_split_bound_on_diagonal_slivers():

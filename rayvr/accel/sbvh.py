@@ -12,7 +12,8 @@ split at a plane that cuts references in two:
   triangle polygon cut by the slab, intersected with the reference's box), the clipped boxes make
   the bin boxes, entry/exit counts the references on each side of a plane;
 * the cheaper of the two wins; a spatial split sends a reference cut by its plane to both children,
-  each with its clipped box. Reference unsplitting (the paper's §4.4) is not done.
+  each with its clipped box, unless moving it whole to one side lowers the SAH (reference
+  unsplitting, the paper's section 4.4: `_unsplit`, each reference judged against the binned split).
 
 Duplication is bounded: a level's spatial splits are accepted, largest SAH gain per duplicated
 reference first, while the references of the whole tree stay within (1 + max_duplication) x the
@@ -85,11 +86,15 @@ def _spatial_sah(tri64, r_lo, r_hi, seg, counts, node_lo, node_hi, B):
     """Best spatial split of each node over B equal slabs per axis of its box (refs grouped by node).
 
     Returns per node: cost (area x references on both sides, inf if none), axis, plane position
-    (float64, the upper plane of the split bin) and per-ref first/last bins (n,3) for the partition.
+    (float64, the upper plane of the split bin), the two children's boxes (4,A,3: llo, lhi, rlo, rhi)
+    and reference counts (2,A), and per-ref first/last bins (n,3) for the partition.
     """
     A = len(counts)
+    rows = np.arange(A)
     cost = np.full((A, 3), np.inf)
     split_bin = np.zeros((A, 3), np.int64)
+    boxes = np.zeros((3, 4, A, 3))
+    sides = np.zeros((3, 2, A), np.int64)
     first = np.zeros((len(seg), 3), np.int64)
     last = np.zeros((len(seg), 3), np.int64)
     org = node_lo.astype(np.float64)
@@ -121,13 +126,29 @@ def _spatial_sah(tri64, r_lo, r_hi, seg, counts, node_lo, node_hi, B):
             c = (_half_area(llo[:, :-1].astype(np.float64), lhi[:, :-1]) * nl
                  + _half_area(rlo[:, 1:].astype(np.float64), rhi[:, 1:]) * nr)
         c = np.where((nl > 0) & (nr > 0) & (wa[:, None] > 0), c, np.inf)
-        split_bin[:, axis] = c.argmin(axis=1)
-        cost[:, axis] = c[np.arange(A), split_bin[:, axis]]
+        k = split_bin[:, axis] = c.argmin(axis=1)
+        cost[:, axis] = c[rows, k]
+        boxes[axis] = llo[rows, k], lhi[rows, k], rlo[rows, k + 1], rhi[rows, k + 1]
+        sides[axis] = nl[rows, k], nr[rows, k]
     best_axis = cost.argmin(axis=1)
-    rows = np.arange(A)
     k = split_bin[rows, best_axis]
     plane = org[rows, best_axis] + (k + 1) * width[rows, best_axis]
-    return cost[rows, best_axis], best_axis, k, plane, first, last
+    return (cost[rows, best_axis], best_axis, k, plane, boxes[best_axis, :, rows].transpose(1, 0, 2),
+            sides[best_axis, :, rows].T, first, last)
+
+
+def _unsplit(lo, hi, child_boxes, n_sides):
+    """Reference unsplitting (the paper's section 4.4) for references a spatial split cuts: 0 puts the
+    whole reference (box lo, hi) left, 1 right, 2 keeps it in both, whichever gives the lowest SAH
+    given the split's child boxes and counts. Each reference is judged against the split as binned
+    (not after its neighbours' moves), which keeps it one vectorised step."""
+    llo, lhi, rlo, rhi = (b.astype(np.float64) for b in child_boxes)
+    nl, nr = n_sides
+    al, ar = _half_area(llo, lhi), _half_area(rlo, rhi)
+    keep = al * nl + ar * nr
+    to_left = _half_area(np.minimum(llo, lo), np.maximum(lhi, hi)) * nl + ar * (nr - 1)
+    to_right = al * (nl - 1) + _half_area(np.minimum(rlo, lo), np.maximum(rhi, hi)) * nr
+    return np.argmin(np.stack([to_left, to_right, keep]), axis=0)
 
 
 def _overlap_area(boxes):
@@ -139,7 +160,7 @@ def _overlap_area(boxes):
 
 
 def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle_cost, split_alpha,
-               max_duplication, progress, params):
+               max_duplication, progress, params, unsplit: bool = True):
     """The SBVH build (module docstring); V, I checked by build_bvh, T > 0."""
     T = len(I)
     tri64 = V[I].astype(np.float64)
@@ -189,6 +210,8 @@ def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle
         s_bin = np.zeros(A, np.int64)
         s_plane = np.zeros(A)
         s_dups = np.zeros(A, np.int64)
+        s_boxes = np.zeros((4, A, 3))
+        s_sides = np.zeros((2, A), np.int64)
         first = last = None
         try_s = (nb > 0) & (overlap > split_alpha * root_area) & (total_refs < ref_limit)
         if try_s.any():
@@ -196,7 +219,7 @@ def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle
             in_c = try_s[seg]
             local = np.full(A, -1, np.int64)
             local[cand] = np.arange(len(cand))
-            c_cost, c_axis, c_bin, c_plane, f, l = _spatial_sah(
+            c_cost, c_axis, c_bin, c_plane, c_boxes, c_sides, f, l = _spatial_sah(
                 tri64[r_tri[in_c]], r_lo[in_c], r_hi[in_c], local[seg[in_c]], level_count[cand],
                 level_lo[cand], level_hi[cand], B)
             win = c_cost < o_cost[cand]
@@ -215,6 +238,7 @@ def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle
                 spatial[nodes] = True
                 s_cost[nodes], s_axis[nodes], s_bin[nodes] = c_cost[pick], c_axis[pick], c_bin[pick]
                 s_plane[nodes], s_dups[nodes] = c_plane[pick], cut[pick].astype(np.int64)
+                s_boxes[:, nodes], s_sides[:, nodes] = c_boxes[:, pick], c_sides[:, pick]
                 first = np.zeros((len(seg), 3), np.int64)
                 last = np.zeros((len(seg), 3), np.int64)
                 first[in_c], last[in_c] = f, l
@@ -262,6 +286,11 @@ def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle
         rank_of = np.full(A, -1, np.int64)
         rank_of[split] = np.arange(len(split))
         both = np.flatnonzero(side == 2)
+        if len(both) and unsplit:
+            n = k_seg[both]
+            side[both] = _unsplit(k_lo[both], k_hi[both], s_boxes[:, n], s_sides[:, n])
+            total_refs -= int((side[both] != 2).sum())
+            both = both[side[both] == 2]
         c_lo_l, c_hi_l, c_lo_r, c_hi_r = k_lo.copy(), k_hi.copy(), k_lo.copy(), k_hi.copy()
         for axis in range(3):
             r = both[s_axis[k_seg[both]] == axis]
