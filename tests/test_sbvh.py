@@ -181,7 +181,7 @@ def meshes():
     out = []
     for name, (v, f), n in (("thin", thin_mesh(300), 1500), ("room", (room.vertices, room.indices), 600)):
         sbvh = build_bvh(v, f, spatial_splits=True)
-        assert sbvh.reference_count > len(f), f"{name}: no spatial split was made"
+        assert len(f) < sbvh.reference_count <= 1.3 * len(f), f"{name}: no spatial split, or over budget"
         o, d = rays_to_triangles(v, f, n, seed=7)
         out.append((name, v, f, sbvh, build_bvh(v, f), o, d, trace_brute_force(v, f, o, d)))
     return out
