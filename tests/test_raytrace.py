@@ -71,6 +71,42 @@ def test_all_raster_scene_builds_no_bvh_and_traces_nothing(gl, monkeypatch):
     r.release()
 
 
+def test_renderers_of_the_same_geometry_build_its_bvh_once(gl, monkeypatch):
+    """A process keeps the BVHs it built (accel/scene.py kept_scene_bvh): the next Renderer of the
+    same triangles and build reuses one instead of building again; its own refit does not reach
+    the kept one (a later Renderer of the unmoved scene sees the same triangles as the first);
+    other positions or another build are built anew."""
+    from collections import OrderedDict
+
+    import rayvr.accel.scene as accel_scene
+
+    builds = []
+    real = accel_scene.build_scene_bvh
+
+    def counting(scene, build="sah", progress=True):
+        builds.append(build)
+        return real(scene, build, progress=False)
+    monkeypatch.setattr(accel_scene, "build_scene_bvh", counting)
+    monkeypatch.setattr(accel_scene, "_kept", OrderedDict())
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(24, 16))
+    first, _, _ = render(gl, scene, rig, {"default": "shadows"})
+    assert builds == ["sah"]
+    original = scene.vertices.copy()
+    with Renderer(scene, parse_config({"default": "shadows"}, "t"), gl=gl) as r:
+        again = r.render(rig, aux=("triangle",))
+        r.update_vertices(original + np.float32([0.05, 0.0, 0.0]))  # refits this Renderer's copy
+        assert not np.array_equal(r.render(rig, aux=("triangle",)).left.aux["triangle"], first.left.aux["triangle"])
+    scene.vertices = original  # update_vertices moved the shared Scene's too
+    assert builds == ["sah"] and np.array_equal(again.left.aux["triangle"], first.left.aux["triangle"])
+    later, _, _ = render(gl, scene, rig, {"default": "shadows"})
+    assert builds == ["sah"] and np.array_equal(later.left.aux["triangle"], first.left.aux["triangle"])
+    other = from_arrays(original * np.float32(1.5), scene.indices, name="bigger")
+    render(gl, other, StereoRig.for_scene(other, size=(24, 16)), {"default": "shadows"})
+    render(gl, scene, rig, {"default": "shadows"}, settings=RenderSettings(bvh_build="sbvh"))
+    assert builds == ["sah", "sah", "sbvh"]
+
+
 def test_traced_effects_schedule_only_their_passes_and_list_their_pixels(gl):
     scene = load()
     rig = StereoRig.for_scene(scene, size=(40, 30))
