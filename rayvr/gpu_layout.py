@@ -94,6 +94,9 @@ BVH_LAYOUTS = {"bvh2": 2, "bvh4": 4, "bvh8": 8}
 TILE_RAYS = 128
 TILE_ENTRIES = 32
 VERTEX_FLOATS = 8  # position xyz, normal xyz, uv (gpu_scene.interleaved_vertices)
+# Least widening of a BVH box side (accel/bvh.py widen, the GPU refit): with the traversal's safe
+# inverse of a zero direction component (1 / 1e-20) it exceeds any distance in a scene.
+BVH_FACE_SLACK = 1e-12
 
 
 def channel(name: str) -> Channel:
@@ -136,7 +139,8 @@ def glsl_header() -> str:
     out += [f"#define LIGHT_{k.upper()} {i}" for i, k in enumerate(LIGHT_KINDS)]
     out += [f"#define NO_HIT 0x{NO_HIT:X}u", f"#define VERTEX_FLOATS {VERTEX_FLOATS}",
             f"#define SSRT_RAY_GROUP {SSRT_RAY_GROUP}",
-            f"#define DEFAULT_TILE_RAYS {TILE_RAYS}", f"#define DEFAULT_TILE_ENTRIES {TILE_ENTRIES}"]
+            f"#define DEFAULT_TILE_RAYS {TILE_RAYS}", f"#define DEFAULT_TILE_ENTRIES {TILE_ENTRIES}",
+            f"#define BVH_FACE_SLACK {BVH_FACE_SLACK!r}"]
     out += _effect_lines()
     out.append("#endif")
     return "\n".join(out) + "\n"

@@ -51,6 +51,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..gpu_layout import BVH_FACE_SLACK
+
 EMPTY_LO = np.float32(3.0e38)   # inverted box for an empty child slot: lo > hi, never entered
 EMPTY_HI = np.float32(-3.0e38)
 NODE_BYTES = 64
@@ -206,14 +208,21 @@ class Bvh:
         return out
 
 
+FACE_SLACK = np.float32(BVH_FACE_SLACK)
+
+
 def widen(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Boxes grown by one float ulp on every side, as traversal sees them.
+    """Boxes grown by one float ulp on every side, and by at least FACE_SLACK, as traversal sees them.
 
     An axis-parallel ray lying exactly in a box face gets (face - origin) * inv = 0 * large = 0 for
-    its far plane and would miss the box; one ulp of slack makes the face strictly outside the ray.
+    its far plane and would miss the box; slack makes the face strictly outside the ray. One ulp
+    is not enough at a face at 0 (1.4e-45, a denormal a GPU may flush): hence the floor
+    (gpu_layout.BVH_FACE_SLACK), whose product with glsl/accel/bvh.glsl's safe inverse of a zero
+    component (1 / 1e-20) exceeds any distance in a scene.
     """
     lo, hi = np.asarray(lo, np.float32), np.asarray(hi, np.float32)
-    return np.nextafter(lo, np.float32(-np.inf)), np.nextafter(hi, np.float32(np.inf))
+    return (np.minimum(np.nextafter(lo, np.float32(-np.inf)), lo - FACE_SLACK),
+            np.maximum(np.nextafter(hi, np.float32(np.inf)), hi + FACE_SLACK))
 
 
 def _put_child(out: np.ndarray, side: int, lo: np.ndarray, hi: np.ndarray) -> None:
@@ -636,13 +645,18 @@ class RayWalk:
         return active, self.stack[active, self.sp[active]]
 
     def leaf(self, rays, first, count) -> None:
-        """Rays against their leaf ranges [first, first + count), keeping the closest hit."""
+        """Rays against their leaf ranges [first, first + count), keeping the closest hit (at equal
+        t the lower triangle ID, as the GLSL leaf test: the order the walk meets them in does not
+        decide)."""
         np.add.at(self.tests, rays, count)
         for k in range(int(count.max()) if len(count) else 0):
             m = k < count
             rr, slot = rays[m], first[m] + k
+            found = self.prim[rr] >= 0
+            bound = np.where(found, np.nextafter(self.tbest[rr], np.inf), self.tbest[rr])
             h, t, uu, vv = intersect_triangles(self.o[rr], self.d[rr], self.tris[slot, 0], self.tris[slot, 1],
-                                               self.tris[slot, 2], self.tmin[rr], self.tbest[rr])
+                                               self.tris[slot, 2], self.tmin[rr], bound)
+            h &= (t < self.tbest[rr]) | (self.bvh.prim_ids[slot].astype(np.int64) < np.where(found, self.prim[rr], 1 << 40))
             rr, slot = rr[h], slot[h]
             self.tbest[rr], self.u[rr], self.v[rr] = t[h], uu[h], vv[h]
             self.prim[rr] = self.bvh.prim_ids[slot]

@@ -84,7 +84,9 @@ bool bvh_begin(Ray r, out Hit h, out RayShear s, out vec3 inv) {
     return true;
 }
 
-// Test the triangles of one leaf, shrinking h.t on every closer hit.
+// Test the triangles of one leaf, shrinking h.t on every closer hit. A hit at exactly h.t (a ray
+// through an edge two triangles share) goes to the lower triangle ID, so every layout and the
+// tile-culled traversal, which meet the two in different orders, report the same one.
 bool bvh_leaf(RayShear s, int first, int count, float tmin, bool any_hit, inout Hit h) {
     bool found = false;
     for (int i = first; i < first + count; ++i) {
@@ -93,7 +95,10 @@ bool bvh_leaf(RayShear s, int first, int count, float tmin, bool any_hit, inout 
         vec4 c = bvh_tris[3 * i + 2];
         float t;
         vec2 uv;
-        if (intersect_triangle(s, a.xyz, b.xyz, c.xyz, tmin, h.t, t, uv)) {
+        // with a hit so far, admit t == h.t: the next float up is the open bound
+        float tmax = h.prim == BVH_MISS ? h.t : uintBitsToFloat(floatBitsToUint(h.t) + 1u);
+        if (intersect_triangle(s, a.xyz, b.xyz, c.xyz, tmin, tmax, t, uv)
+            && (t < h.t || floatBitsToUint(a.w) < h.prim)) {
             h.t = t;
             h.uv = uv;
             h.slot = uint(i);

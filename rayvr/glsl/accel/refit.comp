@@ -81,9 +81,11 @@ void main() {
         } else {
             continue;                      // an empty slot (a lone leaf's partner): stays inverted
         }
-        for (int a = 0; a < 3; ++a) {
-            nodes[16u * g + uint(6 * side + 2 * a)] = step_down(lo[a]);
-            nodes[16u * g + uint(6 * side + 2 * a + 1)] = step_up(hi[a]);
+        for (int a = 0; a < 3; ++a) {  // as bvh.widen: an ulp, and at least BVH_FACE_SLACK
+            float l = min(uintBitsToFloat(step_down(lo[a])), lo[a] - BVH_FACE_SLACK);
+            float h = max(uintBitsToFloat(step_up(hi[a])), hi[a] + BVH_FACE_SLACK);
+            nodes[16u * g + uint(6 * side + 2 * a)] = floatBitsToUint(l);
+            nodes[16u * g + uint(6 * side + 2 * a + 1)] = floatBitsToUint(h);
         }
     }
 }
