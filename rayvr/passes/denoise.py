@@ -29,7 +29,7 @@ from ..gpu_layout import IMAGE
 from .accumulate import ACCUM
 from .compute import dispatch_per_pixel
 
-DENOISE_TILE = 16  # TILE of glsl/post/denoise.comp: one work group filters 16x16 lattice points
+DENOISE_TILE = 16  # one work group of glsl/post/denoise.comp filters 16x16 lattice points
 
 
 @dataclass(frozen=True)
@@ -63,7 +63,8 @@ class DenoisePass(Pass):
                 write("denoise.gradient", GRADIENT), write("denoise.variance", VARIANCE), write("hdr_denoised", ACCUM)]
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.programs = {s: shaders.compute(gl.ctx, "post/denoise.comp", {"DENOISE_STAGE": s}) for s in (0, 1, 2, 3)}
+        self.programs = {s: shaders.compute(gl.ctx, "post/denoise.comp", {"DENOISE_STAGE": s, "DENOISE_TILE": DENOISE_TILE})
+                         for s in (0, 1, 2, 3)}
 
     def execute(self, fc) -> None:
         iterations = int(fc.settings.denoise_iterations)

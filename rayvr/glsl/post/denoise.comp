@@ -24,7 +24,7 @@
 #if DENOISE_STAGE == 0
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #else
-#define TILE 16
+#define TILE DENOISE_TILE  // passes/denoise.py
 layout(local_size_x = TILE, local_size_y = TILE, local_size_z = 1) in;
 #endif
 
