@@ -81,9 +81,11 @@ def mode_rows(r: Renderer, rig, name: str, variants=VARIANTS, repeat: int = 20, 
                      "second_eye_share": (total - mono) / mono if mono > 0 else None,
                      "pass_ms": {k: med[k] for k in names if k in med}})
     r.set_stereo("dual")
+    # the seed-to-seed noise of dual's right eye, that every row's FLIP sits on
+    floor = metrics.flip(ref.right.color, images["dual", 0].right.color)
     if converged_spp:
         r.settings.seed = REFERENCE_SEED
-        converged_ref = r.render(rig, spp=converged_spp).right.color
+        converged_floor = metrics.flip(r.render(rig, spp=converged_spp).right.color, converged["dual", 0])
         r.settings.seed = seed
     for row in rows:
         key = (row["mode"], row["warp_layers"] or 0)
@@ -99,11 +101,11 @@ def mode_rows(r: Renderer, rig, name: str, variants=VARIANTS, repeat: int = 20, 
                 row[f"nodes_per_pixel_{eye}"] = c[f"nodes_{eye}"] / c[f"pixels_{eye}"]
         if row["mode"] == "reuse":
             row["reused_fraction_right"] = c["reused"] / c["right_pixels"]
-        row["noise_floor_right"] = metrics.flip(ref.right.color, images["dual", 0].right.color)
+        row["noise_floor_right"] = floor
         if converged_spp:
             row["converged_spp"] = converged_spp
             row["flip_vs_dual_converged_right"] = metrics.flip(converged["dual", 0], converged[key])
-            row["noise_floor_converged_right"] = metrics.flip(converged_ref, converged["dual", 0])
+            row["noise_floor_converged_right"] = converged_floor
         if progress:
             print(f"  {name:8s} {row['mode']:6s}{row['warp_layers'] or '':1} frame {row['frame_ms']:.3f} ms (mono {mono:.3f}), "
                   f"second eye {row['second_eye_share'] or 0:.2f} of one, FLIP vs dual right "
