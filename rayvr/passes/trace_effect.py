@@ -40,6 +40,11 @@ def wave_plan(pixel_capacity: int, paths_per_pixel: int, slots: int, limit: int,
     return batch, pixel_chunk, hit_chunk
 
 
+def chunk_ranges(total: int, size: int) -> list:
+    """(first, count) of consecutive chunks of `size` covering `total` slots."""
+    return [(k, min(size, total - k)) for k in range(0, total, size)]
+
+
 def effect_maxima(assignments, effect: str) -> dict:
     """The largest of each integer parameter over the materials that use `effect` (sizes the waves)."""
     out = {"bounces": 1, "samples": 1, "area_samples": 1}
@@ -63,11 +68,14 @@ class WaveShape:
         self.bounces = prm["bounces"] if follows_rays(effect) else 0  # hit events after the pixel's
         self.paths_per_pixel = prm["samples"] if "samples" in effect.params else 1
         lights = s.scene.lights if s.scene is not None else ()
-        per_rect = prm["area_samples"] * (prm["samples"] if effect.shader_defines.get("PIXEL_LIGHT_SAMPLES_PER_PATH") else 1)
-        self.slots = sum(per_rect if l.kind == "rect" else 1 for l in lights) or 1
+
+        def shadow_rays(per_rect: int) -> int:  # of one surface: per_rect points a rect light, 1 another
+            return sum(per_rect if light.kind == "rect" else 1 for light in lights) or 1
+        per_path = prm["samples"] if effect.shader_defines.get("PIXEL_LIGHT_SAMPLES_PER_PATH") else 1
+        self.slots = shadow_rays(prm["area_samples"] * per_path)
         # A hit event lights its surface with `area_samples` points per rect light, never the
         # pixel event's set per path: its shadow rays fill the first hit_slots slots only.
-        self.hit_slots = min(self.slots, sum(prm["area_samples"] if l.kind == "rect" else 1 for l in lights) or 1)
+        self.hit_slots = shadow_rays(prm["area_samples"])
         limit = min(s.max_ssbo_bytes or WAVE_BUFFER_BYTES, WAVE_BUFFER_BYTES)
         self.capacity_pixels = s.pixels
         self.batch, self.chunk, self.hit_chunk = wave_plan(s.pixels, self.paths_per_pixel, self.slots, limit,
@@ -82,12 +90,12 @@ class WaveShape:
     @property
     def chunks(self) -> list:
         """(first slot, count) of each chunk of the pixel event's shadow slots."""
-        return [(k, min(self.chunk, self.slots - k)) for k in range(0, self.slots, self.chunk)]
+        return chunk_ranges(self.slots, self.chunk)
 
     @property
     def hit_chunks(self) -> list:
         """The chunks a hit event's shadow rays fall in (the last one ends the path)."""
-        return [(k, min(self.hit_chunk, self.hit_slots - k)) for k in range(0, self.hit_slots, self.hit_chunk)]
+        return chunk_ranges(self.hit_slots, self.hit_chunk)
 
 
 class TraceEffectPass(Pass):
