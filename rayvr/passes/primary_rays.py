@@ -24,13 +24,12 @@ import numpy as np
 from .. import shaders
 from ..accel.gpu import DEFAULT_BINDING, layout_defines
 from ..frame import Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
-from ..gpu_layout import IMAGE, SSBO, channel
+from ..gpu_layout import IMAGE, NO_HIT, SSBO, channel
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
 MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
 SAMPLE_WEIGHT = Texture("r32f")
-NO_HIT = 0xFFFFFFFF  # BVH_MISS
 
 
 def msaa_block(samples: int) -> tuple[int, int]:
