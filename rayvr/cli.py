@@ -404,11 +404,20 @@ def add_bvh_build_argument(p: argparse.ArgumentParser) -> None:
                         "more triangle references, a longer build; accel/sbvh.py)")
 
 
-def _builds(text: str) -> tuple[str, ...]:
-    names = tuple(dict.fromkeys(x.strip() for x in text.split(",") if x.strip()))
-    if not names or any(x not in BUILDS for x in names):
-        raise argparse.ArgumentTypeError(f"BVH builds must be among {', '.join(BUILDS)}, got {text!r}")
+def _split(text: str) -> tuple[str, ...]:
+    return tuple(x.strip() for x in text.split(",") if x.strip())
+
+
+def _among(text: str, what: str, allowed, unique: bool = False) -> tuple[str, ...]:
+    """Comma-separated names, each in `allowed` (`unique`: repeats dropped)."""
+    names = tuple(dict.fromkeys(_split(text))) if unique else _split(text)
+    if not names or any(x not in allowed for x in names):
+        raise argparse.ArgumentTypeError(f"{what} must be among {', '.join(allowed)}, got {text!r}")
     return names
+
+
+def _builds(text: str) -> tuple[str, ...]:
+    return _among(text, "BVH builds", BUILDS, unique=True)
 
 
 def _traversal(text: str) -> tuple[str, str, str]:
@@ -419,15 +428,11 @@ def _traversal(text: str) -> tuple[str, str, str]:
 
 
 def _layouts(text: str) -> tuple[str, ...]:
-    names = tuple(x.strip() for x in text.split(",") if x.strip())
-    bad = [x for x in names if x not in BVH_LAYOUTS]
-    if bad or not names:
-        raise argparse.ArgumentTypeError(f"BVH layouts must be among {', '.join(BVH_LAYOUTS)}, got {text!r}")
-    return names
+    return _among(text, "BVH layouts", BVH_LAYOUTS)
 
 
 def _names(text: str) -> tuple[str, ...]:
-    names = tuple(x.strip() for x in text.split(",") if x.strip())
+    names = _split(text)
     if not names:
         raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
     return names
