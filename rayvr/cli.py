@@ -516,7 +516,8 @@ def cmd_bench(args) -> int:
                     custom=(camera_from_args(args), args.fov) if custom else None, backend=args.backend,
                     configs=_bench_configs("primary", args.configs, primary.CONFIGS),
                     suites=("views",) if subset else primary.SUITES,
-                    table5_size=(24, 16) if quick else primary.TABLE5_SIZE, tiles=not args.no_tiles)
+                    table5_size=(24, 16) if quick else primary.TABLE5_SIZE, tiles=not args.no_tiles,
+                    builds=args.bvh_build or ("sah",))
     elif args.area == "peers":
         from .bench import peers
 
@@ -729,8 +730,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"rays: BVH node layouts to measure, comma-separated (default {','.join(BVH_LAYOUTS)}; "
                         f"bvh2, the reference, always runs)")
     b.add_argument("--bvh-build", type=_builds, metavar="BUILDS",
-                   help="rays: BVH builds to measure, comma-separated among sah,sbvh (default sah; the first is the "
-                        "reference); bvh: the builds to compare (default sah,sbvh)")
+                   help="rays, primary: BVH builds to measure, comma-separated among sah,sbvh (default sah; the "
+                        "first is the reference); bvh: the builds to compare (default sah,sbvh)")
     b.add_argument("--no-tiles", action="store_true", help="rays, primary: leave out the tile frustum culling variant")
     b.add_argument("--workers", type=_worker_counts, help="tradeoff/budget: spread the variants over N Ray workers; "
                    "workers: the worker counts to time (default 1,2); needs pip install 'rayvr[cluster]'")

@@ -91,7 +91,17 @@ def tile_culling(gl, gpu_bvh, rig, origin, repeat) -> dict:
 
 
 def targets(rows) -> dict:
-    """The issue's targets for this bench, each 'met'/'missed' with the figures, on the rows measured."""
+    """The issue's targets for this bench, each 'met'/'missed' with the figures, on the rows measured
+    (per BVH build, named in the key when the rows have several)."""
+    builds = list(dict.fromkeys(r.get("bvh_build", "sah") for r in rows))
+    out = {}
+    for b in builds:
+        label = f"[{b}] " if len(builds) > 1 else ""
+        out.update({label + k: v for k, v in build_targets([r for r in rows if r.get("bvh_build", "sah") == b]).items()})
+    return out
+
+
+def build_targets(rows) -> dict:
     out = {}
 
     def verdict(ok, text):
@@ -123,8 +133,9 @@ def targets(rows) -> dict:
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, counts=None,
         ssaa=(4,), configs=None, custom=None, backend=None, progress=True, suites=SUITES,
-        table5_size=TABLE5_SIZE, tiles=True) -> dict:
-    """`configs`/`counts` (views suite rows; default VIEW_CONFIGS x VIEW_COUNTS); `custom` =
+        table5_size=TABLE5_SIZE, tiles=True, builds=("sah",)) -> dict:
+    """`configs`/`counts` (views suite rows; default VIEW_CONFIGS x VIEW_COUNTS); `builds`: every
+    row once per BVH build (accel/bvh.BUILDS; rows carry `bvh_build`); `custom` =
     (camera model, fov_y or None): that camera instead (beside the raster reference), as
     `rayvr bench primary --camera-model ... --camera-param ...` asks. `tiles`: also trace each
     camera's central rays standalone without and with tile culling."""
@@ -148,6 +159,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
     try:
         meta = {**device_meta(gl.info()), "bench": "primary", "per_eye_size": list(size),
                 "table5_per_eye_size": list(table5_size), "suites": list(suites), "repeat": repeat,
+                "bvh_builds": list(builds),
                 "skipped": skipped, "materials": "all raster (visibility, not shading, is measured)",
                 "what_times_include": {
                     "pass_ms": "GL timer query per pass, summed over a sampled frame's rounds; medians",
@@ -164,15 +176,15 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
         result["meta"] = meta
         for name, scene, view in bench_scenes(scenes, size, skipped):
             with Renderer(scene, gl=gl) as r:
-                culled = {}  # (config, size) -> tile-culling columns
-                for suite, eye_size, cname, n, shade_all in plan:
+                culled = {}  # (build, config, size) -> tile-culling columns
+                for build, (suite, eye_size, cname, n, shade_all) in ((b, p) for b in builds for p in plan):
                     model, fov, primary = table[cname]
                     rig = StereoRig(view.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=eye_size,
                                     camera=model)
-                    r.settings = RenderSettings(primary=primary, msaa=n, ssaa=shade_all)
+                    r.settings = RenderSettings(primary=primary, msaa=n, ssaa=shade_all, bvh_build=build)
                     names, med, total = time_frame(r, rig, repeat, warmup)
                     row = {"suite": suite, "scene": name, "config": cname, "camera": model.name, "primary": primary,
-                           "sub_rays_per_sample": n, "shading": "ssaa" if shade_all else "msaa",
+                           "sub_rays_per_sample": n, "shading": "ssaa" if shade_all else "msaa", "bvh_build": build,
                            "size": f"2x{eye_size[0]}x{eye_size[1]}", "total_ms": total,
                            "pass_ms": {k: med[k] for k in names if k in med}}
                     if primary == "rays":
@@ -182,7 +194,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                         row.update(samples=samples, channels=model.channels, sub_rays=sub_rays, primary_ms=kernel,
                                    rounds=rounds, sub_grays_s=sub_rays / (kernel * 1e6) if kernel > 0 else None,
                                    visibility_ms=med.get("primary_rays", 0.0) + med.get("gbuffer", 0.0))
-                        key = (cname, eye_size)
+                        key = (build, cname, eye_size)
                         if tiles and (suite == "table5" or n == 1) and not shade_all:
                             if key not in culled:
                                 r.accel.ensure()
@@ -197,7 +209,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                         rate = f", {row['sub_grays_s']:.3f} G sub-rays/s" if row.get("sub_grays_s") else ""
                         cull = (f"; standalone {row['trace_grays_s']:.2f} / tiles {row['trace_tiles_grays_s']:.2f} GRays/s"
                                 if "trace_grays_s" in row else "")
-                        print(f"  {suite:6s} {name:8s} {cname:20s} {n:2d}x {row['shading']} {row['size']} frame "
+                        print(f"  {suite:6s} {name:8s} {build:4s} {cname:20s} {n:2d}x {row['shading']} {row['size']} frame "
                               f"{total:.3f} ms, visibility {row['visibility_ms']:.3f} ms{rate}{cull}", flush=True)
     finally:
         gl.release()
