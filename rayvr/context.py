@@ -117,7 +117,8 @@ class RawGL:
 
 @dataclass
 class Fence:
-    """A GL sync object: `wait()` returns once the GPU has run every command before it."""
+    """A GL sync object: `wait()` returns once the GPU has run every command before it; `ready()`
+    says whether it has, without waiting."""
 
     raw: RawGL
     sync: int | None
@@ -132,6 +133,13 @@ class Fence:
                     raise GpuError(f"waiting for the GPU failed (glClientWaitSync returned {status:#06x})")
         finally:
             self.release()
+
+    def ready(self) -> bool:
+        """Whether the GPU has passed the fence, without waiting (flushes, so that it will)."""
+        status = self.raw.glClientWaitSync(self.sync, GL_SYNC_FLUSH_COMMANDS_BIT, 0)
+        if status not in (GL_ALREADY_SIGNALED, GL_CONDITION_SATISFIED, GL_TIMEOUT_EXPIRED):
+            raise GpuError(f"polling the GPU failed (glClientWaitSync returned {status:#06x})")
+        return status != GL_TIMEOUT_EXPIRED
 
     def release(self) -> None:
         if self.sync:

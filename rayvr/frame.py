@@ -553,34 +553,47 @@ class Frame:
 class Round:
     """Which part of a sampled frame (FramePlan.sampled) the passes upstream of
     `sample_accumulate` make now: FrameGraph.execute runs them once per round, per colour channel
-    set, then per slot (an SSAA sub-ray, or an MSAA triangle slot) from `slots` - 1 down to 0;
-    primary_rays says how many slots a channel needs in its first round (`start`), or, when that
-    takes a GPU readback, once the first round is recorded (`start_later`)."""
+    set, then per slot (an SSAA sub-ray, or an MSAA triangle slot); `ordinal` counts the channel
+    set's rounds (`slot` = `slots` - 1 - `ordinal`). primary_rays says how many rounds a channel
+    needs in its first round (`start`), or, when that number is made on the GPU, gives a function
+    that answers once the GPU has it (`start_polled`): rounds are then recorded, up to the most the
+    channel may need, until the answer says enough have been."""
 
     channel: int = 0
     slot: int = 0
-    slots: int = 1
+    slots: int = 1  # the channel's rounds; while `known` is False, the most it may need
     first: bool = True  # the channel's first round
     index: int = 0  # rounds of this frame before this one
     active: bool = False  # the frame runs rounds (its graph accumulates samples)
-    pending: object = None  # start_later's function, until resolve()
+    ordinal: int = 0  # rounds of this channel set before this one
+    count: object = None  # start_polled's count(wait) -> the channel's rounds (None: not on the GPU yet)
+    known: bool = True
 
     def start(self, slots: int) -> None:
         self.slots = slots if self.active else 1
         self.slot = self.slots - 1
 
-    def start_later(self, slots) -> None:
-        """`slots()` gives start's count after this round's passes are recorded (FrameGraph.execute
-        calls resolve()): a readback there finds the GPU busy with the round, not idle."""
-        self.pending = slots
+    def start_polled(self, count, most: int) -> None:
+        """`count(wait=False)` is the channel's number of rounds, or None while the GPU has not made
+        it; `count(wait=True)` waits for it. Polled after each round is recorded (finished())."""
+        self.count, self.known = count, not self.active
+        self.start(most)
 
-    def resolve(self) -> None:
-        if self.pending is not None:
-            slots, self.pending = self.pending, None
-            self.start(slots())
+    def finished(self) -> bool:
+        """Called once this round's passes are recorded: whether the channel set has all its rounds."""
+        if not self.known:
+            n = self.count(False)
+            if n is not None:
+                self.slots, self.known = n, True
+        return self.ordinal + 1 >= self.slots
+
+    def needed(self) -> int:
+        """The rounds the channel set needed (may wait for the GPU: for benchmarks and tests)."""
+        return self.slots if self.known else self.count(True)
 
     def next(self) -> "Round":
-        return Round(self.channel, self.slot - 1, self.slots, False, self.index + 1, self.active)
+        return Round(self.channel, self.slot - 1, self.slots, False, self.index + 1, self.active, self.ordinal + 1,
+                     self.count, self.known)
 
 
 def channel_order(channels: int) -> list:
@@ -615,6 +628,7 @@ class FrameContext:
         self.out_eyes = self.out_eyes or list(self.eyes)
     round: Round = field(default_factory=Round)
     timer_keys: list = field(default_factory=list)  # (timer query key, pass name): a pass times once per round
+    channel_rounds: list = field(default_factory=list)  # each colour channel set's last Round (sampled frames)
 
     def resource(self, name: str):
         return self.resources[name]
@@ -673,7 +687,7 @@ class FrameGraph:
         timer.next_frame()
         fc.timer_slot = timer.slot
         fc.profiler = self.kernel_timer if profile else None
-        fc.timer_keys = []
+        fc.timer_keys, fc.channel_rounds = [], []
 
         def run(p) -> None:
             fc.current_pass = p.name
@@ -696,10 +710,10 @@ class FrameGraph:
                         if p.name in rounds:
                             run(p)
                     index += 1
-                    fc.round.resolve()
-                    if fc.round.slot <= 0:
+                    if fc.round.finished():
                         break
                     fc.round = fc.round.next()
+                fc.channel_rounds.append(fc.round)
         for p in graph.passes:
             if p.name not in rounds:
                 run(p)

@@ -5,7 +5,7 @@ there is no such file on disk).
   G-buffer channels   name, format, texture unit (read), image unit (resolve writes)
   bindings            shader storage buffers (SSBO_*), image units (IMAGE_*), texture units (UNIT_*)
   enums               effects (from the registry), debug views, tonemappers, light kinds
-  sentinels           NO_HIT, BACKGROUND_EFFECT
+  sentinels           NO_HIT, BACKGROUND_EFFECT, ROUND_SKIPPED
 
 Names in GLSL are the Python names in upper case with a prefix: GB_UNIT_<CHANNEL>,
 GB_IMAGE_<CHANNEL>, SSBO_<NAME>, IMAGE_<NAME>, UNIT_<NAME>, EFFECT_<NAME>, VIEW_<NAME>,
@@ -87,6 +87,7 @@ TRACE_VIEWS = ("quadtree_visits", "samples")
 VIEWS = ("color",) + DEBUG_VIEWS + TRACE_VIEWS
 LIGHT_KINDS = ("point", "directional", "rect")
 NO_HIT = 0xFFFFFFFF
+ROUND_SKIPPED = -1.0  # sample_weight of a pixel an MSAA round leaves alone (glsl/common/round_skip.glsl)
 SSRT_RAY_GROUP = 64  # invocations per group of the screen-space batch shaders (glsl/ssrt/*_batch.comp)
 # BVH node layouts (accel/gpu.py) -> node width: binary child pairs (the reference), wide quantized.
 BVH_LAYOUTS = {"bvh2": 2, "bvh4": 4, "bvh8": 8}
@@ -137,7 +138,7 @@ def glsl_header() -> str:
     out += [f"#define TONEMAP_{k.upper()} {i}" for i, k in enumerate(TONEMAPPERS)]
     out += [f"#define VIEW_{k.upper()} {i}" for i, k in enumerate(DEBUG_VIEWS)]
     out += [f"#define LIGHT_{k.upper()} {i}" for i, k in enumerate(LIGHT_KINDS)]
-    out += [f"#define NO_HIT 0x{NO_HIT:X}u", f"#define VERTEX_FLOATS {VERTEX_FLOATS}",
+    out += [f"#define NO_HIT 0x{NO_HIT:X}u", f"#define ROUND_SKIPPED {ROUND_SKIPPED!r}", f"#define VERTEX_FLOATS {VERTEX_FLOATS}",
             f"#define SSRT_RAY_GROUP {SSRT_RAY_GROUP}",
             f"#define DEFAULT_TILE_RAYS {TILE_RAYS}", f"#define DEFAULT_TILE_ENTRIES {TILE_ENTRIES}",
             f"#define BVH_FACE_SLACK {BVH_FACE_SLACK!r}"]

@@ -15,7 +15,10 @@ and `primary_ms` is the primary-ray kernels alone (the MSAA `trace` kernel, or t
 summed over the rounds), from frames timed kernel by kernel. `sub_rays` counts the camera rays a
 frame casts (samples x sub-rays x colour channel sets); `sub_grays_s` is sub_rays / primary_ms.
 MSAA frames shade once per pixel per distinct triangle: `rounds` is how many shading rounds the
-frame needed (the most distinct triangles any pixel saw, per channel set). `visibility_ms` is what
+frame needed (the most distinct triangles any pixel saw, per channel set, summed over the sets);
+the CPU records rounds without waiting for that count (passes/primary_rays.py), so a frame may
+record more, up to 8 per set, the extra ones skipping every pixel: `rounds_recorded` is the median
+a plain frame recorded (and `rounds_recorded_max`). `visibility_ms` is what
 makes the G-buffer: `visibility` + `gbuffer` passes (raster), `primary_rays` + `gbuffer` summed over
 the rounds (rays).
 
@@ -68,15 +71,25 @@ def samples_per_frame(rig: StereoRig) -> int:
     return int(sum((rig.camera.footprint(e) > 0).sum() for e in rig.eyes()))
 
 
-def primary_kernel_ms(renderer, rig, repeat=5) -> tuple[float, int]:
-    """Median GPU ms of the primary-ray kernels (not the MSAA select) and the frame's rounds."""
-    ms, rounds = [], 1
+def primary_kernel_ms(renderer, rig, repeat=5) -> float:
+    """Median GPU ms of the primary-ray kernels (not the MSAA select)."""
+    ms = []
     for _ in range(repeat):
         fc = renderer.record(rig, "both", "color", profile=True)
         t = renderer.read_ms(fc)
         ms.append(sum(v for k, v in t.items() if k in ("primary_rays.trace", "primary_rays.cast")))
-        rounds = fc.round.index + 1
-    return float(np.median(ms)), rounds
+    return float(np.median(ms))
+
+
+def frame_rounds(renderer, rig, repeat=5) -> dict:
+    """Rounds a plain frame needed and recorded (median and most over `repeat` frames)."""
+    recorded, needed = [], 1
+    for _ in range(repeat):
+        fc = renderer.record(rig, "both", "color")
+        renderer.gl.ctx.finish()
+        recorded.append(fc.round.index + 1)
+        needed = sum(c.needed() for c in fc.channel_rounds) or 1
+    return {"rounds": needed, "rounds_recorded": float(np.median(recorded)), "rounds_recorded_max": max(recorded)}
 
 
 def tile_culling(gl, gpu_bvh, rig, origin, repeat) -> dict:
@@ -125,7 +138,8 @@ def build_targets(rows) -> dict:
             if ref is not None:
                 out[f"{r['scene']}: 4x MSAA pinhole visibility <= 1x raster G-buffer"] = verdict(
                     r["visibility_ms"] <= ref["visibility_ms"],
-                    f"{r['visibility_ms']:.3f} ms (primary_rays + gbuffer, {r['rounds']} rounds; trace alone "
+                    f"{r['visibility_ms']:.3f} ms (primary_rays + gbuffer, {r['rounds']} rounds, "
+                    f"{r.get('rounds_recorded', r['rounds']):g} recorded; trace alone "
                     f"{r['primary_ms']:.3f}) vs {ref['visibility_ms']:.3f} ms (visibility + gbuffer); frames "
                     f"{r['total_ms']:.3f} vs {ref['total_ms']:.3f} ms")
     return out
@@ -167,8 +181,9 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                                   "by kernel; BVH already on the GPU",
                     "visibility_ms": "raster: visibility + gbuffer passes; rays: primary_rays (trace, select) "
                                      "+ gbuffer, summed over the rounds",
-                    "msaa_note": "an MSAA frame reads back one number (its rounds) after the trace: a "
-                                 "GPU sync the frame total includes",
+                    "msaa_note": "an MSAA frame's count of rounds is polled, never waited for: rounds "
+                                 "recorded before it is known and past it skip every pixel (rounds vs "
+                                 "rounds_recorded); empty slots cost a 4-byte read per pass",
                     "tile_culling": "not applicable to the frame's primary_rays pass (rays made in the kernel, "
                                     "traced from the BVH root); trace_* columns: the camera's central rays "
                                     "(one per sample) traced standalone by accel/gpu.py RayTracer, binary BVH, "
@@ -188,11 +203,11 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                            "size": f"2x{eye_size[0]}x{eye_size[1]}", "total_ms": total,
                            "pass_ms": {k: med[k] for k in names if k in med}}
                     if primary == "rays":
-                        kernel, rounds = primary_kernel_ms(r, rig)
+                        kernel = primary_kernel_ms(r, rig)
                         samples = samples_per_frame(rig)
                         sub_rays = samples * n * model.channels
                         row.update(samples=samples, channels=model.channels, sub_rays=sub_rays, primary_ms=kernel,
-                                   rounds=rounds, sub_grays_s=sub_rays / (kernel * 1e6) if kernel > 0 else None,
+                                   **frame_rounds(r, rig), sub_grays_s=sub_rays / (kernel * 1e6) if kernel > 0 else None,
                                    visibility_ms=med.get("primary_rays", 0.0) + med.get("gbuffer", 0.0))
                         key = (build, cname, eye_size)
                         if tiles and (suite == "table5" or n == 1) and not shade_all:
@@ -207,6 +222,8 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                     write_report(out_dir, "primary", result)  # after every row: a cut run keeps what it did
                     if progress:
                         rate = f", {row['sub_grays_s']:.3f} G sub-rays/s" if row.get("sub_grays_s") else ""
+                        if row.get("rounds", 1) > 1 or row.get("rounds_recorded_max", 1) > 1:
+                            rate += f", rounds {row['rounds']} needed / {row['rounds_recorded']:g} recorded"
                         cull = (f"; standalone {row['trace_grays_s']:.2f} / tiles {row['trace_tiles_grays_s']:.2f} GRays/s"
                                 if "trace_grays_s" in row else "")
                         print(f"  {suite:6s} {name:8s} {build:4s} {cname:20s} {n:2d}x {row['shading']} {row['size']} frame "

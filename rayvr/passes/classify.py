@@ -10,6 +10,7 @@ from .. import shaders
 from ..effects import traced_effects
 from ..frame import Buffer, FramePlan, Pass, read, write
 from ..gpu_layout import SSBO
+from .primary_rays import bind_round_skip, round_skip_defines, round_skip_reads
 from .reuse import bind_reuse, reuse_defines, reuse_reads
 
 ARGS_BYTES = 16  # per list: uvec4 (groups x, groups y, groups z, pixel count)
@@ -57,12 +58,14 @@ class ClassifyPass(Pass):
         self.ballot, self.group, self.mode = ballot, group, None
 
     def io(self, plan: FramePlan) -> list:
-        return [read("gbuffer"), write("rt_lists", PIXEL_LISTS), write("rt_list_args", LIST_ARGS)] + reuse_reads(plan)
+        return [read("gbuffer"), write("rt_lists", PIXEL_LISTS), write("rt_list_args", LIST_ARGS)] + reuse_reads(plan) + \
+            round_skip_reads(plan)
 
     def setup(self, gl, plan: FramePlan) -> None:
         modes = [self.ballot] if self.ballot else list(BALLOT_MODES)
         gx, gy = self.group
-        d = {"CLASSIFY_GROUP_X": gx, "CLASSIFY_GROUP_Y": gy, "CLASSIFY_INVOCATIONS": gx * gy, **reuse_defines(plan)}
+        d = {"CLASSIFY_GROUP_X": gx, "CLASSIFY_GROUP_Y": gy, "CLASSIFY_INVOCATIONS": gx * gy, **reuse_defines(plan),
+             **round_skip_defines(plan)}
         for mode in modes:
             value, ext = BALLOT_MODES[mode]
             if ext and not gl.has_extension(ext) and self.ballot is None:
@@ -79,6 +82,7 @@ class ClassifyPass(Pass):
     def execute(self, fc) -> None:
         bind_lists(fc)
         bind_reuse(fc)
+        bind_round_skip(fc)
         fc.gbuffer.bind_for_reading()
         w, h = fc.gbuffer.size
         self.program["rt_capacity"].value = w * h * fc.gbuffer.layers

@@ -6,15 +6,27 @@ hit distance for the G-buffer resolve.
 Sampled frames (FramePlan.sampled) run in rounds (frame.py FrameGraph.execute): per colour
 channel set, then per sub-ray (SSAA: each round casts one sub-ray of every sample) or per slot
 of the distinct triangles the sub-rays hit (MSAA: the first round of a channel casts all N
-sub-rays, keeps the distinct triangles with their coverage masks, and learns how many rounds
-the frame needs, the most any pixel has; each round then shades one triangle per pixel). The CPU
-reads that count once the first round is recorded (Round.start_later), so the GPU works through
-the round meanwhile; the first round's select takes its slot from the count on the GPU. The MSAA
-trace casts one sub-ray per invocation (a workgroup: a block of pixels times their sub-rays) and
-merges each pixel's hits in shared memory; `msaa_lists` is the numpy twin of that merge. Each
-round also writes every pixel's weight in the frame's colour (`sample_weight`), which
-`sample_accumulate` applies. Slots run from the last to 0, so the G-buffer the frame keeps (for
-depth and aux channels) is each pixel's most covered triangle.
+sub-rays, keeps the distinct triangles with their coverage masks, and counts on the GPU how many
+rounds the channel needs, the most any pixel has; each round then shades one triangle per
+pixel). The MSAA trace casts one sub-ray per invocation (a workgroup: a block of pixels times
+their sub-rays) and merges each pixel's hits in shared memory; `msaa_lists` is the numpy twin of
+that merge. Each round also writes every pixel's weight in the frame's colour (`sample_weight`),
+which `sample_accumulate` applies.
+
+The CPU never waits for the count (Round.start_polled): it is copied to a readback buffer behind
+a fence, and after each round is recorded the fence is polled without waiting; until it answers,
+another round is recorded (at most msaa_slots), so the GPU is never left idle while the CPU
+waits and then records (H200, room, 4x: ~1.3 ms of the frame was that). Each round's select
+takes its slot from the count on the GPU: round k of a channel selects slot count - 1 - k, so
+slots run from the last to 0 and the G-buffer the frame keeps (depth, aux channels) is each
+pixel's most covered triangle. A round past the count (slot < 0: recorded before the count was
+known) gives every pixel the weight ROUND_SKIPPED (glsl/common/round_skip.glsl) and writes no
+visibility: the round's gbuffer resolve, shade, classify and sample_accumulate leave those pixels
+alone, so the G-buffer stays the slot-0 round's and nothing is added. The frame is bit-identical
+however late the count is known (tests force both ends through COUNT_POLL). Empty slots above 0
+(a pixel with fewer triangles than the count, most pixels in most rounds) are skipped the same
+way where exact (`skips_empty_slots`): instead of a background resolved, shaded and added with
+weight 0, a 4-byte weight read per pass.
 """
 from __future__ import annotations
 
@@ -23,6 +35,7 @@ import numpy as np
 
 from .. import shaders
 from ..accel.gpu import DEFAULT_BINDING, layout_defines
+from ..effects import EFFECTS
 from ..frame import Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
 from ..gpu_layout import IMAGE, NO_HIT, SSBO, channel
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
@@ -30,6 +43,12 @@ from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
 MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
 SAMPLE_WEIGHT = Texture("r32f")
+# How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without
+# waiting; "wait" reads it after the first round, waiting for the GPU; "never" does not read it
+# (every channel then records msaa_slots rounds). Frames are identical under all three (tests).
+COUNT_POLLS = ("fence", "wait", "never")
+COUNT_POLL = "fence"
+SKIP_EMPTY_SLOTS = True  # False: empty slots above 0 are shaded as background of weight 0 (tests compare)
 
 
 def msaa_block(samples: int) -> tuple[int, int]:
@@ -81,6 +100,28 @@ def uses_msaa(plan: FramePlan) -> bool:
     return plan.samples > 1 and plan.shading == "msaa"
 
 
+def skips_empty_slots(plan: FramePlan) -> bool:
+    """Whether a round leaves the pixels with nothing in its slot (a slot above 0) as they are
+    instead of making them background of weight 0. Exact when no pass of the round reads another
+    pixel's G-buffer: the one that does is the screen-space quadtree (its effects, ssr; stereo
+    reuse, the other, takes no MSAA). Slot 0, the last real round, writes every pixel."""
+    return SKIP_EMPTY_SLOTS and not any(EFFECTS[e].uses_quadtree for e in plan.effects if e in EFFECTS)
+
+
+def round_skip_reads(plan: FramePlan) -> list:
+    """What a pass of the rounds reads to leave the pixels an MSAA round skips (glsl/common/round_skip.glsl)."""
+    return [read("sample_weight")] if uses_msaa(plan) else []
+
+
+def round_skip_defines(plan: FramePlan) -> dict:
+    return {"ROUND_SKIP": int(uses_msaa(plan))}
+
+
+def bind_round_skip(fc) -> None:
+    if uses_msaa(fc.plan):
+        fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=True, write=False)
+
+
 class PrimaryRaysPass(Pass):
     name = "primary_rays"
     timed_kernels = True
@@ -107,7 +148,8 @@ class PrimaryRaysPass(Pass):
         self.block = msaa_block(plan.samples)
         base = {**layout_defines(DEFAULT_BINDING, self.layout), **camera_defines(plan), "SAMPLED": int(plan.sampled),
                 "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
-                "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples}
+                "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples,
+                "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan))}
         self.msaa = uses_msaa(plan)
         self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
                          for mode in ((1, 2) if self.msaa else (0,))}
@@ -115,8 +157,9 @@ class PrimaryRaysPass(Pass):
         # CPU itself: the CPU reading it every frame made the NVIDIA driver keep it in host memory,
         # and each atomic on it then took ~1.1 us across the bus (H200: 80 ms for one per
         # workgroup of the 2x1440x1600 MSAA trace, 1.8 ms with these copies;
-        # bench/results/h200/2026-11-30/primary/README.md).
-        self.count_io = [gl.ctx.buffer(bytes(4)), gl.ctx.buffer(reserve=4)] if self.msaa else []  # zero, readback
+        # bench/results/h200/2026-11-30/primary/README.md). The readback holds one count per channel set.
+        self.count_io = [gl.ctx.buffer(bytes(4)), gl.ctx.buffer(reserve=4 * plan.channels)] if self.msaa else []
+        self.fences = {}  # channel set -> the fence after its count's copy (until read)
 
     def execute(self, fc) -> None:
         rnd = fc.round
@@ -141,17 +184,32 @@ class PrimaryRaysPass(Pass):
             zero, readback = self.count_io
             fc.gl.ctx.copy_buffer(count, zero)
             fc.stage("trace", lambda: self.dispatch_trace(fc))
-            fc.gl.ctx.copy_buffer(readback, count)
-            # The rounds this channel needs: the most distinct triangles any pixel saw. Read once the
-            # whole first round is recorded (the GPU is busy with it meanwhile); that round's select
-            # takes its slot, the last one, from msaa_count on the GPU.
-            if rnd.active:
-                rnd.start_later(lambda: max(1, int(np.frombuffer(readback.read(), np.uint32)[0])))
+            if rnd.active:  # the rounds this channel needs: the most distinct triangles any pixel saw
+                fc.gl.ctx.copy_buffer(readback, count, write_offset=4 * rnd.channel)
+                rnd.start_polled(self.count_reader(fc, rnd.channel), msaa_slots(fc.plan))
             else:
                 rnd.start(1)
         # Slot = count - 1 - this: rounds of this channel set before this one; -1: slot 0 (no rounds).
-        self.programs[2]["msaa_round"].value = (0 if rnd.first else rnd.slots - 1 - rnd.slot) if rnd.active else -1
+        self.programs[2]["msaa_round"].value = rnd.ordinal if rnd.active else -1
         fc.stage("select", lambda: dispatch_per_pixel(fc, self.programs[2]))
+
+    def count_reader(self, fc, channel: int):
+        """Round.start_polled's count(wait) for the channel set's count just copied to the readback."""
+        old = self.fences.pop(channel, None)  # a fence of an earlier frame nobody asked about
+        if old is not None:
+            old.release()
+        fence = self.fences[channel] = fc.gl.fence()
+        readback = self.count_io[1]
+        if COUNT_POLL not in COUNT_POLLS:
+            raise ValueError(f"primary_rays.COUNT_POLL must be one of {', '.join(COUNT_POLLS)}, got {COUNT_POLL!r}")
+        ready = {"fence": fence.ready, "wait": lambda: True, "never": lambda: False}[COUNT_POLL]
+
+        def count(wait: bool) -> int | None:
+            if not wait and not ready():
+                return None
+            fence.release()
+            return max(1, int(np.frombuffer(readback.read(), np.uint32)[channel]))
+        return count
 
     def dispatch_trace(self, fc) -> None:
         """One workgroup per block of pixels (msaa_block), one invocation per sub-ray."""
@@ -160,5 +218,5 @@ class PrimaryRaysPass(Pass):
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
     def release(self) -> None:
-        for p in [*self.programs.values(), *self.count_io]:
+        for p in [*self.programs.values(), *self.count_io, *self.fences.values()]:
             p.release()

@@ -8,6 +8,7 @@ from ..effects import EFFECTS
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gpu_layout import IMAGE
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
+from .primary_rays import bind_round_skip, round_skip_defines, round_skip_reads
 from .reuse import bind_reuse, reuse_defines, reuse_reads
 
 HDR = Texture("rgba16f")  # linear radiance, both eyes
@@ -21,10 +22,11 @@ class ShadePass(Pass):
         return f"effect raster ({', '.join(raster)}) and the background" if raster else "the background"
 
     def io(self, plan: FramePlan) -> list:
-        return [read("gbuffer"), write("hdr", HDR)] + reuse_reads(plan)
+        return [read("gbuffer"), write("hdr", HDR)] + reuse_reads(plan) + round_skip_reads(plan)
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.program = shaders.compute(gl.ctx, "shade/direct.comp", {**camera_defines(plan), **reuse_defines(plan)})
+        self.program = shaders.compute(gl.ctx, "shade/direct.comp", {**camera_defines(plan), **reuse_defines(plan),
+                                                                       **round_skip_defines(plan)})
         # Pixels of traced effects get their colour from their own passes.
         self.traced_mask = sum(1 << EFFECTS[e].id for e in plan.effects if e in EFFECTS and EFFECTS[e].traced)
 
@@ -37,6 +39,7 @@ class ShadePass(Pass):
         fc.gbuffer.bind_for_reading()
         fc.gpu_scene.bind()
         bind_reuse(fc)
+        bind_round_skip(fc)
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
         dispatch_per_pixel(fc, p)
 

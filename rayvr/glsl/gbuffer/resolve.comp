@@ -15,6 +15,7 @@
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../common/triangle_surface.glsl"
 #include "../common/camera.glsl"
+#include "../common/round_skip.glsl"
 
 layout(binding = GB_UNIT_DEPTH) uniform sampler2DArray gb_depth;
 #if PRIMARY_RAYS
@@ -41,6 +42,7 @@ void main() {
     ivec3 p = ivec3(gl_GlobalInvocationID);
     vec2 size = vec2(imageSize(img_position).xy);
     if (any(greaterThanEqual(p.xy, ivec2(size)))) return;
+    if (round_skips(p)) return;  // an MSAA round's pixel with nothing new: its G-buffer stays
     uint tri = imageLoad(img_triangle, p).x;
 #if PRIMARY_RAYS
     vec4 primary = imageLoad(img_position, p);

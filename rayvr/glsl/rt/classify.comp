@@ -30,6 +30,7 @@
 #endif
 #include "pixel_list.glsl"
 #include "../common/gbuffer.glsl"
+#include "../common/round_skip.glsl"
 #ifdef STEREO_REUSE
 #include "../stereo/reuse.glsl"
 #endif
@@ -83,6 +84,7 @@ void main() {
 #ifdef STEREO_REUSE
         if (reuse_taken(p, textureSize(gb_material, 0).x)) slot = -1;  // takes the left eye's shading
 #endif
+        if (round_skips(p)) slot = -1;  // adds nothing to the frame (MSAA round): no effect traces it
     }
     uint local = 0u;
 #if CLASSIFY_BALLOT != 0

@@ -18,8 +18,11 @@
 //   primary_rays.py.)
 // PRIMARY_MODE 2 (MSAA, select): slot msaa_count - 1 - `msaa_round` of each pixel's list (slot 0
 //   for msaa_round -1) becomes its visibility, shaded at the sub-ray of its mask nearest the mask's
-//   mean_offset, weighted by its coverage. The slot comes from the GPU's count: the CPU reads the
-//   count only after the channel set's first round is recorded.
+//   mean_offset, weighted by its coverage. The slot comes from the GPU's count: the CPU records
+//   rounds before it knows the count. A pixel with nothing in the round gets weight ROUND_SKIPPED
+//   and keeps its visibility (common/round_skip.glsl): in a round past the count (slot < 0: slot
+//   0, the last real one, made its G-buffer) and, with MSAA_SKIP_EMPTY, in an empty slot above 0
+//   (slot 0 always writes every pixel: an empty list gets the background, weight 0).
 #ifndef PRIMARY_MODE
 #define PRIMARY_MODE 0
 #endif
@@ -29,6 +32,9 @@
 #ifndef MSAA_SLOTS
 #define MSAA_SLOTS 1
 #endif
+#ifndef MSAA_SKIP_EMPTY
+#define MSAA_SKIP_EMPTY 0
+#endif
 #if PRIMARY_MODE == 1
 layout(local_size_x = MSAA_GROUP) in;  // = MSAA_BLOCK_W * MSAA_BLOCK_H * CAMERA_SUBSAMPLES (a literal: GLSL 4.30)
 #else
@@ -37,6 +43,7 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../layout.glsl"
 #include "../accel/bvh.glsl"
 #include "../common/camera.glsl"
+#include "../common/round_skip.glsl"
 
 layout(rgba32f, binding = GB_IMAGE_POSITION) uniform writeonly image2DArray img_position;
 layout(r32ui, binding = GB_IMAGE_TRIANGLE) uniform writeonly uimage2DArray img_triangle;
@@ -179,10 +186,12 @@ void main() {
 #else
     uvec4 head = HIT(0);
     uint n = (head.z >> 8) & 255u, covered = head.z >> 16;
-    uint slot = msaa_round < 0 ? 0u : max(msaa_count, 1u) - 1u - uint(msaa_round);
-    if (slot < n) {
+    int slot = msaa_round < 0 ? 0 : int(max(msaa_count, 1u)) - 1 - msaa_round;
+    if (slot >= 0 && uint(slot) < n) {
         uvec4 e = HIT(slot);
         store(p, e.x, e.z & 255u, uintBitsToFloat(e.w), float(bitCount(e.y)) / float(max(covered, 1u)));
+    } else if (slot < 0 || (MSAA_SKIP_EMPTY != 0 && slot > 0)) {
+        imageStore(img_weight, p, vec4(ROUND_SKIPPED));  // nothing new: the pixel keeps what it has
     } else {
         store(p, BVH_MISS, 0u, 0.0, 0.0);  // nothing in this slot: shaded as background, weighs nothing
     }

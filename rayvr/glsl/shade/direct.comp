@@ -4,6 +4,7 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../common/gbuffer.glsl"
 #include "../common/lighting.glsl"
 #include "../common/camera.glsl"
+#include "../common/round_skip.glsl"
 #ifdef STEREO_REUSE
 #include "../stereo/reuse.glsl"
 #endif
@@ -16,6 +17,7 @@ uniform uint traced_effects;    // bit e set: effect e's own passes shade those 
 void main() {
     ivec3 p = ivec3(gl_GlobalInvocationID);
     if (any(greaterThanEqual(p.xy, imageSize(hdr_out).xy))) return;
+    if (round_skips(p)) return;  // adds nothing to the frame (MSAA round)
 #ifdef STEREO_REUSE
     if (reuse_taken(p, imageSize(hdr_out).x)) return;  // takes the left eye's shading (stereo/reuse_copy.comp)
 #endif

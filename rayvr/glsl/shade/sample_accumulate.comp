@@ -1,7 +1,9 @@
 #version 430
 // One round of a sampled frame (passes/sample_accumulate.py): adds each pixel's colour of this
 // round, times its weight (primary_rays: 1/N per SSAA sub-ray, coverage per MSAA triangle, 0 where
-// the camera has no sample), to the frame's sum; a colour-channel round adds only its channel.
+// the camera has no sample, negative where an MSAA round skips the pixel), to the frame's sum; a
+// colour-channel round adds only its channel. Weights <= 0 leave the sum as it is (exact: they
+// add zero), so an MSAA round's empty pixels cost a 4-byte read.
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../layout.glsl"
 
@@ -14,8 +16,12 @@ uniform int channel;  // -1: all three; else this colour channel only
 void main() {
     ivec3 p = ivec3(gl_GlobalInvocationID);
     if (any(greaterThanEqual(p.xy, imageSize(sum).xy))) return;
-    vec4 acc = first != 0 ? vec4(0.0) : imageLoad(sum, p);
     float w = imageLoad(weight_in, p).x;
+    if (!(w > 0.0)) {  // adds nothing (no sample here, or skipped: common/round_skip.glsl): the sum stays
+        if (first != 0) imageStore(sum, p, vec4(0.0));
+        return;
+    }
+    vec4 acc = first != 0 ? vec4(0.0) : imageLoad(sum, p);
     vec3 c = imageLoad(hdr_in, p).rgb;
     if (channel < 0) acc.rgb += w * c;
     else acc[channel] += w * c[channel];
