@@ -94,6 +94,7 @@ BVH_LAYOUTS = {"bvh2": 2, "bvh4": 4, "bvh8": 8}
 # Tile frustum culling (HVVR): rays a tile (one work group), entry nodes a tile's list holds at most.
 TILE_RAYS = 128
 TILE_ENTRIES = 32
+TILE_PIXELS = (16, 8)  # a frame tile's pixel block (w, h): TILE_RAYS samples (primary_rays --tile-culling)
 VERTEX_FLOATS = 8  # position xyz, normal xyz, uv (gpu_scene.interleaved_vertices)
 # Least widening of a BVH box side (accel/bvh.py widen, the GPU refit): with the traversal's safe
 # inverse of a zero direction component (1 / 1e-20) it exceeds any distance in a scene.
@@ -141,6 +142,7 @@ def glsl_header() -> str:
     out += [f"#define NO_HIT 0x{NO_HIT:X}u", f"#define ROUND_SKIPPED {ROUND_SKIPPED!r}", f"#define VERTEX_FLOATS {VERTEX_FLOATS}",
             f"#define SSRT_RAY_GROUP {SSRT_RAY_GROUP}",
             f"#define DEFAULT_TILE_RAYS {TILE_RAYS}", f"#define DEFAULT_TILE_ENTRIES {TILE_ENTRIES}",
+            f"#define TILE_W {TILE_PIXELS[0]}", f"#define TILE_H {TILE_PIXELS[1]}",
             f"#define BVH_FACE_SLACK {BVH_FACE_SLACK!r}"]
     out += _effect_lines()
     out.append("#endif")

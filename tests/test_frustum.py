@@ -153,3 +153,56 @@ def test_tile_culling_needs_the_binary_layout(gl):
     o, d = pinhole(16, 8)
     with pytest.raises(ValueError, match="bvh2 layout"):
         rt.trace(o, d, tiles=True)
+
+
+def entry_near(bvh, entries, c):
+    """Nearest point along c of each entry's box (min over the box of c.x), float64, from the packed
+    GPU nodes: the key tile_cull.comp sorts a tile's entries by."""
+    nodes = bvh.pack_nodes().reshape(-1, 4, 4).astype(np.float64)
+    e = np.asarray(entries, np.int64)
+    parent, side = nodes[e >> 1], e & 1
+    box = np.where(side[:, None] == 0, parent[:, 0:2].reshape(-1, 8)[:, :6], parent[:, 1:3].reshape(-1, 8)[:, 2:])
+    lo, hi = box[:, 0::2], box[:, 1::2]
+    return (0.5 * (lo + hi)) @ c - (0.5 * (hi - lo)) @ np.abs(c)
+
+
+def test_tile_entries_front_to_back_cut_the_work_not_the_answer(gl):
+    """Entries are sorted nearest first along the tile's central direction; the hits stay exactly
+    those of tree order and of per-ray traversal, and a ray does less work (GPU counts)."""
+    v, f = scene()
+    bvh = build_bvh(v, f)
+    gpu = GpuBvh(gl, bvh)
+    o, d = pinhole(128, 96)
+    info, work = {}, {}
+    for name, rt, tiles in (("ray", RayTracer(gl, gpu), False), ("tree", RayTracer(gl, gpu, tile_sort=False), True),
+                            ("sorted", RayTracer(gl, gpu), True)):
+        work[name] = {}
+        info[name] = {}
+        hits = rt.trace(o, d, tiles=tiles, work=work[name],
+                        tile_info=info[name] if tiles else None)
+        work[name]["hits"] = hits
+    for name in ("tree", "sorted"):
+        assert np.array_equal(work[name]["hits"].prim, work["ray"]["hits"].prim)
+        assert np.array_equal(work[name]["hits"].t, work["ray"]["hits"].t)
+    sorted_info, tree_info = info["sorted"], info["tree"]
+    assert np.array_equal(sorted_info["counts"], tree_info["counts"])
+    reordered = 0
+    for tile in np.flatnonzero(sorted_info["counts"] > 1):
+        n = sorted_info["counts"][tile]
+        ent, tree = sorted_info["entries"][tile, :n], tree_info["entries"][tile, :n]
+        assert sorted(ent.tolist()) == sorted(tree.tolist())           # the same cut, reordered
+        key = entry_near(bvh, ent, sorted_info["planes"][tile, 4, :3].astype(np.float64))
+        assert (np.diff(key) >= -1e-5 * (1 + np.abs(key[1:]))).all(), key
+        reordered += not np.array_equal(ent, tree)
+    assert reordered > 0
+    tri = {k: int(work[k]["triangle_tests"].sum()) for k in work}
+    nodes = {k: int(work[k]["node_visits"].sum() + work[k]["entry_tests"].sum()) for k in work}
+    assert tri["sorted"] < tri["tree"] and nodes["sorted"] < nodes["tree"], (tri, nodes)
+    assert (work["ray"]["entry_tests"] == 0).all() and (work["ray"]["node_visits"] >= 1).all()
+    # the counters count: a ray that hits has tested a triangle; tiles' rays test their entries
+    hit = work["ray"]["hits"].prim != MISS
+    assert (work["ray"]["triangle_tests"][hit] >= 1).all()
+    tile_of = np.arange(len(o)) // TILE_RAYS
+    valid = sorted_info["counts"][tile_of] > 0
+    assert (work["sorted"]["entry_tests"][valid] >= 1).all()
+    assert (work["sorted"]["entry_tests"] <= sorted_info["counts"][tile_of]).all()

@@ -6,10 +6,14 @@ tile's rays with a conservative frustum — four side planes fitted to the rays'
 about their mean direction, offset to hold every ray origin (a lens, surface points), and a far
 plane from tmax — and walks the binary BVH against it into an entry list: at most TILE_ENTRIES
 children whose boxes meet the frustum, a cut of the tree under which lies every triangle that any ray
-of the tile can hit. Each ray is then traced from its tile's list (bvh2.glsl `bvh_traverse_entries`)
-instead of from the root. Plain per-ray traversal stays the reference: the hits are the same
-(tests/test_frustum.py), only the work differs. A tile whose rays spread over a half-space or more is
-not culled (its list is the root's children); a tile without a valid ray gets an empty list.
+of the tile can hit, listed front to back (by the box's nearest point along the frustum's central
+direction c). Each ray is then traced from its tile's list (bvh2.glsl `bvh_traverse_entries`)
+instead of from the root, and stops at the first entry wholly beyond its closest hit along c.
+Plain per-ray traversal stays the reference: the hits are the same (tests/test_frustum.py), only
+the work differs (`RayTracer.trace(work=)` counts it on the GPU). A tile whose rays spread over a
+half-space or more is not culled (its list is the root's children); a tile without a valid ray gets
+an empty list. The frame's primary rays use the same kernel on their camera's sub-rays, a tile a
+TILE_SHAPE pixel block (passes/primary_rays.py, RenderSettings.tile_culling).
 
 `tile_frusta` is the frustum math in numpy (float64), used by the tests to check that every ray's
 points lie inside its tile's planes; the GPU writes its planes too (`RayTracer.trace(tile_info=)`).
@@ -18,10 +22,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..gpu_layout import TILE_RAYS
+from ..gpu_layout import TILE_PIXELS, TILE_RAYS
 from .bvh import Bvh, valid_rays
 
-TILE_SHAPE = (16, 8)   # pixels of a tile: TILE_RAYS = 16 * 8
+TILE_SHAPE = TILE_PIXELS   # pixels of a tile: TILE_RAYS = 16 * 8
 MIN_COS = 0.1          # TILE_MIN_COS: cull only tiles whose directions lie within ~84 deg of the mean
 
 
@@ -35,6 +39,11 @@ def tile_order(width: int, height: int, layers: int = 1, tile: tuple[int, int] =
     key_in = (y % th) * tw + x % tw
     per_layer = np.lexsort(((key_in).ravel(), key_tile.ravel()))
     return np.concatenate([per_layer + k * width * height for k in range(layers)])
+
+
+def tile_grid(width: int, height: int, tile: tuple[int, int] = TILE_SHAPE) -> tuple[int, int]:
+    """Tiles (across, down) of a width x height image: a frame's tiles per eye (edge tiles partial)."""
+    return -(-width // tile[0]), -(-height // tile[1])
 
 
 def tile_frusta(origins, directions, tmin=0.0, tmax=np.inf, tile: int = TILE_RAYS, slack: float = 1e-5):
@@ -108,4 +117,4 @@ def _slot_range(bvh: Bvh, node: int) -> tuple[int, int]:
     return first, last
 
 
-__all__ = ["tile_order", "tile_frusta", "entry_subtrees", "TILE_SHAPE", "MIN_COS"]
+__all__ = ["tile_order", "tile_grid", "tile_frusta", "entry_subtrees", "TILE_SHAPE", "MIN_COS"]

@@ -174,30 +174,34 @@ class RayTracer:
     from those. Order the rays so that a tile's rays are coherent (frustum.tile_order)."""
 
     def __init__(self, ctx, gpu_bvh: GpuBvh, base_binding: int = DEFAULT_BINDING, ordered: bool = True,
-                 tile_entries: int = TILE_ENTRIES):
+                 tile_entries: int = TILE_ENTRIES, tile_sort: bool = True):
         """`ordered`: wide layouts visit closest-hit children nearest first (see layout_defines);
-        `tile_entries`: the most entry nodes a tile's list holds (tiles=True)."""
+        `tile_entries`: the most entry nodes a tile's list holds (tiles=True); `tile_sort`: a tile's
+        entries front to back along its central direction (False: tree order, to measure the gain)."""
         self.ctx = _moderngl(ctx)
         self.gpu_bvh = gpu_bvh
         self.base = base_binding
         self.ordered = ordered
         self.tile_entries = int(tile_entries)
+        self.tile_sort = bool(tile_sort)
         self._programs: dict[tuple, moderngl.ComputeShader] = {}
 
     def tile_defines(self) -> dict:
-        return {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": self.tile_entries,
+        return {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": self.tile_entries, "TILE_SORT": int(self.tile_sort),
                 "TILE_ENTRIES_BINDING": SSBO["tile_entries"], "TILE_PLANES_BINDING": SSBO["tile_planes"]}
 
-    def program(self, mode: str, offset: bool = True, tiles: bool = False) -> moderngl.ComputeShader:
-        key = (mode, offset, tiles)
+    def program(self, mode: str, offset: bool = True, tiles: bool = False, work: bool = False) -> moderngl.ComputeShader:
+        key = (mode, offset, tiles, work)
         if key not in self._programs:
             if mode not in MODES:
                 raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
-            if tiles and self.gpu_bvh.width != 2:
-                raise ValueError(f"tile frustum culling walks the bvh2 layout, not {self.gpu_bvh.layout}")
+            if (tiles or work) and self.gpu_bvh.width != 2:
+                what = "tile frustum culling walks" if tiles else "work counts count"
+                raise ValueError(f"{what} the bvh2 layout, not {self.gpu_bvh.layout}")
             defines = dict(self.gpu_bvh.own_defines(self.base, self.ordered), TRACE_MODE=MODES[mode],
                            OFFSET_RAYS=int(offset), RAYS_BINDING=self.base + 2, HITS_BINDING=self.base + 3,
-                           **(self.tile_defines() if tiles else {}))
+                           **(self.tile_defines() if tiles else {}),
+                           **({"BVH_COUNT_WORK": 1, "WORK_BINDING": self.base + 4} if work else {}))
             self._programs[key] = shaders.compute(self.ctx, "accel/trace_rays.comp", defines)
         return self._programs[key]
 
@@ -214,31 +218,39 @@ class RayTracer:
                 self.ctx.buffer(reserve=max(1, tiles) * 5 * 16))
 
     def trace(self, origins, directions, tmin=0.0, tmax=np.inf, mode: str = "closest",
-              offset: bool = True, tiles: bool = False, tile_info: dict | None = None):
+              offset: bool = True, tiles: bool = False, tile_info: dict | None = None, work: dict | None = None):
         """Trace rays; returns Hits, or for mode='any' a bool array (occluded). With `tiles`, the
-        culled traversal; `tile_info` then receives each tile's entry list and frustum planes."""
+        culled traversal; `tile_info` then receives each tile's entry list and frustum planes.
+        `work` (binary layout): receives each ray's traversal work, counted on the GPU (bvh.glsl
+        BVH_COUNT_WORK): `node_visits` (nodes fetched by walks), `entry_tests` (tile entry boxes
+        tested), `triangle_tests`."""
         rays = pack_rays(origins, directions, tmin, tmax)
         n = len(rays)
         out = np.zeros((n, 4), np.uint32)
         limit = self.gpu_bvh.limit or 2**31
         chunk = max(TILE_RAYS, min(n, limit // rays.itemsize // 8, 1 << 24) // TILE_RAYS * TILE_RAYS)
-        prog = self.program(mode, offset, tiles)
+        prog = self.program(mode, offset, tiles, work is not None)
         self.gpu_bvh.bind(self.base)
-        infos = []
+        infos, counts = [], []
         for s in range(0, n, chunk):
             part = rays[s:s + chunk]
             bufs = [self.ctx.buffer(part.tobytes()), self.ctx.buffer(reserve=len(part) * 16)]
             try:
                 bufs[0].bind_to_storage_buffer(self.base + 2)
                 bufs[1].bind_to_storage_buffer(self.base + 3)
+                if work is not None:
+                    bufs.append(self.ctx.buffer(reserve=len(part) * 16))
+                    bufs[-1].bind_to_storage_buffer(self.base + 4)
                 if tiles:
                     bufs += self._tile_buffers(len(part))
-                    self._cull(bufs[2], bufs[3], len(part))
+                    self._cull(bufs[-2], bufs[-1], len(part))
                 self._dispatch(prog, len(part))
                 out[s:s + len(part)] = np.frombuffer(bufs[1].read(), np.uint32).reshape(-1, 4)
+                if work is not None:
+                    counts.append(np.frombuffer(bufs[2].read(), np.uint32).reshape(-1, 4)[:, :3])
                 if tiles:
-                    infos.append((np.frombuffer(bufs[2].read(), np.uint32).reshape(-1, self.tile_entries + 1),
-                                  np.frombuffer(bufs[3].read(), np.float32).reshape(-1, 5, 4)))
+                    infos.append((np.frombuffer(bufs[-2].read(), np.uint32).reshape(-1, self.tile_entries + 1),
+                                  np.frombuffer(bufs[-1].read(), np.float32).reshape(-1, 5, 4)))
             finally:
                 for b in bufs:
                     b.release()
@@ -246,6 +258,9 @@ class RayTracer:
             lists = np.concatenate([i[0] for i in infos])
             tile_info.update(counts=lists[:, 0].astype(np.int64), entries=lists[:, 1:],
                              planes=np.concatenate([i[1] for i in infos]))
+        if work is not None:
+            c = np.concatenate(counts).astype(np.int64)
+            work.update(node_visits=c[:, 0], entry_tests=c[:, 1], triangle_tests=c[:, 2])
         if mode == "any":
             return out[:, 0] != 0
         prim = out[:, 0].copy()

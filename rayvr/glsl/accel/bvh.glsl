@@ -44,6 +44,19 @@ int bvh_stack[BVH_STACK_SIZE];
 
 layout(std430, binding = BVH_TRIS_BINDING) readonly restrict buffer BvhTriangles { vec4 bvh_tris[]; };
 
+// BVH_COUNT_WORK (tests, benchmarks: accel/gpu.py RayTracer.trace(work=)): the invocation's traversal
+// work, counted by the binary layout: x nodes fetched by walks, y tile entry boxes tested, z
+// ray-triangle tests. Counts depend on the BVH and the rays, not the device.
+#ifndef BVH_COUNT_WORK
+#define BVH_COUNT_WORK 0
+#endif
+#if BVH_COUNT_WORK
+uvec3 bvh_work = uvec3(0u);
+#define BVH_WORK(k) bvh_work[k] += 1u
+#else
+#define BVH_WORK(k)
+#endif
+
 // Zero, NaN or infinite directions and empty [tmin, tmax] intervals trace nothing.
 bool bvh_ray_valid(Ray r) {
     vec3 d = r.direction;
@@ -90,6 +103,7 @@ bool bvh_begin(Ray r, out Hit h, out RayShear s, out vec3 inv) {
 bool bvh_leaf(RayShear s, int first, int count, float tmin, bool any_hit, inout Hit h) {
     bool found = false;
     for (int i = first; i < first + count; ++i) {
+        BVH_WORK(2);
         vec4 a = bvh_tris[3 * i];
         vec4 b = bvh_tris[3 * i + 1];
         vec4 c = bvh_tris[3 * i + 2];

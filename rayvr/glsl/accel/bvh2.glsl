@@ -20,6 +20,7 @@ bool bvh2_walk(Ray r, RayShear s, vec3 inv, bool any_hit, inout Hit h, int node)
     BVH_LOCAL_STACK
     int sp = 0;
     while (true) {
+        BVH_WORK(0);
         vec4 n0 = bvh_nodes[4 * node];
         vec4 n1 = bvh_nodes[4 * node + 1];
         vec4 n2 = bvh_nodes[4 * node + 2];
@@ -66,22 +67,44 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
     return bvh2_walk(r, s, inv, any_hit, h, 0) || h.prim != BVH_MISS;
 }
 
+#ifndef TILE_SORT
+#define TILE_SORT 1   // tile_cull.comp lists a tile's entries front to back along its central direction
+#endif
+#define TILE_SLACK 1e-5   // relative slack of the tile tests for float rounding
+
 #if defined(TILE_ENTRIES_BINDING) && !defined(TILE_CULL_WRITER)
 // Tile frustum culling (rayvr/accel/frustum.py, tile_cull.comp): a tile's entry list names the
 // children (parent node << 1 | side) whose boxes meet the tile's frustum, a cut of the tree that
 // covers every triangle a ray of the tile can hit. The ray tests each entry's box, then walks it.
 layout(std430, binding = TILE_ENTRIES_BINDING) readonly restrict buffer TileEntries { uint tile_entries[]; };
+layout(std430, binding = TILE_PLANES_BINDING) readonly restrict buffer TilePlanes { vec4 tile_planes[]; };
 
-bool bvh_traverse_entries(Ray r, bool any_hit, inout Hit h, uint base, uint n) {
+bool bvh_traverse_entries(Ray r, bool any_hit, inout Hit h, uint tile) {
     RayShear s;
     vec3 inv;
     if (!bvh_begin(r, h, s, inv))
         return false;
+    uint base = tile * uint(TILE_ENTRIES + 1), n = tile_entries[base];
+#if TILE_SORT
+    // Entries come nearest first along the tile's central direction c (its far plane's normal; 0
+    // for a tile not culled). Once an entry's box lies wholly beyond c.x of the ray's points up to
+    // its closest hit, so does every later one: stop. Exact: a hit at t <= h.t lies in its box at
+    // c.x = c.o + t c.d <= reach (the slack covers rounding; a tie at h.t is not beyond).
+    vec3 c = tile_planes[5u * tile + 4u].xyz;
+    float co = dot(c, r.origin), cd = dot(c, r.direction);
+#endif
     for (uint k = 0u; k < n; ++k) {
-        uint e = tile_entries[base + k];
+        BVH_WORK(1);
+        uint e = tile_entries[base + 1u + k];
         int parent = int(e >> 1u), side = int(e & 1u);
         vec3 lo, hi;
         bvh2_child_box(bvh_nodes[4 * parent], bvh_nodes[4 * parent + 1], bvh_nodes[4 * parent + 2], side, lo, hi);
+#if TILE_SORT
+        vec3 mid = 0.5 * (lo + hi), ext = 0.5 * (hi - lo);
+        float near_c = dot(c, mid) - dot(abs(c), ext), reach = co + h.t * cd;
+        if (near_c > reach + TILE_SLACK * (dot(abs(c), abs(mid) + abs(ext)) + abs(co) + abs(h.t * cd)))
+            break;
+#endif
         float tn;
         if (!bvh_slab(r.origin, inv, lo, hi, r.tmin, h.t, tn))
             continue;
@@ -94,16 +117,19 @@ bool bvh_traverse_entries(Ray r, bool any_hit, inout Hit h, uint base, uint n) {
     return h.prim != BVH_MISS;
 }
 
-// The tile's entries for ray `ray` (TILE_RAYS rays a tile, TILE_ENTRIES + 1 words a tile: count, entries).
+// From tile `tile`'s entries.
+bool trace_closest_in_tile(Ray r, uint tile, out Hit h) {
+    return bvh_traverse_entries(r, false, h, tile);
+}
+
+// The tile's entries for ray `ray` of a ray buffer (TILE_RAYS consecutive rays a tile).
 bool trace_closest_tile(Ray r, uint ray, out Hit h) {
-    uint base = (ray / uint(TILE_RAYS)) * uint(TILE_ENTRIES + 1);
-    return bvh_traverse_entries(r, false, h, base + 1u, tile_entries[base]);
+    return trace_closest_in_tile(r, ray / uint(TILE_RAYS), h);
 }
 
 bool trace_any_tile(Ray r, uint ray) {
     Hit h;
-    uint base = (ray / uint(TILE_RAYS)) * uint(TILE_ENTRIES + 1);
-    return bvh_traverse_entries(r, true, h, base + 1u, tile_entries[base]);
+    return bvh_traverse_entries(r, true, h, ray / uint(TILE_RAYS));
 }
 #endif
 

@@ -1,9 +1,17 @@
 #version 430
 // Tile frustum culling (HVVR's tile frusta, on the GPU; rayvr/accel/frustum.py): one work group per
-// tile of TILE_RAYS consecutive rays. The group bounds its rays with a conservative frustum, then one
+// tile of TILE_RAYS rays. The group bounds its rays with a conservative frustum, then one
 // invocation walks the binary BVH against it and writes the tile's entry list: up to TILE_ENTRIES
 // children (parent << 1 | side) whose boxes meet the frustum, a cut of the tree under which lies
 // every triangle a ray of the tile can hit. Traversal from the list: bvh2.glsl bvh_traverse_entries.
+//
+// Where a tile's rays come from:
+//   default        TILE_RAYS consecutive rays of the rays SSBO (accel/gpu.py RayTracer), one an invocation;
+//   TILE_CAMERA    the frame's camera rays (passes/primary_rays.py, tile culling on): a work group is
+//                  a TILE_W x TILE_H pixel block of layer (eye) gl_WorkGroupID.z, an invocation one
+//                  pixel, and it bounds every ray primary.comp casts for that pixel: all
+//                  CAMERA_SUBSAMPLES sub-rays of its footprint (MSAA/SSAA offsets, thin-lens lens
+//                  points) of this round's colour channel set (a cull runs for each set).
 //
 // Frustum (the math of frustum.py's tile_frusta, which tests check): c = the normalized mean of
 // the rays' unit directions, u, v perpendicular to it; slopes su = (d.u)/(d.c), sv likewise. Planes
@@ -13,6 +21,7 @@
 // Slopes and offsets get a relative slack that covers float rounding. A tile whose directions spread
 // over a half-space or more (min d.c <= TILE_MIN_COS) is not culled: its list is the root's children.
 // Words per tile: [count, entry 0 .. entry TILE_ENTRIES-1]; count 0 for a tile with no valid ray.
+// Entries are listed front to back along c (TILE_SORT; 0: tree order, for measuring the difference).
 #include "../layout.glsl"
 #ifndef TILE_RAYS
 #define TILE_RAYS DEFAULT_TILE_RAYS
@@ -33,13 +42,42 @@ layout(local_size_x = TILE_RAYS) in;
 #ifndef TILE_MIN_COS
 #define TILE_MIN_COS 0.1
 #endif
-#define TILE_SLACK 1e-5
 
-layout(std430, binding = RAYS_BINDING) readonly restrict buffer Rays { vec4 rays[]; };  // (o, tmin), (d, tmax)
 layout(std430, binding = TILE_ENTRIES_BINDING) writeonly restrict buffer Entries { uint tile_entries[]; };
 layout(std430, binding = TILE_PLANES_BINDING) writeonly restrict buffer Planes { vec4 tile_planes[]; };  // 5 a tile (tests)
 
+#ifdef TILE_CAMERA
+#include "../common/camera.glsl"
+#include "../rt/primary_ray.glsl"
+#define TILE_SUBRAYS CAMERA_SUBSAMPLES
+uniform ivec2 image_size;   // per eye
+
+// Sub-ray k of this invocation's pixel, as primary.comp casts it; false: no such ray.
+bool tile_ray(uint lid, uint k, out Ray r) {
+    ivec3 p = ivec3(ivec2(gl_WorkGroupID.xy) * ivec2(TILE_W, TILE_H) + ivec2(lid % uint(TILE_W), lid / uint(TILE_W)),
+                    gl_WorkGroupID.z);
+    vec3 o, d;
+    bool ok = all(lessThan(p.xy, image_size)) &&
+              camera_subray(p.z, vec2(p.xy) + 0.5, vec2(image_size), k, o, d);
+    r = ok ? primary_ray(p.z, o, d) : Ray(vec3(0.0), 0.0, vec3(0.0), 0.0);
+    return ok && bvh_ray_valid(r);
+}
+#else
+#define TILE_SUBRAYS 1
+layout(std430, binding = RAYS_BINDING) readonly restrict buffer Rays { vec4 rays[]; };  // (o, tmin), (d, tmax)
 uniform uint ray_count;
+
+bool tile_ray(uint lid, uint k, out Ray r) {
+    uint tile = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
+    uint i = tile * uint(TILE_RAYS) + lid;
+    r = Ray(vec3(0.0), 0.0, vec3(0.0), 0.0);
+    if (i < ray_count) {
+        vec4 a = rays[2u * i], b = rays[2u * i + 1u];
+        r = Ray(a.xyz, a.w, b.xyz, b.w);
+    }
+    return i < ray_count && bvh_ray_valid(r);
+}
+#endif
 
 shared vec4 red[TILE_RAYS];
 shared uint cut[2][TILE_ENTRIES];
@@ -70,31 +108,38 @@ bool frustum_overlaps(vec4 planes[5], vec3 lo, vec3 hi) {
 
 void main() {
     uint lid = gl_LocalInvocationID.x;
-    uint tile = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
-    uint i = tile * uint(TILE_RAYS) + lid;
-    Ray r = Ray(vec3(0.0), 0.0, vec3(0.0), 0.0);
-    if (i < ray_count) {
-        vec4 a = rays[2u * i], b = rays[2u * i + 1u];
-        r = Ray(a.xyz, a.w, b.xyz, b.w);
-    }
-    bool valid = i < ray_count && bvh_ray_valid(r);
-    vec3 dn = valid ? normalize(r.direction) : vec3(0.0);
-
-    REDUCE(vec4(dn, valid ? 1.0 : 0.0), 0)
+    // tiles in order x, then y, then layer (a frame's; a ray buffer's dispatch has z = 1)
+    uint tile = gl_WorkGroupID.x + gl_NumWorkGroups.x * (gl_WorkGroupID.y + gl_NumWorkGroups.y * gl_WorkGroupID.z);
+    // Each invocation reduces over its TILE_SUBRAYS rays first (three passes over them: the
+    // directions' mean, then slopes and extents about it, then the planes' offsets), then the group.
+    Ray r;
+    vec4 acc = vec4(0.0);
+    for (uint k = 0u; k < uint(TILE_SUBRAYS); ++k)
+        if (tile_ray(lid, k, r))
+            acc += vec4(normalize(r.direction), 1.0);
+    REDUCE(acc, 0)
     vec4 sum = red[0];
     barrier();
     uint base = tile * uint(TILE_ENTRIES + 1);
     vec3 c = length(sum.xyz) > 0.0 ? normalize(sum.xyz) : vec3(0.0, 0.0, 1.0);
     vec3 u = normalize(abs(c.x) < 0.6 ? cross(c, vec3(1.0, 0.0, 0.0)) : cross(c, vec3(0.0, 1.0, 0.0)));
     vec3 v = cross(c, u);
-    float dc = dot(dn, c);
-    float su = dot(dn, u) / dc, sv = dot(dn, v) / dc;
     const float big = 3.0e38;
-    REDUCE(valid ? vec4(dc, su, -su, sv) : vec4(big), 1)
+    vec4 lo_acc = vec4(big), hi_acc = vec4(-big);
+    for (uint k = 0u; k < uint(TILE_SUBRAYS); ++k) {
+        if (!tile_ray(lid, k, r))
+            continue;
+        vec3 dn = normalize(r.direction);
+        float dc = dot(dn, c);
+        float su = dot(dn, u) / dc, sv = dot(dn, v) / dc;
+        float far = dot(c, r.origin) + r.tmax * dot(c, r.direction);
+        lo_acc = min(lo_acc, vec4(dc, su, -su, sv));
+        hi_acc = max(hi_acc, vec4(sv, far, dot(abs(r.origin), vec3(1.0)), 0.0));
+    }
+    REDUCE(lo_acc, 1)
     vec4 mins = red[0];
     barrier();
-    float far = valid ? dot(c, r.origin) + r.tmax * dot(c, r.direction) : -big;
-    REDUCE(valid ? vec4(sv, far, dot(abs(r.origin), vec3(1.0)), 0.0) : vec4(-big), 2)
+    REDUCE(hi_acc, 2)
     vec4 maxs = red[0];
     barrier();
     float slack_o = TILE_SLACK * maxs.z;
@@ -102,8 +147,11 @@ void main() {
                         -u + (mins.y - TILE_SLACK * (1.0 + abs(mins.y))) * c,
                         v - (maxs.x + TILE_SLACK * (1.0 + abs(maxs.x))) * c,
                         -v + (mins.w - TILE_SLACK * (1.0 + abs(mins.w))) * c);
-    REDUCE(valid ? vec4(dot(n[0], r.origin), dot(n[1], r.origin), dot(n[2], r.origin), dot(n[3], r.origin))
-                 : vec4(-big), 2)
+    vec4 w_acc = vec4(-big);
+    for (uint k = 0u; k < uint(TILE_SUBRAYS); ++k)
+        if (tile_ray(lid, k, r))
+            w_acc = max(w_acc, vec4(dot(n[0], r.origin), dot(n[1], r.origin), dot(n[2], r.origin), dot(n[3], r.origin)));
+    REDUCE(w_acc, 2)
     vec4 w = red[0];
     if (lid != 0u)
         return;
@@ -120,7 +168,7 @@ void main() {
     }
     // The cut: start at the root's children, then sweep the list left to right opening internal
     // entries into their children that meet the frustum while the list has room; stop when a sweep
-    // opens nothing. Left-to-right order is kept, so entries stay in tree order.
+    // opens nothing. Left-to-right order is kept, so entries stay in tree order (sorted below).
     int count = 0, cur = 0;
     for (int side = 0; side < 2; ++side) {
         vec3 lo, hi;
@@ -153,6 +201,27 @@ void main() {
         count = out_n;
         cur = 1 - cur;
     }
+#if TILE_SORT
+    // Front to back: by the entry box's nearest point along the central direction, min over the box
+    // of c.x (stable insertion sort; equal keys keep tree order). A ray then meets near entries
+    // first, its h.t shrinks early and farther entries fail their slab test. The hits cannot change:
+    // the leaf test's tie rule (bvh.glsl bvh_leaf) makes them independent of the order.
+    float key[TILE_ENTRIES];
+    for (int k = 0; k < count; ++k) {
+        uint e = cut[cur][k];
+        int parent = int(e >> 1u);
+        vec3 lo, hi;
+        bvh2_child_box(bvh_nodes[4 * parent], bvh_nodes[4 * parent + 1], bvh_nodes[4 * parent + 2], int(e & 1u), lo, hi);
+        float kk = dot(c, 0.5 * (lo + hi)) - dot(abs(c), 0.5 * (hi - lo));
+        int j = k;
+        for (; j > 0 && key[j - 1] > kk; --j) {
+            key[j] = key[j - 1];
+            cut[cur][j] = cut[cur][j - 1];
+        }
+        key[j] = kk;
+        cut[cur][j] = e;
+    }
+#endif
     tile_entries[base] = uint(count);
     for (int k = 0; k < count; ++k)
         tile_entries[base + 1u + uint(k)] = cut[cur][k];

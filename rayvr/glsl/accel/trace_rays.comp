@@ -4,6 +4,7 @@
 // offset_ray(hit, n); 3: closest hit, then the same direction continued from offset_ray(hit, -n).
 // Modes 2 and 3 report the second ray's hit (self-intersection tests).
 // With TILE_ENTRIES_BINDING (tile frustum culling), the first ray starts from its tile's entry list.
+// With BVH_COUNT_WORK, each ray's traversal work (bvh.glsl bvh_work) goes to work[] at WORK_BINDING.
 #ifndef TRACE_MODE
 #define TRACE_MODE 0
 #endif
@@ -24,6 +25,13 @@ layout(local_size_x = LOCAL_SIZE) in;
 layout(std430, binding = RAYS_BINDING) readonly restrict buffer Rays { vec4 rays[]; };  // (o, tmin), (d, tmax)
 layout(std430, binding = HITS_BINDING) writeonly restrict buffer Hits { uvec4 hits[]; }; // prim, t, u, v bits
 
+#if BVH_COUNT_WORK
+layout(std430, binding = WORK_BINDING) writeonly restrict buffer Work { uvec4 work[]; };
+#define STORE_WORK work[i] = uvec4(bvh_work, 0u)
+#else
+#define STORE_WORK
+#endif
+
 uniform uint ray_count;
 
 void main() {
@@ -40,6 +48,7 @@ void main() {
     bool occluded = trace_any(r);
 #endif
     hits[i] = uvec4(occluded ? 1u : 0u, 0u, 0u, 0u);
+    STORE_WORK;
 #else
     Hit h;
 #ifdef TILE_ENTRIES_BINDING
@@ -70,5 +79,6 @@ void main() {
     }
 #endif
     hits[i] = uvec4(h.prim, floatBitsToUint(h.t), floatBitsToUint(h.uv.x), floatBitsToUint(h.uv.y));
+    STORE_WORK;
 #endif
 }
