@@ -14,10 +14,8 @@
 //                    iteration multiplies the albedo back and writes the output
 // Stages 1-3 read their taps from workgroup memory: a work group loads the guides and values of a
 // 16x16 lattice of pixels `step` apart plus an apron of APRON lattice points once (à-trous taps of
-// step 2^i fall on the same lattice), guides decoded, instead of every pixel fetching and decoding
-// 25-49 taps itself (4.6 ms at 2x1440x1600 on the H200 that way, 3.6 ms tiled with per-tap decoding:
-// bench/results/h200/2026-11-30/gi/denoise_tiles). A group whose pixels are all undenoised stops
-// after one fetch each. A tap's weight takes one exp (the edge-stops' logs summed).
+// step 2^i fall on the same lattice), instead of every pixel fetching 25-49 taps itself (4.7 ms at
+// 2x1440x1600 on the H200 that way). A group whose pixels are all undenoised stops after one fetch each.
 #include "../common/gbuffer.glsl"
 #include "demodulate.glsl"
 
@@ -80,9 +78,7 @@ Guide unpack_guide(uvec4 g) {
 #define SIDE (TILE + 2 * APRON)
 #define OUTSIDE 0xFFFFFFFFu  // the effect of a tap outside the image: equal to no centre's
 
-// The guides decoded once per tile point (not once per tap): normal and depth, albedo and effect.
-shared vec4 tile_normal_depth[SIDE * SIDE];
-shared vec4 tile_albedo_effect[SIDE * SIDE];
+shared uvec4 tile_guide[SIDE * SIDE];
 shared vec4 tile_value[SIDE * SIDE];
 shared uint tile_any;
 
@@ -119,9 +115,7 @@ bool load_tile(ivec3 origin, int step) {
     for (uint k = gl_LocalInvocationIndex; k < uint(SIDE * SIDE); k += uint(TILE * TILE)) {
         ivec3 q = origin + ivec3((ivec2(int(k) % SIDE, int(k) / SIDE) - APRON) * step, 0);
         bool inside = all(greaterThanEqual(q.xy, ivec2(0))) && all(lessThan(q.xy, size));
-        Guide g = unpack_guide(inside ? imageLoad(guide_in, q) : uvec4(0u, 0u, 0u, OUTSIDE));
-        tile_normal_depth[k] = vec4(g.normal, g.depth);
-        tile_albedo_effect[k] = vec4(g.albedo, inside ? float(g.effect) : -1.0);  // a value, not bits: no denormals
+        tile_guide[k] = inside ? imageLoad(guide_in, q) : uvec4(0u, 0u, 0u, OUTSIDE);
         tile_value[k] = inside ? stage_value(q) : vec4(0.0);
     }
     barrier();
@@ -134,17 +128,11 @@ int tile_index(int dx, int dy) {
     return t.y * SIDE + t.x;
 }
 
-// The guide (dx, dy) lattice steps away.
-Guide tile_guide(int dx, int dy) {
-    int k = tile_index(dx, dy);
-    vec4 nd = tile_normal_depth[k], ae = tile_albedo_effect[k];
-    return Guide(nd.w, nd.xyz, ae.rgb, ae.w < 0.0 ? OUTSIDE : uint(ae.w));
-}
-
 // The guide (dx, dy) lattice steps away, and whether it exists and shows the centre's effect.
 bool tap(int dx, int dy, uint effect, out Guide g) {
-    g = tile_guide(dx, dy);
-    return g.effect == effect;
+    uvec4 raw = tile_guide[tile_index(dx, dy)];
+    g = unpack_guide(raw);
+    return raw.w == effect;
 }
 
 struct Centre { Guide g; vec2 grad; float lum; float sigma_l; };
@@ -165,14 +153,14 @@ vec2 depth_gradient(Guide c) {
 }
 #endif
 
-// Edge-stops (SVGF's depth, normal; an albedo term): the log of a tap's weight against the centre
-// (exp(-|dz| / ...) * max(0, cos)^sigma_normal * exp(-|da|^2 / ...)), so that a tap takes one exp.
-float geometry_log_weight(Centre c, Guide q, ivec2 offset) {
-    float cosine = dot(c.g.normal, q.normal);
-    if (cosine <= 0.0) return -3.0e38;  // weight 0 (log2 of 0 is undefined in GLSL)
+// Edge-stops (SVGF's depth, normal; an albedo term): a tap's weight against the centre.
+float geometry_weight(Centre c, Guide q, ivec2 offset) {
+    float wz = exp(-abs(c.g.depth - q.depth) /
+                   (sigma_depth * abs(dot(c.grad, vec2(offset))) + 1e-3 * c.g.depth + 1e-12));
+    float wn = pow(max(0.0, dot(c.g.normal, q.normal)), sigma_normal);
     vec3 da = c.g.albedo - q.albedo;
-    return -abs(c.g.depth - q.depth) / (sigma_depth * abs(dot(c.grad, vec2(offset))) + 1e-3 * c.g.depth + 1e-12)
-           + sigma_normal * log(cosine) - dot(da, da) / (sigma_albedo * sigma_albedo);
+    float wa = exp(-dot(da, da) / (sigma_albedo * sigma_albedo));
+    return wz * wn * wa;
 }
 #endif
 
@@ -194,9 +182,10 @@ void main() {
     if (!load_tile(origin, step)) return;
     ivec3 p = origin + ivec3(ivec2(gl_LocalInvocationID.xy) * step, 0);
     Centre c;
+    uvec4 raw = tile_guide[tile_index(0, 0)];
+    if (!denoised(raw.w)) return;  // outside the image (OUTSIDE) or not denoised
+    c.g = unpack_guide(raw);
     Guide q;
-    c.g = tile_guide(0, 0);
-    if (!denoised(c.g.effect)) return;  // outside the image (OUTSIDE) or not denoised
 #if DENOISE_STAGE == 1
     c.grad = depth_gradient(c.g);
     imageStore(gradient_image, p, vec4(c.grad, 0.0, 0.0));
@@ -212,7 +201,7 @@ void main() {
         for (int dy = -3; dy <= 3; dy++) {
             for (int dx = -3; dx <= 3; dx++) {
                 if (!tap(dx, dy, c.g.effect, q)) continue;
-                float w = (dx == 0 && dy == 0) ? 1.0 : exp(geometry_log_weight(c, q, ivec2(dx, dy)));
+                float w = (dx == 0 && dy == 0) ? 1.0 : geometry_weight(c, q, ivec2(dx, dy));
                 float l = luminance(tile_value[tile_index(dx, dy)].rgb);
                 sw += w; s1 += w * l; s2 += w * l * l;
             }
@@ -227,7 +216,7 @@ void main() {
     float vs = 0.0, vw = 0.0;
     for (int dy = -1; dy <= 1; dy++) {
         for (int dx = -1; dx <= 1; dx++) {
-            if (!tap(dx, dy, c.g.effect, q)) continue;
+            if (tile_guide[tile_index(dx, dy)].w != c.g.effect) continue;
             float k = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
             vs += k * tile_value[tile_index(dx, dy)].a; vw += k;
         }
@@ -247,8 +236,8 @@ void main() {
             if (dx == 0 && dy == 0) continue;
             if (!tap(dx, dy, c.g.effect, q)) continue;
             vec4 v = tile_value[tile_index(dx, dy)];
-            float log_wl = -abs(c.lum - luminance(v.rgb)) / c.sigma_l;
-            float w = B3[abs(dx)] * B3[abs(dy)] * exp(geometry_log_weight(c, q, ivec2(dx, dy) * step) + log_wl);
+            float wl = exp(-abs(c.lum - luminance(v.rgb)) / c.sigma_l);
+            float w = B3[abs(dx)] * B3[abs(dy)] * geometry_weight(c, q, ivec2(dx, dy) * step) * wl;
             sum_w += w; sum_c += w * v.rgb; sum_v += w * w * v.a;
         }
     }
