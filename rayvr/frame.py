@@ -629,6 +629,7 @@ class FrameContext:
     round: Round = field(default_factory=Round)
     timer_keys: list = field(default_factory=list)  # (timer query key, pass name): a pass times once per round
     channel_rounds: list = field(default_factory=list)  # each colour channel set's last Round (sampled frames)
+    uniform_cache: dict = field(default_factory=dict)  # values passes compute once per frame (compute.set_eye_uniforms)
 
     def resource(self, name: str):
         return self.resources[name]

@@ -26,11 +26,18 @@ def set_eye_uniforms(program, fc) -> None:
     """The per-eye camera block of glsl/common/camera.glsl, with the values the eyes' camera
     model gives (rayvr/cameras/base.py uniforms), the colour channel set of this frame round
     (fc.round) and the model's textures. Uniforms the shader does not use are skipped: GLSL
-    compilers drop them."""
+    compilers drop them. The block is computed once per frame (fc.uniform_cache): a sampled frame
+    sets it for every pass of every round, and the CPU records rounds while the GPU works."""
     model = fc.eyes[0].camera
-    values = model.uniforms(fc.eyes, fc.scene.origin)
-    values["camera_channel"] = np.array([getattr(getattr(fc, "round", None), "channel", 0)], np.int32)
-    for name, value in values.items():
+    cache = getattr(fc, "uniform_cache", None)
+    block = None if cache is None else cache.get("camera")
+    if block is None:
+        block = {name: value if isinstance(value, bytes) else np.ascontiguousarray(value).tobytes()
+                 for name, value in model.uniforms(fc.eyes, fc.scene.origin).items()}
+        if cache is not None:
+            cache["camera"] = block
+    channel = np.array([getattr(getattr(fc, "round", None), "channel", 0)], np.int32).tobytes()
+    for name, value in {**block, "camera_channel": channel}.items():
         if name in program:
-            program[name].write(value if isinstance(value, bytes) else np.ascontiguousarray(value).tobytes())
+            program[name].write(value)
     model.bind(fc.gl)
