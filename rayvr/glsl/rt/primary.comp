@@ -184,9 +184,9 @@ void main() {
     // A pixel without a sample (foveated) weighs nothing: the resolve fills it for display.
     store(p, h.prim, uint(subsample), h.t, sample_here ? 1.0 / float(CAMERA_SUBSAMPLES) : 0.0);
 #else
-    uvec4 head = HIT(0);
-    uint n = (head.z >> 8) & 255u, covered = head.z >> 16;
     int slot = msaa_round < 0 ? 0 : int(max(msaa_count, 1u)) - 1 - msaa_round;
+    uvec4 head = slot >= 0 ? HIT(0) : uvec4(0u);  // a round past the count reads no list
+    uint n = (head.z >> 8) & 255u, covered = head.z >> 16;
     if (slot >= 0 && uint(slot) < n) {
         uvec4 e = HIT(slot);
         store(p, e.x, e.z & 255u, uintBitsToFloat(e.w), float(bitCount(e.y)) / float(max(covered, 1u)));
