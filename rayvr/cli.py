@@ -152,6 +152,10 @@ def add_camera_arguments(p: argparse.ArgumentParser, msaa_default: int | None = 
                    help="sub-rays per sample (anti-aliasing; casts primary rays): shading once per pixel per "
                         "distinct triangle, or per sub-ray with --ssaa")
     g.add_argument("--ssaa", action="store_true", help="shade every sub-ray of --msaa N (supersampling)")
+    g.add_argument("--tile-culling", action="store_true",
+                   help="ray-cast primary visibility culls the BVH per 16x8-pixel tile first (a frustum over every "
+                        "sub-ray, lens point and channel of the tile; the same hits, exact) and walks the binary "
+                        "layout; bench primary: each rays row also with it")
 
 
 def camera_from_args(args):
@@ -165,7 +169,7 @@ def settings_from_args(args, **kw):
     """RenderSettings from the flags a command has (the others keep their defaults)."""
     from .renderer import RenderSettings
 
-    for key in ("exposure", "tonemapper", "layer_mode", "primary", "msaa", "ssaa", "bvh_build"):
+    for key in ("exposure", "tonemapper", "layer_mode", "primary", "msaa", "ssaa", "bvh_build", "tile_culling"):
         if getattr(args, key, None) is not None:
             kw.setdefault(key, getattr(args, key))
     return RenderSettings(**kw)
@@ -260,7 +264,7 @@ def cmd_capture(args) -> int:
                               warp_layers=args.warp_layers, quadtree_adapt=args.quadtree_adapt,
                               traversal=args.traversal, bvh_build=args.bvh_build, seed=args.seed,
                               dof_aperture=args.aperture, dof_focus=args.focus_distance, dof_samples=args.dof_samples,
-                              msaa=args.msaa, ssaa=args.ssaa)
+                              msaa=args.msaa, ssaa=args.ssaa, tile_culling=args.tile_culling)
     inputs = {"scene": _file_identity(args.scene), "materials": _file_identity(args.materials),
               "settings": repr(settings)}
     if args.workers:
@@ -517,7 +521,7 @@ def cmd_bench(args) -> int:
                     configs=_bench_configs("primary", args.configs, primary.CONFIGS),
                     suites=("views",) if subset else primary.SUITES,
                     table5_size=(24, 16) if quick else primary.TABLE5_SIZE, tiles=not args.no_tiles,
-                    builds=args.bvh_build or ("sah",))
+                    builds=args.bvh_build or ("sah",), frame_culling=(False, True) if args.tile_culling else (False,))
     elif args.area == "peers":
         from .bench import peers
 

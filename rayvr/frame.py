@@ -57,6 +57,7 @@ class FramePlan:
     denoise: tuple = ()  # effects whose pixels the edge-aware à-trous filters (passes/denoise.py)
     traversal: tuple = DEFAULT_TRAVERSAL  # BVH layout per ray kind (accel/gpu.py RAY_KINDS)
     bvh_build: str = "sah"  # how the BVH is built: "sah" | "sbvh" (spatial splits; accel/sbvh.py)
+    tile_culling: bool = False  # primary rays traced from tile frustum entry lists (passes/primary_rays.py)
     # (effect, (material names, ...)) pairs, for the reasons --graph shows; not part of the key:
     # moving an effect to other materials compiles nothing new.
     users: tuple = field(default=(), compare=False)

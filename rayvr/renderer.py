@@ -86,6 +86,8 @@ class RenderSettings:
     dof_samples: int = 16  # lens rays per pixel
     msaa: int = 1  # sub-rays per camera sample (cameras/sampling.py SAMPLE_COUNTS): rayvr's anti-aliasing
     ssaa: bool = False  # shade every sub-ray (else once per pixel per distinct triangle: MSAA)
+    # Ray-cast primaries traced from per-tile BVH entry lists (passes/primary_rays.py; exact, bvh2)
+    tile_culling: bool = False
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
@@ -210,6 +212,7 @@ class Renderer:
                          second_layer=second, traversal=st.traversal, bvh_build=st.bvh_build,
                          dof=color and st.dof_aperture > 0 and stereo == "dual" and camera.name == "pinhole",
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
+                         tile_culling=bool(st.tile_culling) and primary == "rays",
                          channels=camera.channels, reconstruct=camera.sparse)
 
     def set_stereo(self, mode: str) -> None:

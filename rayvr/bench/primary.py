@@ -22,10 +22,15 @@ a plain frame recorded (and `rounds_recorded_max`). `visibility_ms` is what
 makes the G-buffer: `visibility` + `gbuffer` passes (raster), `primary_rays` + `gbuffer` summed over
 the rounds (rays).
 
-Tile frustum culling (accel/frustum.py) traces rays listed in a buffer (accel/gpu.py RayTracer); the
-frame's `primary_rays` pass makes its rays in the kernel and traces each from the BVH root, so culling
-does not apply to it. Each camera's central rays (one per sample, tile order) are therefore also
-traced on their own, without and with culling (`trace_grays_s`, `trace_tiles_grays_s`, `cull_ms`).
+Tile frustum culling in the frame (`tile_culling`, `--tile-culling`: every rays row runs again with
+RenderSettings.tile_culling, rows carry `tile_culling`): `primary_rays` first culls per 16x8-pixel
+tile (its `cull` kernel, `cull_ms`, part of `primary_ms`) and traces each sub-ray from its tile's
+entry list on the binary BVH. The same hits (tests); compare `total_ms`, `visibility_ms` and
+`primary_ms` of a row with and without. Besides, each camera's central rays (one per sample, tile
+order) are traced on their own by accel/gpu.py RayTracer, without and with culling
+(`trace_grays_s`, `trace_tiles_grays_s`, `cull_ms` of that standalone dispatch: `trace_cull_ms`),
+and their traversal work per ray is counted on the GPU (tile_work: per ray, tiles in tree order,
+tiles front to back).
 
 The JSON and markdown are rewritten (atomically) after every row: a run cut short keeps its rows.
 The markdown's meta lists the issue's targets, each met or missed on the rows measured.
@@ -71,14 +76,16 @@ def samples_per_frame(rig: StereoRig) -> int:
     return int(sum((rig.camera.footprint(e) > 0).sum() for e in rig.eyes()))
 
 
-def primary_kernel_ms(renderer, rig, repeat=5) -> float:
-    """Median GPU ms of the primary-ray kernels (not the MSAA select)."""
-    ms = []
+def primary_kernel_ms(renderer, rig, repeat=5) -> tuple[float, float]:
+    """Median GPU ms of the primary-ray kernels (the tile cull with the trace or casts, not the MSAA
+    select), and of the tile cull alone (0 without culling)."""
+    ms, cull = [], []
     for _ in range(repeat):
         fc = renderer.record(rig, "both", "color", profile=True)
         t = renderer.read_ms(fc)
-        ms.append(sum(v for k, v in t.items() if k in ("primary_rays.trace", "primary_rays.cast")))
-    return float(np.median(ms))
+        ms.append(sum(v for k, v in t.items() if k in ("primary_rays.trace", "primary_rays.cast", "primary_rays.cull")))
+        cull.append(t.get("primary_rays.cull", 0.0))
+    return float(np.median(ms)), float(np.median(cull))
 
 
 def frame_rounds(renderer, rig, repeat=5) -> dict:
@@ -92,25 +99,46 @@ def frame_rounds(renderer, rig, repeat=5) -> dict:
     return {"rounds": needed, "rounds_recorded": float(np.median(recorded)), "rounds_recorded_max": max(recorded)}
 
 
+def tile_work(gl, gpu_bvh, o, d) -> dict:
+    """Mean traversal work per ray of the rays (GPU-counted, bvh.glsl BVH_COUNT_WORK: the same on
+    every device) traced per ray (`trace_`), from tile entry lists in tree order (`tree_`) and front
+    to back (`tiles_`, the default): node fetches, entry box tests, triangle tests; and whether all
+    three agree exactly on every ray's triangle."""
+    out, prims = {}, []
+    for name, tiles, order in (("trace", False, True), ("tree", True, False), ("tiles", True, True)):
+        work = {}
+        prims.append(RayTracer(gl.ctx, gpu_bvh, tile_sort=order).trace(o, d, tiles=tiles, work=work).prim)
+        out.update({f"{name}_{k}": float(v.mean()) for k, v in work.items() if tiles or k != "entry_tests"})
+    out["tiles_agree"] = float(((prims[0] == prims[1]) & (prims[0] == prims[2])).mean())
+    return out
+
+
 def tile_culling(gl, gpu_bvh, rig, origin, repeat) -> dict:
-    """The camera's central rays traced standalone (binary BVH) without and with tile culling."""
+    """The camera's central rays traced standalone (binary BVH) without and with tile culling, and
+    their traversal work (tile_work)."""
     o, d = primary_rays(rig, origin, tiled=True)
     rt = RayTracer(gl.ctx, gpu_bvh)
     plain = rt.time_trace(o, d, repeats=repeat)
     culled = rt.time_trace(o, d, repeats=repeat, tiles=True)
-    same = float((rt.trace(o, d).prim == rt.trace(o, d, tiles=True).prim).mean())
     return {"trace_rays": len(o), "trace_grays_s": plain["rays_per_s"] / 1e9,
-            "trace_tiles_grays_s": culled["rays_per_s"] / 1e9, "cull_ms": culled["cull_ms"], "tiles_agree": same}
+            "trace_tiles_grays_s": culled["rays_per_s"] / 1e9, "trace_cull_ms": culled["cull_ms"],
+            **tile_work(gl, gpu_bvh, o, d)}
 
 
 def targets(rows) -> dict:
     """The issue's targets for this bench, each 'met'/'missed' with the figures, on the rows measured
-    (per BVH build, named in the key when the rows have several)."""
+    (per BVH build and per tile culling, named in the key when the rows have several; the raster
+    reference rows count in each)."""
     builds = list(dict.fromkeys(r.get("bvh_build", "sah") for r in rows))
+    culling = list(dict.fromkeys(r.get("tile_culling", False) for r in rows if r.get("primary") != "raster")) or [False]
     out = {}
     for b in builds:
-        label = f"[{b}] " if len(builds) > 1 else ""
-        out.update({label + k: v for k, v in build_targets([r for r in rows if r.get("bvh_build", "sah") == b]).items()})
+        for tc in culling:
+            label = " ".join(([b] if len(builds) > 1 else []) + (["tile culling" if tc else "per ray"]
+                                                                 if len(culling) > 1 else []))
+            group = [r for r in rows if r.get("bvh_build", "sah") == b
+                     and (r.get("primary") == "raster" or r.get("tile_culling", False) == tc)]
+            out.update({(f"[{label}] " if label else "") + k: v for k, v in build_targets(group).items()})
     return out
 
 
@@ -147,9 +175,10 @@ def build_targets(rows) -> dict:
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, counts=None,
         ssaa=(4,), configs=None, custom=None, backend=None, progress=True, suites=SUITES,
-        table5_size=TABLE5_SIZE, tiles=True, builds=("sah",)) -> dict:
+        table5_size=TABLE5_SIZE, tiles=True, builds=("sah",), frame_culling=(False,)) -> dict:
     """`configs`/`counts` (views suite rows; default VIEW_CONFIGS x VIEW_COUNTS); `builds`: every
-    row once per BVH build (accel/bvh.BUILDS; rows carry `bvh_build`); `custom` =
+    row once per BVH build (accel/bvh.BUILDS; rows carry `bvh_build`); `frame_culling`: every rays
+    row once per value (False: per-ray traversal, True: RenderSettings.tile_culling); `custom` =
     (camera model, fov_y or None): that camera instead (beside the raster reference), as
     `rayvr bench primary --camera-model ... --camera-param ...` asks. `tiles`: also trace each
     camera's central rays standalone without and with tile culling."""
@@ -173,7 +202,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
     try:
         meta = {**device_meta(gl.info()), "bench": "primary", "per_eye_size": list(size),
                 "table5_per_eye_size": list(table5_size), "suites": list(suites), "repeat": repeat,
-                "bvh_builds": list(builds),
+                "bvh_builds": list(builds), "tile_culling": list(frame_culling),
                 "skipped": skipped, "materials": "all raster (visibility, not shading, is measured)",
                 "what_times_include": {
                     "pass_ms": "GL timer query per pass, summed over a sampled frame's rounds; medians",
@@ -184,33 +213,38 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                     "msaa_note": "an MSAA frame's count of rounds is polled, never waited for: rounds "
                                  "recorded before it is known and past it skip every pixel (rounds vs "
                                  "rounds_recorded); empty slots cost a 4-byte read per pass",
-                    "tile_culling": "not applicable to the frame's primary_rays pass (rays made in the kernel, "
-                                    "traced from the BVH root); trace_* columns: the camera's central rays "
-                                    "(one per sample) traced standalone by accel/gpu.py RayTracer, binary BVH, "
-                                    "without / with tile frustum culling (cull_ms: the cull dispatch)"}}
+                    "tile_culling": "rows with tile_culling true: the frame's primary_rays culls per 16x8-pixel "
+                                    "tile first (cull_ms: that kernel, summed over the channel sets; in primary_ms) "
+                                    "and traces bvh2 from the tiles' entry lists; trace_* columns: the camera's "
+                                    "central rays (one per sample) traced standalone by accel/gpu.py RayTracer, "
+                                    "binary BVH, without / with tile culling (trace_cull_ms: its cull dispatch); "
+                                    "*_node_visits, *_entry_tests, *_triangle_tests: their GPU-counted work per ray "
+                                    "(trace: per ray; tree: tile entries in tree order; tiles: front to back)"}}
         result["meta"] = meta
         for name, scene, view in bench_scenes(scenes, size, skipped):
             with Renderer(scene, gl=gl) as r:
                 culled = {}  # (build, config, size) -> tile-culling columns
-                for build, (suite, eye_size, cname, n, shade_all) in ((b, p) for b in builds for p in plan):
+                runs = ((b, p, tc) for b in builds for p in plan
+                        for tc in ((False,) if table[p[2]][2] == "raster" else frame_culling))
+                for build, (suite, eye_size, cname, n, shade_all), tc in runs:
                     model, fov, primary = table[cname]
                     rig = StereoRig(view.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=eye_size,
                                     camera=model)
-                    r.settings = RenderSettings(primary=primary, msaa=n, ssaa=shade_all, bvh_build=build)
+                    r.settings = RenderSettings(primary=primary, msaa=n, ssaa=shade_all, bvh_build=build, tile_culling=tc)
                     names, med, total = time_frame(r, rig, repeat, warmup)
                     row = {"suite": suite, "scene": name, "config": cname, "camera": model.name, "primary": primary,
                            "sub_rays_per_sample": n, "shading": "ssaa" if shade_all else "msaa", "bvh_build": build,
-                           "size": f"2x{eye_size[0]}x{eye_size[1]}", "total_ms": total,
+                           "tile_culling": tc, "size": f"2x{eye_size[0]}x{eye_size[1]}", "total_ms": total,
                            "pass_ms": {k: med[k] for k in names if k in med}}
                     if primary == "rays":
-                        kernel = primary_kernel_ms(r, rig)
+                        kernel, cull_ms = primary_kernel_ms(r, rig)
                         samples = samples_per_frame(rig)
                         sub_rays = samples * n * model.channels
-                        row.update(samples=samples, channels=model.channels, sub_rays=sub_rays, primary_ms=kernel,
+                        row.update(samples=samples, channels=model.channels, sub_rays=sub_rays, primary_ms=kernel, cull_ms=cull_ms,
                                    **frame_rounds(r, rig), sub_grays_s=sub_rays / (kernel * 1e6) if kernel > 0 else None,
                                    visibility_ms=med.get("primary_rays", 0.0) + med.get("gbuffer", 0.0))
                         key = (build, cname, eye_size)
-                        if tiles and (suite == "table5" or n == 1) and not shade_all:
+                        if tiles and (suite == "table5" or n == 1) and not shade_all and not tc:
                             if key not in culled:
                                 r.accel.ensure()
                                 culled[key] = tile_culling(gl, r.accel.gpu, rig, scene.origin, max(2, repeat // 4))
@@ -226,7 +260,8 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                             rate += f", rounds {row['rounds']} needed / {row['rounds_recorded']:g} recorded"
                         cull = (f"; standalone {row['trace_grays_s']:.2f} / tiles {row['trace_tiles_grays_s']:.2f} GRays/s"
                                 if "trace_grays_s" in row else "")
-                        print(f"  {suite:6s} {name:8s} {build:4s} {cname:20s} {n:2d}x {row['shading']} {row['size']} frame "
+                        tag = "+tiles" if tc else ""
+                        print(f"  {suite:6s} {name:8s} {build:4s} {cname + tag:20s} {n:2d}x {row['shading']} {row['size']} frame "
                               f"{total:.3f} ms, visibility {row['visibility_ms']:.3f} ms{rate}{cull}", flush=True)
     finally:
         gl.release()

@@ -27,6 +27,17 @@ however late the count is known (tests force both ends through COUNT_POLL). Empt
 (a pixel with fewer triangles than the count, most pixels in most rounds) are skipped the same
 way where exact (`skips_empty_slots`): instead of a background resolved, shaded and added with
 weight 0, a 4-byte weight read per pass.
+
+Tile frustum culling (FramePlan.tile_culling, RenderSettings.tile_culling, `--tile-culling`; off by
+default): each channel set's first round first runs a `cull` stage (glsl/accel/tile_cull.comp with
+TILE_CAMERA): one workgroup per TILE_PIXELS block of pixels (16 x 8 = TILE_RAYS samples) bounds
+every ray the rounds will cast there (all sub-rays of each sample's footprint, thin-lens lens
+points, this channel set's distortion) with a conservative frustum and lists the BVH entry nodes
+it meets, nearest first; the trace then starts each ray from its tile's entries instead of the
+root. Exact: the same triangle and distance as per-ray traversal (tests/test_tile_culling_frame.py).
+The entries are child pairs of the binary layout, so with tile culling primary rays walk `bvh2`,
+whatever `traversal` names for them. Tiles whose rays spread beyond ~84 deg (wide cameras at low
+resolution) fall back to the root's children.
 """
 from __future__ import annotations
 
@@ -34,10 +45,11 @@ import moderngl
 import numpy as np
 
 from .. import shaders
+from ..accel.frustum import tile_grid
 from ..accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effects import EFFECTS
 from ..frame import Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
-from ..gpu_layout import IMAGE, NO_HIT, SSBO, channel
+from ..gpu_layout import IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_RAYS, channel
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
@@ -92,6 +104,12 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
     return out.reshape((slots,) + shape + (4,))
 
 
+def frame_tiles(sizing) -> int:
+    """Tiles of a frame (tile culling): TILE_PIXELS blocks of every layer."""
+    nx, ny = tile_grid(*sizing.size)
+    return nx * ny * sizing.layers
+
+
 def msaa_slots(plan: FramePlan) -> int:
     return min(plan.samples, MAX_SLOTS)
 
@@ -130,7 +148,8 @@ class PrimaryRaysPass(Pass):
         if plan.primary != "rays":
             return None
         sub = f", {plan.samples} sub-rays per sample ({plan.shading})" if plan.samples > 1 else ""
-        return f"primary visibility = rays ({plan.camera} camera{sub})"
+        tiles = ", tile frustum culling (bvh2)" if plan.tile_culling else ""
+        return f"primary visibility = rays ({plan.camera} camera{sub}{tiles})"
 
     def io(self, plan: FramePlan) -> list:
         out = [read("bvh"), write("visibility", GBufferChannels(("triangle", "position")))]
@@ -141,18 +160,28 @@ class PrimaryRaysPass(Pass):
             # Slot-major: slot k of every pixel, then slot k + 1 (coalesced writes and reads).
             out += [write("msaa_hits", Buffer(lambda s, n=slots: s.pixels * n * 16, f"{slots} x 16 bytes per pixel")),
                     write("msaa_count", Buffer(lambda s: 4, "4 bytes"))]
+        if plan.tile_culling:
+            out += [write("tile_entries", Buffer(lambda s: frame_tiles(s) * (TILE_ENTRIES + 1) * 4,
+                                                 f"{TILE_ENTRIES + 1} words per {TILE_RAYS}-pixel tile")),
+                    write("tile_planes", Buffer(lambda s: frame_tiles(s) * 80, "5 planes per tile"))]
         return out
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.layout = plan.traversal[0]   # the primary rays' BVH layout
+        # the primary rays' BVH layout; tile entry lists name binary child pairs
+        self.layout = "bvh2" if plan.tile_culling else plan.traversal[0]
         self.block = msaa_block(plan.samples)
+        tiles = {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": TILE_ENTRIES, "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
+                 "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
         base = {**layout_defines(DEFAULT_BINDING, self.layout), **camera_defines(plan), "SAMPLED": int(plan.sampled),
                 "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
                 "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples,
-                "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan))}
+                "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles}
         self.msaa = uses_msaa(plan)
         self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
                          for mode in ((1, 2) if self.msaa else (0,))}
+        self.cull = (shaders.compute(gl.ctx, "accel/tile_cull.comp", {**layout_defines(DEFAULT_BINDING, "bvh2"),
+                                                                     **camera_defines(plan), **tiles, "TILE_CAMERA": 1})
+                     if plan.tile_culling else None)
         # msaa_count is zeroed and read back through copies (GPU-side), never written or read by the
         # CPU itself: the CPU reading it every frame made the NVIDIA driver keep it in host memory,
         # and each atomic on it then took ~1.1 us across the bus (H200: 80 ms for one per
@@ -171,6 +200,8 @@ class PrimaryRaysPass(Pass):
             gb.textures[name].bind_to_image(channel(name).image, read=False, write=True)
         if "sample_weight" in fc.resources:
             fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=False, write=True)
+        if self.cull is not None:
+            self.cull_tiles(fc)
         if not self.msaa:
             if rnd.first:  # SSAA: one round per sub-ray; 1x: one
                 rnd.start(fc.plan.samples)
@@ -211,6 +242,19 @@ class PrimaryRaysPass(Pass):
             return max(1, int(np.frombuffer(readback.read(), np.uint32)[channel]))
         return count
 
+    def cull_tiles(self, fc) -> None:
+        """Tile culling: the tiles' entry lists, made in each channel set's first round (they bound
+        every sub-ray the set's rounds cast), read by every round's trace."""
+        fc.resource("tile_entries").bind_to_storage_buffer(SSBO["tile_entries"])
+        fc.resource("tile_planes").bind_to_storage_buffer(SSBO["tile_planes"])
+        if not fc.round.first:
+            return
+        set_eye_uniforms(self.cull, fc)
+        self.cull["image_size"].value = tuple(fc.sizing.size)
+        nx, ny = tile_grid(*fc.sizing.size)
+        fc.stage("cull", lambda: (self.cull.run(nx, ny, fc.sizing.layers),
+                                  fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)))
+
     def dispatch_trace(self, fc) -> None:
         """One workgroup per block of pixels (msaa_block), one invocation per sub-ray."""
         (w, h), (bw, bh) = fc.sizing.size, self.block
@@ -218,5 +262,5 @@ class PrimaryRaysPass(Pass):
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
     def release(self) -> None:
-        for p in [*self.programs.values(), *self.count_io, *self.fences.values()]:
+        for p in [*self.programs.values(), *self.count_io, *self.fences.values(), *([self.cull] if self.cull else [])]:
             p.release()

@@ -44,6 +44,7 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #include "../accel/bvh.glsl"
 #include "../common/camera.glsl"
 #include "../common/round_skip.glsl"
+#include "primary_ray.glsl"
 
 layout(rgba32f, binding = GB_IMAGE_POSITION) uniform writeonly image2DArray img_position;
 layout(r32ui, binding = GB_IMAGE_TRIANGLE) uniform writeonly uimage2DArray img_triangle;
@@ -66,14 +67,16 @@ shared vec2 sub_offset[CAMERA_SUBSAMPLES];  // camera_subpixel(i), computed once
 uniform int subsample;  // PRIMARY_MODE 0
 uniform int msaa_round;  // PRIMARY_MODE 2
 
-// Closest hit of one camera ray; false: the sample makes no ray.
-bool cast_primary(int eye, vec3 o, vec3 d, out Hit h) {
-    Ray r = Ray(o, 0.0, d, 3.0e38);
-    float along = max(camera_depth_per_distance(eye, d), 1e-30);
-    if (eye_depth.y > 0.0) r.tmax = eye_depth.y / along;  // a finite far plane clips as the rasterizer does
-    r.tmin = eye_depth.x / along;
+// Closest hit of the camera ray (o, d) of pixel p: from the BVH root, or with tile culling
+// (TILE_ENTRIES_BINDING, passes/primary_rays.py) from the entry list of the pixel's tile, which
+// tile_cull.comp made for every sub-ray of the tile's pixels: the same hit, less work.
+void cast_primary(ivec3 p, ivec2 size, vec3 o, vec3 d, out Hit h) {
+    Ray r = primary_ray(p.z, o, d);
+#ifdef TILE_ENTRIES_BINDING
+    trace_closest_in_tile(r, primary_tile(p, size), h);
+#else
     trace_closest(r, h);
-    return true;
+#endif
 }
 
 void store(ivec3 p, uint tri, uint sub, float t, float weight) {
@@ -162,7 +165,7 @@ void main() {
     Hit h;
     h.prim = BVH_MISS;
     h.t = 0.0;
-    if (inside && camera_subray(p.z, vec2(p.xy) + 0.5, vec2(size), sub, o, d)) cast_primary(p.z, o, d, h);
+    if (inside && camera_subray(p.z, vec2(p.xy) + 0.5, vec2(size), sub, o, d)) cast_primary(p, size, o, d, h);
     sub_tri[lid] = h.prim;
     sub_t[lid] = h.t;
     barrier();
@@ -180,7 +183,7 @@ void main() {
     h.prim = BVH_MISS;
     h.t = 0.0;
     bool sample_here = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
-    if (camera_subray(p.z, pixel, vec2(size), uint(subsample), o, d)) cast_primary(p.z, o, d, h);
+    if (camera_subray(p.z, pixel, vec2(size), uint(subsample), o, d)) cast_primary(p, size, o, d, h);
     // A pixel without a sample (foveated) weighs nothing: the resolve fills it for display.
     store(p, h.prim, uint(subsample), h.t, sample_here ? 1.0 / float(CAMERA_SUBSAMPLES) : 0.0);
 #else
