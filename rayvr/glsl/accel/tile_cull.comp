@@ -79,8 +79,15 @@ bool tile_ray(uint lid, uint k, out Ray r) {
 }
 #endif
 
+#if TILE_ENTRIES > TILE_RAYS
+#error tile_cull.comp tests a list's entries one an invocation: TILE_ENTRIES must be <= TILE_RAYS
+#endif
 shared vec4 red[TILE_RAYS];
-shared uint cut[2][TILE_ENTRIES];
+shared uint cut[2][TILE_ENTRIES];     // the list, and the next sweep's
+shared uvec2 cut_children[TILE_ENTRIES];  // per entry: which children meet the frustum (4: a leaf), child node
+shared float cut_key[TILE_ENTRIES];   // per entry: its box's nearest c.x (TILE_SORT)
+shared int cut_count;
+shared bool cut_opened;
 
 // red[0] = op over the group of every invocation's x (op: 0 sum, 1 min, 2 max).
 #define REDUCE(x, op) { \
@@ -153,76 +160,109 @@ void main() {
             w_acc = max(w_acc, vec4(dot(n[0], r.origin), dot(n[1], r.origin), dot(n[2], r.origin), dot(n[3], r.origin)));
     REDUCE(w_acc, 2)
     vec4 w = red[0];
-    if (lid != 0u)
-        return;
     bool fallback = !(mins.x > TILE_MIN_COS);    // also NaN
     vec4 planes[5];
     for (int k = 0; k < 4; ++k)
         planes[k] = vec4(n[k], w[k] + TILE_SLACK * length(n[k]) * maxs.z + slack_o);
     planes[4] = vec4(c, maxs.y + TILE_SLACK * (abs(maxs.y) + maxs.z));
-    for (int k = 0; k < 5; ++k)
-        tile_planes[5u * tile + uint(k)] = sum.w == 0.0 ? vec4(0.0) : (fallback ? vec4(0.0, 0.0, 0.0, 1.0) : planes[k]);
-    if (sum.w == 0.0) {              // no valid ray: nothing to trace
-        tile_entries[base] = 0u;
+    if (lid < 5u)
+        tile_planes[5u * tile + lid] = sum.w == 0.0 ? vec4(0.0) : (fallback ? vec4(0.0, 0.0, 0.0, 1.0) : planes[lid]);
+    if (sum.w == 0.0) {              // no valid ray: nothing to trace (the same for the whole group)
+        if (lid == 0u)
+            tile_entries[base] = 0u;
         return;
     }
     // The cut: start at the root's children, then sweep the list left to right opening internal
     // entries into their children that meet the frustum while the list has room; stop when a sweep
-    // opens nothing. Left-to-right order is kept, so entries stay in tree order (sorted below).
-    int count = 0, cur = 0;
-    for (int side = 0; side < 2; ++side) {
-        vec3 lo, hi;
-        bvh2_child_box(bvh_nodes[0], bvh_nodes[1], bvh_nodes[2], side, lo, hi);
-        if (fallback || frustum_overlaps(planes, lo, hi))
-            cut[0][count++] = uint(side);
-    }
-    bool opened = !fallback;
-    while (opened) {
-        opened = false;
-        int out_n = 0;
-        for (int k = 0; k < count; ++k) {
-            uint e = cut[cur][k];
-            int parent = int(e >> 1u), side = int(e & 1u);
-            ivec4 m = floatBitsToInt(bvh_nodes[4 * parent + 3]);
-            int index = side == 0 ? m.x : m.y, cnt = side == 0 ? m.z : m.w;
-            // room: this entry's slot plus one more, and one slot for each entry still to copy
-            if (cnt > 0 || out_n + 2 + (count - k - 1) > TILE_ENTRIES) {
-                cut[1 - cur][out_n++] = e;
-                continue;
-            }
-            opened = true;
-            for (int cs = 0; cs < 2; ++cs) {
-                vec3 lo, hi;
-                bvh2_child_box(bvh_nodes[4 * index], bvh_nodes[4 * index + 1], bvh_nodes[4 * index + 2], cs, lo, hi);
-                if (frustum_overlaps(planes, lo, hi))
-                    cut[1 - cur][out_n++] = (uint(index) << 1u) | uint(cs);
-            }
+    // opens nothing. Each sweep tests every entry's children at once (invocation k: entry k; their
+    // node fetches overlap), then invocation 0 builds the next list from those answers.
+    // Left-to-right order is kept, so entries stay in tree order (sorted below).
+    if (lid == 0u) {
+        int count = 0;
+        for (int side = 0; side < 2; ++side) {
+            vec3 lo, hi;
+            bvh2_child_box(bvh_nodes[0], bvh_nodes[1], bvh_nodes[2], side, lo, hi);
+            if (fallback || frustum_overlaps(planes, lo, hi))
+                cut[0][count++] = uint(side);
         }
-        count = out_n;
+        cut_count = count;
+        cut_opened = !fallback;
+    }
+    barrier();
+    int cur = 0;
+    while (cut_opened) {             // dynamically uniform: shared, read after a barrier
+        int count = cut_count;
+        if (lid < uint(count)) {
+            uint e = cut[cur][lid];
+            ivec4 m = floatBitsToInt(bvh_nodes[4 * int(e >> 1u) + 3]);
+            bool left = (e & 1u) == 0u;
+            int index = left ? m.x : m.y, cnt = left ? m.z : m.w;
+            uint bits = 4u;          // a leaf: kept as it is
+            if (cnt == 0) {
+                bits = 0u;
+                vec4 n0 = bvh_nodes[4 * index], n1 = bvh_nodes[4 * index + 1], n2 = bvh_nodes[4 * index + 2];
+                for (int cs = 0; cs < 2; ++cs) {
+                    vec3 lo, hi;
+                    bvh2_child_box(n0, n1, n2, cs, lo, hi);
+                    bits |= frustum_overlaps(planes, lo, hi) ? 1u << uint(cs) : 0u;
+                }
+            }
+            cut_children[lid] = uvec2(bits, uint(index));
+        }
+        barrier();
+        if (lid == 0u) {
+            bool opened = false;
+            int out_n = 0;
+            for (int k = 0; k < count; ++k) {
+                uvec2 ch = cut_children[k];
+                // room: this entry's slot plus one more, and one slot for each entry still to copy
+                if (ch.x == 4u || out_n + 2 + (count - k - 1) > TILE_ENTRIES) {
+                    cut[1 - cur][out_n++] = cut[cur][k];
+                    continue;
+                }
+                opened = true;
+                for (uint cs = 0u; cs < 2u; ++cs)
+                    if ((ch.x & (1u << cs)) != 0u)
+                        cut[1 - cur][out_n++] = (ch.y << 1u) | cs;
+            }
+            cut_count = out_n;
+            cut_opened = opened;
+        }
+        barrier();
         cur = 1 - cur;
     }
+    int count = cut_count;
 #if TILE_SORT
     // Front to back: by the entry box's nearest point along the central direction, min over the box
-    // of c.x (stable insertion sort; equal keys keep tree order). A ray then meets near entries
-    // first, its h.t shrinks early and farther entries fail their slab test. The hits cannot change:
-    // the leaf test's tie rule (bvh.glsl bvh_leaf) makes them independent of the order.
-    float key[TILE_ENTRIES];
-    for (int k = 0; k < count; ++k) {
-        uint e = cut[cur][k];
+    // of c.x (keys at once, then a stable insertion sort; equal keys keep tree order). A ray then
+    // meets near entries first, its h.t shrinks early and farther entries fail their slab test, or
+    // end its walk (bvh2.glsl bvh_traverse_entries). The hits cannot change: the leaf test's tie
+    // rule (bvh.glsl bvh_leaf) makes them independent of the order.
+    if (lid < uint(count)) {
+        uint e = cut[cur][lid];
         int parent = int(e >> 1u);
         vec3 lo, hi;
         bvh2_child_box(bvh_nodes[4 * parent], bvh_nodes[4 * parent + 1], bvh_nodes[4 * parent + 2], int(e & 1u), lo, hi);
-        float kk = dot(c, 0.5 * (lo + hi)) - dot(abs(c), 0.5 * (hi - lo));
-        int j = k;
-        for (; j > 0 && key[j - 1] > kk; --j) {
-            key[j] = key[j - 1];
-            cut[cur][j] = cut[cur][j - 1];
-        }
-        key[j] = kk;
-        cut[cur][j] = e;
+        cut_key[lid] = dot(c, 0.5 * (lo + hi)) - dot(abs(c), 0.5 * (hi - lo));
     }
+    barrier();
+    if (lid == 0u) {
+        for (int k = 1; k < count; ++k) {
+            uint e = cut[cur][k];
+            float kk = cut_key[k];
+            int j = k;
+            for (; j > 0 && cut_key[j - 1] > kk; --j) {
+                cut_key[j] = cut_key[j - 1];
+                cut[cur][j] = cut[cur][j - 1];
+            }
+            cut_key[j] = kk;
+            cut[cur][j] = e;
+        }
+    }
+    barrier();
 #endif
-    tile_entries[base] = uint(count);
-    for (int k = 0; k < count; ++k)
-        tile_entries[base + 1u + uint(k)] = cut[cur][k];
+    if (lid == 0u)
+        tile_entries[base] = uint(count);
+    if (lid < uint(count))
+        tile_entries[base + 1u + lid] = cut[cur][lid];
 }
