@@ -420,11 +420,6 @@ def _among(text: str, what: str, allowed, unique: bool = False) -> tuple[str, ..
     return names
 
 
-def _packets(text: str) -> tuple[int, ...]:
-    from .passes.primary_rays import MSAA_PACKETS
-    return tuple(int(x) for x in _among(text, "sub-rays per packet", tuple(map(str, MSAA_PACKETS)), unique=True))
-
-
 def _builds(text: str) -> tuple[str, ...]:
     return _among(text, "BVH builds", BUILDS, unique=True)
 
@@ -526,8 +521,7 @@ def cmd_bench(args) -> int:
                     configs=_bench_configs("primary", args.configs, primary.CONFIGS),
                     suites=("views",) if subset else primary.SUITES,
                     table5_size=(24, 16) if quick else primary.TABLE5_SIZE, tiles=not args.no_tiles,
-                    builds=args.bvh_build or ("sah",), frame_culling=(False, True) if args.tile_culling else (False,),
-                    packets=args.packets or (1,))
+                    builds=args.bvh_build or ("sah",), frame_culling=(False, True) if args.tile_culling else (False,))
     elif args.area == "peers":
         from .bench import peers
 
@@ -760,9 +754,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="gi: photon paths of the photon tables' reference (default 4194304; --quick 32768)")
     b.add_argument("--counts", type=_sample_counts,
                    help="primary: sub-rays per sample of the bench views' rows, comma-separated (default 1,4,16)")
-    b.add_argument("--packets", type=_packets, metavar="K",
-                   help="primary: every MSAA row once per number of sub-rays an invocation traces together "
-                        "(RenderSettings.msaa_packet), comma-separated among 1,2,4,8 (default 1)")
     add_camera_arguments(b, msaa_default=None)
     b.set_defaults(func=cmd_bench)
 

@@ -46,7 +46,6 @@ class FramePlan:
     camera: str = "pinhole"  # camera model (rayvr/cameras/)
     samples: int = 1  # sub-rays per camera sample (cameras/sampling.py SAMPLE_COUNTS)
     shading: str = "msaa"  # with samples > 1: "msaa" shades once per distinct triangle, "ssaa" every sub-ray
-    msaa_packet: int = 1  # sub-rays an invocation of the MSAA trace casts together (passes/primary_rays.py)
     channels: int = 1  # colour channel sets of the camera model (cast and shaded one after another)
     reconstruct: bool = False  # the camera's samples are sparse: filled in for display (foveated)
     stereo: str = "dual"  # how the second eye is made: "dual" renders both fully

@@ -33,7 +33,6 @@ from .gpu_layout import TONEMAPPERS, VIEWS
 from .gpu_scene import GpuScene
 from .passes import core_passes
 from .passes.classify import pixel_counts
-from .passes.primary_rays import MSAA_PACKETS
 from .passes.second_layer import depth_layers
 from .passes.visibility import pick_layer_mode
 from .readback import AUX_CHANNELS, Reader
@@ -89,9 +88,6 @@ class RenderSettings:
     ssaa: bool = False  # shade every sub-ray (else once per pixel per distinct triangle: MSAA)
     # Ray-cast primaries traced from per-tile BVH entry lists (passes/primary_rays.py; exact, bvh2)
     tile_culling: bool = False
-    # Sub-rays one invocation of the MSAA trace casts together through the binary BVH, sharing its box
-    # tests (accel/packet.glsl); 1: each sub-ray on its own through the primary layout (the reference).
-    msaa_packet: int = 1
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
@@ -126,8 +122,6 @@ class RenderSettings:
         if self.warp_layers not in (1, 2):
             raise ValueError(f"warp_layers must be 1 or 2, got {self.warp_layers!r}")
         check_count(self.msaa)
-        if self.msaa_packet not in MSAA_PACKETS:
-            raise ValueError(f"msaa_packet must be one of {', '.join(map(str, MSAA_PACKETS))}, got {self.msaa_packet!r}")
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:
@@ -219,7 +213,6 @@ class Renderer:
                          dof=color and st.dof_aperture > 0 and stereo == "dual" and camera.name == "pinhole",
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
                          tile_culling=bool(st.tile_culling) and primary == "rays",
-                         msaa_packet=min(st.msaa_packet, samples),
                          channels=camera.channels, reconstruct=camera.sparse)
 
     def set_stereo(self, mode: str) -> None:

@@ -130,26 +130,16 @@ def targets(rows) -> dict:
     (per BVH build and per tile culling, named in the key when the rows have several; the raster
     reference rows count in each)."""
     builds = list(dict.fromkeys(r.get("bvh_build", "sah") for r in rows))
-    traces = list(dict.fromkeys(_trace(r) for r in rows if r.get("primary") != "raster")) or [_trace({})]
+    culling = list(dict.fromkeys(r.get("tile_culling", False) for r in rows if r.get("primary") != "raster")) or [False]
     out = {}
     for b in builds:
-        for tr in traces:
-            label = " ".join(([b] if len(builds) > 1 else []) + ([_trace_name(tr)] if len(traces) > 1 else []))
+        for tc in culling:
+            label = " ".join(([b] if len(builds) > 1 else []) + (["tile culling" if tc else "per ray"]
+                                                                 if len(culling) > 1 else []))
             group = [r for r in rows if r.get("bvh_build", "sah") == b
-                     and (r.get("primary") == "raster" or _trace(r) == tr
-                          or (r["sub_rays_per_sample"] == 1 and _trace(r)[0] == tr[0]))]
+                     and (r.get("primary") == "raster" or r.get("tile_culling", False) == tc)]
             out.update({(f"[{label}] " if label else "") + k: v for k, v in build_targets(group).items()})
     return out
-
-
-def _trace(row) -> tuple:
-    """How a rays row traced: (tile culling, sub-rays per MSAA packet)."""
-    return bool(row.get("tile_culling", False)), int(row.get("msaa_packet", 1))
-
-
-def _trace_name(trace) -> str:
-    tc, pk = trace
-    return ("tile culling" if tc else "per ray") + (f", packets of {pk}" if pk > 1 else "")
 
 
 def build_targets(rows) -> dict:
@@ -185,11 +175,10 @@ def build_targets(rows) -> dict:
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, counts=None,
         ssaa=(4,), configs=None, custom=None, backend=None, progress=True, suites=SUITES,
-        table5_size=TABLE5_SIZE, tiles=True, builds=("sah",), frame_culling=(False,), packets=(1,)) -> dict:
+        table5_size=TABLE5_SIZE, tiles=True, builds=("sah",), frame_culling=(False,)) -> dict:
     """`configs`/`counts` (views suite rows; default VIEW_CONFIGS x VIEW_COUNTS); `builds`: every
     row once per BVH build (accel/bvh.BUILDS; rows carry `bvh_build`); `frame_culling`: every rays
-    row once per value (False: per-ray traversal, True: RenderSettings.tile_culling); `packets`: every
-    MSAA rays row without tile culling once per RenderSettings.msaa_packet (rows carry `msaa_packet`); `custom` =
+    row once per value (False: per-ray traversal, True: RenderSettings.tile_culling); `custom` =
     (camera model, fov_y or None): that camera instead (beside the raster reference), as
     `rayvr bench primary --camera-model ... --camera-param ...` asks. `tiles`: also trace each
     camera's central rays standalone without and with tile culling."""
@@ -213,7 +202,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
     try:
         meta = {**device_meta(gl.info()), "bench": "primary", "per_eye_size": list(size),
                 "table5_per_eye_size": list(table5_size), "suites": list(suites), "repeat": repeat,
-                "bvh_builds": list(builds), "tile_culling": list(frame_culling), "msaa_packets": list(packets),
+                "bvh_builds": list(builds), "tile_culling": list(frame_culling),
                 "skipped": skipped, "materials": "all raster (visibility, not shading, is measured)",
                 "what_times_include": {
                     "pass_ms": "GL timer query per pass, summed over a sampled frame's rounds; medians",
@@ -235,20 +224,17 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
         for name, scene, view in bench_scenes(scenes, size, skipped):
             with Renderer(scene, gl=gl) as r:
                 culled = {}  # (build, config, size) -> tile-culling columns
-                runs = ((b, p, tc, pk) for b in builds for p in plan
-                        for tc in ((False,) if table[p[2]][2] == "raster" else frame_culling)
-                        for pk in (packets if p[3] > 1 and not p[4] and not tc else (1,)))
-                for build, (suite, eye_size, cname, n, shade_all), tc, pk in runs:
+                runs = ((b, p, tc) for b in builds for p in plan
+                        for tc in ((False,) if table[p[2]][2] == "raster" else frame_culling))
+                for build, (suite, eye_size, cname, n, shade_all), tc in runs:
                     model, fov, primary = table[cname]
                     rig = StereoRig(view.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=eye_size,
                                     camera=model)
-                    r.settings = RenderSettings(primary=primary, msaa=n, ssaa=shade_all, bvh_build=build, tile_culling=tc,
-                                                msaa_packet=pk)
+                    r.settings = RenderSettings(primary=primary, msaa=n, ssaa=shade_all, bvh_build=build, tile_culling=tc)
                     names, med, total = time_frame(r, rig, repeat, warmup)
                     row = {"suite": suite, "scene": name, "config": cname, "camera": model.name, "primary": primary,
                            "sub_rays_per_sample": n, "shading": "ssaa" if shade_all else "msaa", "bvh_build": build,
-                           "tile_culling": tc, "msaa_packet": pk, "size": f"2x{eye_size[0]}x{eye_size[1]}",
-                           "total_ms": total,
+                           "tile_culling": tc, "size": f"2x{eye_size[0]}x{eye_size[1]}", "total_ms": total,
                            "pass_ms": {k: med[k] for k in names if k in med}}
                     if primary == "rays":
                         kernel, cull_ms = primary_kernel_ms(r, rig)
@@ -274,7 +260,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                             rate += f", rounds {row['rounds']} needed / {row['rounds_recorded']:g} recorded"
                         cull = (f"; standalone {row['trace_grays_s']:.2f} / tiles {row['trace_tiles_grays_s']:.2f} GRays/s"
                                 if "trace_grays_s" in row else "")
-                        tag = "+tiles" if tc else (f"+packets{pk}" if pk > 1 else "")
+                        tag = "+tiles" if tc else ""
                         print(f"  {suite:6s} {name:8s} {build:4s} {cname + tag:20s} {n:2d}x {row['shading']} {row['size']} frame "
                               f"{total:.3f} ms, visibility {row['visibility_ms']:.3f} ms{rate}{cull}", flush=True)
     finally:

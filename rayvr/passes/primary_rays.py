@@ -53,8 +53,7 @@ from ..gpu_layout import IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_RAYS, channel
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
-MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 x packet / N pixels
-MSAA_PACKETS = (1, 2, 4, 8)  # RenderSettings.msaa_packet: sub-rays an invocation traces together
+MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
 SAMPLE_WEIGHT = Texture("r32f")
 # How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without
 # waiting; "wait" reads it after the first round, waiting for the GPU; "never" does not read it
@@ -64,10 +63,9 @@ COUNT_POLL = "fence"
 SKIP_EMPTY_SLOTS = True  # False: empty slots above 0 are shaded as background of weight 0 (tests compare)
 
 
-def msaa_block(samples: int, packet: int = 1) -> tuple[int, int]:
-    """Pixels (w, h) of an MSAA trace workgroup of MSAA_GROUP invocations, each tracing `packet` of a
-    pixel's `samples` sub-rays: MSAA_GROUP x packet / samples pixels, as square as a power of two allows."""
-    pixels = max(1, MSAA_GROUP * packet // samples)
+def msaa_block(samples: int) -> tuple[int, int]:
+    """Pixels (w, h) of an MSAA trace workgroup: MSAA_GROUP / samples pixels, as square as a power of two allows."""
+    pixels = max(1, MSAA_GROUP // samples)
     w = 1 << (pixels.bit_length() // 2)
     return w, pixels // w
 
@@ -169,19 +167,16 @@ class PrimaryRaysPass(Pass):
         return out
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.msaa = uses_msaa(plan)
-        # sub-rays an invocation of the MSAA trace casts together; packets start at the BVH root, so
-        # a tile-culled frame (which starts each ray at its tile's entries) casts them one by one
-        packet = plan.msaa_packet if self.msaa and not plan.tile_culling else 1
-        # the primary rays' BVH layout; tile entry lists name binary child pairs, packets walk bvh2
-        self.layout = "bvh2" if plan.tile_culling or packet > 1 else plan.traversal[0]
-        self.block = msaa_block(plan.samples, packet)
+        # the primary rays' BVH layout; tile entry lists name binary child pairs
+        self.layout = "bvh2" if plan.tile_culling else plan.traversal[0]
+        self.block = msaa_block(plan.samples)
         tiles = {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": TILE_ENTRIES, "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
                  "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
         base = {**layout_defines(DEFAULT_BINDING, self.layout), **camera_defines(plan), "SAMPLED": int(plan.sampled),
                 "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
-                "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples // packet, "MSAA_PACKET": packet,
+                "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples,
                 "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles}
+        self.msaa = uses_msaa(plan)
         self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
                          for mode in ((1, 2) if self.msaa else (0,))}
         self.cull = (shaders.compute(gl.ctx, "accel/tile_cull.comp", {**layout_defines(DEFAULT_BINDING, "bvh2"),
@@ -261,7 +256,7 @@ class PrimaryRaysPass(Pass):
                                   fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)))
 
     def dispatch_trace(self, fc) -> None:
-        """One workgroup per block of pixels (msaa_block), one invocation per packet of sub-rays."""
+        """One workgroup per block of pixels (msaa_block), one invocation per sub-ray."""
         (w, h), (bw, bh) = fc.sizing.size, self.block
         self.programs[1].run(-(-w // bw), -(-h // bh), fc.sizing.layers)
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)

@@ -5,8 +5,6 @@
 // Modes 2 and 3 report the second ray's hit (self-intersection tests).
 // With TILE_ENTRIES_BINDING (tile frustum culling), the first ray starts from its tile's entry list.
 // With BVH_COUNT_WORK, each ray's traversal work (bvh.glsl bvh_work) goes to work[] at WORK_BINDING.
-// With PACKET_RAYS (closest hits, binary BVH), invocation i traces rays i * PACKET_RAYS .. together
-// (accel/packet.glsl; tests/test_packets.py compares it with one ray per invocation).
 #ifndef TRACE_MODE
 #define TRACE_MODE 0
 #endif
@@ -23,9 +21,6 @@
 layout(local_size_x = LOCAL_SIZE) in;
 
 #include "bvh.glsl"
-#ifdef PACKET_RAYS
-#include "packet.glsl"
-#endif
 
 layout(std430, binding = RAYS_BINDING) readonly restrict buffer Rays { vec4 rays[]; };  // (o, tmin), (d, tmax)
 layout(std430, binding = HITS_BINDING) writeonly restrict buffer Hits { uvec4 hits[]; }; // prim, t, u, v bits
@@ -41,22 +36,6 @@ uniform uint ray_count;
 
 void main() {
     uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * LOCAL_SIZE;
-#ifdef PACKET_RAYS
-    Ray rs[PACKET_RAYS];
-    Hit hs[PACKET_RAYS];
-    for (uint k = 0u; k < uint(PACKET_RAYS); ++k) {
-        uint j = i * uint(PACKET_RAYS) + k;
-        vec4 a = j < ray_count ? rays[2 * j] : vec4(0.0), b = j < ray_count ? rays[2 * j + 1] : vec4(0.0);
-        rs[k] = Ray(a.xyz, a.w, b.xyz, b.w);   // past the end: a zero direction, which traces nothing
-    }
-    trace_packet(rs, hs);
-    for (uint k = 0u; k < uint(PACKET_RAYS); ++k) {
-        uint j = i * uint(PACKET_RAYS) + k;
-        if (j < ray_count)
-            hits[j] = uvec4(hs[k].prim, floatBitsToUint(hs[k].t), floatBitsToUint(hs[k].uv.x), floatBitsToUint(hs[k].uv.y));
-    }
-    return;
-#endif
     if (i >= ray_count)
         return;
     vec4 a = rays[2 * i];

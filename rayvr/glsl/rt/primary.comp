@@ -35,21 +35,13 @@
 #ifndef MSAA_SKIP_EMPTY
 #define MSAA_SKIP_EMPTY 0
 #endif
-#ifndef MSAA_PACKET
-#define MSAA_PACKET 1
-#endif
 #if PRIMARY_MODE == 1
-// = MSAA_BLOCK_W * MSAA_BLOCK_H * CAMERA_SUBSAMPLES / MSAA_PACKET (a literal: GLSL 4.30)
-layout(local_size_x = MSAA_GROUP) in;
+layout(local_size_x = MSAA_GROUP) in;  // = MSAA_BLOCK_W * MSAA_BLOCK_H * CAMERA_SUBSAMPLES (a literal: GLSL 4.30)
 #else
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #endif
 #include "../layout.glsl"
 #include "../accel/bvh.glsl"
-#if PRIMARY_MODE == 1 && MSAA_PACKET > 1
-#define PACKET_RAYS MSAA_PACKET
-#include "../accel/packet.glsl"
-#endif
 #include "../common/camera.glsl"
 #include "../common/round_skip.glsl"
 #include "primary_ray.glsl"
@@ -68,8 +60,8 @@ layout(std430, binding = SSBO_MSAA_COUNT) buffer MsaaCount { uint msaa_count; };
 #if PRIMARY_MODE == 1
 // The workgroup's largest count: at most one global atomic per workgroup, not one per pixel.
 shared uint group_count;
-shared uint sub_tri[MSAA_GROUP * MSAA_PACKET];  // each sub-ray's triangle (BVH_MISS: background) and distance,
-shared float sub_t[MSAA_GROUP * MSAA_PACKET];   //   pixel-major: the block's pixel j has entries j * N .. j * N + N - 1
+shared uint sub_tri[MSAA_GROUP];   // each sub-ray's triangle (BVH_MISS: background) and distance,
+shared float sub_t[MSAA_GROUP];    //   pixel-major: the block's pixel j has entries j * N .. j * N + N - 1
 shared vec2 sub_offset[CAMERA_SUBSAMPLES];  // camera_subpixel(i), computed once per workgroup
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
@@ -152,11 +144,9 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base) {
 
 void main() {
 #if PRIMARY_MODE == 1
-    // Invocation -> (pixel of the workgroup's block, its sub-rays first .. first + MSAA_PACKET - 1): a
-    // pixel's sub-rays are in one invocation or in neighbouring ones (coherent rays in a warp).
-    const uint lanes = uint(CAMERA_SUBSAMPLES / MSAA_PACKET);   // invocations per pixel
-    uint lid = gl_LocalInvocationIndex, lane = lid % lanes, j = lid / lanes;
-    uint base = j * uint(CAMERA_SUBSAMPLES), first = lane * uint(MSAA_PACKET);
+    // Invocation -> (pixel of the workgroup's block, sub-ray): a pixel's sub-rays are neighbouring
+    // invocations (one warp traces a few neighbouring pixels' sub-rays: coherent rays).
+    uint lid = gl_LocalInvocationIndex, sub = lid % uint(CAMERA_SUBSAMPLES), j = lid / uint(CAMERA_SUBSAMPLES);
     ivec3 p = ivec3(ivec2(gl_WorkGroupID.xy) * ivec2(MSAA_BLOCK_W, MSAA_BLOCK_H) +
                     ivec2(j % uint(MSAA_BLOCK_W), j / uint(MSAA_BLOCK_W)), gl_WorkGroupID.z);
 #else
@@ -171,30 +161,15 @@ void main() {
 #if PRIMARY_MODE == 1
     if (lid == 0u) group_count = 0u;
     if (lid < uint(CAMERA_SUBSAMPLES)) sub_offset[lid] = camera_subpixel(lid);
-#if MSAA_PACKET > 1
-    Ray rays[MSAA_PACKET];
-    Hit hits[MSAA_PACKET];
-    for (int i = 0; i < MSAA_PACKET; ++i) {
-        vec3 o, d;
-        bool ray = inside && camera_subray(p.z, vec2(p.xy) + 0.5, vec2(size), first + uint(i), o, d);
-        rays[i] = ray ? primary_ray(p.z, o, d) : Ray(vec3(0.0), 0.0, vec3(0.0), 0.0);   // traces nothing
-    }
-    trace_packet(rays, hits);
-    for (int i = 0; i < MSAA_PACKET; ++i) {
-        sub_tri[base + first + uint(i)] = hits[i].prim;
-        sub_t[base + first + uint(i)] = hits[i].t;
-    }
-#else
     vec3 o, d;
     Hit h;
     h.prim = BVH_MISS;
     h.t = 0.0;
-    if (inside && camera_subray(p.z, vec2(p.xy) + 0.5, vec2(size), first, o, d)) cast_primary(p, size, o, d, h);
-    sub_tri[base + first] = h.prim;
-    sub_t[base + first] = h.t;
-#endif
+    if (inside && camera_subray(p.z, vec2(p.xy) + 0.5, vec2(size), sub, o, d)) cast_primary(p, size, o, d, h);
+    sub_tri[lid] = h.prim;
+    sub_t[lid] = h.t;
     barrier();
-    if (inside && lane == 0u) atomicMax(group_count, msaa_merge(p, size, index, pixels, base));
+    if (inside && sub == 0u) atomicMax(group_count, msaa_merge(p, size, index, pixels, lid));
     barrier();
     // One round is the least a frame runs (primary_rays.py): only a count above 1 needs telling, and
     // only when it is above what is already there (most workgroups see one triangle per pixel).
