@@ -152,10 +152,11 @@ def add_camera_arguments(p: argparse.ArgumentParser, msaa_default: int | None = 
                    help="sub-rays per sample (anti-aliasing; casts primary rays): shading once per pixel per "
                         "distinct triangle, or per sub-ray with --ssaa")
     g.add_argument("--ssaa", action="store_true", help="shade every sub-ray of --msaa N (supersampling)")
-    g.add_argument("--tile-culling", action="store_true",
+    g.add_argument("--tile-culling", action=argparse.BooleanOptionalAction, default=None,
                    help="ray-cast primary visibility culls the BVH per 16x8-pixel tile first (a frustum over every "
                         "sub-ray, lens point and channel of the tile; the same hits, exact) and walks the binary "
-                        "layout; bench primary: each rays row also with it")
+                        "layout (default: with --msaa above 1, where it is faster); bench primary: each rays row "
+                        "without and with it")
 
 
 def camera_from_args(args):

@@ -86,8 +86,11 @@ class RenderSettings:
     dof_samples: int = 16  # lens rays per pixel
     msaa: int = 1  # sub-rays per camera sample (cameras/sampling.py SAMPLE_COUNTS): rayvr's anti-aliasing
     ssaa: bool = False  # shade every sub-ray (else once per pixel per distinct triangle: MSAA)
-    # Ray-cast primaries traced from per-tile BVH entry lists (passes/primary_rays.py; exact, bvh2)
-    tile_culling: bool = False
+    # Ray-cast primaries traced from per-tile BVH entry lists (passes/primary_rays.py; exact, bvh2).
+    # None: on where a sample casts several sub-rays (msaa > 1), off at one ray per sample: on the H200
+    # culling made 4x/16x MSAA and 4x SSAA frames faster and 1x frames slower
+    # (bench/results/h200/2026-11-30/primary/after_rounds_tiles_packets).
+    tile_culling: bool | None = None
 
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
@@ -122,6 +125,13 @@ class RenderSettings:
         if self.warp_layers not in (1, 2):
             raise ValueError(f"warp_layers must be 1 or 2, got {self.warp_layers!r}")
         check_count(self.msaa)
+        if self.tile_culling not in (None, True, False):
+            raise ValueError(f"tile_culling must be True, False or None (auto), got {self.tile_culling!r}")
+
+    @property
+    def culls_tiles(self) -> bool:
+        """Whether ray-cast primaries are tile-culled (tile_culling, or its automatic choice)."""
+        return self.msaa > 1 if self.tile_culling is None else self.tile_culling
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:
@@ -212,7 +222,7 @@ class Renderer:
                          second_layer=second, traversal=st.traversal, bvh_build=st.bvh_build,
                          dof=color and st.dof_aperture > 0 and stereo == "dual" and camera.name == "pinhole",
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
-                         tile_culling=bool(st.tile_culling) and primary == "rays",
+                         tile_culling=st.culls_tiles and primary == "rays",
                          channels=camera.channels, reconstruct=camera.sparse)
 
     def set_stereo(self, mode: str) -> None:

@@ -126,8 +126,8 @@ def test_capture_with_tile_culling_writes_the_same_frame(tmp_path):
     from test_cli import rayvr
 
     outs = []
-    for flags in ((), ("--tile-culling",)):
-        out = tmp_path / ("on" if flags else "off")
+    for flags in (("--no-tile-culling",), ("--tile-culling",)):
+        out = tmp_path / flags[0]
         run = rayvr("capture", "--size", "32x16", "--out", str(out), "--msaa", "4", *flags, "--timings")
         assert run.returncode == 0, run.stderr
         assert ("tile_entries" in run.stdout or "primary_rays" in run.stdout)
@@ -149,3 +149,14 @@ def test_bench_primary_rows_with_and_without_frame_tile_culling(tmp_path):
     assert plain["tiles_triangle_tests"] <= plain["tree_triangle_tests"] + 1e-9
     keys = " ".join(result["meta"]["targets"])
     assert "[tile culling]" in keys and "[per ray]" in keys
+
+
+def test_tile_culling_is_chosen_where_it_measured_faster():
+    """Default (None): culled with several sub-rays per sample, not at one ray per sample; explicit
+    values win; anything else is refused."""
+    assert RenderSettings(msaa=4).culls_tiles and RenderSettings(msaa=16, ssaa=True).culls_tiles
+    assert not RenderSettings().culls_tiles and not RenderSettings(primary="rays").culls_tiles
+    assert RenderSettings(primary="rays", tile_culling=True).culls_tiles
+    assert not RenderSettings(msaa=4, tile_culling=False).culls_tiles
+    with pytest.raises(ValueError, match="tile_culling"):
+        RenderSettings(tile_culling="yes")
