@@ -752,7 +752,7 @@ class Preview:
         speed = f"speed {cam.speed:.3g}/s" if cam.mode == "fly" else f"distance {cam.distance:.3g}"
         st = self.renderer.settings
         aa = f"{st.msaa}x {'ssaa' if st.ssaa else 'msaa'}" if st.msaa > 1 else "no anti-aliasing"
-        aa += ", tile culling" if st.culls_tiles else ""
+        aa += ", tile culling" if st.culls_tiles(cam.home.camera.name) else ""
         lines.append((f"{cam.mode}  {speed}   IPD {cam.ipd:.4g}  convergence {conv}   "
                       f"camera {cam.home.camera.name}, {aa}", white))
         lines.append((self.picked_text(), white))

@@ -87,9 +87,7 @@ class RenderSettings:
     msaa: int = 1  # sub-rays per camera sample (cameras/sampling.py SAMPLE_COUNTS): rayvr's anti-aliasing
     ssaa: bool = False  # shade every sub-ray (else once per pixel per distinct triangle: MSAA)
     # Ray-cast primaries traced from per-tile BVH entry lists (passes/primary_rays.py; exact, bvh2).
-    # None: on where a sample casts several sub-rays (msaa > 1), off at one ray per sample: on the H200
-    # culling made 4x/16x MSAA and 4x SSAA frames faster and 1x frames slower
-    # (bench/results/h200/2026-11-30/primary/after_rounds_tiles_packets).
+    # None: chosen per frame as measured on the H200 (culls_tiles).
     tile_culling: bool | None = None
 
     def __post_init__(self):
@@ -128,10 +126,15 @@ class RenderSettings:
         if self.tile_culling not in (None, True, False):
             raise ValueError(f"tile_culling must be True, False or None (auto), got {self.tile_culling!r}")
 
-    @property
-    def culls_tiles(self) -> bool:
-        """Whether ray-cast primaries are tile-culled (tile_culling, or its automatic choice)."""
-        return self.msaa > 1 if self.tile_culling is None else self.tile_culling
+    def culls_tiles(self, camera: str = "pinhole") -> bool:
+        """Whether ray-cast primaries of a `camera` model (its name) are tile-culled: tile_culling, or
+        when None, where it measured faster on the H200 (bench/results/h200/2026-11-30/primary/
+        after_rounds_tiles_packets, tile_culling_table5): with several sub-rays per sample (one cull
+        serves them all), except for the foveated model (sparse samples: 5.9 -> 8.9 ms) and thin-lens
+        DoF (lens rays widen the tiles' frusta: slower in the room at every focus)."""
+        if self.tile_culling is not None:
+            return self.tile_culling
+        return self.msaa > 1 and camera not in ("foveated", "dof")
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:
@@ -222,7 +225,7 @@ class Renderer:
                          second_layer=second, traversal=st.traversal, bvh_build=st.bvh_build,
                          dof=color and st.dof_aperture > 0 and stereo == "dual" and camera.name == "pinhole",
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
-                         tile_culling=st.culls_tiles and primary == "rays",
+                         tile_culling=st.culls_tiles(camera.name) and primary == "rays",
                          channels=camera.channels, reconstruct=camera.sparse)
 
     def set_stereo(self, mode: str) -> None:

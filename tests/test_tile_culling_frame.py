@@ -152,11 +152,25 @@ def test_bench_primary_rows_with_and_without_frame_tile_culling(tmp_path):
 
 
 def test_tile_culling_is_chosen_where_it_measured_faster():
-    """Default (None): culled with several sub-rays per sample, not at one ray per sample; explicit
-    values win; anything else is refused."""
-    assert RenderSettings(msaa=4).culls_tiles and RenderSettings(msaa=16, ssaa=True).culls_tiles
-    assert not RenderSettings().culls_tiles and not RenderSettings(primary="rays").culls_tiles
-    assert RenderSettings(primary="rays", tile_culling=True).culls_tiles
-    assert not RenderSettings(msaa=4, tile_culling=False).culls_tiles
+    """Default (None): culled with several sub-rays per sample, except foveated and thin-lens cameras,
+    not at one ray per sample; explicit values win; anything else is refused."""
+    assert RenderSettings(msaa=4).culls_tiles() and RenderSettings(msaa=16, ssaa=True).culls_tiles("distorted")
+    assert not RenderSettings().culls_tiles() and not RenderSettings(primary="rays").culls_tiles()
+    assert not RenderSettings(msaa=4).culls_tiles("foveated") and not RenderSettings(msaa=16).culls_tiles("dof")
+    assert RenderSettings(primary="rays", tile_culling=True).culls_tiles("foveated")
+    assert not RenderSettings(msaa=4, tile_culling=False).culls_tiles()
     with pytest.raises(ValueError, match="tile_culling"):
         RenderSettings(tile_culling="yes")
+
+
+def test_the_frame_plan_follows_the_automatic_choice(room):
+    r = room
+    try:
+        r.settings = RenderSettings(msaa=4)
+        assert r.plan().tile_culling and r.plan(camera=Distorted()).tile_culling
+        assert not r.plan(camera=ThinLens(aperture=0.05)).tile_culling
+        assert not r.plan(camera=Foveated()).tile_culling
+        r.settings = RenderSettings(primary="rays")
+        assert not r.plan().tile_culling
+    finally:
+        r.settings = RenderSettings()

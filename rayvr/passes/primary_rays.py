@@ -29,7 +29,7 @@ way where exact (`skips_empty_slots`): instead of a background resolved, shaded 
 weight 0, a 4-byte weight read per pass.
 
 Tile frustum culling (FramePlan.tile_culling, RenderSettings.tile_culling, `--tile-culling`; by
-default on for several sub-rays per sample, off for one, as measured faster on the H200): each channel set's first round first runs a `cull` stage (glsl/accel/tile_cull.comp with
+default where it measured faster on the H200, RenderSettings.culls_tiles): each channel set's first round first runs a `cull` stage (glsl/accel/tile_cull.comp with
 TILE_CAMERA): one workgroup per TILE_PIXELS block of pixels (16 x 8 = TILE_RAYS samples) bounds
 every ray the rounds will cast there (all sub-rays of each sample's footprint, thin-lens lens
 points, this channel set's distortion) with a conservative frustum and lists the BVH entry nodes
