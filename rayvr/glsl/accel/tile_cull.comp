@@ -117,11 +117,20 @@ void main() {
     uint lid = gl_LocalInvocationID.x;
     // tiles in order x, then y, then layer (a frame's; a ray buffer's dispatch has z = 1)
     uint tile = gl_WorkGroupID.x + gl_NumWorkGroups.x * (gl_WorkGroupID.y + gl_NumWorkGroups.y * gl_WorkGroupID.z);
-    // Each invocation reduces over its TILE_SUBRAYS rays first (three passes over them: the
-    // directions' mean, then slopes and extents about it, then the planes' offsets), then the group.
+    // Each invocation reduces over its TILE_SUBRAYS rays first (passes over them: the directions'
+    // mean, then slopes and extents about it, then the planes' offsets), then the group.
+    // Camera tiles make their rays, which costs more than the bounds: there the mean direction, which
+    // need only be some direction inside the tile, comes from each pixel's sub-ray 0, and the
+    // offsets from the box of the origins (the largest n.o over a box holding them), so the tile's
+    // sub-rays are made once (TILE_CAMERA: 3x fewer at 16x). Both stay conservative.
+#ifdef TILE_CAMERA
+#define TILE_MEAN_RAYS 1
+#else
+#define TILE_MEAN_RAYS TILE_SUBRAYS
+#endif
     Ray r;
     vec4 acc = vec4(0.0);
-    for (uint k = 0u; k < uint(TILE_SUBRAYS); ++k)
+    for (uint k = 0u; k < uint(TILE_MEAN_RAYS); ++k)
         if (tile_ray(lid, k, r))
             acc += vec4(normalize(r.direction), 1.0);
     REDUCE(acc, 0)
@@ -133,9 +142,16 @@ void main() {
     vec3 v = cross(c, u);
     const float big = 3.0e38;
     vec4 lo_acc = vec4(big), hi_acc = vec4(-big);
+#ifdef TILE_CAMERA
+    vec4 o_lo = vec4(big), o_hi = vec4(-big);   // the origins' box; w: whether a ray is valid
+#endif
     for (uint k = 0u; k < uint(TILE_SUBRAYS); ++k) {
         if (!tile_ray(lid, k, r))
             continue;
+#ifdef TILE_CAMERA
+        o_lo = min(o_lo, vec4(r.origin, 0.0));
+        o_hi = max(o_hi, vec4(r.origin, 1.0));
+#endif
         vec3 dn = normalize(r.direction);
         float dc = dot(dn, c);
         float su = dot(dn, u) / dc, sv = dot(dn, v) / dc;
@@ -154,12 +170,24 @@ void main() {
                         -u + (mins.y - TILE_SLACK * (1.0 + abs(mins.y))) * c,
                         v - (maxs.x + TILE_SLACK * (1.0 + abs(maxs.x))) * c,
                         -v + (mins.w - TILE_SLACK * (1.0 + abs(mins.w))) * c);
+#ifdef TILE_CAMERA
+    REDUCE(o_lo, 1)
+    vec3 box_lo = red[0].xyz;
+    barrier();
+    REDUCE(o_hi, 2)
+    vec3 box_hi = red[0].xyz;
+    sum.w = red[0].w;   // 1: the tile has a valid ray (sub-ray 0 alone may not say so: wide, foveated edges)
+    vec3 box_c = 0.5 * (box_lo + box_hi), box_e = 0.5 * (box_hi - box_lo);
+    vec4 w = vec4(dot(n[0], box_c) + dot(abs(n[0]), box_e), dot(n[1], box_c) + dot(abs(n[1]), box_e),
+                  dot(n[2], box_c) + dot(abs(n[2]), box_e), dot(n[3], box_c) + dot(abs(n[3]), box_e));
+#else
     vec4 w_acc = vec4(-big);
     for (uint k = 0u; k < uint(TILE_SUBRAYS); ++k)
         if (tile_ray(lid, k, r))
             w_acc = max(w_acc, vec4(dot(n[0], r.origin), dot(n[1], r.origin), dot(n[2], r.origin), dot(n[3], r.origin)));
     REDUCE(w_acc, 2)
     vec4 w = red[0];
+#endif
     bool fallback = !(mins.x > TILE_MIN_COS);    // also NaN
     vec4 planes[5];
     for (int k = 0; k < 4; ++k)
