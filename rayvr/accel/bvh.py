@@ -615,7 +615,8 @@ def trace_reference(bvh: Bvh, origins, directions, tmin=0.0, tmax=np.inf, any_hi
 class RayWalk:
     """State of a numpy reference traversal of many rays at once (float64): per-ray stacks of node
     numbers, the closest hit so far, occlusion. Each layout's reference walk (binary here, wide in
-    wide.py, tile-culled in frustum.py) pops nodes, tests its boxes and calls `leaf` and `push`."""
+    wide.py) pops nodes, tests its boxes and calls `leaf` and `push`. (Tile-culled traversal has no
+    numpy walk: tests compare it with per-ray GPU traversal and this reference.)"""
 
     def __init__(self, bvh: Bvh, origins, directions, tmin, tmax, any_hit: bool, stack_size: int):
         self.bvh, self.any_hit = bvh, any_hit
