@@ -156,8 +156,7 @@ def add_camera_arguments(p: argparse.ArgumentParser, msaa_default: int | None = 
                    help="ray-cast primary visibility culls the BVH per 16x8-pixel tile first (a frustum over every "
                         "sub-ray, lens point and channel of the tile; the same hits, exact) and walks the binary "
                         "layout (default: with --msaa above 1 except foveated and dof cameras, where it measured "
-                        "faster); bench primary: each rays row "
-                        "without and with it")
+                        "faster); bench primary: each rays row without and with it")
 
 
 def camera_from_args(args):

@@ -24,7 +24,7 @@ from .accel.bvh import BUILDS
 from .accel.scene import SceneAccel
 from .accumulation import MAX_DENOISE_ITERATIONS, Accumulator, sample_seed
 from .camera import StereoRig
-from .cameras import Pinhole
+from .cameras import Foveated, Pinhole, ThinLens
 from .cameras.sampling import check_count
 from .context import GLContext, GpuError, create_context
 from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameTooLarge, Sizing, check_fits,
@@ -134,7 +134,7 @@ class RenderSettings:
         DoF (lens rays widen the tiles' frusta: slower in the room at every focus)."""
         if self.tile_culling is not None:
             return self.tile_culling
-        return self.msaa > 1 and camera not in ("foveated", "dof")
+        return self.msaa > 1 and camera not in (Foveated.name, ThinLens.name)
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:
