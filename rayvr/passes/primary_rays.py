@@ -34,10 +34,10 @@ round first runs a `cull` stage (glsl/accel/tile_cull.comp with TILE_CAMERA): on
 TILE_PIXELS block of pixels (16 x 8 = TILE_RAYS samples) bounds every ray the rounds will cast there
 (all sub-rays of each sample's footprint, thin-lens lens points, this channel set's distortion) with
 a conservative frustum and lists the BVH entry nodes it meets, nearest first; the trace then starts
-each ray from its tile's entries instead of the root. Exact: the same triangle and distance as per-
-ray traversal (tests/test_tile_culling_frame.py). The entries are child pairs of the binary layout,
-so with tile culling primary rays walk `bvh2`, whatever `traversal` names for them. Tiles whose rays
-spread beyond ~84 deg (wide cameras at low resolution) fall back to the root's children.
+each ray from its tile's entries instead of the root. Exact: the same triangle and distance as
+per-ray traversal (tests/test_tile_culling_frame.py). The entries are child pairs of the binary
+layout, so with tile culling primary rays walk `bvh2`, whatever `traversal` names for them. Tiles
+whose rays spread beyond ~84 deg (wide cameras at low resolution) fall back to the root's children.
 """
 from __future__ import annotations
 
