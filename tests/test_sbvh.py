@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rayvr.accel.bvh import _half_area, build_bvh, intersect_triangles, trace_brute_force, trace_reference
+from rayvr.accel.bvh import SPATIAL_MIN_REFS, _half_area, build_bvh, intersect_triangles, trace_brute_force, trace_reference
 from rayvr.accel.gpu import MISS, GpuBvh, RayTracer
 from rayvr.accel.refit import GpuRefit
 from rayvr.accel.sbvh import _unsplit, clip_boxes
@@ -128,18 +128,18 @@ def test_spatial_splits_beat_the_object_split_bound_on_diagonal_slivers():
     bound = _half_area(tri.min(1), tri.max(1)).sum() / _half_area(tri.min((0, 1)), tri.max((0, 1)))
     sah = build_bvh(v, f)
     assert sah.sah_cost() >= bound
-    sbvh = build_bvh(v, f, spatial_splits=True)
+    sbvh = build_bvh(v, f, spatial_splits=True, spatial_min_refs=1)
     assert sbvh.sah_cost() < sah.sah_cost()
     assert len(f) < sbvh.reference_count <= 1.3 * len(f)              # the default budget: +30 %
-    doubled = build_bvh(v, f, spatial_splits=True, max_duplication=1.0)
+    doubled = build_bvh(v, f, spatial_splits=True, spatial_min_refs=1, max_duplication=1.0)
     assert doubled.sah_cost() < bound                                   # beyond any object-split BVH
     assert doubled.reference_count <= 2 * len(f)
-    assert build_bvh(v, f, spatial_splits=True, max_duplication=0.0).reference_count == len(f)
+    assert build_bvh(v, f, spatial_splits=True, spatial_min_refs=1, max_duplication=0.0).reference_count == len(f)
 
 
 def test_every_point_of_every_triangle_lies_in_a_leaf_of_its_references():
     v, f = thin_mesh(120)
-    bvh = build_bvh(v, f, spatial_splits=True, max_duplication=1.0)
+    bvh = build_bvh(v, f, spatial_splits=True, spatial_min_refs=1, max_duplication=1.0)
     assert bvh.reference_count > len(f) and bvh.triangle_count == len(f)
     assert np.array_equal(np.unique(bvh.prim_ids), np.arange(len(f)))
     assert np.array_equal(bvh.indices, f[bvh.prim_ids])                # each slot: the full triangle
@@ -159,18 +159,34 @@ def test_without_spatial_splits_the_reference_build_is_the_sah_tree():
     # the SBVH's per-level reference lists against the SAH build's in-place partition
     v, f = thin_mesh(300)
     a = build_bvh(v, f)
-    b = build_bvh(v, f, spatial_splits=True, split_alpha=1e30)
+    b = build_bvh(v, f, spatial_splits=True, spatial_min_refs=1, split_alpha=1e30)
     assert all(np.array_equal(getattr(a, k), getattr(b, k)) for k in TREE)
     leaf = a.left < 0
     assert np.array_equal(a.start[leaf], b.start[leaf])
 
 
+def test_spatial_splits_only_in_nodes_of_enough_references():
+    # the default tries them in nodes of SPATIAL_MIN_REFS references or more; above the triangle
+    # count, none is tried and the tree is the SAH build's
+    v, f = thin_mesh(300)
+    every = build_bvh(v, f, spatial_splits=True, spatial_min_refs=1)
+    some = build_bvh(v, f, spatial_splits=True, spatial_min_refs=64)
+    none = build_bvh(v, f, spatial_splits=True, spatial_min_refs=len(f) + 1)
+    assert every.params["spatial_split_nodes"] > some.params["spatial_split_nodes"] > 0
+    assert none.params["spatial_split_nodes"] == 0 and none.reference_count == len(f)
+    a = build_bvh(v, f)
+    assert all(np.array_equal(getattr(a, k), getattr(none, k)) for k in TREE)
+    assert build_bvh(v, f, spatial_splits=True).params["spatial_min_refs"] == SPATIAL_MIN_REFS
+
+
 def test_bad_sbvh_parameters_are_rejected():
     v, f = slivers(4)
     with pytest.raises(ValueError, match="split_alpha"):
-        build_bvh(v, f, spatial_splits=True, split_alpha=-1)
+        build_bvh(v, f, spatial_splits=True, spatial_min_refs=1, split_alpha=-1)
     with pytest.raises(ValueError, match="max_duplication"):
-        build_bvh(v, f, spatial_splits=True, max_duplication=float("nan"))
+        build_bvh(v, f, spatial_splits=True, spatial_min_refs=1, max_duplication=float("nan"))
+    with pytest.raises(ValueError, match="spatial_min_refs"):
+        build_bvh(v, f, spatial_splits=True, spatial_min_refs=0)
 
 
 @pytest.fixture(scope="module")
@@ -180,7 +196,7 @@ def meshes():
     room = scene_mod.load(None)
     out = []
     for name, (v, f), n in (("thin", thin_mesh(300), 1500), ("room", (room.vertices, room.indices), 600)):
-        sbvh = build_bvh(v, f, spatial_splits=True)
+        sbvh = build_bvh(v, f, spatial_splits=True, spatial_min_refs=1)
         assert len(f) < sbvh.reference_count <= 1.3 * len(f), f"{name}: no spatial split, or over budget"
         o, d = rays_to_triangles(v, f, n, seed=7)
         out.append((name, v, f, sbvh, build_bvh(v, f), o, d, trace_brute_force(v, f, o, d)))
@@ -238,11 +254,11 @@ def test_refit_of_duplicated_references_stays_conservative(gl):
     moved = (v * 1.2 + 0.3 * np.sin(v[:, [1, 2, 0]] * 2.0)).astype(np.float32)
     o, d = rays_to_triangles(moved, f, 1000, seed=10)
     ref = trace_brute_force(moved, f, o, d)
-    host = build_bvh(v, f, spatial_splits=True)
+    host = build_bvh(v, f, spatial_splits=True, spatial_min_refs=1)
     assert host.reference_count > len(f)
     host.refit(moved)
     assert_same_hits(*trace_reference(host, o, d)[:2], ref[0], ref[1])
-    g = GpuBvh(gl, build_bvh(v, f, spatial_splits=True))
+    g = GpuBvh(gl, build_bvh(v, f, spatial_splits=True, spatial_min_refs=1))
     refit = GpuRefit(gl, g)
     try:
         refit.run(moved)

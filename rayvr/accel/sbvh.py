@@ -7,7 +7,9 @@ split at a plane that cuts references in two:
 
 * object split: the binned SAH over the references' box centroids (bvh._binned_sah);
 * spatial split, tried only where the object split's two children overlap by more than
-  `split_alpha` x the root's surface area (the paper's alpha): `bins` equal slabs per axis over the
+  `split_alpha` x the root's surface area (the paper's alpha), in nodes of at least
+  `spatial_min_refs` references (bvh.SPATIAL_MIN_REFS: small nodes gain little and cost most of the
+  build): `bins` equal slabs per axis over the
   node's box; each reference is clipped exactly to every slab it spans (`clip_boxes`: the box of the
   triangle polygon cut by the slab, intersected with the reference's box), the clipped boxes make
   the bin boxes, entry/exit counts the references on each side of a plane;
@@ -160,7 +162,7 @@ def _overlap_area(boxes):
 
 
 def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle_cost, split_alpha,
-               max_duplication, progress, params, unsplit: bool = True):
+               max_duplication, progress, params, spatial_min_refs: int = 1, unsplit: bool = True):
     """The SBVH build (module docstring); V, I checked by build_bvh, T > 0."""
     T = len(I)
     tri64 = V[I].astype(np.float64)
@@ -213,7 +215,8 @@ def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle
         s_boxes = np.zeros((4, A, 3))
         s_sides = np.zeros((2, A), np.int64)
         first = last = None
-        try_s = (nb > 0) & (overlap > split_alpha * root_area) & (total_refs < ref_limit)
+        try_s = ((nb > 0) & (overlap > split_alpha * root_area) & (total_refs < ref_limit)
+                 & (level_count >= spatial_min_refs))
         if try_s.any():
             cand = np.flatnonzero(try_s)
             in_c = try_s[seg]
