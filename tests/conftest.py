@@ -14,6 +14,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_SCENES = Path(os.environ.get("RAYVR_SCENES") or REPO.parent / "shared" / "scenes")
+# No BVH files in the user's cache from tests (accel/bvh_cache.py); the cache's own tests set a folder.
+os.environ.setdefault("RAYVR_BVH_CACHE", "off")
 
 
 @pytest.fixture(scope="session")

@@ -4,23 +4,28 @@ Only the `bvh` pass (rayvr/passes/raytrace.py) calls `SceneAccel.ensure()`, and 
 schedules that pass only when a ray-traced effect or ray-traced primary visibility needs it: a
 scene that is all `raster` never reaches `build_scene_bvh`. A process keeps its last KEPT_BUILDS
 BVHs by geometry and build (`kept_scene_bvh`), so the next Renderer of the same triangles skips the
-build; `bench bvh` and `bench rays` time builds and call `build_scene_bvh` itself.
+build, and the builds that take seconds (DISK_BUILDS) are also kept on disk between runs
+(accel/bvh_cache.py); `bench bvh` and `bench rays` time builds and call `build_scene_bvh` itself.
 """
 from __future__ import annotations
 
 import dataclasses
 import hashlib
+import inspect
+import json
 import logging
 from collections import OrderedDict
 
 import numpy as np
 
+from . import bvh_cache
 from .bvh import BUILDS, Bvh, build_bvh
 from .gpu import GpuBvh
 
 log = logging.getLogger(__name__)
 KEPT_BUILDS = 4  # BVHs a process keeps for the next Renderer of the same geometry (benchmarks make dozens)
 _kept: OrderedDict = OrderedDict()  # (geometry digest, build) -> Bvh, least recently used first
+DISK_BUILDS = ("sbvh",)  # kept on disk too: seconds to build (Sponza 5.8 s), a fraction of one to load
 
 
 def build_scene_bvh(scene, build: str = "sah", progress: bool = True) -> Bvh:
@@ -45,6 +50,32 @@ def geometry_digest(vertices, indices) -> str:
     return h.hexdigest()
 
 
+def cache_key(scene, build: str) -> str:
+    """The disk cache's name for the scene's BVH of `build`: the triangles, the build, every default
+    parameter of build_bvh and the file format, so a changed default never reads an old tree."""
+    defaults = {k: p.default for k, p in inspect.signature(build_bvh).parameters.items()
+                if p.default is not inspect.Parameter.empty and k != "progress"}
+    h = hashlib.blake2b(digest_size=16)
+    h.update(json.dumps([geometry_digest(scene.vertices, scene.indices), build, defaults, bvh_cache.FORMAT],
+                        sort_keys=True).encode())
+    return f"{build}-{h.hexdigest()}"
+
+
+def _loaded_or_built(scene, build: str) -> Bvh:
+    """build_scene_bvh, through the disk cache for DISK_BUILDS."""
+    if build not in DISK_BUILDS:
+        return build_scene_bvh(scene, build)
+    key = cache_key(scene, build)
+    bvh = bvh_cache.load(key, scene.vertices)
+    if bvh is not None:
+        log.info("%s: %s BVH of %d triangles loaded from the BVH cache (%s)", scene.name, build,
+                 bvh.triangle_count, bvh_cache.cache_dir())
+        return bvh
+    bvh = build_scene_bvh(scene, build)
+    bvh_cache.store(key, bvh)
+    return bvh
+
+
 def _private_copy(bvh: Bvh) -> Bvh:
     """A Bvh whose arrays the caller may refit in place without touching the kept one."""
     return dataclasses.replace(bvh, **{f.name: getattr(bvh, f.name).copy() for f in dataclasses.fields(bvh)
@@ -54,11 +85,12 @@ def _private_copy(bvh: Bvh) -> Bvh:
 def kept_scene_bvh(scene, build: str = "sah") -> Bvh:
     """build_scene_bvh, but a BVH this process built for the same triangles and build is reused
     (as a private copy: a refit changes only the caller's): a benchmark's every Renderer of Sponza
-    paid the build again, 0.7 s (sah) to 13 s (sbvh)."""
+    paid the build again, 0.7 s (sah) to 13 s (sbvh). DISK_BUILDS also come from, and go to, the
+    disk cache."""
     key = (geometry_digest(scene.vertices, scene.indices), build)
     bvh = _kept.get(key)
     if bvh is None:
-        bvh = build_scene_bvh(scene, build)
+        bvh = _loaded_or_built(scene, build)
         _kept[key] = _private_copy(bvh)
         while len(_kept) > KEPT_BUILDS:
             _kept.popitem(last=False)
