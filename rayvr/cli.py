@@ -156,7 +156,8 @@ def add_camera_arguments(p: argparse.ArgumentParser, msaa_default: int | None = 
                    help="ray-cast primary visibility culls the BVH per 16x8-pixel tile first (a frustum over every "
                         "sub-ray, lens point and channel of the tile; the same hits, exact) and walks the binary "
                         "layout (default: with --msaa above 1 except foveated and dof cameras, where it measured "
-                        "faster); bench primary: each rays row without and with it")
+                        "faster); bench primary: each rays row without and with it (default: as the renderer "
+                        "chooses)")
 
 
 def camera_from_args(args):
@@ -522,7 +523,7 @@ def cmd_bench(args) -> int:
                     configs=_bench_configs("primary", args.configs, primary.CONFIGS),
                     suites=("views",) if subset else primary.SUITES,
                     table5_size=(24, 16) if quick else primary.TABLE5_SIZE, tiles=not args.no_tiles,
-                    builds=args.bvh_build or ("sah",), frame_culling=(False, True) if args.tile_culling else (False,))
+                    builds=args.bvh_build or ("sah",), frame_culling={None: (None,), True: (False, True), False: (False,)}[args.tile_culling])
     elif args.area == "peers":
         from .bench import peers
 

@@ -22,8 +22,9 @@ a plain frame recorded (and `rounds_recorded_max`). `visibility_ms` is what
 makes the G-buffer: `visibility` + `gbuffer` passes (raster), `primary_rays` + `gbuffer` summed over
 the rounds (rays).
 
-Tile frustum culling in the frame (`tile_culling`, `--tile-culling`: every rays row runs again with
-RenderSettings.tile_culling, rows carry `tile_culling`): `primary_rays` first culls per 16x8-pixel
+Tile frustum culling in the frame (rows carry `tile_culling`, whether the frame culled; by default
+each rays row as the renderer chooses (RenderSettings.culls_tiles), with `--tile-culling` once
+without and once with it, with `--no-tile-culling` without): `primary_rays` first culls per 16x8-pixel
 tile (its `cull` kernel, `cull_ms`, part of `primary_ms`) and traces each sub-ray from its tile's
 entry list on the binary BVH. The same hits (tests); compare `total_ms`, `visibility_ms` and
 `primary_ms` of a row with and without. Besides, each camera's central rays (one per sample, tile
@@ -175,10 +176,11 @@ def build_targets(rows) -> dict:
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, counts=None,
         ssaa=(4,), configs=None, custom=None, backend=None, progress=True, suites=SUITES,
-        table5_size=TABLE5_SIZE, tiles=True, builds=("sah",), frame_culling=(False,)) -> dict:
+        table5_size=TABLE5_SIZE, tiles=True, builds=("sah",), frame_culling=(None,)) -> dict:
     """`configs`/`counts` (views suite rows; default VIEW_CONFIGS x VIEW_COUNTS); `builds`: every
     row once per BVH build (accel/bvh.BUILDS; rows carry `bvh_build`); `frame_culling`: every rays
-    row once per value (False: per-ray traversal, True: RenderSettings.tile_culling); `custom` =
+    row once per value of RenderSettings.tile_culling (None: the renderer's own choice, False: per-ray
+    traversal, True: tile culling; rows carry the one made, `tile_culling`); `custom` =
     (camera model, fov_y or None): that camera instead (beside the raster reference), as
     `rayvr bench primary --camera-model ... --camera-param ...` asks. `tiles`: also trace each
     camera's central rays standalone without and with tile culling."""
@@ -202,7 +204,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
     try:
         meta = {**device_meta(gl.info()), "bench": "primary", "per_eye_size": list(size),
                 "table5_per_eye_size": list(table5_size), "suites": list(suites), "repeat": repeat,
-                "bvh_builds": list(builds), "tile_culling": list(frame_culling),
+                "bvh_builds": list(builds), "tile_culling": ["auto" if tc is None else tc for tc in frame_culling],
                 "skipped": skipped, "materials": "all raster (visibility, not shading, is measured)",
                 "what_times_include": {
                     "pass_ms": "GL timer query per pass, summed over a sampled frame's rounds; medians",
@@ -234,7 +236,8 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                     names, med, total = time_frame(r, rig, repeat, warmup)
                     row = {"suite": suite, "scene": name, "config": cname, "camera": model.name, "primary": primary,
                            "sub_rays_per_sample": n, "shading": "ssaa" if shade_all else "msaa", "bvh_build": build,
-                           "tile_culling": tc, "size": f"2x{eye_size[0]}x{eye_size[1]}", "total_ms": total,
+                           "tile_culling": primary == "rays" and r.settings.culls_tiles(model.name),
+                           "size": f"2x{eye_size[0]}x{eye_size[1]}", "total_ms": total,
                            "pass_ms": {k: med[k] for k in names if k in med}}
                     if primary == "rays":
                         kernel, cull_ms = primary_kernel_ms(r, rig)
@@ -260,7 +263,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                             rate += f", rounds {row['rounds']} needed / {row['rounds_recorded']:g} recorded"
                         cull = (f"; standalone {row['trace_grays_s']:.2f} / tiles {row['trace_tiles_grays_s']:.2f} GRays/s"
                                 if "trace_grays_s" in row else "")
-                        tag = "+tiles" if tc else ""
+                        tag = "+tiles" if row.get("tile_culling") else ""
                         print(f"  {suite:6s} {name:8s} {build:4s} {cname + tag:20s} {n:2d}x {row['shading']} {row['size']} frame "
                               f"{total:.3f} ms, visibility {row['visibility_ms']:.3f} ms{rate}{cull}", flush=True)
     finally:
