@@ -50,22 +50,22 @@ def geometry_digest(vertices, indices) -> str:
     return h.hexdigest()
 
 
-def cache_key(scene, build: str) -> str:
-    """The disk cache's name for the scene's BVH of `build`: the triangles, the build, every default
-    parameter of build_bvh and the file format, so a changed default never reads an old tree."""
+def cache_key(digest: str, build: str) -> str:
+    """The disk cache's name for the BVH of `build` over the triangles of `digest` (geometry_digest):
+    those, the build, every default parameter of build_bvh and the file format, so a changed default
+    never reads an old tree."""
     defaults = {k: p.default for k, p in inspect.signature(build_bvh).parameters.items()
                 if p.default is not inspect.Parameter.empty and k != "progress"}
     h = hashlib.blake2b(digest_size=16)
-    h.update(json.dumps([geometry_digest(scene.vertices, scene.indices), build, defaults, bvh_cache.FORMAT],
-                        sort_keys=True).encode())
+    h.update(json.dumps([digest, build, defaults, bvh_cache.FORMAT], sort_keys=True).encode())
     return f"{build}-{h.hexdigest()}"
 
 
-def _loaded_or_built(scene, build: str) -> Bvh:
-    """build_scene_bvh, through the disk cache for DISK_BUILDS."""
+def _loaded_or_built(scene, build: str, digest: str) -> Bvh:
+    """build_scene_bvh, through the disk cache for DISK_BUILDS (`digest`: the scene's geometry_digest)."""
     if build not in DISK_BUILDS:
         return build_scene_bvh(scene, build)
-    key = cache_key(scene, build)
+    key = cache_key(digest, build)
     bvh = bvh_cache.load(key, scene.vertices)
     if bvh is not None:
         log.info("%s: %s BVH of %d triangles loaded from the BVH cache (%s)", scene.name, build,
@@ -87,10 +87,11 @@ def kept_scene_bvh(scene, build: str = "sah") -> Bvh:
     (as a private copy: a refit changes only the caller's): a benchmark's every Renderer of Sponza
     paid the build again, 0.7 s (sah) to 13 s (sbvh). DISK_BUILDS also come from, and go to, the
     disk cache."""
-    key = (geometry_digest(scene.vertices, scene.indices), build)
+    digest = geometry_digest(scene.vertices, scene.indices)
+    key = (digest, build)
     bvh = _kept.get(key)
     if bvh is None:
-        bvh = _loaded_or_built(scene, build)
+        bvh = _loaded_or_built(scene, build, digest)
         _kept[key] = _private_copy(bvh)
         while len(_kept) > KEPT_BUILDS:
             _kept.popitem(last=False)
