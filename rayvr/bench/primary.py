@@ -23,7 +23,7 @@ makes the G-buffer: `visibility` + `gbuffer` passes (raster), `primary_rays` + `
 the rounds (rays).
 
 Tile frustum culling in the frame (rows carry `tile_culling`, whether the frame culled; by default
-each rays row as the renderer chooses (RenderSettings.culls_tiles), with `--tile-culling` once
+each rays row as the renderer chooses (its frame plan's tile_culling), with `--tile-culling` once
 without and once with it, with `--no-tile-culling` without): `primary_rays` first culls per 16x8-pixel
 tile (its `cull` kernel, `cull_ms`, part of `primary_ms`) and traces each sub-ray from its tile's
 entry list on the binary BVH. The same hits (tests); compare `total_ms`, `visibility_ms` and
@@ -236,7 +236,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                     names, med, total = time_frame(r, rig, repeat, warmup)
                     row = {"suite": suite, "scene": name, "config": cname, "camera": model.name, "primary": primary,
                            "sub_rays_per_sample": n, "shading": "ssaa" if shade_all else "msaa", "bvh_build": build,
-                           "tile_culling": primary == "rays" and r.settings.culls_tiles(model.name),
+                           "tile_culling": r.plan(camera=model).tile_culling,
                            "size": f"2x{eye_size[0]}x{eye_size[1]}", "total_ms": total,
                            "pass_ms": {k: med[k] for k in names if k in med}}
                     if primary == "rays":
