@@ -76,7 +76,8 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
     (..., N) (NO_HIT: background) and distances `ts`, the list msaa_hits holds, (slots, ..., 4)
     uint32 entries (triangle, coverage mask, representative sub-ray | count << 8 | covered << 16
     (entry 0 only), distance bits), most covered first, ties in order of first sub-ray; unused
-    entries zero. `offsets` (N, 2): the sub-rays' footprint offsets (cameras/sampling.subsamples);
+    entries zero here (the GPU leaves entries past a pixel's count as the buffer held them: only
+    the first count are defined, and only those are read). `offsets` (N, 2): the sub-rays' footprint offsets (cameras/sampling.subsamples);
     the representative is the sub-ray nearest the mean offset of its mask (the first of equally
     near ones). `sampled` (...): False where the pixel has no sample (an empty list)."""
     tris = np.asarray(tris, np.uint32)
