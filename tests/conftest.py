@@ -3,6 +3,7 @@ the context current when they were made; mixing contexts in one process breaks t
 RAYVR_GL_BACKEND=osmesa runs the same tests under OSMesa."""
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import subprocess
@@ -39,6 +40,12 @@ def shared_scene():
             pytest.skip(f"{p} not found: the shared scenes folder is absent")
         return p
     return get
+
+
+# Tests whose commands measure FLIP (rayvr[bench]) skip one by one where flip-evaluator is absent
+# (the GPU host has no wheel of it unless one is carried).
+needs_flip = pytest.mark.skipif(importlib.util.find_spec("flip_evaluator") is None,
+                                reason="flip-evaluator is an optional extra (pip install 'rayvr[bench]')")
 
 
 def run_rayvr(*args, timeout=300):

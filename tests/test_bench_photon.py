@@ -1,7 +1,8 @@
 """`rayvr bench photon --quick` runs end to end (CI smoke test; figures come from the GPU machine)."""
-from conftest import quick_bench
+from conftest import needs_flip, quick_bench
 
 
+@needs_flip
 def test_bench_photon_quick_writes_the_papers_tables(tmp_path):
     result = quick_bench("photon", tmp_path)
     rows = result["rows"]

@@ -1,7 +1,8 @@
 """`rayvr bench ssrt --quick` runs end to end (CI smoke test; figures come from the GPU machine)."""
-from conftest import quick_bench
+from conftest import needs_flip, quick_bench
 
 
+@needs_flip
 def test_bench_ssrt_quick_writes_quadtree_dda_and_hiz_rows(tmp_path):
     result = quick_bench("ssrt", tmp_path)
     rows = result["rows"]

@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import quick_bench, run_rayvr
+from conftest import needs_flip, quick_bench, run_rayvr
 from rayvr.bench import metrics
 from rayvr.bench import tradeoff as T
 from rayvr.camera import StereoRig
@@ -18,6 +18,7 @@ def room():
     return scene, StereoRig.for_scene(scene, size=(32, 24))
 
 
+@needs_flip
 def test_sweep_rows_are_the_metrics_of_the_rendered_images(gl, room):
     """run_sweep's reference image and its row for a cheaper variant against an independent
     expectation: each image rendered again by a Renderer of its own (one frame, no pool, no
@@ -84,6 +85,7 @@ def test_assignment_config_keeps_base_params_for_the_same_effect(room):
     assert got["mirror"].effect == "reflections" and got["floor"].effect == "raster"
 
 
+@needs_flip
 def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
     scene, rig = room
     from rayvr.bench.reference import reference_config
@@ -112,6 +114,7 @@ def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
     assert generous.error <= tight.error
 
 
+@needs_flip
 @pytest.mark.parametrize("area", ["tradeoff", "budget"])
 def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
     result = quick_bench(area, tmp_path, timeout=900)
@@ -127,6 +130,7 @@ def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
             assert row["assignment"] and (row["measured_ms"] > 0)
 
 
+@needs_flip
 def test_capture_budget_mode_records_the_choice(tmp_path):
     run = run_rayvr("capture", "--size", "24x16", "--budget-ms", "1e6", "--out", tmp_path, "-q", timeout=900)
     assert run.returncode == 0, run.stderr[-3000:]
