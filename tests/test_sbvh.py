@@ -155,6 +155,68 @@ def test_every_point_of_every_triangle_lies_in_a_leaf_of_its_references():
         assert held.all(), f"triangle {t}: {int((~held).sum())} points outside its references' leaves"
 
 
+def test_every_box_on_a_references_path_holds_its_float64_piece_split_planes_included(monkeypatch):
+    """A spatial split cuts a triangle at a float64 plane: the pieces' boxes are float64 (corners
+    where the edges cross the plane) and are stored as float32, rounded outwards, so every box from
+    the root to a reference's leaf holds the whole float64 piece. Rounded to nearest, a box can end
+    half an ulp short of a crossing point, and a ray there misses the triangle in every child. The
+    crossing points of each triangle with every split plane of the build, and its vertices, must
+    each lie in all the boxes on the path to one of its leaves (float64 compare, no tolerance
+    beyond float64 rounding)."""
+    from rayvr.accel import sbvh as sbvh_mod
+
+    planes = set()  # (axis, plane) of every spatial split (the partition's cuts: one side unbounded)
+    clip = sbvh_mod._clip_refs
+
+    def recording(tri64, ref_lo, ref_hi, axis, lo, hi):
+        if np.isinf(lo).all() or np.isinf(hi).all():
+            planes.update((axis, float(c)) for c in np.unique(np.where(np.isinf(lo), hi, lo)))
+        return clip(tri64, ref_lo, ref_hi, axis, lo, hi)
+
+    monkeypatch.setattr(sbvh_mod, "_clip_refs", recording)
+    v, f = thin_mesh(300)
+    bvh = build_bvh(v, f, spatial_splits=True, spatial_min_refs=1, max_duplication=1.0)
+    assert len(planes) > 20 and bvh.reference_count > len(f)
+    parent = np.full(bvh.node_count, -1)
+    inner = np.flatnonzero(bvh.left >= 0)
+    parent[bvh.left[inner]], parent[bvh.right[inner]] = inner, inner
+    leaves = np.flatnonzero(bvh.left < 0)
+    slot_leaf = np.empty(bvh.reference_count, np.int64)
+    for leaf in leaves:
+        slot_leaf[bvh.start[leaf]:bvh.start[leaf] + bvh.count[leaf]] = leaf
+
+    def path(node):
+        out = []
+        while node >= 0:
+            out.append(node)
+            node = parent[node]
+        return np.array(out)
+
+    paths = {leaf: path(leaf) for leaf in leaves}
+    lo64, hi64 = bvh.node_lo.astype(np.float64), bvh.node_hi.astype(np.float64)
+    tri = v[f].astype(np.float64)
+    checked = 0
+    for t in range(len(f)):
+        pts = [tri[t]]
+        for axis, c in planes:  # the edges' crossings of the plane, computed from either end
+            for a, b in ((0, 1), (1, 2), (2, 0)):
+                p, q = tri[t, a], tri[t, b]
+                if (p[axis] - c) * (q[axis] - c) < 0:
+                    pts.append([p + (q - p) * ((c - p[axis]) / (q[axis] - p[axis])),
+                                q + (p - q) * ((c - q[axis]) / (p[axis] - q[axis]))])
+        pts = np.concatenate([np.reshape(x, (-1, 3)) for x in pts])
+        slack = 4 * np.finfo(np.float64).eps * np.abs(pts)  # the two float64 formulas differ in the last bits
+        held = np.zeros(len(pts), bool)
+        for slot in np.flatnonzero(bvh.prim_ids == t):
+            nodes = paths[slot_leaf[slot]]
+            inside = ((pts[:, None] >= lo64[nodes][None] - slack[:, None])
+                      & (pts[:, None] <= hi64[nodes][None] + slack[:, None]))
+            held |= inside.all(axis=(1, 2))
+        assert held.all(), f"triangle {t}: {pts[~held][:2].tolist()} outside every path to its references"
+        checked += len(pts) - 3
+    assert checked > 2000  # crossing points on split planes were tested
+
+
 def test_without_spatial_splits_the_reference_build_is_the_sah_tree():
     # the SBVH's per-level reference lists against the SAH build's in-place partition
     v, f = thin_mesh(300)
