@@ -255,3 +255,62 @@ def test_glossy_caustic_on_the_floor_pixels_is_numpys(caustic):
     rel = got / expected - 1
     assert abs(rel.mean()) < 0.035, rel.mean()
     assert (np.abs(rel) < 5 * sigma).all(), np.c_[q[:, [0, 2]], rel, sigma].round(3)
+
+
+# --- periscope: a caustic through two mirrors ------------------------------------------------------
+PERISCOPE_PATHS = 1 << 17
+PERISCOPE_RADIUS = 0.08
+PERISCOPE_SPOT = ((0.75, 1.25), (-0.5, 0.5))  # x, z under the second mirror: the beam, shifted by 1
+
+
+def periscope_scene():
+    """Light straight down onto mirror A (45 degrees, facing up and +x), which sends the beam along
+    +x to mirror B (parallel to A, facing down and -x), which sends it down onto the floor under
+    B, where nothing else lights it (B shadows it). White metal: F = 1 at both mirrors, and the
+    beam keeps its cross-section: irradiance E in the spot."""
+    floor = quad((0.5, 0, 0), (1.5, 0, 0), (0, 0, -1))  # x in [-1, 2], z in [-1, 1], faces +y
+    along = np.array([0.25, -0.25, 0.0])  # the mirrors' slope: x + y constant
+    mirror_a = quad((0.0, 1.0, 0.0), (0, 0, 0.5), along)  # cross((0, 0, .5), along) ~ (1, 1, 0)
+    mirror_b = quad((1.0, 1.0, 0.0), along, (0, 0, 0.5))  # ~ (-1, -1, 0)
+    v, f, part = merge(floor, mirror_a, mirror_b)
+    metal = dict(base_color=(1, 1, 1, 1), metallic=1.0, roughness=0.0)
+    mats = [Material("floor", base_color=(FLOOR_ALBEDO,) * 3 + (1,), roughness=1.0),
+            Material("mirror_a", **metal), Material("mirror_b", **metal)]
+    return from_arrays(v, f, triangle_material=part, materials=mats,
+                       lights=[Light("directional", direction=(0.0, -1.0, 0.0), intensity=1.0)])
+
+
+def test_a_caustic_through_two_mirrors_is_stored_with_one_bounce(gl):
+    """`bounces` counts the photons a path stores on diffuse surfaces; mirror reflections on the way
+    are free (passes/photon_trace.py: 'having passed through any number of mirror/glossy
+    reflections'). With bounces = 1, the periscope's caustic must reach the floor: every photon
+    path that meets mirror A stores one photon in the spot, of the beam's power over A
+    (E x 0.5 m^2 in all), and the pixels there show irradiance E. (A floor -> mirror -> floor path
+    stores one too, now: the floor's own light in a mirror.) It used to stop after the
+    second mirror: its reflections counted against the stores, and the spot stayed black."""
+    scene = periscope_scene()
+    config = {"default": "raster", "materials": {
+        "floor": {"effect": "photon", "photons": PERISCOPE_PATHS, "radius": PERISCOPE_RADIUS, "bounces": 1,
+                  "area_samples": 1},
+        "mirror*": {"effect": "reflections"}}}
+    rig = StereoRig(Pose.look_at((1.0, 0.7, 1.4), (1.0, 0.0, 0.0)), ipd=0.0, fov_y=40, size=(40, 30))
+    frame, shadows, ph = render_twice(gl, scene, config, rig)
+    (x0, x1), (z0, z1) = PERISCOPE_SPOT
+    stored = ph["extra"] != 0
+    pos = ph["position"][stored].astype(np.float64) + scene.origin
+    in_spot = (pos[:, 0] > x0 - 1e-4) & (pos[:, 0] < x1 + 1e-4) & (np.abs(pos[:, 2]) < z1 + 1e-4)
+    assert in_spot.sum() > 1000 and np.abs(pos[:, 1]).max() < 1e-4
+    spot_area = (x1 - x0) * (z1 - z0)
+    power = ph["power"][stored, 0].astype(np.float64)
+    assert power[in_spot].sum() == pytest.approx(1.0 * spot_area, rel=0.03)  # ~1 % Poisson error
+    # elsewhere only the floor's own light seen in a mirror (albedo 0.01): a few photons
+    assert power[~in_spot].sum() < 0.01 * spot_area
+    indirect = frame.aux["hdr"][..., 0].astype(np.float64) - shadows.aux["hdr"][..., 0].astype(np.float64)
+    p = frame.aux["position"][..., :3].astype(np.float64)
+    inner = ((frame.aux["material"] == 0) & (p[..., 0] > x0 + PERISCOPE_RADIUS) & (p[..., 0] < x1 - PERISCOPE_RADIUS)
+             & (p[..., 2] > z0 + PERISCOPE_RADIUS) & (p[..., 2] < z1 - PERISCOPE_RADIUS))
+    assert inner.sum() > 30
+    irradiance = indirect[inner] * np.pi / FLOOR_ALBEDO
+    sigma = 1 / np.sqrt(in_spot.sum() / spot_area * np.pi * PERISCOPE_RADIUS ** 2)  # photons per disc
+    assert irradiance.mean() == pytest.approx(1.0, rel=2 * sigma), (irradiance.mean(), sigma)
+    assert np.abs(irradiance - 1.0).max() < 5 * sigma

@@ -1,7 +1,8 @@
 """`photon_trace`: photons from the scene's lights through the BVH (glsl/photon/trace.comp), once
 per frame for both eyes. Lights emit in proportion to their power (`light_table`); each photon
 path stores up to `bounces` photons on diffuse surfaces after the first hit (direct light is the
-shadow rays' job), having passed through any number of mirror/glossy reflections (caustics)."""
+shadow rays' job), having passed through any number of mirror/glossy reflections (caustics), up to
+MAX_REFLECTIONS in all (they do not count against `bounces`)."""
 from __future__ import annotations
 
 import moderngl
@@ -16,6 +17,9 @@ from .photon_scan import dispatch_shape
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 TRACE_GROUP = 64
+# Mirror/glossy reflections one photon path may take on top of its diffuse bounces: a bound for
+# facing mirrors (white metal reflects all), beyond the caustics a scene shows.
+MAX_REFLECTIONS = 16
 
 
 def light_power(scene, sphere_radius: float) -> np.ndarray:
@@ -74,7 +78,8 @@ class PhotonTracePass(PhotonPass):
         lights.bind_to_storage_buffer(SSBO["photon_lights"])
         fc.resource("photons").bind_to_storage_buffer(SSBO["photons"])
         p = self.program
-        values = {"photon_paths": ps.paths, "photon_stores": ps.stores, "photon_seed": ps.seed(fc.settings.seed),
+        values = {"photon_paths": ps.paths, "photon_stores": ps.stores, "photon_reflections": MAX_REFLECTIONS,
+                  "photon_seed": ps.seed(fc.settings.seed),
                   "scene_sphere": ps.sphere}
         for k, v in values.items():
             if k in p:

@@ -5,8 +5,10 @@
 // normal; directional: a disc over the scene's bounding sphere) and is traced through the BVH.
 // Mirror and glossy surfaces (reflective effects) reflect it (Fresnel, GGX lobe for glossy);
 // diffuse ones store it -- except at the first hit, which direct light with shadow rays already
-// covers -- and bounce it on by Russian roulette on the albedo (cosine-weighted). Path i writes
-// its photons to slots i * photon_stores + j in order; unused slots keep extra = 0 (empty).
+// covers -- and bounce it on by Russian roulette on the albedo (cosine-weighted). A path ends when
+// it has stored photon_stores photons; reflections do not count against that, only against
+// photon_reflections (facing mirrors would reflect it forever). Path i writes its photons to
+// slots i * photon_stores + j in order; unused slots keep extra = 0 (empty).
 // Random numbers come from the path index and the frame seed: one photon map per frame, shared by
 // both eyes, the same for the same seed.
 layout(local_size_x = 64) in;
@@ -20,6 +22,7 @@ layout(std430, binding = SSBO_PHOTON_LIGHTS) readonly restrict buffer PhotonLigh
 
 uniform uint photon_paths;
 uniform int photon_stores;   // = bounces: photons a path may store
+uniform int photon_reflections;  // mirror/glossy reflections a path may take
 uniform uint photon_seed;
 uniform vec4 scene_sphere;   // xyz centre (scene-local), w radius: directional lights' disc
 
@@ -67,8 +70,9 @@ void main() {
         mat3 b = basis_around(dir);
         o = scene_sphere.xyz - dir * (1.01 * scene_sphere.w) + b[0] * (r * cos(phi)) + b[1] * (r * sin(phi));
     }
-    int stored = 0;
-    for (int bounce = 0; bounce <= photon_stores && stored < photon_stores; ++bounce) {
+    int stored = 0, reflections = 0;
+    // every diffuse hit after the first stores a photon: at most photon_stores + 1 of them
+    for (int hit = 0; stored < photon_stores; ++hit) {
         if (all(equal(power, vec3(0.0)))) break;
         Hit h;
         trace_closest(Ray(o, 0.0, dir, 3.0e38), h);
@@ -77,6 +81,7 @@ void main() {
         Surface s = surface_at_hit(h, dir, ng);
         vec3 v = -dir;
         if (is_specular(s.effect)) {
+            if (++reflections > photon_reflections) break;
             vec3 f0 = mix(vec3(0.04), s.base_color, s.metallic);
             vec3 n = s.normal;
             if (s.effect == uint(EFFECT_GLOSSY) && s.roughness > 0.0) {
@@ -95,7 +100,7 @@ void main() {
             }
             if (dot(dir, ng) <= 0.0) dir = reflect(dir, ng);  // shading normal sent it under the surface
         } else {
-            if (bounce > 0) {
+            if (hit > 0) {
                 photons[base + uint(stored)] = Photon(vec4(s.position, uintBitsToFloat(oct_encode(ng))),
                                                       vec4(power, uintBitsToFloat(1u)));
                 ++stored;
