@@ -34,6 +34,7 @@ def material_records(scene: Scene, assignments: list[Assignment], texture_layers
     for i, m in enumerate(scene.materials):
         rec[i]["base_color"] = m.base_color
         rec[i]["emission"][:3] = m.emission
+        rec[i]["emission"][3] = float(m.double_sided)  # scene.glsl emits_both_sides
         rec[i]["metallic"] = m.metallic
         rec[i]["roughness"] = m.roughness
         rec[i]["texture_layer"] = texture_layers[i]
@@ -61,6 +62,7 @@ def _light_record(light: Light, origin: np.ndarray):
     r["radiance"][:3] = np.asarray(light.color, np.float64) * light.intensity
     r["direction"][:3] = light.direction
     r["u"][:3] = light.u
+    r["u"][3] = float(light.two_sided)  # scene.glsl light_two_sided
     r["v"][:3] = light.v
     return r
 

@@ -6,12 +6,13 @@ What it models (float64, vectorised over the pixels of one eye):
   * the surface: shading normal interpolated from `scene.normals` with the hit's barycentrics
     (the geometric normal when the interpolation vanishes), turned to the geometric normal's side
     and then to face the eye (two-sided, by the geometric normal, as the G-buffer does); base colour, metallic, roughness and emission
-    are the material's constants;
+    are the material's constants; emission is seen on the front face only (where the triangle's
+    winding points) unless the material is double-sided;
   * the BRDF: metallic-roughness microfacet model, GGX normal distribution with alpha =
     roughness^2 (at least 1e-3), Smith height-correlated masking-shadowing, Schlick Fresnel with
     F0 = mix(0.04, base colour, metallic), plus Lambert diffuse weighted by (1 - F)(1 - metallic);
   * lights: point (intensity / d^2), directional, rectangular (radiance, emitting on the side of
-    cross(u, v), area 4 |u x v|);
+    cross(u, v), or both sides when `two_sided`, area 4 |u x v|);
   * effect "raster": no shadows, rect lights by the fixed 4x4 grid of points the GPU uses;
     effect "shadows": hard shadows by any-hit shadow rays through the numpy BVH (starting at
     `offset_ray` off the geometric normal on the light's side, stopping just short of the
@@ -120,6 +121,8 @@ def light_samples(light, origin, p, effect, rect_samples, rng):
             safe = np.where(dist > 0, dist, 1.0)
             l = d / safe[:, None]
             cos_light = -_dot(l, normal)
+            if light.two_sided:
+                cos_light = np.abs(cos_light)
             weight = np.where((dist > 0) & (cos_light > 0), cos_light / safe ** 2 * area / count, 0.0)
             yield l, dist, weight[:, None] * radiance
     else:
@@ -187,6 +190,8 @@ def shade_eye(scene, eye, effect="raster", *, ambient=(0.03, 0.03, 0.03), backgr
     metallic = np.array([m.metallic for m in table], np.float64)[mat]
     roughness = np.array([m.roughness for m in table], np.float64)[mat]
     emission = np.array([m.emission for m in table], np.float64)[mat]
+    one_sided = ~np.array([m.double_sided for m in table], bool)[mat]
+    emission[facing_away & one_sided] = 0.0                 # the back of a one-sided emitter
 
     color = emission + direct_light(scene, bvh, p, n, ng, -d, base, metallic, roughness, effect,
                                     rect_samples, rng) + np.asarray(ambient, np.float64) * base

@@ -49,6 +49,9 @@ class Material:
     roughness: float = 0.5
     emission: tuple = (0.0, 0.0, 0.0)  # linear RGB radiance
     texture: np.ndarray | None = field(default=None, repr=False)  # HxWx4 uint8 sRGB base colour
+    # Emission leaves both faces (glTF `doubleSided`); otherwise only the front face, the side its
+    # triangles' winding points to (OBJ, glTF's default). Shading is two-sided either way.
+    double_sided: bool = False
 
     @property
     def is_emissive(self) -> bool:
@@ -58,7 +61,8 @@ class Material:
 @dataclass
 class Light:
     """kind: 'point' (position), 'directional' (direction the light travels), 'rect'
-    (position = centre, u/v = half-edge vectors, emits on the side of cross(u, v)).
+    (position = centre, u/v = half-edge vectors, emits on the side of cross(u, v), or on both
+    sides when `two_sided`: an emissive rectangle of a double-sided material).
     `color` is linear RGB and `intensity` scales it (point: W/sr-like, directional: irradiance,
     rect: radiance)."""
 
@@ -70,6 +74,7 @@ class Light:
     u: tuple = (0.0, 0.0, 0.0)
     v: tuple = (0.0, 0.0, 0.0)
     source: str = "default"
+    two_sided: bool = False
 
 
 @dataclass
@@ -128,8 +133,14 @@ class Scene:
 
 
 def from_arrays(vertices, indices, *, triangle_material=None, materials=None, normals=None, uvs=None,
-                lights=None, name="arrays", path=None, ambient_lights=True, unreadable: int = 0) -> Scene:
+                lights=None, name="arrays", path=None, ambient_lights=True, unreadable: int = 0,
+                emissive_lights: bool | None = None) -> Scene:
     """Validate raw world-space arrays and make a Scene. Used by the loaders and by tests.
+
+    `emissive_lights`: whether emissive rectangles become rect lights besides `lights` (True: the
+    loaders, a file's emissive quads are its area lights whatever other lights it has), or not at
+    all (False); None: only when no `lights` are given (a caller that gives lights gives them all,
+    so a test can have glowing geometry that is no light).
 
     `unreadable`: triangles the loader had to skip; with the degenerate ones they must stay a
     minority, or the load is refused (a half-read mesh is not rendered silently)."""
@@ -222,8 +233,8 @@ def from_arrays(vertices, indices, *, triangle_material=None, materials=None, no
         triangle_material=np.ascontiguousarray(tm, dtype=np.uint32), materials=materials,
         lights=list(lights or []), dropped_degenerate=dropped, dropped_unreadable=int(unreadable),
     )
-    if not scene.lights:
-        scene.lights = emissive_rect_lights(scene)
+    if emissive_lights or (emissive_lights is None and not scene.lights):
+        scene.lights += emissive_rect_lights(scene, existing=scene.lights)
     if not scene.lights and ambient_lights:
         scene.lights = default_lights(scene)
     return scene
@@ -252,15 +263,19 @@ def default_lights(scene: Scene) -> list[Light]:
     ]
 
 
-def emissive_rect_lights(scene: Scene) -> list[Light]:
+def emissive_rect_lights(scene: Scene, existing=()) -> list[Light]:
     """Each emissive material whose triangles form one planar rectangle becomes a rect light
-    (how OBJ/Cornell-box files describe area lights)."""
+    (how OBJ/Cornell-box files describe area lights), unless a rect light in `existing` already
+    covers that rectangle. One-sided (emitting where the triangles' winding points) unless the
+    material is double-sided, as its emission is in the shaders."""
     lights = []
     world = scene.world_vertices()
     for mi, m in enumerate(scene.materials):
         if not m.is_emissive:
             continue
         tris = scene.indices[scene.triangle_material == mi]
+        if len(tris) == 0:
+            continue
         pts = world[np.unique(tris)]
         rect = _fit_rectangle(pts)
         if rect is None:
@@ -268,15 +283,38 @@ def emissive_rect_lights(scene: Scene) -> list[Light]:
             continue
         centre, u, v, normal = rect
         # Orient to the emitting side: the triangles' winding.
-        t0 = world[tris[0]]
-        fn = np.cross(t0[1] - t0[0], t0[2] - t0[0])
-        if np.dot(np.cross(u, v), fn) < 0:
-            v = -v
+        corners = world[tris]
+        fn = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        facing = fn @ np.cross(u, v)
+        if facing[0] < 0:
+            v, facing = -v, -facing
+        if not m.double_sided and (facing < 0).any():
+            log.warning("emissive material %r: %d of its %d triangles are wound the other way; they glow "
+                        "towards the back while its area light lights the front", m.name,
+                        int((facing < 0).sum()), len(tris))
         scale = max(m.emission)
         color = tuple(float(e / scale) for e in m.emission)
-        lights.append(Light("rect", color, float(scale), position=tuple(centre), u=tuple(u), v=tuple(v),
-                            source=f"emissive material {m.name}"))
+        light = Light("rect", color, float(scale), position=tuple(centre), u=tuple(u), v=tuple(v),
+                      source=f"emissive material {m.name}", two_sided=m.double_sided)
+        if any(same_rectangle(light, other) for other in existing):
+            continue
+        lights.append(light)
     return lights
+
+
+def _rect_corners(light: Light) -> np.ndarray:
+    c, u, v = (np.asarray(x, np.float64) for x in (light.position, light.u, light.v))
+    return np.array([c - u - v, c - u + v, c + u - v, c + u + v])
+
+
+def same_rectangle(a: Light, b: Light) -> bool:
+    """Whether rect lights a and b cover the same rectangle (corners equal to 1e-4 of its size,
+    in any order): an emissive quad the caller already made a light is not added twice."""
+    if a.kind != "rect" or b.kind != "rect":
+        return False
+    ca, cb = _rect_corners(a), _rect_corners(b)
+    tol = 1e-4 * max(np.ptp(ca, axis=0).max(), 1e-30)
+    return all(np.linalg.norm(cb - p, axis=1).min() <= tol for p in ca)
 
 
 def _fit_rectangle(pts: np.ndarray):
@@ -395,7 +433,7 @@ def load(path: str | Path | None = None) -> Scene:
         lights, camera = _gltf_extras(path, materials)
     scene = from_arrays(np.concatenate(verts), np.concatenate(faces), triangle_material=np.concatenate(tri_mat),
                        materials=materials, normals=np.concatenate(norms),
-                       uvs=np.concatenate(uvs), lights=lights, name=path.stem, path=path)
+                       uvs=np.concatenate(uvs), lights=lights, name=path.stem, path=path, emissive_lights=True)
     scene.camera = camera
     return scene
 
@@ -528,7 +566,7 @@ def load_obj(path: str | Path) -> Scene:
     return from_arrays(vertices, np.asarray(faces, dtype=np.int64),
                        triangle_material=np.asarray(state_material, dtype=np.int64)[face_state],
                        materials=materials, normals=normals, uvs=uvs, name=path.stem, path=path,
-                       unreadable=bad_tris)
+                       unreadable=bad_tris, emissive_lights=True)
 
 
 def _read_mtllib(obj_path: Path, ref: str) -> dict[str, dict]:
@@ -645,6 +683,7 @@ def _material_from_trimesh(tmat, fallback_name: str, index: int) -> Material:
             roughness=roughness * float(mr[1]),
             emission=tuple(float(x) for x in emissive),
             texture=_texture_array(getattr(tmat, "baseColorTexture", None), f"material {name!r}"),
+            double_sided=bool(getattr(tmat, "doubleSided", False)),  # absent in the file: glTF's false
         )
     # trimesh's SimpleMaterial keeps the MTL keys it has no field for in `kwargs`.
     kw = dict(getattr(tmat, "kwargs", {}) or {})

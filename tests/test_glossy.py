@@ -147,7 +147,7 @@ def test_sharp_glossy_floor_shows_the_emitter_where_the_mirror_puts_it(gl):
     meets it, and nothing elsewhere; the pixel of the mirror point of the emitter's centre is lit."""
     centre, half = np.array([0.6, 1.2, -1.2]), 0.5
     floor = quad((0, 0, 0), (6, 0, 0), (0, 0, -6))
-    lamp = quad(centre, (0, 0, half), (half, 0, 0))  # faces -y, towards the floor
+    lamp = quad(centre, (half, 0, 0), (0, 0, half))  # faces -y (cross(u, v)), towards the floor
     v, f, part = merge(floor, lamp)
     mats = [floor_material(0.05), Material("lamp", base_color=(0, 0, 0, 1), emission=(6.0, 6.0, 6.0))]
     scene = from_arrays(v, f, triangle_material=part, materials=mats, lights=[Light("point", intensity=0.0)])

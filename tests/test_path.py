@@ -80,8 +80,9 @@ def furnace():
 
     sphere = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
     base, emission = 0.5, 1.0
+    # double-sided: the camera is inside, behind the outward-wound faces (one-sided emission is 0 there)
     mat = Material("shell", base_color=(base, base, base, 1.0), metallic=0.0, roughness=0.8,
-                   emission=(emission, emission, emission))
+                   emission=(emission, emission, emission), double_sided=True)
     scene = from_arrays(sphere.vertices, sphere.faces, normals=sphere.vertex_normals, materials=[mat],
                         lights=[Light("point", intensity=0.0)])
     rig = StereoRig(Pose.look_at((0.0, 0.0, 0.0), (0.3, 0.2, -1.0)), ipd=0.0, fov_y=60, size=(32, 24), near=0.01)

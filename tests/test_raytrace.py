@@ -166,7 +166,7 @@ def cell_cube():
                     u[b], v[c] = step / 2, step / 2
                     parts.append(quad(center, u, v))
                     e = ((idx % 6 + 1) / 8, ((idx // 6) % 4 + 1) / 8, (idx // 24 + 1) / 8)
-                    mats.append(Material(f"cell{idx}", base_color=(0, 0, 0, 1), emission=e))
+                    mats.append(Material(f"cell{idx}", base_color=(0, 0, 0, 1), emission=e, double_sided=True))
     return parts, mats
 
 
@@ -240,7 +240,8 @@ def test_mirror_corridor_stops_after_n_bounces(gl, bounces):
     walls = [quad((x, 0, -L / 2), (0, 1, 0), (0, 0, L / 2 + 1)) for x in (-1, 1)] + \
             [quad((0, y, -L / 2), (1, 0, 0), (0, 0, L / 2 + 1)) for y in (-1, 1)]
     v, f, _ = merge(*walls)
-    mirror = Material("mirror", base_color=(1, 1, 1, 1), metallic=1.0, roughness=0.0, emission=(1.0, 0.0, 0.0))
+    mirror = Material("mirror", base_color=(1, 1, 1, 1), metallic=1.0, roughness=0.0, emission=(1.0, 0.0, 0.0),
+                      double_sided=True)  # the walls glow on both faces, whichever way they are wound
     scene = from_arrays(v, f, materials=[mirror], lights=no_light())
     rig = StereoRig(Pose.look_at((0.1, -0.2, 0.0), (0.4, 0.3, -1.0)), ipd=0.1, fov_y=70, size=(40, 30))
     frame, img, _ = render(gl, scene, rig, everything("reflections", bounces=bounces), DARK)

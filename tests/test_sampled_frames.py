@@ -25,7 +25,8 @@ def edge_scene():
     """One emissive triangle (radiance 1) on black, its left edge slanted across the view of a
     camera at the origin looking down -z: frames show coverage directly."""
     return from_arrays([[-0.5, -3.0, -2.0], [0.4, 3.0, -2.0], [12.0, 0.0, -2.0]], [[0, 1, 2]],
-                       materials=[Material("glow", base_color=(0.0, 0.0, 0.0, 1.0), emission=(1.0, 1.0, 1.0))],
+                       materials=[Material("glow", base_color=(0.0, 0.0, 0.0, 1.0), emission=(1.0, 1.0, 1.0),
+                                           double_sided=True)],  # wound away from the camera
                        triangle_material=[0], ambient_lights=False, name="edge")
 
 

@@ -19,6 +19,10 @@ scene that models what rayvr models:
     diffuse) 5-7 %, `roughplastic` 23-40 %.
 * **Lights**: rect -> `rectangle` with an `area` emitter (radiance = colour x intensity, emitting
   along cross(u, v)), point -> `point` (intensity), directional -> `directional` (irradiance).
+  Mitsuba's `area` emitter is one-sided, as rayvr's emission is unless the material is
+  double-sided (scene.Material.double_sided): a two-sided rect light or emissive mesh becomes two
+  copies that emit away from each other, each moved EMITTER_SPLIT of its size to its own side, so
+  that a ray from either side meets the copy that faces it first.
 * **Sensor**: `perspective` matching the eye's frustum tangents exactly: fov along x, the
   off-axis part through `principal_point_offset_x/y` (fractions of the film: +x moves the frustum
   right, +y moves it down), pose from EyeView.position/rotation. A box reconstruction filter
@@ -33,6 +37,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,6 +54,9 @@ LLVM19_PATHS = ("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1", "/usr/lib/x86_64-li
 # over most of the hemisphere (it only drops at grazing angles).
 DIELECTRIC_DIFFUSE_SCALE = 0.96
 DIELECTRIC_IOR = 1.5  # Fresnel F0 = ((1.5 - 1) / (1.5 + 1))^2 = 0.04, rayvr's dielectric F0
+# How far (relative to its size) each copy of a two-sided emitter moves towards the side it emits
+# to: well above float32 intersection error, far below a pixel.
+EMITTER_SPLIT = 1e-4
 
 
 def _mi():
@@ -191,21 +199,66 @@ def _mesh(name: str, verts, faces, normals, bsdf_obj, emitter=None):
     return mesh
 
 
-def _rect_transform(light: Light) -> list:
+def _rect_transform(light: Light, shift: float = 0.0) -> list:
+    """`rectangle`'s to_world for rect light `light`, moved `shift` along its unit normal."""
     u, v = np.asarray(light.u, float), np.asarray(light.v, float)
     n = np.cross(u, v)
+    n /= np.linalg.norm(n)
     m = np.eye(4)
     # `rectangle` spans [-1, 1]^2 in xy with normal +z: map x -> u, y -> v, z -> unit normal.
-    m[:3, 0], m[:3, 1], m[:3, 2] = u, v, n / np.linalg.norm(n)
-    m[:3, 3] = light.position
+    m[:3, 0], m[:3, 1], m[:3, 2] = u, v, n
+    m[:3, 3] = np.asarray(light.position, float) + shift * n
     return m.tolist()
 
 
-def rect_light_materials(scene: Scene) -> set[int]:
-    """Indices of emissive materials rayvr turned into rect lights (their triangles are the light)."""
-    names = {l.source[len("emissive material "):] for l in scene.lights
-             if l.kind == "rect" and l.source.startswith("emissive material ")}
-    return {i for i, m in enumerate(scene.materials) if m.name in names}
+def _rect_entries(light: Light, radiance, bsdf_obj=None) -> list[dict]:
+    """`rectangle` shapes for rect light `light`: one emitting along cross(u, v), and for a
+    two-sided light a second one (flip_normals) just behind it emitting the other way."""
+    mi = _mi()
+    size = float(np.linalg.norm(light.u) + np.linalg.norm(light.v))
+    shift = EMITTER_SPLIT * size if light.two_sided else 0.0
+    faces = [(shift, False)] + ([(-shift, True)] if light.two_sided else [])
+    entries = []
+    for offset, flip in faces:
+        entry = {"type": "rectangle", "to_world": mi.ScalarTransform4f(_rect_transform(light, offset)),
+                 "flip_normals": flip, "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}}}
+        if bsdf_obj is not None:
+            entry["bsdf"] = bsdf_obj
+        entries.append(entry)
+    return entries
+
+
+def _emitting_copies(verts, faces, normals, double_sided: bool):
+    """An emissive mesh as Mitsuba's one-sided `area` emitter needs it: triangles unshared, each
+    corner's normal turned to its triangle's winding side (Mitsuba emits on the side of the
+    shading normal, rayvr on the side of the winding); with `double_sided` a second copy wound
+    the other way, the two moved apart by EMITTER_SPLIT of the mesh's size each towards the side
+    it emits to. Yields (vertices, faces, normals) per copy."""
+    tri = np.asarray(verts, np.float64)[faces]                       # (F, 3, 3)
+    ng = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    ng /= np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-300)
+    corner_n = np.asarray(normals, np.float64)[faces]                 # (F, 3, 3)
+    corner_n *= np.where(np.einsum("fkc,fc->fk", corner_n, ng) < 0, -1.0, 1.0)[..., None]
+    shift = EMITTER_SPLIT * float(np.ptp(tri.reshape(-1, 3), axis=0).max()) if double_sided else 0.0
+    index = np.arange(3 * len(tri)).reshape(-1, 3)
+    for sign in ((1.0, -1.0) if double_sided else (1.0,)):
+        moved = tri + (sign * shift) * ng[:, None, :]
+        yield moved.reshape(-1, 3), (index if sign > 0 else index[:, ::-1]), sign * corner_n.reshape(-1, 3)
+
+
+def light_materials(scene: Scene) -> dict[int, int]:
+    """{index of a rect light: index of the emissive material whose rectangle it is} (the light
+    rayvr made of it, or one the file gave for the same rectangle): that material's triangles
+    are drawn as the light's `rectangle`, not as a mesh."""
+    from ..scene import emissive_rect_lights, same_rectangle
+
+    names = scene.material_names()
+    found = {}
+    for own in emissive_rect_lights(scene):
+        k = next((k for k, light in enumerate(scene.lights) if same_rectangle(own, light)), None)
+        if k is not None:
+            found[k] = names.index(own.source[len("emissive material "):])
+    return found
 
 
 def scene_dict(scene: Scene, eye: EyeView, spp: int = 64, seed: int = 0, specular_only=()) -> dict:
@@ -215,26 +268,27 @@ def scene_dict(scene: Scene, eye: EyeView, spp: int = 64, seed: int = 0, specula
     mi = _mi()
     d: dict = {"type": "scene", "sensor": sensor_dict(eye, spp, seed)}
     world = scene.world_vertices()
-    as_lights = rect_light_materials(scene)
+    light_of = light_materials(scene)
+    as_lights = set(light_of.values())
     for mi_idx, mat in enumerate(scene.materials):
         tris = scene.indices[scene.triangle_material == mi_idx]
         if len(tris) == 0 or mi_idx in as_lights:
             continue
         used, local = np.unique(tris, return_inverse=True)
-        emitter = None
         if mat.is_emissive:  # rayvr: glows, casts no light (not a rectangle); Mitsuba's would
-            emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": list(mat.emission)}})
+            for c, (v, f, n) in enumerate(_emitting_copies(world[used], local.reshape(-1, 3), scene.normals[used],
+                                                                mat.double_sided)):
+                emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": list(mat.emission)}})
+                d[f"mat{mi_idx}_{c}"] = _mesh(f"mat{mi_idx}_{c}", v, f, n, bsdf(mat, mi_idx in specular_only), emitter)
+            continue
         d[f"mat{mi_idx}"] = _mesh(f"mat{mi_idx}", world[used], local.reshape(-1, 3),
-                                  scene.normals[used], bsdf(mat, mi_idx in specular_only), emitter)
+                                  scene.normals[used], bsdf(mat, mi_idx in specular_only))
     for k, light in enumerate(scene.lights):
         radiance = [float(c) * float(light.intensity) for c in light.color]
         if light.kind == "rect":
-            src = next((i for i in as_lights if light.source == f"emissive material {scene.materials[i].name}"), None)
-            entry = {"type": "rectangle", "to_world": mi.ScalarTransform4f(_rect_transform(light)),
-                     "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}}}
-            if src is not None:
-                entry["bsdf"] = bsdf(scene.materials[src])
-            d[f"light{k}"] = entry
+            src = light_of.get(k)
+            for c, entry in enumerate(_rect_entries(light, radiance, None if src is None else bsdf(scene.materials[src]))):
+                d[f"light{k}" + (f"_{c}" if c else "")] = entry
         elif light.kind == "point":
             d[f"light{k}"] = {"type": "point", "position": [float(x) for x in light.position],
                               "intensity": {"type": "rgb", "value": radiance}}
@@ -339,7 +393,8 @@ def primary_hits(mi_scene, eye: EyeView, supersample: int = 1) -> PrimaryHits:
     t = t + np.einsum("ij,ij->i", o - eye.position, d)  # Mitsuba's rays start on the near plane
     o = np.broadcast_to(eye.position, o.shape)
     ids = [s.id() for s in mi_scene.shapes()]
-    to_mat = np.array([int(i[3:]) if i.startswith("mat") and i[3:].isdigit() else -1 for i in ids] + [-1])
+    # Shapes "mat<index>", or "mat<index>_<copy>" for an emissive mesh's copies (scene_dict).
+    to_mat = np.array([int(i[3:].split("_")[0]) if re.fullmatch(r"mat\d+(_\d+)?", i) else -1 for i in ids] + [-1])
     mat = to_mat[idx]
     pos = o + d * np.where(np.isfinite(t), t, 0.0)[:, None]
     return PrimaryHits(t.reshape(h, w), mat.reshape(h, w), pos.reshape(h, w, 3), nrm.reshape(h, w, 3))
@@ -432,8 +487,8 @@ def load_cornell(path: Path) -> Scene:
     if "light" in names and not scene.materials[names.index("light")].is_emissive:
         scene.materials[names.index("light")] = dataclasses.replace(GLOSSY_LIGHT)
         kept = [light for light in scene.lights if light.source != "default"]
-        new = [light for light in scene_mod.emissive_rect_lights(scene) if light not in kept]
-        scene.lights = (kept + new) or scene_mod.default_lights(scene)
+        kept += scene_mod.emissive_rect_lights(scene, existing=kept)
+        scene.lights = kept or scene_mod.default_lights(scene)
     return scene
 
 

@@ -23,7 +23,7 @@ MAX_REFLECTIONS = 16
 
 
 def light_power(scene, sphere_radius: float) -> np.ndarray:
-    """(L, 3) emitted power (flux) per light: point 4 pi I; rect pi L A (one-sided Lambertian);
+    """(L, 3) emitted power (flux) per light: point 4 pi I; rect pi L A per emitting side (Lambertian);
     directional E pi R^2 over the disc that covers the scene's bounding sphere (radius R)."""
     out = np.zeros((len(scene.lights), 3))
     for i, l in enumerate(scene.lights):
@@ -31,7 +31,7 @@ def light_power(scene, sphere_radius: float) -> np.ndarray:
         if l.kind == "point":
             out[i] = 4 * np.pi * rad
         elif l.kind == "rect":
-            out[i] = np.pi * rad * 4 * np.linalg.norm(np.cross(l.u, l.v))
+            out[i] = np.pi * rad * 4 * np.linalg.norm(np.cross(l.u, l.v)) * (2 if l.two_sided else 1)
         elif l.kind == "directional":
             out[i] = rad * np.pi * sphere_radius ** 2
     return out

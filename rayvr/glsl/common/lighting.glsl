@@ -66,7 +66,8 @@ vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float
                 float dist = sqrt(dist2);
                 vec3 l = d / dist;
                 float cos_light = dot(ln, -l);
-                if (cos_light <= 0.0) continue;
+                if (light_two_sided(li)) cos_light = abs(cos_light);
+                if (cos_light <= 0.0) continue;  // behind a one-sided light
 #ifdef LIGHT_MIS
                 vec3 f = light_mis_brdf_cos(n, v, l, base_color, metallic, roughness,
                                             float(N) * dist2 / (cos_light * area));

@@ -75,7 +75,7 @@ vec3 sample_brdf(vec3 n, vec3 v, vec3 base_color, float metallic, float roughnes
 
 // Solid-angle pdf with which direct_light() (lighting.glsl) samples the rect light that the ray
 // from `origin` along unit `dir` meets at `q` (its `area_samples` points folded in: x count);
-// 0 when q is on no rect light; -1 on a rect light's back, which emits nothing (Light docs).
+// 0 when q is on no rect light; -1 on a one-sided rect light's back, which emits nothing.
 float rect_light_pdf(vec3 origin, vec3 dir, vec3 q, float count) {
     for (int i = 0; i < lights.length(); ++i) {
         Light li = lights[i];
@@ -91,6 +91,7 @@ float rect_light_pdf(vec3 origin, vec3 dir, vec3 q, float count) {
         vec2 st = vec2(dot(d, u) / dot(u, u), dot(d, w) / dot(w, w));
         if (any(greaterThan(abs(st), vec2(1.0 + 1e-4)))) continue;
         float cos_light = dot(ln, -dir);
+        if (light_two_sided(li)) cos_light = abs(cos_light);
         if (cos_light <= 0.0) return -1.0;
         vec3 e = q - origin;
         return count * dot(e, e) / (cos_light * area);
@@ -100,7 +101,7 @@ float rect_light_pdf(vec3 origin, vec3 dir, vec3 q, float count) {
 
 // Weight of the emission a BSDF ray (count x pdf `bsdf_pdf`; 0: a delta direction, nothing else
 // could find that light) finds at q against the light samples that could have found it; 0 on
-// the back of a rect light (its emissive geometry glows both ways, the light only forwards).
+// the back of a one-sided rect light (where its geometry's emission is 0 too: triangle_surface).
 float emission_mis_weight(vec3 origin, vec3 dir, vec3 q, float bsdf_pdf, float light_count) {
     if (!(bsdf_pdf > 0.0)) return 1.0;
     float light_pdf = rect_light_pdf(origin, dir, q, light_count);

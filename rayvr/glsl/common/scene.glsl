@@ -5,7 +5,7 @@
 
 struct Material {
     vec4 base_color;      // linear RGBA
-    vec4 emission;        // rgb radiance, w unused
+    vec4 emission;        // rgb radiance, w 1: emits from both faces (emits_both_sides)
     float metallic;
     float roughness;
     int texture_layer;    // -1: no base-colour texture
@@ -17,7 +17,7 @@ struct Light {
     vec4 position_kind;   // xyz scene-local position (rect: centre), w kind
     vec4 radiance;        // rgb colour * intensity
     vec4 direction;       // directional: direction light travels
-    vec4 u;               // rect: half-edge vectors
+    vec4 u;               // rect: half-edge vectors; w 1: emits on both sides (light_two_sided)
     vec4 v;
 };
 
@@ -26,6 +26,11 @@ layout(std430, binding = SSBO_MATERIALS) readonly buffer Materials { Material ma
 layout(std430, binding = SSBO_LIGHTS) readonly buffer Lights { Light lights[]; };
 layout(std430, binding = SSBO_VERTICES) readonly buffer Vertices { float vertex_data[]; };
 layout(std430, binding = SSBO_INDICES) readonly buffer Indices { uint index_data[]; };
+
+// Emission leaves a triangle's front face (the side its winding's normal points to) only, unless
+// the material is double-sided (rayvr/scene.py Material.double_sided); rect lights alike.
+bool emits_both_sides(Material m) { return m.emission.w > 0.5; }
+bool light_two_sided(Light li) { return li.u.w > 0.5; }
 
 // Parameter `slot` of material m's effect (PARAM_<EFFECT>_<NAME>, or PARAM_<NAME> in an effect's
 // own shaders): ints as int32, floats as float32 bits.

@@ -16,7 +16,8 @@ vec2 triangle_uv(TriangleVerts tv, vec3 w) {
 
 // Triangle `tri` (vertices tv, geometric normal ng of any length, wound v0 -> v1 -> v2) at weights
 // w (of v0, v1, v2), seen along direction d: every Surface field but position and view_depth.
-// Two-sided: the normal is turned to face against d (scene.glsl two_sided_normal).
+// Two-sided: the normal is turned to face against d (scene.glsl two_sided_normal). Emission is
+// seen only on the front face (d against ng) unless the material emits from both (scene.glsl).
 // The base colour texture is read at level `lod`.
 Surface triangle_surface(uint tri, TriangleVerts tv, vec3 w, vec3 ng, vec3 d, float lod) {
     vec3 ni = w.x * tv.n[0] + w.y * tv.n[1] + w.z * tv.n[2];
@@ -35,7 +36,7 @@ Surface triangle_surface(uint tri, TriangleVerts tv, vec3 w, vec3 ng, vec3 d, fl
     s.roughness = m.roughness;
     s.base_color = base.rgb;
     s.metallic = m.metallic;
-    s.emission = m.emission.rgb;
+    s.emission = emits_both_sides(m) || dot(ng, d) < 0.0 ? m.emission.rgb : vec3(0.0);
     s.material = mi;
     s.effect = m.effect;
     s.triangle = tri;

@@ -2,7 +2,7 @@
 // Photon tracing (passes/photon_trace.py): one invocation per photon path. A light is picked in
 // proportion to its power (photon_lights: per light the power one path carries, rgb, and the
 // cumulative probability, w), the photon leaves it (point: uniform sphere; rect: cosine about its
-// normal; directional: a disc over the scene's bounding sphere) and is traced through the BVH.
+// normal, or about either normal when two-sided; directional: a disc over the scene's bounding sphere) and is traced through the BVH.
 // Mirror and glossy surfaces (reflective effects) reflect it (Fresnel, GGX lobe for glossy);
 // diffuse ones store it -- except at the first hit, which direct light with shadow rays already
 // covers -- and bounce it on by Russian roulette on the albedo (cosine-weighted). A path ends when
@@ -60,6 +60,7 @@ void main() {
     } else if (kind == LIGHT_RECT) {
         vec2 s = rng_next2(rng) * 2.0 - 1.0;
         vec3 ln = normalize(cross(li.u.xyz, li.v.xyz));
+        if (light_two_sided(li) && rng_next(rng) < 0.5) ln = -ln;  // either face, half the power each
         o = li.position_kind.xyz + s.x * li.u.xyz + s.y * li.v.xyz;
         dir = sample_cosine(ln, rng_next2(rng));
         o = offset_ray(o, ln);
