@@ -284,3 +284,79 @@ def test_obj_emitters_are_one_sided(tmp_path):
     (rect,) = scene.lights
     assert not rect.two_sided and not scene.materials[scene.material_names().index("lamp")].double_sided
     assert np.cross(rect.u, rect.v)[1] < 0  # 5 6 7 8 winds clockwise seen from above: faces down
+
+
+# ------------------------------------------------------------------ the Mitsuba converter
+
+@pytest.fixture(scope="module")
+def mitsuba_variant():
+    pytest.importorskip("mitsuba")
+    from rayvr.bench import mitsuba_ref
+
+    return mitsuba_ref.set_variant()
+
+
+@pytest.mark.parametrize("as_light", [True, False], ids=["rect-light", "emissive-mesh"])
+@pytest.mark.parametrize("facing_down,double_sided", SIDES[:3], ids=SIDE_IDS[:3])
+def test_the_mitsuba_scene_emits_on_the_same_sides(mitsuba_variant, facing_down, double_sided, as_light):
+    """Mitsuba's `area` emitters are one-sided: the converter's copies must light the floor and
+    show the lamp exactly where rayvr does (floor pixels well inside it: Mitsuba's pixel is a box
+    over the pixel, the quadrature is at its centre)."""
+    import mitsuba as mi
+
+    from rayvr.bench import mitsuba_ref as M
+
+    scene = lamp_scene(facing_down, double_sided, as_light)
+    eye = RIG.eyes()[0]
+    img = M.render(mi.load_dict(M.scene_dict(scene, eye, spp=64)), M.integrator("direct"), 64, seed=1)
+    dirs = eye.ray_directions()
+    t = -eye.position[1] / dirs[..., 1]
+    p = eye.position + dirs * t[..., None]
+    inner = (t > 0) & (np.abs(p[..., 0]) < 2.5) & (p[..., 2] > -2.5) & (p[..., 2] < 2.5)
+    t_lamp = (LAMP_C[1] - eye.position[1]) / dirs[..., 1]
+    q = eye.position + dirs * t_lamp[..., None] - LAMP_C
+    on_lamp = (t_lamp > 0) & (np.maximum(np.abs(q[..., 0]), np.abs(q[..., 2])) < LAMP_HALF)
+    lamp = on_lamp & (np.maximum(np.abs(q[..., 0]), np.abs(q[..., 2])) < 0.8 * LAMP_HALF)  # whole pixels
+    inner &= ~on_lamp
+    assert lamp.sum() > 10 and inner.sum() > 300
+    got = img[inner].mean(-1)
+    if facing_down or double_sided:
+        want = lamp_integral(p[inner], -dirs[inner], floor_f_cos, facing_down, double_sided)
+        assert got.mean() == pytest.approx(want.mean(), rel=0.03)  # the converted BSDF is within 1.4 %
+        assert img[lamp].mean() == pytest.approx(L, rel=0.01)
+    else:
+        assert got.max() == 0.0 and img[lamp].max() == 0.0
+
+
+# ------------------------------------------------------------------ two sides are two lights
+
+def covered_lamp_scene(facing_down: bool, double_sided: bool):
+    """lamp_scene under a white ceiling (y = 2, facing down): light the lamp sends up reaches the
+    floor off the ceiling."""
+    floor = quad((0, 0, 0), (3, 0, 0), (0, 0, -3))
+    ceiling = quad((0, 2, 0), (3, 0, 0), (0, 0, 3))  # faces -y
+    u, w = (LAMP_HALF, 0, 0), (0, 0, LAMP_HALF)
+    v, f, part = merge(floor, ceiling, quad(LAMP_C, u, w) if facing_down else quad(LAMP_C, w, u))
+    white = dict(base_color=(0.8, 0.8, 0.8, 1.0), roughness=0.9)
+    mats = [Material("floor", **white), Material("ceiling", **white),
+            Material("lamp", base_color=(0, 0, 0, 1), emission=(L, L, L), double_sided=double_sided)]
+    return from_arrays(v, f, triangle_material=part, materials=mats, ambient_lights=False)
+
+
+@pytest.mark.parametrize("effect", ["path", "photon"])
+def test_a_double_sided_lamp_is_the_sum_of_its_two_one_sided_halves(gl, effect):
+    """Light is linear in its sources: a double-sided lamp lights the room as a lamp facing down
+    plus one facing up, direct light and the light off the ceiling together. `path` finds the
+    up-going half by light samples and BSDF rays; `photon` emits half its photons upwards."""
+    config = {"path": {"default": "path", "params": {"path": {"samples": 32, "bounces": 3}}},
+              "photon": {"default": "photon", "params": {"photon": {"photons": 1 << 18, "radius": 0.15,
+                                                                    "bounces": 2, "area_samples": 16}}}}[effect]
+
+    def floor_mean(facing_down, double_sided):
+        scene = covered_lamp_scene(facing_down, double_sided)
+        aux = render(gl, scene, config, seed=2)
+        return aux["hdr"][aux["material"] == 0].mean(-1).astype(np.float64).mean()
+
+    both, down, up = floor_mean(True, True), floor_mean(True, False), floor_mean(False, False)
+    assert up > 0.1 * down  # the ceiling's share is large enough to be missed
+    assert both == pytest.approx(down + up, rel=0.02), (both, down, up)
