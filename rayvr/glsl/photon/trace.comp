@@ -2,7 +2,8 @@
 // Photon tracing (passes/photon_trace.py): one invocation per photon path. A light is picked in
 // proportion to its power (photon_lights: per light the power one path carries, rgb, and the
 // cumulative probability, w), the photon leaves it (point: uniform sphere; rect: cosine about its
-// normal, or about either normal when two-sided; directional: a disc over the scene's bounding sphere) and is traced through the BVH.
+// normal, or about either normal when two-sided; directional: a disc over the scene's bounding
+// sphere) and is traced through the BVH.
 // Mirror and glossy surfaces (reflective effects) reflect it (Fresnel, GGX lobe for glossy);
 // diffuse ones store it -- except at the first hit, which direct light with shadow rays already
 // covers -- and bounce it on by Russian roulette on the albedo (cosine-weighted). A path ends when
