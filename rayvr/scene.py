@@ -288,10 +288,17 @@ def emissive_rect_lights(scene: Scene, existing=()) -> list[Light]:
         facing = fn @ np.cross(u, v)
         if facing[0] < 0:
             v, facing = -v, -facing
-        if not m.double_sided and (facing < 0).any():
-            log.warning("emissive material %r: %d of its %d triangles are wound the other way; they glow "
-                        "towards the back while its area light lights the front", m.name,
-                        int((facing < 0).sum()), len(tris))
+        if not m.double_sided:  # one-sided: say when the winding makes it light the wrong way
+            if (facing < 0).any():
+                log.warning("emissive material %r: %d of its %d triangles are wound the other way; they glow "
+                            "towards the back while its area light lights the front", m.name,
+                            int((facing < 0).sum()), len(tris))
+            side = (world - centre) @ np.cross(u, v)
+            tol = 1e-6 * float(np.abs(side).max(initial=0.0))
+            if not (side > tol).any() and (side < -tol).any():
+                log.warning("emissive material %r faces away from all other geometry (by its triangles' winding): "
+                            "its area light lights none of it; if that is wrong, flip its winding or make the "
+                            "material double-sided (glTF doubleSided)", m.name)
         scale = max(m.emission)
         color = tuple(float(e / scale) for e in m.emission)
         light = Light("rect", color, float(scale), position=tuple(centre), u=tuple(u), v=tuple(v),

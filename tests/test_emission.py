@@ -360,3 +360,15 @@ def test_a_double_sided_lamp_is_the_sum_of_its_two_one_sided_halves(gl, effect):
     both, down, up = floor_mean(True, True), floor_mean(True, False), floor_mean(False, False)
     assert up > 0.1 * down  # the ceiling's share is large enough to be missed
     assert both == pytest.approx(down + up, rel=0.02), (both, down, up)
+
+
+def test_a_one_sided_emitter_facing_away_from_all_geometry_is_warned_about(caplog):
+    """A lamp wound the wrong way lights nothing: a warning names it rather than a silent black
+    room; a lamp facing the floor, or a double-sided one, is not warned about."""
+    with caplog.at_level("WARNING", logger="rayvr.scene"):
+        lamp_scene(True, False)
+        lamp_scene(False, True)
+        assert not caplog.records
+        lamp_scene(False, False)
+    (record,) = caplog.records
+    assert "'lamp' faces away from all other geometry" in record.getMessage()
