@@ -2,10 +2,16 @@
 format "exr" also the linear HDR colour and the float aux channels as OpenEXR."""
 from __future__ import annotations
 
+import ast
 import contextlib
+import hashlib
 import json
 import logging
+import os
+import re
 import signal
+import socket
+import stat
 import threading
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,8 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from .camera import EYES, Pose, StereoRig, load_path, orbit
-from .output import (FORMATS, atomic_write_bytes, check_file_prefix, check_output_dir, make_output_dir,
-                     openexr, write_exr, write_npy, write_png)
+from .output import (FORMATS, OutputError, atomic_write_bytes, check_file_prefix, check_output_dir,
+                     check_output_files, create_output_dir, openexr, remove_empty_dirs, write_exr, write_npy,
+                     write_png)
 from .readback import INTEGER_AUX
 from .renderer import Frame, Renderer
 
@@ -112,8 +119,10 @@ def frame_files(job: CaptureJob, index: int) -> list[Path]:
 
 
 def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) -> None:
-    """Write one frame's files, appending each to `written` as soon as it is whole."""
-    make_output_dir(job.out_dir)  # only now: a run that fails before leaves no empty folder
+    """Write one frame's files, appending each to `written` as soon as it is whole. A sequence's
+    frame loses its record first: until write_record, the frame on disk is not finished."""
+    if len(job.poses) > 1:
+        record_file(job, index).unlink(missing_ok=True)
     rig = job.frame_rig(index) if job.cameras else None
     for eye, img in frame.eyes.items():
         p = file_name(job, index, eye, "color" if job.view == "color" else job.view, "png")
@@ -134,10 +143,24 @@ def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) 
             written.append(p)
 
 
-# ------------------------------------------------------------------ resuming a job
+# ------------------------------------------------------------------ one job per folder; resuming a job
+
+LOCK_NAME = ".rayvr-lock"  # flock()ed by the job writing into the folder; removed as the job ends
+MAX_BOOKKEEPING_BYTES = 256 << 20  # a job or record file larger than this was not written by rayvr
+
 
 def job_file(job: CaptureJob) -> Path:
     return job.out_dir / f"{job.prefix}_job.json"
+
+
+def record_file(job: CaptureJob, index: int) -> Path:
+    """The record of a sequence's frame `index`, written after all of the frame's files: the job's
+    identity digest and each file's size and checksum. Resume skips only frames it verifies."""
+    return job.out_dir / f"{job.prefix}_{index:04d}_record.json"
+
+
+def summary_file(job: CaptureJob) -> Path:
+    return job.out_dir / f"{job.prefix}_timings.json"
 
 
 def job_identity(job: CaptureJob, **inputs) -> dict:
@@ -151,25 +174,263 @@ def job_identity(job: CaptureJob, **inputs) -> dict:
         "cameras": job.cameras, **inputs}, default=str))
 
 
-def frames_done(job: CaptureJob, identity: dict) -> set[int]:
-    """The frames a rerun of the same job can skip: every one of their files is on disk (each file
-    was written atomically, so one that exists is whole) and the job file says the same identity.
-    A different identity (other settings, scene or config) reuses nothing."""
-    p = job_file(job)
+def identity_digest(identity: dict) -> str:
+    """The job named in each frame record: a digest of its identity (job_identity)."""
+    return hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()
+
+
+def _sha256(path: Path) -> str:
+    with open(path, "rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
+
+
+def write_record(job: CaptureJob, index: int, digest: str) -> None:
+    """Mark frame `index` finished: its files (all written, each atomically) with their sizes and
+    checksums, and the job they belong to."""
+    files = {f.name: {"bytes": f.stat().st_size, "sha256": _sha256(f)} for f in frame_files(job, index)}
+    atomic_write_bytes(record_file(job, index),
+                       json.dumps({"job": digest, "frame": index, "files": files}, indent=1).encode())
+
+
+NO_RECORD = "no record (written by an older rayvr, or stopped mid-frame)"
+
+
+def _read_json(path: Path):
+    """A bookkeeping file's JSON; FileNotFoundError if absent, ValueError if it is not what rayvr writes."""
+    if not stat.S_ISREG(os.stat(path).st_mode):  # a FIFO or device would block or never end
+        raise ValueError("not a regular file")
+    with open(path, "rb") as f:
+        data = f.read(MAX_BOOKKEEPING_BYTES + 1)
+    if len(data) > MAX_BOOKKEEPING_BYTES:
+        raise ValueError(f"larger than {MAX_BOOKKEEPING_BYTES >> 20} MiB")
     try:
-        same = json.loads(p.read_text()) == identity
-    except (OSError, ValueError):
-        return set()
-    if not same:
-        log.info("%s: written by a different job; rendering every frame again", p)
-        return set()
-    return {i for i in range(len(job.poses)) if all(f.exists() for f in frame_files(job, i))}
+        return json.loads(data)
+    except RecursionError:
+        raise ValueError("nested too deep") from None
 
 
-def write_job_file(job: CaptureJob, identity: dict) -> None:
-    """Record the job's identity before its first frame, so an interrupted run can be resumed."""
-    make_output_dir(job.out_dir)
-    atomic_write_bytes(job_file(job), json.dumps(identity, indent=1).encode())
+def frame_problem(job: CaptureJob, index: int, digest: str, checksums: bool = True) -> str | None:
+    """Why frame `index` on disk is not a finished frame of the job `digest` names (None: it is):
+    no record, another job's record, or a file that is not the size (or checksum) it records."""
+    p = record_file(job, index)
+    try:
+        record = _read_json(p)
+    except FileNotFoundError:
+        return NO_RECORD
+    except (OSError, ValueError) as exc:
+        return f"{p}: unreadable record ({exc})"
+    try:
+        if record["job"] != digest:
+            return f"{p}: the record of another job"
+        recorded = record["files"]
+        names = sorted(f.name for f in frame_files(job, index))
+        if sorted(recorded) != names:
+            return f"{p}: the record lists other files"
+        for name in names:
+            f, want = job.out_dir / name, recorded[name]
+            try:
+                size = f.stat().st_size
+            except OSError:
+                return f"{f}: missing"
+            if size != want["bytes"]:
+                return f"{f}: {size} bytes, its record says {want['bytes']}"
+            if checksums and _sha256(f) != want["sha256"]:
+                return f"{f}: its checksum differs from its record"
+    except (KeyError, TypeError):
+        return f"{p}: not a frame record"
+    return None
+
+
+def describe_difference(old, new, limit: int = 3) -> str:
+    """What differs between two job identities, e.g. "spp 32 -> 1, settings.exposure 4.0 -> 1.0"."""
+    found = []
+    _differences(old, new, "", found)
+    more = f" and {len(found) - limit} more" if len(found) > limit else ""
+    return ", ".join(found[:limit]) + more if found else "unreadable"
+
+
+_ABSENT = "(none)"
+
+
+def _differences(a, b, where: str, found: list) -> None:
+    if a == b:
+        return
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in [*b, *(k for k in a if k not in b)]:
+            _differences(a.get(k, _ABSENT), b.get(k, _ABSENT), f"{where}.{k}" if where else str(k), found)
+        return
+    if isinstance(a, list) and isinstance(b, list):
+        if len(a) != len(b):
+            short = len(json.dumps(a)) <= 40 and len(json.dumps(b)) <= 40
+            found.append(f"{where} {_short(a)} -> {_short(b)}" if short else f"{where}: {len(a)} -> {len(b)} entries")
+            return
+        for i, (x, y) in enumerate(zip(a, b)):
+            _differences(x, y, f"{where}[{i}]", found)
+        return
+    fields_a, fields_b = _repr_fields(a), _repr_fields(b)  # the settings are a dataclass's repr
+    if fields_a is not None and fields_b is not None:
+        _differences(fields_a, fields_b, where, found)
+        return
+    found.append(f"{where} {_short(a)} -> {_short(b)}")
+
+
+def _repr_fields(value) -> dict | None:
+    """The fields of a dataclass repr such as "RenderSettings(exposure=1.0, ...)", else None."""
+    if not (isinstance(value, str) and value.endswith(")") and len(value) < 100_000):
+        return None
+    try:
+        call = ast.parse(value, mode="eval").body
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        return None
+    if not isinstance(call, ast.Call) or call.args:
+        return None
+    return {k.arg: ast.get_source_segment(value, k.value) for k in call.keywords}
+
+
+def _short(value) -> str:
+    text = value if isinstance(value, str) else json.dumps(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def lock_folder(folder: Path) -> int | None:
+    """Hold `folder` for one job: an exclusive flock on its .rayvr-lock, which the kernel drops
+    when the process ends, so a crashed job leaves no stale lock. OutputError if a job holds it."""
+    path = folder / LOCK_NAME
+    try:
+        import fcntl
+    except ImportError:  # no flock on this platform
+        log.warning("%s: cannot lock the output folder here; two jobs writing into it would go unnoticed", folder)
+        return None
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o666)
+        except OSError as exc:
+            raise OutputError(f"{path}: cannot create the output folder's lock file: {exc.strerror or exc}") from exc
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 200, 0).decode("utf-8", "replace").strip() or "another process"
+            os.close(fd)
+            raise OutputError(f"{folder}: output folder is busy: another capture ({holder}) is writing into it; "
+                              f"wait for it to end or use another --out") from None
+        except OSError as exc:  # a file system without locks
+            os.close(fd)
+            log.warning("%s: cannot lock the output folder (%s); two jobs writing into it would go unnoticed",
+                        folder, exc.strerror or exc)
+            return None
+        try:
+            current = os.path.samestat(os.fstat(fd), os.stat(path))
+        except FileNotFoundError:
+            current = False
+        if current:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode())
+            return fd
+        os.close(fd)  # its last holder removed that file as it ended: lock the new one
+
+
+def unlock_folder(folder: Path, fd: int | None) -> None:
+    """Remove the lock file while still holding it (a job that opened it meanwhile sees it gone
+    and locks a new one), then let go."""
+    if fd is None:
+        return
+    try:
+        os.unlink(folder / LOCK_NAME)
+    except OSError:
+        pass
+    os.close(fd)
+
+
+class JobFolder:
+    """The output folder held by one capture job for its life (`with JobFolder(job, identity) as
+    folder:`). On entry, before any rendering: every output name is checked (no folder where a
+    file goes), the folder is created and locked (a second job into it is refused: busy), and for
+    a sequence with `identity` the job file is checked and written: a folder holding frames of a
+    job with another identity is refused (OutputError naming what differs), and with `resume` the
+    frames whose records verify (`done`) are skipped; `digest` is what new records must name.
+    A job that fails before its first file removes the folder it created."""
+
+    def __init__(self, job: CaptureJob, identity: dict | None = None, resume: bool = True):
+        self.job, self.identity = job, identity
+        self.sequence = len(job.poses) > 1  # a still is just rendered again
+        self.digest = identity_digest(identity) if identity is not None and self.sequence and resume else None
+        self.done: set[int] = set()
+        self._lock = None
+        self._created: list[Path] = []
+
+    def paths(self) -> list[Path]:
+        """Every file the job writes into its folder."""
+        job = self.job
+        out = [job.out_dir / LOCK_NAME, summary_file(job)]
+        for i in range(len(job.poses)):
+            out += frame_files(job, i)
+        if self.sequence:
+            out += [job_file(job)] + [record_file(job, i) for i in range(len(job.poses))]
+        if job.cameras:
+            out.append(job.out_dir / "transforms.json")  # views.write_transforms
+        return out
+
+    def __enter__(self) -> "JobFolder":
+        job = self.job
+        check_output_dir(job.out_dir)
+        check_output_files(self.paths())
+        self._created = create_output_dir(job.out_dir)
+        try:
+            self._lock = lock_folder(job.out_dir)
+            if self.identity is not None and self.sequence:
+                self._refuse_another_job()
+                if self.digest is not None:
+                    self.done = self._verified_frames()
+                atomic_write_bytes(job_file(job), json.dumps(self.identity, indent=1).encode())
+        except BaseException:
+            self._release(failed=True)
+            raise
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self._release(failed=exc_type is not None)
+
+    def _release(self, failed: bool) -> None:
+        unlock_folder(self.job.out_dir, self._lock)
+        self._lock = None
+        if failed and self._created:  # the folder is this job's: keep it only if a frame's file is in it
+            leftover = job_file(self.job)
+            if {p.name for p in self.job.out_dir.iterdir()} <= {leftover.name}:
+                leftover.unlink(missing_ok=True)
+                remove_empty_dirs(self._created)
+
+    def _frame_files_on_disk(self) -> list[str]:
+        """Names of sequence frame files (of any job) with this prefix: PREFIX_NNNN_*."""
+        pattern = re.compile(rf"{re.escape(self.job.prefix)}_\d+_")
+        return [name for name in os.listdir(self.job.out_dir) if pattern.match(name)]
+
+    def _refuse_another_job(self) -> None:
+        p = job_file(self.job)
+        try:
+            recorded = _read_json(p)
+        except FileNotFoundError:
+            return
+        except (OSError, ValueError):
+            recorded = None  # a job nobody can name
+        if recorded == self.identity or not self._frame_files_on_disk():
+            return  # the same job, or one that left no frame: this one takes the folder
+        what = describe_difference(recorded, self.identity) if isinstance(recorded, dict) else "unreadable"
+        raise OutputError(f"{self.job.out_dir}: holds frames of another job ({p.name} -> this job: {what}); use another "
+                          f"--out or --prefix, or delete {p.name} and the {self.job.prefix}_NNNN_* files first")
+
+    def _verified_frames(self) -> set[int]:
+        """The frames whose records verify; one warning for those on disk that do not."""
+        done, failed = set(), []
+        for i in range(len(self.job.poses)):
+            problem = frame_problem(self.job, i, self.digest)
+            if problem is None:
+                done.add(i)
+            elif problem != NO_RECORD or any(f.exists() for f in frame_files(self.job, i)):
+                failed.append((i, problem))
+        if failed:
+            log.warning("%s: %d frame(s) on disk are not verified and are rendered again (frame %d: %s)",
+                        self.job.out_dir, len(failed), *failed[0])
+        return done
 
 
 @contextlib.contextmanager
@@ -198,20 +459,24 @@ def interrupts_between_frames():
         signal.signal(signal.SIGINT, previous)
 
 
-def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True, frames=None, on_frame=None,
-                identity: dict | None = None) -> dict:
-    """Render the poses of `job` (all, or the indices in `frames`), write the files, return a
-    summary (files, GPU ms per pass). `on_frame(index)` is called after each frame's files are
-    written. With `identity` (job_identity), frames a previous run of the same job completed are
-    skipped and counted."""
-    check_output_dir(job.out_dir)
-    indices = list(range(len(job.poses)) if frames is None else frames)
-    skipped = []
-    if identity is not None and len(job.poses) > 1:  # a sequence can be resumed; a still is just rendered
-        done = frames_done(job, identity)
-        skipped = [i for i in indices if i in done]
-        indices = [i for i in indices if i not in done]
-        write_job_file(job, identity)
+def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True, on_frame=None,
+                identity: dict | None = None, resume: bool = True, folder: JobFolder | None = None) -> dict:
+    """Render the frames of `job`, write the files, return a summary (files, GPU ms per pass).
+    The output folder is held for the run (JobFolder of `identity` and `resume`) unless the
+    caller holds it (`folder`). With an identity (job_identity), frames a previous run of the same
+    job finished, whose files match their records, are skipped and counted."""
+    if folder is None:
+        with JobFolder(job, identity, resume) as folder:
+            return run_capture(renderer, job, progress, on_frame, folder=folder)
+    indices = [i for i in range(len(job.poses)) if i not in folder.done]
+    return render_frames(renderer, job, indices, progress, on_frame, record=folder.digest, skipped=len(folder.done))
+
+
+def render_frames(renderer: Renderer, job: CaptureJob, indices: list[int], progress: bool = False, on_frame=None,
+                  record: str | None = None, skipped: int = 0) -> dict:
+    """Render frames `indices` of `job` into its folder (which the caller holds: JobFolder) and
+    return the summary; `on_frame(index)` is called after each frame's files are written. With
+    `record` (a JobFolder's digest), each finished frame gets its record."""
     files, timings, unavailable, ran = [], [], set(), {}
     bar = None
     if progress and len(indices) * job.spp > 1:
@@ -229,6 +494,8 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True, fram
                                                                   progress=bar.update if bar else None)):
                 check_interrupt()
                 write_frame(job, i, frame, files)
+                if record is not None:
+                    write_record(job, i, record)
                 done += 1
                 timings.append(frame.timings)
                 unavailable.update(frame.timings_unavailable)
@@ -244,7 +511,7 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True, fram
         if bar is not None:
             bar.close()
     return summarize(job, renderer.gl.info()["renderer"], not renderer.gl.is_software, files, timings, ran,
-                     unavailable, written=len(indices), skipped=len(skipped),
+                     unavailable, written=len(indices), skipped=skipped,
                      denoise=list(renderer.plan().denoise) if renderer.settings.denoise else [],
                      stereo=renderer.settings.stereo,
                      stereo_counts=renderer.stereo_counts())  # the last frame's reused pixels or holes
@@ -262,6 +529,6 @@ def summarize(job: CaptureJob, gl: str, meaningful: bool, files, timings, ran, u
 
 
 def write_summary(job: CaptureJob, summary: dict) -> Path:
-    p = job.out_dir / f"{job.prefix}_timings.json"
+    p = summary_file(job)
     atomic_write_bytes(p, json.dumps(summary, indent=1).encode())
     return p

@@ -231,7 +231,7 @@ def _print_capture(args, summary, summary_path, scene_summary) -> None:
 
 
 def cmd_capture(args) -> int:
-    from .capture import CaptureJob, job_identity, run_capture, write_summary
+    from .capture import CaptureJob, JobFolder, job_identity, run_capture, write_summary
     from .output import check_output_dir
     from .renderer import Renderer, RenderSettings
 
@@ -286,15 +286,15 @@ def cmd_capture(args) -> int:
         job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
                          rig_overrides=overrides, cameras=bool(args.views))
         # --temporal carries each frame into the next: only a whole run in order gives the same frames
-        identity = None if args.temporal else job_identity(job, **inputs)
-        summary = run_capture(r, job, progress=not args.quiet, identity=identity)
-        if pick is not None:
-            summary["budget"] = pick
-        summary_path = write_summary(job, summary)
-        if args.views:
-            from .views import write_transforms
+        with JobFolder(job, job_identity(job, **inputs), resume=not args.temporal) as folder:  # held to the end
+            summary = run_capture(r, job, progress=not args.quiet, folder=folder)
+            if pick is not None:
+                summary["budget"] = pick
+            summary_path = write_summary(job, summary)
+            if args.views:
+                from .views import write_transforms
 
-            write_transforms(job)
+                write_transforms(job)
     _print_capture(args, summary, summary_path, r.scene.summary())
     return 0
 
@@ -302,7 +302,7 @@ def cmd_capture(args) -> int:
 def _capture_on_workers(args, aux, settings, inputs) -> int:
     """`rayvr capture --workers N`: the frames in chunks over N Ray workers."""
     from . import scene as scene_mod
-    from .capture import CaptureJob, job_identity, write_summary
+    from .capture import CaptureJob, JobFolder, job_identity, write_summary
     from .cluster import Cluster, WorkerSpec, run_capture_distributed
 
     from .materials import load_config
@@ -314,15 +314,15 @@ def _capture_on_workers(args, aux, settings, inputs) -> int:
     job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
                      rig_overrides=overrides, cameras=bool(args.views))
     spec = WorkerSpec(args.scene, args.materials, settings, args.backend)
-    with Cluster(args.workers, spec, args.address) as cluster:
+    with JobFolder(job, job_identity(job, **inputs)) as folder, Cluster(args.workers, spec, args.address) as cluster:
         cluster.ready()  # a worker that cannot start is one clear error, before any frame
-        summary = run_capture_distributed(cluster, job, job_identity(job, **inputs), progress=not args.quiet,
-                                          chunk=args.chunk, crash_file=os.environ.get("RAYVR_TEST_CRASH_ONCE"))
-    summary_path = write_summary(job, summary)
-    if args.views:
-        from .views import write_transforms
+        summary = run_capture_distributed(cluster, job, progress=not args.quiet, chunk=args.chunk,
+                                          crash_file=os.environ.get("RAYVR_TEST_CRASH_ONCE"), folder=folder)
+        summary_path = write_summary(job, summary)
+        if args.views:
+            from .views import write_transforms
 
-        write_transforms(job)
+            write_transforms(job)
     _print_capture(args, summary, summary_path, scene.summary())
     missing = summary["missing_frames"]
     if missing:

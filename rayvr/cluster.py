@@ -75,10 +75,11 @@ class RenderWorker:
         return {"host": socket.gethostname(), "pid": os.getpid(), "egl_device": self.egl_device,
                 "cuda_visible_devices": os.environ.get("CUDA_VISIBLE_DEVICES"), "gl": self.gl.info()["renderer"]}
 
-    def capture(self, job, frames: list[int], crash_file: str | None = None) -> dict:
-        """Render and write `frames` of `job`. Test hook: with `crash_file`, the first worker to
-        finish a frame makes that file and dies at once (as a host losing power would)."""
-        from .capture import run_capture
+    def capture(self, job, frames: list[int], crash_file: str | None = None, record: str | None = None) -> dict:
+        """Render and write `frames` of `job` (the caller holds its folder), each with its record
+        when `record` names the job (JobFolder.digest). Test hook: with `crash_file`, the first
+        worker to finish a frame makes that file and dies at once (as a host losing power would)."""
+        from .capture import render_frames
 
         def after_frame(index):
             try:
@@ -87,7 +88,7 @@ class RenderWorker:
                 return
             os._exit(1)
 
-        return run_capture(self.renderer, job, progress=False, frames=frames, on_frame=after_frame if crash_file else None)
+        return render_frames(self.renderer, job, frames, on_frame=after_frame if crash_file else None, record=record)
 
     def measure(self, scene_name: str, rig, variant, repeat: int):
         """A benchmark variant measured on this worker's GPU (rayvr.bench.tradeoff.measure)."""
@@ -247,21 +248,25 @@ def chunks(frames: list[int], workers: int, chunk: int | None = None) -> list[li
 
 
 def run_capture_distributed(cluster: Cluster, job, identity: dict | None = None, progress: bool = True,
-                            chunk: int | None = None, crash_file: str | None = None) -> dict:
+                            chunk: int | None = None, crash_file: str | None = None, resume: bool = True,
+                            folder=None) -> dict:
     """rayvr.capture.run_capture over the cluster's workers: the same files, the same summary,
-    plus the counts of frames written, skipped (already on disk), retried and failed."""
-    from .capture import check_output_dir, frame_files, frames_done, summarize, write_job_file
+    plus the counts of frames written, skipped (already on disk), retried and failed. This process
+    holds the output folder (a capture.JobFolder, or the caller's `folder`) while the workers write."""
+    from .capture import JobFolder, frame_files, frame_problem, summarize
 
-    check_output_dir(job.out_dir)
+    if folder is None:
+        with JobFolder(job, identity, resume) as folder:
+            return run_capture_distributed(cluster, job, progress=progress, chunk=chunk, crash_file=crash_file,
+                                           folder=folder)
     n = len(job.poses)
-    resume = identity is not None and n > 1  # as run_capture: a sequence can be resumed
-    done = frames_done(job, identity) if resume else set()
+    done, digest = folder.done, folder.digest
     todo = [i for i in range(n) if i not in done]
-    if resume:
-        write_job_file(job, identity)
 
-    def complete(i):
-        return all(f.exists() for f in frame_files(job, i))
+    def complete(i):  # the workers just wrote them: records and sizes, no checksums read back
+        if digest is None:
+            return all(f.exists() for f in frame_files(job, i))
+        return frame_problem(job, i, digest, checksums=False) is None
 
     job_ref = cluster.ray.put(job)
     bar = None
@@ -271,7 +276,7 @@ def run_capture_distributed(cluster: Cluster, job, identity: dict | None = None,
         bar = tqdm(total=len(todo), unit="frame", desc=f"capture ({len(cluster.actors)} workers)")
     try:
         results, retried, failed = cluster.run(
-            chunks(todo, len(cluster.actors), chunk), lambda actor, c: actor.capture.remote(job_ref, c, crash_file), size=len,
+            chunks(todo, len(cluster.actors), chunk), lambda actor, c: actor.capture.remote(job_ref, c, crash_file, digest), size=len,
             retry=lambda c: [i for i in c if not complete(i)] or None, bar=bar)
     finally:
         if bar is not None:

@@ -60,12 +60,47 @@ def check_output_dir(path: str | Path) -> Path:
 
 def make_output_dir(path: str | Path) -> Path:
     """Create the output folder (and its parents) when the first file goes into it."""
+    create_output_dir(path)
+    return Path(path)
+
+
+def create_output_dir(path: str | Path) -> list[Path]:
+    """Create the output folder and its missing parents; the folders this call created, outermost
+    first, so that a job that then writes nothing can remove them again (remove_empty_dirs)."""
     path = Path(path)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot create output folder: {exc.strerror or exc}") from exc
-    return path
+    created = []
+    for d in reversed([path, *path.parents]):
+        if d.is_dir():
+            continue
+        try:
+            d.mkdir()
+            created.append(d)
+        except FileExistsError:  # made by someone else meanwhile, or a file (the next mkdir says so)
+            continue
+        except OSError as exc:
+            remove_empty_dirs(created)
+            raise OutputError(f"{path}: cannot create output folder: {exc.strerror or exc}") from exc
+    if not path.is_dir():
+        remove_empty_dirs(created)
+        raise OutputError(f"{path}: output path exists and is not a folder")
+    return created
+
+
+def remove_empty_dirs(created: list[Path]) -> None:
+    """Remove the folders create_output_dir made, innermost first, as long as they are empty."""
+    for d in reversed(created):
+        try:
+            d.rmdir()
+        except OSError:  # not empty (someone else's files), or gone
+            return
+
+
+def check_output_files(paths) -> None:
+    """Before any work: no file the job writes may have its name taken by a folder (os.replace
+    cannot put a file there, and would fail only after the rendering)."""
+    for p in paths:
+        if Path(p).is_dir():
+            raise OutputError(f"{p}: an output file's name is taken by a folder")
 
 
 def _create_temp(path: Path) -> tuple[int, Path]:
@@ -86,16 +121,25 @@ def _atomic_write(path: Path, fill) -> None:
     try:
         fd, tmp = _create_temp(path)
     except OSError as exc:
-        raise OutputError(f"{path}: cannot write: {exc.strerror or exc}") from exc
+        raise _write_error(path, exc) from exc
     try:
         fill(fd, tmp)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(exc, OSError) and not isinstance(exc, OutputError):  # disk full (ENOSPC, EFBIG), I/O error
+            raise _write_error(path, exc) from exc
         raise
+
+
+def _write_error(path: Path, exc: OSError) -> OutputError:
+    """One line naming the file, keeping the errno (ENOSPC, EFBIG, ...) for callers that check it."""
+    error = OutputError(f"{path}: cannot write: {exc.strerror or exc}")
+    error.errno = exc.errno
+    return error
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:

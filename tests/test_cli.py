@@ -43,9 +43,10 @@ def test_capture_one_eye_debug_view_and_path_replay(tmp_path):
     run = rayvr("capture", "--size", "24x16", "--out", str(tmp_path / "o"), "--eye", "right", "--view", "normal",
                 "--path", str(tmp_path / "path.json"), "-q")
     assert run.returncode == 0, run.stderr
-    assert sorted(os.listdir(tmp_path / "o")) == ["frame_0000_right_normal.png", "frame_0001_right_normal.png",
-                                                   "frame_0002_right_normal.png", "frame_job.json",
-                                                   "frame_timings.json"]  # the job file lets a rerun resume
+    assert sorted(os.listdir(tmp_path / "o")) == [  # the job file and the frames' records let a rerun resume
+        "frame_0000_record.json", "frame_0000_right_normal.png", "frame_0001_record.json",
+        "frame_0001_right_normal.png", "frame_0002_record.json", "frame_0002_right_normal.png", "frame_job.json",
+        "frame_timings.json"]
     frames = [np.asarray(Image.open(tmp_path / "o" / f"frame_000{i}_right_normal.png")) for i in range(3)]
     assert not np.array_equal(frames[0], frames[1])
 
@@ -154,7 +155,9 @@ def test_ctrl_c_during_a_sequence_is_one_line_exit_130_and_keeps_whole_files(tmp
     assert proc.returncode == 130, stderr
     assert len(stderr.splitlines()) == 1 and "Traceback" not in stderr, stderr
     assert (out / "frame_job.json").exists()  # written before the first frame: a rerun resumes
-    files = sorted(p for p in out.iterdir() if p.name != "frame_job.json")
+    records = sorted(out.glob("frame_*_record.json"))  # each written after its frame's files
+    files = sorted(p for p in out.iterdir() if p.name != "frame_job.json" and p not in records)
+    assert len(files) == 2 * len(records)
     assert stderr.startswith("rayvr capture: interrupted after ") and f"the {len(files)} file(s) written" in stderr
     assert 0 < len(files) < 1000 and all(p.suffix == ".png" for p in files)  # no temp file, no summary
     for p in files:

@@ -12,6 +12,7 @@ from conftest import quick_bench
 from rayvr.camera import orbit, save_path
 from rayvr.cli import main
 from rayvr.context import ContextError, EglDevice, assigned_egl_device, egl_device_for_gpu
+from rayvr.output import OutputError
 
 NV = "EGL_NV_device_cuda EGL_EXT_device_drm"
 SOFTWARE = EglDevice(0, "EGL_MESA_device_software", None)
@@ -180,10 +181,13 @@ def test_a_rerun_renders_only_the_frames_not_complete_on_disk(gl, tmp_path):
         assert (first["written"], first["skipped"], again["written"], again["skipped"]) == (4, 0, 1, 3)
         assert [f.rsplit("/", 1)[-1] for f in again["files"]] == ["frame_0002_left.png", "frame_0002_right.png"]
         assert frames_on_disk(tmp_path) == before
-        other = path_job(gl, tmp_path, poses, aux=("depth",))  # another job in the same folder reuses nothing
-        assert run_capture(r, other, progress=False, identity=job_identity(other, scene=None))["written"] == 4
+        other = path_job(gl, tmp_path, poses, aux=("depth",))  # another job in the same folder mixes nothing in
+        with pytest.raises(OutputError, match=r"holds frames of another job \(.*aux \[\] -> \[\"depth\"\]"):
+            run_capture(r, other, progress=False, identity=job_identity(other, scene=None))
         changed = job_identity(job, scene={"path": "elsewhere.glb"})
-        assert run_capture(r, job, progress=False, identity=changed)["written"] == 4
+        with pytest.raises(OutputError, match=r"another job \(.*scene null -> \{\"path\""):
+            run_capture(r, job, progress=False, identity=changed)
+        assert frames_on_disk(tmp_path) == before
 
 
 # ------------------------------------------------------------------ on a local Ray with 2 CPU workers
