@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import logging
+import os
 from collections import OrderedDict
 
 import numpy as np
@@ -105,3 +106,89 @@ def test_the_default_folder_is_the_user_cache(monkeypatch, tmp_path):
     monkeypatch.delenv(bvh_cache.ENV, raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     assert bvh_cache.cache_dir() == tmp_path / "rayvr" / "bvh"
+
+
+# ------------------------------------------------------------------ files that are not their key's tree
+
+def rewrite(path, redo_checksum=True, **changes):
+    """Rewrite a cache file with some entries changed; with `redo_checksum` its checksum is made to
+    match the new contents (a file that looks right: only the tree checks can tell)."""
+    with np.load(path) as f:
+        entries = {k: f[k] for k in f.files}
+    entries.update(changes)
+    if redo_checksum and "checksum" in entries:
+        entries["checksum"] = np.str_(bvh_cache.payload_digest(str(entries["key"]), str(entries["params"]),
+                                                               {k: entries[k] for k in TREE}))
+    np.savez(path, **entries)
+
+
+def bigger(a, by=1):
+    return a + np.asarray(by, a.dtype)
+
+
+TAMPERED = {  # name: entries of the stored tree -> the changes to write
+    "prim_ids zeroed, checksum stale": lambda t: dict(prim_ids=np.zeros_like(t["prim_ids"]), redo_checksum=False),
+    "prim_ids zeroed, checksum redone": lambda t: dict(prim_ids=np.zeros_like(t["prim_ids"])),
+    "prim_ids beyond the triangles": lambda t: dict(prim_ids=bigger(t["prim_ids"], 10**6)),
+    "a child beyond the nodes": lambda t: dict(right=np.where(t["right"] >= 0, bigger(t["right"], 10**6), -1)),
+    "a child pointing back (a cycle)": lambda t: dict(left=np.where(t["left"] >= 0, 0, -1).astype(np.int32)),
+    "count one short": lambda t: dict(count=t["count"][:-1]),
+    "leaf ranges past the slots": lambda t: dict(start=np.where(t["left"] < 0, bigger(t["start"], 5), 0)),
+    "vertex indices beyond the vertices": lambda t: dict(indices=bigger(t["indices"], 10**6)),
+    "depths off by one": lambda t: dict(depth=bigger(t["depth"])),
+    "NaN boxes": lambda t: dict(node_lo=np.full_like(t["node_lo"], np.nan)),
+    "float64 boxes": lambda t: dict(node_lo=t["node_lo"].astype(np.float64)),
+    "pickled parameters": lambda t: dict(params=np.array([{"bins": 16}], dtype=object), redo_checksum=False),
+}
+
+
+@pytest.mark.parametrize("case", TAMPERED)
+def test_a_file_that_is_not_its_keys_tree_is_rebuilt_with_one_warning(cache, monkeypatch, caplog, case):
+    scene = slab_scene()
+    built = accel_scene.kept_scene_bvh(scene, "sbvh")
+    (path,) = cache.glob("sbvh-*.npz")
+    with np.load(path) as f:
+        stored = {k: f[k] for k in TREE}
+    rewrite(path, **TAMPERED[case](stored))
+    forget(monkeypatch)
+    with caplog.at_level(logging.WARNING, logger="rayvr"):
+        again = accel_scene.kept_scene_bvh(scene, "sbvh")
+    warnings = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(warnings) == 1 and "building it again" in warnings[0], warnings
+    assert str(path) in warnings[0] and "\n" not in warnings[0] and "allow_pickle" not in warnings[0]
+    assert all(np.array_equal(getattr(again, k), getattr(built, k)) for k in TREE)  # the right tree, rebuilt
+    forget(monkeypatch)
+    no_build(monkeypatch)
+    accel_scene.kept_scene_bvh(scene, "sbvh")  # and the file replaced by a good one
+
+
+def test_the_tree_of_another_scene_under_this_key_is_rebuilt(cache, monkeypatch, caplog):
+    scene, other = slab_scene(seed=3), slab_scene(seed=4)  # the same sizes, other triangles
+    built = accel_scene.kept_scene_bvh(scene, "sbvh")
+    (path,) = cache.glob("sbvh-*.npz")
+    bvh_cache.store("sbvh-other", accel_scene.build_scene_bvh(other, "sbvh"))
+    os.replace(cache / "sbvh-other.npz", path)  # a well-formed file with a good checksum, of another key
+    forget(monkeypatch)
+    with caplog.at_level(logging.WARNING, logger="rayvr"):
+        again = accel_scene.kept_scene_bvh(scene, "sbvh")
+    assert "another key" in caplog.text and len(caplog.records) == 1
+    assert all(np.array_equal(getattr(again, k), getattr(built, k)) for k in TREE)
+
+
+def test_a_capture_over_a_tampered_cache_file_renders_the_right_image(cache, monkeypatch, tmp_path, caplog):
+    from PIL import Image
+
+    from rayvr.cli import main
+
+    def capture(out):
+        assert main(["capture", "--size", "32x24", "--eye", "left", "--bvh-build", "sbvh", "--primary", "rays",
+                     "--out", str(out), "-q"]) == 0
+        return np.asarray(Image.open(out / "frame_left.png"))
+
+    fresh = capture(tmp_path / "fresh")
+    (path,) = cache.glob("sbvh-*.npz")
+    rewrite(path, prim_ids=np.zeros_like(np.load(path)["prim_ids"]))  # the issue's case: every slot triangle 0
+    forget(monkeypatch)
+    with caplog.at_level(logging.WARNING, logger="rayvr"):
+        again = capture(tmp_path / "again")
+    assert np.array_equal(again, fresh) and "building it again" in caplog.text

@@ -66,7 +66,7 @@ def _loaded_or_built(scene, build: str, digest: str) -> Bvh:
     if build not in DISK_BUILDS:
         return build_scene_bvh(scene, build)
     key = cache_key(digest, build)
-    bvh = bvh_cache.load(key, scene.vertices)
+    bvh = bvh_cache.load(key, scene.vertices, scene.indices)
     if bvh is not None:
         log.info("%s: %s BVH of %d triangles loaded from the BVH cache (%s)", scene.name, build,
                  bvh.triangle_count, bvh_cache.cache_dir())
