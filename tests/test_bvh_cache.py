@@ -175,7 +175,10 @@ def test_the_tree_of_another_scene_under_this_key_is_rebuilt(cache, monkeypatch,
     assert all(np.array_equal(getattr(again, k), getattr(built, k)) for k in TREE)
 
 
-def test_a_capture_over_a_tampered_cache_file_renders_the_right_image(cache, monkeypatch, tmp_path, caplog):
+@pytest.mark.parametrize("case", ["prim_ids zeroed, checksum redone", "a child beyond the nodes"])
+def test_a_capture_over_a_tampered_cache_file_renders_the_right_image(cache, monkeypatch, tmp_path, caplog, case):
+    """The issue's cases: every slot made triangle 0 (a wrong image, exit 0), and arrays whose
+    indices run past the nodes (an IndexError traceback)."""
     from PIL import Image
 
     from rayvr.cli import main
@@ -187,7 +190,8 @@ def test_a_capture_over_a_tampered_cache_file_renders_the_right_image(cache, mon
 
     fresh = capture(tmp_path / "fresh")
     (path,) = cache.glob("sbvh-*.npz")
-    rewrite(path, prim_ids=np.zeros_like(np.load(path)["prim_ids"]))  # the issue's case: every slot triangle 0
+    with np.load(path) as f:
+        rewrite(path, **TAMPERED[case]({k: f[k] for k in TREE}))
     forget(monkeypatch)
     with caplog.at_level(logging.WARNING, logger="rayvr"):
         again = capture(tmp_path / "again")
