@@ -269,6 +269,26 @@ def test_a_worker_killed_mid_run_still_gives_every_frame_and_a_rerun_skips_them(
     assert (again["written"], again["skipped"], again["failed"]) == (0, 16, 0)
 
 
+def test_workers_resume_only_the_frames_they_verify_and_the_folder_is_held(gl, cluster, reference):
+    from rayvr.capture import JobFolder, job_identity
+    from rayvr.cluster import run_capture_distributed
+
+    root, poses, single = reference
+    out = root / "resumed"
+    job = path_job(gl, out, poses)
+    identity = job_identity(job, scene=None)
+    run_capture_distributed(cluster, job, identity, progress=False)  # the workers write each frame's record
+    (out / "frame_0005_left.png").write_bytes(b"\x89PNG\r\n\x1a\n")  # cut short
+    with JobFolder(job, identity):  # another capture holds the folder
+        with pytest.raises(OutputError, match=f"{out}: output folder is busy"):
+            run_capture_distributed(cluster, job, identity, progress=False)
+    again = run_capture_distributed(cluster, job, identity, progress=False)
+    assert (again["written"], again["skipped"], again["failed"]) == (1, 15, 0)
+    assert frames_on_disk(out) == single
+    with pytest.raises(OutputError, match="holds frames of another job"):
+        run_capture_distributed(cluster, job, job_identity(job, scene={"path": "elsewhere.glb"}), progress=False)
+
+
 def test_sweep_variants_measured_on_workers_match_this_process(gl, cluster):
     from rayvr.bench.scenes import bench_scenes
     from rayvr.bench.tradeoff import RendererPool, Variant, local_measurer, run_sweep, variants

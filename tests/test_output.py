@@ -1,3 +1,4 @@
+import errno
 import os
 import stat
 import tempfile
@@ -44,6 +45,32 @@ def test_replacing_keeps_no_temp_and_a_failed_write_leaves_the_old_file(tmp_path
     with pytest.raises(OSError):
         atomic_write_bytes(p, b"three")
     assert p.read_bytes() == b"two" and [x.name for x in tmp_path.iterdir()] == ["f.bin"]
+
+
+@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EFBIG, errno.EIO])
+def test_a_failed_write_is_one_output_error_naming_the_file(tmp_path, monkeypatch, code):
+    """Disk full (ENOSPC), a file too large (EFBIG), an I/O error: one line the CLI prints."""
+    real_fdopen = os.fdopen
+
+    class Failing:
+        def __init__(self, fh):
+            self.fh = fh
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+        def write(self, data):
+            raise OSError(code, os.strerror(code))
+
+    monkeypatch.setattr(os, "fdopen", lambda fd, *a, **k: Failing(real_fdopen(fd, *a, **k)))
+    p = tmp_path / "frame.png"
+    with pytest.raises(OutputError) as err:
+        write_png(p, np.zeros((2, 3, 3), np.uint8))
+    assert str(err.value) == f"{p}: cannot write: {os.strerror(code)}" and err.value.errno == code
+    assert list(tmp_path.iterdir()) == []  # no temporary file, no partial file
 
 
 @pytest.mark.parametrize("prefix", ["../X", "a/b", "a\\b", "", ".", "..", ".hidden", "a\0b",

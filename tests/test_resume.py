@@ -104,7 +104,7 @@ def test_a_second_job_into_a_folder_in_use_is_refused(tmp_path):
         while not (out.is_dir() and any(p.suffix == ".png" for p in out.iterdir())):
             assert proc.poll() is None and time.monotonic() < deadline, "job B wrote no frame"
             time.sleep(0.02)
-        a, twin = run_rayvr(*job_a), run_rayvr(*job_b)
+        a, twin = run_rayvr(*job_a, timeout=60), run_rayvr(*job_b, timeout=60)  # each refused at once
         b_ran_throughout = proc.poll() is None
         proc.send_signal(signal.SIGINT)
         _, b_err = proc.communicate(timeout=60)
