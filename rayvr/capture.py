@@ -395,13 +395,16 @@ class JobFolder:
         self._lock = None
         if failed and self._created:  # the folder is this job's: keep it only if a frame's file is in it
             leftover = job_file(self.job)
-            if {p.name for p in self.job.out_dir.iterdir()} <= {leftover.name}:
-                leftover.unlink(missing_ok=True)
-                remove_empty_dirs(self._created)
+            try:
+                if set(os.listdir(self.job.out_dir)) <= {leftover.name}:
+                    leftover.unlink(missing_ok=True)
+                    remove_empty_dirs(self._created)
+            except OSError:  # gone, or no longer ours to list: leave it
+                pass
 
     def _frame_files_on_disk(self) -> list[str]:
         """Names of sequence frame files (of any job) with this prefix: PREFIX_NNNN_*."""
-        pattern = re.compile(rf"{re.escape(self.job.prefix)}_\d+_")
+        pattern = re.compile(rf"{re.escape(self.job.prefix)}_\d{{4,}}_")  # file_name's frame numbers
         return [name for name in os.listdir(self.job.out_dir) if pattern.match(name)]
 
     def _refuse_another_job(self) -> None:
@@ -415,8 +418,9 @@ class JobFolder:
         if recorded == self.identity or not self._frame_files_on_disk():
             return  # the same job, or one that left no frame: this one takes the folder
         what = describe_difference(recorded, self.identity) if isinstance(recorded, dict) else "unreadable"
-        raise OutputError(f"{self.job.out_dir}: holds frames of another job ({p.name} -> this job: {what}); use another "
-                          f"--out or --prefix, or delete {p.name} and the {self.job.prefix}_NNNN_* files first")
+        raise OutputError(f"{self.job.out_dir}: holds frames of another job ({p.name} -> this job: {what}); "
+                          f"use another --out or --prefix, or delete {p.name} and the {self.job.prefix}_NNNN_* "
+                          f"files first")
 
     def _verified_frames(self) -> set[int]:
         """The frames whose records verify; one warning for those on disk that do not."""

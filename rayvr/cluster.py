@@ -276,7 +276,8 @@ def run_capture_distributed(cluster: Cluster, job, identity: dict | None = None,
         bar = tqdm(total=len(todo), unit="frame", desc=f"capture ({len(cluster.actors)} workers)")
     try:
         results, retried, failed = cluster.run(
-            chunks(todo, len(cluster.actors), chunk), lambda actor, c: actor.capture.remote(job_ref, c, crash_file, digest), size=len,
+            chunks(todo, len(cluster.actors), chunk),
+            lambda actor, c: actor.capture.remote(job_ref, c, crash_file, digest), size=len,
             retry=lambda c: [i for i in c if not complete(i)] or None, bar=bar)
     finally:
         if bar is not None:

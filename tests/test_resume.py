@@ -138,10 +138,9 @@ def test_a_rerun_with_other_settings_is_refused_and_changes_nothing(tmp_path, ca
 
 def test_a_killed_job_leaves_no_stale_lock(tmp_path):
     out = tmp_path / "o"
-    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from pathlib import Path; "
-                               "from rayvr.capture import lock_folder; Path(sys.argv[1]).mkdir(); "
-                               "lock_folder(Path(sys.argv[1])); print('locked', flush=True); time.sleep(600)", str(out)],
-                              stdout=subprocess.PIPE, text=True)
+    hold = ("import sys, time; from pathlib import Path; from rayvr.capture import lock_folder; "
+            "Path(sys.argv[1]).mkdir(); lock_folder(Path(sys.argv[1])); print('locked', flush=True); time.sleep(600)")
+    holder = subprocess.Popen([sys.executable, "-c", hold, str(out)], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline() == "locked\n"
         assert capture(out) == 2  # held

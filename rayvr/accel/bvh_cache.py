@@ -25,8 +25,8 @@ from .bvh import Bvh
 log = logging.getLogger(__name__)
 ENV = "RAYVR_BVH_CACHE"
 FORMAT = 2  # bumped whenever the stored arrays or their meaning change
-TREE_DTYPES = {"node_lo": np.float32, "node_hi": np.float32, "left": np.int32, "right": np.int32, "start": np.int32,
-               "count": np.int32, "depth": np.int32, "prim_ids": np.uint32, "indices": np.int64}  # as bvh.Bvh holds them
+TREE_DTYPES = {"node_lo": np.float32, "node_hi": np.float32, "left": np.int32, "right": np.int32,  # as bvh.Bvh
+               "start": np.int32, "count": np.int32, "depth": np.int32, "prim_ids": np.uint32, "indices": np.int64}
 ARRAYS = tuple(TREE_DTYPES)
 
 
