@@ -292,9 +292,10 @@ def _short(value) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def lock_folder(folder: Path) -> int | None:
+def lock_folder(folder: Path, why: str = "") -> int | None:
     """Hold `folder` for one job: an exclusive flock on its .rayvr-lock, which the kernel drops
-    when the process ends, so a crashed job leaves no stale lock. OutputError if a job holds it."""
+    when the process ends, so a crashed job leaves no stale lock. OutputError if a job holds it
+    (`why` ends its message)."""
     path = folder / LOCK_NAME
     try:
         import fcntl
@@ -312,7 +313,7 @@ def lock_folder(folder: Path) -> int | None:
             holder = os.pread(fd, 200, 0).decode("utf-8", "replace").strip() or "another process"
             os.close(fd)
             raise OutputError(f"{folder}: output folder is busy: another capture ({holder}) is writing into it; "
-                              f"wait for it to end or use another --out") from None
+                              f"wait for it to end or use another --out{why}") from None
         except OSError as exc:  # a file system without locks
             os.close(fd)
             log.warning("%s: cannot lock the output folder (%s); two jobs writing into it would go unnoticed",
@@ -376,7 +377,7 @@ class JobFolder:
         check_output_files(self.paths())
         self._created = create_output_dir(job.out_dir)
         try:
-            self._lock = lock_folder(job.out_dir)
+            self._lock = lock_folder(job.out_dir, why=self._how_the_job_file_differs())
             if self.identity is not None and self.sequence:
                 self._refuse_another_job()
                 if self.digest is not None:
@@ -401,6 +402,19 @@ class JobFolder:
                     remove_empty_dirs(self._created)
             except OSError:  # gone, or no longer ours to list: leave it
                 pass
+
+    def _how_the_job_file_differs(self) -> str:
+        """For a busy folder's message: how the job its job file names differs from this one."""
+        p = job_file(self.job)
+        if self.identity is None or not self.sequence or not p.is_file():
+            return ""
+        try:
+            recorded = _read_json(p)
+        except (OSError, ValueError):
+            return ""
+        if recorded == self.identity:
+            return ""
+        return f" ({p.name} -> this job: {describe_difference(recorded, self.identity)})"
 
     def _frame_files_on_disk(self) -> list[str]:
         """Names of sequence frame files (of any job) with this prefix: PREFIX_NNNN_*."""

@@ -115,6 +115,9 @@ def test_a_second_job_into_a_folder_in_use_is_refused(tmp_path):
         assert run.returncode == 2
         assert one_line(run.stderr).startswith(f"rayvr capture: error: {out}: output folder is busy: another "
                                                f"capture (pid {proc.pid} on ")
+    assert a.stderr.endswith("use another --out (frame_job.json -> this job: spp 32 -> 1, "
+                             "settings.exposure 4.0 -> 1.0)\n")  # what differs
+    assert twin.stderr.endswith("wait for it to end or use another --out\n")  # the same job, still busy
     assert not (out / ".rayvr-lock").exists()  # B removed its lock file as it ended
     again = run_rayvr(*job_a)
     assert again.returncode == 2
