@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .cameras import CameraModel, Pinhole, get_camera_model
+from .limits import MAX_CAMERA_COORDINATE, MAX_DISTANCE, MIN_DISTANCE, check_range
 from .output import atomic_write_bytes
 
 EYES = ("left", "right")
@@ -179,16 +180,18 @@ class StereoRig:
             self.camera = get_camera_model(self.camera)
         elif not isinstance(self.camera, CameraModel):
             raise ValueError(f"camera must be a camera model or its name, got {self.camera!r}")
-        if not (self.ipd >= 0 and math.isfinite(self.ipd)):
-            raise ValueError(f"ipd must be a finite value >= 0, got {self.ipd}")
-        if not (self.fov_y > 0 and math.isfinite(self.fov_y)):
-            raise ValueError(f"fov_y must be a finite angle > 0 degrees, got {self.fov_y}")
-        if not (self.near > 0 and math.isfinite(self.near)):
-            raise ValueError(f"near must be a finite distance > 0, got {self.near}")
+        self.ipd = check_range("ipd", self.ipd, 0.0, MAX_DISTANCE)
+        if not (isinstance(self.fov_y, (int, float)) and self.fov_y > 0 and math.isfinite(self.fov_y)):
+            raise ValueError(f"fov_y must be a finite angle > 0 degrees, got {self.fov_y}")  # the model sets the rest
+        self.near = check_range("near", self.near, MIN_DISTANCE, MAX_DISTANCE)
         if self.far is not None and not self.far > self.near:  # inf is the infinite far plane
             raise ValueError(f"far ({self.far}) must be greater than near ({self.near})")
-        if self.convergence is not None and not self.convergence > 0:
-            raise ValueError(f"convergence distance must be > 0 (or None), got {self.convergence}")
+        if self.far is not None and math.isinf(self.far):
+            self.far = None  # one spelling of the infinite far plane: the shaders read 0 as infinite, JSON has no inf
+        if self.far is not None:
+            self.far = check_range("far", self.far, self.near, MAX_DISTANCE, lo_open=True)
+        if self.convergence is not None:
+            self.convergence = check_range("convergence distance", self.convergence, 0.0, MAX_DISTANCE, lo_open=True)
         w, h = self.size
         if int(w) < 1 or int(h) < 1:
             raise ValueError(f"image size must be at least 1x1, got {w}x{h}")

@@ -136,10 +136,10 @@ def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) 
                 write_exr(p, arr, EXR_CHANNELS[1 if arr.ndim == 2 else arr.shape[-1]])
             written.append(p)
         if rig is not None:
-            from .views import camera_record
+            from .views import camera_json
 
             p = file_name(job, index, eye, "camera", "json")
-            atomic_write_bytes(p, json.dumps(camera_record(rig.eye(eye)), indent=1).encode())
+            atomic_write_bytes(p, camera_json(rig.eye(eye)))
             written.append(p)
 
 

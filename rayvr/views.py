@@ -26,12 +26,15 @@ from pathlib import Path
 import numpy as np
 
 from .camera import Pose, StereoRig, _check_pose
+from .cameras.pinhole import MAX_TANGENT, MIN_PIXEL_TANGENT
+from .limits import MAX_CAMERA_COORDINATE, check_range
 from .output import atomic_write_bytes
 
 POSE_KEYS = ("transform_matrix", "position", "rotation", "target", "up")
 INTRINSIC_KEYS = ("fov_y", "camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
 # What transforms.json files carry besides poses and intrinsics: read past, never used.
-PASSED_KEYS = ("file_path", "depth_file_path", "camera_file_path", "mask_path", "colmap_im_id", "name")
+PASSED_KEYS = ("file_path", "depth_file_path", "camera_file_path", "mask_path", "colmap_im_id", "name",
+               "camera_angle_y")
 MAX_VIEWS = 1_000_000
 CONVENTION = ("OpenGL camera axes: +X right, +Y up, looking down -Z; camera_to_world maps camera to world "
               "coordinates; pixel rows top-down (cy from the top); depth files hold linear view depth "
@@ -102,6 +105,10 @@ def view_intrinsics(d: dict, size, where: str) -> dict | None:
         cy = _number(where, "cy", d.get("cy", h / 2))
         if not (0 < cx < w and 0 < cy < h):
             raise ValueError(f"{where}: principal point ({cx:g}, {cy:g}) lies outside the {w}x{h} image")
+        # A pixel is 1 / fl of tangent and the image's edges reach (distance to cx or cy) / fl: both
+        # within the pinhole's float32 precision (cameras/pinhole.py).
+        for key, f, reach in (("fl_x", fx, max(cx, w - cx)), ("fl_y", fy, max(cy, h - cy))):
+            check_range(f"{where}: {key!r} (pixels)", f, reach / MAX_TANGENT, 1.0 / MIN_PIXEL_TANGENT)
         t = (-cx / fx, (w - cx) / fx, -(h - cy) / fy, cy / fy)
         return {"eye_tangents": {"left": t, "right": t}}
     for key in ("fl_y", "cx", "cy"):
@@ -122,6 +129,12 @@ def load_views(path, size) -> tuple[list[Pose], list]:
         lists = [k for k in ("views", "frames") if k in data]
         if not lists:
             raise ValueError(f"{path}: a views file is a list of views or an object with 'views' or 'frames'")
+        model = data.get("camera_model", "OPENCV")
+        distortion = [k for k in DISTORTION_KEYS if data.get(k, 0.0) != 0.0]
+        if model not in PINHOLE_MODELS or distortion:
+            raise ValueError(f"{path}: camera_model {model!r}{' with ' + distortion[0] if distortion else ''}: a "
+                             f"views file's intrinsics are a pinhole's (camera_model {', '.join(PINHOLE_MODELS)}, no "
+                             f"distortion); give another camera with --camera-model")
         defaults = {k: v for k, v in data.items() if k in INTRINSIC_KEYS}
         data = data[lists[0]]
     if not isinstance(data, list) or not data:
@@ -133,7 +146,11 @@ def load_views(path, size) -> tuple[list[Pose], list]:
         where = f"{path}: view {i}"
         if not isinstance(d, dict):
             raise ValueError(f"{where}: must be an object, got {type(d).__name__}")
-        unknown = [k for k in d if k not in POSE_KEYS + INTRINSIC_KEYS + PASSED_KEYS]
+        unknown = [k for k in d if k not in POSE_KEYS + INTRINSIC_KEYS + PASSED_KEYS + DISTORTION_KEYS]
+        distorted = [k for k in DISTORTION_KEYS if d.get(k, 0.0) != 0.0]
+        if distorted:
+            raise ValueError(f"{where}: {distorted[0]} {d[distorted[0]]!r}: a view's intrinsics are a pinhole's, "
+                             f"without distortion")
         if unknown:
             raise ValueError(f"{where}: unknown key {unknown[0]!r}; a view has {', '.join(POSE_KEYS + INTRINSIC_KEYS)}")
         own = [k for k in ("fov_y", "camera_angle_x", "fl_x") if k in d]
@@ -181,7 +198,32 @@ def _spec_counts(spec: str, kind: str, parts: int) -> list[int]:
 
 
 def views_for(spec: str, scene, rig: StereoRig) -> tuple[list[Pose], list]:
-    """(poses, rig overrides) of `--views SPEC`: sphere:N, grid:NxM[:SPACING] or a views file."""
+    """(poses, rig overrides) of `--views SPEC`: sphere:N, grid:NxM[:SPACING] or a views file,
+    each view checked before any rendering: its camera lies within the GPU's float32 range of the
+    scene, its rig renders, and transforms.json can describe its camera model."""
+    poses, overrides = _views(spec, scene, rig)
+    where = f"--views {spec}"
+    far = np.abs(np.array([p.position for p in poses]) - scene.origin).max(axis=1)
+    if not far.max() <= MAX_CAMERA_COORDINATE:
+        i = int(np.argmax(~(far <= MAX_CAMERA_COORDINATE)))
+        raise ValueError(f"{where}: view {i}: the camera at {poses[i].position.tolist()} lies {far[i]:.3g} from the "
+                         f"scene's centre along an axis; at most {MAX_CAMERA_COORDINATE:.0e} (float32 on the GPU)")
+    checked = {}
+    for i, extra in enumerate(overrides):
+        key = repr(extra)
+        if key in checked:
+            continue
+        try:
+            view_rig = StereoRig(**{**rig.__dict__, "pose": poses[i], **(extra or {})})
+            for eye in view_rig.eyes():
+                camera_model_fields(eye)
+        except ValueError as exc:
+            raise ValueError(f"{where}: view {i}: {exc}") from None
+        checked[key] = True
+    return poses, overrides
+
+
+def _views(spec: str, scene, rig: StereoRig) -> tuple[list[Pose], list]:
     kind, _, rest = spec.partition(":")
     target = scene.center if scene.camera is None else rig.pose.position + rig.pose.forward * 2.0
     distance = float(np.linalg.norm(rig.pose.position - target)) or 1.0
@@ -197,24 +239,71 @@ def views_for(spec: str, scene, rig: StereoRig) -> tuple[list[Pose], list]:
                 step = float(spacing)
             except ValueError:
                 step = -1.0
-            if not (math.isfinite(step) and step > 0):
-                raise ValueError(f"--views grid:NxM:SPACING needs a positive spacing, got {spacing!r}")
+            widest = MAX_CAMERA_COORDINATE / max(nx, ny)  # the array's span stays within the GPU's float32 range
+            if not (math.isfinite(step) and 0 < step <= widest):
+                raise ValueError(f"--views grid:NxM:SPACING needs a positive spacing, at most {widest:.3g} for "
+                                 f"{nx}x{ny} views, got {spacing!r}")
         return grid_views(rig.pose, nx, ny, step), [None] * (nx * ny)
     return load_views(spec, rig.size)
 
 
-def camera_record(eye) -> dict:
-    """One eye image's camera (an EyeView): pinhole intrinsics in pixels and camera-to-world."""
-    w, h = eye.size
+PINHOLE_MODELS = ("OPENCV", "PINHOLE", "SIMPLE_PINHOLE")  # camera_model values of an undistorted pinhole
+DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
+NOT_DESCRIBED = "transforms.json (nerfstudio's camera models) cannot describe the {} camera: {}"
+
+
+def camera_model_fields(eye) -> dict:
+    """The camera model of one eye image as nerfstudio's transforms.json spells it: camera_model
+    and its intrinsics (pixels, rows top-down, centres at +0.5) and distortion, exactly the
+    camera rayvr renders; ValueError where none of those models is that camera.
+
+    nerfstudio (cameras/cameras.py) maps pixel (x, y) to c = ((x - cx) / fl_x, -(y - cy) / fl_y), then
+    OPENCV: direction (c, -1) after undistorting c (here no distortion: k = p = 0);
+    OPENCV_FISHEYE: theta = |c|, direction (sin(theta) c / theta, -cos(theta)) (k1..k4 = 0);
+    EQUIRECTANGULAR: yaw pi c_x, pitch pi c_y (any fl: sections of the sphere too)."""
+    cam, (w, h) = eye.camera, eye.size
+    name = cam.name
+    if name == "wide":
+        fx, fy = cam.field(eye)
+        if cam.mapping == "spherical":  # yaw a = (x / w - 1/2) fov_x is pi (x - cx) / fl_x
+            return {"camera_model": "EQUIRECTANGULAR", "fl_x": math.pi * w / fx, "fl_y": math.pi * h / fy,
+                    "cx": w / 2, "cy": h / 2}
+        # equidistant: the angle from the axis is |(a, b)|, a = (x - cx) / fl_x radians
+        return {"camera_model": "OPENCV_FISHEYE", "fl_x": w / fx, "fl_y": h / fy, "cx": w / 2, "cy": h / 2,
+                "k1": 0.0, "k2": 0.0, "k3": 0.0, "k4": 0.0}
+    if name == "distorted" and getattr(cam, "samples", None):
+        raise ValueError(NOT_DESCRIBED.format(name, f"its rays come from the measured sample file {cam.samples}"))
+    if name == "distorted" and any(any(k) for k in cam.coefficients):
+        raise ValueError(NOT_DESCRIBED.format(name, "its polynomial maps image points to view tangents, the inverse "
+                                                    "of OpenCV's radial model, around its own lens centre and per "
+                                                    "colour channel; use coefficients=0 (a pinhole) or the pinhole"))
+    if name == "dof" and cam.aperture > 0:
+        raise ValueError(NOT_DESCRIBED.format(name, f"its images are blurred by a lens of radius {cam.aperture:g}; "
+                                                    "use aperture=0 (a pinhole) or the pinhole"))
+    if name == "foveated":
+        raise ValueError(NOT_DESCRIBED.format(name, "its images are filled in between samples that thin out away "
+                                                    "from the gaze, and depth exists only at the samples; use the "
+                                                    "pinhole"))
+    if not cam.rasterizable and name not in ("distorted", "dof"):
+        raise ValueError(NOT_DESCRIBED.format(name, "no camera_model is written for it"))
+    # A planar frustum (pinhole, dof without aperture, distorted without distortion): OPENCV.
     l, r, b, t = eye.tangents
+    return {"camera_model": "OPENCV", "fl_x": w / (r - l), "fl_y": h / (t - b), "cx": -l * w / (r - l),
+            "cy": t * h / (t - b), "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0,
+            "camera_angle_x": math.atan(r) - math.atan(l), "camera_angle_y": math.atan(t) - math.atan(b)}
+
+
+def camera_record(eye) -> dict:
+    """One eye image's camera (an EyeView): its camera model (camera_model_fields) and camera-to-world."""
     c2w = np.eye(4)
     c2w[:3, :3], c2w[:3, 3] = eye.rotation, eye.position
-    return {"w": w, "h": h, "fl_x": w / (r - l), "fl_y": h / (t - b), "cx": -l * w / (r - l), "cy": t * h / (t - b),
-            "camera_angle_x": math.atan(r) - math.atan(l), "camera_angle_y": math.atan(t) - math.atan(b),
-            "near": eye.near, "far": eye.far, "camera_to_world": c2w.tolist(), "convention": CONVENTION}
+    return {"w": eye.size[0], "h": eye.size[1], **camera_model_fields(eye), "near": eye.near, "far": eye.far,
+            "camera_to_world": c2w.tolist(), "convention": CONVENTION}
 
 
-INTRINSICS_OUT = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
+def camera_json(eye) -> bytes:
+    """camera_record as JSON, refused (ValueError) if a value would be NaN or infinite, which JSON lacks."""
+    return json.dumps(camera_record(eye), indent=1, allow_nan=False).encode()
 
 
 def transforms(job) -> dict:
@@ -228,20 +317,26 @@ def transforms(job) -> dict:
             cam = camera_record(rig.eye(eye))
             image = file_name(job, i, eye, "color" if job.view == "color" else job.view, "png")
             frame = {"file_path": f"./{image.stem}", "transform_matrix": cam["camera_to_world"],
-                     **{k: cam[k] for k in INTRINSICS_OUT}}
+                     **{k: v for k, v in cam.items() if k not in RECORD_ONLY}}
             if "depth" in job.aux:
                 frame["depth_file_path"] = f"./{aux_file(job, i, eye, 'depth').name}"
             frames.append(frame)
-    first = {k: frames[0][k] for k in INTRINSICS_OUT}
-    for f in frames:  # intrinsics every frame shares stay at the top only
-        if all(f[k] == first[k] for k in INTRINSICS_OUT):
-            for k in INTRINSICS_OUT:
-                del f[k]
-    return {**first, "camera_model": "OPENCV", "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0,
-            "convention": CONVENTION, "frames": frames}
+    own = [k for k in frames[0] if k not in ("file_path", "transform_matrix", "depth_file_path")]
+    # A value every frame shares goes to the top only, the others stay in each frame: nerfstudio
+    # takes a top-level intrinsic for every frame, and camera_model from the top alone.
+    top = {k: frames[0][k] for k in own if all(f[k] == frames[0][k] for f in frames)}
+    if "camera_model" not in top:
+        raise ValueError("transforms.json: the frames' camera models differ; nerfstudio reads one for all")
+    for f in frames:
+        for k in top:
+            del f[k]
+    return {**top, "convention": CONVENTION, "frames": frames}
+
+
+RECORD_ONLY = ("camera_to_world", "convention", "near", "far")  # camera_record's keys transforms.json leaves out
 
 
 def write_transforms(job) -> Path:
     p = job.out_dir / "transforms.json"
-    atomic_write_bytes(p, json.dumps(transforms(job), indent=1).encode())
+    atomic_write_bytes(p, json.dumps(transforms(job), indent=1, allow_nan=False).encode())
     return p

@@ -62,7 +62,7 @@ def test_view_file_intrinsics_reach_the_image_and_transforms_json(tmp_path):
                 "--aux", "position", "--out", str(out), "-q")
     assert run.returncode == 0, run.stderr
     t = check_transforms(out, 2)
-    first, second = ({k: f.get(k, t[k]) for k in ("fl_x", "fl_y", "cx", "cy", "camera_angle_x")} for f in t["frames"])
+    first, second = ({k: f.get(k, t.get(k)) for k in ("fl_x", "fl_y", "cx", "cy", "camera_angle_x")} for f in t["frames"])
     assert (first["fl_x"], first["fl_y"], first["cx"], first["cy"]) == pytest.approx((14.0, 12.0, 9.0, 5.0))
     assert second["camera_angle_x"] == pytest.approx(1.0)  # the file's default
     # An independent check of the off-centre view: project its world points with the input intrinsics.

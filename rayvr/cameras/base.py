@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from ..limits import to_float32
 from .sampling import subsamples
 
 if TYPE_CHECKING:  # rayvr.camera imports this package; the eye is only a type here
@@ -153,15 +154,16 @@ class CameraModel:
         if others:
             raise ValueError(f"the eyes of one frame must share a camera model: {self.name!r} and {sorted(others)}")
         origin = np.asarray(origin, dtype=np.float64)
-        position = np.zeros((2, 3), np.float32)
+        position = np.zeros((2, 3))
         rotation = np.zeros((2, 3, 3), np.float32)
         tangents = np.zeros((2, 4), np.float32)
         for i, eye in enumerate(eyes):
             position[i] = eye.position - origin  # float64 subtraction first: far-off rigs stay exact
             rotation[i] = eye.rotation.T  # GLSL mat3 is column-major
             tangents[i] = np.nan_to_num(np.asarray(eye.tangents, np.float64), posinf=3e38, neginf=-3e38)
-        return {"eye_position": position, "eye_rotation": rotation, "eye_tangents": tangents,
-                "eye_depth": np.array([eyes[0].near, eyes[0].far or 0.0], np.float32)}
+        return {"eye_position": to_float32("camera position (scene-local)", position), "eye_rotation": rotation,
+                "eye_tangents": tangents,
+                "eye_depth": to_float32("near, far", [eyes[0].near, eyes[0].far or 0.0])}
 
     def bind(self, gl) -> None:
         """Bind GL resources the model's GLSL reads (textures); nothing by default."""

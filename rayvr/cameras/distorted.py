@@ -26,12 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..limits import check_range, to_float32
 from .base import CameraModel, normalize
+from .pinhole import MAX_TANGENT, check_planar_rig
 
 # Per channel R, G, B: a pincushion lens of a consumer HMD class, blue bent most.
 DEFAULT_COEFFICIENTS = ((0.21, 0.22, 0.0), (0.22, 0.24, 0.0), (0.235, 0.265, 0.0))
 CHANNEL_NAMES = "rgb"
-MONOTONIC_STEPS = 4096  # radii checked for a fold over the panel
 
 
 def _coefficients(value) -> tuple:
@@ -151,6 +152,8 @@ class Distorted(CameraModel):
         c = tuple(float(v) for v in self.center)
         if len(c) != 2 or not all(math.isfinite(v) for v in c):
             raise ValueError(f"distorted camera: center must be 2 finite numbers, got {self.center!r}")
+        for axis, v in zip("xy", c):  # tangent units, as the panel's: the same float32 precision limit
+            check_range(f"distorted camera: center {axis}", v, -MAX_TANGENT, MAX_TANGENT)
         object.__setattr__(self, "center", c)
         object.__setattr__(self, "_table", load_samples(self.samples) if self.samples else None)
         object.__setattr__(self, "_textures", {})
@@ -218,18 +221,45 @@ class Distorted(CameraModel):
             if not all(math.isfinite(v) for v in eye.tangents) or not (r > l and t > b):
                 raise ValueError(f"distorted camera: the {eye.name} eye's panel needs finite frustum tangents "
                                  f"(fov_y < 180), got {eye.tangents}")
+        check_planar_rig(rig)  # the panel is the pinhole's frustum, with its float32 limits
+        for eye in rig.eyes():
+            l, r, b, t = eye.tangents
             c = self.lens_center(eye)
             reach = max(math.hypot(x - c[0], y - c[1]) for x in (l, r) for y in (b, t))
-            s = np.linspace(0.0, reach, MONOTONIC_STEPS)
             for ch in range(self.channels):
-                k1, k2, k3 = self._k(ch)
-                slope = 1.0 + s * s * (3 * k1 + s * s * (5 * k2 + s * s * 7 * k3))
-                if (slope <= 0).any():
-                    at = s[np.argmax(slope <= 0)]
-                    name = CHANNEL_NAMES[ch].upper() if self.channels > 1 else "every channel"
-                    raise ValueError(f"distorted camera: the lens polynomial of {name} {self._k(ch)} folds over at "
-                                     f"radius {at:.4g} of the {eye.name} eye's panel, which reaches {reach:.4g}: "
-                                     f"it has no inverse there (use smaller coefficients)")
+                self._check_polynomial(ch, reach, eye.name)
+
+    def _check_polynomial(self, channel: int, reach: float, eye: str) -> None:
+        """Refuse a channel's polynomial that folds over radii [0, reach] (no inverse) or whose
+        view tangents leave float32's planar precision there. Exact, and safe from overflow: the
+        size of every term is bounded before the slope is looked at."""
+        k = self._k(channel)
+        name = CHANNEL_NAMES[channel].upper() if self.channels > 1 else "every channel"
+        # |u - c| <= r (1 + |k1| r^2 + |k2| r^4 + |k3| r^6): a bound on the view tangent offset, in
+        # plain float64 products (an enormous coefficient gives inf, which is refused too).
+        r2 = reach * reach
+        bound = reach * (1.0 + abs(k[0]) * r2 + abs(k[1]) * r2 * r2 + abs(k[2]) * r2 * r2 * r2)
+        if not bound <= MAX_TANGENT:
+            raise ValueError(f"distorted camera: the lens polynomial of {name} {k} can reach view tangent "
+                             f"{bound:.3g} at the {eye} eye's panel radius {reach:.4g}; rays end at tangent "
+                             f"{MAX_TANGENT:.0e} (float32 planar precision): use smaller coefficients")
+        # The map's radial slope, a cubic in x = r^2: 1 + 3 k1 x + 5 k2 x^2 + 7 k3 x^3. It folds where
+        # the slope reaches 0; its minimum over [0, reach^2] lies at an end or where its derivative
+        # 3 k1 + 10 k2 x + 21 k3 x^2 vanishes.
+        slope = lambda x: 1.0 + x * (3 * k[0] + x * (5 * k[1] + x * 7 * k[2]))  # noqa: E731
+        stationary = np.roots([21 * k[2], 10 * k[1], 3 * k[0]]) if any(k) else np.array([])
+        candidates = [r2] + [float(x.real) for x in np.atleast_1d(stationary)
+                             if abs(x.imag) <= 1e-12 * max(1.0, abs(x)) and 0.0 < x.real < r2]
+        low = min(candidates, key=slope)
+        if slope(low) > 0:
+            return
+        lo, hi = 0.0, low  # slope(0) = 1 > 0 >= slope(low): bisect for where it first folds
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if slope(mid) > 0 else (lo, mid)
+        raise ValueError(f"distorted camera: the lens polynomial of {name} {k} folds over at radius "
+                         f"{math.sqrt(hi):.4g} of the {eye} eye's panel, which reaches {reach:.4g}: it has no "
+                         f"inverse there (use smaller coefficients)")
 
     # -- rays -----------------------------------------------------------------------
     def ray_at(self, eye, channel, x, y, lens):
@@ -271,13 +301,9 @@ class Distorted(CameraModel):
     # -- GPU ------------------------------------------------------------------------
     def uniforms(self, eyes, origin) -> dict:
         out = super().uniforms(eyes, origin)
-        k = np.array([self._k(c) for c in range(3)], np.float32) if self.channels == 3 else \
-            np.array([self._k(0)] * 3, np.float32)
-        out["camera_lens_k"] = k
-        centre = np.zeros((2, 2), np.float32)
-        for i, eye in enumerate(eyes):
-            centre[i] = self.lens_center(eye)
-        out["camera_lens_center"] = centre
+        out["camera_lens_k"] = to_float32("distorted camera: coefficients", [self._k(c) for c in range(3)])
+        out["camera_lens_center"] = to_float32("distorted camera: center", [self.lens_center(e) for e in eyes] +
+                                               [(0.0, 0.0)] * (2 - len(eyes)))
         out["camera_use_table"] = np.array([int(self._table is not None)], np.int32)
         return out
 

@@ -21,12 +21,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..limits import check_range
 from .base import CameraModel
 from .pinhole import Pinhole, planar_directions
 
 DITHER_BITS = 6  # 64x64 ordered-dither tile: densities down to 1/4096
 DITHER_LEVELS = 4 ** DITHER_BITS
 BAYER_2X2 = np.array([[0, 2], [3, 1]])  # [y bit][x bit]
+# Ranges of the acuity parameters (degrees): the density's (pixel angle / MAR)^2 stays far inside
+# float32 for pixels up to 180 degrees, and no display has pixels near 1e-6 degrees.
+MIN_MAR, MAX_ACUITY_DEGREES = 1e-6, 1e6
 
 
 def dither_rank(x, y) -> np.ndarray:
@@ -58,11 +62,9 @@ class Foveated(Pinhole):
         if len(g) != 2 or not all(0.0 <= v <= 1.0 for v in g):
             raise ValueError(f"foveated camera: gaze must be 2 fractions of the image in [0, 1], got {self.gaze!r}")
         object.__setattr__(self, "gaze", g)
-        for key in ("fovea_mar", "mar_slope", "fovea_radius"):
-            v = getattr(self, key)
-            if not (math.isfinite(v) and v >= 0) or (key == "fovea_mar" and v <= 0):
-                raise ValueError(f"foveated camera: {key} must be a finite number {'>' if key == 'fovea_mar' else '>='} 0, "
-                                 f"got {v}")
+        for key in ("fovea_mar", "mar_slope", "fovea_radius"):  # degrees; squared ratios stay within float32
+            object.__setattr__(self, key, check_range(f"foveated camera: {key}", getattr(self, key),
+                                                      MIN_MAR if key == "fovea_mar" else 0.0, MAX_ACUITY_DEGREES))
 
     def density(self, eye) -> np.ndarray:
         """(H, W) rows top-down: samples per pixel the model asks for at each pixel centre."""

@@ -7,11 +7,11 @@ GLSL: glsl/cameras/thin_lens.glsl.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..limits import MAX_CAMERA_COORDINATE, MAX_DISTANCE, MIN_DISTANCE, check_range, to_float32
 from .base import CameraModel, normalize
 from .pinhole import Pinhole, planar_directions
 
@@ -28,10 +28,12 @@ class ThinLens(Pinhole):
     rays = CameraModel.rays  # the generic path: lens points per sub-ray
 
     def __post_init__(self):
-        if not (math.isfinite(self.aperture) and self.aperture >= 0):
-            raise ValueError(f"dof camera: aperture must be a finite radius >= 0, got {self.aperture}")
-        if not (math.isfinite(self.focus) and self.focus > 0):
-            raise ValueError(f"dof camera: focus must be a finite distance > 0, got {self.focus}")
+        # The lens offsets the rays' origins (so it spans no more than a camera may lie from the
+        # scene); a focus distance is squared in the shaders, so it has the near plane's range.
+        object.__setattr__(self, "aperture", check_range("dof camera: aperture (lens radius)", self.aperture, 0.0,
+                                                         MAX_CAMERA_COORDINATE))
+        object.__setattr__(self, "focus", check_range("dof camera: focus distance", self.focus, MIN_DISTANCE,
+                                                      MAX_DISTANCE))
 
     def ray_at(self, eye, channel, x, y, lens):
         d = planar_directions(eye, x, y)
@@ -42,5 +44,5 @@ class ThinLens(Pinhole):
 
     def uniforms(self, eyes, origin) -> dict:
         out = super().uniforms(eyes, origin)
-        out["camera_thin_lens"] = np.array([self.aperture, self.focus], np.float32)
+        out["camera_thin_lens"] = to_float32("dof camera: aperture, focus", [self.aperture, self.focus])
         return out

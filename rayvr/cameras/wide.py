@@ -16,7 +16,9 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..limits import to_float32
 from .base import CameraModel
+from .pinhole import MIN_PIXEL_TANGENT
 
 MAPPINGS = ("spherical", "equidistant")
 
@@ -53,6 +55,11 @@ class Wide(CameraModel):
             if fx > 360 or fy > 360:
                 raise ValueError(f"wide camera: the field of view is at most 360 degrees, got {fx:g} x {fy:g} "
                                  f"(fov_x follows the image aspect unless given)")
+            step = min(math.radians(fx) / eye.size[0], math.radians(fy) / eye.size[1])
+            if step < MIN_PIXEL_TANGENT:  # the planar models' float32 limit, as an angle
+                raise ValueError(f"wide camera: a {fx:g} x {fy:g} degree field on a {eye.size[0]}x{eye.size[1]} "
+                                 f"image makes pixels of {step:.3g} radians; float32 rays resolve pixels down to "
+                                 f"{MIN_PIXEL_TANGENT:.0e} radians")
 
     def ray_at(self, eye, channel, x, y, lens):
         w, h = eye.size
@@ -85,6 +92,6 @@ class Wide(CameraModel):
 
     def uniforms(self, eyes, origin) -> dict:
         out = super().uniforms(eyes, origin)
-        out["camera_fov"] = np.array(self.field(eyes[0]), np.float32)
+        out["camera_fov"] = to_float32("wide camera: field of view", self.field(eyes[0]))
         out["camera_mapping"] = np.array([MAPPINGS.index(self.mapping)], np.int32)
         return out

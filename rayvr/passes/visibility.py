@@ -6,6 +6,7 @@ import numpy as np
 
 from .. import shaders
 from ..frame import FramePlan, GBufferChannels, Pass, write
+from ..limits import to_float32
 
 GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE, GL_ZERO_TO_ONE = 0x8CA1, 0x935E, 0x935F
 LAYER_MODES = ("vertex", "geometry", "multiview", "passes")
@@ -68,10 +69,10 @@ class VisibilityPass(Pass):
     def execute(self, fc) -> None:
         ctx, raw = self.gl.ctx, self.gl.raw
         gb = self.target(fc)
-        vp = np.zeros((2, 4, 4), np.float32)
+        vp = np.zeros((2, 4, 4))
         for i, eye in enumerate(fc.eyes):
             vp[i] = eye.view_projection(fc.scene.origin, zero_to_one=self.clip_control).T  # column-major
-        self.program["view_proj"].write(vp.tobytes())
+        self.program["view_proj"].write(to_float32("view-projection matrix", vp).tobytes())
         vao = self._vao(fc.gpu_scene)
         if self.mode == "multiview":
             gb.attach_multiview()

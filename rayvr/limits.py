@@ -1,0 +1,51 @@
+"""The ranges of the numbers rayvr hands to the GPU, where they become float32 (max 3.4e38; GPUs
+flush numbers below 1.2e-38 to zero). A value that is finite in float64 but overflows there, or
+a meaningful small one that flushes to zero, renders a blank frame; every setting that reaches the
+shaders is checked against its range here, once, when it is given (camera.py, cameras/, views.py),
+and uploads go through `to_float32`, which refuses what would still overflow.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+FLOAT32_NORMAL_MIN = float(np.finfo(np.float32).tiny)  # smaller numbers flush to zero on GPUs
+
+# Farthest a camera (and a thin lens's ray origins) may be from the scene's origin: the shaders
+# square distances (lengths, ray-box and ray-sphere maths), and (1e18)^2 leaves float32 room.
+MAX_CAMERA_COORDINATE = 1e18
+# near, far, focus, convergence, IPD. The depth maths (near / distance, near * far / (far - near))
+# stays finite below it.
+MAX_DISTANCE = 1e30
+# Shortest near or focus distance: reversed-Z depth is near / distance, which must stay a normal
+# float32 for any distance up to MAX_CAMERA_COORDINATE; a focus point's squared distance likewise.
+MIN_DISTANCE = 1e-18
+
+
+def interval(lo: float, hi: float, lo_open: bool = False, hi_open: bool = False) -> str:
+    return f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+
+
+def check_range(what: str, value, lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False) -> float:
+    """`value` as a float when it is a finite number in the interval from lo to hi (ends open as
+    asked), else ValueError naming `what` and its legal range."""
+    legal = interval(lo, hi, lo_open, hi_open)
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{what} must be a number in {legal}, got {value!r}")
+    v = float(value)
+    inside = math.isfinite(v) and (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)
+    if not inside:
+        raise ValueError(f"{what} must be in {legal}, got {value!r}")
+    return v
+
+
+def to_float32(what: str, values) -> np.ndarray:
+    """`values` as a float32 array for an upload, or ValueError naming `what` where a value is not
+    finite or overflows float32 (the last guard: the settings' own ranges are checked earlier)."""
+    a = np.asarray(values, np.float64)
+    if not np.isfinite(a).all() or (np.abs(a) > FLOAT32_MAX).any():
+        worst = a.ravel()[np.argmax(~np.isfinite(a.ravel()) | (np.abs(a.ravel()) > FLOAT32_MAX))]
+        raise ValueError(f"{what}: {worst:g} does not fit the GPU's float32 (at most {FLOAT32_MAX:.3g})")
+    return a.astype(np.float32)
