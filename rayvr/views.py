@@ -39,6 +39,9 @@ MAX_VIEWS = 1_000_000
 CONVENTION = ("OpenGL camera axes: +X right, +Y up, looking down -Z; camera_to_world maps camera to world "
               "coordinates; pixel rows top-down (cy from the top); depth files hold linear view depth "
               "along -Z, 0 = background")
+# The wide model's depth is the distance along each pixel's (unit) ray, as nerfstudio reads the
+# depth of its fisheye and equirectangular cameras, whose ray directions have length 1.
+WIDE_CONVENTION = CONVENTION.replace("linear view depth along -Z", "the distance along each pixel's ray")
 
 
 def _number(where: str, key: str, value, positive: bool = False) -> float:
@@ -298,7 +301,7 @@ def camera_record(eye) -> dict:
     c2w = np.eye(4)
     c2w[:3, :3], c2w[:3, 3] = eye.rotation, eye.position
     return {"w": eye.size[0], "h": eye.size[1], **camera_model_fields(eye), "near": eye.near, "far": eye.far,
-            "camera_to_world": c2w.tolist(), "convention": CONVENTION}
+            "camera_to_world": c2w.tolist(), "convention": WIDE_CONVENTION if eye.camera.name == "wide" else CONVENTION}
 
 
 def camera_json(eye) -> bytes:
@@ -330,10 +333,10 @@ def transforms(job) -> dict:
     for f in frames:
         for k in top:
             del f[k]
-    return {**top, "convention": CONVENTION, "frames": frames}
+    return {**top, "frames": frames}
 
 
-RECORD_ONLY = ("camera_to_world", "convention", "near", "far")  # camera_record's keys transforms.json leaves out
+RECORD_ONLY = ("camera_to_world", "near", "far")  # camera_record's keys transforms.json leaves out
 
 
 def write_transforms(job) -> Path:
