@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .accumulation import MAX_DENOISE_ITERATIONS
+from .limits import MAX_DISTANCE  # --near, --far, --convergence, --ipd (the rig checks the rest of their ranges)
 from .accel.bvh import BUILDS
 from .accel.gpu import DEFAULT_TRAVERSAL, parse_traversal
 from .gpu_layout import BVH_LAYOUTS
@@ -42,7 +43,6 @@ def _floats(n: int):
 
 # Bounds of the numbers the command line takes: a value outside them renders nothing useful
 # (black, empty, or float32 overflow in the shaders) and is refused before any work.
-MAX_DISTANCE = 1e30  # --near, --far, --convergence, --ipd: float32 depth maths stays finite below it
 MAX_EXPOSURE = 1e6   # x1e6 already turns any lit pixel white
 MAX_FRAMES = 1_000_000
 MAX_BUDGET_MS = 1e6

@@ -31,6 +31,7 @@ from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameT
                     limit_problems)
 from .gpu_layout import TONEMAPPERS, VIEWS
 from .gpu_scene import GpuScene
+from .limits import MAX_CAMERA_COORDINATE, MAX_DISTANCE, MIN_DISTANCE, check_range
 from .passes import core_passes
 from .passes.classify import pixel_counts
 from .passes.second_layer import depth_layers
@@ -109,10 +110,9 @@ class RenderSettings:
             raise ValueError(f"unknown BVH build {self.bvh_build!r}; allowed: {', '.join(BUILDS)}")
         if self.primary not in PRIMARY_MODES:
             raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
-        if not (np.isfinite(self.dof_aperture) and self.dof_aperture >= 0):
-            raise ValueError(f"dof_aperture must be a number >= 0, got {self.dof_aperture}")
-        if not (np.isfinite(self.dof_focus) and self.dof_focus > 0):
-            raise ValueError(f"dof_focus must be a positive number, got {self.dof_focus}")
+        # GPU uniforms: the lens offsets ray origins, the focus distance is squared (the dof camera's ranges)
+        self.dof_aperture = check_range("dof_aperture", self.dof_aperture, 0.0, MAX_CAMERA_COORDINATE)
+        self.dof_focus = check_range("dof_focus", self.dof_focus, MIN_DISTANCE, MAX_DISTANCE)
         if not 1 <= int(self.dof_samples) <= 1024:
             raise ValueError(f"dof_samples must be in 1..1024, got {self.dof_samples}")
         if not (np.isfinite(self.quadtree_adapt) and self.quadtree_adapt >= 0):

@@ -203,3 +203,12 @@ def test_every_json_a_multi_view_capture_writes_is_valid_json(tmp_path):
         strict_json(p)
     camera = strict_json(tmp_path / "frame_0000_left_camera.json")
     assert camera["far"] is None and camera["near"] > 0
+
+
+@pytest.mark.parametrize("kw, words", [(dict(dof_aperture=1e300), r"dof_aperture must be in \[0, 1e\+18\]"),
+                                       (dict(dof_focus=1e-300), r"dof_focus must be in \[1e-18, 1e\+30\]")])
+def test_render_settings_dof_values_stay_in_float32_ranges(kw, words):
+    from rayvr.renderer import RenderSettings
+
+    with pytest.raises(ValueError, match=words):
+        RenderSettings(**kw)
