@@ -38,8 +38,11 @@ def look_at_rotation(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     """Camera-to-world rotation (columns: right, up, back) looking from eye to target."""
     eye, target, up = (np.asarray(x, dtype=np.float64) for x in (eye, target, up))
     back = eye - target
-    if np.linalg.norm(back) == 0:
+    if not np.isfinite(back).all():
+        raise ValueError(f"camera eye {eye.tolist()} and target {target.tolist()} are too far apart for float64")
+    if not back.any():
         raise ValueError("camera eye and target are the same point")
+    back /= np.abs(back).max()  # first to ~1: the norm of 1e300-long vectors would overflow
     back /= np.linalg.norm(back)
     right = np.cross(up, back)
     if np.linalg.norm(right) < 1e-9:  # looking along `up`: pick another up
@@ -264,6 +267,17 @@ def _check_pose(pose: Pose) -> str | None:
         return (f"rotation is not a rotation matrix (orthonormal columns, determinant +1, within "
                 f"{ROTATION_TOLERANCE:g}): |R^T R - I| reaches {skew:.3g}, det {np.linalg.det(r):.3g}")
     return None
+
+
+def check_camera_positions(poses, origin, where: str) -> None:
+    """Refuse poses farther than MAX_CAMERA_COORDINATE from the scene's origin along an axis
+    (ValueError naming `where` and the pose): the GPU's float32 maths of their rays would overflow."""
+    far = np.abs(np.array([p.position for p in poses], np.float64) - np.asarray(origin, np.float64)).max(axis=1)
+    bad = ~(far <= MAX_CAMERA_COORDINATE)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"{where} {i}: the camera at {poses[i].position.tolist()} lies {far[i]:.3g} from the "
+                         f"scene's centre along an axis; at most {MAX_CAMERA_COORDINATE:.0e} (float32 on the GPU)")
 
 
 def load_path(path: str | Path) -> list[Pose]:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import EYES, Pose, StereoRig, load_path, orbit
+from .camera import EYES, Pose, StereoRig, check_camera_positions, load_path, orbit
 from .output import (FORMATS, OutputError, atomic_write_bytes, check_file_prefix, check_output_dir,
                      check_output_files, create_output_dir, openexr, remove_empty_dirs, write_exr, write_npy,
                      write_png)
@@ -80,16 +80,20 @@ class CaptureJob:
 
 
 def poses_for(rig: StereoRig, scene, frames: int | None = None, path: str | None = None) -> list[Pose]:
-    """The poses a capture renders: a camera path file, an N-frame turntable orbit, or the rig's pose."""
+    """The poses a capture renders: a camera path file, an N-frame turntable orbit, or the rig's
+    pose; each within the GPU's float32 range of the scene (else ValueError, before any frame)."""
     if path is not None:
-        return load_path(path)
-    if frames is not None and frames > 1:
+        poses, where = load_path(path), f"{path}: pose"
+    elif frames is not None and frames > 1:
         target = scene.center if scene.camera is None else rig.pose.position + rig.pose.forward * 2.0
         offset = rig.pose.position - target
         radius = float(np.hypot(offset[0], offset[2])) or 1.0
-        return orbit(target, radius, float(offset[1]), frames,
-                     start_deg=float(np.degrees(np.arctan2(offset[0], offset[2]))))
-    return [rig.pose]
+        poses, where = orbit(target, radius, float(offset[1]), frames,
+                             start_deg=float(np.degrees(np.arctan2(offset[0], offset[2])))), "orbit frame"
+    else:
+        poses, where = [rig.pose], "camera pose"
+    check_camera_positions(poses, scene.origin, where)
+    return poses
 
 
 def file_name(job: CaptureJob, index: int, eye: str, kind: str, ext: str) -> Path:

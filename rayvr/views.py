@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import Pose, StereoRig, _check_pose
+from .camera import Pose, StereoRig, _check_pose, check_camera_positions
 from .cameras.pinhole import MAX_TANGENT, MIN_PIXEL_TANGENT
 from .limits import MAX_CAMERA_COORDINATE, check_range
 from .output import atomic_write_bytes
@@ -206,11 +206,7 @@ def views_for(spec: str, scene, rig: StereoRig) -> tuple[list[Pose], list]:
     scene, its rig renders, and transforms.json can describe its camera model."""
     poses, overrides = _views(spec, scene, rig)
     where = f"--views {spec}"
-    far = np.abs(np.array([p.position for p in poses]) - scene.origin).max(axis=1)
-    if not far.max() <= MAX_CAMERA_COORDINATE:
-        i = int(np.argmax(~(far <= MAX_CAMERA_COORDINATE)))
-        raise ValueError(f"{where}: view {i}: the camera at {poses[i].position.tolist()} lies {far[i]:.3g} from the "
-                         f"scene's centre along an axis; at most {MAX_CAMERA_COORDINATE:.0e} (float32 on the GPU)")
+    check_camera_positions(poses, scene.origin, f"{where}: view")
     checked = {}
     for i, extra in enumerate(overrides):
         key = repr(extra)

@@ -76,6 +76,21 @@ def test_views_file_focal_length_beyond_float32_precision_is_one_line(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_camera_positions_beyond_float32_are_one_line_before_any_frame(tmp_path):
+    """A path whose second pose lies 1e300 away used to render its first frame and then fail on
+    the GPU upload; an eye at 1e300 overflowed look_at's norm (NaN rotation, numpy warnings)."""
+    path = tmp_path / "path.json"
+    path.write_text(json.dumps({"poses": [{"position": [0, 1.5, 3], "target": [0, 1, 0]},
+                                          {"position": [1e300, 1.5, 3], "target": [0, 1, 0]}]}))
+    for args, words in ((["--path", path], f"{path}: pose 1: the camera at [1e+300, 1.5, 3.0] lies 1e+300 from"),
+                        (["--camera", "1e300,0,0,0,0,0"], "camera pose 0: the camera at [1e+300, 0.0, 0.0]")):
+        out = tmp_path / "o"
+        run = run_rayvr("capture", "--size", "16x12", "--out", out, *args)
+        lines = run.stderr.splitlines()
+        assert run.returncode == 2 and len(lines) == 1 and words in lines[0], run.stderr
+        assert "at most 1e+18 (float32 on the GPU)" in lines[0] and not out.exists()
+
+
 def test_view_positions_are_checked_against_the_scene_before_rendering():
     from rayvr.scene import load
     from rayvr.views import views_for
