@@ -37,6 +37,8 @@ EYES = ("left", "right")
 def look_at_rotation(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     """Camera-to-world rotation (columns: right, up, back) looking from eye to target."""
     eye, target, up = (np.asarray(x, dtype=np.float64) for x in (eye, target, up))
+    if not (np.isfinite(eye).all() and np.isfinite(target).all()):
+        raise ValueError(f"camera eye {eye.tolist()} and target {target.tolist()} must be finite (no NaN or inf)")
     back = eye - target
     if not np.isfinite(back).all():
         raise ValueError(f"camera eye {eye.tolist()} and target {target.tolist()} are too far apart for float64")
