@@ -31,7 +31,7 @@ from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameT
                     limit_problems)
 from .gpu_layout import TONEMAPPERS, VIEWS
 from .gpu_scene import GpuScene
-from .limits import MAX_CAMERA_COORDINATE, MAX_DISTANCE, MIN_DISTANCE, check_range
+from .limits import MAX_CAMERA_COORDINATE, MAX_FOCUS_DISTANCE, MIN_DISTANCE, check_range
 from .passes import core_passes
 from .passes.classify import pixel_counts
 from .passes.second_layer import depth_layers
@@ -110,9 +110,9 @@ class RenderSettings:
             raise ValueError(f"unknown BVH build {self.bvh_build!r}; allowed: {', '.join(BUILDS)}")
         if self.primary not in PRIMARY_MODES:
             raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
-        # GPU uniforms: the lens offsets ray origins, the focus distance is squared (the dof camera's ranges)
+        # GPU uniforms with the dof camera's float32 ranges (rayvr/limits.py)
         self.dof_aperture = check_range("dof_aperture", self.dof_aperture, 0.0, MAX_CAMERA_COORDINATE)
-        self.dof_focus = check_range("dof_focus", self.dof_focus, MIN_DISTANCE, MAX_DISTANCE)
+        self.dof_focus = check_range("dof_focus", self.dof_focus, MIN_DISTANCE, MAX_FOCUS_DISTANCE)
         if not 1 <= int(self.dof_samples) <= 1024:
             raise ValueError(f"dof_samples must be in 1..1024, got {self.dof_samples}")
         if not (np.isfinite(self.quadtree_adapt) and self.quadtree_adapt >= 0):

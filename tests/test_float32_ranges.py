@@ -11,7 +11,8 @@ from conftest import run_rayvr
 from rayvr.camera import Pose, StereoRig
 from rayvr.cameras import Distorted
 from rayvr.cameras.pinhole import MIN_PIXEL_TANGENT
-from rayvr.limits import FLOAT32_MAX, check_range, to_float32
+from rayvr.limits import (FLOAT32_MAX, FLOAT32_NORMAL_MIN, MAX_CAMERA_COORDINATE, MAX_DISTANCE, MIN_DISTANCE,
+                          check_range, to_float32)
 
 
 # ---------------------------------------------------------------- the shared helper
@@ -31,6 +32,13 @@ def test_check_range_takes_the_interval_and_names_the_value_and_its_range():
             check_range("x", value, 0.0, 1.0)
 
 
+def test_the_ranges_keep_the_gpu_maths_inside_float32():
+    # reversed-Z depth near / distance stays a normal number for the shortest near and the farthest camera
+    assert MIN_DISTANCE / MAX_CAMERA_COORDINATE > 10 * FLOAT32_NORMAL_MIN
+    # squared camera distances (ray lengths, ray-box and ray-sphere maths) and the depth maths stay finite
+    assert (2 * MAX_CAMERA_COORDINATE) ** 2 < FLOAT32_MAX / 50 and MAX_DISTANCE * 1e6 < FLOAT32_MAX
+
+
 def test_to_float32_refuses_what_overflows_float32_and_keeps_the_rest():
     a = to_float32("a", [[3.4e38, -1.0], [1e-45, 0.0]])
     assert a.dtype == np.float32 and a[0, 0] == np.float32(3.4e38) and a[0, 1] == -1.0
@@ -44,7 +52,10 @@ def test_to_float32_refuses_what_overflows_float32_and_keeps_the_rest():
 
 @pytest.mark.parametrize("args, words", [
     (["--camera-model", "dof", "--camera-param", "aperture=1e300"], ["aperture", "[0, 1e+18]", "1e+300"]),
-    (["--camera-model", "dof", "--camera-param", "focus=1e-40"], ["focus distance", "[1e-18, 1e+30]"]),
+    (["--camera-model", "dof", "--camera-param", "aperture=1e12"],  # was all background
+     ["dof camera: aperture 1e+12 is wider than 1.07e+05", "0.1 of a pixel at focus 2"]),
+    (["--camera-model", "dof", "--camera-param", "focus=1e-40"], ["focus distance", "[1e-18, 1e+12]"]),
+    (["--camera-model", "dof", "--camera-param", "focus=1e25"], ["focus distance", "[1e-18, 1e+12]"]),  # was blank
     (["--camera-model", "distorted", "--camera-param", "coefficients=1e39"],
      ["distorted camera", "view tangent 2.", "e+39", "rays end at tangent 1e+05"]),
     (["--camera-model", "distorted", "--camera-param", "coefficients=1e308,-1e308"], ["view tangent inf"]),
@@ -221,7 +232,8 @@ def test_every_json_a_multi_view_capture_writes_is_valid_json(tmp_path):
 
 
 @pytest.mark.parametrize("kw, words", [(dict(dof_aperture=1e300), r"dof_aperture must be in \[0, 1e\+18\]"),
-                                       (dict(dof_focus=1e-300), r"dof_focus must be in \[1e-18, 1e\+30\]")])
+                                       (dict(dof_focus=1e-300), r"dof_focus must be in \[1e-18, 1e\+12\]"),
+                                       (dict(dof_focus=1e25), r"dof_focus must be in \[1e-18, 1e\+12\]")])
 def test_render_settings_dof_values_stay_in_float32_ranges(kw, words):
     from rayvr.renderer import RenderSettings
 

@@ -11,9 +11,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..limits import MAX_CAMERA_COORDINATE, MAX_DISTANCE, MIN_DISTANCE, check_range, to_float32
+from ..limits import MAX_CAMERA_COORDINATE, MAX_FOCUS_DISTANCE, MIN_DISTANCE, check_range, to_float32
 from .base import CameraModel, normalize
 from .pinhole import Pinhole, planar_directions
+
+
+# float32 rounds a lens ray's origin and direction each to ~1.2e-7 of the lens radius, which moves
+# where the ray meets the scene by ~2.4e-7 of the aperture; kept under a tenth of a pixel at the
+# focus distance. Measured on the default room at 64x48, focus 2 (limit 3.5e4), 32 sub-rays: 30,
+# 3e3 and 3e4 give the same blur (mean 24.4-24.6 of 255), 3e6 drifts (26.3), 1e12 is all background.
+LENS_ROUNDING = 2.4e-7
+LENS_PIXEL_FRACTION = 0.1
 
 
 @dataclass(frozen=True)
@@ -29,11 +37,22 @@ class ThinLens(Pinhole):
 
     def __post_init__(self):
         # The lens offsets the rays' origins (so it spans no more than a camera may lie from the
-        # scene); a focus distance is squared in the shaders, so it has the near plane's range.
+        # scene); the shaders square the distance to the focal point (rayvr/limits.py).
         object.__setattr__(self, "aperture", check_range("dof camera: aperture (lens radius)", self.aperture, 0.0,
                                                          MAX_CAMERA_COORDINATE))
         object.__setattr__(self, "focus", check_range("dof camera: focus distance", self.focus, MIN_DISTANCE,
-                                                      MAX_DISTANCE))
+                                                      MAX_FOCUS_DISTANCE))
+
+    def check_rig(self, rig) -> None:
+        super().check_rig(rig)  # the planar frustum's limits
+        for eye in rig.eyes():
+            l, r, b, t = eye.tangents
+            pixel = self.focus * min((r - l) / eye.size[0], (t - b) / eye.size[1])  # a pixel at the focus distance
+            widest = LENS_PIXEL_FRACTION * pixel / LENS_ROUNDING
+            if self.aperture > widest:
+                raise ValueError(f"dof camera: aperture {self.aperture:g} is wider than {widest:.3g}, where float32 "
+                                 f"rounding of the lens rays moves them {LENS_PIXEL_FRACTION:g} of a pixel at focus "
+                                 f"{self.focus:g} on the {eye.name} eye's {eye.size[0]}x{eye.size[1]} image")
 
     def ray_at(self, eye, channel, x, y, lens):
         d = planar_directions(eye, x, y)
