@@ -250,7 +250,7 @@ class StereoRig:
 def save_path(path: str | Path, poses: list[Pose], **meta) -> None:
     """Write a camera path (JSON: {"poses": [{position, rotation}, ...], ...meta}) atomically."""
     data = {"format": "rayvr-camera-path", "version": 1, **meta, "poses": [p.to_dict() for p in poses]}
-    atomic_write_bytes(Path(path), json.dumps(data, indent=1).encode())
+    atomic_write_bytes(Path(path), json.dumps(data, indent=1, allow_nan=False).encode())
 
 
 ROTATION_TOLERANCE = 1e-3  # largest |R^T R - I| entry a path file's rotation may have (rounded decimals)

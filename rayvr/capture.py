@@ -386,7 +386,7 @@ class JobFolder:
                 self._refuse_another_job()
                 if self.digest is not None:
                     self.done = self._verified_frames()
-                atomic_write_bytes(job_file(job), json.dumps(self.identity, indent=1).encode())
+                atomic_write_bytes(job_file(job), json.dumps(self.identity, indent=1, allow_nan=False).encode())
         except BaseException:
             self._release(failed=True)
             raise
@@ -552,5 +552,5 @@ def summarize(job: CaptureJob, gl: str, meaningful: bool, files, timings, ran, u
 
 def write_summary(job: CaptureJob, summary: dict) -> Path:
     p = summary_file(job)
-    atomic_write_bytes(p, json.dumps(summary, indent=1).encode())
+    atomic_write_bytes(p, json.dumps(summary, indent=1, allow_nan=False).encode())
     return p
