@@ -268,8 +268,12 @@ def camera_model_fields(eye) -> dict:
             return {"camera_model": "EQUIRECTANGULAR", "fl_x": math.pi * w / fx, "fl_y": math.pi * h / fy,
                     "cx": w / 2, "cy": h / 2}
         # equidistant: the angle from the axis is |(a, b)|, a = (x - cx) / fl_x radians
-        return {"camera_model": "OPENCV_FISHEYE", "fl_x": w / fx, "fl_y": h / fy, "cx": w / 2, "cy": h / 2,
-                "k1": 0.0, "k2": 0.0, "k3": 0.0, "k4": 0.0}
+        fields = {"camera_model": "OPENCV_FISHEYE", "fl_x": w / fx, "fl_y": h / fy, "cx": w / 2, "cy": h / 2,
+                  "k1": 0.0, "k2": 0.0, "k3": 0.0, "k4": 0.0}
+        if math.hypot(fx, fy) / 2 > math.pi:  # the corners lie past 180 degrees, where rayvr makes no ray:
+            # nerfstudio then samples pixels within this radius of the centre only (a pixel inside, for its rounding)
+            fields["fisheye_crop_radius"] = math.pi * min(fields["fl_x"], fields["fl_y"]) - 1.0
+        return fields
     if name == "distorted" and getattr(cam, "samples", None):
         raise ValueError(NOT_DESCRIBED.format(name, f"its rays come from the measured sample file {cam.samples}"))
     if name == "distorted" and any(any(k) for k in cam.coefficients):

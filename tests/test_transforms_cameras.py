@@ -69,6 +69,7 @@ WRITTEN = {
     "wide_spherical_200": (lambda: job_for(Wide(fov_x=200), fov=120), "EQUIRECTANGULAR"),
     "wide_spherical_full": (lambda: job_for(Wide(fov_x=360), fov=180, size=(32, 16)), "EQUIRECTANGULAR"),
     "wide_equidistant_200": (lambda: job_for(Wide(mapping="equidistant"), fov=200), "OPENCV_FISHEYE"),
+    "wide_equidistant_300": (lambda: job_for(Wide(mapping="equidistant"), fov=300, size=(20, 20)), "OPENCV_FISHEYE"),
 }
 
 
@@ -95,6 +96,23 @@ def test_transforms_json_projects_world_points_where_rayvr_renders_them(name):
                 u, v = project(fields, frame["transform_matrix"], points)
                 np.testing.assert_allclose(u, xs + 0.5, atol=1e-6)
                 np.testing.assert_allclose(v, ys + 0.5, atol=1e-6)
+
+
+def test_a_fisheye_past_180_degrees_keeps_nerfstudio_to_the_pixels_with_rays():
+    """nerfstudio's fisheye sampler picks pixel (floor(x), floor(y)) for points within
+    fisheye_crop_radius of (w // 2, h // 2): every pixel it can pick must hold a ray."""
+    job = WRITTEN["wide_equidistant_300"][0]()
+    t = transforms(job)
+    radius = t["fisheye_crop_radius"]
+    valid = job.frame_rig(0).eye("left").rays().valid
+    h, w = valid.shape
+    assert not valid.all()  # the corners lie past 180 degrees
+    x, y = np.meshgrid(np.arange(w), np.arange(h))
+    nearest_x = np.clip(w // 2, x, x + 1) - w // 2  # the pixel square's point nearest the centre
+    nearest_y = np.clip(h // 2, y, y + 1) - h // 2
+    pickable = np.hypot(nearest_x, nearest_y) <= radius
+    assert valid[pickable].all() and pickable[valid].mean() > 0.85
+    assert "fisheye_crop_radius" not in transforms(WRITTEN["wide_equidistant_200"][0]())  # every pixel has a ray
 
 
 def test_a_full_panorama_has_nerfstudios_equirectangular_intrinsics():
