@@ -185,7 +185,7 @@ class StereoRig:
             self.camera = get_camera_model(self.camera)
         elif not isinstance(self.camera, CameraModel):
             raise ValueError(f"camera must be a camera model or its name, got {self.camera!r}")
-        self.ipd = check_range("ipd", self.ipd, 0.0, MAX_DISTANCE)
+        self.ipd = check_range("ipd", self.ipd, 0.0, MAX_CAMERA_COORDINATE)  # the eyes lie ipd / 2 off the pose
         if not (isinstance(self.fov_y, (int, float)) and self.fov_y > 0 and math.isfinite(self.fov_y)):
             raise ValueError(f"fov_y must be a finite angle > 0 degrees, got {self.fov_y}")  # the model sets the rest
         self.near = check_range("near", self.near, MIN_DISTANCE, MAX_DISTANCE)

@@ -13,10 +13,11 @@ import numpy as np
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 FLOAT32_NORMAL_MIN = float(np.finfo(np.float32).tiny)  # smaller numbers flush to zero on GPUs
 
-# Farthest a camera (and a thin lens's ray origins) may be from the scene's origin: the shaders
-# square distances (lengths, ray-box and ray-sphere maths), and (1e18)^2 leaves float32 room.
+# Farthest a camera (and a thin lens's ray origins) may be from the scene's origin along an axis,
+# and the largest IPD: the shaders square distances (lengths, ray-box and ray-sphere maths), and
+# (2e18)^2 leaves float32 room. Beyond it no scene (coordinates up to 1e8) covers a pixel anyway.
 MAX_CAMERA_COORDINATE = 1e18
-# near, far, focus, convergence, IPD. The depth maths (near / distance, near * far / (far - near))
+# near, far, convergence. The depth maths (near / distance, near * far / (far - near))
 # stays finite below it.
 MAX_DISTANCE = 1e30
 # Farthest focus distance of a thin lens: the focal point of a ray at a frustum's edge (tangent up

@@ -118,7 +118,7 @@ def test_view_positions_are_checked_against_the_scene_before_rendering():
 
 @pytest.mark.parametrize("kw, words", [
     (dict(near=1e-40), "near must be in"), (dict(near=1e31), "near must be in"),
-    (dict(far=1e31), "far must be in"), (dict(ipd=1e31), "ipd must be in"),
+    (dict(far=1e31), "far must be in"), (dict(ipd=1e19), r"ipd must be in \[0, 1e\+18\]"),
     (dict(convergence=1e300), "convergence distance must be in"),
     (dict(eye_tangents={"left": (-1e-8, 1e-8, -1e-8, 1e-8), "right": (-1, 1, -1, 1)}),
      r"eye_tangents\['left'\] .* make pixels of tangent"),
