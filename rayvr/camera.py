@@ -29,6 +29,7 @@ import numpy as np
 
 from .cameras import CameraModel, Pinhole, get_camera_model
 from .limits import MAX_CAMERA_COORDINATE, MAX_DISTANCE, MIN_DISTANCE, check_range
+from .inputs import read_json
 from .output import atomic_write_bytes
 
 EYES = ("left", "right")
@@ -39,7 +40,8 @@ def look_at_rotation(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     eye, target, up = (np.asarray(x, dtype=np.float64) for x in (eye, target, up))
     if not (np.isfinite(eye).all() and np.isfinite(target).all()):
         raise ValueError(f"camera eye {eye.tolist()} and target {target.tolist()} must be finite (no NaN or inf)")
-    back = eye - target
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused next, not warned about
+        back = eye - target
     if not np.isfinite(back).all():
         raise ValueError(f"camera eye {eye.tolist()} and target {target.tolist()} are too far apart for float64")
     if not back.any():
@@ -286,8 +288,8 @@ def load_path(path: str | Path) -> list[Pose]:
     """Read a camera path: {"poses": [...]} where each pose is {position, rotation} or
     {position, target, up?}. Errors name the file and the pose's index."""
     path = Path(path)
+    data = read_json(path, "camera path")
     try:
-        data = json.loads(path.read_text())
         poses = data["poses"] if isinstance(data, dict) else data
         if not isinstance(poses, list):
             raise TypeError(f"'poses' must be a list, got {type(poses).__name__}")

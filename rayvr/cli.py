@@ -107,6 +107,7 @@ MAX_SPP = 1 << 20
 SPP = _count(1, MAX_SPP)
 DENOISE_ITERATIONS = _count(1, MAX_DENOISE_ITERATIONS)
 SEED = _count(0, 2**32 - 1)  # the shaders' frame_seed is a uint
+REPEAT = _count(1, 100_000)  # bench --repeat: timed frames per measurement
 
 
 def add_rig_arguments(p: argparse.ArgumentParser) -> None:
@@ -164,6 +165,10 @@ def camera_from_args(args):
     """The camera model --camera-model and --camera-param ask for."""
     from .cameras import get_camera_model, parse_camera_params
 
+    if getattr(args, "convergence", None) is not None and args.camera_model == "wide":
+        # The wide camera maps angles, not a planar frustum: there is nothing to shear (cameras/wide.py).
+        raise ValueError("--convergence shears the eyes' planar frusta to zero parallax at a distance; the wide "
+                         "camera's eyes have none and stay parallel: leave out --convergence")
     return get_camera_model(args.camera_model, **parse_camera_params(args.camera_model, args.camera_param))
 
 
@@ -233,10 +238,11 @@ def _print_capture(args, summary, summary_path, scene_summary) -> None:
 def cmd_capture(args) -> int:
     from .capture import CaptureJob, JobFolder, job_identity, run_capture, write_summary
     from .output import check_output_dir
+    from .passes.accumulate import TEMPORAL_CAMERA
     from .renderer import Renderer, RenderSettings
 
-    if not args.workers and (args.address or args.chunk):
-        raise ValueError("--address and --chunk go with --workers N")
+    if not args.workers and (args.address or args.chunk or args.connect_timeout is not None):
+        raise ValueError("--address, --connect-timeout and --chunk go with --workers N")
     if args.workers:
         from .cluster import require_ray
 
@@ -247,7 +253,14 @@ def cmd_capture(args) -> int:
         if args.temporal:
             raise ValueError("--temporal carries each frame's samples into the next, so its frames render in "
                              "order in one process; leave out --workers")
+    if args.temporal and args.camera_model != TEMPORAL_CAMERA:
+        raise ValueError(f"--temporal reprojects the last frame's samples through the planar {TEMPORAL_CAMERA} "
+                         f"projection, which the {args.camera_model} camera does not have: leave out --temporal")
     check_output_dir(args.out)  # fail before any rendering work; the folder is made with the first file
+    if args.quiet:
+        from .accel.sbvh import set_progress_bars
+
+        set_progress_bars(False)  # the BVH build's bar, which the Renderer starts deep inside a frame
     if args.format == "exr":
         from .output import openexr
 
@@ -314,7 +327,8 @@ def _capture_on_workers(args, aux, settings, inputs) -> int:
     job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
                      rig_overrides=overrides, cameras=bool(args.views))
     spec = WorkerSpec(args.scene, args.materials, settings, args.backend)
-    with JobFolder(job, job_identity(job, **inputs)) as folder, Cluster(args.workers, spec, args.address) as cluster:
+    with JobFolder(job, job_identity(job, **inputs)) as folder, \
+            Cluster(args.workers, spec, args.address, _connect_timeout(args)) as cluster:
         cluster.ready()  # a worker that cannot start is one clear error, before any frame
         summary = run_capture_distributed(cluster, job, progress=not args.quiet, chunk=args.chunk,
                                           crash_file=os.environ.get("RAYVR_TEST_CRASH_ONCE"), folder=folder)
@@ -403,6 +417,20 @@ def _example_config(scene_name: str):
     return path if path.exists() else None
 
 
+def add_connect_timeout_argument(p: argparse.ArgumentParser) -> None:
+    from .cluster import DEFAULT_CONNECT_TIMEOUT_S
+
+    p.add_argument("--connect-timeout", type=_number(0, 86400), metavar="SECONDS",
+                   help=f"with --address: give up on a Ray cluster that does not answer within this time "
+                        f"(default {DEFAULT_CONNECT_TIMEOUT_S:g} s)")
+
+
+def _connect_timeout(args) -> float:
+    from .cluster import DEFAULT_CONNECT_TIMEOUT_S
+
+    return DEFAULT_CONNECT_TIMEOUT_S if args.connect_timeout is None else args.connect_timeout
+
+
 def add_bvh_build_argument(p: argparse.ArgumentParser) -> None:
     """How the scene's BVH is built (capture, preview)."""
     p.add_argument("--bvh-build", choices=BUILDS, default="sah",
@@ -474,8 +502,15 @@ def _budgets(text: str) -> list[float]:
     return values
 
 
+def _share(repeat: int, parts: int) -> int:
+    """A bench's timed frames per variant from --repeat when it times `parts` things per row: at least one."""
+    return max(1, repeat // parts)
+
+
 def cmd_bench(args) -> int:
-    out = Path(args.out)
+    from .output import check_output_dir
+
+    out = check_output_dir(args.out)  # before any measuring: results are written after it
     quick = args.quick
     if args.workers or args.area == "workers":
         from .cluster import require_ray
@@ -499,7 +534,7 @@ def cmd_bench(args) -> int:
 
         rays.run(out, size=(64, 48) if quick else args.size,
                  scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                 repeat=2 if quick else args.repeat // 2, warmup=1 if quick else 3, backend=args.backend,
+                 repeat=2 if quick else _share(args.repeat, 2), warmup=1 if quick else 3, backend=args.backend,
                  layouts=args.layouts, tiles=not args.no_tiles, builds=args.bvh_build or ("sah",))
     elif args.area == "bvh":
         from .bench import bvh
@@ -517,7 +552,7 @@ def cmd_bench(args) -> int:
         counts = args.counts or ((args.msaa,) if args.msaa else (1, 4) if quick else None)
         primary.run(out, size=(32, 24) if quick else args.size,
                     scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                    repeat=2 if quick else args.repeat // 2, warmup=1 if quick else 3, counts=counts,
+                    repeat=2 if quick else _share(args.repeat, 2), warmup=1 if quick else 3, counts=counts,
                     ssaa=(args.msaa,) if args.ssaa and args.msaa else () if quick else (4,),
                     custom=(camera_from_args(args), args.fov) if custom else None, backend=args.backend,
                     configs=_bench_configs("primary", args.configs, primary.CONFIGS),
@@ -541,13 +576,13 @@ def cmd_bench(args) -> int:
 
         photon.run(out, size=(32, 24) if quick else args.size,
                    scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                   repeat=1 if quick else max(1, args.repeat // 5), quick=quick, backend=args.backend)
+                   repeat=1 if quick else _share(args.repeat, 5), quick=quick, backend=args.backend)
     elif args.area == "gi":
         from .bench import gi
 
         gi.run(out, size=(32, 24) if quick else args.size,
                scenes=("default",) if quick else tuple(args.scenes.split(",")),
-               repeat=1 if quick else max(1, args.repeat // 5), warmup=1 if quick else 3, quick=quick,
+               repeat=1 if quick else _share(args.repeat, 5), warmup=1 if quick else 3, quick=quick,
                parts=_bench_configs("gi", args.configs, gi.PARTS) or gi.PARTS, reference_spp=args.reference_spp,
                reference_photons=args.reference_photons, backend=args.backend)
     elif args.area == "stereo":
@@ -562,7 +597,7 @@ def cmd_bench(args) -> int:
         counts = args.workers_list or [1, 2]
         workers.run(out, size=(32, 24) if quick else args.size, scenes=("default",) if quick else tuple(args.scenes.split(",")),
                     frames=8 if quick else args.frames, workers=tuple(counts), address=args.address,
-                    backend=args.backend, base_config=_example_config)
+                    backend=args.backend, base_config=_example_config, connect_timeout=_connect_timeout(args))
     elif args.area == "crosscheck":
         from .bench import mitsuba_ref
 
@@ -572,8 +607,8 @@ def cmd_bench(args) -> int:
 
         kw = dict(size=(32, 24) if quick else args.size,
                   scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                  repeat=2 if quick else args.repeat // 5, base_config=_example_config, backend=args.backend,
-                  workers=args.workers, address=args.address)
+                  repeat=2 if quick else _share(args.repeat, 5), base_config=_example_config, backend=args.backend,
+                  workers=args.workers, address=args.address, connect_timeout=_connect_timeout(args))
         if args.area == "tradeoff":
             tradeoff.run(out, quick=quick, **kw)
         else:
@@ -661,6 +696,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "where there is none); needs pip install 'rayvr[cluster]'")
     c.add_argument("--address", help="with --workers: an existing Ray cluster, 'auto' or HOST:PORT "
                    "(default: start a local one)")
+    add_connect_timeout_argument(c)
     c.add_argument("--chunk", type=_count(1, MAX_FRAMES), help="with --workers: frames per task (default: about "
                    "4 tasks per worker, at most 32 frames)")
     c.add_argument("--timings", action="store_true", help="print GPU ms per pass")
@@ -730,7 +766,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="bench/results", help="folder for JSON/markdown results")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")
     b.add_argument("--scenes", default="default,sponza", help="comma-separated: default, sponza")
-    b.add_argument("--repeat", type=int, default=50)
+    b.add_argument("--repeat", type=REPEAT, default=50,
+                   help="timed frames per measurement (default 50; rays and primary time half of it, photon, "
+                        "gi, tradeoff and budget a fifth, at least 1)")
     b.add_argument("--quick", action="store_true", help="tiny sizes and few frames (CI smoke test)")
     b.add_argument("--layouts", type=_layouts, default=tuple(BVH_LAYOUTS),
                    help=f"rays: BVH node layouts to measure, comma-separated (default {','.join(BVH_LAYOUTS)}; "
@@ -742,6 +780,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--workers", type=_worker_counts, help="tradeoff/budget: spread the variants over N Ray workers; "
                    "workers: the worker counts to time (default 1,2); needs pip install 'rayvr[cluster]'")
     b.add_argument("--address", help="with --workers: an existing Ray cluster, 'auto' or HOST:PORT")
+    add_connect_timeout_argument(b)
     b.add_argument("--frames", type=FRAMES, default=64, help="workers: frames of the capture path (default 64)")
     b.add_argument("--backend", choices=("egl", "osmesa"))
     b.add_argument("--fov", type=FOV, help="primary: vertical field of view of the --camera-model row")
@@ -805,7 +844,7 @@ def main(argv=None) -> int:
         print(f"rayvr {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:  # Ctrl-C: one line, the shell's status for SIGINT
-        print(f"rayvr {args.command}: {exc or 'interrupted'}", file=sys.stderr)
+        print(f"rayvr {args.command}: {str(exc) or 'interrupted'}", file=sys.stderr)
         return EXIT_INTERRUPTED
 
 

@@ -15,6 +15,8 @@ from __future__ import annotations
 import logging
 import math
 import os
+import socket
+import threading
 from collections import deque
 from dataclasses import dataclass
 
@@ -25,6 +27,7 @@ MAX_RESTARTS = 3  # Ray restarts a dead worker this often before it is given up
 MAX_ATTEMPTS = 4  # a task is tried this often (the first run plus retries) before its frames count as failed
 IN_FLIGHT = 2  # tasks queued per worker: the next one is there when the current one ends
 MAX_WORKERS = 1024
+DEFAULT_CONNECT_TIMEOUT_S = 30.0  # --connect-timeout: Ray itself retries an unreachable cluster for minutes
 
 
 class ClusterError(RuntimeError):
@@ -38,6 +41,68 @@ def require_ray():
     except ImportError:
         raise ClusterError(f"--workers needs Ray, which is not installed: {CLUSTER_EXTRA}") from None
     return ray
+
+
+def _host_port(address: str) -> tuple[str, int] | None:
+    """(host, port) of a HOST:PORT address ([v6]:PORT too); None for 'auto', ray://... and the like."""
+    host, sep, port = address.rpartition(":")
+    if not sep or not host or "/" in address or not port.isdigit():
+        return None
+    return host.strip("[]"), int(port)
+
+
+def _reach(address: str, timeout: float) -> None:
+    """A TCP connection to HOST:PORT within `timeout` seconds, else one ClusterError: Ray's own
+    connect retries for minutes, printing gRPC warnings."""
+    where = _host_port(address)
+    if where is None:
+        return
+    try:
+        socket.create_connection(where, timeout=timeout).close()
+    except socket.timeout:
+        raise ClusterError(f"cannot reach Ray at {address}: no answer within {timeout:g} s "
+                           f"(--connect-timeout)") from None
+    except OSError as exc:  # refused: nothing listens there; unknown host; no route
+        raise ClusterError(f"cannot reach Ray at {address}: {exc.strerror or exc}") from None
+
+
+class _StderrHidden:
+    """fd 2 goes to /dev/null while Ray connects: its C++ client logs every failed gRPC attempt
+    there (the one error line that follows says what went wrong)."""
+
+    def __enter__(self):
+        self.saved = os.dup(2)
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 2)
+        os.close(null)
+        return self
+
+    def __exit__(self, *exc):
+        os.dup2(self.saved, 2)
+        os.close(self.saved)
+
+
+def _connect(ray, address: str, timeout: float, **kw) -> None:
+    """ray.init(address=...) within `timeout` seconds, else one ClusterError. The connection is
+    made on a daemon thread: this one waits in a join that Ctrl-C and SIGTERM interrupt, where
+    Ray's own wait blocks in C++ and would hold them off."""
+    _reach(address, timeout)
+    failure = []
+
+    def connect():
+        try:
+            ray.init(address=address, **kw)
+        except BaseException as exc:  # reported by the waiting thread
+            failure.append(exc)
+
+    thread = threading.Thread(target=connect, name="rayvr-ray-connect", daemon=True)
+    with _StderrHidden():
+        thread.start()
+        thread.join(timeout)
+    if thread.is_alive():  # left behind: a daemon thread ends with the process
+        raise ClusterError(f"no Ray cluster answered at {address} within {timeout:g} s (--connect-timeout)")
+    if failure:
+        raise failure[0]
 
 
 @dataclass
@@ -116,9 +181,11 @@ def _unavailable_errors(ray) -> tuple:
 
 
 class Cluster:
-    """N Ray workers (actors), on a local Ray started here or the cluster at `address`."""
+    """N Ray workers (actors), on a local Ray started here or the cluster at `address` (reached
+    within `connect_timeout` seconds)."""
 
-    def __init__(self, workers: int, spec: WorkerSpec, address: str | None = None):
+    def __init__(self, workers: int, spec: WorkerSpec, address: str | None = None,
+                 connect_timeout: float = DEFAULT_CONNECT_TIMEOUT_S):
         ray = self.ray = require_ray()
         if not 1 <= workers <= MAX_WORKERS:
             raise ClusterError(f"--workers must be from 1 to {MAX_WORKERS}, got {workers}")
@@ -127,9 +194,11 @@ class Cluster:
             kw = dict(include_dashboard=False, logging_level=logging.ERROR, log_to_driver=False)
             try:
                 if address:
-                    ray.init(address=address, **kw)
+                    _connect(ray, address, connect_timeout, **kw)
                 else:  # a local Ray: one process per worker, even on fewer cores
                     ray.init(num_cpus=max(os.cpu_count() or 1, workers), **kw)
+            except ClusterError:
+                raise
             except Exception as exc:  # Ray raises ConnectionError, RuntimeError, ValueError...
                 where = f"at {address}" if address else "locally"
                 raise ClusterError(f"cannot start Ray {where}: {str(exc).splitlines()[0] if str(exc) else exc!r}") from None

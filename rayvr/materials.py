@@ -33,12 +33,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .effects import BACKGROUND_EFFECT, EFFECTS, PLANNED, effect_by_id, implemented_effects  # noqa: F401
+from .inputs import InputFileError, read_text
 
 log = logging.getLogger(__name__)
 
 
 ECHO_LIMIT = 80  # characters of a key or value that an error message shows
-MAX_CONFIG_BYTES = 1 << 20  # a material config is a few hundred bytes; refuse 1 MiB before parsing
+MAX_CONFIG_BYTES = 1 << 20  # a material config is a few hundred bytes; refuse 1 MiB before reading it
 
 
 def short(text: str) -> str:
@@ -259,17 +260,11 @@ def load_config(path: str | Path | None) -> MaterialConfig:
         return MaterialConfig()
     path = Path(path)
     try:
-        with path.open("rb") as fh:
-            raw = fh.read(MAX_CONFIG_BYTES + 1)  # never more, whatever the file is
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read material config: {exc.strerror or exc}") from exc
-    if len(raw) > MAX_CONFIG_BYTES:
-        raise ConfigError(f"{path}: material config is larger than {MAX_CONFIG_BYTES // 1024} KiB; "
-                          f"a config maps material names to effects and is a few hundred bytes")
+        text = read_text(path, "material config", MAX_CONFIG_BYTES)
+    except InputFileError as exc:
+        raise ConfigError(str(exc)) from None
     try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: not UTF-8 text (byte {exc.start})") from None
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
     except RecursionError:  # tomllib recurses once per level of nested arrays / inline tables

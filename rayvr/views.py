@@ -27,6 +27,7 @@ import numpy as np
 
 from .camera import Pose, StereoRig, _check_pose, check_camera_positions
 from .cameras.pinhole import MAX_TANGENT, MIN_PIXEL_TANGENT
+from .inputs import read_json
 from .limits import MAX_CAMERA_COORDINATE, check_range
 from .output import atomic_write_bytes
 
@@ -123,10 +124,7 @@ def view_intrinsics(d: dict, size, where: str) -> dict | None:
 def load_views(path, size) -> tuple[list[Pose], list]:
     """(poses, per-view rig overrides) from a views file; errors name the file, the view and the key."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{path}: not a views file ({exc})") from None
+    data = read_json(path, "views file")
     defaults = {}
     if isinstance(data, dict):
         lists = [k for k in ("views", "frames") if k in data]

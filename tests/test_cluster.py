@@ -1,14 +1,19 @@
 """Captures over Ray workers (rayvr/cluster.py): the EGL device each GPU worker takes, the
 dispatch with retries, and on a local Ray with 2 CPU workers: byte-identical frames, a worker
 killed mid-run, resuming, and the missing extra."""
+import importlib.util
 import json
 import os
+import signal
+import socket
+import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
 
-from conftest import quick_bench
+from conftest import quick_bench, run_rayvr
 from rayvr.camera import orbit, save_path
 from rayvr.cli import main
 from rayvr.context import ContextError, EglDevice, assigned_egl_device, egl_device_for_gpu
@@ -317,3 +322,84 @@ def test_bench_workers_quick_writes_its_result(local_ray, tmp_path):
     assert all(r["fps"] > 0 and r["failed"] == 0 for k, r in rows.items() if k[1])
     assert rows[("ray workers", 2)]["scaling_vs_1_worker"] > 0 and len(rows[("ray workers", 2)]["devices"]) == 2
     assert [p.name for p in tmp_path.iterdir() if p.is_dir()] == []  # the frames it wrote are gone
+
+
+
+# ------------------------------------------------------------------ an unreachable cluster (loopback only)
+
+needs_ray = pytest.mark.skipif(importlib.util.find_spec("ray") is None,
+                               reason="Ray is the cluster extra: pip install 'rayvr[cluster]'")
+
+
+def _free_loopback_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def silent_listener():
+    """A loopback port that accepts connections and never answers (no Ray there)."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    server.settimeout(120)
+    yield server
+    server.close()
+
+
+def _capture_on(address, out, timeout_s):
+    """The arguments of `rayvr capture` on 1 worker of the cluster at `address`."""
+    return ["capture", "--workers", "1", "--address", address, "--size", "8x8", "--out", str(out),
+            "--connect-timeout", str(timeout_s)]
+
+
+@needs_ray
+def test_an_address_where_nothing_listens_fails_at_once_in_one_line(tmp_path):
+    address = f"127.0.0.1:{_free_loopback_port()}"
+    start = time.monotonic()
+    run = run_rayvr(*_capture_on(address, tmp_path / "out", 5), timeout=120)
+    lines = run.stderr.splitlines()
+    assert run.returncode == 2 and len(lines) == 1 and "Traceback" not in run.stderr, run.stderr[-2000:]
+    assert lines[0].startswith(f"rayvr capture: error: cannot reach Ray at {address}: ") and \
+        "refused" in lines[0], lines[0]
+    assert time.monotonic() - start < 30  # Ray's own retries took minutes
+    assert not (tmp_path / "out").exists()
+
+
+@needs_ray
+def test_a_cluster_that_never_answers_fails_after_connect_timeout_without_rays_warnings(tmp_path, silent_listener,
+                                                                                         monkeypatch):
+    address = f"127.0.0.1:{silent_listener.getsockname()[1]}"
+    # Ray's C++ client logs a failed attempt after this many seconds (default 5): inside the test's 3
+    monkeypatch.setenv("RAY_gcs_rpc_server_connect_timeout_s", "1")
+    start = time.monotonic()
+    run = run_rayvr(*_capture_on(address, tmp_path / "out", 3), timeout=120)
+    took = time.monotonic() - start
+    assert run.stderr.splitlines() == [f"rayvr capture: error: no Ray cluster answered at {address} within 3 s "
+                                       f"(--connect-timeout)"], run.stderr[-2000:]
+    assert run.returncode == 2 and 3 <= took < 30, (run.returncode, took)
+    assert not (tmp_path / "out").exists()
+
+
+@needs_ray
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_and_sigterm_end_a_wait_for_the_cluster_at_once(tmp_path, silent_listener, sig):
+    address = f"127.0.0.1:{silent_listener.getsockname()[1]}"
+    proc = subprocess.Popen([sys.executable, "-m", "rayvr", *_capture_on(address, tmp_path / "out", 300)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        silent_listener.accept()[0].close()  # rayvr's reachability check: Ray connects next
+        time.sleep(1.0)
+        start = time.monotonic()
+        proc.send_signal(sig)
+        _, stderr = proc.communicate(timeout=20)
+        took = time.monotonic() - start
+    finally:
+        proc.kill()
+    assert took < 5, took
+    if sig == signal.SIGINT:  # one line, the shell's status for Ctrl-C
+        assert proc.returncode == 130 and stderr.splitlines() == ["rayvr capture: interrupted"], stderr[-2000:]
+    else:  # the default action: ended by the signal
+        assert proc.returncode == -signal.SIGTERM, (proc.returncode, stderr[-2000:])
+    assert not (tmp_path / "out").exists()

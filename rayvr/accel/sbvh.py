@@ -40,6 +40,16 @@ import numpy as np
 from .bvh import _bin_sweep, _binned_sah, _finish, _half_area, _leaf_or_split, _segment_positions
 
 
+_progress_bars = True  # set_progress_bars
+
+
+def set_progress_bars(enabled: bool) -> None:
+    """Whether a build that asks for `progress` shows its tqdm bar, for the whole process: a
+    Renderer builds its BVH deep inside a frame, so `rayvr capture -q` says it here."""
+    global _progress_bars
+    _progress_bars = enabled
+
+
 def clip_boxes(tri: np.ndarray, axis: int, lo: np.ndarray, hi: np.ndarray):
     """Boxes (lo, hi) float64 (P,3) of each triangle tri (P,3,3) float64 cut to the slab
     lo <= x[axis] <= hi (P,): the bounds of the clipped polygon, whose corners are the vertices inside
@@ -182,7 +192,7 @@ def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle
     spatial_nodes = 0
     n_nodes, depth, B = 1, 0, int(bins)
     bar = None
-    if progress:
+    if progress and _progress_bars:
         from tqdm import tqdm
         bar = tqdm(desc="SBVH build", unit=" refs", total=T, leave=False)
 

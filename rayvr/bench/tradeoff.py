@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..camera import StereoRig
+from ..cluster import DEFAULT_CONNECT_TIMEOUT_S
 from ..effects import traced_effects
 from ..materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
 from ..renderer import Renderer, RenderSettings
@@ -262,14 +263,14 @@ def _setups(names, size, base_config, skipped, quick=False):
 
 
 @contextlib.contextmanager
-def _workers(workers, address):
+def _workers(workers, address, connect_timeout):
     """A Ray cluster of `workers` sweep workers, or None to measure everything here."""
     if not workers:
         yield None
         return
     from ..cluster import Cluster, WorkerSpec
 
-    with Cluster(workers, WorkerSpec(capture=False), address) as cluster:
+    with Cluster(workers, WorkerSpec(capture=False), address, connect_timeout) as cluster:
         yield cluster
 
 
@@ -296,13 +297,14 @@ def _bench_gl(out_dir, backend):
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
-        base_config=None, backend=None, progress=True, workers=None, address=None) -> dict:
+        base_config=None, backend=None, progress=True, workers=None, address=None,
+        connect_timeout=DEFAULT_CONNECT_TIMEOUT_S) -> dict:
     """Sweep every knob on each scene against its reference; write tradeoff.json/.md and plots.
     `workers`: the variants spread over that many Ray workers (rayvr.cluster), the reference here."""
     from .report import device_meta, write_report
 
     rows, skipped = [], {}
-    with _bench_gl(out_dir, backend) as gl, _workers(workers, address) as cluster:
+    with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
             with RendererPool(gl) as pool:
                 r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick), ppd, repeat, progress,
@@ -322,7 +324,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
 
 def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
                ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False, workers=None,
-               address=None) -> dict:
+               address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S) -> dict:
     """For each budget: the chosen effect per material, its predicted and measured ms and error.
     `workers`: the per-effect measurements spread over Ray workers; each pick is confirmed here."""
     from ..budget import choose_under_budget, per_material_options
@@ -330,7 +332,7 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
     from .report import device_meta, write_report
 
     rows, skipped = [], {}
-    with _bench_gl(out_dir, backend) as gl, _workers(workers, address) as cluster:
+    with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
             with RendererPool(gl) as pool:
                 ref = measure(gl, scene, rig, reference, repeat, pool=pool)

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 from ..capture import CaptureJob, poses_for, run_capture
+from ..cluster import DEFAULT_CONNECT_TIMEOUT_S
 from .report import device_meta, write_report
 from .scenes import bench_scenes
 
@@ -36,11 +37,11 @@ def _single_process(scene, config, rig, poses, warm, tmp: Path, backend) -> dict
     return {"seconds": wall, "gl": gl, "gpu_ms_mean": sum(summary["gpu_ms_mean"].values())}
 
 
-def _on_workers(n, spec, rig, poses, warm, tmp: Path, address) -> dict:
+def _on_workers(n, spec, rig, poses, warm, tmp: Path, address, connect_timeout) -> dict:
     from ..cluster import Cluster, run_capture_distributed
 
     t0 = time.perf_counter()
-    with Cluster(n, spec, address) as cluster:
+    with Cluster(n, spec, address, connect_timeout) as cluster:
         where = cluster.ready()  # scene loaded in every worker
         startup = time.perf_counter() - t0
         run_capture_distributed(cluster, _job(rig, warm * n, tmp / f"warm{n}"), progress=False, chunk=len(warm))
@@ -53,7 +54,7 @@ def _on_workers(n, spec, rig, poses, warm, tmp: Path, address) -> dict:
 
 
 def run(out_dir, size=(1440, 1600), scenes=("sponza",), frames=64, workers=(1, 2), address=None, backend=None,
-        base_config=None, progress=True) -> dict:
+        base_config=None, progress=True, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S) -> dict:
     """Time the same capture path in one process and on each worker count; write workers.json/.md."""
     from ..cluster import WorkerSpec, require_ray
     from ..output import ensure_writable_dir
@@ -79,7 +80,7 @@ def run(out_dir, size=(1440, 1600), scenes=("sponza",), frames=64, workers=(1, 2
                 print(f"  {name:8s} single process  {rows[-1]['fps']:7.2f} frames/s")
             one = None
             for n in workers:
-                r = _on_workers(n, spec, rig, poses, warm, tmp, address)
+                r = _on_workers(n, spec, rig, poses, warm, tmp, address, connect_timeout)
                 shutil.rmtree(tmp / f"workers{n}", ignore_errors=True)  # keep the disk free for the next run
                 fps = frames / r["seconds"]
                 one = fps if n == 1 else one

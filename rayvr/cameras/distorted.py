@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..inputs import MAX_IMAGE_SIDE, read_text
 from ..limits import check_range, to_float32
 from .base import CameraModel, normalize
 from .pinhole import MAX_TANGENT, check_planar_rig
@@ -33,6 +34,8 @@ from .pinhole import MAX_TANGENT, check_planar_rig
 # Per channel R, G, B: a pincushion lens of a consumer HMD class, blue bent most.
 DEFAULT_COEFFICIENTS = ((0.21, 0.22, 0.0), (0.22, 0.24, 0.0), (0.235, 0.265, 0.0))
 CHANNEL_NAMES = "rgb"
+# A sample file is read whole: three channels of a 2k x 2k panel at full precision (write_samples) fit.
+MAX_SAMPLE_FILE_BYTES = 2 << 30
 
 
 def _coefficients(value) -> tuple:
@@ -73,10 +76,7 @@ class SampleTable:
 def load_samples(path) -> SampleTable:
     """Read and validate a sample file (module notes); errors name the file and line."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read the camera sample file ({exc})") from None
+    text = read_text(path, "camera sample file", MAX_SAMPLE_FILE_BYTES)
     rows, first = [], {}
     for lineno, line in enumerate(text.splitlines(), 1):
         line = line.split("#", 1)[0].strip()
@@ -97,8 +97,9 @@ def load_samples(path) -> SampleTable:
             d = [float(v) for v in parts[3:]]
         except ValueError:
             raise ValueError(f"{path}:{lineno}: direction must be 3 numbers, got {' '.join(parts[3:])}") from None
-        if x < 0 or y < 0:
-            raise ValueError(f"{path}:{lineno}: pixel ({x}, {y}) is negative")
+        if not (0 <= x < MAX_IMAGE_SIDE and 0 <= y < MAX_IMAGE_SIDE):  # the table is dense: bound it
+            raise ValueError(f"{path}:{lineno}: pixel ({x}, {y}) lies outside the largest image rayvr renders, "
+                             f"{MAX_IMAGE_SIDE}x{MAX_IMAGE_SIDE}")
         if not all(math.isfinite(v) for v in d) or not any(d):
             raise ValueError(f"{path}:{lineno}: direction ({', '.join(parts[3:])}) must be finite and non-zero")
         if (x, y, c) in first:

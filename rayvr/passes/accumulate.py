@@ -19,6 +19,7 @@ from .compute import dispatch_per_pixel
 
 ACCUM = Texture("rgba32f")  # float32: a mean over thousands of samples keeps its last bits
 NO_CAP = 3.0e38  # still camera: the exact running mean, however many samples
+TEMPORAL_CAMERA = "pinhole"  # the camera model whose history is reprojected: reprojection is planar
 
 
 class AccumulatePass(Pass):
@@ -47,7 +48,7 @@ class AccumulatePass(Pass):
 
     def execute(self, fc) -> None:
         state = fc.samples
-        temporal = bool(fc.settings.temporal) and fc.plan.camera == "pinhole"  # reprojection is planar
+        temporal = bool(fc.settings.temporal) and fc.plan.camera == TEMPORAL_CAMERA
         p = self.programs[int(temporal)]
         # a moved camera this pass cannot reproject for starts over
         p["reset"].value = int(state is None or state.reset or (state.moved and not temporal))
