@@ -16,6 +16,7 @@ from .limits import MAX_DISTANCE  # --near, --far, --convergence, --ipd (the rig
 from .accel.bvh import BUILDS
 from .accel.gpu import DEFAULT_TRAVERSAL, parse_traversal
 from .gpu_layout import BVH_LAYOUTS
+from .inputs import MAX_IMAGE_SIDE
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -24,8 +25,9 @@ def _size(text: str) -> tuple[int, int]:
         size = (int(w), int(h))
     except ValueError:
         raise argparse.ArgumentTypeError(f"size must be WIDTHxHEIGHT (e.g. 640x480), got {text[:40]!r}") from None
-    if min(size) < 1 or max(size) > 16384:
-        raise argparse.ArgumentTypeError(f"size must be between 1x1 and 16384x16384, got {text!r}")
+    if min(size) < 1 or max(size) > MAX_IMAGE_SIDE:
+        raise argparse.ArgumentTypeError(f"size must be between 1x1 and {MAX_IMAGE_SIDE}x{MAX_IMAGE_SIDE}, "
+                                         f"got {text!r}")
     return size
 
 

@@ -40,7 +40,7 @@ def read_bytes(path: str | Path, what: str, max_bytes: int) -> bytes:
         if not stat.S_ISREG(st.st_mode):
             raise InputFileError(f"{path}: {what} is not a regular file (a device, pipe or socket)")
         if st.st_size > max_bytes:
-            raise InputFileError(f"{too_big} (the file has {_amount(st.st_size)})")
+            raise InputFileError(f"{too_big} (the file has {st.st_size:,} bytes)")
         fh = os.fdopen(fd, "rb")
     except BaseException:
         os.close(fd)

@@ -22,7 +22,7 @@ def test_capture_wide_fov_past_180_with_msaa(tmp_path):
     (["--fov", "200"], ["fov_y must be in (0, 180) degrees for a planar projection", "(wide)"]),
     (["--camera-model", "dof", "--camera-param", "blur=2"], ["camera parameter 'blur=2'", "aperture, focus"]),
     (["--camera-model", "distorted", "--camera-param", "samples=/nonexistent/lens.txt"],
-     ["/nonexistent/lens.txt: cannot read the camera sample file"]),
+     ["/nonexistent/lens.txt: cannot read camera sample file"]),
     (["--camera-model", "distorted", "--camera-param", "coefficients=-0.9"], ["folds over"]),
     (["--msaa", "3"], ["--msaa", "invalid choice"]),
 ])

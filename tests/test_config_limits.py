@@ -59,7 +59,7 @@ def test_absurd_nesting_is_refused_cleanly(tmp_path):
 def test_files_over_the_size_limit_are_refused_before_parsing(tmp_path):
     p = tmp_path / "huge.toml"
     p.write_text('default = "raster"\n' + "#" * MAX_CONFIG_BYTES + "\n")  # valid TOML, too big
-    assert message(load_config, p).startswith(f"{p}: material config is larger than 1024 KiB")
+    assert message(load_config, p).startswith(f"{p}: material config is larger than 1 MiB")
     ok = tmp_path / "ok.toml"
     ok.write_text('default = "shadows"\n' + "#" * (MAX_CONFIG_BYTES - 100) + "\n")
     assert load_config(ok).default == "shadows"

@@ -97,7 +97,9 @@ def load_samples(path) -> SampleTable:
             d = [float(v) for v in parts[3:]]
         except ValueError:
             raise ValueError(f"{path}:{lineno}: direction must be 3 numbers, got {' '.join(parts[3:])}") from None
-        if not (0 <= x < MAX_IMAGE_SIDE and 0 <= y < MAX_IMAGE_SIDE):  # the table is dense: bound it
+        if x < 0 or y < 0:
+            raise ValueError(f"{path}:{lineno}: pixel ({x}, {y}) is negative")
+        if x >= MAX_IMAGE_SIDE or y >= MAX_IMAGE_SIDE:  # the table is dense, as large as its last pixel
             raise ValueError(f"{path}:{lineno}: pixel ({x}, {y}) lies outside the largest image rayvr renders, "
                              f"{MAX_IMAGE_SIDE}x{MAX_IMAGE_SIDE}")
         if not all(math.isfinite(v) for v in d) or not any(d):
