@@ -2,11 +2,14 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
 import math
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -827,6 +830,28 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for a process Ctrl-C ended
+EXIT_TERMINATED = 128 + signal.SIGTERM
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """While the command runs, SIGTERM (kill, a job scheduler) raises KeyboardInterrupt where the
+    command is, so that it ends as Ctrl-C does: temporary files, and an output folder it made and
+    left empty, are removed on the way. Yields a list that holds the signal once it came."""
+    received = []
+
+    def on_sigterm(signum, frame):
+        received.append(signum)
+        raise KeyboardInterrupt("terminated")
+
+    if threading.current_thread() is not threading.main_thread():  # only the main thread gets signals
+        yield received
+        return
+    previous = signal.signal(signal.SIGTERM, on_sigterm)
+    try:
+        yield received
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def main(argv=None) -> int:
@@ -840,14 +865,15 @@ def main(argv=None) -> int:
     from .shaders import ShaderError
     from .cluster import ClusterError
 
-    try:
-        return args.func(args)
-    except (ContextError, ConfigError, SceneError, OutputError, ShaderError, ClusterError, ValueError) as exc:
-        print(f"rayvr {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt as exc:  # Ctrl-C: one line, the shell's status for SIGINT
-        print(f"rayvr {args.command}: {str(exc) or 'interrupted'}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    with sigterm_as_interrupt() as sigterm:
+        try:
+            return args.func(args)
+        except (ContextError, ConfigError, SceneError, OutputError, ShaderError, ClusterError, ValueError) as exc:
+            print(f"rayvr {args.command}: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: one line, the shell's status for the signal
+            print(f"rayvr {args.command}: {str(exc) or 'interrupted'}", file=sys.stderr)
+            return EXIT_TERMINATED if sigterm else EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":
