@@ -18,6 +18,7 @@ from .accumulation import MAX_DENOISE_ITERATIONS
 from .limits import MAX_DISTANCE  # --near, --far, --convergence, --ipd (the rig checks the rest of their ranges)
 from .accel.bvh import BUILDS
 from .accel.gpu import DEFAULT_TRAVERSAL, parse_traversal
+from .extras import BENCH_NEEDS, MissingExtraError, require
 from .gpu_layout import BVH_LAYOUTS
 from .inputs import MAX_IMAGE_SIDE
 
@@ -246,6 +247,8 @@ def cmd_capture(args) -> int:
     from .passes.accumulate import TEMPORAL_CAMERA
     from .renderer import Renderer, RenderSettings
 
+    if args.budget_ms is not None:
+        require("flip_evaluator", "--budget-ms")  # it predicts image error with FLIP, before any work
     if not args.workers and (args.address or args.chunk or args.connect_timeout is not None):
         raise ValueError("--address, --connect-timeout and --chunk go with --workers N")
     if args.workers:
@@ -516,6 +519,8 @@ def cmd_bench(args) -> int:
     from .output import check_output_dir
 
     out = check_output_dir(args.out)  # before any measuring: results are written after it
+    for module in BENCH_NEEDS.get(args.area, ()):  # the optional extras it measures with, before any work
+        require(module, f"bench {args.area}")
     quick = args.quick
     if args.workers or args.area == "workers":
         from .cluster import require_ray
@@ -868,7 +873,8 @@ def main(argv=None) -> int:
     with sigterm_as_interrupt() as sigterm:
         try:
             return args.func(args)
-        except (ContextError, ConfigError, SceneError, OutputError, ShaderError, ClusterError, ValueError) as exc:
+        except (ContextError, ConfigError, SceneError, OutputError, ShaderError, ClusterError, MissingExtraError,
+                ValueError) as exc:
             print(f"rayvr {args.command}: error: {exc}", file=sys.stderr)
             return 2
         except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: one line, the shell's status for the signal

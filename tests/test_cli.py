@@ -228,3 +228,24 @@ def test_bench_rays_bad_layout_is_a_clear_error(tmp_path):
     assert run.returncode == 2, run.stdout + run.stderr
     assert len(run.stderr.splitlines()) == 1 and "BVH layouts must be among bvh2, bvh4, bvh8" in run.stderr
     assert not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize("args", [("bench", "ssrt", "--quick"), ("bench", "crosscheck", "--quick"),
+                                  ("capture", "--size", "16x12", "--budget-ms", "5")])
+def test_a_missing_optional_extra_is_one_line_before_any_work(tmp_path, args):
+    """A command that measures with FLIP (or renders Mitsuba references) where the package is
+    absent: one line naming the extra, exit 2, no traceback, nothing written, and at once."""
+    blocked = tmp_path / "blocked"
+    for module in ("flip_evaluator", "mitsuba"):  # importing either fails, as where it is not installed
+        (blocked / module).mkdir(parents=True)
+        (blocked / module / "__init__.py").write_text("raise ImportError('not installed')\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(blocked), os.environ.get("PYTHONPATH")]))}
+    out = tmp_path / "out"
+    start = time.monotonic()
+    run = subprocess.run([sys.executable, "-m", "rayvr", *args, "--out", str(out)], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert run.returncode == 2 and "Traceback" not in run.stderr, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and "pip install 'rayvr[" in lines[0], run.stderr
+    assert not out.exists()
+    assert time.monotonic() - start < 30  # refused before rendering or measuring

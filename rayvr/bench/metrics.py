@@ -25,6 +25,8 @@ import math
 
 import numpy as np
 
+from ..extras import require
+
 # Approximate per-eye horizontal field of view (degrees) and eye-buffer width (pixels) of common
 # headsets, from vendor specs and reviews. Only used to pick a pixels-per-degree for FLIP.
 HEADSETS: dict[str, tuple[float, int]] = {
@@ -127,12 +129,7 @@ def _masked_mean(m: np.ndarray, mask: np.ndarray | None) -> float:
 
 
 def _flip_map(r: np.ndarray, t: np.ndarray, ppd: float) -> np.ndarray:
-    try:
-        import flip_evaluator
-    except ImportError as e:
-        raise ImportError(
-            "FLIP needs the optional 'flip-evaluator' package: pip install rayvr[bench]"
-        ) from e
+    flip_evaluator = require("flip_evaluator", "FLIP")
     if not ppd > 0:
         raise ValueError(f"ppd must be positive, got {ppd}")
     err, _, _ = flip_evaluator.evaluate(

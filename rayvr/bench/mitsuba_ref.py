@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import EyeView, Pose, StereoRig
+from ..extras import require
 from ..scene import Light, Material, Scene
 from . import reference as ref_mod
 
@@ -60,12 +61,7 @@ EMITTER_SPLIT = 1e-4
 
 
 def _mi():
-    try:
-        import mitsuba as mi
-    except ImportError as exc:
-        raise ImportError("the Mitsuba cross-check needs the optional 'mitsuba' package: "
-                          "pip install 'rayvr[reference]'") from exc
-    return mi
+    return require("mitsuba", "the Mitsuba cross-check")
 
 
 def set_variant(variant: str | None = None) -> str:
