@@ -250,11 +250,13 @@ def test_foveated_reconstruction_fills_between_samples():
     model = Foveated(mar_slope=0.1, fovea_radius=2.0)
     eye = rig_for(model, size=(64, 48)).eye("left")
     y, x = np.mgrid[0:48, 0:64]
-    smooth = np.stack([0.5 + 0.01 * x, 0.2 + 0.005 * y, 0.3 + 0.0 * x], axis=-1)
+    # Linear in the fill's units y = x / (1 + x) of the colour x (cameras/foveated.py): exact there.
+    linear = np.stack([0.2 + 0.01 * x, 0.2 + 0.005 * y, 0.3 + 0.0 * x], axis=-1)
+    smooth = linear / (1.0 - linear)
     sample = model.footprint(eye) > 0
     assert 0.1 < sample.mean() < 0.9
     out = model.reconstruct(eye, np.where(sample[..., None], smooth, 0.0))
-    np.testing.assert_allclose(out, smooth, atol=1e-9)  # bilinear is exact on a linear image
+    np.testing.assert_allclose(out, smooth, rtol=1e-9)
 
 
 # ---------------------------------------------------------------- thin lens

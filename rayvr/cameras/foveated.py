@@ -10,9 +10,19 @@ frustum (the pinhole's rays); pixel p is a sample when its 64x64 ordered-dither 
 stride-2^k lattices are nested (the sparsest, every 64th pixel each way, is always sampled); the
 last column and the top row are samples too, so every pixel lies in a cell with sampled corners.
 A sample's footprint is 1 / sqrt(density) pixels (its sub-rays spread over it). The frame fills
-the pixels between samples for display (`reconstruct`; GLSL in glsl/shade/samples_finish.comp):
-bilinear between the corners of the finest lattice cell around the pixel (cut at the image's last
-column / top row) whose four corners are samples. Depth and aux channels are left at the samples (0 between them).
+the pixels between samples for display (`reconstruct`; GLSL in glsl/shade/sample_resolve.comp),
+coarse to fine by diamond-square: on each level k = 5 .. 0, the centres of the stride-2^(k+1)
+cells that are not samples are the mean of the linear fills between the cell's opposite edge
+midpoints along x and along y, each its sample or else linear between the cell corners beside it
+(cut at the image's last column / top row; bilinear when no midpoint is a sample), then the
+cells' edge midpoints the mean of the linear fills between their
+neighbours 2^k away along x and along y, each a sample or a point filled before (exact on an
+image linear in the fill's units). So every sample
+is a corner of the cells around it (a fill from the finest cell whose four corners were all
+samples skipped the samples of a partial lattice inside it: single dots along edges). The fill
+is made in display-like units, y = x / (1 + x) of the exposed colour x, and expanded back: in
+linear HDR a light's samples outweigh the dark ones beside them, and the fill showed white around
+each dark sample. Depth and aux channels are left at the samples (0 between them).
 """
 from __future__ import annotations
 
@@ -91,28 +101,47 @@ class Foveated(Pinhole):
         sample = ((dither_rank(x, y) + 0.5) / DITHER_LEVELS < rho) | (x == w - 1) | (y == h - 1)
         return np.where(sample, 1.0 / np.sqrt(rho), 0.0)
 
-    def reconstruct(self, eye, image: np.ndarray) -> np.ndarray:
-        """Fill the pixels between samples of `image` ((H, W, C) rows top-down; values at the
-        samples) as the GPU does: bilinear over the finest fully sampled lattice cell."""
+    def reconstruct(self, eye, image: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+        """Fill the pixels between samples of `image` ((H, W, C) linear colour, rows top-down;
+        values at the samples) as the GPU does (module notes): level by level, coarse to fine, the
+        non-sample centres of the stride-2^(k+1) cells, then their edge midpoints (diamond-square),
+        in the display-like units x / (1 + x) of the colour x times `exposure`."""
         w, h = eye.size
         sample = self.footprint(eye)[::-1] > 0  # GL rows
         img = np.asarray(image, np.float64)[::-1]
-        out = img.copy()
-        for y in range(h):
-            for x in range(w):
-                if sample[y, x]:
-                    continue
-                for k in range(1, DITHER_BITS + 1):
-                    s = 1 << k
-                    x0, y0 = x // s * s, y // s * s
-                    x1, y1 = min(x0 + s, w - 1), min(y0 + s, h - 1)
-                    if sample[y0, x0] and sample[y0, x1] and sample[y1, x0] and sample[y1, x1]:
-                        ax = (x - x0) / (x1 - x0) if x1 != x0 else 0.0
-                        ay = (y - y0) / (y1 - y0) if y1 != y0 else 0.0
-                        out[y, x] = ((1 - ax) * (1 - ay) * img[y0, x0] + ax * (1 - ay) * img[y0, x1] +
-                                     (1 - ax) * ay * img[y1, x0] + ax * ay * img[y1, x1])
-                        break
-        return out[::-1]
+        exposed = np.maximum(img, 0.0) * exposure
+        out = np.where(sample[..., None], exposed / (1.0 + exposed), 0.0)
+        ys, xs = np.mgrid[0:h, 0:w]
+
+        def between(y, x, s, axis, values=None):
+            """Linear between the points s before and s after along `axis` (after: cut at the
+            image); `values` (before, after) replace the points' own."""
+            ya, xa = (y, x - s) if axis == 0 else (y - s, x)
+            yb, xb = (y, np.minimum(x + s, w - 1)) if axis == 0 else (np.minimum(y + s, h - 1), x)
+            ya, xa = np.maximum(ya, 0), np.maximum(xa, 0)  # (the first column / row: unused)
+            va, vb = values if values is not None else (out[ya, xa], out[yb, xb])
+            a = (s / ((xb - xa) + (yb - ya)))[:, None]
+            return (1 - a) * va + a * vb
+
+        def midpoint(y, x, s, axis):  # a centre's edge midpoint: its sample, else between its corners
+            return np.where(sample[y, x][:, None], out[y, x], between(y, x, s, 1 - axis))
+
+        for k in range(DITHER_BITS - 1, -1, -1):  # the stride-2^DITHER_BITS lattice is all samples
+            s = 1 << k
+            todo = (xs % s == 0) & (ys % s == 0) & ~sample
+            ox, oy = (xs // s) & 1, (ys // s) & 1
+            y, x = ys[todo & (ox == 1) & (oy == 1)], xs[todo & (ox == 1) & (oy == 1)]  # cell centres
+            xr, yt = np.minimum(x + s, w - 1), np.minimum(y + s, h - 1)
+            along_x = between(y, x, s, 0, (midpoint(y, x - s, s, 0), midpoint(y, xr, s, 0)))
+            along_y = between(y, x, s, 1, (midpoint(y - s, x, s, 1), midpoint(yt, x, s, 1)))
+            out[y, x] = 0.5 * (along_x + along_y)
+            y, x = ys[todo & ((ox ^ oy) == 1)], xs[todo & ((ox ^ oy) == 1)]  # edge midpoints
+            horizontal, vertical = between(y, x, s, 0), between(y, x, s, 1)
+            # On the image's first column / row the neighbour before is outside: along its edge only.
+            out[y, x] = np.where((x == 0)[:, None], vertical,
+                                 np.where((y == 0)[:, None], horizontal, 0.5 * (horizontal + vertical)))
+        filled = out / np.maximum(1.0 - out, 1e-7) / exposure
+        return np.where(sample[..., None], img, filled)[::-1]
 
     def uniforms(self, eyes, origin) -> dict:
         out = super().uniforms(eyes, origin)
