@@ -130,6 +130,37 @@ def test_reuse_shades_no_taken_pixel(gl):
         assert not magenta[~taken].any()
 
 
+def test_reuse_gives_no_shading_to_a_surface_the_right_eye_sees_from_behind(gl):
+    """A quad whose plane passes between the eyes (x = 0, eyes at x = -/+ 0.5): the left eye sees
+    its lit side, the right eye its unlit back (two-sided, so its G-buffer shows the same triangle
+    in the same plane and material: only "faces the right eye", tested with the right eye's
+    position, refuses the landing). Its right-eye pixels shade themselves, as under `dual`;
+    the wall behind, which both eyes see from the front, is reused."""
+    from rayvr.scene import Light, Material
+
+    quad_v, quad_f = quad((0.0, 0.0, -1.9), (0.0, 0.0, 1.1), (0.0, 0.6, 0.0))
+    wall_v, wall_f = quad((0.0, 0.0, -4.0), (4.0, 0.0, 0.0), (0.0, 3.0, 0.0))
+    v, f, part = merge((quad_v, quad_f), (wall_v, wall_f))
+    scene = from_arrays(v, f, triangle_material=part, materials=[Material("fin"), Material("wall")],
+                        lights=[Light("point", intensity=3.0, position=(-1.5, 0.3, -1.5))], ambient_lights=False)
+    rig = StereoRig(Pose.look_at([0.0, 0.0, 0.0], [0.0, 0.0, -1.0]), ipd=1.0, fov_y=60, size=SIZE)
+    with Renderer(scene, None, gl=gl) as r:
+        dual = render(r, "dual", rig, aux=("triangle",))
+        reuse = render(r, "reuse", rig, aux=("triangle", "position", "normal", "material"))
+        taken = read_map(r._last) >= 0
+    fin_left = dual.left.aux["triangle"] < 2
+    fin_right = reuse.right.aux["triangle"] < 2
+    assert fin_left.sum() > 20 and fin_right.sum() > 20
+    lit, unlit = dual.left.color[fin_left].mean(), dual.right.color[fin_right].mean()
+    assert lit > unlit + 40  # a copy of the left's shading would show
+    assert not taken[fin_right].any()
+    assert np.abs(reuse.right.color[fin_right].astype(int) - dual.right.color[fin_right].astype(int)).max() <= 2
+    wall = reuse.right.aux["triangle"] >= 2
+    assert taken[wall].mean() > 0.3  # (the part of it the left eye sees too)
+    ref = reference_map(reuse.left, reuse.right, rig.eye("left"), rig.eye("right"))
+    assert not (ref[fin_right] >= 0).any()
+
+
 def test_reuse_small_ipd_error_bound(raster_room):
     rig = StereoRig.for_scene(raster_room.scene, size=SIZE, ipd=0.02)
     dual, reuse = render(raster_room, "dual", rig), render(raster_room, "reuse", rig)
