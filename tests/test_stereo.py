@@ -176,7 +176,11 @@ def test_warp_ipd0_equals_the_central_view(room):
     f = render(room, "warp", rig)
     for eye in ("left", "right"):
         assert np.array_equal(f[eye].color, central[eye].color)
-        np.testing.assert_allclose(f[eye].depth, central[eye].depth, rtol=1e-4)
+        # Each eye's ray is the central pixel's, its depth computed as the G-buffer resolve does
+        # (that ray's crossing of the pixel's triangle): equal but for a GPU compiler contracting
+        # multiply-adds differently in two programs (ulps). Taken from the hit's point in S it was
+        # off by up to 5e-6 here, 1.4e-3 at 320x240 and 4.5e-4 on an H200 (issue 20).
+        np.testing.assert_allclose(f[eye].depth, central[eye].depth, rtol=1e-6)
     c = room.stereo_counts()
     assert c["disoccluded_left"] == c["offscreen_left"] == c["disoccluded_right"] == c["offscreen_right"] == 0
 
@@ -266,8 +270,9 @@ def test_warp_traversal_equals_numpy_where_leaves_are_steep(raster_room):
                 brute_agrees += (a.status, a.layer, a.pixel) == (b.status, b.layer, b.pixel)
                 # The eyes are offset across the central view's axis: a hit's depth is near / z in both.
                 depth = center.near / a.point[2] if a.status == qt.HIT else 0.0
+                # (the GPU takes a hit's depth from its triangle, within the slab of the S point)
                 gpu_agrees += (holes[i, y, x] == (a.status in (qt.OCCLUDED, qt.OFFSCREEN, qt.NEAR)) and
-                               (a.status != qt.HIT or abs(warp[eye.name].depth[y, x] - depth) <= 1e-3 * depth))
+                               (a.status != qt.HIT or abs(warp[eye.name].depth[y, x] - depth) <= 1.01 * THICKNESS * depth))
                 u = qt.trace_layers(trees, cam, o, d, THICKNESS)
                 if u.status == qt.HIT and u.layer == 0:
                     unsupported_hits += u.point[2] > 2 * qt.decode(trees[0][0][u.pixel[1], u.pixel[0]]).z0

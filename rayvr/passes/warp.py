@@ -85,8 +85,8 @@ class WarpPass(Pass):
         p["warp_thickness"].value = self.thickness
         p["qt_leaf_support"].value = self.support
         fc.gbuffer.bind_for_reading()
+        fc.gpu_scene.bind()  # the hit pixels' triangles give the depth
         if self.layers > 1:  # second-layer hits are shaded from the scene (the raster rung)
-            fc.gpu_scene.bind()
             fc.gpu_scene.textures.use(UNIT["base_color_textures"])
             fc.resource("layer2_triangle").use(UNIT["layer2_triangle"])
             p["ambient"].value = tuple(fc.settings.ambient)

@@ -4,7 +4,9 @@
 // (ssrt/quadtree.glsl qt_trace_layers, each surface a slab `warp_thickness` deep in relative z);
 // camera slot 0 is the central view (tree layer 0, and 1 for its second depth layer), slot 1 the
 // eye being made.
-//   hit on the first layer        the central image's colour there
+//   hit on the first layer        the central image's colour there; depth (and the point a
+//                                 second-layer hit is shaded at) where the ray crosses the hit
+//                                 pixel's triangle (triangle_crossing)
 //   hit on the second layer       (WARP_LAYERS 2: surfaces behind the central view's first) that
 //                                 triangle's surface at the ray's crossing, shaded like the `raster`
 //                                 rung (direct light, ambient; no shadows) and tonemapped
@@ -21,6 +23,7 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 #endif
 #include "../ssrt/quadtree.glsl"
 #include "../common/gbuffer.glsl"
+#include "../common/scene.glsl"
 #if WARP_LAYERS > 1
 #include "../common/triangle_surface.glsl"
 #include "../common/lighting.glsl"
@@ -55,11 +58,33 @@ vec3 ray_point_at(vec3 o, vec3 d, float z) {
     return o + (dd != 0.0 ? (eye_depth.x / z - da) / dd : 0.0) * d;
 }
 
+// Where the eye's ray o + t d crosses triangle `tri`'s plane (x) and its view depth there, if that
+// is within `warp_thickness` of `z` (the hit's point in S: near / central depth) and not edge-on;
+// else false. The trace finds the hit in S, where z has an absolute precision of ~1e-7 from 1 at
+// the near plane down (a relative error up to ~1e-7 near / depth, 5e-4 on an H200 at the room's
+// far wall); the triangle's plane gives the depth the G-buffer resolve computes
+// (gbuffer/resolve.comp: t along the ray times its depth per distance), so at IPD 0, where the
+// eye's rays are the central view's, each eye's depth is the central view's.
+bool triangle_crossing(uint tri, vec3 o, vec3 d, float z, out vec3 x, out float depth) {
+    x = o; depth = 0.0;
+    if (tri == NO_HIT)
+        return false;
+    TriangleVerts tv = scene_triangle(tri);
+    vec3 ng = cross(tv.p[1] - tv.p[0], tv.p[2] - tv.p[0]);
+    float dn = dot(d, ng);
+    if (!(abs(dn) > 1e-7 * length(ng) * length(d)))
+        return false;
+    float t = dot(tv.p[0] - o, ng) / dn;
+    x = o + t * d;
+    float central = -(transpose(eye_rotation[0]) * (x - eye_position[0])).z;  // the crossing's central depth
+    depth = t * camera_depth_per_distance(1, d);
+    return t > 0.0 && abs(central * z - eye_depth.x) <= warp_thickness * eye_depth.x;
+}
+
 #if WARP_LAYERS > 1
 // The second layer's triangle at central pixel `c`, at point `x` on it, seen along `d`: shaded as
 // the `raster` rung shades (shade/direct.comp) and tonemapped as tonemap.comp does.
-vec3 shade_second_layer(ivec2 c, vec3 x, vec3 d) {
-    uint tri = texelFetch(layer2_triangle, ivec3(c, 0), 0).x;
+vec3 shade_second_layer(uint tri, vec3 x, vec3 d) {
     if (tri == NO_HIT) return vec3(0.0);
     TriangleVerts tv = scene_triangle(tri);
     vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], ng = cross(e1, e2), q = x - tv.p[0];
@@ -96,10 +121,17 @@ void main() {
         vec4 color = imageLoad(center_ldr, ivec3(src, 0));
         float depth = 0.0;
         if (kind == WARP_HIT || kind == WARP_HIT_SECOND) {
-            vec3 x = ray_point_at(o, d, h.point.z);  // the exact crossing on the eye's ray
-            depth = eye_depth_of(x);
+            uint tri = texelFetch(gb_triangle, ivec3(src, 0), 0).x;
 #if WARP_LAYERS > 1
-            if (kind == WARP_HIT_SECOND) color.rgb = shade_second_layer(src, x, d);
+            if (kind == WARP_HIT_SECOND) tri = texelFetch(layer2_triangle, ivec3(src, 0), 0).x;
+#endif
+            vec3 x;
+            if (!triangle_crossing(tri, o, d, h.point.z, x, depth)) {
+                x = ray_point_at(o, d, h.point.z);  // the crossing on the eye's ray, from S
+                depth = eye_depth_of(x);
+            }
+#if WARP_LAYERS > 1
+            if (kind == WARP_HIT_SECOND) color.rgb = shade_second_layer(tri, x, d);
 #endif
         } else if (kind != WARP_BACKGROUND) {
             vec4 fill = texelFetch(gb_position, ivec3(src, 0), 0);  // the inpainted pixel's surface
