@@ -71,11 +71,12 @@ void main() {
     ivec2 n = imageSize(sum).xy;
     if (any(greaterThanEqual(p.xy, n))) return;
 #if RECONSTRUCT
-    bool sampled = is_sample(p.z, p.xy, vec2(n));
     if (resolve_level == DITHER_BITS) {
-        imageStore(fill, p, sampled ? vec4(compress(imageLoad(sum, p).rgb), 1.0) : vec4(0.0));
+        bool is_one = is_sample(p.z, p.xy, vec2(n));
+        imageStore(fill, p, is_one ? vec4(compress(imageLoad(sum, p).rgb), 1.0) : vec4(0.0));
         return;
     }
+    bool sampled = imageLoad(fill, p).a == 1.0;  // the pattern, once (the copy marks the samples)
     int s = 1 << resolve_level;
     ivec2 odd = (p.xy / s) & 1;
     bool on_lattice = all(equal(p.xy % s, ivec2(0)));
