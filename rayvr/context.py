@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import logging
 import os
 from dataclasses import dataclass, field
 from typing import Callable
@@ -452,8 +453,16 @@ def create_window_context(size=(1280, 720), title="rayvr", visible=True, vsync=T
     """A glfw window with a 4.3 core context; returns (window, GLContext)."""
     import glfw
 
+    # GLFW's own words go into the one error line, not into a Python warning printed beside it;
+    # once the window is open, later ones are logged.
+    said = []
+    glfw.set_error_callback(lambda code, text: said.append(text.decode(errors="replace") if isinstance(text, bytes)
+                                                           else str(text)))
+
+    def why() -> str:
+        return f" ({'; '.join(said)})" if said else ""
     if not glfw.init():
-        raise ContextError("glfw: init failed (no display? set DISPLAY or run under Xvfb)")
+        raise ContextError(f"glfw: init failed{why()}: set DISPLAY or run under Xvfb")
     glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 4)
     glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
     glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
@@ -462,7 +471,8 @@ def create_window_context(size=(1280, 720), title="rayvr", visible=True, vsync=T
     window = glfw.create_window(int(size[0]), int(size[1]), title, None, None)
     if not window:
         glfw.terminate()
-        raise ContextError("glfw: could not open a window with an OpenGL 4.3 core context")
+        raise ContextError(f"glfw: could not open a window with an OpenGL 4.3 core context{why()}")
+    glfw.set_error_callback(lambda code, text: logging.getLogger(__name__).warning("glfw: %s", text))
     glfw.make_context_current(window)
     glfw.swap_interval(1 if vsync else 0)
     try:

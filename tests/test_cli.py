@@ -249,3 +249,13 @@ def test_a_missing_optional_extra_is_one_line_before_any_work(tmp_path, args):
     assert len(lines) == 1 and "pip install 'rayvr[" in lines[0], run.stderr
     assert not out.exists()
     assert time.monotonic() - start < 30  # refused before rendering or measuring
+
+
+def test_preview_without_a_display_is_one_line_with_glfws_reason():
+    """No display: one line that carries GLFW's own reason, not a Python warning beside it."""
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    run = subprocess.run([sys.executable, "-m", "rayvr", "preview", "--frames", "1"], capture_output=True, text=True,
+                         env=env, timeout=120)
+    lines = run.stderr.strip().splitlines()
+    assert run.returncode == 2 and len(lines) == 1, run.stderr
+    assert lines[0].startswith("rayvr preview: error: glfw: init failed (") and "DISPLAY" in lines[0], lines[0]
