@@ -175,7 +175,13 @@ def camera_from_args(args):
         # The wide camera maps angles, not a planar frustum: there is nothing to shear (cameras/wide.py).
         raise ValueError("--convergence shears the eyes' planar frusta to zero parallax at a distance; the wide "
                          "camera's eyes have none and stay parallel: leave out --convergence")
-    return get_camera_model(args.camera_model, **parse_camera_params(args.camera_model, args.camera_param))
+    camera = get_camera_model(args.camera_model, **parse_camera_params(args.camera_model, args.camera_param))
+    msaa = getattr(args, "msaa", 1) or 1
+    if getattr(args, "primary", None) == "raster" and (msaa > 1 or not camera.rasterizable):
+        # the renderer casts primary rays then (Renderer.plan): say so rather than ignore the flag
+        why = f"--msaa {msaa} casts sub-rays" if msaa > 1 else f"the {camera.name} camera cannot be rasterized"
+        raise ValueError(f"--primary raster: {why}, so primary visibility is ray-cast; leave out --primary raster")
+    return camera
 
 
 def settings_from_args(args, **kw):
@@ -280,7 +286,8 @@ def cmd_capture(args) -> int:
     if args.views and "depth" not in aux:
         aux += ("depth",)  # a multi-view capture writes depth beside every view
     settings = RenderSettings(exposure=args.exposure, tonemapper=args.tonemapper, layer_mode=args.layer_mode,
-                              primary=args.primary, denoise=args.denoise or args.denoise_iterations is not None,
+                              primary=args.primary or "raster",
+                              denoise=args.denoise or args.denoise_iterations is not None,
                               denoise_iterations=args.denoise_iterations or RenderSettings.denoise_iterations,
                               accumulate=args.temporal, temporal=args.temporal,
                               second_layer=args.second_layer, stereo=args.stereo,
@@ -724,8 +731,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "e.g. primary=bvh8,shadow=bvh4,reflect=bvh2; kinds not named keep the default "
                         "primary=bvh4,shadow=bvh2,reflect=bvh4 (the fastest on the H200; bvh2 is the reference)")
     add_bvh_build_argument(c)
-    c.add_argument("--primary", choices=("raster", "rays"), default="raster",
-                   help="primary visibility: the raster G-buffer pass, or camera rays through the BVH")
+    c.add_argument("--primary", choices=("raster", "rays"), default=None,
+                   help="primary visibility: the raster G-buffer pass, or camera rays through the BVH (default: "
+                        "raster, or rays where --msaa or the camera model needs them)")
     c.add_argument("--second-layer", choices=("rays", "peel"), default="rays",
                    help="how the second depth layer (ssr layers = 2) is made: primary rays continued through the "
                         "BVH, or depth peeling in the raster (rayvr bench ssrt times both)")
@@ -751,7 +759,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "'dot' for Graphviz")
     i.add_argument("--size", type=_size, default="1440x1600", help="per-eye size the --graph resources are sized for")
     i.add_argument("--view", choices=VIEWS, default="color", help="the view --graph is compiled for")
-    i.add_argument("--primary", choices=("raster", "rays"), default="raster", help="primary visibility for --graph")
+    i.add_argument("--primary", choices=("raster", "rays"), default=None,
+                   help="primary visibility for --graph (default: as capture chooses)")
     add_stereo_argument(i)
     i.add_argument("--spp", type=SPP, default=1, help="the --graph of a capture with this many samples a pixel")
     i.add_argument("--denoise", action="store_true", help="the --graph with the denoiser")

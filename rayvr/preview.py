@@ -644,6 +644,10 @@ class Preview:
         layout = layout_for(self.state.stereo, fb, self.state.res_scale)
         rig = self.camera.rig(layout.eye_size)
         self._apply_noise_settings()
+        if self.state.method != "dual" and self.renderer.settings.dof_aperture > 0:
+            # depth of field blurs each eye's own frame (Renderer.plan refuses warp and reuse with it)
+            self.config_error = "depth of field (--aperture) blurs each eye's own frame: the second eye stays dual"
+            self.state.method = "dual"
         self.renderer.set_stereo(self.state.method)
         try:
             fc = self.renderer.record(rig, layout.eyes, self.state.view)

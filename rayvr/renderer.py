@@ -216,6 +216,13 @@ class Renderer:
         if stereo != "dual" and samples > 1:  # their passes read one G-buffer, not a frame of rounds
             raise ValueError(f"stereo mode {stereo!r} reprojects one sample per pixel: it cannot take --msaa "
                              f"{samples} (use --stereo dual)")
+        if color and st.dof_aperture > 0 and not (stereo == "dual" and camera.rasterizable):
+            # passes/dof.py blurs each eye's own pinhole frame: a warped or reused eye has none, and
+            # the other models' rays are not that frame's (the dof model has a lens of its own)
+            why = (f"the {camera.name} camera is not a pinhole" if not camera.rasterizable
+                   else f"--stereo {stereo} makes an eye from the other's frame")
+            hint = "its aperture parameter" if camera.name == "dof" else "the pinhole camera and --stereo dual"
+            raise ValueError(f"depth of field (--aperture) blurs each eye's own pinhole frame, and {why}: use {hint}")
         warp = stereo == "warp"  # one central view is rendered; the warp pass makes both eyes from it
         return FramePlan(effects=self.effects_in_use(), view=view, layers=1 if warp else layers,
                          layer_mode=self.layer_mode, primary=primary, camera=camera.name, stereo=stereo,
@@ -223,7 +230,7 @@ class Renderer:
                          accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise,
                          depth_layers=max(depth_layers(self.assignments), st.warp_layers if warp else 1),
                          second_layer=second, traversal=st.traversal, bvh_build=st.bvh_build,
-                         dof=color and st.dof_aperture > 0 and stereo == "dual" and camera.name == "pinhole",
+                         dof=color and st.dof_aperture > 0,
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
                          tile_culling=st.culls_tiles(camera.name) and primary == "rays",
                          channels=camera.channels, reconstruct=camera.sparse)
