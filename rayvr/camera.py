@@ -200,8 +200,8 @@ class StereoRig:
         if self.convergence is not None:
             self.convergence = check_range("convergence distance", self.convergence, 0.0, MAX_DISTANCE, lo_open=True)
         w, h = self.size
-        if int(w) < 1 or int(h) < 1:
-            raise ValueError(f"image size must be at least 1x1, got {w}x{h}")
+        if not all(isinstance(n, (int, np.integer)) and not isinstance(n, bool) for n in (w, h)) or w < 1 or h < 1:
+            raise ValueError(f"image size must be whole numbers of pixels, at least 1x1, got {w!r}x{h!r}")
         self.size = (int(w), int(h))
         self.camera.check_rig(self)  # last: it looks at the eyes (e.g. the pinhole's precision limit)
 

@@ -31,7 +31,7 @@ from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameT
                     limit_problems)
 from .gpu_layout import TONEMAPPERS, VIEWS
 from .gpu_scene import GpuScene
-from .limits import MAX_CAMERA_COORDINATE, MAX_FOCUS_DISTANCE, MIN_DISTANCE, check_range
+from .limits import FLOAT32_MAX, MAX_CAMERA_COORDINATE, MAX_FOCUS_DISTANCE, MIN_DISTANCE, check_range
 from .passes import core_passes
 from .passes.classify import pixel_counts
 from .passes.second_layer import depth_layers
@@ -94,8 +94,9 @@ class RenderSettings:
     def __post_init__(self):
         if self.tonemapper not in TONEMAPPERS:
             raise ValueError(f"unknown tonemapper {self.tonemapper!r}; allowed: {', '.join(TONEMAPPERS)}")
-        if not (np.isfinite(self.exposure) and self.exposure > 0):
-            raise ValueError(f"exposure must be a positive number, got {self.exposure}")
+        self.exposure = check_range("exposure", self.exposure, 0.0, FLOAT32_MAX, lo_open=True)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2 ** 32:
+            raise ValueError(f"seed must be a whole number from 0 to {2 ** 32 - 1} (a GPU uint), got {self.seed!r}")
         if not (isinstance(self.denoise_iterations, int) and 1 <= self.denoise_iterations <= MAX_DENOISE_ITERATIONS):
             raise ValueError(f"denoise_iterations must be an integer in [1, {MAX_DENOISE_ITERATIONS}], "
                              f"got {self.denoise_iterations!r}")

@@ -298,3 +298,18 @@ def test_default_primary_follows_the_camera_and_msaa(tmp_path):
         assert run.returncode == 0, run.stderr
         passes = json.loads((tmp_path / "o" / "frame_timings.json").read_text())["passes"]
         assert ("primary_rays" in passes) == bool(args), (args, passes)
+
+
+@pytest.mark.parametrize("kind, kw, says", [
+    ("settings", {"exposure": "a"}, "exposure must be a number"),
+    ("settings", {"seed": -1}, "seed must be a whole number"),
+    ("settings", {"seed": 2 ** 32}, "seed must be a whole number"),
+    ("rig", {"size": (10.5, 10)}, "image size must be whole numbers")])
+def test_settings_of_the_wrong_type_or_range_are_one_value_error(kind, kw, says):
+    """The API's settings: a wrong type or a value the GPU's uint would wrap is a ValueError
+    naming the setting (not numpy's TypeError, not a silently wrapped seed)."""
+    from rayvr.camera import StereoRig
+    from rayvr.renderer import RenderSettings
+
+    with pytest.raises(ValueError, match=says):
+        (RenderSettings if kind == "settings" else StereoRig)(**kw)
