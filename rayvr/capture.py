@@ -353,10 +353,12 @@ class JobFolder:
     a sequence with `identity` the job file is checked and written: a folder holding frames of a
     job with another identity is refused (OutputError naming what differs), and with `resume` the
     frames whose records verify (`done`) are skipped; `digest` is what new records must name.
-    A job that fails before its first file removes the folder it created."""
+    A job that fails before its first file removes the folder it created. With `overwrite`, the
+    sequence frames (and records) of whatever job left them under this prefix are deleted once the
+    folder is locked, and every frame is rendered again."""
 
-    def __init__(self, job: CaptureJob, identity: dict | None = None, resume: bool = True):
-        self.job, self.identity = job, identity
+    def __init__(self, job: CaptureJob, identity: dict | None = None, resume: bool = True, overwrite: bool = False):
+        self.job, self.identity, self.overwrite = job, identity, overwrite
         self.sequence = len(job.poses) > 1  # a still is just rendered again
         self.digest = identity_digest(identity) if identity is not None and self.sequence and resume else None
         self.done: set[int] = set()
@@ -382,6 +384,9 @@ class JobFolder:
         self._created = create_output_dir(job.out_dir)
         try:
             self._lock = lock_folder(job.out_dir, why=self._how_the_job_file_differs())
+            if self.overwrite and self.sequence:
+                for name in self._frame_files_on_disk():  # the user asked: no frame of theirs is kept
+                    (job.out_dir / name).unlink(missing_ok=True)
             if self.identity is not None and self.sequence:
                 self._refuse_another_job()
                 if self.digest is not None:
@@ -437,8 +442,8 @@ class JobFolder:
             return  # the same job, or one that left no frame: this one takes the folder
         what = describe_difference(recorded, self.identity) if isinstance(recorded, dict) else "unreadable"
         raise OutputError(f"{self.job.out_dir}: holds frames of another job ({p.name} -> this job: {what}); "
-                          f"use another --out or --prefix, or delete {p.name} and the {self.job.prefix}_NNNN_* "
-                          f"files first")
+                          f"use another --out or --prefix, or --overwrite to render every frame again in their "
+                          f"place")
 
     def _verified_frames(self) -> set[int]:
         """The frames whose records verify; one warning for those on disk that do not."""

@@ -314,7 +314,8 @@ def cmd_capture(args) -> int:
         job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
                          rig_overrides=overrides, cameras=bool(args.views))
         # --temporal carries each frame into the next: only a whole run in order gives the same frames
-        with JobFolder(job, job_identity(job, **inputs), resume=not args.temporal) as folder:  # held to the end
+        with JobFolder(job, job_identity(job, **inputs), resume=not args.temporal,  # held to the end
+                       overwrite=args.overwrite) as folder:
             summary = run_capture(r, job, progress=not args.quiet, folder=folder)
             if pick is not None:
                 summary["budget"] = pick
@@ -342,7 +343,7 @@ def _capture_on_workers(args, aux, settings, inputs) -> int:
     job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
                      rig_overrides=overrides, cameras=bool(args.views))
     spec = WorkerSpec(args.scene, args.materials, settings, args.backend)
-    with JobFolder(job, job_identity(job, **inputs)) as folder, \
+    with JobFolder(job, job_identity(job, **inputs), overwrite=args.overwrite) as folder, \
             Cluster(args.workers, spec, args.address, _connect_timeout(args)) as cluster:
         cluster.ready()  # a worker that cannot start is one clear error, before any frame
         summary = run_capture_distributed(cluster, job, progress=not args.quiet, chunk=args.chunk,
@@ -703,6 +704,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "lists (default: every traced effect)")
     n.add_argument("--denoise-iterations", type=DENOISE_ITERATIONS, metavar="K",
                    help=f"a-trous iterations, 1..{MAX_DENOISE_ITERATIONS} (default 4; implies --denoise)")
+    c.add_argument("--overwrite", action="store_true",
+                   help="sequences: render every frame again, deleting the PREFIX_NNNN_* frames any job left in "
+                        "--out (default: a rerun of the same job renders only the frames whose records do not "
+                        "verify, and frames of another job are refused)")
     n.add_argument("--temporal", action="store_true",
                    help="camera paths: carry each frame's samples into the next by reprojection (pinhole)")
     seq.add_argument("--views", metavar="FILE|sphere:N|grid:NxM[:SPACING]",

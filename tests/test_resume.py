@@ -139,6 +139,20 @@ def test_a_rerun_with_other_settings_is_refused_and_changes_nothing(tmp_path, ca
     assert counts(out) == (3, 0) and capture(out) == 0 and counts(out) == (0, 3)
 
 
+
+def test_overwrite_replaces_another_jobs_frames_and_leaves_none_of_them(tmp_path):
+    """--overwrite: the frames another job left (more of them than this job has, too) are gone and
+    every frame is this job's, verified on the next rerun."""
+    out = tmp_path / "o"
+    assert capture(out, "--exposure", "4", frames=4) == 0
+    bright = pngs(out)
+    assert capture(out, "--overwrite") == 0 and counts(out) == (3, 0)
+    mine = pngs(out)
+    assert set(mine) == {f"frame_{i:04d}_{eye}.png" for i in range(3) for eye in ("left", "right")}  # no 4th frame
+    assert all(mine[name] != bright[name] for name in mine)
+    assert not list(out.glob("frame_0003_*"))
+    assert capture(out) == 0 and counts(out) == (0, 3)  # this job's now: the plain rerun resumes it
+
 def test_a_killed_job_leaves_no_stale_lock(tmp_path):
     out = tmp_path / "o"
     hold = ("import sys, time; from pathlib import Path; from rayvr.capture import lock_folder; "
