@@ -12,7 +12,6 @@ import re
 import signal
 import socket
 import stat
-import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,6 +23,7 @@ from .output import (FORMATS, OutputError, atomic_write_bytes, check_file_prefix
                      write_png)
 from .readback import INTEGER_AUX
 from .renderer import Frame, Renderer
+from .signals import handling
 
 log = logging.getLogger(__name__)
 
@@ -476,14 +476,8 @@ def interrupts_between_frames():
         if noted:
             raise KeyboardInterrupt
 
-    if threading.current_thread() is not threading.main_thread():  # signals go to the main thread only
+    with handling(signal.SIGINT, on_sigint):
         yield check
-        return
-    previous = signal.signal(signal.SIGINT, on_sigint)
-    try:
-        yield check
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True, on_frame=None,

@@ -9,7 +9,6 @@ import math
 import os
 import signal
 import sys
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,7 @@ from .accel.gpu import DEFAULT_TRAVERSAL, parse_traversal
 from .extras import BENCH_NEEDS, MissingExtraError, require
 from .gpu_layout import BVH_LAYOUTS
 from .inputs import MAX_IMAGE_SIDE
+from .signals import handling
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -863,14 +863,8 @@ def sigterm_as_interrupt():
         received.append(signum)
         raise KeyboardInterrupt("terminated")
 
-    if threading.current_thread() is not threading.main_thread():  # only the main thread gets signals
+    with handling(signal.SIGTERM, on_sigterm):
         yield received
-        return
-    previous = signal.signal(signal.SIGTERM, on_sigterm)
-    try:
-        yield received
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def main(argv=None) -> int:

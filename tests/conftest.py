@@ -77,3 +77,29 @@ def merge(*parts):
         ids.append(np.full(len(f), i))
         off += len(v)
     return np.concatenate(vs), np.concatenate(fs), np.concatenate(ids)
+
+
+def fail_writes(monkeypatch, code: int, path_contains: str = "") -> None:
+    """Writes through os.fdopen (rayvr/output.py's atomic writes) fail with OSError(code), as on a
+    full disk, for files whose path contains `path_contains` (every file: "")."""
+    real_fdopen = os.fdopen
+
+    class Failing:
+        def __init__(self, fh):
+            self.fh = fh
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+        def write(self, data):
+            raise OSError(code, os.strerror(code))
+
+    def fdopen(fd, *args, **kw):
+        fh = real_fdopen(fd, *args, **kw)
+        return Failing(fh) if path_contains in os.readlink(f"/proc/self/fd/{fd}") else fh
+
+    monkeypatch.setattr(os, "fdopen", fdopen)
+

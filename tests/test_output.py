@@ -6,6 +6,7 @@ import tempfile
 import numpy as np
 import pytest
 
+from conftest import fail_writes
 from rayvr.output import (MAX_PREFIX_BYTES, OutputError, atomic_write_bytes, check_file_prefix, check_output_dir,
                           make_output_dir, write_npy, write_png)
 
@@ -50,22 +51,7 @@ def test_replacing_keeps_no_temp_and_a_failed_write_leaves_the_old_file(tmp_path
 @pytest.mark.parametrize("code", [errno.ENOSPC, errno.EFBIG, errno.EIO])
 def test_a_failed_write_is_one_output_error_naming_the_file(tmp_path, monkeypatch, code):
     """Disk full (ENOSPC), a file too large (EFBIG), an I/O error: one line the CLI prints."""
-    real_fdopen = os.fdopen
-
-    class Failing:
-        def __init__(self, fh):
-            self.fh = fh
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            self.fh.close()
-
-        def write(self, data):
-            raise OSError(code, os.strerror(code))
-
-    monkeypatch.setattr(os, "fdopen", lambda fd, *a, **k: Failing(real_fdopen(fd, *a, **k)))
+    fail_writes(monkeypatch, code)
     p = tmp_path / "frame.png"
     with pytest.raises(OutputError) as err:
         write_png(p, np.zeros((2, 3, 3), np.uint8))

@@ -5,7 +5,6 @@ nothing half-made left behind."""
 import errno
 import json
 import logging
-import os
 import resource
 import shutil
 import signal
@@ -15,7 +14,7 @@ import time
 
 import pytest
 
-from conftest import run_rayvr
+from conftest import fail_writes, run_rayvr
 from rayvr.cli import main
 
 SIZE = "24x16"
@@ -202,32 +201,11 @@ def test_a_full_disk_on_the_first_file_is_one_line_and_leaves_no_folder(tmp_path
 
 def test_a_full_disk_mid_sequence_keeps_the_whole_frames_and_resumes(tmp_path, capsys, monkeypatch):
     out = tmp_path / "o"
-    real_fdopen = os.fdopen
-
-    class FullDisk:
-        """A file whose writes fail as on a full disk."""
-
-        def __init__(self, fh):
-            self.fh = fh
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            self.fh.close()
-
-        def write(self, data):
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-    def fdopen(fd, *args, **kw):
-        fh = real_fdopen(fd, *args, **kw)
-        return FullDisk(fh) if "frame_0001_right.png" in os.readlink(f"/proc/self/fd/{fd}") else fh
-
-    monkeypatch.setattr(os, "fdopen", fdopen)
+    fail_writes(monkeypatch, errno.ENOSPC, "frame_0001_right.png")
     assert capture(out) == 2
     assert one_line(capsys.readouterr().err) == (f"rayvr capture: error: {out}/frame_0001_right.png: cannot write: "
                                                  f"No space left on device\n")
     assert sorted(p.name for p in out.iterdir()) == ["frame_0000_left.png", "frame_0000_record.json",
                                                      "frame_0000_right.png", "frame_0001_left.png", "frame_job.json"]
-    monkeypatch.setattr(os, "fdopen", real_fdopen)  # space again
+    monkeypatch.undo()  # space again
     assert capture(out) == 0 and counts(out) == (2, 1)
