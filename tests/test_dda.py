@@ -408,11 +408,12 @@ def test_stride_trades_steps_for_error(gl):
 
 def heightfield_reference(fr: Frame, o, d, eye=0):
     """rayvr/accel/quadtree.py's brute-force tracer (every crossed pixel against its exact plane
-    from the G-buffer position and normal): status, pixel, S point per ray."""
+    from the G-buffer position and its triangle's geometric normal): status, pixel, S point per ray."""
     from rayvr.accel import quadtree as qt
 
     cam = qt.ScreenCamera.from_eye(fr.eyes[eye], fr.origin)
-    leaves = qt.build_reference(fr.channel("position", eye), fr.channel("normal", eye), cam)[0]
+    normal = qt.frame_geometric_normals(fr.gb, fr.r.scene)[eye]
+    leaves = qt.build_reference(fr.channel("position", eye), normal, cam)[0]
     out = [qt.trace_heightfield_reference(leaves, cam, o[i], d[i]) for i in range(len(o))]
     return (np.array([t.status for t in out]), np.array([t.pixel for t in out]),
             np.array([t.point for t in out]))

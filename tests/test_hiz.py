@@ -37,6 +37,7 @@ class Frame:
         self.depth = [read_linear_depth(gb, layer) for layer in (0, 1)]
         self.position = np.frombuffer(gb.textures["position"].read(), np.float32).reshape(2, h, w, 4).copy()
         self.normal = np.frombuffer(gb.textures["normal"].read(), np.float16).reshape(2, h, w, 4).astype(np.float32)
+        self.geometric = qt.frame_geometric_normals(gb, self.r.scene)
         self.cams = [qt.ScreenCamera.from_eye(e, self.r.scene.origin) for e in rig.eyes()]
         self.tracer = hiz.HizTracer(self.r)
         self.tracer.build(rig)
@@ -47,7 +48,7 @@ class Frame:
 
     def plane_leaves(self, layer):
         """The quadtree's leaves: each pixel's plane (the surface as it is, not flat pixels)."""
-        geo, z0, sx, sy = qt.leaf_planes(self.position[layer], self.normal[layer], self.cams[layer])
+        geo, z0, sx, sy = qt.leaf_planes(self.position[layer], self.geometric[layer], self.cams[layer])
         return np.where(geo[..., None], qt.encode_planes(z0, sx, sy, 0), qt.encode_aabbs(0.0, 0.0, 0))
 
     def release(self):

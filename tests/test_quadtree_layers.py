@@ -28,6 +28,7 @@ class TwoLayers(Layers):
         w, h = rig.size
         self.position = np.frombuffer(gb.textures["position"].read(), np.float32).reshape(2, h, w, 4).copy()
         self.normal = np.frombuffer(gb.textures["normal"].read(), np.float16).reshape(2, h, w, 4).astype(np.float32)
+        self.geometric = qt.frame_geometric_normals(gb, self.renderer.scene)
         self.triangle = np.frombuffer(gb.textures["triangle"].read(), np.uint32).reshape(2, h, w).copy()
         self.layer2 = np.frombuffer(self.renderer.resource("layer2").read(), np.float32).reshape(2, h, w, 4).copy()
         self.triangle2 = np.frombuffer(self.renderer.resource("layer2_triangle").read(), np.uint32).reshape(2, h, w).copy()
@@ -36,7 +37,7 @@ class TwoLayers(Layers):
 
     def build2(self, eye, **gammas):
         """numpy trees of both depth layers of one eye."""
-        return [qt.build_reference(self.position[eye], self.normal[eye], self.cams[eye], **gammas),
+        return [qt.build_reference(self.position[eye], self.geometric[eye], self.cams[eye], **gammas),
                 qt.build_reference(self.layer2[eye], self.layer2[eye], self.cams[eye], **gammas)]
 
     def tracer(self, **gammas):
@@ -192,6 +193,28 @@ def to_world(cam, p):
     tx, ty = cam.tangent_at(p[0], p[1])
     depth = cam.near / p[2]
     return cam.rotation @ (np.array([tx, ty, -1.0]) * depth) + cam.position, depth
+
+
+def test_second_layer_leaves_are_their_triangles_planes(two):
+    """layer2 holds the geometric normal of its triangle: each second-layer GPU leaf (the sphere's
+    back faces) is that triangle's plane, its normal within 0.1 degree of the triangle's (half-float
+    slopes), as the first layer's are (test_quadtree.py
+    test_gpu_leaf_planes_are_their_triangles_planes_on_smooth_normals). The smoothed shading
+    normal it held before was up to ~10 degrees off."""
+    L = two["sphere"]
+    tr = L.tracer()
+    scene = L.renderer.scene
+    w, h = L.rig.size
+    xc, yc = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+    for eye in (0, 1):
+        d = qt.decode(tr.levels(2 + eye)[0])
+        has = L.triangle2[eye] != 0xFFFFFFFF
+        assert (d.plane == has).all() and has.sum() > 50
+        cam = L.cams[eye]
+        leaf = qt.plane_normals(d.z0, d.sx, d.sy, xc, yc, cam)[has]
+        ng = qt.geometric_normals(L.triangle2[eye], scene.vertices, scene.indices)[has] @ cam.rotation  # view space
+        cos = np.abs((leaf * ng).sum(-1)) / np.linalg.norm(ng, axis=-1)
+        assert np.degrees(np.arccos(np.minimum(cos, 1.0))).max() < 0.1, (eye, np.degrees(np.arccos(cos.min())))
 
 
 def test_gpu_build_of_the_second_layer_equals_numpy(two):

@@ -22,7 +22,10 @@ its plane differs from this one by more than DISCONTINUITY (relative) at their s
 parent's flag is the OR of its children's. Decoding clears the bit (<= 1 ulp of z0).
 
 Build (§3.3): leaves are the pixels' planes from the G-buffer (position.w = view depth gives z0
-exactly, the shading normal the slopes; no finite differences). A parent becomes a plane when all
+exactly, the geometric normal of the pixel's triangle the slopes; no finite differences): the
+triangle's own plane. Not the shading normal: with smoothed vertex normals neighbouring pixels of
+one flat face got planes ~4 % apart at their shared edge (a ray slipped between them: warp's dark
+line across the room box's top, issue 20) and silhouette pixels slopes of ~50 per pixel. A parent becomes a plane when all
 its (up to 2x2) children are planes, the cosine between each child's normal and the proxy's is
 >= gamma_norm, and every child-rectangle corner lies within gamma_dist *relative* depth of the
 proxy: |z_child - z_proxy| <= gamma_dist z_proxy (so the bound means the same at every distance).
@@ -253,9 +256,30 @@ def decode(nodes: np.ndarray, half_x=None, half_y=None) -> Nodes:
 
 # ------------------------------------------------------------------ leaves and the numpy build
 
+def geometric_normals(triangle: np.ndarray, vertices: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """The unnormalised geometric normal (v1 - v0) x (v2 - v0) of each pixel's triangle, as
+    glsl/ssrt/quadtree_build.comp computes it: triangle (H, W) IDs (the G-buffer's "triangle"
+    channel, NO_HIT for background: zero), the scene's vertices (V, 3) and indices (T, 3).
+    Returns (H, W, 3) float64, the normal leaf_planes wants."""
+    tri = np.asarray(triangle, np.uint32)
+    hit = tri < len(indices)
+    p = np.asarray(vertices, np.float64)[np.asarray(indices)[np.where(hit, tri, 0)]]  # (H, W, 3 vertices, 3)
+    n = np.cross(p[..., 1, :] - p[..., 0, :], p[..., 2, :] - p[..., 0, :])
+    return np.where(hit[..., None], n, 0.0)
+
+
+def frame_geometric_normals(gbuffer, scene) -> np.ndarray:
+    """geometric_normals of every eye layer of a rendered G-buffer (its "triangle" channel) in
+    `scene` (the rendered Scene): (layers, H, W, 3), rows bottom-up, for build_reference."""
+    w, h = gbuffer.size
+    tri = np.frombuffer(gbuffer.textures["triangle"].read(), np.uint32).reshape(gbuffer.layers, h, w)
+    return geometric_normals(tri, scene.vertices, scene.indices)
+
+
 def leaf_planes(position: np.ndarray, normal: np.ndarray, cam: ScreenCamera):
     """Per-pixel planes in S from G-buffer channels of one layer, rows bottom-up (GL texture
-    order): position (H, W, 4) with w = view depth (0: background), normal (H, W, >= 3) world.
+    order): position (H, W, 4) with w = view depth (0: background), normal (H, W, >= 3) world,
+    the geometric normal of the pixel's surface (geometric_normals; either side, any length).
     Returns geometry mask, z0, sx, sy (relative slopes), float64."""
     h, w = position.shape[:2]
     depth = position[..., 3].astype(np.float64)
@@ -266,8 +290,11 @@ def leaf_planes(position: np.ndarray, normal: np.ndarray, cam: ScreenCamera):
     tx, ty = cam.tangent_at(np.arange(w)[None, :] + 0.5, np.arange(h)[:, None] + 0.5)
     tx, ty = np.broadcast_to(tx, (h, w)), np.broadcast_to(ty, (h, w))
     vlen = np.sqrt(tx * tx + ty * ty + 1)
-    # z = z0 (n . (tx, ty, -1)) / (n . v_c): relative slope = n_xy / (n . v_c) per tangent unit.
-    den = np.minimum(nv[..., 0] * tx + nv[..., 1] * ty - nv[..., 2], -GRAZING * vlen)
+    # z = z0 (n . (tx, ty, -1)) / (n . v_c): relative slope = n_xy / (n . v_c) per tangent unit,
+    # the same for n and -n but for the grazing clamp, which wants n facing the eye (n . v_c < 0).
+    facing = nv[..., 0] * tx + nv[..., 1] * ty - nv[..., 2]
+    nv = np.where((facing > 0)[..., None], -nv, nv)
+    den = np.minimum(-np.abs(facing), -GRAZING * vlen)
     kx, ky = cam.scale
     z0 = np.where(geo, cam.near / np.where(geo, depth, 1.0), 0.0)
     return geo, z0, np.where(geo, nv[..., 0] / den / kx, 0.0), np.where(geo, nv[..., 1] / den / ky, 0.0)
@@ -794,6 +821,6 @@ def trace_layers_brute_force(layer_leaves, cam: ScreenCamera, origin, direction,
 
 
 __all__ = ["trace_screen_rays", "time_build_and_trace", "HIT", "OFFSCREEN", "NEAR", "NONE", "STATUS_NAMES", "level_sizes", "level_offsets", "quadtree_bytes",
-           "ScreenCamera", "encode_planes", "encode_aabbs", "decode", "leaf_planes", "build_reference",
+           "ScreenCamera", "encode_planes", "encode_aabbs", "decode", "geometric_normals", "frame_geometric_normals", "leaf_planes", "build_reference",
            "flatten", "unflatten", "screen_ray", "trace_heightfield_reference", "trace_quadtree_reference",
            "trace_layers", "trace_layers_brute_force", "LayeredTrace", "OCCLUDED", "Trace", "ScreenRay", "plane_normals", "node_rects"]

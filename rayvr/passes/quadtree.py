@@ -44,11 +44,13 @@ class QuadtreeBuilder:
         self.program = shaders.compute(ctx, "ssrt/quadtree_build.comp",
                                        {**(camera_model_defines or {}), "QT_DEPTH_LAYERS": depth_layers})
 
-    def build(self, ctx, gbuffer, nodes: moderngl.Buffer, gamma_norm: float, gamma_dist: float, stage=None,
+    def build(self, ctx, gbuffer, scene, nodes: moderngl.Buffer, gamma_norm: float, gamma_dist: float, stage=None,
               layer2=None, gamma_adapt: float = 0.0) -> None:
         """Fill `nodes` from `gbuffer` (bound for reading here) and, with two depth layers, from the
-        `layer2` texture (passes/second_layer.py); camera uniforms must be set."""
+        `layer2` texture (passes/second_layer.py); the leaves' planes are the pixels' triangles', whose
+        vertices come from `scene` (the GpuScene, bound here); camera uniforms must be set."""
         prog = self.program
+        scene.bind()
         w, h = gbuffer.size
         set_tree_uniforms(prog, (w, h), gbuffer.layers)
         if self.depth_layers > 1:
@@ -112,7 +114,7 @@ class QuadtreePass(Pass):
         set_eye_uniforms(self.builder.program, fc)
         gamma_norm, gamma_dist = self.thresholds(fc.gpu_scene.assignments)
         layer2 = fc.resource("layer2") if self.builder.depth_layers > 1 else None
-        self.builder.build(fc.gl.ctx, fc.gbuffer, fc.resource("quadtree"), gamma_norm, gamma_dist, stage=fc.stage,
+        self.builder.build(fc.gl.ctx, fc.gbuffer, fc.gpu_scene, fc.resource("quadtree"), gamma_norm, gamma_dist, stage=fc.stage,
                            layer2=layer2, gamma_adapt=fc.settings.quadtree_adapt)
 
     def release(self) -> None:
@@ -189,7 +191,7 @@ class QuadtreeTracer:
             self.nodes = self.ctx.buffer(reserve=nbytes)
         self.size, self.layers = tuple(gbuffer.size), gbuffer.layers
         self._set_eyes(self.builder.program)
-        self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2(),
+        self.builder.build(self.ctx, gbuffer, self.renderer.gpu_scene, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2(),
                            gamma_adapt=gamma_adapt)
         self.ctx.finish()
 
@@ -249,7 +251,7 @@ class QuadtreeTracer:
 
         def build() -> None:
             self._set_eyes(self.builder.program)
-            self.builder.build(self.ctx, gbuffer, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2(),
+            self.builder.build(self.ctx, gbuffer, self.renderer.gpu_scene, self.nodes, gamma_norm, gamma_dist, layer2=self._layer2(),
                                gamma_adapt=gamma_adapt)
 
         self.build(rig, "both" if gbuffer.layers == 2 else "left", gamma_norm, gamma_dist, gamma_adapt)

@@ -2,8 +2,10 @@
 // The second depth layer (passes/second_layer.py): per pixel, the nearest surface behind the
 // G-buffer's along the pixel's camera ray. SECOND_LAYER_PEEL 0: the ray continued through the BVH
 // past the first hit; 1: the triangle the peel raster (gbuffer/peel.frag) left. Either way the
-// layer is the ray's exact crossing of that triangle's plane: layer2 = (world shading normal
-// facing the eye, view depth), layer2_triangle = its ID; (0, NO_HIT) where there is none.
+// layer is the ray's exact crossing of that triangle's plane: layer2 = (the triangle's unit
+// geometric normal facing the eye, view depth), layer2_triangle = its ID; (0, NO_HIT) where there
+// is none. The normal is for the quadtree's leaf plane (ssrt/quadtree_build.comp), its only
+// reader: the triangle's own plane, as for the first layer (shading reads the triangle ID).
 #ifndef SECOND_LAYER_PEEL
 #define SECOND_LAYER_PEEL 0
 #endif
@@ -55,11 +57,7 @@ void main() {
         float den = dot(d, ng);
         float t = dot(tv.p[0] - o, ng) / den;
         if (abs(den) > 1e-7 * length(ng) * length(d) && t * along > depth1) {
-            vec3 q = o + t * d - tv.p[0];
-            vec2 b = vec2(dot(cross(q, e2), ng), dot(cross(e1, q), ng)) / dot(ng, ng);
-            vec3 w = max(vec3(1.0 - b.x - b.y, b), 0.0);
-            vec3 ni = (w.x * tv.n[0] + w.y * tv.n[1] + w.z * tv.n[2]) / (w.x + w.y + w.z);
-            layer = vec4(two_sided_normal(ni, ng, d), t * along);  // as triangle_surface.glsl turns it
+            layer = vec4(normalize(den > 0.0 ? -ng : ng), t * along);  // facing the eye
         } else {
             tri = NO_HIT;  // seen edge-on: no plane to trace
         }

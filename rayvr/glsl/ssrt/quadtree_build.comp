@@ -3,9 +3,11 @@
 // level, leaves first; z = layer). Node format and the rules: rayvr/accel/quadtree.py, whose
 // build_reference this mirrors.
 //   level 0: each pixel's plane in S from the G-buffer: z0 = near / view depth (position.w), slopes
-//            from the shading normal (exact for the pixel's planar surface; no finite differences);
-//            tree layers past the eyes (qt_eyes) are the second depth layer's (passes/second_layer.py:
-//            layer2 = world normal facing the eye, view depth);
+//            from the geometric normal of the pixel's triangle (gb_triangle, the scene's vertices):
+//            the triangle's own plane, exactly (no finite differences; the shading normal, smoothed
+//            across faces, tilted neighbouring planes of one face apart, issue 20); tree layers
+//            past the eyes (qt_eyes) are the second depth layer's (passes/second_layer.py:
+//            layer2 = its triangle's geometric normal facing the eye, view depth);
 //            background pixels are the AABB [0, 0]; the discontinuity flag from the 4 neighbours.
 //   level k: from the (up to 2 x 2) children at level k - 1: a proxy plane when all are planes and
 //            it passes gamma_norm / gamma_dist (gamma_dist = 0: never), else their AABB.
@@ -18,9 +20,10 @@ layout(local_size_x = LOCAL, local_size_y = LOCAL) in;
 #define QT_NODES_ACCESS
 #include "quadtree.glsl"
 #include "../common/gbuffer.glsl"
+#include "../common/scene.glsl"
 
 #if QT_DEPTH_LAYERS > 1
-layout(binding = UNIT_LAYER2) uniform sampler2DArray layer2;  // xyz world normal facing the eye, w view depth
+layout(binding = UNIT_LAYER2) uniform sampler2DArray layer2;  // xyz geometric normal facing the eye, w view depth
 #endif
 
 #define DISCONTINUITY 0.01     // rayvr/accel/quadtree.py DISCONTINUITY
@@ -41,6 +44,15 @@ vec2 tangent_at(int eye, vec2 p) {
     return eye_tangents[eye].xz + p / pixels_per_tangent(eye);
 }
 
+// Geometric normal (v1 - v0) x (v2 - v0) of triangle `tri` (zero for NO_HIT): accel/quadtree.py
+// geometric_normals.
+vec3 geometric_normal(uint tri) {
+    if (tri == NO_HIT)
+        return vec3(0.0);
+    TriangleVerts tv = scene_triangle(tri);
+    return cross(tv.p[1] - tv.p[0], tv.p[2] - tv.p[0]);
+}
+
 // The pixel's plane in tree layer p.z: false for background. z0 at the pixel centre, slopes
 // relative to z0.
 bool leaf_plane(ivec3 p, out float z0, out vec2 s) {
@@ -53,16 +65,19 @@ bool leaf_plane(ivec3 p, out float z0, out vec2 s) {
     bool second = p.z >= qt_eyes;
     vec4 l2 = second ? texelFetch(layer2, e, 0) : vec4(0.0);
     float depth = second ? l2.w : texelFetch(gb_position, e, 0).w;
-    vec3 nw = second ? l2.xyz : texelFetch(gb_normal, e, 0).xyz;
+    vec3 nw = second ? l2.xyz : geometric_normal(texelFetch(gb_triangle, e, 0).x);
 #else
     float depth = texelFetch(gb_position, e, 0).w;
-    vec3 nw = texelFetch(gb_normal, e, 0).xyz;
+    vec3 nw = geometric_normal(texelFetch(gb_triangle, e, 0).x);
 #endif
     if (!(depth > 0.0))
         return false;
     vec3 nv = transpose(eye_rotation[eye]) * (nw * inversesqrt(max(dot(nw, nw), 1e-30)));
     vec2 t = tangent_at(eye, vec2(p.xy) + 0.5);
-    float den = min(dot(nv, vec3(t, -1.0)), -GRAZING * length(vec3(t, 1.0)));
+    // The slopes are the same for nv and -nv but for the grazing clamp, which wants nv facing the eye.
+    float facing = dot(nv, vec3(t, -1.0));
+    nv = facing > 0.0 ? -nv : nv;
+    float den = min(-abs(facing), -GRAZING * length(vec3(t, 1.0)));
     z0 = eye_depth.x / depth;
     s = nv.xy / den / pixels_per_tangent(eye);
     return true;
