@@ -610,22 +610,8 @@ def _cell(ray: ScreenRay, ua, ub, z0, sx, sy, xc, yc, thickness, cont):
     return None, uf
 
 
-def _leaf_span(ray: ScreenRay, ua, ub, sx, sy, xc, yc, support):
-    """The part of [ua, ub] where a leaf's plane lies within `support` relative z of its sample
-    (|sx (x - xc) + sy (y - yc)| <= support, linear in u), or None: glsl qt_leaf_span. A leaf at a
-    depth discontinuity is a surface only there (its plane is the tangent plane at one sample)."""
-    p = ray.s0 + ua * ray.sd
-    f0, f1 = sx * (p[0] - xc) + sy * (p[1] - yc), sx * ray.sd[0] + sy * ray.sd[1]
-    if f1 == 0:
-        return (ua, ub) if abs(f0) <= support else None
-    a, b = sorted(((-support - f0) / f1, (support - f0) / f1))
-    lo, hi = max(ua, ua + a), min(ub, ua + b)
-    return (lo, hi) if lo <= hi else None
-
-
 def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float, thickness: float = np.inf,
-          cont: bool = False, max_nodes: int | None = None, start_level: int = MAX_LEVELS,
-          support: float = np.inf) -> _Walk:
+          cont: bool = False, max_nodes: int | None = None, start_level: int = MAX_LEVELS) -> _Walk:
     """The stackless traversal of §4 over [u_from, u_to] of one layer's tree, step for step as
     glsl/ssrt/quadtree.glsl qt_walk does it: test the node (AABB: does the ray dip below zmax
     inside it; plane: its slab events, _cell); an AABB hit descends into the child holding the
@@ -636,10 +622,8 @@ def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float,
     zmin (1 - thickness) is then one occlusion, not descended. A merged plane (level > 0) the ray
     enters already behind is descended like an AABB: a proxy lies up to gamma_dist off its leaves,
     so a ray starting on the surface (a mirror ray) may start behind it; taking that as a hit made
-    the mirror see itself. Only crossings of a proxy are hits on it. A leaf at a depth
-    discontinuity (flagged) is a surface only within `support` relative z of its sample
-    (_leaf_span). The walk starts on `start_level` (capped at the root's) in the node holding
-    p(u_from)."""
+    the mirror see itself. Only crossings of a proxy are hits on it. The walk starts on `start_level`
+    (capped at the root's) in the node holding p(u_from)."""
     W, H = cam.size
     top = len(levels) - 1
     u = u_from
@@ -670,11 +654,7 @@ def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float,
                 go_down = True   # entered behind a proxy: its error, or a surface? its leaves decide
             elif n.plane:
                 c = ((x0 + x1) / 2, (y0 + y1) / 2)
-                span = (u, ub)
-                if k == 0 and n.flag and support < np.inf:
-                    span = _leaf_span(ray, u, ub, float(n.sx), float(n.sy), *c, support)
-                uh, uo = _cell(ray, *span, float(n.z0), float(n.sx), float(n.sy), *c, thickness, cont) \
-                    if span else (None, None)
+                uh, uo = _cell(ray, u, ub, float(n.z0), float(n.sx), float(n.sy), *c, thickness, cont)
                 if uo is not None:
                     u_occ = min(u_occ, uo)
                     if not cont:
@@ -752,8 +732,7 @@ def _before(cam: ScreenCamera, ray: ScreenRay, u: float) -> tuple:
     return (min(max(int(np.floor(p[0])), 0), W - 1), min(max(int(np.floor(p[1])), 0), H - 1))
 
 
-def trace_layers(layer_levels, cam: ScreenCamera, origin, direction, thickness: float = np.inf,
-                 support: float = np.inf) -> LayeredTrace:
+def trace_layers(layer_levels, cam: ScreenCamera, origin, direction, thickness: float = np.inf) -> LayeredTrace:
     """The occlusion-aware trace of §4.1 through one or two depth layers' trees, as
     glsl/ssrt/quadtree.glsl qt_trace_layers does it. A surface is a slab of relative
     `thickness` behind each layer's planes. One layer: the first point behind the surface; deeper
@@ -761,16 +740,15 @@ def trace_layers(layer_levels, cam: ScreenCamera, origin, direction, thickness: 
     is walked to its first slab hit, noting where the ray first went deeper than a slab; from
     there to that hit the second layer decides: its first point behind a surface is a hit (in its
     slab) or OCCLUDED (deeper: behind both layers, unknown); else the first layer's answer holds.
-    Where the second layer is empty the space behind the first is known to be empty. `support`:
-    how far a leaf at a depth discontinuity reaches from its sample (_leaf_span)."""
+    Where the second layer is empty the space behind the first is known to be empty."""
     ray = screen_ray(cam, origin, direction)
     if ray.u_lo > ray.u_hi:
         return LayeredTrace(ray.end, -1, (-1, -1), ray.s0, 0)
     two = len(layer_levels) > 1
-    w = _walk(layer_levels[0], cam, ray, ray.u_lo, ray.u_hi, thickness, cont=two, support=support)
+    w = _walk(layer_levels[0], cam, ray, ray.u_lo, ray.u_hi, thickness, cont=two)
     nodes, layer, u_hit, pixel, u_occ, capped = w.nodes, 0, w.u_hit, w.pixel, w.u_occ, w.capped
     if two and u_occ < u_hit and not capped:
-        w2 = _walk(layer_levels[1], cam, ray, u_occ, min(u_hit, ray.u_hi), thickness, support=support)
+        w2 = _walk(layer_levels[1], cam, ray, u_occ, min(u_hit, ray.u_hi), thickness)
         nodes += w2.nodes
         if w2.u_hit < np.inf or w2.u_occ < np.inf or w2.capped:
             layer, u_hit, pixel, u_occ, capped = 1, w2.u_hit, w2.pixel, w2.u_occ, w2.capped
@@ -784,12 +762,11 @@ def trace_layers(layer_levels, cam: ScreenCamera, origin, direction, thickness: 
 
 
 def trace_layers_brute_force(layer_leaves, cam: ScreenCamera, origin, direction,
-                             thickness: float = np.inf, support: float = np.inf) -> LayeredTrace:
+                             thickness: float = np.inf) -> LayeredTrace:
     """The multi-layer height field by brute force: every pixel cell the ray crosses, in order;
     in each, every layer's plane: the first point in any layer's slab is a hit; the first point
     deeper than the slab of the last layer given (where that layer has a surface) is OCCLUDED;
-    whichever comes first (the hit on a tie); a flagged leaf only within `support` of its sample
-    (_leaf_span). `layer_leaves`: level-0 nodes per layer."""
+    whichever comes first (the hit on a tie). `layer_leaves`: level-0 nodes per layer."""
     ray = screen_ray(cam, origin, direction)
     if ray.u_lo > ray.u_hi:
         return LayeredTrace(ray.end, -1, (-1, -1), ray.s0, 0)
@@ -802,12 +779,7 @@ def trace_layers_brute_force(layer_leaves, cam: ScreenCamera, origin, direction,
         for li, nd in enumerate(nds):
             if not nd.plane[y, x]:
                 continue
-            span = (ua, ub)
-            if nd.flag[y, x] and support < np.inf:
-                span = _leaf_span(ray, ua, ub, nd.sx[y, x], nd.sy[y, x], x + 0.5, y + 0.5, support)
-                if span is None:
-                    continue
-            uh, uo = _cell(ray, *span, nd.z0[y, x], nd.sx[y, x], nd.sy[y, x], x + 0.5, y + 0.5, thickness, True)
+            uh, uo = _cell(ray, ua, ub, nd.z0[y, x], nd.sx[y, x], nd.sy[y, x], x + 0.5, y + 0.5, thickness, True)
             if uh is not None:
                 events.append((uh, 0, li))
             if uo is not None and li == last:

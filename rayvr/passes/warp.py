@@ -23,9 +23,6 @@ from .compute import TILE, camera_defines
 from .quadtree import set_tree_uniforms
 
 THICKNESS = 0.02  # each surface of the central view is a slab this deep (relative z); behind it: occluded
-# A leaf at a depth discontinuity is a surface only this close (relative z) to its sample
-# (glsl/ssrt/quadtree.glsl qt_leaf_span): its plane is the tangent plane at that one point.
-SUPPORT = 0.02
 # Per eye, in glsl/stereo/warp.comp's order: holes (passed behind every layer, left the image), hits
 # on the first and the second depth layer, background, nodes tested.
 COUNTS = ("disoccluded", "offscreen", "hits", "hits_second_layer", "background", "nodes")
@@ -57,9 +54,8 @@ def read_holes(fc) -> np.ndarray:
 class WarpPass(Pass):
     name = "warp"
 
-    def __init__(self, thickness: float = THICKNESS, support: float = SUPPORT):
+    def __init__(self, thickness: float = THICKNESS):
         self.thickness = thickness
-        self.support = support
 
     def why(self, plan: FramePlan) -> str | None:
         return "stereo = warp" if plan.stereo == "warp" else None
@@ -83,7 +79,6 @@ class WarpPass(Pass):
         center = fc.eyes[0]
         set_tree_uniforms(p, fc.gbuffer.size, 1)
         p["warp_thickness"].value = self.thickness
-        p["qt_leaf_support"].value = self.support
         fc.gbuffer.bind_for_reading()
         fc.gpu_scene.bind()  # the hit pixels' triangles give the depth
         if self.layers > 1:  # second-layer hits are shaded from the scene (the raster rung)

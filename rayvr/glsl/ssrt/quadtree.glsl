@@ -46,7 +46,6 @@ uniform int qt_top;                     // the root's level (1 x 1)
 uniform uint qt_layer_nodes;            // nodes per layer
 uniform int qt_eyes = 1;                // eye layers per depth layer (tree layer = depth layer x eyes + eye)
 uniform int qt_start = QT_MAX_LEVELS;   // level the walk starts on (capped at the root's): the node holding the ray's start
-uniform float qt_leaf_support = QT_INF; // how far (relative z) a leaf at a discontinuity reaches from its sample (qt_leaf_span)
 
 uint qt_index(int eye, int k, ivec2 q) {
     return uint(eye) * qt_layer_nodes + uint(qt_level[k].z + q.y * qt_level[k].x + q.x);
@@ -127,21 +126,6 @@ vec2 qt_cell(QtRay r, float ua, float ub, QtNode n, vec2 c, float thickness, boo
     return vec2(hb <= 0.0 && ha > 0.0 ? uf + (ub - uf) * ha / (ha - hb) : -1.0, uf);
 }
 
-// The part of [ua, ub] where leaf plane `n` (rectangle centre c) lies within `support` relative z
-// of its sample z0: |sx (x - cx) + sy (y - cy)| <= support, linear in u (empty: x > y). A leaf's
-// plane is the tangent plane at its one sample; where a 4-neighbour does not continue it (the
-// flag), nothing supports it away from the sample, and a face seen edge-on at a silhouette has a
-// plane that sweeps the whole pixel through depth, towards the camera: a stereo warp ray crossing
-// it in front of the object took it for a hit and drew a bar of the object's colour.
-vec2 qt_leaf_span(QtRay r, float ua, float ub, QtNode n, vec2 c, float support) {
-    vec3 pa = r.s0 + ua * r.sd;
-    float f0 = n.sx * (pa.x - c.x) + n.sy * (pa.y - c.y), f1 = n.sx * r.sd.x + n.sy * r.sd.y;
-    if (f1 == 0.0)
-        return abs(f0) <= support ? vec2(ua, ub) : vec2(ub, ua - 1.0);
-    float a = (-support - f0) / f1, b = (support - f0) / f1;
-    return vec2(max(ua, ua + min(a, b)), min(ub, ua + max(a, b)));
-}
-
 // What one layer's walk found in [u_from, u_to]: the first surface hit (u_hit, pixel; u_hit =
 // QT_INF if none), the first point deeper than a slab (u_occ, QT_INF if none), nodes tested,
 // whether the node cap ended it.
@@ -182,10 +166,7 @@ QtWalk qt_walk(int layer, QtRay r, float u_from, float u_to, float thickness, bo
             if (n.plane && k > 0 && pu.z - n.z0 * (1.0 + n.sx * (pu.x - c.x) + n.sy * (pu.y - c.y)) < 0.0) {
                 down = true;  // entered behind a proxy: its error, or a surface? its leaves decide
             } else if (n.plane) {
-                // A leaf at a discontinuity is a surface only near its sample (qt_leaf_span).
-                vec2 span = k == 0 && n.flag && qt_leaf_support < QT_INF ? qt_leaf_span(r, u, ub, n, c, qt_leaf_support)
-                                                                          : vec2(u, ub);
-                vec2 e = span.x <= span.y ? qt_cell(r, span.x, span.y, n, c, thickness, cont) : vec2(-1.0);
+                vec2 e = qt_cell(r, u, ub, n, c, thickness, cont);
                 if (e.y >= 0.0) {
                     w.u_occ = min(w.u_occ, e.y);
                     if (!cont)
