@@ -796,3 +796,28 @@ def test_mirror_rays_never_hit_their_own_merged_plane(gl, analytic, gammas):
                 abs(a.point[2] - b.point[2]) <= 2 * bound * a.point[2] + 1e-6
         agree += ok
     assert agree >= 0.97 * len(o), f"{agree}/{len(o)}"
+
+
+def test_mirror_rays_started_on_their_surface_never_hit_its_own_leaf(analytic):
+    """Mirror rays started exactly on the tilted plane (the G-buffer's point, no offset) or a hair
+    behind it (2e-7 of the view depth, float rounding's size) cannot meet that plane (analytic):
+    none may hit, on the lossless tree, GPU, numpy walk and brute force alike. The leaves are the
+    exact planes, so rounding (or the half-float slopes) puts such an origin behind its own pixel's
+    leaf about half the time, and that was a hit there: the mirror saw itself. The leaf of the
+    origin's pixel is no surface to a ray that starts on it (accel/quadtree.py _starts_on)."""
+    rng = np.random.default_rng(8)
+    L = analytic["tilted_plane"]
+    o, d, idx = mirror_rays(L, 0, 120, rng)
+    pos = L.position[0].reshape(-1, 4).astype(np.float64)[idx]
+    nor = L.normal[0].reshape(-1, 4)[idx, :3].astype(np.float64)
+    nor /= np.linalg.norm(nor, axis=1, keepdims=True)
+    tr = L.tracer(**LOSSLESS)
+    levels = tr.levels(0)
+    for lift in (0.0, -2e-7):
+        o = pos[:, :3] + nor * lift * pos[:, 3:4]
+        gpu = gpu_traces(tr, o, d, 0)
+        walk = [qt.trace_quadtree_reference(levels, L.cams[0], o[i], d[i]) for i in range(len(o))]
+        brute = [qt.trace_heightfield_reference(levels[0], L.cams[0], o[i], d[i]) for i in range(len(o))]
+        for name, traces in (("gpu", gpu), ("walk", walk), ("brute force", brute)):
+            hits = [t.pixel for t in traces if t.status == qt.HIT]
+            assert not hits, (lift, name, len(hits), hits[:5])

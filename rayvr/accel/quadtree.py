@@ -65,6 +65,7 @@ MAX_LEVELS = 16            # QT_MAX_LEVELS: images up to 32768 pixels a side
 DISCONTINUITY = 0.01       # relative z jump at a shared edge that flags a depth discontinuity
 GRAZING = 1e-4             # |n . v| / |v| floor for a leaf: slopes stay finite for edge-on normals
 AABB_MARGIN = 2.0 ** -20   # relative widening of AABB bounds over the children's exact ranges
+ON_LEAF = 2.0 ** -18       # relative z within which a ray's origin lies on its own pixel's leaf (float rounding), _starts_on
 HALF_MAX = 65504.0
 
 
@@ -443,13 +444,15 @@ def unflatten(flat: np.ndarray, size) -> list[np.ndarray]:
 class ScreenRay(NamedTuple):
     """A ray in S: p(u) = s0 + u sd, u in pixels along the screen (|sd.xy| = 1) except when the
     ray is a point on screen (then |sd.xy| = 0 and u in [0, 1]); [u_lo, u_hi] is the part on
-    screen and in front of the near plane; `end` is the status of a ray that hits nothing there."""
+    screen and in front of the near plane; `end` is the status of a ray that hits nothing there;
+    `moved`: s0 is where the ray crosses the near plane, not its origin."""
 
     s0: np.ndarray
     sd: np.ndarray
     u_lo: float
     u_hi: float
     end: int
+    moved: bool = False
 
 
 def screen_ray(cam: ScreenCamera, origin, direction) -> ScreenRay:
@@ -493,8 +496,21 @@ def screen_ray(cam: ScreenCamera, origin, direction) -> ScreenRay:
         elif not 0 <= c <= extent:
             lo, hi = 0.0, -1.0
     if lo > hi:
-        return ScreenRay(s0, sd, lo, hi, OFFSCREEN)
-    return ScreenRay(s0, sd, lo, hi, end if hi >= u_max else OFFSCREEN)
+        return ScreenRay(s0, sd, lo, hi, OFFSCREEN, s > 0)
+    return ScreenRay(s0, sd, lo, hi, end if hi >= u_max else OFFSCREEN, s > 0)
+
+
+def _origin_cell(ray: ScreenRay, size):
+    """The pixel holding the ray's origin (on a pixel edge: the one the ray goes into), or None
+    when the origin is off screen or before the near plane (glsl qt_origin_cell)."""
+    if ray.moved or ray.u_lo != 0 or ray.u_lo > ray.u_hi:
+        return None
+    cell = []
+    for c, dc, extent in ((ray.s0[0], ray.sd[0], size[0]), (ray.s0[1], ray.sd[1], size[1])):
+        i = int(np.floor(c))
+        i -= 1 if (i == c and dc < 0) else 0
+        cell.append(min(max(i, 0), extent - 1))
+    return tuple(cell)
 
 
 class Trace(NamedTuple):
@@ -521,15 +537,17 @@ def _plane_interval(ray: ScreenRay, ua, ub, z0, sx, sy, xc, yc):
 def trace_heightfield_reference(leaves: np.ndarray, cam: ScreenCamera, origin, direction) -> Trace:
     """Brute force: every pixel cell the ray's screen segment crosses, in order (all its
     crossings of the pixel grid lines, sorted), each tested against that pixel's leaf plane; the
-    first hit wins. `leaves`: level-0 nodes (H, W, 2) (encoded: the tree's own planes)."""
+    first hit wins; the leaf of the origin's pixel is none to a ray that starts on it (_starts_on).
+    `leaves`: level-0 nodes (H, W, 2) (encoded: the tree's own planes)."""
     ray = screen_ray(cam, origin, direction)
     if ray.u_lo > ray.u_hi:
         return Trace(ray.end, (-1, -1), ray.s0, 0)
     nd = decode(leaves)
     tested = 0
+    own = _origin_cell(ray, cam.size)
     for ua, ub, x, y in _cells(ray, cam.size):
         tested += 1
-        if not nd.plane[y, x]:
+        if not nd.plane[y, x] or ((x, y) == own and _starts_on(ray, nd.z0[y, x], nd.sx[y, x], nd.sy[y, x], x + 0.5, y + 0.5)):
             continue
         u = _plane_interval(ray, ua, ub, nd.z0[y, x], nd.sx[y, x], nd.sy[y, x], x + 0.5, y + 0.5)
         if u is not None:
@@ -581,6 +599,16 @@ def _deep(ray: ScreenRay, u, z0, sx, sy, xc, yc, thickness) -> bool:
     return bool((zs - p[2]) > thickness * zs)
 
 
+def _starts_on(ray: ScreenRay, z0, sx, sy, xc, yc) -> bool:
+    """Does the ray's origin s0 lie on the leaf plane, within what the leaf is sure to: its
+    half-float slopes' 2^-11 of the z change across the pixel, and ON_LEAF of float rounding?
+    (glsl qt_starts_on). A ray starting on the leaf of its origin's pixel starts on that surface
+    (a mirror ray off it): that leaf is no surface for it; where rounding or the slopes put the
+    origin behind the plane, or let the ray dip behind it, the mirror saw itself."""
+    zs = z0 * (1 + sx * (ray.s0[0] - xc) + sy * (ray.s0[1] - yc))
+    return bool(abs(ray.s0[2] - zs) <= (ON_LEAF + 2.0 ** -11 * 0.5 * (abs(sx) + abs(sy))) * zs)
+
+
 def _behind(ray: ScreenRay, u, z0, sx, sy, xc, yc) -> bool:
     """Is p(u) behind the plane (z_ray < z_plane)?"""
     p = ray.s0 + u * ray.sd
@@ -622,7 +650,8 @@ def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float,
     zmin (1 - thickness) is then one occlusion, not descended. A merged plane (level > 0) the ray
     enters already behind is descended like an AABB: a proxy lies up to gamma_dist off its leaves,
     so a ray starting on the surface (a mirror ray) may start behind it; taking that as a hit made
-    the mirror see itself. Only crossings of a proxy are hits on it. The walk starts on `start_level`
+    the mirror see itself. Only crossings of a proxy are hits on it. Likewise the leaf of the
+    origin's pixel is none to a ray that starts on it (_starts_on). The walk starts on `start_level`
     (capped at the root's) in the node holding p(u_from)."""
     W, H = cam.size
     top = len(levels) - 1
@@ -638,6 +667,7 @@ def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float,
     sx_dir, sy_dir = ray.sd[0], ray.sd[1]
     nodes = 0
     u_occ = np.inf
+    own = _origin_cell(ray, cam.size)
     limit = max_nodes or 16 * (W + H) + 64
     while nodes < limit:
         nodes += 1
@@ -652,6 +682,9 @@ def _walk(levels, cam: ScreenCamera, ray: ScreenRay, u_from: float, u_to: float,
         if ub > u:
             if n.plane and k > 0 and _behind(ray, u, float(n.z0), float(n.sx), float(n.sy), (x0 + x1) / 2, (y0 + y1) / 2):
                 go_down = True   # entered behind a proxy: its error, or a surface? its leaves decide
+            elif n.plane and k == 0 and (qx, qy) == own and _starts_on(ray, float(n.z0), float(n.sx), float(n.sy),
+                                                                    x0 + 0.5, y0 + 0.5):
+                pass             # the surface the ray starts on: no hit
             elif n.plane:
                 c = ((x0 + x1) / 2, (y0 + y1) / 2)
                 uh, uo = _cell(ray, u, ub, float(n.z0), float(n.sx), float(n.sy), *c, thickness, cont)
@@ -766,18 +799,22 @@ def trace_layers_brute_force(layer_leaves, cam: ScreenCamera, origin, direction,
     """The multi-layer height field by brute force: every pixel cell the ray crosses, in order;
     in each, every layer's plane: the first point in any layer's slab is a hit; the first point
     deeper than the slab of the last layer given (where that layer has a surface) is OCCLUDED;
-    whichever comes first (the hit on a tie). `layer_leaves`: level-0 nodes per layer."""
+    whichever comes first (the hit on a tie); the leaf of the origin's pixel is none to a ray that
+    starts on it (_starts_on). `layer_leaves`: level-0 nodes per layer."""
     ray = screen_ray(cam, origin, direction)
     if ray.u_lo > ray.u_hi:
         return LayeredTrace(ray.end, -1, (-1, -1), ray.s0, 0)
     nds = [decode(lv) for lv in layer_leaves]
     last = len(nds) - 1
     tested = 0
+    own = _origin_cell(ray, cam.size)
     for ua, ub, x, y in _cells(ray, cam.size):
         tested += 1
         events = []
         for li, nd in enumerate(nds):
             if not nd.plane[y, x]:
+                continue
+            if (x, y) == own and _starts_on(ray, nd.z0[y, x], nd.sx[y, x], nd.sy[y, x], x + 0.5, y + 0.5):
                 continue
             uh, uo = _cell(ray, ua, ub, nd.z0[y, x], nd.sx[y, x], nd.sy[y, x], x + 0.5, y + 0.5, thickness, True)
             if uh is not None:

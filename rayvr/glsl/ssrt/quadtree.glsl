@@ -34,6 +34,7 @@
 #define QT_PLANE_BIT 0x80000000u
 #define QT_FLAG_BIT 1u
 #define QT_HALF_MAX 65504.0
+#define QT_ON_LEAF 3.814697265625e-06  // 2^-18: rayvr/accel/quadtree.py ON_LEAF
 #define QT_INF SSRT_INF
 
 #ifndef QT_NODES_ACCESS
@@ -126,6 +127,23 @@ vec2 qt_cell(QtRay r, float ua, float ub, QtNode n, vec2 c, float thickness, boo
     return vec2(hb <= 0.0 && ha > 0.0 ? uf + (ub - uf) * ha / (ha - hb) : -1.0, uf);
 }
 
+// The pixel holding the ray's origin (on a pixel edge: the one the ray goes into), or (-1, -1)
+// when the origin is off screen or before the near plane (rayvr/accel/quadtree.py _origin_cell).
+ivec2 qt_origin_cell(QtRay r) {
+    if (r.moved || r.u_lo != 0.0 || r.u_lo > r.u_hi)
+        return ivec2(-1);
+    ivec2 cell = ivec2(floor(r.s0.xy));
+    cell -= ivec2(float(cell.x) == r.s0.x && r.sd.x < 0.0 ? 1 : 0, float(cell.y) == r.s0.y && r.sd.y < 0.0 ? 1 : 0);
+    return clamp(cell, ivec2(0), qt_level[0].xy - 1);
+}
+
+// Does the ray's origin lie on leaf plane `n` (centre c), within its half-float slopes' 2^-11 of
+// the z change across the pixel and QT_ON_LEAF of rounding (rayvr/accel/quadtree.py _starts_on)?
+bool qt_starts_on(QtRay r, QtNode n, vec2 c) {
+    float zs = n.z0 * (1.0 + n.sx * (r.s0.x - c.x) + n.sy * (r.s0.y - c.y));
+    return abs(r.s0.z - zs) <= (QT_ON_LEAF + 0.00048828125 * 0.5 * (abs(n.sx) + abs(n.sy))) * zs;
+}
+
 // What one layer's walk found in [u_from, u_to]: the first surface hit (u_hit, pixel; u_hit =
 // QT_INF if none), the first point deeper than a slab (u_occ, QT_INF if none), nodes tested,
 // whether the node cap ended it.
@@ -138,7 +156,9 @@ struct QtWalk { float u_hit; ivec2 pixel; float u_occ; uint nodes; bool capped; 
 // (`cont`) at the first surface hit only, noting the first occlusion; an AABB the ray crosses
 // wholly below zmin (1 - thickness) is then one occlusion, not descended. A merged plane (k > 0)
 // the ray enters already behind is descended too: a mirror ray starting on the surface may start
-// behind its own pixel's proxy (up to gamma_dist off); only crossings of a proxy are hits.
+// behind its own pixel's proxy (up to gamma_dist off); only crossings of a proxy are hits. And the
+// leaf of the origin's pixel is none to a ray that starts on it (qt_starts_on: a mirror ray off
+// that surface, which rounding or the half-float slopes put behind it: the mirror saw itself).
 QtWalk qt_walk(int layer, QtRay r, float u_from, float u_to, float thickness, bool cont) {
     QtWalk w = QtWalk(QT_INF, ivec2(-1), QT_INF, 0u, false);
     ivec2 size = qt_level[0].xy;
@@ -151,6 +171,7 @@ QtWalk qt_walk(int layer, QtRay r, float u_from, float u_to, float thickness, bo
     cell -= ivec2(float(cell.x) == p0.x && r.sd.x < 0.0 ? 1 : 0, float(cell.y) == p0.y && r.sd.y < 0.0 ? 1 : 0);
     ivec2 q = min(clamp(cell, ivec2(0), size - 1) >> k, qt_level[k].xy - 1);
     uint limit = uint(16 * (size.x + size.y) + 64);
+    ivec2 own = qt_origin_cell(r);
     while (w.nodes < limit) {
         w.nodes++;
         vec4 rect = qt_rect(k, q);
@@ -165,6 +186,8 @@ QtWalk qt_walk(int layer, QtRay r, float u_from, float u_to, float thickness, bo
             vec3 pu = r.s0 + u * r.sd;
             if (n.plane && k > 0 && pu.z - n.z0 * (1.0 + n.sx * (pu.x - c.x) + n.sy * (pu.y - c.y)) < 0.0) {
                 down = true;  // entered behind a proxy: its error, or a surface? its leaves decide
+            } else if (n.plane && k == 0 && q == own && qt_starts_on(r, n, c)) {
+                // the surface the ray starts on: no hit
             } else if (n.plane) {
                 vec2 e = qt_cell(r, u, ub, n, c, thickness, cont);
                 if (e.y >= 0.0) {
