@@ -39,7 +39,8 @@ planes is affine: its largest relative value is at a corner), so after m merges 
 lies within (1 - gamma_dist)^-m - 1 relative depth of the leaf planes.
 
 Height-field semantics (single layer): a ray hits where it first passes behind the surface
-(z_ray < z_surface) in a pixel with geometry. Statuses as in rayvr/accel/dda.py: HIT, OFFSCREEN
+(z_ray < z_surface) in a pixel with geometry; not on the leaf of its origin's pixel when it
+starts on that leaf (_starts_on: a mirror ray off that surface). Statuses as in rayvr/accel/dda.py: HIT, OFFSCREEN
 (left the image), NEAR (reached the near plane or lies wholly in front of it), NONE (reached
 infinity on screen without a hit).
 

@@ -1,16 +1,17 @@
 """`second_layer`: the second depth layer the screen-space tracers see behind the first (Widmer et
 al. 2015 §4.1; ssr `layers = 2`): per pixel, the nearest surface strictly behind the G-buffer's,
-as "layer2" (rgba32f: world shading normal facing the eye, view depth; 0 = none) and
-"layer2_triangle" (r32ui, NO_HIT = none). Two ways (FramePlan.second_layer, RenderSettings
-second_layer), which `rayvr bench ssrt` times against each other:
+as "layer2" (rgba32f: the triangle's geometric normal facing the eye, view depth; 0 = none; the
+quadtree's leaf planes, its only reader) and "layer2_triangle" (r32ui, NO_HIT = none). Two ways
+(FramePlan.second_layer, RenderSettings second_layer), which `rayvr bench ssrt` times against
+each other:
 
   rays  each pixel's camera ray continued through the BVH past its first hit (any triangle but
         the G-buffer's, further than its depth); glsl/gbuffer/second_layer.comp
   peel  depth peeling: the visibility raster again (gbuffer/peel.frag), fragments of the
         G-buffer's triangle or not behind its depth discarded, then the same compute resolve
 
-Both resolve the layer the same way: the pixel ray's exact crossing of the triangle's plane, the
-interpolated shading normal turned to the eye (as the G-buffer resolve does)."""
+Both resolve the layer the same way: the pixel ray's exact crossing of the triangle's plane and
+its geometric normal turned to the eye (shading reads layer2_triangle)."""
 from __future__ import annotations
 
 import ctypes
