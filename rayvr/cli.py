@@ -248,9 +248,9 @@ def _print_capture(args, summary, summary_path, scene_summary) -> None:
 
 
 def cmd_capture(args) -> int:
+    from .cameras import CAMERA_MODELS
     from .capture import CaptureJob, JobFolder, job_identity, run_capture, write_summary
     from .output import check_output_dir
-    from .passes.accumulate import TEMPORAL_CAMERA
     from .renderer import Renderer, RenderSettings
 
     if args.budget_ms is not None:
@@ -267,9 +267,9 @@ def cmd_capture(args) -> int:
         if args.temporal:
             raise ValueError("--temporal carries each frame's samples into the next, so its frames render in "
                              "order in one process; leave out --workers")
-    if args.temporal and args.camera_model != TEMPORAL_CAMERA:
-        raise ValueError(f"--temporal reprojects the last frame's samples through the planar {TEMPORAL_CAMERA} "
-                         f"projection, which the {args.camera_model} camera does not have: leave out --temporal")
+    if args.temporal and not CAMERA_MODELS[args.camera_model].rasterizable:
+        raise ValueError(f"--temporal reprojects the last frame's samples through the eyes' planar frusta, "
+                         f"which the {args.camera_model} camera does not have: leave out --temporal")
     check_output_dir(args.out)  # fail before any rendering work; the folder is made with the first file
     if args.quiet:
         from .accel.sbvh import set_progress_bars

@@ -24,7 +24,7 @@ from .accel.bvh import BUILDS
 from .accel.scene import SceneAccel
 from .accumulation import MAX_DENOISE_ITERATIONS, Accumulator, sample_seed
 from .camera import StereoRig
-from .cameras import Foveated, Pinhole, ThinLens
+from .cameras import CAMERA_MODELS, Pinhole
 from .cameras.sampling import check_count
 from .context import GLContext, GpuError, create_context
 from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameTooLarge, Sizing, check_fits,
@@ -131,11 +131,10 @@ class RenderSettings:
         """Whether ray-cast primaries of a `camera` model (its name) are tile-culled: tile_culling, or
         when None, where it measured faster on the H200 (bench/results/h200/2026-11-30/primary/
         after_rounds_tiles_packets, tile_culling_table5): with several sub-rays per sample (one cull
-        serves them all), except for the foveated model (sparse samples: 5.9 -> 8.9 ms) and thin-lens
-        DoF (lens rays widen the tiles' frusta: slower in the room at every focus)."""
+        serves them all), for the models that declare it (CameraModel.culls_tiles_by_default)."""
         if self.tile_culling is not None:
             return self.tile_culling
-        return self.msaa > 1 and camera not in (Foveated.name, ThinLens.name)
+        return self.msaa > 1 and CAMERA_MODELS[camera].culls_tiles_by_default
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:
@@ -390,7 +389,7 @@ class Renderer:
 
     def _plan_tiles(self, plan: FramePlan, size, layers: int) -> list:
         graph = self.graph.compile(plan)
-        tileable = plan.camera == "pinhole"  # a tile is an off-axis part of a planar frustum
+        tileable = CAMERA_MODELS[plan.camera].rasterizable  # a tile is an off-axis part of a planar frustum
         w, h = size
         host = w * h * layers * HOST_BYTES_PER_PIXEL
         ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")

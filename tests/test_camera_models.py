@@ -308,3 +308,32 @@ def test_camera_parameters_from_text():
         parse_camera_params("dof", ["focus=x"])
     with pytest.raises(ValueError, match="has no parameter 'focus'; allowed: mapping, fov_x"):
         get_camera_model("wide", focus=2)
+
+
+def test_the_frame_reads_camera_capabilities_from_the_model_not_its_name(monkeypatch):
+    """Planarity (the quadtree's screen-space tracing, render tiles, reprojection) and the tile
+    culling default are the model's declarations: a planar model under another name gets what the
+    pinhole gets, and a model that declines tile culling does not get it by default."""
+    from dataclasses import dataclass
+
+    from rayvr.cameras import CAMERA_MODELS, Pinhole
+    from rayvr.frame import FramePlan
+    from rayvr.passes.quadtree import QuadtreePass, QuadtreeVisitsPass
+    from rayvr.renderer import RenderSettings
+
+    @dataclass(frozen=True)
+    class PlanarCopy(Pinhole):  # as a model registered from outside rayvr would be
+        name = "planar_copy"
+
+    @dataclass(frozen=True)
+    class Untiled(Pinhole):
+        name = "untiled"
+        culls_tiles_by_default = False
+
+    for model in (PlanarCopy, Untiled):
+        monkeypatch.setitem(CAMERA_MODELS, model.name, model)
+    assert RenderSettings(msaa=4).culls_tiles("planar_copy") and not RenderSettings(msaa=4).culls_tiles("untiled")
+    for camera, planar in (("planar_copy", True), ("pinhole", True), ("wide", False), ("foveated", False)):
+        plan = FramePlan(effects=frozenset({"ssr"}), view="quadtree_visits", camera=camera)
+        assert (QuadtreePass().why(plan) is not None) == planar, camera
+        assert (QuadtreeVisitsPass().why(plan) is not None) == planar, camera

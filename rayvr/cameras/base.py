@@ -87,7 +87,13 @@ class CameraModel:
     HMD's lens per eye) are derived from EyeView.name inside the model."""
 
     name: ClassVar[str]
-    rasterizable: ClassVar[bool] = False  # only a planar pinhole can be rasterized
+    # Capabilities the frame reads from the model, never from its name:
+    # a planar frustum per eye, which a rasterizer samples, render tiles cut into off-axis parts,
+    # reprojection (--temporal, warp, reuse) maps between and screen-space rays are straight in
+    rasterizable: ClassVar[bool] = False
+    # the frame's tile frustum culling is on by default at several sub-rays per sample (where it
+    # measured faster on the H200: RenderSettings.culls_tiles)
+    culls_tiles_by_default: ClassVar[bool] = True
     glsl: ClassVar[str]  # the model's GLSL file, relative to rayvr/glsl/
     channels: ClassVar[int] = 1  # colour channel sets (a model may make it a property)
     sparse: ClassVar[bool] = False  # samples leave pixels between them, filled in for display (passes/sample_resolve.py)

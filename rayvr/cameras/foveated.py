@@ -57,6 +57,7 @@ def dither_rank(x, y) -> np.ndarray:
 class Foveated(Pinhole):
     name = "foveated"
     rasterizable = False
+    culls_tiles_by_default = False  # sparse samples: tile culling measured 5.9 -> 8.9 ms on the H200
     sparse = True
     glsl = "cameras/foveated.glsl"
     doc = "foveated samples: density falls off with eccentricity from the gaze (linear MAR), reconstructed"

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from .. import shaders
 from ..accumulation import HISTORY_CAP
+from ..cameras import CAMERA_MODELS
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gpu_layout import IMAGE
 from . import frame_colour
@@ -19,7 +20,6 @@ from .compute import dispatch_per_pixel
 
 ACCUM = Texture("rgba32f")  # float32: a mean over thousands of samples keeps its last bits
 NO_CAP = 3.0e38  # still camera: the exact running mean, however many samples
-TEMPORAL_CAMERA = "pinhole"  # the camera model whose history is reprojected: reprojection is planar
 
 
 class AccumulatePass(Pass):
@@ -48,7 +48,8 @@ class AccumulatePass(Pass):
 
     def execute(self, fc) -> None:
         state = fc.samples
-        temporal = bool(fc.settings.temporal) and fc.plan.camera == TEMPORAL_CAMERA
+        # the history is reprojected through the eyes' planar frusta
+        temporal = bool(fc.settings.temporal) and CAMERA_MODELS[fc.plan.camera].rasterizable
         p = self.programs[int(temporal)]
         # a moved camera this pass cannot reproject for starts over
         p["reset"].value = int(state is None or state.reset or (state.moved and not temporal))

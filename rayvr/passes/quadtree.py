@@ -18,6 +18,7 @@ import numpy as np
 from .. import shaders
 from ..accel.quadtree import (MAX_LEVELS, level_offsets, level_sizes, quadtree_bytes,
                               set_level_uniforms, unflatten, time_build_and_trace, trace_screen_rays)
+from ..cameras import CAMERA_MODELS
 from ..frame import Buffer, FramePlan, Pass, read, write
 from ..gpu_layout import SSBO, UNIT
 from .compute import camera_defines, set_eye_uniforms
@@ -99,7 +100,7 @@ class QuadtreePass(Pass):
         if plan.dof:
             users.append("depth of field")
         # Planes in S and straight rays need a planar projection: the pinhole's G-buffer only.
-        if not users or plan.camera != "pinhole":
+        if not users or not CAMERA_MODELS[plan.camera].rasterizable:
             return None
         return f"screen-space tracing ({', '.join(users)})"
 
@@ -129,7 +130,8 @@ class QuadtreeVisitsPass(Pass):
     name = "quadtree_visits"
 
     def why(self, plan: FramePlan) -> str | None:
-        return "view = quadtree_visits" if plan.view == "quadtree_visits" and plan.camera == "pinhole" else None
+        shown = plan.view == "quadtree_visits" and CAMERA_MODELS[plan.camera].rasterizable
+        return "view = quadtree_visits" if shown else None
 
     def io(self, plan: FramePlan) -> list:
         from .tonemap import LDR
