@@ -15,6 +15,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from . import glsl_constants
+from .glsl_constants import declare
+
 
 @dataclass(frozen=True)
 class Channel:
@@ -99,6 +102,9 @@ VERTEX_FLOATS = 8  # position xyz, normal xyz, uv (gpu_scene.interleaved_vertice
 # Least widening of a BVH box side (accel/bvh.py widen, the GPU refit): with the traversal's safe
 # inverse of a zero direction component (1 / 1e-20) it exceeds any distance in a scene.
 BVH_FACE_SLACK = 1e-12
+# Raster shading (glsl/common/lighting.glsl, numpy_shading.py): a rect light is NxN fixed points
+# (soft shadows without noise).
+RECT_LIGHT_GRID = declare("RECT_LIGHT_GRID", 4)
 
 
 def channel(name: str) -> Channel:
@@ -145,5 +151,6 @@ def glsl_header() -> str:
             f"#define TILE_W {TILE_PIXELS[0]}", f"#define TILE_H {TILE_PIXELS[1]}",
             f"#define BVH_FACE_SLACK {BVH_FACE_SLACK!r}"]
     out += _effect_lines()
+    out += glsl_constants.glsl_lines()  # those the owning modules declare
     out.append("#endif")
     return "\n".join(out) + "\n"

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .passes.accumulate import DEMODULATE_FLOOR
 from .passes.denoise import DEFAULTS, DenoiseParams
 
-DEMODULATE_FLOOR = 0.001
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 B3 = (3 / 8, 1 / 4, 1 / 16)  # the 5-tap B3 spline (1 4 6 4 1) / 16, by |offset|
 MIN_TEMPORAL_SAMPLES = 4  # from this many samples the variance comes from the moments

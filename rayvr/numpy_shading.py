@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from .accel.bvh import build_bvh, offset_ray, trace_reference
+from .gpu_layout import RECT_LIGHT_GRID
 
-RECT_LIGHT_GRID = 4          # raster: fixed NxN points per rect light (glsl/common/lighting.glsl)
 SHADOW_RAY_CHUNK = 1 << 16   # shadow rays per numpy traversal call (bounds memory)
 
 

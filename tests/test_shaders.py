@@ -2,6 +2,7 @@ import pytest
 
 from rayvr import shaders
 from rayvr.shaders import GLSL_DIR, ShaderError, load_source
+from test_glsl_constants import import_every_module
 
 
 def write(root, name, text):
@@ -49,7 +50,9 @@ def test_compile_error_names_the_included_file_and_line(gl, tmp_path):
 
 
 def test_every_shipped_shader_compiles(gl):
-    """Each compute shader and raster program under rayvr/glsl builds on this driver."""
+    """Each compute shader and raster program under rayvr/glsl builds on this driver (with the
+    constants every module declares in the header: the module that compiles a shader imports them)."""
+    import_every_module()
     for path in sorted(GLSL_DIR.rglob("*.comp")):  # the wavefront kernels take an effect's part
         shaders.compute(gl.ctx, str(path.relative_to(GLSL_DIR)), {"EFFECT_PATHS": "effects/shadows.glsl"}).release()
     for mode in (0, 1):

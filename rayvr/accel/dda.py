@@ -60,14 +60,14 @@ import moderngl
 import numpy as np
 
 from .. import shaders
+from ..glsl_constants import declare
 from ..gpu_layout import SSBO
 from ..timing import time_gpu
 from .gpu import WARMUP_S
-from .quadtree import dispatch_per_ray, pack_screen_rays
+from .quadtree import HIT, NEAR, NONE, OFFSCREEN, dispatch_per_ray, pack_screen_rays
 
-HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4  # DDA_HIT ... DDA_NONE in glsl/ssrt/dda.glsl
-EDGE = np.float32(1.0 / 256.0)  # DDA_EDGE: a column is tested if the segment reaches this far (px) into it
-BIAS = np.float32(1.0 / 256.0)  # DDA_BIAS: the pixel is picked this far (px) along the ray from the sample
+EDGE = declare("DDA_EDGE", np.float32(1.0 / 256.0))  # a column is tested if the segment reaches this far (px) into it
+BIAS = declare("DDA_BIAS", np.float32(1.0 / 256.0))  # the pixel is picked this far (px) along the ray from the sample
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
 
 f32 = np.float32

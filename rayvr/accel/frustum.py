@@ -22,11 +22,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..glsl_constants import declare
 from ..gpu_layout import TILE_PIXELS, TILE_RAYS
 from .bvh import Bvh, valid_rays
 
 TILE_SHAPE = TILE_PIXELS   # pixels of a tile: TILE_RAYS = 16 * 8
-MIN_COS = 0.1          # TILE_MIN_COS: cull only tiles whose directions lie within ~84 deg of the mean
+MIN_COS = declare("TILE_MIN_COS", 0.1)  # cull only tiles whose directions lie within ~84 deg of the mean
 
 
 def tile_order(width: int, height: int, layers: int = 1, tile: tuple[int, int] = TILE_SHAPE) -> np.ndarray:

@@ -17,20 +17,21 @@ import moderngl
 import numpy as np
 
 from .. import shaders
+from ..glsl_constants import declare
 from ..gpu_layout import BVH_LAYOUTS, SSBO, TILE_ENTRIES, TILE_RAYS
 from ..timing import time_gpu
 from .bvh import Bvh, BufferTooLargeError
 from .wide import WideBvh, build_wide, node_words, pack as pack_wide
 
 DEFAULT_BINDING = SSBO["bvh_nodes"]  # nodes here, triangles at +1 (gpu_layout.SSBO)
-STACK_SIZE = 64            # BVH_STACK_SIZE in glsl/accel/bvh.glsl (binary: >= the build's max_depth)
+STACK_SIZE = declare("BVH_BINARY_STACK_SIZE", 64)  # bvh.glsl's default BVH_STACK_SIZE (>= the build's max_depth)
 # A wide traversal keeps one (node << 8 | child mask) entry a level: its stack per width (checked
 # against the tree's depth, wide.group_stack_bound).
 WIDE_STACK_SIZES = {4: 32, 8: 32}
 WIDE_MAX_NODES = 1 << 24   # a stack entry holds the node index in 24 bits
-MISS = 0xFFFFFFFF
+MISS = declare("BVH_MISS", 0xFFFFFFFF, uint=True)
 MODES = {"closest": 0, "any": 1, "reflect": 2, "through": 3}
-_LOCAL_SIZE = 64
+_LOCAL_SIZE = declare("TRACE_RAYS_LOCAL", 64)  # glsl/accel/trace_rays.comp's local size
 TIMED_BATCHES = 5  # time_trace: median of this many timed batches of `repeats` dispatches
 WARMUP_S = 1.0   # time_trace dispatches at least this long, until times settle (0.2 s left the first kind of rays measured 3.6x slow in some runs)
 _MAX_GROUPS_X = 65535

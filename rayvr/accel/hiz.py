@@ -35,17 +35,17 @@ import moderngl
 import numpy as np
 
 from .. import shaders
+from ..glsl_constants import declare
 from ..gpu_layout import SSBO
-from .quadtree import (ScreenCamera, Trace, encode_aabbs, encode_planes, level_offsets, level_sizes,
-                       screen_ray, set_level_uniforms, time_build_and_trace, trace_screen_rays)
+from .quadtree import (HIT, INF, NEAR, NONE, OFFSCREEN, ScreenCamera, Trace, encode_aabbs, encode_planes,
+                       level_offsets, level_sizes, screen_ray, set_level_uniforms, time_build_and_trace,
+                       trace_screen_rays)
 
-HIT, OFFSCREEN, NEAR, NONE = 1, 2, 3, 4   # HIZ_HIT ... HIZ_NONE in glsl/ssrt/hiz.glsl (same as DDA_*, QT_*)
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
-EMPTY = np.float32(3.0e38)   # HIZ_EMPTY: zmin of a cell without geometry
-INF = 3.0e38                 # HIZ_INF
+EMPTY = declare("HIZ_EMPTY", np.float32(3.0e38))  # zmin of a cell without geometry (finite: EMPTY * 0 is 0, not NaN)
 START_LEVEL = 2              # default first level of the walk (any level gives the same result)
 MAX_ITERATIONS = 1024        # default cap on cells visited per ray
-LOCAL = 8                    # hiz_build.comp's local size (x and y)
+LOCAL = declare("HIZ_BUILD_LOCAL", 8)  # hiz_build.comp's local size (x and y)
 f32 = np.float32
 
 

@@ -24,11 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..glsl_constants import declare
+
 PHOTON_WORDS = 8
 PHOTON_BYTES = 4 * PHOTON_WORDS
 MAX_CELLS = 1 << 22  # grid cells at most: a smaller radius widens the cells (still >= r: exact)
 ESTIMATORS = ("grid", "grid_heap", "kdtree", "kdtree_heap")  # the `estimator` parameter's values
-MAX_K = 64  # the heap's size in the shaders (PHOTON_MAX_K)
+MAX_K = declare("PHOTON_MAX_K", 64)  # the heap's size in the shaders
 
 
 @dataclass(frozen=True)

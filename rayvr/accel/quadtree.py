@@ -56,18 +56,26 @@ from typing import NamedTuple
 import moderngl
 import numpy as np
 
+from ..glsl_constants import declare
 from ..gpu_layout import SSRT_RAY_GROUP
 
-HIT, OFFSCREEN, NEAR, NONE, OCCLUDED = 1, 2, 3, 4, 5  # SSRT_* in glsl/ssrt/screen_ray.glsl (same as DDA_*)
+# A screen-space ray's status, shared by the three tracers (quadtree, accel/hiz.py, accel/dda.py)
+HIT = declare("SSRT_HIT", 1, uint=True)
+OFFSCREEN = declare("SSRT_OFFSCREEN", 2, uint=True)  # left the viewport
+NEAR = declare("SSRT_NEAR", 3, uint=True)  # reached the near plane
+NONE = declare("SSRT_NONE", 4, uint=True)  # ran out of steps or nodes, or past the far end
+OCCLUDED = declare("SSRT_OCCLUDED", 5, uint=True)  # depth layers: passed deeper than the last layer's slab
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none", OCCLUDED: "occluded"}
-PLANE_BIT = 0x80000000
-FLAG_BIT = 1
-MAX_LEVELS = 16            # QT_MAX_LEVELS: images up to 32768 pixels a side
-DISCONTINUITY = 0.01       # relative z jump at a shared edge that flags a depth discontinuity
-GRAZING = 1e-4             # |n . v| / |v| floor for a leaf: slopes stay finite for edge-on normals
-AABB_MARGIN = 2.0 ** -20   # relative widening of AABB bounds over the children's exact ranges
-ON_LEAF = 2.0 ** -18       # relative z within which a ray's origin lies on its own pixel's leaf (float rounding), _starts_on
-HALF_MAX = 65504.0
+INF = declare("SSRT_INF", 3.0e38)  # a screen ray's "no bound" parameter (finite: INF * 0 is 0, not NaN)
+PLANE_BIT = declare("QT_PLANE_BIT", 0x80000000, uint=True)
+FLAG_BIT = declare("QT_FLAG_BIT", 1, uint=True)
+MAX_LEVELS = declare("QT_MAX_LEVELS", 16)  # images up to 32768 pixels a side (the Hi-Z's too)
+DISCONTINUITY = declare("QT_DISCONTINUITY", 0.01)  # relative z jump at a shared edge that flags a depth discontinuity
+GRAZING = declare("QT_GRAZING", 1e-4)  # |n . v| / |v| floor for a leaf: slopes stay finite for edge-on normals
+AABB_MARGIN = declare("QT_AABB_MARGIN", 2.0 ** -20)  # relative widening of AABB bounds over the children's exact ranges
+# relative z within which a ray's origin lies on its own pixel's leaf (float rounding), _starts_on
+ON_LEAF = declare("QT_ON_LEAF", 2.0 ** -18)
+HALF_MAX = declare("QT_HALF_MAX", 65504.0)
 
 
 def level_sizes(width: int, height: int) -> list[tuple[int, int]]:

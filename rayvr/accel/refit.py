@@ -14,11 +14,12 @@ from __future__ import annotations
 import numpy as np
 
 from .. import shaders
+from ..glsl_constants import declare
 from ..gpu_layout import SSBO
 from .bvh import _check_vertices
 from .gpu import DEFAULT_BINDING, GpuBvh, _moderngl
 
-_LOCAL_SIZE = 64
+_LOCAL_SIZE = declare("REFIT_LOCAL", 64)  # glsl/accel/refit.comp's local size
 _MAX_GROUPS_X = 65535
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import typing
 
+from ..glsl_constants import declare
 from .base import CameraModel, CameraRays
 from .distorted import Distorted
 from .foveated import Foveated
@@ -17,6 +18,10 @@ from .thin_lens import ThinLens
 from .wide import Wide
 
 CAMERA_MODELS: dict[str, type[CameraModel]] = {m.name: m for m in (Pinhole, Distorted, Wide, Foveated, ThinLens)}
+# The values of the CAMERA_MODEL define (glsl/common/camera.glsl): CAMERA_<NAME> = 1, 2, ... in this order.
+for _id, _name in enumerate(CAMERA_MODELS, 1):
+    declare(f"CAMERA_{_name.upper()}", _id)
+declare("CAMERA_MODEL_COUNT", len(CAMERA_MODELS))
 
 
 def get_camera_model(name: str, **params) -> CameraModel:

@@ -31,11 +31,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..glsl_constants import declare
 from ..limits import check_range
 from .base import CameraModel
 from .pinhole import Pinhole, planar_directions
 
-DITHER_BITS = 6  # 64x64 ordered-dither tile: densities down to 1/4096
+DITHER_BITS = declare("DITHER_BITS", 6)  # 64x64 ordered-dither tile: densities down to 1/4096
 DITHER_LEVELS = 4 ** DITHER_BITS
 BAYER_2X2 = np.array([[0, 2], [3, 1]])  # [y bit][x bit]
 # Ranges of the acuity parameters (degrees): the density's (pixel angle / MAR)^2 stays far inside

@@ -13,10 +13,12 @@ discontinuity: inpainting). The pixel event is the `reflections` / `glossy` one;
 screen is shaded like a BVH hit (its own direct light and shadows)."""
 import math
 
+from ..glsl_constants import declare
 from .base import Effect, Param, register
 from .shadows import AREA_SAMPLES, AREA_SAMPLES_SWEEP
 
-MIRROR_ROUGHNESS = 0.05  # glsl/effects/ssr.glsl SSR_MIRROR_ROUGHNESS (the material block has no slot left)
+# the roughness below which ssr traces one mirror path (the material block has no slot left for it)
+MIRROR_ROUGHNESS = declare("SSR_MIRROR_ROUGHNESS", 0.05)
 COS = {deg: math.cos(math.radians(deg)) for deg in (3, 10, 25)}
 
 

@@ -9,9 +9,12 @@ import moderngl
 from .. import shaders
 from ..effects.photon import PhotonPass, photon_setup
 from ..frame import FramePlan, compose
+from ..glsl_constants import declare
 from ..gpu_layout import SSBO
 
-SCAN_BLOCK = 1024  # words a group scans (SCAN_GROUP * SCAN_ITEMS in scan.comp)
+SCAN_GROUP = declare("SCAN_GROUP", 256)  # invocations of a scan.comp group
+SCAN_ITEMS = declare("SCAN_ITEMS", 4)  # words each scans
+SCAN_BLOCK = declare("SCAN_BLOCK", SCAN_GROUP * SCAN_ITEMS)  # words a group scans
 MAX_GROUPS = 65535
 
 

@@ -10,11 +10,12 @@ import moderngl
 from .. import shaders
 from ..effects.photon import PhotonPass, photon_setup
 from ..frame import Buffer, FramePlan, compose, read, write
+from ..glsl_constants import declare
 from ..gpu_layout import SSBO
 from .photon_scan import Scan, dispatch_shape, scan_words
 
-SORT_GROUP = 256
-RADIX = 256
+SORT_GROUP = declare("SORT_GROUP", 256)  # invocations of a radix_sort.comp group: pairs it sorts
+RADIX = declare("SORT_RADIX", 256, uint=True)  # digits of one pass (8 bits)
 
 
 def sort_groups(n: int) -> tuple:

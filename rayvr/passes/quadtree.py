@@ -20,10 +20,11 @@ from ..accel.quadtree import (MAX_LEVELS, level_offsets, level_sizes, quadtree_b
                               set_level_uniforms, unflatten, time_build_and_trace, trace_screen_rays)
 from ..cameras import CAMERA_MODELS
 from ..frame import Buffer, FramePlan, Pass, read, write
+from ..glsl_constants import declare
 from ..gpu_layout import SSBO, UNIT
 from .compute import camera_defines, set_eye_uniforms
 
-LOCAL = 8  # quadtree_build.comp's local size (x and y)
+LOCAL = declare("QT_BUILD_LOCAL", 8)  # quadtree_build.comp's local size (x and y)
 QUADTREE = Buffer(lambda s: quadtree_bytes(s.size[0], s.size[1], s.layers * s.depth_layers),
                   "8 B per node: ceil(W/2^k) x ceil(H/2^k) nodes on every level k up to 1 x 1, per eye and depth layer",
                   max_extent=1 << (MAX_LEVELS - 1))

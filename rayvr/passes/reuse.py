@@ -20,10 +20,11 @@ import numpy as np
 
 from .. import shaders
 from ..frame import Buffer, FramePlan, Pass, compose, read, write
+from ..glsl_constants import declare
 from ..gpu_layout import IMAGE, NO_HIT, SSBO
 from .compute import TILE, camera_defines, set_eye_uniforms
 
-REUSE_NONE = 0xFFFFFFFF
+REUSE_NONE = declare("REUSE_NONE", 0xFFFFFFFF, uint=True)  # reuse_map: the right eye shades the pixel itself
 TOLERANCE = 0.01  # tangent-plane distance a right-eye pixel may be from the left hit, x view depth
 REUSE_MAP = Buffer(lambda s: 8 * s.size[0] * s.size[1], "8 B per eye pixel: source left pixel, nearest landing")
 

@@ -28,7 +28,7 @@ class SampleResolvePass(Pass):
     def setup(self, gl, plan: FramePlan) -> None:
         self.reconstruct = plan.reconstruct
         self.program = shaders.compute(gl.ctx, "shade/sample_resolve.comp",
-                                       {"RECONSTRUCT": int(plan.reconstruct), "DITHER_BITS": DITHER_BITS,
+                                       {"RECONSTRUCT": int(plan.reconstruct),
                                         **camera_defines(plan)})
 
     def execute(self, fc) -> None:

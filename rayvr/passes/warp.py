@@ -17,15 +17,19 @@ import numpy as np
 
 from .. import shaders
 from ..frame import Buffer, FramePlan, Pass, Texture, read, write
+from ..glsl_constants import declare
 from ..gpu_layout import IMAGE, SSBO, TONEMAPPERS, UNIT
 from ..stereo import WARP_DEPTH, WARP_OUTPUT
 from .compute import TILE, camera_defines
 from .quadtree import set_tree_uniforms
 
 THICKNESS = 0.02  # each surface of the central view is a slab this deep (relative z); behind it: occluded
-# Per eye, in glsl/stereo/warp.comp's order: holes (passed behind every layer, left the image), hits
-# on the first and the second depth layer, background, nodes tested.
+# Per eye: holes (passed behind every layer, left the image), hits on the first and the second depth
+# layer, background, nodes tested; glsl/stereo/warp.comp counts kind k at WARP_COUNT_<K>.
 COUNTS = ("disoccluded", "offscreen", "hits", "hits_second_layer", "background", "nodes")
+for _index, _kind in enumerate(COUNTS):
+    declare(f"WARP_COUNT_{_kind.upper()}", _index, uint=True)
+declare("WARP_COUNTS", len(COUNTS))
 WARP_COUNTS = Buffer(lambda s: 4 * len(COUNTS) * 2, "per eye: holes (disoccluded, off screen), hits per layer, "
                      "background, nodes tested")
 

@@ -10,17 +10,19 @@
 #ifndef RAYVR_ACCEL_BVH_GLSL
 #define RAYVR_ACCEL_BVH_GLSL
 
+#include "../layout.glsl"
 #include "ray.glsl"
 #include "triangle.glsl"
 
+// Defaults of GpuBvh.defines (rayvr/accel/gpu.py layout_defines), which every pass sets.
 #ifndef BVH_NODES_BINDING
-#define BVH_NODES_BINDING 8
+#define BVH_NODES_BINDING SSBO_BVH_NODES
 #endif
 #ifndef BVH_TRIS_BINDING
-#define BVH_TRIS_BINDING 9
+#define BVH_TRIS_BINDING SSBO_BVH_TRIANGLES
 #endif
 #ifndef BVH_STACK_SIZE
-#define BVH_STACK_SIZE 64   // >= the build's max_depth, and the wide layouts' stack bound
+#define BVH_STACK_SIZE BVH_BINARY_STACK_SIZE   // >= the build's max_depth, and the wide layouts' stack bound
 #endif
 #ifndef BVH_WIDTH
 #define BVH_WIDTH 2

@@ -2,7 +2,7 @@
 #ifndef RAYVR_ACCEL_RAY_GLSL
 #define RAYVR_ACCEL_RAY_GLSL
 
-#define BVH_MISS 0xFFFFFFFFu
+#include "../layout.glsl"  // BVH_MISS: rayvr/accel/gpu.py MISS
 
 struct Ray {
     vec3 origin;

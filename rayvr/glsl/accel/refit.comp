@@ -7,9 +7,8 @@
 //                two boxes stored in its child node (written by the previous dispatch), widened by
 //                one ulp as bvh.widen does on the host. Boxes are written as bits, so the buffer
 //                equals Bvh.pack_nodes() after a numpy refit, bit for bit.
-#define LOCAL_SIZE 64
-layout(local_size_x = LOCAL_SIZE) in;
 #include "../layout.glsl"
+layout(local_size_x = REFIT_LOCAL) in;  // rayvr/accel/refit.py dispatches by it
 #ifndef BVH_NODES_BINDING
 #define BVH_NODES_BINDING SSBO_BVH_NODES
 #define BVH_TRIS_BINDING SSBO_BVH_TRIANGLES
@@ -27,7 +26,7 @@ layout(std430, binding = SSBO_REFIT_INDEX) readonly restrict buffer Index { uint
 uniform uint count;    // slots (stage 0) or nodes of this level (stage 1)
 uniform uint offset;   // stage 1: this level's first entry in refit_index
 
-uint invocation() { return gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * LOCAL_SIZE; }
+uint invocation() { return gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * REFIT_LOCAL; }
 
 // nextafter towards -inf / +inf on the bits (bvh.widen); zero steps to the smallest denormal.
 uint step_down(float x) {

@@ -39,9 +39,7 @@ layout(local_size_x = TILE_RAYS) in;
 #define TILE_CULL_WRITER 1   // declares tile_entries writable itself
 #include "bvh.glsl"
 
-#ifndef TILE_MIN_COS
-#define TILE_MIN_COS 0.1
-#endif
+// TILE_MIN_COS: layout.glsl (rayvr/accel/frustum.py MIN_COS)
 
 layout(std430, binding = TILE_ENTRIES_BINDING) writeonly restrict buffer Entries { uint tile_entries[]; };
 layout(std430, binding = TILE_PLANES_BINDING) writeonly restrict buffer Planes { vec4 tile_planes[]; };  // 5 a tile (tests)

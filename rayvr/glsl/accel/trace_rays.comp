@@ -17,7 +17,8 @@
 #ifndef OFFSET_RAYS
 #define OFFSET_RAYS 1
 #endif
-#define LOCAL_SIZE 64
+#include "../layout.glsl"
+#define LOCAL_SIZE TRACE_RAYS_LOCAL  // rayvr/accel/gpu.py dispatches by it
 layout(local_size_x = LOCAL_SIZE) in;
 
 #include "bvh.glsl"

@@ -12,16 +12,13 @@ uniform vec4 eye_tangents[2];  // frustum tangents: left, right, bottom, top
 uniform vec2 eye_depth;        // near, far (0: infinite far plane)
 uniform int camera_channel;    // the colour channel set this frame round samples (CameraModel.channels)
 
-// One value per model (CameraModel.glsl_define).
-#define CAMERA_PINHOLE 1
-#define CAMERA_DISTORTED 2
-#define CAMERA_WIDE 3
-#define CAMERA_FOVEATED 4
-#define CAMERA_DOF 5
+// One value per model, CAMERA_<NAME> = 1 .. CAMERA_MODEL_COUNT (CameraModel.glsl_define; layout.glsl,
+// from rayvr/cameras CAMERA_MODELS).
+#include "../layout.glsl"
 #ifndef CAMERA_MODEL
 #define CAMERA_MODEL CAMERA_PINHOLE
 #endif
-#if CAMERA_MODEL < CAMERA_PINHOLE || CAMERA_MODEL > CAMERA_DOF
+#if CAMERA_MODEL < 1 || CAMERA_MODEL > CAMERA_MODEL_COUNT
 #error unknown CAMERA_MODEL: the allowed values are listed in rayvr/cameras CAMERA_MODELS
 #endif
 #include "../cameras/sampling.glsl"

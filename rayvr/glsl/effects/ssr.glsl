@@ -3,7 +3,7 @@
 // SSR_MIRROR_ROUGHNESS when `samples` > 0: that of `glossy` (`samples` GGX paths by VNDF
 // importance sampling); the paths'
 // rays are then traced through the quadtree first (rt/wave_trace.comp SSR_TRACE).
-#define SSR_MIRROR_ROUGHNESS 0.05  // rayvr/effects/ssr.py MIRROR_ROUGHNESS
+// (SSR_MIRROR_ROUGHNESS: layout.glsl, from rayvr/effects/ssr.py MIRROR_ROUGHNESS)
 #define effect_start_paths mirror_start_paths
 #include "reflections.glsl"
 #undef effect_start_paths

@@ -13,7 +13,7 @@
 #include "grid.glsl"
 #include "kdtree.glsl"
 
-#define PHOTON_MAX_K 64
+// PHOTON_MAX_K: layout.glsl (rayvr/accel/photon_map.py MAX_K)
 #ifndef PHOTON_ESTIMATORS
 #define PHOTON_ESTIMATORS 15
 #endif

@@ -7,7 +7,7 @@
 //                 its group with the same digit (stable, deterministic): the digit counts of the
 //                 earlier chunks of 32 pairs (shared-memory histograms) plus a count within its chunk
 //   SORT_STAGE 2  permute: photon_map[i] = photons[slot of the i-th sorted pair]
-#define SORT_GROUP 256
+#include "../layout.glsl"  // SORT_GROUP, SORT_RADIX: rayvr/passes/photon_sort.py
 #ifndef SORT_STAGE
 #define SORT_STAGE 0
 #endif
@@ -26,7 +26,7 @@ uniform uint digit_shift;
 #define SORT_CHUNK 32
 shared uint digits[SORT_GROUP];
 #if SORT_STAGE == 1
-shared uint chunk_counts[SORT_GROUP / SORT_CHUNK][256];
+shared uint chunk_counts[SORT_GROUP / SORT_CHUNK][SORT_RADIX];
 #endif
 
 void main() {
@@ -38,11 +38,11 @@ void main() {
     if (i < item_count) photon_map[i] = photons[keys_in[i].y];
 #else
     uvec2 kv = i < item_count ? keys_in[i] : uvec2(0u);
-    uint d = i < item_count ? (kv.x >> digit_shift) & 255u : 256u;
+    uint d = i < item_count ? (kv.x >> digit_shift) & (SORT_RADIX - 1u) : SORT_RADIX;
 #if SORT_STAGE == 0
     digits[t] = 0u;
     barrier();
-    if (d < 256u) atomicAdd(digits[d], 1u);
+    if (d < SORT_RADIX) atomicAdd(digits[d], 1u);
     barrier();
     table[t * groups + g] = digits[t];
 #else
@@ -50,9 +50,9 @@ void main() {
     digits[t] = d;
     barrier();
     uint chunk = t / uint(SORT_CHUNK);
-    if (d < 256u) atomicAdd(chunk_counts[chunk][d], 1u);  // counts: the same whatever the order
+    if (d < SORT_RADIX) atomicAdd(chunk_counts[chunk][d], 1u);  // counts: the same whatever the order
     barrier();
-    if (d < 256u) {
+    if (d < SORT_RADIX) {
         uint rank = 0u;
         for (uint c = 0u; c < chunk; ++c) rank += chunk_counts[c][d];
         for (uint j = chunk * uint(SORT_CHUNK); j < t; ++j) rank += digits[j] == d ? 1u : 0u;

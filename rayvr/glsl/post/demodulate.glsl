@@ -4,7 +4,7 @@
 #ifndef RAYVR_POST_DEMODULATE_GLSL
 #define RAYVR_POST_DEMODULATE_GLSL
 
-#define DEMODULATE_FLOOR 0.001
+#include "../layout.glsl"  // DEMODULATE_FLOOR: rayvr/passes/accumulate.py
 
 vec3 demodulation_albedo(vec3 base_color) { return max(base_color, vec3(DEMODULATE_FLOOR)); }
 

@@ -25,11 +25,8 @@
 #ifndef RECONSTRUCT
 #define RECONSTRUCT 0
 #endif
-#ifndef DITHER_BITS
-#define DITHER_BITS 6  // passes/sample_resolve.py sets it (cameras/foveated.py)
-#endif
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
-#include "../layout.glsl"
+#include "../layout.glsl"  // DITHER_BITS: rayvr/cameras/foveated.py
 #include "../common/camera.glsl"
 
 layout(rgba32f, binding = IMAGE_SAMPLE_SUM) uniform readonly image2DArray sum;

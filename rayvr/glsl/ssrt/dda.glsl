@@ -43,13 +43,12 @@ layout(binding = GB_UNIT_LINEAR_DEPTH) uniform sampler2DArray dda_linear_depth;
 // and rays from pixel centres with simple slopes meet pixel edges exactly at column centres. So
 // rounding (which differs between drivers) decides nothing, a column is tested only if the
 // segment reaches DDA_EDGE px into it, and the pixel is picked DDA_BIAS px further along the ray.
-#define DDA_EDGE (1.0 / 256.0)
-#define DDA_BIAS (1.0 / 256.0)
+// (DDA_EDGE, DDA_BIAS: layout.glsl, from rayvr/accel/dda.py)
 
-#define DDA_HIT 1u
-#define DDA_OFFSCREEN 2u
-#define DDA_NEAR 3u
-#define DDA_NONE 4u
+#define DDA_HIT SSRT_HIT
+#define DDA_OFFSCREEN SSRT_OFFSCREEN
+#define DDA_NEAR SSRT_NEAR
+#define DDA_NONE SSRT_NONE
 
 struct DdaResult {
     uint status;

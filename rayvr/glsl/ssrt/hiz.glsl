@@ -44,8 +44,7 @@
 #define HIZ_OFFSCREEN SSRT_OFFSCREEN
 #define HIZ_NEAR SSRT_NEAR
 #define HIZ_NONE SSRT_NONE
-#define HIZ_MAX_LEVELS 16
-#define HIZ_EMPTY 3.0e38  // zmin of a cell without geometry (finite: EMPTY * 0 is 0, not NaN)
+#define HIZ_MAX_LEVELS QT_MAX_LEVELS  // HIZ_EMPTY: layout.glsl (rayvr/accel/hiz.py)
 #define HIZ_INF SSRT_INF
 
 #ifndef HIZ_LEVELS_ACCESS

@@ -6,8 +6,8 @@
 //            or not a number) is (HIZ_EMPTY, 0), so it widens no cell and no ray passes below it.
 //   level k: min and max over the (up to 2 x 2) cells of level k - 1; level k has ceil(W/2^k) x
 //            ceil(H/2^k) cells, so an odd level's last row / column has one child per pair.
-#define LOCAL 8
-layout(local_size_x = LOCAL, local_size_y = LOCAL) in;
+#include "../layout.glsl"
+layout(local_size_x = HIZ_BUILD_LOCAL, local_size_y = HIZ_BUILD_LOCAL) in;
 
 #define HIZ_LEVELS_ACCESS
 #include "hiz.glsl"

@@ -30,11 +30,7 @@
 #define QT_NEAR SSRT_NEAR
 #define QT_NONE SSRT_NONE
 #define QT_OCCLUDED SSRT_OCCLUDED
-#define QT_MAX_LEVELS 16
-#define QT_PLANE_BIT 0x80000000u
-#define QT_FLAG_BIT 1u
-#define QT_HALF_MAX 65504.0
-#define QT_ON_LEAF 3.814697265625e-06  // 2^-18: rayvr/accel/quadtree.py ON_LEAF
+// QT_MAX_LEVELS, QT_PLANE_BIT, QT_FLAG_BIT, QT_HALF_MAX, QT_ON_LEAF: layout.glsl (rayvr/accel/quadtree.py)
 #define QT_INF SSRT_INF
 
 #ifndef QT_NODES_ACCESS

@@ -11,11 +11,11 @@
 //            background pixels are the AABB [0, 0]; the discontinuity flag from the 4 neighbours.
 //   level k: from the (up to 2 x 2) children at level k - 1: a proxy plane when all are planes and
 //            it passes gamma_norm / gamma_dist (gamma_dist = 0: never), else their AABB.
-#define LOCAL 8
 #ifndef QT_DEPTH_LAYERS
 #define QT_DEPTH_LAYERS 1
 #endif
-layout(local_size_x = LOCAL, local_size_y = LOCAL) in;
+#include "../layout.glsl"
+layout(local_size_x = QT_BUILD_LOCAL, local_size_y = QT_BUILD_LOCAL) in;
 
 #define QT_NODES_ACCESS
 #include "quadtree.glsl"
@@ -26,9 +26,7 @@ layout(local_size_x = LOCAL, local_size_y = LOCAL) in;
 layout(binding = UNIT_LAYER2) uniform sampler2DArray layer2;  // xyz geometric normal facing the eye, w view depth
 #endif
 
-#define DISCONTINUITY 0.01     // rayvr/accel/quadtree.py DISCONTINUITY
-#define GRAZING 1e-4           // GRAZING
-#define AABB_MARGIN 9.5367431640625e-07  // 2^-20, AABB_MARGIN
+// QT_DISCONTINUITY, QT_GRAZING, QT_AABB_MARGIN: layout.glsl (rayvr/accel/quadtree.py)
 
 uniform int qt_build_level;
 uniform float gamma_norm;      // cosine: children's normals within this of the proxy's
@@ -77,7 +75,7 @@ bool leaf_plane(ivec3 p, out float z0, out vec2 s) {
     // The slopes are the same for nv and -nv but for the grazing clamp, which wants nv facing the eye.
     float facing = dot(nv, vec3(t, -1.0));
     nv = facing > 0.0 ? -nv : nv;
-    float den = min(-abs(facing), -GRAZING * length(vec3(t, 1.0)));
+    float den = min(-abs(facing), -QT_GRAZING * length(vec3(t, 1.0)));
     z0 = eye_depth.x / depth;
     s = nv.xy / den / pixels_per_tangent(eye);
     return true;
@@ -106,7 +104,7 @@ uvec2 build_leaf(ivec3 p) {
         vec2 e = 0.5 * vec2(o);        // shared edge midpoint, from each pixel's centre
         float za = z0 * (1.0 + dot(s, e));
         float zb = zn * (1.0 - dot(sn, e));
-        flag = flag || !g || abs(za - zb) > DISCONTINUITY * max(abs(za), abs(zb));
+        flag = flag || !g || abs(za - zb) > QT_DISCONTINUITY * max(abs(za), abs(zb));
     }
     return qt_encode_plane(z0, s.x, s.y, flag);
 }
@@ -145,7 +143,7 @@ uvec2 build_parent(int layer, int k, ivec2 q) {
         zmax = max(zmax, hi);
         zmin = min(zmin, lo);
     }
-    uvec2 aabb = qt_encode_aabb(zmin * (1.0 - AABB_MARGIN), zmax * (1.0 + AABB_MARGIN), flag);
+    uvec2 aabb = qt_encode_aabb(zmin * (1.0 - QT_AABB_MARGIN), zmax * (1.0 + QT_AABB_MARGIN), flag);
     if (!(gamma_dist > 0.0) || !planes)
         return aabb;
     // Proxy normal: the children's mean; offset: least squares over their corners' z (z = kappa f).

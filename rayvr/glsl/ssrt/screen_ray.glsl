@@ -4,15 +4,8 @@
 // S, z linear along it) and clipped to the image of `size` pixels. Needs common/camera.glsl.
 #ifndef RAYVR_SSRT_SCREEN_RAY_GLSL
 #define RAYVR_SSRT_SCREEN_RAY_GLSL
+#include "../layout.glsl"  // SSRT_HIT ... SSRT_OCCLUDED, SSRT_INF: rayvr/accel/quadtree.py
 #include "../common/camera.glsl"
-
-// Statuses of every screen-space tracer (rayvr/accel/quadtree.py, dda.py, hiz.py use the same).
-#define SSRT_HIT 1u
-#define SSRT_OFFSCREEN 2u
-#define SSRT_NEAR 3u
-#define SSRT_NONE 4u
-#define SSRT_OCCLUDED 5u  // quadtree layers: passed deeper than the last depth layer's slab
-#define SSRT_INF 3.0e38
 
 // A ray in S: p(u) = s0 + u sd, u in pixels along the screen (|sd.xy| = 1), or u in [0, 1] with
 // sd.xy = 0 for a ray along a pixel's line of sight; [u_lo, u_hi] is on screen and past the near

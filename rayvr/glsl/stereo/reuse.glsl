@@ -6,9 +6,7 @@
 // `classify` and `shade` skip the taken pixels (STEREO_REUSE), so no right-eye pixel is shaded twice.
 #ifndef RAYVR_STEREO_REUSE_GLSL
 #define RAYVR_STEREO_REUSE_GLSL
-#include "../layout.glsl"
-
-#define REUSE_NONE 0xFFFFFFFFu
+#include "../layout.glsl"  // REUSE_NONE: rayvr/passes/reuse.py
 #ifndef REUSE_ACCESS
 #define REUSE_ACCESS readonly
 #endif

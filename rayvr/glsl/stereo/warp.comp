@@ -40,12 +40,8 @@ layout(std430, binding = SSBO_WARP_COUNTS) restrict buffer WarpCounts { uint war
 uniform int warp_layer;
 uniform float warp_thickness;
 
-#define WARP_HOLE_OCCLUDED 0u
-#define WARP_HOLE_OFFSCREEN 1u
-#define WARP_HIT 2u
-#define WARP_HIT_SECOND 3u
-#define WARP_BACKGROUND 4u
-#define WARP_COUNTS 6  // per eye: the five kinds above, then nodes tested
+// Per eye: the pixels of each kind WARP_COUNT_<kind> (the index of the kind in rayvr/passes/warp.py
+// COUNTS), then the nodes tested; WARP_COUNTS words in all (layout.glsl).
 shared uint group_counts[WARP_COUNTS];
 
 // Linear view depth in the eye (slot 1) of the scene-local point `p`.
@@ -108,22 +104,22 @@ void main() {
         camera_ray(1, vec2(p) + 0.5, vec2(size), o, d);
         QtResult h = qt_trace_layers(0, o, d, WARP_LAYERS, warp_thickness);
         ivec2 src = clamp(ivec2(floor(h.point.xy)), ivec2(0), size - 1);
-        uint kind = WARP_BACKGROUND;
+        uint kind = WARP_COUNT_BACKGROUND;
         if (h.status == QT_HIT) {
-            kind = h.layer == 0 ? WARP_HIT : WARP_HIT_SECOND;
+            kind = h.layer == 0 ? WARP_COUNT_HITS : WARP_COUNT_HITS_SECOND_LAYER;
             src = h.pixel;
         } else if (h.status == QT_OCCLUDED) {
-            kind = WARP_HOLE_OCCLUDED;
+            kind = WARP_COUNT_DISOCCLUDED;
             if (h.pixel.x >= 0) src = h.pixel;
         } else if (h.status == QT_OFFSCREEN || h.status == QT_NEAR) {
-            kind = WARP_HOLE_OFFSCREEN;
+            kind = WARP_COUNT_OFFSCREEN;
         }
         vec4 color = imageLoad(center_ldr, ivec3(src, 0));
         float depth = 0.0;
-        if (kind == WARP_HIT || kind == WARP_HIT_SECOND) {
+        if (kind == WARP_COUNT_HITS || kind == WARP_COUNT_HITS_SECOND_LAYER) {
             uint tri = texelFetch(gb_triangle, ivec3(src, 0), 0).x;
 #if WARP_LAYERS > 1
-            if (kind == WARP_HIT_SECOND) tri = texelFetch(layer2_triangle, ivec3(src, 0), 0).x;
+            if (kind == WARP_COUNT_HITS_SECOND_LAYER) tri = texelFetch(layer2_triangle, ivec3(src, 0), 0).x;
 #endif
             vec3 x;
             if (!triangle_crossing(tri, o, d, h.point.z, x, depth)) {
@@ -131,13 +127,13 @@ void main() {
                 depth = eye_depth_of(x);
             }
 #if WARP_LAYERS > 1
-            if (kind == WARP_HIT_SECOND) color.rgb = shade_second_layer(tri, x, d);
+            if (kind == WARP_COUNT_HITS_SECOND_LAYER) color.rgb = shade_second_layer(tri, x, d);
 #endif
-        } else if (kind != WARP_BACKGROUND) {
+        } else if (kind != WARP_COUNT_BACKGROUND) {
             vec4 fill = texelFetch(gb_position, ivec3(src, 0), 0);  // the inpainted pixel's surface
             depth = fill.w > 0.0 ? eye_depth_of(fill.xyz) : 0.0;
         }
-        imageStore(warp_color, ivec3(p, warp_layer), vec4(color.rgb, kind <= WARP_HOLE_OFFSCREEN ? 0.0 : 1.0));
+        imageStore(warp_color, ivec3(p, warp_layer), vec4(color.rgb, kind <= WARP_COUNT_OFFSCREEN ? 0.0 : 1.0));
         imageStore(warp_depth, ivec3(p, warp_layer), vec4(max(depth, 0.0)));
         atomicAdd(group_counts[kind], 1u);
         atomicAdd(group_counts[WARP_COUNTS - 1], h.nodes);
