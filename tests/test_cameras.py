@@ -152,7 +152,7 @@ def test_glsl_camera_ray_matches_numpy(gl, make_rig):
 
 
 def test_glsl_unknown_camera_model_fails_to_build(gl):
-    with pytest.raises(shaders.ShaderError, match="glsl/common/camera.glsl:25 ?: .*unknown CAMERA_MODEL"):
+    with pytest.raises(shaders.ShaderError, match="glsl/common/camera.glsl:22 ?: .*unknown CAMERA_MODEL"):
         shaders.compute(gl.ctx, "cameras/camera_rays.comp", {"CAMERA_MODEL": "CAMERA_NOPE"})
 
 
