@@ -1,11 +1,13 @@
-"""Every constant the CPU and the shaders share, declared once here and emitted as a generated
-GLSL header: shaders `#include "layout.glsl"` (the shader loader serves it from `glsl_header()`;
-there is no such file on disk).
+"""Every constant the CPU and the shaders share, declared once (here, or with glsl_constants.declare in the
+module that uses it) and emitted as a generated GLSL header: shaders `#include "layout.glsl"` (the
+shader loader serves it from `glsl_header()`; there is no such file on disk).
 
   G-buffer channels   name, format, texture unit (read), image unit (resolve writes)
   bindings            shader storage buffers (SSBO_*), image units (IMAGE_*), texture units (UNIT_*)
   enums               effects (from the registry), debug views, tonemappers, light kinds
   sentinels           NO_HIT, BACKGROUND_EFFECT, ROUND_SKIPPED
+  declared constants  those other modules declare where they use them (rayvr/glsl_constants.py
+                      declare: the SSRT statuses, QT_*, the CAMERA_* enum, SSR_MIRROR_ROUGHNESS, ...)
 
 Names in GLSL are the Python names in upper case with a prefix: GB_UNIT_<CHANNEL>,
 GB_IMAGE_<CHANNEL>, SSBO_<NAME>, IMAGE_<NAME>, UNIT_<NAME>, EFFECT_<NAME>, VIEW_<NAME>,

@@ -111,6 +111,16 @@ def test_no_python_constant_is_typed_into_a_shader():
                          "in SHADER_LOCAL with a reason):\n" + "\n".join(unlisted)
 
 
+def test_work_group_sizes_are_named():
+    """The Python side dispatches by a shader's work group size, so a size is a declared constant (or a
+    define a pass sets), never a literal (1, a single invocation, is no shared size)."""
+    literals = [f"glsl/{path.relative_to(GLSL_DIR)}:{n} {line.strip()}"
+                for path in sorted(GLSL_DIR.rglob("*.comp"))
+                for n, line in enumerate(path.read_text().splitlines(), 1)
+                if any(int(v) > 1 for v in re.findall(r"local_size_[xyz]\s*=\s*(\d+)", line))]
+    assert not literals, "work group sizes typed by hand:\n" + "\n".join(literals)
+
+
 def test_the_scan_finds_a_hand_copy():
     """The scan's patterns match the forms the shaders used (so the test above is not vacuous)."""
     for text in ("0.05", "3.814697265625e-06", "0xFFFFFFFFu", "(1.0 / 256.0)", "3.0e38", "-1.0", "1u"):

@@ -8,12 +8,15 @@ import moderngl
 import numpy as np
 
 from .. import shaders
+from ..glsl_constants import declare
 from ..gpu_layout import SSBO
 from ..passes.photon_cells import CellKeys, set_grid_uniforms
 from ..passes.photon_kdtree import kdtree_records
 from ..passes.photon_scan import scan_words
 from ..passes.photon_sort import RadixSort, table_words
 from .photon_map import PHOTON_WORDS, GridShape
+
+QUERY_GROUP = declare("PHOTON_QUERY_GROUP", 64)  # query points a query.comp group answers
 
 
 class GpuPhotonMap:
@@ -74,7 +77,7 @@ class GpuPhotonMap:
         for k, v in {"query_count": len(points), "query_capacity": capacity, "query_radius": float(radius)}.items():
             if k in prog:
                 prog[k].value = v
-        prog.run(-(-len(points) // 64))
+        prog.run(-(-len(points) // QUERY_GROUP))
         self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
         c = np.frombuffer(counts.read(), np.uint32)
         f = np.frombuffer(found.read(), np.uint32).reshape(len(points), capacity)

@@ -30,6 +30,9 @@ PHOTON_WORDS = 8
 PHOTON_BYTES = 4 * PHOTON_WORDS
 MAX_CELLS = 1 << 22  # grid cells at most: a smaller radius widens the cells (still >= r: exact)
 ESTIMATORS = ("grid", "grid_heap", "kdtree", "kdtree_heap")  # the `estimator` parameter's values
+for _index, _estimator in enumerate(ESTIMATORS):  # the shaders' PHOTON_ESTIMATOR_<NAME> (glsl/photon/estimate.glsl)
+    declare(f"PHOTON_ESTIMATOR_{_estimator.upper()}", _index)
+declare("PHOTON_ESTIMATOR_COUNT", len(ESTIMATORS))
 MAX_K = declare("PHOTON_MAX_K", 64)  # the heap's size in the shaders
 
 

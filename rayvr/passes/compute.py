@@ -4,7 +4,9 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-TILE = 8  # local_size_x/y of every per-pixel compute shader
+from ..glsl_constants import declare
+
+TILE = declare("PIXEL_TILE", 8)  # local_size_x/y of every per-pixel compute shader
 
 
 def dispatch_per_pixel(fc, program: moderngl.ComputeShader) -> None:

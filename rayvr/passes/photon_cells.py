@@ -10,8 +10,11 @@ import numpy as np
 from .. import shaders
 from ..effects.photon import PhotonPass, photon_setup
 from ..frame import Buffer, FramePlan, read, write
+from ..glsl_constants import declare
 from ..gpu_layout import SSBO
 from .photon_scan import dispatch_shape, scan_words
+
+CELLS_GROUP = declare("PHOTON_CELLS_GROUP", 256)  # photons a cells.comp group keys
 
 
 def set_grid_uniforms(program, grid) -> None:
@@ -37,7 +40,7 @@ class CellKeys:
         for prog, n in zip(self.programs, (grid.cells + 2, count)):
             set_grid_uniforms(prog, grid)
             prog["item_count"].value = n
-            prog.run(*dispatch_shape(n, 256))
+            prog.run(*dispatch_shape(n, CELLS_GROUP))
             self.ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
 
     def release(self) -> None:

@@ -12,11 +12,12 @@ from .. import shaders
 from ..accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effects.photon import PhotonPass, photon_setup
 from ..frame import Buffer, FramePlan, read, write
+from ..glsl_constants import declare
 from ..gpu_layout import SSBO, UNIT
 from .photon_scan import dispatch_shape
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
-TRACE_GROUP = 64
+TRACE_GROUP = declare("PHOTON_TRACE_GROUP", 64)  # photon paths a trace.comp group traces
 # Mirror/glossy reflections one photon path may take on top of its diffuse bounces: a bound for
 # facing mirrors (white metal reflects all), beyond the caustics a scene shows.
 MAX_REFLECTIONS = 16

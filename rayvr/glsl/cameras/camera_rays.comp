@@ -7,7 +7,8 @@
 // central ray, else sub-ray i) and image_size; run ceil(w/8) x ceil(h/8) x eyes groups.
 // Output, per eye, per GL row (bottom-up), per column: 4 vec4s
 //   origin (scene-local) + valid (1 or 0), direction + footprint, direction_x, direction_y (the neighbours).
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/camera.glsl"
 
 uniform ivec2 image_size;

@@ -4,7 +4,8 @@
 // without one; white lines are every 10 degrees of yaw and pitch of its ray (eye space), so a
 // lens pre-distortion bends them, a wide mapping spreads them; each colour channel set is drawn
 // into its own channel (chromatic pre-correction shows as coloured fringes).
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../layout.glsl"
 #include "../common/camera.glsl"
 

@@ -12,7 +12,8 @@
 #ifndef PRIMARY_RAYS
 #define PRIMARY_RAYS 0
 #endif
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/triangle_surface.glsl"
 #include "../common/camera.glsl"
 #include "../common/round_skip.glsl"

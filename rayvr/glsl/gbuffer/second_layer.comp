@@ -9,7 +9,8 @@
 #ifndef SECOND_LAYER_PEEL
 #define SECOND_LAYER_PEEL 0
 #endif
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../layout.glsl"
 #include "../common/camera.glsl"
 #include "../common/gbuffer.glsl"

@@ -3,7 +3,8 @@
 // words: the cells, the empty slots' bin, the total); CELLS_STAGE 1 gives every photon slot its
 // key (cell index, or grid_dead_key() for an empty slot, so empty slots sort last) with its slot
 // index, and counts the photons per cell. Integer atomics: the counts are exact and deterministic.
-layout(local_size_x = 256) in;
+#include "../layout.glsl"  // PHOTON_CELLS_GROUP: rayvr/passes/photon_cells.py
+layout(local_size_x = PHOTON_CELLS_GROUP) in;
 #include "photon.glsl"
 
 layout(std430, binding = SSBO_PHOTONS) readonly restrict buffer Photons { Photon photons[]; };
@@ -13,7 +14,7 @@ layout(std430, binding = SSBO_PHOTON_SCAN) restrict buffer Counts { uint counts[
 uniform uint item_count;
 
 void main() {
-    uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 256u;
+    uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * uint(PHOTON_CELLS_GROUP);
     if (i >= item_count) return;
 #ifndef CELLS_STAGE
 #define CELLS_STAGE 1

@@ -14,11 +14,12 @@
 #include "kdtree.glsl"
 
 // PHOTON_MAX_K: layout.glsl (rayvr/accel/photon_map.py MAX_K)
+// PHOTON_ESTIMATOR_<NAME>: estimator i of rayvr/accel/photon_map.py ESTIMATORS (layout.glsl)
 #ifndef PHOTON_ESTIMATORS
-#define PHOTON_ESTIMATORS 15
+#define PHOTON_ESTIMATORS ((1 << PHOTON_ESTIMATOR_COUNT) - 1)  // all
 #endif
-#define PHOTON_HEAP ((PHOTON_ESTIMATORS & 10) != 0)    // grid_heap or kdtree_heap
-#define PHOTON_KDTREE ((PHOTON_ESTIMATORS & 12) != 0)  // kdtree or kdtree_heap
+#define PHOTON_HEAP ((PHOTON_ESTIMATORS & ((1 << PHOTON_ESTIMATOR_GRID_HEAP) | (1 << PHOTON_ESTIMATOR_KDTREE_HEAP))) != 0)
+#define PHOTON_KDTREE ((PHOTON_ESTIMATORS & ((1 << PHOTON_ESTIMATOR_KDTREE) | (1 << PHOTON_ESTIMATOR_KDTREE_HEAP))) != 0)
 
 float est_r2;
 vec3 est_normal;
@@ -79,11 +80,11 @@ vec3 photon_irradiance(vec3 q, vec3 n, float r, int estimator, int k) {
     est_normal = n;
     est_sum = vec3(0.0);
 #if PHOTON_HEAP
-    est_k = (estimator == 1 || estimator == 3) ? clamp(k, 1, PHOTON_MAX_K) : 0;
+    est_k = (estimator == PHOTON_ESTIMATOR_GRID_HEAP || estimator == PHOTON_ESTIMATOR_KDTREE_HEAP) ? clamp(k, 1, PHOTON_MAX_K) : 0;
     heap_n = 0;
 #endif
 #if PHOTON_KDTREE
-    if (estimator >= 2) kdtree_search(q);
+    if (estimator >= PHOTON_ESTIMATOR_KDTREE) kdtree_search(q);
     else
 #endif
     grid_search(q);

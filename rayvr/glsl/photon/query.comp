@@ -3,7 +3,8 @@
 // query_radius of each query point through the hash grid (QUERY_KDTREE 0) or the kd-tree (1),
 // written as indices into the searched array: found[q * query_capacity + j], the count (which may
 // exceed the capacity) to counts[q].
-layout(local_size_x = 64) in;
+#include "../layout.glsl"  // PHOTON_QUERY_GROUP: rayvr/accel/photon_gpu.py
+layout(local_size_x = PHOTON_QUERY_GROUP) in;
 #include "grid.glsl"
 #include "kdtree.glsl"
 

@@ -12,7 +12,8 @@
 // slots i * photon_stores + j in order; unused slots keep extra = 0 (empty).
 // Random numbers come from the path index and the frame seed: one photon map per frame, shared by
 // both eyes, the same for the same seed.
-layout(local_size_x = 64) in;
+#include "../layout.glsl"  // PHOTON_TRACE_GROUP: rayvr/passes/photon_trace.py
+layout(local_size_x = PHOTON_TRACE_GROUP) in;
 #include "../rt/hit_surface.glsl"
 #include "../common/ggx_sample.glsl"
 #include "../common/random.glsl"

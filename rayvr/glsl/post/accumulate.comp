@@ -6,7 +6,8 @@
 // history where the surface point was in the previous frame: the point is projected through the
 // previous pinhole camera, and the history is dropped (disocclusion) when the depth stored there
 // disagrees or it was another material.
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/gbuffer.glsl"
 #include "demodulate.glsl"
 

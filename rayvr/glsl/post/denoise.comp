@@ -19,8 +19,9 @@
 #include "../common/gbuffer.glsl"
 #include "demodulate.glsl"
 
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
 #if DENOISE_STAGE == 0
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #else
 #define TILE DENOISE_TILE  // passes/denoise.py
 layout(local_size_x = TILE, local_size_y = TILE, local_size_z = 1) in;

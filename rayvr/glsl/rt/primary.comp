@@ -35,12 +35,12 @@
 #ifndef MSAA_SKIP_EMPTY
 #define MSAA_SKIP_EMPTY 0
 #endif
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
 #if PRIMARY_MODE == 1
 layout(local_size_x = MSAA_GROUP) in;  // = MSAA_BLOCK_W * MSAA_BLOCK_H * CAMERA_SUBSAMPLES (a literal: GLSL 4.30)
 #else
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #endif
-#include "../layout.glsl"
 #include "../accel/bvh.glsl"
 #include "../common/camera.glsl"
 #include "../common/round_skip.glsl"

@@ -27,7 +27,8 @@
 #define RT_SLOT 0
 #define PARAM_AREA_SAMPLES PARAM_SHADOWS_AREA_SAMPLES
 #endif
-layout(local_size_x = 64) in;
+#include "pixel_list.glsl"
+layout(local_size_x = RT_LOCAL_SIZE) in;  // the lists' groups (classify.comp counts them so)
 #include "shadow_rays.glsl"
 #include "../common/lighting.glsl"
 #include "../common/ggx_sample.glsl"

@@ -1,6 +1,7 @@
 #version 430
 // Debug views of G-buffer channels, written straight to the 8-bit output.
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/gbuffer.glsl"
 #include "../common/scene.glsl"
 #include "../common/color.glsl"

@@ -4,7 +4,8 @@
 // the camera has no sample, negative where an MSAA round skips the pixel), to the frame's sum; a
 // colour-channel round adds only its channel. Weights <= 0 leave the sum as it is (exact: they
 // add zero), so an MSAA round's empty pixels cost a 4-byte read.
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../layout.glsl"
 
 layout(rgba16f, binding = IMAGE_HDR) uniform readonly image2DArray hdr_in;

@@ -25,7 +25,8 @@
 #ifndef RECONSTRUCT
 #define RECONSTRUCT 0
 #endif
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../layout.glsl"  // DITHER_BITS: rayvr/cameras/foveated.py
 #include "../common/camera.glsl"
 

@@ -1,7 +1,8 @@
 #version 430
 // Stereo `reuse`, the copy (rayvr/passes/reuse.py): each right-eye pixel of the map takes the
 // finished HDR colour of its left-eye pixel (after every effect composed its pixels).
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "reuse.glsl"
 
 layout(rgba16f, binding = IMAGE_HDR) uniform restrict image2DArray hdr_image;

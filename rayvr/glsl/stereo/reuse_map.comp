@@ -5,7 +5,8 @@
 // lands on that pixel. Of several landings on one pixel the one nearest its centre wins, then the
 // lowest left pixel index: three kernels (REUSE_STAGE 0 clear, 1 nearest distance, 2 owner) make
 // the choice deterministic with 32-bit atomics only.
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #ifndef REUSE_STAGE  // rayvr/passes/reuse.py builds one program per stage
 #define REUSE_STAGE 0
 #endif

@@ -17,7 +17,8 @@
 //   reached infinity on screen    the background there
 // Writes colour (alpha 0 on holes) and linear view depth into layer `warp_layer`, and counts per
 // eye (glsl order = passes/warp.py COUNTS).
-layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #ifndef WARP_LAYERS
 #define WARP_LAYERS 2  // passes/warp.py sets it; the default lets the shader compile on its own
 #endif
