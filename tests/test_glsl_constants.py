@@ -22,9 +22,6 @@ _CONDITIONAL = re.compile(r"^\s*#\s*(if|ifdef|ifndef|else|elif|endif)\b\s*(\w*)"
 # Numeric defines and consts that no Python module declares, each with why it lives in the shader.
 SHADER_LOCAL = {
     "PI": "math", "QUARTER_PI": "math", "golden": "math (the golden-ratio sequence of shadow_rays.glsl)",
-    "tiny": "bvh.glsl's safe inverse of a zero direction component (numpy: a local in accel/bvh.py)",
-    "origin_band": "the ray-offset rule (Wächter & Binder), a local of accel/bvh.py offset_ray too",
-    "float_scale": "the ray-offset rule, as origin_band",
     "big": "tile_cull.comp's reduction identity",
     "TILE_SLACK": "the tile tests' float slack (accel/frustum.py tile_frusta's default argument)",
     "BVH_MARGIN": "the wide traversal's box slack for quantized boxes",

@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..glsl_constants import declare
 from ..gpu_layout import BVH_FACE_SLACK
 
 EMPTY_LO = np.float32(3.0e38)   # inverted box for an empty child slot: lo > hi, never entered
@@ -64,6 +65,12 @@ MAX_DUPLICATION = 0.3       # SBVH: at most 30 % more triangle references than t
 # 16.9 s, SAH cost 55.95; 64 -> 6.8 s, 56.92 (the SAH build: 69.05)
 SPATIAL_MIN_REFS = 64
 TRIANGLE_BYTES = 48
+SAFE_INVERSE_TINY = declare("BVH_SAFE_INVERSE_TINY", 1e-20)  # safe_inverse (and bvh.glsl's): |d| below it is zero
+# offset_ray (and glsl/accel/ray.glsl's): within OFFSET_ORIGIN_BAND of the origin a fixed distance
+# OFFSET_FLOAT_SCALE along the normal, else OFFSET_INT_SCALE float ulps per unit normal.
+OFFSET_ORIGIN_BAND = declare("OFFSET_ORIGIN_BAND", 1.0 / 32.0)
+OFFSET_FLOAT_SCALE = declare("OFFSET_FLOAT_SCALE", 1.0 / 65536.0)
+OFFSET_INT_SCALE = declare("OFFSET_INT_SCALE", 32.0)
 
 
 class BufferTooLargeError(ValueError):
@@ -529,9 +536,8 @@ def safe_inverse(d: np.ndarray) -> np.ndarray:
     A finite inverse keeps the slab test free of 0*inf = NaN for rays lying in a box plane; the same
     rule is used by the GLSL traversal.
     """
-    tiny = 1e-20
     sign = np.where(d < 0, -1.0, 1.0)
-    return 1.0 / np.where(np.abs(d) < tiny, sign * tiny, d)
+    return 1.0 / np.where(np.abs(d) < SAFE_INVERSE_TINY, sign * SAFE_INVERSE_TINY, d)
 
 
 def valid_rays(d: np.ndarray, tmin: np.ndarray, tmax: np.ndarray) -> np.ndarray:
@@ -726,8 +732,7 @@ def offset_ray(p, n):
     """
     p = np.asarray(p, np.float32)
     n = np.asarray(n, np.float32)
-    origin, float_scale, int_scale = 1.0 / 32.0, 1.0 / 65536.0, 32.0
-    of_i = (int_scale * n).astype(np.int32)
+    of_i = (OFFSET_INT_SCALE * n).astype(np.int32)
     pi = p.view(np.int32)
     p_i = (pi + np.where(p < 0, -of_i, of_i)).astype(np.int32).view(np.float32)
-    return np.where(np.abs(p) < origin, p + float_scale * n, p_i).astype(np.float32)
+    return np.where(np.abs(p) < OFFSET_ORIGIN_BAND, p + OFFSET_FLOAT_SCALE * n, p_i).astype(np.float32)

@@ -69,7 +69,7 @@ bool bvh_ray_valid(Ray r) {
 // (plane - origin) * inv then never computes 0 * inf = NaN, and the slab of a ray lying in a box face
 // still counts as overlapping. Exactness does not matter here: only the triangle test decides hits.
 vec3 bvh_safe_inverse(vec3 d) {
-    const float tiny = 1e-20;
+    const float tiny = BVH_SAFE_INVERSE_TINY;  // rayvr/accel/bvh.py safe_inverse
     vec3 sgn = mix(vec3(1.0), vec3(-1.0), lessThan(d, vec3(0.0)));
     return 1.0 / mix(d, sgn * tiny, lessThan(abs(d), vec3(tiny)));
 }

@@ -27,12 +27,10 @@ struct Hit {
 // 1-unit object there; with barycentric hit points 4 ulps already left no self-hits in 20k rays per
 // case (tests/test_traversal_gpu.py spheres at 1e-3..1e5 scale, 1e5 offset), 2 ulps did not: 32 keeps
 // an 8x margin.
-#ifndef OFFSET_INT_SCALE
-#define OFFSET_INT_SCALE 32.0
-#endif
+// OFFSET_ORIGIN_BAND, OFFSET_FLOAT_SCALE, OFFSET_INT_SCALE: layout.glsl (rayvr/accel/bvh.py offset_ray)
 vec3 offset_ray(vec3 p, vec3 n) {
-    const float origin_band = 1.0 / 32.0;
-    const float float_scale = 1.0 / 65536.0;
+    const float origin_band = OFFSET_ORIGIN_BAND;
+    const float float_scale = OFFSET_FLOAT_SCALE;
     const float int_scale = OFFSET_INT_SCALE;
     ivec3 of_i = ivec3(int_scale * n);
     vec3 p_i = vec3(
