@@ -23,7 +23,6 @@ _CONDITIONAL = re.compile(r"^\s*#\s*(if|ifdef|ifndef|else|elif|endif)\b\s*(\w*)"
 SHADER_LOCAL = {
     "PI": "math", "QUARTER_PI": "math", "golden": "math (the golden-ratio sequence of shadow_rays.glsl)",
     "big": "tile_cull.comp's reduction identity",
-    "TILE_SLACK": "the tile tests' float slack (accel/frustum.py tile_frusta's default argument)",
     "BVH_MARGIN": "the wide traversal's box slack for quantized boxes",
     "TILE_CULL_WRITER": "a switch of tile_cull.comp", "TILE_SUBRAYS": "tile_cull.comp: sub-rays per sample",
     "TILE_MEAN_RAYS": "tile_cull.comp: rays averaged per sample",

@@ -27,6 +27,7 @@ from ..gpu_layout import TILE_PIXELS, TILE_RAYS
 from .bvh import Bvh, valid_rays
 
 TILE_SHAPE = TILE_PIXELS   # pixels of a tile: TILE_RAYS = 16 * 8
+SLACK = declare("TILE_SLACK", 1e-5)  # relative slack of the tile tests for float rounding (here and in the shaders)
 MIN_COS = declare("TILE_MIN_COS", 0.1)  # cull only tiles whose directions lie within ~84 deg of the mean
 
 
@@ -47,7 +48,7 @@ def tile_grid(width: int, height: int, tile: tuple[int, int] = TILE_SHAPE) -> tu
     return -(-width // tile[0]), -(-height // tile[1])
 
 
-def tile_frusta(origins, directions, tmin=0.0, tmax=np.inf, tile: int = TILE_RAYS, slack: float = 1e-5):
+def tile_frusta(origins, directions, tmin=0.0, tmax=np.inf, tile: int = TILE_RAYS, slack: float = SLACK):
     """(planes (T,5,4), status (T,)) of each tile of `tile` consecutive rays: planes n.x <= w hold every
     point o + t d (0 <= t <= tmax) of the tile's valid rays; status 0: no valid ray, 1: culled,
     2: too wide to cull (directions beyond MIN_COS of the mean). Float64; see tile_cull.comp."""

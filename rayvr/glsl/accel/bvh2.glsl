@@ -70,7 +70,7 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
 #ifndef TILE_SORT
 #define TILE_SORT 1   // tile_cull.comp lists a tile's entries front to back along its central direction
 #endif
-#define TILE_SLACK 1e-5   // relative slack of the tile tests for float rounding
+// TILE_SLACK (layout.glsl, rayvr/accel/frustum.py SLACK): relative slack of the tile tests for float rounding
 
 #if defined(TILE_ENTRIES_BINDING) && !defined(TILE_CULL_WRITER)
 // Tile frustum culling (rayvr/accel/frustum.py, tile_cull.comp): a tile's entry list names the
