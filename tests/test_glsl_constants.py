@@ -183,3 +183,64 @@ def test_a_constant_is_declared_once():
         assert f"#define {name} 3" in gpu_layout.glsl_header()
     finally:
         glsl_constants.CONSTANTS.pop(name, None)
+
+
+def _imports(path, module: str) -> set:
+    """The rayvr modules `module` (source at `path`) imports, function-level imports included."""
+    import ast
+
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names if a.name.startswith("rayvr")}
+        elif isinstance(node, ast.ImportFrom):
+            base = package.split(".")
+            base = base[:len(base) - node.level + 1] if node.level else []
+            target = ".".join(base + ([node.module] if node.module else []))
+            if target.startswith("rayvr"):
+                out.add(target)
+                out |= {f"{target}.{a.name}" for a in node.names}  # `from . import shaders`
+    return out
+
+
+def test_a_shader_is_compiled_where_its_constants_are_declared():
+    """A declared constant reaches the header once its owner is imported, so each module that compiles
+    a shader must import (directly or through others) the owner of every declared constant the shader
+    uses, or the shader would not build where that module alone is imported."""
+    from rayvr.shaders import load_source
+
+    root = GLSL_DIR.parent
+    sources = {f"rayvr.{'.'.join(p.relative_to(root).with_suffix('').parts)}".removesuffix(".__init__"): p
+               for p in root.rglob("*.py")}
+    graph = {m: _imports(p, m) & set(sources) for m, p in sources.items()}
+
+    def closure(m):
+        seen, todo = set(), [m, "rayvr"]  # the package's __init__ runs first
+        while todo:
+            x = todo.pop()
+            if x not in seen:
+                seen.add(x)
+                todo += graph.get(x, ())
+        return seen
+
+    declarations = {}  # the name a declare() call spells, or its f-string's fixed start -> module
+    for m, p in sources.items():
+        for name in re.findall(r'declare\(f?"([A-Z][A-Z0-9_]*)', p.read_text()):
+            declarations[name] = m
+    import_every_module()
+    owner_of = {}  # declared constant -> the module that declares it
+    for name in glsl_constants.CONSTANTS:
+        owner_of.update({name: m for start, m in declarations.items() if name.startswith(start)})
+    assert set(owner_of) >= {"SSRT_HIT", "CAMERA_PINHOLE", "WARP_COUNT_NODES", "PIXEL_TILE"}
+    missing = []
+    for m, p in sources.items():
+        for shader in sorted(set(re.findall(r'"([\w/]+\.(?:comp|vert|frag))"', p.read_text()))):
+            if not (GLSL_DIR / shader).is_file():
+                continue
+            text = "\n".join(line for line in load_source(shader, {"EFFECT_PATHS": "effects/shadows.glsl"}).text
+                             .splitlines() if not line.startswith("#define ") or line.split()[1] not in owner_of)
+            used = set(re.findall(r"\b[A-Z][A-Z0-9_]*\b", text)) & set(owner_of)
+            need = {owner_of[n] for n in used} - closure(m)
+            missing += [f"{m} compiles {shader} without importing {o}" for o in sorted(need)]
+    assert not missing, "\n".join(missing)
