@@ -11,13 +11,13 @@ import os
 import re
 import signal
 import socket
-import stat
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .camera import EYES, Pose, StereoRig, check_camera_positions, load_path, orbit
+from .inputs import read_json
 from .output import (FORMATS, OutputError, atomic_write_bytes, check_file_prefix, check_output_dir,
                      check_output_files, create_output_dir, openexr, remove_empty_dirs, write_exr, write_npy,
                      write_png)
@@ -201,16 +201,9 @@ NO_RECORD = "no record (written by an older rayvr, or stopped mid-frame)"
 
 def _read_json(path: Path):
     """A bookkeeping file's JSON; FileNotFoundError if absent, ValueError if it is not what rayvr writes."""
-    if not stat.S_ISREG(os.stat(path).st_mode):  # a FIFO or device would block or never end
-        raise ValueError("not a regular file")
-    with open(path, "rb") as f:
-        data = f.read(MAX_BOOKKEEPING_BYTES + 1)
-    if len(data) > MAX_BOOKKEEPING_BYTES:
-        raise ValueError(f"larger than {MAX_BOOKKEEPING_BYTES >> 20} MiB")
-    try:
-        return json.loads(data)
-    except RecursionError:
-        raise ValueError("nested too deep") from None
+    if not os.path.lexists(path):
+        raise FileNotFoundError(path)
+    return read_json(path, "rayvr bookkeeping file", MAX_BOOKKEEPING_BYTES)
 
 
 def frame_problem(job: CaptureJob, index: int, digest: str, checksums: bool = True) -> str | None:
