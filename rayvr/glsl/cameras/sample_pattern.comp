@@ -6,7 +6,6 @@
 // into its own channel (chromatic pre-correction shows as coloured fringes).
 #include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
-#include "../layout.glsl"
 #include "../common/camera.glsl"
 
 layout(rgba8, binding = IMAGE_LDR) uniform image2DArray ldr_out;

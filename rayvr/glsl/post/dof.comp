@@ -11,7 +11,6 @@
 #endif
 #include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
-#include "../layout.glsl"
 #include "../common/camera.glsl"
 #include "../common/gbuffer.glsl"
 #include "../common/random.glsl"

@@ -6,7 +6,6 @@
 // add zero), so an MSAA round's empty pixels cost a 4-byte read.
 #include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
-#include "../layout.glsl"
 
 layout(rgba16f, binding = IMAGE_HDR) uniform readonly image2DArray hdr_in;
 layout(r32f, binding = IMAGE_SAMPLE_WEIGHT) uniform readonly image2DArray weight_in;

@@ -27,7 +27,6 @@
 #endif
 #include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
-#include "../layout.glsl"  // DITHER_BITS: rayvr/cameras/foveated.py
 #include "../common/camera.glsl"
 
 layout(rgba32f, binding = IMAGE_SAMPLE_SUM) uniform readonly image2DArray sum;

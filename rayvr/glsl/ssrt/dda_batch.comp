@@ -7,7 +7,6 @@
 #define LOCAL_SIZE SSRT_RAY_GROUP  // rayvr/gpu_layout.py: the Python side dispatches by it
 layout(local_size_x = LOCAL_SIZE) in;
 
-#include "../layout.glsl"
 #include "dda.glsl"
 
 layout(std430, binding = SSBO_DDA_RAYS) readonly restrict buffer DdaRays { vec4 dda_rays[]; };

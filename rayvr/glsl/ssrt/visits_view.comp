@@ -4,7 +4,6 @@
 // green/blue = a heat ramp of the same count over 0..64; background black.
 #include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
-#include "../layout.glsl"
 #include "../common/gbuffer.glsl"
 #include "quadtree.glsl"
 
