@@ -17,6 +17,7 @@ import math
 import os
 import socket
 import threading
+import time
 from collections import deque
 from dataclasses import dataclass
 
@@ -28,6 +29,9 @@ MAX_ATTEMPTS = 4  # a task is tried this often (the first run plus retries) befo
 IN_FLIGHT = 2  # tasks queued per worker: the next one is there when the current one ends
 MAX_WORKERS = 1024
 DEFAULT_CONNECT_TIMEOUT_S = 30.0  # --connect-timeout: Ray itself retries an unreachable cluster for minutes
+# Ray frees a killed actor's CPU or GPU a moment after ray.kill returns: workers closed just before
+# (bench workers 1,2 on one cluster) are waited for this long before the cluster counts as full.
+RESOURCE_WAIT_S = 10.0
 
 
 class ClusterError(RuntimeError):
@@ -180,6 +184,17 @@ def _unavailable_errors(ray) -> tuple:
     return tuple(getattr(ray.exceptions, n) for n in ("ActorUnavailableError",) if hasattr(ray.exceptions, n))
 
 
+def _free_resources(ray, workers: int, wait_s: float) -> tuple[dict, int, int]:
+    """(the cluster's resources, free GPUs, free CPUs), once `workers` fit or after `wait_s` seconds."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        total, free = ray.cluster_resources(), ray.available_resources()
+        gpus, cpus = int(free.get("GPU", 0)), int(free.get("CPU", 0))
+        if (gpus if total.get("GPU", 0) else cpus) >= workers or time.monotonic() >= deadline:
+            return total, gpus, cpus
+        time.sleep(0.1)
+
+
 class Cluster:
     """N Ray workers (actors), on a local Ray started here or the cluster at `address` (reached
     within `connect_timeout` seconds)."""
@@ -203,9 +218,8 @@ class Cluster:
                 where = f"at {address}" if address else "locally"
                 raise ClusterError(f"cannot start Ray {where}: {str(exc).splitlines()[0] if str(exc) else exc!r}") from None
             self.started = True
-        # What is free now: workers that do not fit would wait for resources for ever.
-        total, free = ray.cluster_resources(), ray.available_resources()
-        gpus, cpus = int(free.get("GPU", 0)), int(free.get("CPU", 0))
+        # What is free: workers that do not fit would wait for resources for ever.
+        total, gpus, cpus = _free_resources(ray, workers, RESOURCE_WAIT_S)
         if total.get("GPU", 0):
             if workers > gpus:
                 self.close()

@@ -142,6 +142,54 @@ def test_a_task_that_kills_every_worker_fails_after_max_attempts():
     assert results == {0: [0]} and failed == [1] and retried == MAX_ATTEMPTS - 1
 
 
+class FakeRayCluster(FakeRay):
+    """A running Ray of 4 CPUs whose free CPUs read `free` in turn (the last one from then on):
+    actors killed just before free theirs a moment later."""
+
+    def __init__(self, free):
+        self.free = list(free)
+
+    def is_initialized(self):
+        return True
+
+    def cluster_resources(self):
+        return {"CPU": 4.0}
+
+    def available_resources(self):
+        return {"CPU": float(self.free.pop(0) if len(self.free) > 1 else self.free[0])}
+
+    def remote(self, what):  # ray.remote(RenderWorker) is the actor class; its .remote(spec) an actor
+        return self if isinstance(what, type) else object()
+
+    def options(self, **kw):
+        return self
+
+    def kill(self, actor):
+        pass
+
+
+def test_workers_wait_for_the_cpus_that_workers_closed_just_before_still_hold(monkeypatch):
+    from rayvr import cluster
+    from rayvr.cluster import Cluster, WorkerSpec
+
+    ray = FakeRayCluster([1, 1, 1, 2])
+    monkeypatch.setattr(cluster, "require_ray", lambda: ray)
+    with Cluster(2, WorkerSpec()) as c:
+        assert len(c.actors) == 2 and ray.free == [2]
+
+
+def test_workers_that_do_not_fit_once_the_wait_is_over_are_one_clear_error(monkeypatch):
+    from rayvr import cluster
+    from rayvr.cluster import Cluster, ClusterError, WorkerSpec
+
+    monkeypatch.setattr(cluster, "require_ray", lambda: FakeRayCluster([1]))
+    monkeypatch.setattr(cluster, "RESOURCE_WAIT_S", 0.3)
+    start = time.monotonic()
+    with pytest.raises(ClusterError, match=r"^--workers 2 needs 2 CPUs; the Ray cluster has 1 free of 4 \(and no GPU\)$"):
+        Cluster(2, WorkerSpec())
+    assert 0.3 <= time.monotonic() - start < 5
+
+
 # ------------------------------------------------------------------ without the extra
 
 def test_workers_without_ray_is_one_line_naming_the_extra(tmp_path, monkeypatch, capsys):
