@@ -78,10 +78,18 @@ _RAW_SIGNATURES: dict[str, tuple] = {
     "glFenceSync": (_p, (_u, _u)),
     "glClientWaitSync": (_u, (_p, _u, ctypes.c_uint64)),
     "glDeleteSync": (None, (_p,)),
+    # The driver's own words for an error (KHR_debug, core in 4.3): RAYVR_GL_DEBUG=1.
+    "glEnable": (None, (_u,)),
+    "glDebugMessageControl": (None, (_u, _u, _u, _i, ctypes.POINTER(_u), ctypes.c_ubyte)),
+    "glGetDebugMessageLog": (_u, (_u, _i, ctypes.POINTER(_u), ctypes.POINTER(_u), ctypes.POINTER(_u),
+                                  ctypes.POINTER(_u), ctypes.POINTER(_i), ctypes.c_char_p)),
 }
 GL_SYNC_GPU_COMMANDS_COMPLETE, GL_SYNC_FLUSH_COMMANDS_BIT = 0x9117, 0x1
 GL_ALREADY_SIGNALED, GL_TIMEOUT_EXPIRED, GL_CONDITION_SATISFIED, GL_WAIT_FAILED = 0x911A, 0x911B, 0x911C, 0x911D
 GL_GPU_MEMORY_INFO_DEDICATED_VIDMEM_NVX = 0x9047  # kB
+GL_DEBUG_OUTPUT, GL_DEBUG_OUTPUT_SYNCHRONOUS, GL_DEBUG_TYPE_ERROR, GL_DONT_CARE = 0x92E0, 0x8242, 0x824C, 0x1100
+DEBUG_ENV = "RAYVR_GL_DEBUG"  # 1: a frame's GL error names the call the driver refused (the suite sets it)
+DEBUG_MESSAGES = 8  # driver messages a GpuError quotes
 GL_ERROR_NAMES = {0x0500: "GL_INVALID_ENUM", 0x0501: "GL_INVALID_VALUE", 0x0502: "GL_INVALID_OPERATION",
                   0x0505: "GL_OUT_OF_MEMORY", 0x0506: "GL_INVALID_FRAMEBUFFER_OPERATION"}  # glGetError codes
 
@@ -157,6 +165,12 @@ class GLContext:
     raw: RawGL
     _release: Callable[[], None] = field(default=lambda: None, repr=False)
     _parking: object = field(default=None, repr=False)
+    _logging: bool = field(default=False, repr=False)  # log_errors is on
+    said: list = field(default_factory=list, repr=False)  # the driver's messages of gl_errors' errors
+
+    def __post_init__(self):
+        if os.environ.get(DEBUG_ENV, "") not in ("", "0"):
+            self.log_errors()
 
     def release_framebuffer(self, fbo) -> None:
         """Release `fbo`. If moderngl still counts it as the bound framebuffer, a live 1x1 one
@@ -169,13 +183,40 @@ class GLContext:
         fbo.release()
 
     def gl_errors(self) -> list[str]:
-        """The GL errors raised since the last call (glGetError until GL_NO_ERROR), named."""
+        """The GL errors raised since the last call (glGetError until GL_NO_ERROR), named; with
+        log_errors on, `said` holds the driver's messages of the same span."""
         out: list[str] = []
         while len(out) < 16:  # a lost context may never return GL_NO_ERROR
             code = self.raw.glGetError()
             if code == 0:
                 break
             out.append(GL_ERROR_NAMES.get(code, f"GL error {code:#06x}"))
+        if self._logging:
+            self.said = self.driver_messages()
+        return out
+
+    def log_errors(self) -> None:
+        """Keep the driver's message for every GL error (KHR_debug's log, errors only), so that
+        check_frame can say which call failed. Synchronous, so the log follows the calls' order;
+        off by default (RAYVR_GL_DEBUG=1): a driver may slow down with debug output on."""
+        raw = self.raw
+        raw.glEnable(GL_DEBUG_OUTPUT)
+        raw.glEnable(GL_DEBUG_OUTPUT_SYNCHRONOUS)
+        raw.glDebugMessageControl(GL_DONT_CARE, GL_DONT_CARE, GL_DONT_CARE, 0, None, 0)
+        raw.glDebugMessageControl(GL_DONT_CARE, GL_DEBUG_TYPE_ERROR, GL_DONT_CARE, 0, None, 1)
+        self.driver_messages()  # what came before is not ours
+        self._logging = True
+
+    def driver_messages(self) -> list[str]:
+        """The messages in the driver's debug log since the last call (empty unless log_errors)."""
+        out: list[str] = []
+        size = 4096
+        text = ctypes.create_string_buffer(size)
+        lengths = (ctypes.c_int * 1)()
+        while len(out) < 64:
+            if not self.raw.glGetDebugMessageLog(1, size, None, None, None, None, lengths, text):
+                break
+            out.append(text.value.decode(errors="replace").strip())
         return out
 
     def fence(self) -> "Fence":
@@ -187,8 +228,10 @@ class GLContext:
         dispatches failed would otherwise come back as a plausible but wrong (often black) image."""
         errors = self.gl_errors()
         if errors:
+            said = list(dict.fromkeys(self.said))[:DEBUG_MESSAGES]
+            words = f": {'; '.join(said)}" if said else ""
             raise GpuError(f"{where}: the OpenGL driver reported {', '.join(dict.fromkeys(errors))} "
-                           f"({self.ctx.info.get('GL_RENDERER', 'unknown renderer')}); the image would be wrong")
+                           f"({self.ctx.info.get('GL_RENDERER', 'unknown renderer')}){words}; the image would be wrong")
 
     @property
     def extensions(self) -> set[str]:

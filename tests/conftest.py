@@ -17,6 +17,8 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED_SCENES = Path(os.environ.get("RAYVR_SCENES") or REPO.parent / "shared" / "scenes")
 # No BVH files in the user's cache from tests (accel/bvh_cache.py); the cache's own tests set a folder.
 os.environ.setdefault("RAYVR_BVH_CACHE", "off")
+# A GL error in a frame quotes the driver's message: which call it refused (context.GLContext.log_errors).
+os.environ.setdefault("RAYVR_GL_DEBUG", "1")
 
 
 @pytest.fixture(scope="session")

@@ -1,4 +1,5 @@
 import os
+import re
 import subprocess
 import sys
 
@@ -95,9 +96,12 @@ def test_a_gl_error_during_a_frame_is_an_error_not_an_image(gl):
             original(fc)
             gl.raw.glBindBuffer(0xDEAD, 0)
         tonemap.execute = failing
-        with pytest.raises(GpuError, match="GL_INVALID_ENUM"):
+        with pytest.raises(GpuError, match="GL_INVALID_ENUM") as failed:
             r.render(rig)
         tonemap.execute = original
+        if gl._logging:  # the suite turns the driver's log on (RAYVR_GL_DEBUG): its words follow
+            said = re.search(r"GL_INVALID_ENUM \(.*?\): (.+); the image would be wrong$", str(failed.value))
+            assert said and len(said.group(1)) > 8, str(failed.value)
         assert np.asarray(r.render(rig).left.color).any()  # the next frame is fine again
 
 
