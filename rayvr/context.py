@@ -87,6 +87,7 @@ _RAW_SIGNATURES: dict[str, tuple] = {
 GL_SYNC_GPU_COMMANDS_COMPLETE, GL_SYNC_FLUSH_COMMANDS_BIT = 0x9117, 0x1
 GL_ALREADY_SIGNALED, GL_TIMEOUT_EXPIRED, GL_CONDITION_SATISFIED, GL_WAIT_FAILED = 0x911A, 0x911B, 0x911C, 0x911D
 GL_GPU_MEMORY_INFO_DEDICATED_VIDMEM_NVX = 0x9047  # kB
+GL_UNSIGNED_BYTE = 0x1401
 GL_DEBUG_OUTPUT, GL_DEBUG_OUTPUT_SYNCHRONOUS, GL_DEBUG_TYPE_ERROR, GL_DONT_CARE = 0x92E0, 0x8242, 0x824C, 0x1100
 DEBUG_ENV = "RAYVR_GL_DEBUG"  # 1: a frame's GL error names the call the driver refused (the suite sets it)
 DEBUG_MESSAGES = 8  # driver messages a GpuError quotes
@@ -167,10 +168,24 @@ class GLContext:
     _parking: object = field(default=None, repr=False)
     _logging: bool = field(default=False, repr=False)  # log_errors is on
     said: list = field(default_factory=list, repr=False)  # the driver's messages of gl_errors' errors
+    # Makes this context current again; a new context is current when made (every backend does that).
+    _activate: Callable[[], None] = field(default=lambda: None, repr=False)
 
     def __post_init__(self):
+        global _current
+        _live.append(self)
+        _current = self
         if os.environ.get(DEBUG_ENV, "") not in ("", "0"):
             self.log_errors()
+
+    def make_current(self) -> None:
+        """Make this the thread's current context if another one is: GL calls go to the current
+        context, and one made (or released) after this one would otherwise take them, every name
+        of this one unknown there (glBindFramebuffer(non-gen name)). Renderer calls this on entry."""
+        global _current
+        if _current is not self:
+            self._activate()
+            _current = self
 
     def release_framebuffer(self, fbo) -> None:
         """Release `fbo`. If moderngl still counts it as the bound framebuffer, a live 1x1 one
@@ -287,10 +302,22 @@ class GLContext:
         return None
 
     def release(self) -> None:
+        global _current
         try:
             self.ctx.release()
         finally:
             self._release()
+            if self in _live:
+                _live.remove(self)
+            if _current is self:  # a released current context keeps taking the calls: back to the last live one
+                _current = None
+                if _live:
+                    _live[-1].make_current()
+
+
+# The contexts of this process that are not released, oldest first, and the one rayvr made current.
+_live: list[GLContext] = []
+_current: GLContext | None = None
 
 
 def _check_version(ctx: moderngl.Context, backend: str) -> None:
@@ -416,7 +443,7 @@ def create_egl_context(device_index: int | None = None) -> GLContext:
     except Exception as exc:  # moderngl raises plain Exception here
         raise ContextError(f"egl: {exc}") from exc
     _check_version(ctx, "egl")
-    return GLContext(ctx, "egl", RawGL(_egl_proc_loader()))
+    return GLContext(ctx, "egl", RawGL(_egl_proc_loader()), _activate=ctx.__enter__)
 
 
 class _OSMesaLoader:
@@ -457,7 +484,11 @@ def create_osmesa_context(size: tuple[int, int] = (16, 16)) -> GLContext:
         raise ContextError("osmesa: OSMesaCreateContextAttribs failed (no 4.5 core profile?)")
     w, h = size
     buffer = ctypes.create_string_buffer(w * h * 4)
-    if not lib.OSMesaMakeCurrent(handle, buffer, 0x1401, w, h):  # GL_UNSIGNED_BYTE
+
+    def activate() -> bool:
+        return bool(lib.OSMesaMakeCurrent(handle, buffer, GL_UNSIGNED_BYTE, w, h))
+
+    if not activate():
         lib.OSMesaDestroyContext(handle)
         raise ContextError("osmesa: OSMesaMakeCurrent failed")
     try:
@@ -472,7 +503,7 @@ def create_osmesa_context(size: tuple[int, int] = (16, 16)) -> GLContext:
         lib.OSMesaDestroyContext(handle)
         buffer  # keep the colour buffer alive as long as the context
 
-    return GLContext(ctx, "osmesa", RawGL(lambda n: lib.OSMesaGetProcAddress(n.encode())), release)
+    return GLContext(ctx, "osmesa", RawGL(lambda n: lib.OSMesaGetProcAddress(n.encode())), release, _activate=activate)
 
 
 def create_context(backend: str | None = None, device_index: int | None = None) -> GLContext:
@@ -527,4 +558,5 @@ def create_window_context(size=(1280, 720), title="rayvr", visible=True, vsync=T
     def release():
         glfw.destroy_window(window)
 
-    return window, GLContext(ctx, "glfw", RawGL(lambda n: glfw.get_proc_address(n)), release)
+    return window, GLContext(ctx, "glfw", RawGL(lambda n: glfw.get_proc_address(n)), release,
+                             _activate=lambda: glfw.make_context_current(window))

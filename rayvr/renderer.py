@@ -160,6 +160,7 @@ class Renderer:
         self.scene = scene if isinstance(scene, scene_mod.Scene) else scene_mod.load(scene)
         self._owns_gl = gl is None
         self.gl = gl or create_context(backend)
+        self.gl.make_current()  # every call of a Renderer into GL starts so (GLContext.make_current)
         self.settings = settings or RenderSettings()
         self.config = _as_config(materials)
         self.assignments = self.config.assign(self.scene.material_names())
@@ -178,6 +179,7 @@ class Renderer:
         current one in place."""
         config = _as_config(materials)
         assignments = config.assign(self.scene.material_names())
+        self.gl.make_current()
         self.config, self.assignments = config, assignments
         self.gpu_scene.set_assignments(assignments)
         self.accumulator.invalidate()
@@ -255,6 +257,7 @@ class Renderer:
         `profile`: time each kernel of multi-kernel passes instead of each pass (read_ms).
         `sample`: this frame is that sample of an accumulation (0 starts over); None: the
         accumulator decides (rayvr/accumulation.py: the next sample while nothing changed)."""
+        self.gl.make_current()
         eye_views = rig.eyes(eyes)
         plan = self.plan(len(eye_views), view, eye_views[0].camera, accumulate=sample is not None)
         graph = self.graph.compile(plan)
@@ -341,6 +344,7 @@ class Renderer:
             raise ValueError(f"aux channel(s) {', '.join(warped)} need stereo dual or reuse: warp makes only "
                              f"colour and depth per eye (its G-buffer is the central view)")
         pending = None
+        self.gl.make_current()
         self.gl.gl_errors()  # what earlier calls left (queries of optional limits) is not this frame's
         for i, rig in enumerate(rigs):
             tiles = self.tiles(rig, eyes, view)
@@ -437,6 +441,7 @@ class Renderer:
         return Frame(out, timings, view, passes)
 
     def _finish(self, pending) -> Frame:
+        self.gl.make_current()
         timings = self.graph.read_ms(pending.fc)
         frame = Frame(self.reader.finish(pending), timings, pending.fc.plan.view, tuple(pending.fc.pass_names))
         where = f"a {'x'.join(map(str, pending.fc.sizing.size))} frame"
@@ -455,11 +460,13 @@ class Renderer:
             raise ValueError(f"update_vertices needs {self.scene.vertices.shape} finite positions, got {v.shape}")
         self.scene.vertices = np.ascontiguousarray(v)
         self.accumulator.invalidate()
+        self.gl.make_current()
         self.gpu_scene.upload_vertices()
         self.accel.refit(v, on_gpu=gpu_refit)
 
     # -- lifetime --------------------------------------------------------------------
     def release(self) -> None:
+        self.gl.make_current()
         self.reader.release()
         self.graph.release()
         self.accel.release()

@@ -124,6 +124,36 @@ def test_a_released_renderer_leaves_no_dead_framebuffer_bound(gl):
     assert gl.gl_errors() == []
 
 
+def test_a_second_context_made_or_released_in_the_process_leaves_the_first_one_working(gl):
+    """GL calls go to the thread's current context. A second context (a benchmark's own, a
+    Renderer made without gl=) took them over, and kept them after its release: the first
+    context's next frame failed on every name (glBindFramebuffer(non-gen name)). Renderers on
+    two live contexts in turn, and on the first after the second is released, draw the same frame."""
+    from rayvr import scene as scene_mod
+    from rayvr.camera import StereoRig
+    from rayvr.renderer import Renderer
+
+    scene = scene_mod.load(None)
+    rig = StereoRig.for_scene(scene, size=(16, 12))
+    with Renderer(scene, gl=gl) as r:
+        before = r.render(rig).left.color
+    other = create_context()
+    try:
+        with Renderer(scene, gl=gl) as here, Renderer(scene, gl=other) as there:
+            for _ in range(2):  # in turn: each frame on its own context
+                np.testing.assert_array_equal(here.render(rig).left.color, before)
+                np.testing.assert_array_equal(there.render(rig).left.color, before)
+    finally:
+        other.release()
+    with Renderer(scene, gl=gl) as r:  # the released one was current: the first is again
+        np.testing.assert_array_equal(r.render(rig).left.color, before)
+    bench_own = create_context()  # made and released around no Renderer of its own
+    bench_own.release()
+    with Renderer(scene, gl=gl) as r:
+        np.testing.assert_array_equal(r.render(rig).left.color, before)
+    assert gl.gl_errors() == []
+
+
 def test_a_fence_wait_returns_once_the_gpu_has_run_the_work_before_it(gl):
     """GLContext.fence: after wait() a compute shader's writes recorded before the fence are
     there (read without any other synchronising call), and the sync object is deleted."""
