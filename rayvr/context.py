@@ -276,10 +276,7 @@ class GLContext:
 
     @property
     def is_software(self) -> bool:
-        """Mesa's CPU rasterizers: correct images, but GL timer queries there do not measure GPU
-        work (they read near zero or garbage), so timings are for information only."""
-        renderer = (self.ctx.info.get("GL_RENDERER") or "").lower()
-        return any(name in renderer for name in ("llvmpipe", "softpipe", "swrast"))
+        return is_software_renderer(self.ctx)
 
     @property
     def max_ssbo_bytes(self) -> int:
@@ -313,6 +310,14 @@ class GLContext:
                 _current = None
                 if _live:
                     _live[-1].make_current()
+
+
+def is_software_renderer(ctx: moderngl.Context) -> bool:
+    """Mesa's CPU rasterizers: correct images, but GL timer queries there do not measure GPU
+    work (they read near zero or garbage), and there is no GPU clock to ramp up: timings are for
+    information only."""
+    renderer = (ctx.info.get("GL_RENDERER") or "").lower()
+    return any(name in renderer for name in ("llvmpipe", "softpipe", "swrast"))
 
 
 # The contexts of this process that are not released, oldest first, and the one rayvr made current.

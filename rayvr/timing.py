@@ -11,6 +11,8 @@ import ctypes
 import statistics
 import time
 
+from .context import is_software_renderer
+
 GL_TIME_ELAPSED, GL_QUERY_RESULT = 0x88BF, 0x8866
 
 
@@ -75,7 +77,8 @@ def settle(step, min_seconds: float = 0.3, max_seconds: float = 10.0, window: in
 def time_gpu(ctx, fn, repeats: int = 10, min_seconds: float = 1.0, batches: int = 5) -> dict:
     """GPU ms of `fn()` (which records GL work) once the times settle: the median of `batches`
     timer queries around `repeats` calls each, with min and max; `ms` is the wall time per call
-    where the timer reads ~0 (llvmpipe does for compute)."""
+    where the timer reads ~0 (llvmpipe does for compute). A software rasterizer has no clock to
+    ramp up: one call warms it."""
     query = ctx.query(time=True)
 
     def one() -> float:
@@ -83,7 +86,10 @@ def time_gpu(ctx, fn, repeats: int = 10, min_seconds: float = 1.0, batches: int 
             fn()
         return query.elapsed / 1e6
 
-    settle(one, min_seconds=min_seconds)
+    if is_software_renderer(ctx):
+        one()
+    else:
+        settle(one, min_seconds=min_seconds)
     gpu, wall = [], []
     for _ in range(batches):
         t0 = time.perf_counter()
