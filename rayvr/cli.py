@@ -868,6 +868,16 @@ def sigterm_as_interrupt():
 
 
 def main(argv=None) -> int:
+    code = run_command(argv)
+    from .cluster import connect_left_behind
+    if argv is None and connect_left_behind():  # a process of its own: no exit handler may wait on Ray
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def run_command(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="rayvr: %(message)s")

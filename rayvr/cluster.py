@@ -86,6 +86,16 @@ class _StderrHidden:
         os.close(self.saved)
 
 
+_left_behind = threading.Event()
+
+
+def connect_left_behind() -> bool:
+    """Whether a ray.init(address=...) was given up while it still ran. Its daemon thread would
+    end with the process, but Ray's exit handler (ray.shutdown, at interpreter exit) can wait on
+    it for ever: a process that gave one up ends with os._exit once its own clean-up is done."""
+    return _left_behind.is_set()
+
+
 def _connect(ray, address: str, timeout: float, **kw) -> None:
     """ray.init(address=...) within `timeout` seconds, else one ClusterError. The connection is
     made on a daemon thread: this one waits in a join that Ctrl-C and SIGTERM interrupt, where
@@ -100,10 +110,14 @@ def _connect(ray, address: str, timeout: float, **kw) -> None:
             failure.append(exc)
 
     thread = threading.Thread(target=connect, name="rayvr-ray-connect", daemon=True)
-    with _StderrHidden():
-        thread.start()
-        thread.join(timeout)
-    if thread.is_alive():  # left behind: a daemon thread ends with the process
+    try:
+        with _StderrHidden():
+            thread.start()
+            thread.join(timeout)
+    finally:
+        if thread.is_alive():  # Ctrl-C, SIGTERM or the timeout: see connect_left_behind
+            _left_behind.set()
+    if thread.is_alive():
         raise ClusterError(f"no Ray cluster answered at {address} within {timeout:g} s (--connect-timeout)")
     if failure:
         raise failure[0]

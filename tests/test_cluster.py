@@ -430,6 +430,31 @@ def test_a_cluster_that_never_answers_fails_after_connect_timeout_without_rays_w
     assert not (tmp_path / "out").exists()
 
 
+def test_a_connect_given_up_while_ray_init_runs_is_remembered_for_the_exit(silent_listener, monkeypatch):
+    """The process ends with os._exit after such a connect (cli.main): Ray's exit handler could
+    wait on the thread left in ray.init for ever."""
+    import threading
+
+    from rayvr import cluster
+    from rayvr.cluster import ClusterError, _connect, connect_left_behind
+
+    monkeypatch.setattr(cluster, "_left_behind", threading.Event())
+    released = threading.Event()
+
+    class HangingRay:
+        def init(self, **kw):
+            released.wait(30)
+
+    address = f"127.0.0.1:{silent_listener.getsockname()[1]}"
+    assert not connect_left_behind()
+    try:
+        with pytest.raises(ClusterError, match="no Ray cluster answered .* within 0.2 s"):
+            _connect(HangingRay(), address, 0.2)
+        assert connect_left_behind()
+    finally:
+        released.set()
+
+
 @needs_ray
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_ctrl_c_and_sigterm_end_a_wait_for_the_cluster_at_once(tmp_path, silent_listener, sig):
