@@ -42,6 +42,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import metrics
+from .effects import implemented_effects
+from .measure import (BENCH_QUALITY, RendererPool, Variant, config_for_assignment, local_measurer, measure,
+                      reference_variant)
+from .reference import reference_config
+
 # Slack for floating-point sums when comparing against the budget (1 ns in ms units).
 COST_EPS_MS = 1e-6
 
@@ -252,11 +258,7 @@ def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
     approximations: reflections also show other materials, and dispatch overheads are shared;
     the chosen assignment is therefore rendered and measured for real afterwards.
     Materials covering < min_coverage of the image stay `raster`. `measure_all`: how the
-    per-effect renders are measured (bench.tradeoff.local_measurer by default; Ray workers)."""
-    from .bench import metrics
-    from .bench.tradeoff import Variant, config_for_assignment, local_measurer
-    from .effects import implemented_effects
-
+    per-effect renders are measured (measure.local_measurer by default; cluster.sweep_measurer: Ray workers)."""
     effects = list(effects or implemented_effects())
     names = scene.material_names()
     ids = reference_image.material
@@ -307,9 +309,6 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
     BUDGET_ROUNDS times. If no round fits, the best measured pick that did fit is returned, else
     the cheapest assignment. `options`: (base_ms, per-material options) measured already, to
     solve several budgets from one measurement."""
-    from .bench import metrics
-    from .bench.tradeoff import Variant, config_for_assignment, measure
-
     base_ms, options = options or per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
                                                        progress=progress, pool=pool)
 
@@ -353,10 +352,6 @@ def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repea
     """`--budget-ms` for capture and preview: effects per material of `renderer.scene` that keep the
     frame within `budget_ms` on this device with the least error, starting from the renderer's
     current config. Returns the config and the summary (predicted and measured ms and FLIP)."""
-    from .bench import metrics
-    from .bench.reference import reference_config
-    from .bench.tradeoff import BENCH_QUALITY, RendererPool, measure, reference_variant
-
     ppd = metrics.DEFAULT_PPD if ppd is None else ppd
 
     gl, scene = renderer.gl, renderer.scene

@@ -21,9 +21,10 @@ from .inputs import read_json
 from .output import (FORMATS, OutputError, atomic_write_bytes, check_file_prefix, check_output_dir,
                      check_output_files, create_output_dir, openexr, remove_empty_dirs, write_exr, write_npy,
                      write_png)
-from .readback import INTEGER_AUX
+from .capture_files import aux_file, file_name
 from .renderer import Frame, Renderer
 from .signals import handling
+from .views import camera_json
 
 log = logging.getLogger(__name__)
 
@@ -96,21 +97,6 @@ def poses_for(rig: StereoRig, scene, frames: int | None = None, path: str | None
     return poses
 
 
-def file_name(job: CaptureJob, index: int, eye: str, kind: str, ext: str) -> Path:
-    frame = f"_{index:04d}" if len(job.poses) > 1 else ""
-    suffix = "" if kind == "color" else f"_{kind}"
-    return job.out_dir / f"{job.prefix}{frame}_{eye}{suffix}.{ext}"
-
-
-def aux_file(job: CaptureJob, index: int, eye: str, name: str) -> Path:
-    """Where aux channel `name` of an eye goes: NPY, or EXR for float channels with format exr
-    (integer IDs stay exact in NPY); the HDR colour of an EXR job is the colour's EXR twin."""
-    if name == "hdr" and job.hdr_exr:
-        return file_name(job, index, eye, "color", "exr")
-    exr = job.format == "exr" and name not in INTEGER_AUX
-    return file_name(job, index, eye, name, "exr" if exr else "npy")
-
-
 def frame_files(job: CaptureJob, index: int) -> list[Path]:
     """Every file frame `index` of `job` writes: the frame is complete on disk when all exist."""
     out = []
@@ -140,8 +126,6 @@ def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) 
                 write_exr(p, arr, EXR_CHANNELS[1 if arr.ndim == 2 else arr.shape[-1]])
             written.append(p)
         if rig is not None:
-            from .views import camera_json
-
             p = file_name(job, index, eye, "camera", "json")
             atomic_write_bytes(p, camera_json(rig.eye(eye)))
             written.append(p)

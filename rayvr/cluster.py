@@ -126,7 +126,7 @@ def _connect(ray, address: str, timeout: float, **kw) -> None:
 @dataclass
 class WorkerSpec:
     """What each worker loads once: the capture's scene, config and settings (scene None: the
-    built-in room), or nothing for sweep workers (they load benchmark scenes by name)."""
+    built-in room), or nothing for sweep workers (they load the scenes a sweep names)."""
 
     scene: str | None = None
     materials: object = None  # a path or a MaterialConfig
@@ -145,7 +145,7 @@ class RenderWorker:
         self.egl_device = assigned_egl_device()
         self.gl = create_context(spec.backend, device_index=self.egl_device)
         self.renderer = None
-        self.bench = {}  # benchmark scene name -> Scene
+        self.scenes = {}  # scene name -> Scene, for sweeps (measure)
         self.pool = None
         if spec.capture:
             from .renderer import Renderer
@@ -173,18 +173,18 @@ class RenderWorker:
 
         return render_frames(self.renderer, job, frames, on_frame=after_frame if crash_file else None, record=record)
 
-    def measure(self, scene_name: str, rig, variant, repeat: int):
-        """A benchmark variant measured on this worker's GPU (rayvr.bench.tradeoff.measure)."""
-        from .bench.scenes import load_bench_scene
-        from .bench.tradeoff import RendererPool, measure
+    def measure(self, load_scene, scene_name: str, rig, variant, repeat: int):
+        """A variant measured on this worker's GPU (rayvr.measure.measure), in the scene
+        `load_scene(scene_name)` gives ((scene, _), or (None, why it is missing)), loaded once per name."""
+        from .measure import RendererPool, measure
 
-        if scene_name not in self.bench:
-            scene, why = load_bench_scene(scene_name)
+        if scene_name not in self.scenes:
+            scene, why = load_scene(scene_name)
             if scene is None:
-                raise ValueError(f"worker on {self.info()['host']}: benchmark scene {scene_name}: {why}")
-            self.bench[scene_name] = scene
+                raise ValueError(f"worker on {self.info()['host']}: scene {scene_name}: {why}")
+            self.scenes[scene_name] = scene
         self.pool = self.pool or RendererPool(self.gl)
-        return measure(self.gl, self.bench[scene_name], rig, variant, repeat, pool=self.pool)
+        return measure(self.gl, self.scenes[scene_name], rig, variant, repeat, pool=self.pool)
 
 
 def _dead_worker_errors(ray) -> tuple:
@@ -396,13 +396,15 @@ def run_capture_distributed(cluster: Cluster, job, identity: dict | None = None,
     return summary
 
 
-def sweep_measurer(cluster: Cluster, scene_name: str, rig, repeat: int):
-    """A `measure_all(variants, bar)` for rayvr.bench.tradeoff: each variant measured on a free
-    worker (a dead worker's variant again on another); yields the results in the variants' order."""
+def sweep_measurer(cluster: Cluster, load_scene, scene_name: str, rig, repeat: int):
+    """A `measure_all(variants, bar)` as rayvr.measure.local_measurer's: each variant measured on a
+    free worker (a dead worker's variant again on another) in the scene `load_scene(scene_name)`
+    gives there (a module-level function: the workers import it); yields the results in the
+    variants' order."""
     def measure_all(variants, bar=None):
         rig_ref = cluster.ray.put(rig)
-        results, _, failed = cluster.run(list(variants),
-                                         lambda actor, v: actor.measure.remote(scene_name, rig_ref, v, repeat), bar=bar)
+        results, _, failed = cluster.run(
+            list(variants), lambda actor, v: actor.measure.remote(load_scene, scene_name, rig_ref, v, repeat), bar=bar)
         if failed:
             raise ClusterError(f"{len(failed)} variant(s) of {scene_name} failed on every worker they were tried on")
         for k in range(len(results)):

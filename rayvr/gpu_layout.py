@@ -4,7 +4,8 @@ shader loader serves it from `glsl_header()`; there is no such file on disk).
 
   G-buffer channels   name, format, texture unit (read), image unit (resolve writes)
   bindings            shader storage buffers (SSBO_*), image units (IMAGE_*), texture units (UNIT_*)
-  enums               effects (from the registry), debug views, tonemappers, light kinds
+  enums               debug views, tonemappers, light kinds; effects from the lines the effect
+                      registry (rayvr/effect_registry.py) adds with `generated_lines`
   sentinels           NO_HIT, BACKGROUND_EFFECT, ROUND_SKIPPED
   declared constants  those other modules declare where they use them (rayvr/glsl_constants.py
                       declare: the SSRT statuses, QT_*, the CAMERA_* enum, SSR_MIRROR_ROUGHNESS, ...)
@@ -52,9 +53,9 @@ SSBO = {
     "bvh_nodes": 8, "bvh_triangles": 9,  # accel/gpu.py (batch tracers may use other bases)
     "rt_lists": 10, "rt_list_args": 11,  # passes/classify.py
     "wave_paths": 12, "wave_shadows": 13, "wave_args": 14,  # passes/trace_effect.py
-    "dda_rays": 15, "dda_results": 16,  # accel/dda.py DdaTracer (glsl/ssrt/dda_batch.comp)
+    "dda_rays": 15, "dda_results": 16,  # bench/tracers/dda.py DdaTracer (glsl/ssrt/dda_batch.comp)
     "quadtree_nodes": 20, "quadtree_rays": 21, "quadtree_results": 22,  # passes/quadtree.py, glsl/ssrt/quadtree*.glsl
-    "hiz_levels": 23, "hiz_rays": 24, "hiz_results": 25,  # accel/hiz.py HizTracer, glsl/ssrt/hiz*.glsl
+    "hiz_levels": 23, "hiz_rays": 24, "hiz_results": 25,  # bench/tracers/hiz.py HizTracer, glsl/ssrt/hiz*.glsl
     "refit_vertices": 26, "refit_index": 27,  # accel/refit.py GpuRefit (glsl/accel/refit.comp)
     "tile_entries": 28, "tile_planes": 29,  # tile frustum culling (accel/gpu.py RayTracer, glsl/accel/tile_cull.comp)
     # the photon map (passes/photon_*.py, glsl/photon/): traced photons, (cell, slot) keys and their
@@ -107,30 +108,25 @@ BVH_FACE_SLACK = 1e-12
 # Raster shading (glsl/common/lighting.glsl, numpy_shading.py): a rect light is NxN fixed points
 # (soft shadows without noise).
 RECT_LIGHT_GRID = declare("RECT_LIGHT_GRID", 4)
+# Effects on the GPU (rayvr/effect_registry.py): a material's parameter block (glsl/common/scene.glsl),
+# effect IDs as bits of a 32-bit mask (the shade pass), the effect-ID value of pixels no geometry covers.
+PARAM_WORDS = 8
+MAX_EFFECT_ID = 32
+BACKGROUND_EFFECT = 255
 
 
 def channel(name: str) -> Channel:
     return next(c for c in CHANNELS if c.name == name)
 
 
-def _effect_lines() -> list[str]:
-    from .effects import BACKGROUND_EFFECT, EFFECTS, MAX_EFFECT_ID, PARAM_WORDS, traced_effects
+# Header sections that a module above the layout generates from its own state at each header build
+# (the effect registry: effect IDs, parameter slots, pixel-list slots), so this module imports none of them.
+_GENERATED: dict = {}  # owner -> () -> list of lines
 
-    lines = [f"#define BACKGROUND_EFFECT {BACKGROUND_EFFECT}u", f"#define MAX_EFFECT_ID {MAX_EFFECT_ID}",
-             f"#define MATERIAL_PARAM_WORDS {PARAM_WORDS}"]
-    reflective = 0
-    for e in EFFECTS.values():
-        lines.append(f"#define EFFECT_{e.name.upper()} {e.id}")
-        lines += [f"#define PARAM_{e.name.upper()}_{k.upper()} {i}" for k, i in e.param_slots().items()]
-        reflective |= (1 << e.id) if e.reflective else 0
-    lines.append(f"#define REFLECTIVE_EFFECTS {reflective}u  // bit e: reflection rays go on at effect e")
-    traced = traced_effects()
-    table = [-1] * MAX_EFFECT_ID
-    for slot, e in enumerate(traced):
-        table[e.id] = slot
-    lines += [f"#define RT_SLOTS {max(len(traced), 1)}  // pixel lists: one per traced effect",
-              f"#define RT_SLOT_TABLE int[{MAX_EFFECT_ID}]({', '.join(map(str, table))})  // effect ID -> list, -1: none"]
-    return lines
+
+def generated_lines(owner: str, lines) -> None:
+    """Make `lines()` part of every header from now on, under `owner` (its module)."""
+    _GENERATED[owner] = lines
 
 
 def glsl_header() -> str:
@@ -152,7 +148,10 @@ def glsl_header() -> str:
             f"#define DEFAULT_TILE_RAYS {TILE_RAYS}", f"#define DEFAULT_TILE_ENTRIES {TILE_ENTRIES}",
             f"#define TILE_W {TILE_PIXELS[0]}", f"#define TILE_H {TILE_PIXELS[1]}",
             f"#define BVH_FACE_SLACK {BVH_FACE_SLACK!r}"]
-    out += _effect_lines()
+    out += [f"#define BACKGROUND_EFFECT {BACKGROUND_EFFECT}u", f"#define MAX_EFFECT_ID {MAX_EFFECT_ID}",
+            f"#define MATERIAL_PARAM_WORDS {PARAM_WORDS}"]
+    for lines in _GENERATED.values():
+        out += lines()
     out += glsl_constants.glsl_lines()  # those the owning modules declare
     out.append("#endif")
     return "\n".join(out) + "\n"

@@ -32,7 +32,7 @@ from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameT
 from .gpu_layout import TONEMAPPERS, VIEWS
 from .gpu_scene import GpuScene
 from .limits import FLOAT32_MAX, MAX_CAMERA_COORDINATE, MAX_FOCUS_DISTANCE, MIN_DISTANCE, check_range
-from .passes import core_passes
+from .passes.core import core_passes
 from .passes.classify import pixel_counts
 from .passes.second_layer import depth_layers
 from .passes.visibility import pick_layer_mode

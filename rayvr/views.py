@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .camera import Pose, StereoRig, _check_pose, check_camera_positions
+from .capture_files import aux_file, file_name
 from .cameras.pinhole import MAX_TANGENT, MIN_PIXEL_TANGENT
 from .inputs import read_json
 from .limits import MAX_CAMERA_COORDINATE, check_range
@@ -309,8 +310,6 @@ def camera_json(eye) -> bytes:
 
 def transforms(job) -> dict:
     """transforms.json for a capture job (rayvr.capture.CaptureJob): one frame per eye image."""
-    from .capture import aux_file, file_name
-
     frames = []
     for i in range(len(job.poses)):
         rig = job.frame_rig(i)

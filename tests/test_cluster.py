@@ -343,14 +343,15 @@ def test_workers_resume_only_the_frames_they_verify_and_the_folder_is_held(gl, c
 
 
 def test_sweep_variants_measured_on_workers_match_this_process(gl, cluster):
-    from rayvr.bench.scenes import bench_scenes
-    from rayvr.bench.tradeoff import RendererPool, Variant, local_measurer, run_sweep, variants
+    from rayvr.bench.scenes import bench_scenes, load_bench_scene
+    from rayvr.bench.tradeoff import run_sweep, variants
     from rayvr.cluster import sweep_measurer
+    from rayvr.measure import RendererPool, Variant, local_measurer
     from rayvr.materials import load_config
 
     (name, scene, rig), = bench_scenes(["default"], (16, 12), {})
     chosen = variants(scene, load_config(None), quick=True)[:3]
-    remote = sweep_measurer(cluster, name, rig, repeat=1)
+    remote = sweep_measurer(cluster, load_bench_scene, name, rig, repeat=1)
     with RendererPool(gl) as pool:
         here = list(local_measurer(gl, scene, rig, 1, pool)(chosen))
         there = list(remote(chosen))

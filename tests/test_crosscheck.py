@@ -1,4 +1,4 @@
-"""rayvr's reference vs Mitsuba 3 (rayvr.bench.mitsuba_ref, rayvr.bench.reference).
+"""rayvr's reference vs Mitsuba 3 (rayvr.bench.mitsuba_ref, rayvr.reference).
 
 Tiny images. Tests that render or evaluate with Mitsuba skip without it (the `mi` fixture); the
 reference choices and the Cornell box loading run everywhere. Tests that need the shared Cornell
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rayvr import scene as scene_mod
-from rayvr.bench import reference as ref_mod
+from rayvr import reference as ref_mod
 from rayvr.camera import Pose, StereoRig
 from rayvr.materials import implemented_effects
 from rayvr.scene import Material

@@ -1,5 +1,5 @@
 """The perspective-correct DDA screen-space tracer (glsl/ssrt/dda.glsl) against its numpy mirror
-(rayvr/accel/dda.py trace_dda) and against an independent dense reference on planar scenes.
+(rayvr/bench/tracers/dda.py trace_dda) and against an independent dense reference on planar scenes.
 
 The dense reference (`dense_reference` below) walks the ray's straight line in screen space S in
 0.02-pixel steps (built from two projected world points, not from the DDA's formulas) and tests
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from conftest import merge, quad
-from rayvr.accel.dda import HIT, NEAR, NONE, OFFSCREEN, DdaCamera, DdaTracer, read_linear_depth, trace_dda
+from rayvr.bench.tracers.dda import HIT, NEAR, NONE, OFFSCREEN, DdaCamera, DdaTracer, read_linear_depth, trace_dda
 from rayvr.camera import Pose, StereoRig
 from rayvr.renderer import Renderer
 from rayvr.scene import Material, from_arrays

@@ -129,10 +129,12 @@ def test_the_scan_finds_a_hand_copy():
 def test_shared_constants_reach_the_header_exactly():
     """The constants the issue found copied by hand come from their Python owners, value for value."""
     import_every_module()
-    from rayvr.accel import dda, gpu, hiz, quadtree
+    from rayvr.accel import gpu, quadtree
+    from rayvr.bench.tracers import dda, hiz
     from rayvr.cameras import CAMERA_MODELS
     from rayvr.effects import ssr
-    from rayvr.passes import photon_scan, reuse, warp
+    from rayvr.effects.photon import scan as photon_scan
+    from rayvr.passes import reuse, warp
 
     header = {m.group(1): m.group(2) for m in re.finditer(r"(?m)^#define (\w+) (.*)$", gpu_layout.glsl_header())}
     expected = {"SSRT_HIT": "1u", "SSRT_NONE": "4u", "SSRT_OCCLUDED": "5u", "QT_ON_LEAF": "3.814697265625e-06",

@@ -1,4 +1,4 @@
-"""The Hi-Z tracer (rayvr/accel/hiz.py, glsl/ssrt/hiz*.glsl): the GPU min-max pyramid against numpy
+"""The Hi-Z tracer (rayvr/bench/tracers/hiz.py, glsl/ssrt/hiz*.glsl): the GPU min-max pyramid against numpy
 pooling; the GPU walk and its numpy mirror against the brute-force height field
 (rayvr/accel/quadtree.py trace_heightfield_reference) on the surface the pyramid holds (flat
 pixels at z = near / depth: `hiz.flat_leaves`); special rays.
@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from conftest import merge, quad
-from rayvr.accel import hiz
+from rayvr.bench.tracers import hiz
 from rayvr.accel import quadtree as qt
-from rayvr.accel.dda import read_linear_depth
+from rayvr.bench.tracers.dda import read_linear_depth
 from rayvr.camera import Pose, StereoRig
 from rayvr.renderer import Renderer
 from rayvr.scene import from_arrays
@@ -268,7 +268,7 @@ def test_skip_origin_on_mirror_rays(frames):
     equals its numpy mirror (measured: all rays) and stops the self-hits of flat origin pixels
     (fewer hits); its statuses then agree with the DDA's (which skips the origin's column) on
     >= 95 % (measured 99.9 % in both layers; hits 90 % -> 78 % with skip_origin)."""
-    from rayvr.accel.dda import DdaTracer
+    from rayvr.bench.tracers.dda import DdaTracer
 
     F = frames["room"]
     dda = DdaTracer(F.r.gl)

@@ -198,7 +198,7 @@ def test_kdtree_is_built_again_only_for_other_photons(renderer, monkeypatch):
     """passes/photon_kdtree.py keeps its tree while the photons stay the same (a still view: the
     bench times many frames of one map), and builds it again when they change: what it uploads is
     always the tree of this frame's photons."""
-    from rayvr.passes import photon_kdtree
+    from rayvr.effects.photon import kdtree as photon_kdtree
 
     builds, build = [], photon_kdtree.kdtree_records
 

@@ -22,7 +22,7 @@ def random_photons(n, seed=1, lo=(-1.0, -0.5, -2.0), hi=(2.0, 1.5, 0.5), empty=0
 
 @pytest.fixture(scope="module")
 def built(gl):
-    from rayvr.accel.photon_gpu import GpuPhotonMap
+    from photon_gpu import GpuPhotonMap  # tests/photon_gpu.py
 
     pos, nrm, power, valid, lo, hi = random_photons(5000)
     grid = pm.grid_shape(lo, hi, 0.11)
@@ -54,7 +54,7 @@ def test_gpu_cells_counts_and_scan_equal_numpy(built):
 
 
 def test_gpu_scan_levels_equal_numpy(gl):
-    from rayvr.passes.photon_scan import Scan, scan_words
+    from rayvr.effects.photon.scan import Scan, scan_words
 
     rng = np.random.default_rng(3)
     ctx = gl.ctx
@@ -148,8 +148,8 @@ def test_oct_normals_round_trip():
 def test_gpu_sort_in_rows_of_work_groups(gl, monkeypatch):
     """More work groups than one dispatch row holds (65535 on real GPUs; 7 here): rows of groups,
     the spare groups of the last row idle, the result still numpy's stable sort."""
-    from rayvr.passes import photon_scan
-    from rayvr.passes.photon_sort import RadixSort, table_words
+    from rayvr.effects.photon import scan as photon_scan
+    from rayvr.effects.photon.sort import RadixSort, table_words
 
     monkeypatch.setattr(photon_scan, "MAX_GROUPS", 7)
     rng = np.random.default_rng(4)
@@ -168,7 +168,7 @@ def test_gpu_sort_in_rows_of_work_groups(gl, monkeypatch):
 
 
 def test_lights_emit_in_proportion_to_power():
-    from rayvr.passes.photon_trace import light_power, light_table
+    from rayvr.effects.photon.trace import light_power, light_table
     from rayvr.scene import Light
 
     class S:

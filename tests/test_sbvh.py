@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rayvr.accel.bvh import SPATIAL_MIN_REFS, _half_area, build_bvh, intersect_triangles, trace_brute_force, trace_reference
+from rayvr.accel.bvh import SPATIAL_MIN_REFS, build_bvh, intersect_triangles, trace_brute_force, trace_reference
+from rayvr.accel.sah import _half_area
 from rayvr.accel.gpu import MISS, GpuBvh, RayTracer
 from rayvr.accel.refit import GpuRefit
 from rayvr.accel.sbvh import _unsplit, clip_boxes

@@ -5,10 +5,11 @@ import numpy as np
 import pytest
 
 from conftest import needs_flip, quick_bench, run_rayvr
-from rayvr.bench import metrics
+from rayvr import metrics
 from rayvr.bench import tradeoff as T
 from rayvr.camera import StereoRig
 from rayvr.materials import load_config, parse_config
+from rayvr.measure import config_for_assignment
 from rayvr.scene import load
 
 
@@ -25,7 +26,7 @@ def test_sweep_rows_are_the_metrics_of_the_rendered_images(gl, room):
     warm-up; the sampled effects are seeded from the settings, so the images are the same) and the
     row's PSNR computed here in numpy from those images."""
     scene, rig = room
-    from rayvr.bench.reference import reference_config
+    from rayvr.reference import reference_config
     from rayvr.renderer import Renderer
 
     ref = T.Variant("reference", "ref", reference_config(scene, quick=True))
@@ -79,7 +80,7 @@ def test_assignment_config_keeps_base_params_for_the_same_effect(room):
     scene, _ = room
     base = load_config(None)
     base = parse_config({"materials": {"gold": {"effect": "glossy", "samples": 8}}})
-    cfg = T.config_for_assignment(base, scene, {"gold": "glossy", "mirror": "reflections"})
+    cfg = config_for_assignment(base, scene, {"gold": "glossy", "mirror": "reflections"})
     got = {n: a for n, a in zip(scene.material_names(), cfg.assign(scene.material_names(), warn=False))}
     assert got["gold"].effect == "glossy" and got["gold"].params["samples"] == 8
     assert got["mirror"].effect == "reflections" and got["floor"].effect == "raster"
@@ -88,7 +89,7 @@ def test_assignment_config_keeps_base_params_for_the_same_effect(room):
 @needs_flip
 def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
     scene, rig = room
-    from rayvr.bench.reference import reference_config
+    from rayvr.reference import reference_config
 
     base = load_config(None)
     ref = T.measure(gl, scene, rig, T.Variant("reference", "ref", reference_config(scene, quick=True)), repeat=1)

@@ -40,7 +40,7 @@ lies within (1 - gamma_dist)^-m - 1 relative depth of the leaf planes.
 
 Height-field semantics (single layer): a ray hits where it first passes behind the surface
 (z_ray < z_surface) in a pixel with geometry; not on the leaf of its origin's pixel when it
-starts on that leaf (_starts_on: a mirror ray off that surface). Statuses as in rayvr/accel/dda.py: HIT, OFFSCREEN
+starts on that leaf (_starts_on: a mirror ray off that surface). Statuses as in rayvr/bench/tracers/dda.py: HIT, OFFSCREEN
 (left the image), NEAR (reached the near plane or lies wholly in front of it), NONE (reached
 infinity on screen without a hit).
 
@@ -59,7 +59,7 @@ import numpy as np
 from ..glsl_constants import declare
 from ..gpu_layout import SSRT_RAY_GROUP
 
-# A screen-space ray's status, shared by the three tracers (quadtree, accel/hiz.py, accel/dda.py)
+# A screen-space ray's status, shared by the three tracers (quadtree, bench/tracers/hiz.py, bench/tracers/dda.py)
 HIT = declare("SSRT_HIT", 1, uint=True)
 OFFSCREEN = declare("SSRT_OFFSCREEN", 2, uint=True)  # left the viewport
 NEAR = declare("SSRT_NEAR", 3, uint=True)  # reached the near plane

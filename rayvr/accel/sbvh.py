@@ -5,7 +5,7 @@ tree level is binned, scanned and split together; but a node holds *references* 
 box around the part of it the node is responsible for) instead of whole triangles, and a node may be
 split at a plane that cuts references in two:
 
-* object split: the binned SAH over the references' box centroids (bvh._binned_sah);
+* object split: the binned SAH over the references' box centroids (sah._binned_sah);
 * spatial split, tried only where the object split's two children overlap by more than
   `split_alpha` x the root's surface area (the paper's alpha), in nodes of at least
   `spatial_min_refs` references (bvh.SPATIAL_MIN_REFS: small nodes gain little and cost most of the
@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bvh import _bin_sweep, _binned_sah, _finish, _half_area, _leaf_or_split, _segment_positions
+from .sah import _bin_sweep, _binned_sah, _half_area, _leaf_or_split, _segment_positions
 
 
 _progress_bars = True  # set_progress_bars
@@ -173,7 +173,9 @@ def _overlap_area(boxes):
 
 def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle_cost, split_alpha,
                max_duplication, progress, params, spatial_min_refs: int = 1, unsplit: bool = True):
-    """The SBVH build (module docstring); V, I checked by build_bvh, T > 0."""
+    """The SBVH build (module docstring); V, I checked by build_bvh, T > 0. Its per-level node
+    records (lo, hi, start, count, left, right lists) and reference slots, which bvh._finish makes
+    the Bvh of."""
     T = len(I)
     tri64 = V[I].astype(np.float64)
     tlo, thi = V[I].min(axis=1), V[I].max(axis=1)
@@ -334,5 +336,4 @@ def build_sbvh(V, I, *, bins, max_leaf_size, max_depth, traversal_cost, triangle
     if bar is not None:
         bar.close()
     params.update(references=n_slots, spatial_split_nodes=spatial_nodes)
-    return _finish(lo_list, hi_list, start_list, count_list, left_list, right_list,
-                   np.concatenate(slots), I, V, params)
+    return (lo_list, hi_list, start_list, count_list, left_list, right_list), np.concatenate(slots)

@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bvh import Bvh, EMPTY_HI, EMPTY_LO, RayWalk, _half_area, _slab, widen
+from .bvh import Bvh, EMPTY_HI, EMPTY_LO, RayWalk, _slab, widen
+from .sah import _half_area
 
 WIDTHS = (4, 8)
 MAX_LEAF_COUNT = 255  # one byte per child

@@ -40,7 +40,7 @@ from . import photon, stereo
 from .rays import time_frame
 from .report import _plot, device_meta, write_report
 from .scenes import bench_scenes
-from .tradeoff import REFERENCE_SEED
+from ..measure import REFERENCE_SEED
 
 PARTS = ("photon", "reuse", "path")
 SPP = (1, 4, 16)
@@ -120,7 +120,7 @@ def path_part(gl, name, scene, rig, quick, repeat, warmup, reference_spp, progre
     first: the accumulated rows' cost is spp times it)."""
     from tqdm import tqdm
 
-    from . import metrics
+    from .. import metrics
 
     per, frames = reference_plan(reference_spp)
     bar = tqdm(total=frames + 2 * len(SPP), desc=f"path {name}", unit="step", disable=not progress)

@@ -47,7 +47,7 @@ import numpy as np
 from ..camera import EyeView, Pose, StereoRig
 from ..extras import require
 from ..scene import Light, Material, Scene
-from . import reference as ref_mod
+from .. import reference as ref_mod
 
 LLVM19_PATHS = ("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1", "/usr/lib/x86_64-linux-gnu/libLLVM-19.so")
 
@@ -545,7 +545,7 @@ def crosscheck_scene(gl, scene: Scene, rig: StereoRig, *, spp=256, supersample=4
     no shadow ray would be blocked, is where the two must agree); by default every effect but
     `path` (the direct-light ladder; `crosscheck_gi` compares `path`)."""
     from ..effects import implemented_effects
-    from . import metrics
+    from .. import metrics
 
     mi = _mi()
     if available is None:
@@ -640,7 +640,7 @@ def crosscheck_gi(gl, scene: Scene, rig: StereoRig, *, spp=64, supersample=None,
     floor is Mitsuba against itself with another seed at the same spp: rayvr passes when its FLIP
     against Mitsuba is within that + 0.01 (`gi_within_noise`)."""
     from ..materials import parse_config
-    from . import metrics
+    from .. import metrics
 
     mi = _mi()
     s = int(supersample or gi_supersample(spp))
@@ -670,7 +670,7 @@ def crosscheck_gi(gl, scene: Scene, rig: StereoRig, *, spp=64, supersample=None,
 
 
 def _display(img, exposure):
-    from .metrics import srgb_encode
+    from ..metrics import srgb_encode
 
     return (srgb_encode(img * exposure) * 255 + 0.5).astype(np.uint8)
 
@@ -785,7 +785,7 @@ def run(out_dir, quick: bool = False, progress: bool = True, gl=None, boxes=None
             bar.close()
         meta = {**device_meta(gl.ctx.info if hasattr(gl, "ctx") else None),
                 "benchmark": "crosscheck", "quick": quick, "mitsuba": _mitsuba_version(),
-                "what": "rayvr's reference (rayvr.bench.reference, bounces 1, no ambient) vs Mitsuba 3 in the same "
+                "what": "rayvr's reference (rayvr.reference, bounces 1, no ambient) vs Mitsuba 3 in the same "
                         "light transport, linear radiance at one exposure; FLIP at the headset's ppd",
                 "pngs": "rayvr | Mitsuba | FLIP map (magma), same exposure, sRGB; crosscheck_gi_*: rayvr `path` | "
                         "Mitsuba `path`",

@@ -115,7 +115,7 @@ def query_counts(r: Renderer, rig, eye) -> dict:
     QUERY_SAMPLES photon pixels of the eye, replayed in numpy (accel/photon_map) on the frame's own
     photon map: what the query's cost follows."""
     from ..accel import photon_map as pm
-    from ..effects.photon import photon_setup
+    from ..effects.photon.setup import photon_setup
 
     pix = eye.aux["effect"] == EFFECTS["photon"].id
     if not pix.any():
@@ -134,7 +134,7 @@ def query_counts(r: Renderer, rig, eye) -> dict:
 
 
 def row(name, size, photons, radius, estimator, m, ref) -> dict:
-    from . import metrics
+    from .. import metrics
 
     ms, stages = m["ms"], m["stages"]
     kd = m["kd_cpu_ms"] is not None

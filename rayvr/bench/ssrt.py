@@ -1,10 +1,10 @@
 """`rayvr bench ssrt`: screen-space ray tracing through the quadtree (Widmer et al. 2015,
 rayvr/passes/quadtree.py) against the perspective-correct DDA baseline (McGuire & Mara 2014,
-rayvr/accel/dda.py), on the mirror rays of every G-buffer pixel of one eye.
+rayvr/bench/tracers/dda.py), on the mirror rays of every G-buffer pixel of one eye.
 
 Reports per scene: quadtree build ms per layer (lossless and with merge thresholds), rays/s and
 node visits (mean, p99) of the quadtree trace, the same rays through the DDA at two settings
-(steps per ray, share reaching max_steps), the Hi-Z min-max pyramid (rayvr/accel/hiz.py: build
+(steps per ray, share reaching max_steps), the Hi-Z min-max pyramid (rayvr/bench/tracers/hiz.py: build
 ms per layer, rays/s, cells visited, share reaching max_iterations), and how often the baselines
 agree with the lossless quadtree on the outcome (status, and the hit pixel within one: the
 error measure behind `meta.matched_error`, which sets the quadtree against the fastest DDA and
@@ -22,13 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..accel.dda import DdaTracer
-from ..accel.hiz import HizTracer
 from ..context import create_context
 from ..passes.quadtree import QuadtreeTracer
 from ..renderer import Renderer
 from .report import device_meta, write_report
 from .scenes import bench_scenes
+from .tracers.dda import DdaTracer
+from .tracers.hiz import HizTracer
 
 # (gamma_norm as the cosine of the largest normal angle, gamma_dist in z units): lossless first
 GAMMAS = ((1.0, 0.0), (math.cos(math.radians(10.0)), 1e-3))
@@ -81,7 +81,7 @@ def effect_frames(gl, scene, rig, name: str, repeat: int, quick: bool = False) -
     from ..effects import EFFECTS
     from ..materials import parse_config
     from ..renderer import RenderSettings
-    from . import metrics
+    from .. import metrics
     from .rays import MIRRORS, time_frame
 
     out, images, layer2 = [], {}, {}

@@ -57,7 +57,7 @@ def mode_rows(r: Renderer, rig, name: str, variants=VARIANTS, repeat: int = 20, 
     both accumulated over that many samples (`flip_vs_dual_converged_right`: the error the mode
     makes, view-dependent shading and resampling, with the sampling noise mostly gone; its floor
     `noise_floor_converged_right` is dual against dual with the other seed at that count)."""
-    from . import metrics
+    from .. import metrics
 
     size = rig.size
     rows = []

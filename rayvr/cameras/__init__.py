@@ -10,14 +10,14 @@ import dataclasses
 import typing
 
 from ..glsl_constants import declare
-from .base import CameraModel, CameraRays
+from .base import CAMERA_MODELS, CameraModel, CameraRays
 from .distorted import Distorted
 from .foveated import Foveated
 from .pinhole import Pinhole
 from .thin_lens import ThinLens
 from .wide import Wide
 
-CAMERA_MODELS: dict[str, type[CameraModel]] = {m.name: m for m in (Pinhole, Distorted, Wide, Foveated, ThinLens)}
+CAMERA_MODELS.update({m.name: m for m in (Pinhole, Distorted, Wide, Foveated, ThinLens)})
 # The values of the CAMERA_MODEL define (glsl/common/camera.glsl): CAMERA_<NAME> = 1, 2, ... in this order.
 for _id, _name in enumerate(CAMERA_MODELS, 1):
     declare(f"CAMERA_{_name.upper()}", _id)

@@ -173,3 +173,8 @@ class CameraModel:
 
     def bind(self, gl) -> None:
         """Bind GL resources the model's GLSL reads (textures); nothing by default."""
+
+
+# The camera models by name (their registration order is the CAMERA_* enum's): filled by the package
+# (rayvr/cameras/__init__.py), which imports every model, so a model reads the others' traits here.
+CAMERA_MODELS: dict[str, type[CameraModel]] = {}

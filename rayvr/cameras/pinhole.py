@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import CameraModel, CameraRays, normalize
+from .base import CAMERA_MODELS, CameraModel, CameraRays, normalize
 
 # Largest frustum tangent (x / -z at an image edge) the pinhole takes. Beyond it float32 clip
 # coordinates (raster) and pixel-ray directions (rays) lose the pixel and the two primary
@@ -34,8 +34,6 @@ def planar_directions(eye, x, y) -> np.ndarray:
 
 
 def _wide_angle_advice() -> str:
-    from . import CAMERA_MODELS  # the registry imports this module
-
     wide = [name for name, model in CAMERA_MODELS.items() if getattr(model, "wide_angle", False)]
     return (f"use a wide-angle camera model ({', '.join(wide)})" if wide else
             "wider views need a wide-angle camera model, which this rayvr does not have yet")

@@ -1,5 +1,5 @@
 """The effect ladder as plugins: one module per effect, registered by name (see base.py)."""
-from .base import (BACKGROUND_EFFECT, EFFECTS, MAX_EFFECT_ID, PARAM_WORDS, PLANNED, Effect, EffectError, Param,
+from ..effect_registry import (BACKGROUND_EFFECT, EFFECTS, MAX_EFFECT_ID, PARAM_WORDS, PLANNED, Effect, EffectError, Param,
                    effect_by_id, get, implemented_effects, register, traced_effects, unregister)
 from . import raster, shadows, ssr, reflections, glossy, path, photon  # noqa: F401  (the built-in rungs register themselves)
 

@@ -1,6 +1,6 @@
 """`raster`: direct light from the G-buffer, no shadows (the `shade` pass; rect lights by a fixed
 4x4 grid of points). Every scene has it: it is the bottom of the ladder and the budget baseline."""
-from .base import Effect, register
+from ..effect_registry import Effect, register
 
 
 class Raster(Effect):

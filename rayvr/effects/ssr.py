@@ -13,8 +13,11 @@ discontinuity: inpainting). The pixel event is the `reflections` / `glossy` one;
 screen is shaded like a BVH hit (its own direct light and shadows)."""
 import math
 
+from ..effect_registry import Effect, Param, register
 from ..glsl_constants import declare
-from .base import Effect, Param, register
+from ..passes.quadtree import GAMMA_DIST, GAMMA_NORM
+from ..passes.second_layer import DEPTH_LAYERS
+from ..passes.trace_effect import WAVE_AREA_SAMPLES, WAVE_BOUNCES, WAVE_SAMPLES, TraceEffectPass
 from .shadows import AREA_SAMPLES, AREA_SAMPLES_SWEEP
 
 # the roughness below which ssr traces one mirror path (the material block has no slot left for it)
@@ -27,35 +30,34 @@ class ScreenSpaceReflections(Effect):
     id = 2
     doc = "+ screen-space mirror and GGX reflections through the depth quadtree, BVH fallback"
     params = {
-        "gamma_norm": Param(float, COS[10], 0.0, 1.0, "quadtree plane merge: cosine of the largest normal angle "
-                                                        "(1 = lossless)"),
-        "gamma_dist": Param(float, 1e-3, 0.0, 1.0, "quadtree plane merge: largest relative depth error (0 = lossless)"),
-        "layers": Param(int, 1, 1, 2, "depth layers traced: 1 (behind an object is unknown) or 2 (the second "
-                                      "layer answers there)"),
+        GAMMA_NORM: Param(float, COS[10], 0.0, 1.0, "quadtree plane merge: cosine of the largest normal angle "
+                                                      "(1 = lossless)"),
+        GAMMA_DIST: Param(float, 1e-3, 0.0, 1.0, "quadtree plane merge: largest relative depth error (0 = lossless)"),
+        DEPTH_LAYERS: Param(int, 1, 1, 2, "depth layers traced: 1 (behind an object is unknown) or 2 (the "
+                                          "second layer answers there)"),
         "fallback": Param(int, 1, 0, 1, "1: trace in the BVH what the screen cannot answer; 0: misses see the "
                                         "background, occluded rays inpaint"),
         "thickness": Param(float, 0.02, 0.0, 1e30, "a surface is a slab this deep behind each layer (relative "
                                                     "depth); a ray deeper than that passed behind it"),
-        "bounces": Param(int, 1, 1, 4, "reflection bounces (each traced in screen space first)"),
-        "samples": Param(int, 0, 0, 1024, "GGX rays per pixel on surfaces rougher than MIRROR_ROUGHNESS "
-                                          "(0: a mirror ray everywhere)"),
-        "area_samples": AREA_SAMPLES,
+        WAVE_BOUNCES: Param(int, 1, 1, 4, "reflection bounces (each traced in screen space first)"),
+        WAVE_SAMPLES: Param(int, 0, 0, 1024, "GGX rays per pixel on surfaces rougher than MIRROR_ROUGHNESS "
+                                             "(0: a mirror ray everywhere)"),
+        WAVE_AREA_SAMPLES: AREA_SAMPLES,
     }
     traced = True
     denoised = False  # mirror reflections are sharp detail, not noise: --denoise leaves them
     reflective = True
     uses_quadtree = True
     shader = "effects/ssr.glsl"  # the reflections / glossy pixel events by roughness
-    sweep = {"gamma_norm": ((1.0, COS[3], COS[10], COS[25]), (1.0, COS[10])),
+    sweep = {GAMMA_NORM: ((1.0, COS[3], COS[10], COS[25]), (1.0, COS[10])),
              "thickness": ((0.005, 0.02, 0.1, 1e30), (0.02, 1e30)),
-             "gamma_dist": ((0.0, 1e-5, 1e-3, 1e-1), (0.0, 1e-3)),
-             "layers": ((1, 2), (1, 2)),
-             "samples": ((0, 1, 4, 16), (0, 4)),
-             "area_samples": AREA_SAMPLES_SWEEP}
+             GAMMA_DIST: ((0.0, 1e-5, 1e-3, 1e-1), (0.0, 1e-3)),
+             DEPTH_LAYERS: ((1, 2), (1, 2)),
+             WAVE_SAMPLES: ((0, 1, 4, 16), (0, 4)),
+             WAVE_AREA_SAMPLES: AREA_SAMPLES_SWEEP}
     reference = {"mirror": 15, "glossy": 12}  # below BVH `reflections` (30) / `glossy` (30, 20)
 
     def passes(self):  # the quadtree pass is a core one (the visits view uses it too)
-        from ..passes.trace_effect import TraceEffectPass
         return [TraceEffectPass(self)]
 
 

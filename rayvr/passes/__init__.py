@@ -1,32 +1,6 @@
 """The frame's passes, one per file (each beside its shaders under rayvr/glsl/). Effects add
-their own passes (rayvr/effects/); these are the core ones the graph picks from."""
-
-
-def core_passes() -> list:
-    from .accumulate import AccumulatePass
-    from .bvh import BvhPass
-    from .classify import ClassifyPass
-    from .debug_view import DebugViewPass
-    from .denoise import DenoisePass
-    from .dof import DofPass
-    from .gbuffer_resolve import GBufferResolvePass
-    from .primary_rays import PrimaryRaysPass
-    from .quadtree import QuadtreePass, QuadtreeVisitsPass
-    from .second_layer import SecondLayerPass
-    from .reuse import ReuseCopyPass, ReuseMapPass
-    from .sample_accumulate import SampleAccumulatePass
-    from .sample_pattern import SamplePatternPass
-    from .sample_resolve import SampleResolvePass
-    from .shade import ShadePass
-    from .tonemap import TonemapPass
-    from .visibility import VisibilityPass
-    from .warp import WarpPass
-
-    return [BvhPass(), VisibilityPass(), PrimaryRaysPass(), GBufferResolvePass(), ShadePass(), ClassifyPass(),
-            AccumulatePass(), DenoisePass(), TonemapPass(), DebugViewPass(), QuadtreeVisitsPass(),
-            QuadtreePass(effect="ssr"), SecondLayerPass(), ReuseMapPass(),
-            ReuseCopyPass(), WarpPass(), DofPass(), SampleAccumulatePass(), SampleResolvePass(),
-            SamplePatternPass()]
+their own passes (rayvr/effects/); the core ones the graph picks from are in core.py. This module
+imports nothing, so any pass may ask it which resource holds the frame's colour."""
 
 
 def radiance(plan) -> tuple[str, str]:

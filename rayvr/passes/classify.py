@@ -7,7 +7,7 @@ import moderngl
 import numpy as np
 
 from .. import shaders
-from ..effects import traced_effects
+from ..effect_registry import traced_effects
 from ..frame import Buffer, FramePlan, Pass, read, write
 from ..gpu_layout import SSBO
 from .primary_rays import bind_round_skip, round_skip_defines, round_skip_reads

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import moderngl
 
 from .. import shaders
-from ..effects import EFFECTS
+from ..effect_registry import EFFECTS
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gpu_layout import IMAGE
 from .accumulate import ACCUM

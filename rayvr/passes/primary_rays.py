@@ -47,7 +47,7 @@ import numpy as np
 from .. import shaders
 from ..accel.frustum import tile_grid
 from ..accel.gpu import DEFAULT_BINDING, layout_defines
-from ..effects import EFFECTS
+from ..effect_registry import EFFECTS
 from ..frame import Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
 from ..gpu_layout import IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_RAYS, channel
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms

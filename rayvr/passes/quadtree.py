@@ -19,15 +19,24 @@ from .. import shaders
 from ..accel.quadtree import (MAX_LEVELS, level_offsets, level_sizes, quadtree_bytes,
                               set_level_uniforms, unflatten, time_build_and_trace, trace_screen_rays)
 from ..cameras import CAMERA_MODELS
+from ..effect_registry import EFFECTS
 from ..frame import Buffer, FramePlan, Pass, read, write
 from ..glsl_constants import declare
 from ..gpu_layout import SSBO, UNIT
 from .compute import camera_defines, set_eye_uniforms
 
+# The material parameters by which an effect that uses the quadtree (`uses_quadtree`) sets its
+# proxy-plane merge thresholds, where it declares them (ssr): a cosine, a relative depth error.
+GAMMA_NORM, GAMMA_DIST = "gamma_norm", "gamma_dist"
 LOCAL = declare("QT_BUILD_LOCAL", 8)  # quadtree_build.comp's local size (x and y)
 QUADTREE = Buffer(lambda s: quadtree_bytes(s.size[0], s.size[1], s.layers * s.depth_layers),
                   "8 B per node: ceil(W/2^k) x ceil(H/2^k) nodes on every level k up to 1 x 1, per eye and depth layer",
                   max_extent=1 << (MAX_LEVELS - 1))
+
+
+def uses_quadtree(effect: str) -> bool:
+    """Whether the registered effect `effect` traces its rays through the quadtree (its declared trait)."""
+    return getattr(EFFECTS.get(effect), "uses_quadtree", False)
 
 
 def set_tree_uniforms(program, size, eyes: int) -> None:
@@ -75,25 +84,24 @@ class QuadtreeBuilder:
 
 class QuadtreePass(Pass):
     """Reads the G-buffer, writes "quadtree". `gamma_norm` (a cosine) and `gamma_dist` (relative
-    depth): the proxy-plane thresholds; the defaults (1, 0) build the lossless tree."""
+    depth): the proxy-plane thresholds; the defaults (1, 0) build the lossless tree. Each frame the
+    strictest thresholds the materials of the effects that use the quadtree ask for (by the
+    parameters GAMMA_NORM and GAMMA_DIST, where the effect declares them) take their place."""
 
     name = "quadtree"
     timed_kernels = True
 
-    def __init__(self, gamma_norm: float = 1.0, gamma_dist: float = 0.0, effect: str | None = None):
-        """With `effect`, the thresholds are the strictest its materials ask for, each frame."""
-        self.gamma_norm, self.gamma_dist, self.effect = gamma_norm, gamma_dist, effect
+    def __init__(self, gamma_norm: float = 1.0, gamma_dist: float = 0.0):
+        self.gamma_norm, self.gamma_dist = gamma_norm, gamma_dist
 
     def thresholds(self, assignments) -> tuple[float, float]:
-        users = [a.params for a in assignments if a.effect == self.effect] if self.effect else []
+        users = [a.params for a in assignments if uses_quadtree(a.effect) and GAMMA_NORM in a.params]
         if not users:
             return self.gamma_norm, self.gamma_dist
-        return max(p["gamma_norm"] for p in users), min(p["gamma_dist"] for p in users)
+        return max(p[GAMMA_NORM] for p in users), min(p[GAMMA_DIST] for p in users)
 
     def why(self, plan: FramePlan) -> str | None:
-        from ..effects import EFFECTS
-
-        users = [e for e in sorted(plan.effects) if getattr(EFFECTS.get(e), "uses_quadtree", False)]
+        users = [e for e in sorted(plan.effects) if uses_quadtree(e)]
         if plan.view == "quadtree_visits":
             users.append("view quadtree_visits")
         if plan.stereo == "warp":

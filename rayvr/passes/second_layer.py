@@ -18,23 +18,24 @@ import ctypes
 
 from .. import shaders
 from ..accel.gpu import DEFAULT_BINDING, GpuBvh
-from ..effects import EFFECTS
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gbuffer import layered_depth_target, delete_texture
 from ..gpu_layout import IMAGE, NO_HIT, UNIT
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
+from .quadtree import uses_quadtree
 from .visibility import VisibilityPass
 
 LAYER2 = Texture("rgba32f")
 LAYER2_TRIANGLE = Texture("r32ui")
 GL_COLOR = 0x1800
+# The material parameter by which an effect that uses the quadtree asks for its depth layers (ssr).
+DEPTH_LAYERS = "layers"
 
 
 def depth_layers(assignments) -> int:
     """Depth layers the frame's screen-space tracers need: 2 when a material of an effect that
-    traces the quadtree asks for `layers` = 2."""
-    return max([int(a.params.get("layers", 1)) for a in assignments
-                if getattr(EFFECTS.get(a.effect), "uses_quadtree", False)] + [1])
+    traces the quadtree asks for DEPTH_LAYERS = 2."""
+    return max([int(a.params.get(DEPTH_LAYERS, 1)) for a in assignments if uses_quadtree(a.effect)] + [1])
 
 
 class _PeelTarget:

@@ -4,7 +4,7 @@ which compose over it (glsl/shade/direct.comp skips them)."""
 from __future__ import annotations
 
 from .. import shaders
-from ..effects import EFFECTS
+from ..effect_registry import EFFECTS
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gpu_layout import IMAGE
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms

@@ -13,13 +13,19 @@ import moderngl
 
 from .. import shaders
 from ..accel.gpu import DEFAULT_BINDING, GpuBvh, layout_defines
-from ..effects import Effect, traced_effects
+from ..effect_registry import Effect, traced_effects
 from ..frame import Buffer, FramePlan, Pass, Sizing, compose, read, write
 from ..gpu_layout import IMAGE, SSBO, UNIT
 from .classify import bind_lists
 from .compute import camera_defines, set_eye_uniforms
 from .quadtree import set_tree_uniforms
 from .second_layer import bind_second_layer
+
+# The material parameters the wavefront reads by name, from an effect that declares them in `params`
+# (keyed by these): the hit events after the pixel's (an effect whose rays go on, `follows_rays`), the
+# paths per pixel, and the points per rect light of each event's shadow rays (PARAM_AREA_SAMPLES).
+WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES = "bounces", "samples", "area_samples"
+WAVE_PARAMS = (WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES)
 
 # Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.
 PATH_BYTES, SLOT_BYTES = 80, 48
@@ -47,7 +53,7 @@ def chunk_ranges(total: int, size: int) -> list:
 
 def effect_maxima(assignments, effect: str) -> dict:
     """The largest of each integer parameter over the materials that use `effect` (sizes the waves)."""
-    out = {"bounces": 1, "samples": 1, "area_samples": 1}
+    out = dict.fromkeys(WAVE_PARAMS, 1)
     for a in assignments:
         if a.effect == effect:
             for k in out:
@@ -65,17 +71,17 @@ class WaveShape:
 
     def __init__(self, effect: Effect, s: Sizing):
         prm = effect_maxima(s.assignments, effect.name)
-        self.bounces = prm["bounces"] if follows_rays(effect) else 0  # hit events after the pixel's
-        self.paths_per_pixel = prm["samples"] if "samples" in effect.params else 1
+        self.bounces = prm[WAVE_BOUNCES] if follows_rays(effect) else 0  # hit events after the pixel's
+        self.paths_per_pixel = prm[WAVE_SAMPLES] if WAVE_SAMPLES in effect.params else 1
         lights = s.scene.lights if s.scene is not None else ()
 
         def shadow_rays(per_rect: int) -> int:  # of one surface: per_rect points a rect light, 1 another
             return sum(per_rect if light.kind == "rect" else 1 for light in lights) or 1
-        per_path = prm["samples"] if effect.shader_defines.get("PIXEL_LIGHT_SAMPLES_PER_PATH") else 1
-        self.slots = shadow_rays(prm["area_samples"] * per_path)
+        per_path = prm[WAVE_SAMPLES] if effect.shader_defines.get("PIXEL_LIGHT_SAMPLES_PER_PATH") else 1
+        self.slots = shadow_rays(prm[WAVE_AREA_SAMPLES] * per_path)
         # A hit event lights its surface with `area_samples` points per rect light, never the
         # pixel event's set per path: its shadow rays fill the first hit_slots slots only.
-        self.hit_slots = shadow_rays(prm["area_samples"])
+        self.hit_slots = shadow_rays(prm[WAVE_AREA_SAMPLES])
         limit = min(s.max_ssbo_bytes or WAVE_BUFFER_BYTES, WAVE_BUFFER_BYTES)
         self.capacity_pixels = s.pixels
         self.batch, self.chunk, self.hit_chunk = wave_plan(s.pixels, self.paths_per_pixel, self.slots, limit,

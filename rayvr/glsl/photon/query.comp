@@ -1,9 +1,9 @@
 #version 430
-// Radius queries for tests and `rayvr bench photon` (accel/photon_gpu.py): the photons within
+// Radius queries for the tests (tests/photon_gpu.py): the photons within
 // query_radius of each query point through the hash grid (QUERY_KDTREE 0) or the kd-tree (1),
 // written as indices into the searched array: found[q * query_capacity + j], the count (which may
 // exceed the capacity) to counts[q].
-#include "../layout.glsl"  // PHOTON_QUERY_GROUP: rayvr/accel/photon_gpu.py
+#include "../layout.glsl"  // PHOTON_QUERY_GROUP: tests/photon_gpu.py
 layout(local_size_x = PHOTON_QUERY_GROUP) in;
 #include "grid.glsl"
 #include "kdtree.glsl"

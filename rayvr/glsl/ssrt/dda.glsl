@@ -1,5 +1,5 @@
 // Perspective-correct DDA screen-space ray marching (McGuire & Mara 2014), the baseline of the
-// screen-space tracers. rayvr/accel/dda.py (trace_dda) is its numpy mirror, step for step, and its
+// screen-space tracers. rayvr/bench/tracers/dda.py (trace_dda) is its numpy mirror, step for step, and its
 // docstring describes the march; tests/test_dda.py compares the two.
 //
 //   DdaResult dda_trace(int eye, vec3 origin, vec3 direction, vec2 size,
@@ -43,7 +43,7 @@ layout(binding = GB_UNIT_LINEAR_DEPTH) uniform sampler2DArray dda_linear_depth;
 // and rays from pixel centres with simple slopes meet pixel edges exactly at column centres. So
 // rounding (which differs between drivers) decides nothing, a column is tested only if the
 // segment reaches DDA_EDGE px into it, and the pixel is picked DDA_BIAS px further along the ray.
-// (DDA_EDGE, DDA_BIAS: layout.glsl, from rayvr/accel/dda.py)
+// (DDA_EDGE, DDA_BIAS: layout.glsl, from rayvr/bench/tracers/dda.py)
 
 #define DDA_HIT SSRT_HIT
 #define DDA_OFFSCREEN SSRT_OFFSCREEN

@@ -1,6 +1,6 @@
 #version 430
 // Trace a batch of rays with dda_trace (ssrt/dda.glsl) against a frame's G-buffer, for tests and
-// benchmarks (rayvr/accel/dda.py DdaTracer). Rays at SSBO_DDA_RAYS: per ray vec4(origin, eye
+// benchmarks (rayvr/bench/tracers/dda.py DdaTracer). Rays at SSBO_DDA_RAYS: per ray vec4(origin, eye
 // layer as a float), vec4(direction, unused), scene-local. Results at SSBO_DDA_RESULTS: per ray
 // uvec4(status, steps, pixel x, pixel y as int bits), uvec4(point in S as float bits, 0).
 #include "../layout.glsl"

@@ -1,5 +1,5 @@
 // Hi-Z screen-space tracing: a hierarchical traversal of a min-max depth pyramid (the baseline
-// beside DDA and the quadtree). rayvr/accel/hiz.py trace_hiz_reference is its numpy mirror, step
+// beside DDA and the quadtree). rayvr/bench/tracers/hiz.py trace_hiz_reference is its numpy mirror, step
 // for step; tests/test_hiz.py compares both with the brute-force height field.
 //
 //   HizResult hiz_trace(int eye, vec3 origin, vec3 direction, int start_level,
@@ -44,7 +44,7 @@
 #define HIZ_OFFSCREEN SSRT_OFFSCREEN
 #define HIZ_NEAR SSRT_NEAR
 #define HIZ_NONE SSRT_NONE
-#define HIZ_MAX_LEVELS QT_MAX_LEVELS  // HIZ_EMPTY: layout.glsl (rayvr/accel/hiz.py)
+#define HIZ_MAX_LEVELS QT_MAX_LEVELS  // HIZ_EMPTY: layout.glsl (rayvr/bench/tracers/hiz.py)
 #define HIZ_INF SSRT_INF
 
 #ifndef HIZ_LEVELS_ACCESS

@@ -1,6 +1,6 @@
 #version 430
 // Trace a batch of rays with hiz_trace (ssrt/hiz.glsl) through a built min-max pyramid, for tests
-// and benchmarks (rayvr/accel/hiz.py HizTracer). The layout of ssrt/dda_batch.comp: rays at
+// and benchmarks (rayvr/bench/tracers/hiz.py HizTracer). The layout of ssrt/dda_batch.comp: rays at
 // SSBO_HIZ_RAYS, per ray vec4(origin, eye layer as a float), vec4(direction, unused), scene-local;
 // results at SSBO_HIZ_RESULTS, per ray uvec4(status, iterations, pixel x, pixel y as int bits),
 // uvec4(point in S as float bits, 0).

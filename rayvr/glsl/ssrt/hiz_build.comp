@@ -1,6 +1,6 @@
 #version 430
-// Build one level of the min-max depth pyramid of ssrt/hiz.glsl (rayvr/accel/hiz.py runs one
-// dispatch per level, finest first; z = layer, so both eyes in one dispatch). rayvr/accel/hiz.py
+// Build one level of the min-max depth pyramid of ssrt/hiz.glsl (rayvr/bench/tracers/hiz.py runs one
+// dispatch per level, finest first; z = layer, so both eyes in one dispatch). rayvr/bench/tracers/hiz.py
 // pyramid_reference is its numpy mirror.
 //   level 0: each pixel's z = near / linear_depth as (zmin, zmax) = (z, z); background (depth 0,
 //            or not a number) is (HIZ_EMPTY, 0), so it widens no cell and no ray passes below it.

@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import moderngl
 
-from .. import shaders
-from ..effects.photon import PhotonPass, photon_setup
-from ..frame import Buffer, FramePlan, compose, read, write
-from ..glsl_constants import declare
-from ..gpu_layout import SSBO
-from .photon_scan import Scan, dispatch_shape, scan_words
+from ... import shaders
+from ...frame import Buffer, FramePlan, compose, read, write
+from ...glsl_constants import declare
+from ...gpu_layout import SSBO
+from .scan import Scan, dispatch_shape, scan_words
+from .setup import PhotonPass, photon_setup
 
 SORT_GROUP = declare("SORT_GROUP", 256)  # invocations of a radix_sort.comp group: pairs it sorts
 RADIX = declare("SORT_RADIX", 256, uint=True)  # digits of one pass (8 bits)

@@ -8,13 +8,13 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from .. import shaders
-from ..accel.gpu import DEFAULT_BINDING, layout_defines
-from ..effects.photon import PhotonPass, photon_setup
-from ..frame import Buffer, FramePlan, read, write
-from ..glsl_constants import declare
-from ..gpu_layout import SSBO, UNIT
-from .photon_scan import dispatch_shape
+from ... import shaders
+from ...accel.gpu import DEFAULT_BINDING, layout_defines
+from ...frame import Buffer, FramePlan, read, write
+from ...glsl_constants import declare
+from ...gpu_layout import SSBO, UNIT
+from .scan import dispatch_shape
+from .setup import PhotonPass, photon_setup
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 TRACE_GROUP = declare("PHOTON_TRACE_GROUP", 64)  # photon paths a trace.comp group traces

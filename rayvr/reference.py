@@ -22,8 +22,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..effects import EFFECTS, implemented_effects
-from ..materials import MaterialConfig, parse_config
+from .effects import EFFECTS, implemented_effects
+from .materials import MaterialConfig, parse_config
+from .renderer import RenderSettings
 
 MIRROR_ROUGHNESS = 0.05
 GLOSSY_DIELECTRIC_ROUGHNESS = 0.5
@@ -87,8 +88,6 @@ def config_from_choices(choices: list[ReferenceChoice]) -> MaterialConfig:
 def reference_settings(**overrides):
     """RenderSettings for comparisons: no ambient, black background, exposure 1, clamp tonemap
     (comparisons read the linear HDR target, so the tonemapper only affects the PNGs)."""
-    from ..renderer import RenderSettings
-
     kw = {"ambient": (0.0, 0.0, 0.0), "background": (0.0, 0.0, 0.0), "exposure": 1.0, "tonemapper": "clamp"}
     kw.update(overrides)
     return RenderSettings(**kw)

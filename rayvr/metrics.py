@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from ..extras import require
+from .extras import require
 
 # Approximate per-eye horizontal field of view (degrees) and eye-buffer width (pixels) of common
 # headsets, from vendor specs and reviews. Only used to pick a pixels-per-degree for FLIP.

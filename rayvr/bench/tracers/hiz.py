@@ -1,5 +1,5 @@
 """Hi-Z screen-space tracing: a min-max depth pyramid and its hierarchical traversal, the second
-baseline beside the DDA (rayvr/accel/dda.py) for the quadtree (rayvr/accel/quadtree.py).
+baseline beside the DDA (rayvr/bench/tracers/dda.py) for the quadtree (rayvr/accel/quadtree.py).
 
 Screen space S, statuses (HIT, OFFSCREEN, NEAR, NONE) and the projection of a ray (quadtree.py
 `screen_ray`) are those of the quadtree. The surface is the single-layer height field of the
@@ -34,12 +34,12 @@ from typing import NamedTuple
 import moderngl
 import numpy as np
 
-from .. import shaders
-from ..glsl_constants import declare
-from ..gpu_layout import SSBO
-from .quadtree import (HIT, INF, NEAR, NONE, OFFSCREEN, ScreenCamera, Trace, encode_aabbs, encode_planes,
-                       level_offsets, level_sizes, screen_ray, set_level_uniforms, time_build_and_trace,
-                       trace_screen_rays)
+from ... import shaders
+from ...accel.quadtree import (HIT, INF, NEAR, NONE, OFFSCREEN, ScreenCamera, Trace, encode_aabbs, encode_planes,
+                               level_offsets, level_sizes, screen_ray, set_level_uniforms, time_build_and_trace,
+                               trace_screen_rays)
+from ...glsl_constants import declare
+from ...gpu_layout import SSBO
 
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
 EMPTY = declare("HIZ_EMPTY", np.float32(3.0e38))  # zmin of a cell without geometry (finite: EMPTY * 0 is 0, not NaN)
@@ -54,7 +54,7 @@ def hiz_bytes(width: int, height: int, layers: int) -> int:
 
 
 def thickness_factor(thickness: float) -> float:
-    """1 / (1 + thickness), 0 for infinite thickness (as rayvr/accel/dda.py)."""
+    """1 / (1 + thickness), 0 for infinite thickness (as rayvr/bench/tracers/dda.py)."""
     return 0.0 if np.isinf(thickness) else float(f32(1.0) / (f32(1.0) + f32(thickness)))
 
 

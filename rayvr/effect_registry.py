@@ -18,6 +18,11 @@ An effect declares, in one place:
   reference_params(quality)   its parameters at reference quality
 
 Adding an effect is one module (a subclass, `register(MyEffect())`), its shaders and its test.
+
+The registry sits below the passes (docs/architecture.md, "Layers"): it imports only gpu_layout (and
+adds its effect lines to the generated header), so a core pass reads an effect's declared traits
+(`traced`, `uses_quadtree`, `reflective`, `path_vertices`, `denoised`, its ID) here without importing
+any effect; the built-in rungs, which bring their own passes, register from rayvr/effects/.
 """
 from __future__ import annotations
 
@@ -26,8 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-PARAM_WORDS = 8  # 32-bit words of effect parameters per material (glsl/common/scene.glsl)
-MAX_EFFECT_ID = 32  # effect IDs are bits of a 32-bit mask in the shade pass
+from . import gpu_layout
+from .gpu_layout import BACKGROUND_EFFECT, MAX_EFFECT_ID, PARAM_WORDS  # noqa: F401  (the registry's names too)
+
 PARAM_TYPES = (int, float)
 
 
@@ -104,7 +110,6 @@ class EffectError(ValueError):
 
 
 EFFECTS: dict[str, Effect] = {}  # registration order = ladder order (cheapest first)
-BACKGROUND_EFFECT = 255  # effect-ID value of pixels no geometry covers
 # Rungs of the ladder that later versions add: a config naming one is refused as "not yet".
 PLANNED: dict[str, str] = {}  # every rung of the ladder is implemented now
 
@@ -148,3 +153,24 @@ def traced_effects() -> list[Effect]:
 
 def effect_by_id(effect_id: int) -> Effect | None:
     return next((e for e in EFFECTS.values() if e.id == effect_id), None)
+
+
+def _header_lines() -> list[str]:
+    """The registry's part of the generated GLSL header: each effect's ID and parameter slots,
+    which effects reflection rays go on at, and the pixel-list slot of each traced effect."""
+    lines, reflective = [], 0
+    for e in EFFECTS.values():
+        lines.append(f"#define EFFECT_{e.name.upper()} {e.id}")
+        lines += [f"#define PARAM_{e.name.upper()}_{k.upper()} {i}" for k, i in e.param_slots().items()]
+        reflective |= (1 << e.id) if e.reflective else 0
+    lines.append(f"#define REFLECTIVE_EFFECTS {reflective}u  // bit e: reflection rays go on at effect e")
+    traced = traced_effects()
+    table = [-1] * MAX_EFFECT_ID
+    for slot, e in enumerate(traced):
+        table[e.id] = slot
+    lines += [f"#define RT_SLOTS {max(len(traced), 1)}  // pixel lists: one per traced effect",
+              f"#define RT_SLOT_TABLE int[{MAX_EFFECT_ID}]({', '.join(map(str, table))})  // effect ID -> list, -1: none"]
+    return lines
+
+
+gpu_layout.generated_lines(__name__, _header_lines)

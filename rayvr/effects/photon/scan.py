@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import moderngl
 
-from .. import shaders
-from ..effects.photon import PhotonPass, photon_setup
-from ..frame import FramePlan, compose
-from ..glsl_constants import declare
-from ..gpu_layout import SSBO
+from ... import shaders
+from ...frame import FramePlan, compose
+from ...glsl_constants import declare
+from ...gpu_layout import SSBO
+from .setup import PhotonPass, photon_setup
 
 SCAN_GROUP = declare("SCAN_GROUP", 256)  # invocations of a scan.comp group
 SCAN_ITEMS = declare("SCAN_ITEMS", 4)  # words each scans

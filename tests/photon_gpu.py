@@ -1,20 +1,20 @@
-"""The photon map's GPU steps run alone on photons given from numpy, for tests and `rayvr bench
-photon`: the same kernels the frame graph runs (passes/photon_cells.py, photon_scan.py,
-photon_sort.py, photon_kdtree.py; glsl/photon/query.comp for radius queries), so each can be held
-to its numpy reference in accel/photon_map.py."""
+"""A test harness: the photon map's GPU steps run alone on photons given from numpy, the same
+kernels the frame graph runs (rayvr/effects/photon/ cells.py, scan.py, sort.py, kdtree.py;
+glsl/photon/query.comp for radius queries), so each can be held to its numpy reference in
+rayvr/accel/photon_map.py (tests/test_photon_map.py)."""
 from __future__ import annotations
 
 import moderngl
 import numpy as np
 
-from .. import shaders
-from ..glsl_constants import declare
-from ..gpu_layout import SSBO
-from ..passes.photon_cells import CellKeys, set_grid_uniforms
-from ..passes.photon_kdtree import kdtree_records
-from ..passes.photon_scan import scan_words
-from ..passes.photon_sort import RadixSort, table_words
-from .photon_map import PHOTON_WORDS, GridShape
+from rayvr import shaders
+from rayvr.accel.photon_map import PHOTON_WORDS, GridShape
+from rayvr.effects.photon.cells import CellKeys, set_grid_uniforms
+from rayvr.effects.photon.kdtree import kdtree_records
+from rayvr.effects.photon.scan import scan_words
+from rayvr.effects.photon.sort import RadixSort, table_words
+from rayvr.glsl_constants import declare
+from rayvr.gpu_layout import SSBO
 
 QUERY_GROUP = declare("PHOTON_QUERY_GROUP", 64)  # query points a query.comp group answers
 

@@ -59,12 +59,12 @@ from typing import NamedTuple
 import moderngl
 import numpy as np
 
-from .. import shaders
-from ..glsl_constants import declare
-from ..gpu_layout import SSBO
-from ..timing import time_gpu
-from .gpu import WARMUP_S
-from .quadtree import HIT, NEAR, NONE, OFFSCREEN, dispatch_per_ray, pack_screen_rays
+from ... import shaders
+from ...accel.gpu import WARMUP_S
+from ...accel.quadtree import HIT, NEAR, NONE, OFFSCREEN, dispatch_per_ray, pack_screen_rays
+from ...glsl_constants import declare
+from ...gpu_layout import SSBO
+from ...timing import time_gpu
 
 EDGE = declare("DDA_EDGE", np.float32(1.0 / 256.0))  # a column is tested if the segment reaches this far (px) into it
 BIAS = declare("DDA_BIAS", np.float32(1.0 / 256.0))  # the pixel is picked this far (px) along the ray from the sample

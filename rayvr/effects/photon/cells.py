@@ -7,12 +7,12 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from .. import shaders
-from ..effects.photon import PhotonPass, photon_setup
-from ..frame import Buffer, FramePlan, read, write
-from ..glsl_constants import declare
-from ..gpu_layout import SSBO
-from .photon_scan import dispatch_shape, scan_words
+from ... import shaders
+from ...frame import Buffer, FramePlan, read, write
+from ...glsl_constants import declare
+from ...gpu_layout import SSBO
+from .scan import dispatch_shape, scan_words
+from .setup import PhotonPass, photon_setup
 
 CELLS_GROUP = declare("PHOTON_CELLS_GROUP", 256)  # photons a cells.comp group keys
 

@@ -6,12 +6,12 @@ The pixel kernel is compiled per set of estimators the frame's materials use (PH
 the grid-only kernel carries no heap arrays and no kd-tree walk (fewer registers: faster)."""
 from __future__ import annotations
 
-from .. import shaders
-from ..effects.photon import photon_setup
-from ..frame import FramePlan, read
-from ..gpu_layout import SSBO
-from .photon_cells import set_grid_uniforms
-from .trace_effect import TraceEffectPass
+from ... import shaders
+from ...frame import FramePlan, read
+from ...gpu_layout import SSBO
+from ...passes.trace_effect import TraceEffectPass
+from .cells import set_grid_uniforms
+from .setup import photon_setup
 
 
 class PhotonShadePass(TraceEffectPass):

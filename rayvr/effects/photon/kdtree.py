@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..accel.photon_map import PHOTON_WORDS, build_kdtree, unpack_photons
-from ..effects.photon import PhotonPass, photon_setup
-from ..frame import Buffer, FramePlan, read, write
+from ...accel.photon_map import PHOTON_WORDS, build_kdtree, unpack_photons
+from ...frame import Buffer, FramePlan, read, write
+from .setup import PhotonPass, photon_setup
 
 
 def kdtree_records(raw: bytes) -> np.ndarray:
