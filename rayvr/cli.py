@@ -17,7 +17,7 @@ from .accumulation import MAX_DENOISE_ITERATIONS
 from .limits import MAX_DISTANCE  # --near, --far, --convergence, --ipd (the rig checks the rest of their ranges)
 from .accel.bvh import BUILDS
 from .accel.gpu import DEFAULT_TRAVERSAL, parse_traversal
-from .extras import BENCH_NEEDS, MissingExtraError, require
+from .extras import MissingExtraError, require
 from .gpu_layout import BVH_LAYOUTS
 from .inputs import MAX_IMAGE_SIDE
 from .signals import handling
@@ -425,14 +425,6 @@ def cmd_info(args) -> int:
     return 0
 
 
-def _example_config(scene_name: str):
-    """The material config shipped for a benchmark scene (rayvr/assets/<scene>.toml), if any."""
-    from .scene import ASSETS_DIR
-
-    path = ASSETS_DIR / ("default_room.toml" if scene_name == "default" else f"{scene_name}.toml")
-    return path if path.exists() else None
-
-
 def add_connect_timeout_argument(p: argparse.ArgumentParser) -> None:
     from .cluster import DEFAULT_CONNECT_TIMEOUT_S
 
@@ -488,13 +480,6 @@ def _names(text: str) -> tuple[str, ...]:
     return names
 
 
-def _bench_configs(area: str, names, allowed) -> tuple[str, ...] | None:
-    """`--configs` of bench `area`, checked against its `allowed` names (None: not given)."""
-    if names is not None and any(x not in allowed for x in names):
-        raise ValueError(f"bench {area} --configs must be among {', '.join(allowed)}, got {','.join(names)!r}")
-    return names
-
-
 def _sample_counts(text: str) -> tuple[int, ...]:
     from .cameras.sampling import SAMPLE_COUNTS
 
@@ -518,121 +503,12 @@ def _budgets(text: str) -> list[float]:
     return values
 
 
-def _share(repeat: int, parts: int) -> int:
-    """A bench's timed frames per variant from --repeat when it times `parts` things per row: at least one."""
-    return max(1, repeat // parts)
-
-
 def cmd_bench(args) -> int:
+    from .bench import run_area
     from .output import check_output_dir
 
     out = check_output_dir(args.out)  # before any measuring: results are written after it
-    for module in BENCH_NEEDS.get(args.area, ()):  # the optional extras it measures with, before any work
-        require(module, f"bench {args.area}")
-    quick = args.quick
-    if args.workers or args.area == "workers":
-        from .cluster import require_ray
-
-        require_ray()  # the optional extra, before any work
-        if args.area not in ("tradeoff", "budget", "workers"):
-            raise ValueError(f"--workers spreads the tradeoff and budget sweeps; bench {args.area} runs in one process")
-        args.workers_list = [int(x) for x in args.workers.split(",")] if args.workers else None
-        if args.area != "workers":
-            if len(args.workers_list) != 1:
-                raise ValueError(f"bench {args.area} --workers takes one count, got {args.workers!r}")
-            args.workers = args.workers_list[0]
-    if args.area == "gbuffer":
-        from .bench import gbuffer
-
-        gbuffer.run(out, size=(64, 64) if quick else args.size,
-                    scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                    repeat=3 if quick else args.repeat, warmup=1 if quick else 5, backend=args.backend)
-    elif args.area == "rays":
-        from .bench import rays
-
-        rays.run(out, size=(64, 48) if quick else args.size,
-                 scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                 repeat=2 if quick else _share(args.repeat, 2), warmup=1 if quick else 3, backend=args.backend,
-                 layouts=args.layouts, tiles=not args.no_tiles, builds=args.bvh_build or ("sah",))
-    elif args.area == "bvh":
-        from .bench import bvh
-
-        bvh.run(out, size=(64, 48) if quick else args.size,
-                scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                builds=args.bvh_build or ("sah", "sbvh"), samples=256 if quick else 4096)
-    elif args.area == "primary":
-        from .bench import primary
-
-        # A --camera-model / --camera-param / --fov given: that camera (and the raster reference) only;
-        # any subset (that, --configs, --counts, --msaa): the bench views' rows alone, not Table 5's.
-        custom = args.camera_model != "pinhole" or args.camera_param or args.fov is not None
-        subset = custom or args.configs or args.counts or args.msaa
-        counts = args.counts or ((args.msaa,) if args.msaa else (1, 4) if quick else None)
-        primary.run(out, size=(32, 24) if quick else args.size,
-                    scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                    repeat=2 if quick else _share(args.repeat, 2), warmup=1 if quick else 3, counts=counts,
-                    ssaa=(args.msaa,) if args.ssaa and args.msaa else () if quick else (4,),
-                    custom=(camera_from_args(args), args.fov) if custom else None, backend=args.backend,
-                    configs=_bench_configs("primary", args.configs, primary.CONFIGS),
-                    suites=("views",) if subset else primary.SUITES,
-                    table5_size=(24, 16) if quick else primary.TABLE5_SIZE, tiles=not args.no_tiles,
-                    builds=args.bvh_build or ("sah",), frame_culling={None: (None,), True: (False, True), False: (False,)}[args.tile_culling])
-    elif args.area == "peers":
-        from .bench import peers
-
-        peers.run(out, size=(64, 36) if quick else (1280, 720),
-                  scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                  frames=5 if quick else args.repeat * 4, backend=args.backend)
-    elif args.area == "ssrt":
-        from .bench import ssrt
-
-        ssrt.run(out, size=(64, 48) if quick else args.size,
-                 scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                 repeat=2 if quick else args.repeat, backend=args.backend, quick=quick)
-    elif args.area == "photon":
-        from .bench import photon
-
-        photon.run(out, size=(32, 24) if quick else args.size,
-                   scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                   repeat=1 if quick else _share(args.repeat, 5), quick=quick, backend=args.backend)
-    elif args.area == "gi":
-        from .bench import gi
-
-        gi.run(out, size=(32, 24) if quick else args.size,
-               scenes=("default",) if quick else tuple(args.scenes.split(",")),
-               repeat=1 if quick else _share(args.repeat, 5), warmup=1 if quick else 3, quick=quick,
-               parts=_bench_configs("gi", args.configs, gi.PARTS) or gi.PARTS, reference_spp=args.reference_spp,
-               reference_photons=args.reference_photons, backend=args.backend)
-    elif args.area == "stereo":
-        from .bench import stereo
-
-        stereo.run(out, size=(64, 48) if quick else args.size,
-                   scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                   repeat=2 if quick else args.repeat, backend=args.backend)
-    elif args.area == "workers":
-        from .bench import workers
-
-        counts = args.workers_list or [1, 2]
-        workers.run(out, size=(32, 24) if quick else args.size, scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                    frames=8 if quick else args.frames, workers=tuple(counts), address=args.address,
-                    backend=args.backend, base_config=_example_config, connect_timeout=_connect_timeout(args))
-    elif args.area == "crosscheck":
-        from .bench import mitsuba_ref
-
-        mitsuba_ref.run(out, quick=quick)
-    elif args.area in ("tradeoff", "budget"):
-        from .bench import tradeoff
-
-        kw = dict(size=(32, 24) if quick else args.size,
-                  scenes=("default",) if quick else tuple(args.scenes.split(",")),
-                  repeat=2 if quick else _share(args.repeat, 5), base_config=_example_config, backend=args.backend,
-                  workers=args.workers, address=args.address, connect_timeout=_connect_timeout(args))
-        if args.area == "tradeoff":
-            tradeoff.run(out, quick=quick, **kw)
-        else:
-            tradeoff.run_budget(out, budgets=tuple(args.budget_ms), quick=quick, **kw)
-    else:
-        raise SystemExit(f"unknown benchmark area {args.area!r}")
+    run_area(args, out, camera_from_args)
     print(f"results in {out}/{args.area}.json and {args.area}.md")
     return 0
 
@@ -772,20 +648,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_camera_arguments(i)
     i.set_defaults(func=cmd_info)
 
+    from .bench import AREAS, areas_help
+
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
-    b.add_argument("area", choices=("gbuffer", "rays", "bvh", "primary", "ssrt", "photon", "gi", "stereo", "peers", "tradeoff",
-                                    "budget", "crosscheck", "workers"),
-                   help="gbuffer: layered stereo vs mono G-buffer ms; rays: rays/s vs Embree and the hybrid "
-                        "frame; bvh: the BVH builds (sah, sbvh) on the host: build s, references, SAH cost, node "
-                        "visits and triangle tests per ray kind (no GPU); primary: ray-cast primary visibility per camera model and sub-rays per sample "
-                        "(ms per pass, sub-rays/s) against the raster G-buffer; ssrt: quadtree screen-space tracing vs the DDA baseline; photon: the photon-mapping paper's "
-                        "tables (kd-tree vs hash grid, heap vs no heap: ms per pass, FLIP); gi: issue 11's global "
-                        "illumination figures (the photon tables over 128²-512² x 0.02-0.2 m, Table 5 dual vs reuse, "
-                        "path at 1/4/16 spp with and without the denoiser; targets met or missed); stereo: the stereo modes dual, warp, "
-                        "reuse (ms per pass, FLIP against dual, holes); peers: frames/s against pyrender; "
-                        "tradeoff: every knob's GPU ms vs error against the reference; budget: effects per "
-                        "material chosen under --budget-ms; crosscheck: the reference vs Mitsuba 3 on the Cornell boxes; "
-                        "workers: frames/s of a capture path in one process and on --workers N,M Ray workers")
+    b.add_argument("area", choices=tuple(AREAS), help=areas_help())
     b.add_argument("--budget-ms", type=_budgets, default=[4.0, 8.0], help="frame budgets for 'budget' (default 4,8)")
     b.add_argument("--out", default="bench/results", help="folder for JSON/markdown results")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")

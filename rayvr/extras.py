@@ -7,12 +7,6 @@ import importlib
 # module -> (package name on PyPI, rayvr extra that installs it)
 EXTRAS = {"flip_evaluator": ("flip-evaluator", "bench"), "mitsuba": ("mitsuba", "reference")}
 
-# The bench areas that measure image error with FLIP, or render Mitsuba references.
-BENCH_NEEDS = {"ssrt": ("flip_evaluator",), "photon": ("flip_evaluator",), "gi": ("flip_evaluator",),
-               "stereo": ("flip_evaluator",), "tradeoff": ("flip_evaluator",), "budget": ("flip_evaluator",),
-               "crosscheck": ("mitsuba", "flip_evaluator")}
-
-
 class MissingExtraError(ImportError):
     """An optional package a command needs is not installed."""
 

@@ -1,0 +1,211 @@
+"""The benchmarks (`rayvr bench AREA`): one table, AREAS, from which the command line takes its
+choices, their help and the run of each. An area's module is imported only when it runs.
+
+The benchmarks sit above the renderer (docs/architecture.md, "Layers"): they import the product,
+never the reverse; the CLI reaches them through this table alone.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+QUICK_SCENES = ("default",)  # --quick: the built-in room only
+
+
+@dataclass(frozen=True)
+class Area:
+    help: str
+    run: Callable  # run(args, out, camera_from_args): measures, writes out/<area>.json and .md
+    needs: tuple = ()  # optional modules it measures with (extras.EXTRAS), required before any work
+    workers: str = ""  # --workers: "one" (a count that spreads its variants), "list" (the counts it times)
+
+
+def _scenes(args) -> tuple[str, ...]:
+    return QUICK_SCENES if args.quick else tuple(args.scenes.split(","))
+
+
+def share(repeat: int, parts: int) -> int:
+    """A bench's timed frames per variant from --repeat when it times `parts` things per row: at least one."""
+    return max(1, repeat // parts)
+
+
+def checked_configs(area: str, names, allowed) -> tuple[str, ...] | None:
+    """`--configs` of bench `area`, checked against its `allowed` names (None: not given)."""
+    if names is not None and any(x not in allowed for x in names):
+        raise ValueError(f"bench {area} --configs must be among {', '.join(allowed)}, got {','.join(names)!r}")
+    return names
+
+
+def _connect_timeout(args) -> float:
+    from ..cluster import DEFAULT_CONNECT_TIMEOUT_S
+
+    return DEFAULT_CONNECT_TIMEOUT_S if args.connect_timeout is None else args.connect_timeout
+
+
+def _gbuffer(args, out, camera_from_args):
+    from . import gbuffer
+
+    gbuffer.run(out, size=(64, 64) if args.quick else args.size, scenes=_scenes(args),
+                repeat=3 if args.quick else args.repeat, warmup=1 if args.quick else 5, backend=args.backend)
+
+
+def _rays(args, out, camera_from_args):
+    from . import rays
+
+    rays.run(out, size=(64, 48) if args.quick else args.size, scenes=_scenes(args),
+             repeat=2 if args.quick else share(args.repeat, 2), warmup=1 if args.quick else 3, backend=args.backend,
+             layouts=args.layouts, tiles=not args.no_tiles, builds=args.bvh_build or ("sah",))
+
+
+def _bvh(args, out, camera_from_args):
+    from . import bvh
+
+    bvh.run(out, size=(64, 48) if args.quick else args.size, scenes=_scenes(args),
+            builds=args.bvh_build or ("sah", "sbvh"), samples=256 if args.quick else 4096)
+
+
+def _primary(args, out, camera_from_args):
+    from . import primary
+
+    quick = args.quick
+    # A --camera-model / --camera-param / --fov given: that camera (and the raster reference) only;
+    # any subset (that, --configs, --counts, --msaa): the bench views' rows alone, not Table 5's.
+    custom = args.camera_model != "pinhole" or args.camera_param or args.fov is not None
+    subset = custom or args.configs or args.counts or args.msaa
+    counts = args.counts or ((args.msaa,) if args.msaa else (1, 4) if quick else None)
+    primary.run(out, size=(32, 24) if quick else args.size, scenes=_scenes(args),
+                repeat=2 if quick else share(args.repeat, 2), warmup=1 if quick else 3, counts=counts,
+                ssaa=(args.msaa,) if args.ssaa and args.msaa else () if quick else (4,),
+                custom=(camera_from_args(args), args.fov) if custom else None, backend=args.backend,
+                configs=checked_configs("primary", args.configs, primary.CONFIGS),
+                suites=("views",) if subset else primary.SUITES,
+                table5_size=(24, 16) if quick else primary.TABLE5_SIZE, tiles=not args.no_tiles,
+                builds=args.bvh_build or ("sah",),
+                frame_culling={None: (None,), True: (False, True), False: (False,)}[args.tile_culling])
+
+
+def _peers(args, out, camera_from_args):
+    from . import peers
+
+    peers.run(out, size=(64, 36) if args.quick else (1280, 720), scenes=_scenes(args),
+              frames=5 if args.quick else args.repeat * 4, backend=args.backend)
+
+
+def _ssrt(args, out, camera_from_args):
+    from . import ssrt
+
+    ssrt.run(out, size=(64, 48) if args.quick else args.size, scenes=_scenes(args),
+             repeat=2 if args.quick else args.repeat, backend=args.backend, quick=args.quick)
+
+
+def _photon(args, out, camera_from_args):
+    from . import photon
+
+    photon.run(out, size=(32, 24) if args.quick else args.size, scenes=_scenes(args),
+               repeat=1 if args.quick else share(args.repeat, 5), quick=args.quick, backend=args.backend)
+
+
+def _gi(args, out, camera_from_args):
+    from . import gi
+
+    gi.run(out, size=(32, 24) if args.quick else args.size, scenes=_scenes(args),
+           repeat=1 if args.quick else share(args.repeat, 5), warmup=1 if args.quick else 3, quick=args.quick,
+           parts=checked_configs("gi", args.configs, gi.PARTS) or gi.PARTS, reference_spp=args.reference_spp,
+           reference_photons=args.reference_photons, backend=args.backend)
+
+
+def _stereo(args, out, camera_from_args):
+    from . import stereo
+
+    stereo.run(out, size=(64, 48) if args.quick else args.size, scenes=_scenes(args),
+               repeat=2 if args.quick else args.repeat, backend=args.backend)
+
+
+def _sweep_arguments(args) -> dict:
+    from .scenes import shipped_config
+
+    return dict(size=(32, 24) if args.quick else args.size, scenes=_scenes(args),
+                repeat=2 if args.quick else share(args.repeat, 5), base_config=shipped_config,
+                backend=args.backend, workers=args.workers, address=args.address,
+                connect_timeout=_connect_timeout(args))
+
+
+def _tradeoff(args, out, camera_from_args):
+    from . import tradeoff
+
+    tradeoff.run(out, quick=args.quick, **_sweep_arguments(args))
+
+
+def _budget(args, out, camera_from_args):
+    from . import tradeoff
+
+    tradeoff.run_budget(out, budgets=tuple(args.budget_ms), quick=args.quick, **_sweep_arguments(args))
+
+
+def _crosscheck(args, out, camera_from_args):
+    from . import mitsuba_ref
+
+    mitsuba_ref.run(out, quick=args.quick)
+
+
+def _workers(args, out, camera_from_args):
+    from . import workers
+    from .scenes import shipped_config
+
+    workers.run(out, size=(32, 24) if args.quick else args.size, scenes=_scenes(args),
+                frames=8 if args.quick else args.frames, workers=tuple(args.workers_list or [1, 2]),
+                address=args.address, backend=args.backend, base_config=shipped_config,
+                connect_timeout=_connect_timeout(args))
+
+
+FLIP = ("flip_evaluator",)
+
+AREAS: dict[str, Area] = {
+    "gbuffer": Area("layered stereo vs mono G-buffer ms", _gbuffer),
+    "rays": Area("rays/s vs Embree and the hybrid frame", _rays),
+    "bvh": Area("the BVH builds (sah, sbvh) on the host: build s, references, SAH cost, node visits and triangle "
+                "tests per ray kind (no GPU)", _bvh),
+    "primary": Area("ray-cast primary visibility per camera model and sub-rays per sample (ms per pass, sub-rays/s) "
+                    "against the raster G-buffer", _primary),
+    "ssrt": Area("quadtree screen-space tracing vs the DDA baseline", _ssrt, FLIP),
+    "photon": Area("the photon-mapping paper's tables (kd-tree vs hash grid, heap vs no heap: ms per pass, FLIP)",
+                   _photon, FLIP),
+    "gi": Area("issue 11's global illumination figures (the photon tables over 128²-512² x 0.02-0.2 m, Table 5 "
+               "dual vs reuse, path at 1/4/16 spp with and without the denoiser; targets met or missed)", _gi, FLIP),
+    "stereo": Area("the stereo modes dual, warp, reuse (ms per pass, FLIP against dual, holes)", _stereo, FLIP),
+    "peers": Area("frames/s against pyrender", _peers),
+    "tradeoff": Area("every knob's GPU ms vs error against the reference", _tradeoff, FLIP, workers="one"),
+    "budget": Area("effects per material chosen under --budget-ms", _budget, FLIP, workers="one"),
+    "crosscheck": Area("the reference vs Mitsuba 3 on the Cornell boxes", _crosscheck, ("mitsuba",) + FLIP),
+    "workers": Area("frames/s of a capture path in one process and on --workers N,M Ray workers", _workers,
+                    workers="list"),
+}
+
+
+def areas_help() -> str:
+    return "; ".join(f"{name}: {area.help}" for name, area in AREAS.items())
+
+
+def run_area(args, out, camera_from_args) -> None:
+    """Run bench `args.area` into the folder `out` (checked already): its optional extras and Ray
+    first (one error before any work), then the area's own run."""
+    from ..extras import require
+
+    area = AREAS.get(args.area)
+    if area is None:
+        raise ValueError(f"unknown benchmark area {args.area!r}; choose from {', '.join(AREAS)}")
+    for module in area.needs:
+        require(module, f"bench {args.area}")
+    if args.workers or area.workers == "list":
+        from ..cluster import require_ray
+
+        require_ray()  # the optional extra, before any work
+        if not area.workers:
+            spread = " and ".join(n for n, a in AREAS.items() if a.workers == "one")
+            raise ValueError(f"--workers spreads the {spread} sweeps; bench {args.area} runs in one process")
+        args.workers_list = [int(x) for x in args.workers.split(",")] if args.workers else None
+        if area.workers == "one":
+            if len(args.workers_list) != 1:
+                raise ValueError(f"bench {args.area} --workers takes one count, got {args.workers!r}")
+            args.workers = args.workers_list[0]
+    area.run(args, out, camera_from_args)

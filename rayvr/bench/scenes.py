@@ -18,6 +18,12 @@ SCENES = {
 }
 
 
+def shipped_config(scene_name: str):
+    """The material config shipped for a benchmark scene (rayvr/assets/<scene>.toml), if any."""
+    path = scene_mod.ASSETS_DIR / ("default_room.toml" if scene_name == "default" else f"{scene_name}.toml")
+    return path if path.exists() else None
+
+
 def load_bench_scene(name: str):
     """(Scene, pose) or (None, why it is missing)."""
     if name not in SCENES:

@@ -1,6 +1,7 @@
 import numpy as np, time
 from rayvr.bench.scenes import bench_scenes
-from rayvr.bench import photon, metrics
+from rayvr import metrics
+from rayvr.bench import photon
 from rayvr.renderer import Renderer
 from rayvr.camera import StereoRig
 from rayvr.context import create_context

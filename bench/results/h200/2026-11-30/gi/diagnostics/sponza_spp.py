@@ -2,7 +2,7 @@
 import sys, json, os
 import numpy as np
 from rayvr.bench.scenes import bench_scenes
-from rayvr.bench import metrics
+from rayvr import metrics
 from rayvr.renderer import Renderer, RenderSettings
 from rayvr.materials import parse_config
 from rayvr.context import create_context
