@@ -58,7 +58,7 @@ SSBO = {
     "hiz_levels": 23, "hiz_rays": 24, "hiz_results": 25,  # bench/tracers/hiz.py HizTracer, glsl/ssrt/hiz*.glsl
     "refit_vertices": 26, "refit_index": 27,  # accel/refit.py GpuRefit (glsl/accel/refit.comp)
     "tile_entries": 28, "tile_planes": 29,  # tile frustum culling (accel/gpu.py RayTracer, glsl/accel/tile_cull.comp)
-    # the photon map (passes/photon_*.py, glsl/photon/): traced photons, (cell, slot) keys and their
+    # the photon map (effects/photon/, glsl/photon/): traced photons, (cell, slot) keys and their
     # ping-pong copy, the scanned words (cell counts -> start indices; the sort's digit table),
     # photons sorted by cell, the kd-tree's array, the lights' emission table; test/bench queries
     "photons": 40, "photon_keys": 41, "photon_keys_alt": 42, "photon_scan": 43, "photon_map": 44,

@@ -12,7 +12,7 @@ from .scene import Light, Scene
 MATERIAL_DTYPE = np.dtype([("base_color", "<f4", 4), ("emission", "<f4", 4), ("metallic", "<f4"),
                            ("roughness", "<f4"), ("texture_layer", "<i4"), ("effect", "<u4"),
                            ("params", "<u4", PARAM_WORDS)])
-# `params` carries the material's effect parameters, packed by the effect (effects/base.py).
+# `params` carries the material's effect parameters, packed by the effect (effect_registry.py).
 LIGHT_DTYPE = np.dtype([("position_kind", "<f4", 4), ("radiance", "<f4", 4), ("direction", "<f4", 4),
                         ("u", "<f4", 4), ("v", "<f4", 4)])
 LIGHT_KIND_ID = {k: i for i, k in enumerate(LIGHT_KINDS)}

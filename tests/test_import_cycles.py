@@ -23,6 +23,24 @@ ROOT = Path(__file__).resolve().parents[1] / "rayvr"
 BENCH = "rayvr.bench"
 # The product's only doors into its benchmarks: the command line that runs them.
 BENCH_USERS = {"rayvr.cli"}
+# The layers of docs/architecture.md, lowest first: a module may import its own layer and those
+# below, never one above. A module or package is placed by its longest listed prefix; a new module
+# must be placed (the test says so).
+LAYERS = (
+    ("rayvr.glsl_constants",),
+    ("rayvr.gpu_layout",),
+    ("rayvr.effect_registry", "rayvr.cameras", "rayvr.shaders", "rayvr.limits", "rayvr.inputs", "rayvr.pcg",
+     "rayvr.timing", "rayvr.signals", "rayvr.extras", "rayvr.output", "rayvr.camera", "rayvr.scene", "rayvr.stereo",
+     "rayvr.context", "rayvr.accumulation"),
+    ("rayvr.accel", "rayvr.gbuffer", "rayvr.frame"),
+    ("rayvr.passes",),
+    ("rayvr.effects",),
+    ("rayvr.materials", "rayvr.gpu_scene", "rayvr.numpy_denoise", "rayvr.numpy_shading", "rayvr.renderer",
+     "rayvr.readback", "rayvr.views", "rayvr.capture_files", "rayvr.capture", "rayvr.metrics", "rayvr.reference",
+     "rayvr.measure", "rayvr.budget", "rayvr.cluster", "rayvr.preview", "rayvr.hud"),
+    (BENCH,),
+    ("rayvr.cli", "rayvr.__main__", "rayvr"),
+)
 
 
 def module_sources(root: Path = ROOT) -> dict[str, Path]:
@@ -52,10 +70,10 @@ def _import_nodes(tree: ast.AST):
         todo += ast.iter_child_nodes(node)
 
 
-def module_imports(module: str, path: Path, modules) -> set[str]:
-    """The modules of `modules` that running `module` (source `path`) may import, by the rules above."""
+def named_imports(module: str, path: Path, modules) -> set[str]:
+    """The dotted names the import statements of `module` (source `path`) name as modules."""
     package = module if path.name == "__init__.py" else module.rpartition(".")[0]
-    named = set()  # the modules an import statement names
+    named = set()
     for node in _import_nodes(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
             named |= {a.name for a in node.names}
@@ -69,8 +87,13 @@ def module_imports(module: str, path: Path, modules) -> set[str]:
         named |= submodules
         if len(submodules) < len(node.names):  # a name, not only submodules: the package itself
             named.add(target)
+    return named
+
+
+def module_imports(module: str, path: Path, modules) -> set[str]:
+    """The modules of `modules` that running `module` (source `path`) may import, by the rules above."""
     out = set()
-    for name in named:
+    for name in named_imports(module, path, modules):
         parts = name.split(".")
         for depth in range(1, len(parts) + 1):
             above = ".".join(parts[:depth])
@@ -157,6 +180,30 @@ def describe_cycles(graph) -> list[str]:
 def test_no_import_cycles():
     cycles = describe_cycles(import_graph())
     assert not cycles, "import cycles (lazy imports included):\n" + "\n".join(cycles)
+
+
+def test_every_import_of_rayvr_names_a_module():
+    """A lazy import of a module that moved fails only when its function runs; here, at once."""
+    sources = module_sources()
+    missing = sorted(f"{m} -> {name}" for m, p in sources.items() for name in named_imports(m, p, sources)
+                     if (name + ".").startswith(ROOT.name + ".") and name not in sources)
+    assert not missing, "imports of rayvr modules that do not exist:\n" + "\n".join(missing)
+
+
+def layer_of(module: str) -> int | None:
+    """The index in LAYERS of `module`'s longest listed prefix (None: not placed)."""
+    placed = [(len(p), i) for i, layer in enumerate(LAYERS) for p in layer
+              if module == p or module.startswith(p + ".")]
+    return max(placed)[1] if placed else None
+
+
+def test_imports_go_down_the_layers():
+    graph = import_graph()
+    unplaced = sorted(m for m in graph if layer_of(m) is None)
+    assert not unplaced, "modules in no layer (add them to LAYERS and docs/architecture.md):\n" + "\n".join(unplaced)
+    upward = sorted(f"{m} (layer {layer_of(m)}) -> {t} (layer {layer_of(t)})" for m, targets in graph.items()
+                    for t in targets if layer_of(t) > layer_of(m))
+    assert not upward, "imports of a higher layer:\n" + "\n".join(upward)
 
 
 def test_the_product_does_not_import_its_benchmarks():

@@ -195,7 +195,7 @@ def test_map_seed_changes_the_photon_map_not_the_direct_light(gl):
 
 
 def test_kdtree_is_built_again_only_for_other_photons(renderer, monkeypatch):
-    """passes/photon_kdtree.py keeps its tree while the photons stay the same (a still view: the
+    """effects/photon/kdtree.py keeps its tree while the photons stay the same (a still view: the
     bench times many frames of one map), and builds it again when they change: what it uploads is
     always the tree of this frame's photons."""
     from rayvr.effects.photon import kdtree as photon_kdtree

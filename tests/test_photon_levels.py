@@ -282,7 +282,7 @@ def periscope_scene():
 
 def test_a_caustic_through_two_mirrors_is_stored_with_one_bounce(gl):
     """`bounces` counts the photons a path stores on diffuse surfaces; mirror reflections on the way
-    are free (passes/photon_trace.py: 'having passed through any number of mirror/glossy
+    are free (effects/photon/trace.py: 'having passed through any number of mirror/glossy
     reflections'). With bounces = 1, the periscope's caustic must reach the floor: every photon
     path that meets mirror A stores one photon in the spot, of the beam's power over A
     (E x 0.5 m^2 in all), and the pixels there show irradiance E. (A floor -> mirror -> floor path

@@ -74,7 +74,7 @@ def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
     `seed` (one renderer per scene: the programs are built once, every setting has the same frame
     graph). A setting whose first frame takes over SLOW_FRAME_MS is timed on that frame alone (and
     its kernels on one more).
-    A kd-tree setting builds its tree on the CPU once (passes/photon_kdtree.py keeps it while the
+    A kd-tree setting builds its tree on the CPU once (effects/photon/kdtree.py keeps it while the
     photons stay the same); kd_cpu_ms times one such build."""
     from .rays import time_effect_stages
 
@@ -95,7 +95,7 @@ def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
     stages = time_effect_stages(r, rig, repeat=1 if slow or r.gl.is_software else min(repeat, 5))
     kd_cpu = None
     if kd:
-        from ..passes.photon_kdtree import kdtree_records
+        from ..effects.photon.kdtree import kdtree_records
 
         t0 = time.perf_counter()
         kdtree_records(r.resource("photons").read())

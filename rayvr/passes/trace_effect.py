@@ -222,7 +222,7 @@ class TraceEffectPass(Pass):
                 run("finish", 0)
 
     def bind_extra(self, fc) -> None:
-        """What a subclass binds beyond the wavefront's buffers (passes/photon_shade.py: the photon map)."""
+        """What a subclass binds beyond the wavefront's buffers (effects/photon/shade.py: the photon map)."""
 
     def release(self) -> None:
         for p in self.programs.values():

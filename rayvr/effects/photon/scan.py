@@ -1,7 +1,7 @@
 """`photon_scan`: the hash grid's start indices, an exclusive prefix sum of its cell counts on the
 GPU (glsl/photon/scan.comp), in place: start[c] is the first sorted photon of cell c, and the
 last word the number of photon slots. `Scan` is also the radix sort's table scan
-(passes/photon_sort.py) and runs alone in tests against numpy (accel/photon_map.exclusive_scan)."""
+(effects/photon/sort.py) and runs alone in tests against numpy (accel/photon_map.exclusive_scan)."""
 from __future__ import annotations
 
 import moderngl

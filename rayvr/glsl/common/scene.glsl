@@ -10,7 +10,7 @@ struct Material {
     float roughness;
     int texture_layer;    // -1: no base-colour texture
     uint effect;          // effect-ladder ID from the material config
-    uvec4 params[MATERIAL_PARAM_WORDS / 4];  // the effect's parameters (rayvr/effects/base.py pack_params)
+    uvec4 params[MATERIAL_PARAM_WORDS / 4];  // the effect's parameters (rayvr/effect_registry.py pack_params)
 };
 
 struct Light {

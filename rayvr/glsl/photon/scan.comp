@@ -5,7 +5,7 @@
 // then a Hillis-Steele scan of the invocation totals in shared memory) and writes the block's
 // total to scan_data[sums_base + block]; the host scans those totals the same way, one level up.
 // SCAN_STAGE 1: adds each block's scanned total to its words.
-#include "../layout.glsl"  // SCAN_GROUP, SCAN_ITEMS, SCAN_BLOCK: rayvr/passes/photon_scan.py
+#include "../layout.glsl"  // SCAN_GROUP, SCAN_ITEMS, SCAN_BLOCK: rayvr/effects/photon/scan.py
 layout(local_size_x = SCAN_GROUP) in;
 
 layout(std430, binding = SSBO_PHOTON_SCAN) restrict buffer ScanData { uint scan_data[]; };
