@@ -14,8 +14,8 @@ class Path(Effect):
     params = {WAVE_SAMPLES: Param(int, 1, 1, 1024, "paths per pixel per frame"),
               WAVE_BOUNCES: Param(int, 4, 1, 64, "bounces after the pixel's surface (Mitsuba max_depth - 2)"),
               "rr_start": Param(int, 3, 1, 64, "bounce from which Russian roulette may end a path"),
-              WAVE_AREA_SAMPLES: Param(int, 1, 1, 1024, "light samples per rect light at each vertex (x samples at "
-                                                     "the pixel's surface: one set per path)")}
+              WAVE_AREA_SAMPLES: Param(int, 1, 1, 1024, "light samples per rect light at each vertex (x samples "
+                                                         "at the pixel's surface: one set per path)")}
     traced = True
     path_vertices = True  # follows its paths for `bounces` hit events (not `reflective`: a mirror ray ends on it)
     shader = "effects/path.glsl"  # its part of the wavefront pixel event (rt/wave_shade.comp)
