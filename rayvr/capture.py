@@ -153,7 +153,8 @@ def summary_file(job: CaptureJob) -> Path:
 
 def job_identity(job: CaptureJob, **inputs) -> dict:
     """What makes a job's frames what they are: its frames' rigs and outputs plus `inputs` (scene,
-    materials, render settings). Frames on disk are reused only by a job with the same identity."""
+    materials, render settings as RenderSettings.to_dict()). Frames on disk are reused only by a
+    job with the same identity."""
     rigs = [job.frame_rig(i) for i in range(len(job.poses))]
     rig_keys = ("ipd", "fov_y", "convergence", "near", "far", "eye_tangents", "size")
     return json.loads(json.dumps({
@@ -222,9 +223,44 @@ def frame_problem(job: CaptureJob, index: int, digest: str, checksums: bool = Tr
     return None
 
 
+def settings_data(value) -> dict | None:
+    """A job identity's render settings as RenderSettings.to_dict() data: the table this rayvr
+    writes, or the RenderSettings repr an older rayvr wrote (its values literals); None if neither."""
+    import warnings
+
+    from .renderer import RenderSettings
+
+    if isinstance(value, str):
+        fields = _repr_fields(value)
+        try:
+            value = {k: ast.literal_eval(v) for k, v in fields.items()} if fields is not None else None
+        except (ValueError, SyntaxError, RecursionError, MemoryError):
+            return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # an old file's dof_aperture
+            return RenderSettings(**value).to_dict() if isinstance(value, dict) else None
+    except (TypeError, ValueError):
+        return None
+
+
+def same_job(recorded, identity: dict) -> bool:
+    """Whether a job file's identity is `identity`'s, its settings compared as values (a job file
+    of an older rayvr recorded their repr: the same job, to resume)."""
+    if recorded == identity:
+        return True
+    if not isinstance(recorded, dict) or set(recorded) != set(identity) or "settings" not in identity:
+        return False
+    old = settings_data(recorded["settings"])
+    return old is not None and old == settings_data(identity["settings"]) and \
+        {**recorded, "settings": None} == {**identity, "settings": None}
+
+
 def describe_difference(old, new, limit: int = 3) -> str:
     """What differs between two job identities, e.g. "spp 32 -> 1, settings.exposure 4.0 -> 1.0"."""
     found = []
+    if isinstance(old, dict) and isinstance(new, dict) and isinstance(old.get("settings"), str):
+        old = {**old, "settings": settings_data(old["settings"]) or old["settings"]}  # an older rayvr's repr
     _differences(old, new, "", found)
     more = f" and {len(found) - limit} more" if len(found) > limit else ""
     return ", ".join(found[:limit]) + more if found else "unreadable"
@@ -365,7 +401,7 @@ class JobFolder:
                 for name in self._frame_files_on_disk():  # the user asked: no frame of theirs is kept
                     (job.out_dir / name).unlink(missing_ok=True)
             if self.identity is not None and self.sequence:
-                self._refuse_another_job()
+                self._adopt(self._refuse_another_job())
                 if self.digest is not None:
                     self.done = self._verified_frames()
                 atomic_write_bytes(job_file(job), json.dumps(self.identity, indent=1, allow_nan=False).encode())
@@ -398,7 +434,7 @@ class JobFolder:
             recorded = _read_json(p)
         except (OSError, ValueError):
             return ""
-        if recorded == self.identity:
+        if same_job(recorded, self.identity):
             return ""
         return f" ({p.name} -> this job: {describe_difference(recorded, self.identity)})"
 
@@ -407,16 +443,28 @@ class JobFolder:
         pattern = re.compile(rf"{re.escape(self.job.prefix)}_\d{{4,}}_")  # file_name's frame numbers
         return [name for name in os.listdir(self.job.out_dir) if pattern.match(name)]
 
-    def _refuse_another_job(self) -> None:
+    def _adopt(self, recorded: dict | None) -> None:
+        """Resume the same job written down by an older rayvr: its frames' records name the digest
+        of the identity as that job file has it."""
+        if recorded is not None and recorded != self.identity:
+            self.identity = recorded
+            if self.digest is not None:
+                self.digest = identity_digest(recorded)
+
+    def _refuse_another_job(self) -> dict | None:
+        """OutputError if the folder holds frames of another job; the job file's identity if it is
+        this job's (None: no job file, or one that left no frame)."""
         p = job_file(self.job)
         try:
             recorded = _read_json(p)
         except FileNotFoundError:
-            return
+            return None
         except (OSError, ValueError):
             recorded = None  # a job nobody can name
-        if recorded == self.identity or not self._frame_files_on_disk():
-            return  # the same job, or one that left no frame: this one takes the folder
+        if recorded is not None and same_job(recorded, self.identity):
+            return recorded
+        if not self._frame_files_on_disk():
+            return None  # one that left no frame: this one takes the folder
         what = describe_difference(recorded, self.identity) if isinstance(recorded, dict) else "unreadable"
         raise OutputError(f"{self.job.out_dir}: holds frames of another job ({p.name} -> this job: {what}); "
                           f"use another --out or --prefix, or --overwrite to render every frame again in their "

@@ -17,6 +17,10 @@ by glob, with per-effect parameters:
     [ids]
     7 = "shadows"                 # numeric material index (as `rayvr info SCENE` lists them)
 
+    [render]                      # render options (`rayvr options` lists them); CLI flags override them
+    exposure = 1.5
+    stereo = "reuse"
+
 Precedence: exact name, then numeric id, then the first matching glob in file order.
 The file is data, never code. Every error names the file, the key and the allowed values;
 names that match no material warn with the scene's material names. An effect that rayvr does
@@ -32,6 +36,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from . import options
 from .effects import BACKGROUND_EFFECT, EFFECTS, PLANNED, effect_by_id, implemented_effects  # noqa: F401
 from .inputs import InputFileError, read_text
 
@@ -81,6 +86,7 @@ class MaterialConfig:
     importance_of: dict = field(default_factory=dict)  # rule ("materials.x", "ids.3") -> weight
     source: str = "<defaults>"
     denoise: tuple | None = None  # effects the denoiser filters (None: the traced effects marked `denoised`)
+    render: dict = field(default_factory=dict)  # [render]: render option -> value (rayvr/options.py), checked
 
     def effect_params(self, effect: str, overrides: dict | None = None) -> dict:
         spec = EFFECTS[effect].params
@@ -126,7 +132,7 @@ def config_with(base: MaterialConfig, default: str | None = None, materials: dic
     """A copy of `base` with another default effect, per-material effects and effect params."""
     cfg = MaterialConfig(default=default or base.default, params={k: dict(v) for k, v in base.params.items()},
                          by_name=dict(base.by_name), by_id=dict(base.by_id), importance_of=dict(base.importance_of),
-                         source=f"{base.source} (variant)", denoise=base.denoise)
+                         source=f"{base.source} (variant)", denoise=base.denoise, render=dict(base.render))
     for name, effect in (materials or {}).items():
         cfg.by_name[name] = (effect, {})
     for effect, values in (params or {}).items():
@@ -195,7 +201,7 @@ def _parse_entry(value, where: str, source: str) -> tuple[str, dict, float]:
     raise ConfigError(f"{source}: {where}: expected an effect name or a table, got {type(value).__name__}")
 
 
-TOP_LEVEL_KEYS = ("default", "params", "materials", "ids", "denoise")
+TOP_LEVEL_KEYS = ("default", "params", "materials", "ids", "denoise", options.TABLE)
 
 
 def _check_denoise(value, source: str) -> tuple:
@@ -237,6 +243,11 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
         cfg.importance_of[f"materials.{name}"] = importance
     if "denoise" in data:
         cfg.denoise = _check_denoise(data["denoise"], source)
+    if options.TABLE in data:
+        try:
+            cfg.render = options.parse_table(data[options.TABLE], source)
+        except options.OptionError as exc:
+            raise ConfigError(str(exc)) from None
     ids = data.get("ids", {})
     if not isinstance(ids, dict):
         raise ConfigError(f"{source}: ids: expected a table of index = effect entries")

@@ -394,8 +394,8 @@ class Preview:
                  vsync=True, stereo="side-by-side", view="color", res_scale=None, rig=None,
                  rig_options=None, look_at=None, out_dir="shots", path_file="camera_path.json", hud=True,
                  stereo_method="dual", dof=None, seed=0, settings=None):
-        """`dof`: (aperture, focus distance, samples) of the thin-lens depth of field (passes/dof.py);
-        `settings`: the RenderSettings to start from (camera sub-rays: msaa, ssaa)."""
+        """`dof`: (lens diameter, focus distance, samples) of the thin-lens depth of field (passes/dof.py);
+        `settings`: the RenderSettings to start from (the denoiser and --temporal: the keys' state at start)."""
         import glfw
 
         from .context import create_window_context
@@ -417,7 +417,7 @@ class Preview:
 
             self.renderer = Renderer(scene, None, gl=self.gl, settings=replace(settings or RenderSettings(), seed=seed))
             if dof is not None:
-                self.renderer.settings = replace(self.renderer.settings, dof_aperture=dof[0], dof_focus=dof[1],
+                self.renderer.settings = replace(self.renderer.settings, dof_diameter=dof[0], dof_focus=dof[1],
                                                  dof_samples=dof[2])
             ctx = self.ctx = self.gl.ctx
             self.home_rig = rig or StereoRig.for_scene(self.renderer.scene, size=size, **(rig_options or {}))
@@ -427,7 +427,9 @@ class Preview:
             gl_name = ctx.info.get("GL_RENDERER", "")
             if res_scale is None:  # a CPU rasterizer is slow: start at half resolution there
                 res_scale = 0.5 if ("llvmpipe" in gl_name or "softpipe" in gl_name) else 1.0
-            state = ViewState(stereo=stereo, method=stereo_method, view=view, res_scale=res_scale, vsync=vsync, hud=hud)
+            st = self.renderer.settings
+            state = ViewState(stereo=stereo, method=stereo_method, view=view, res_scale=res_scale, vsync=vsync, hud=hud,
+                              denoise=st.denoise, denoise_iterations=st.denoise_iterations, temporal=st.temporal)
             self.controls = Controls(self.camera, state)
             self.gl_name = gl_name
             self.scene_name = str(scene) if isinstance(scene, (str, Path)) else self.renderer.scene.name
@@ -644,9 +646,9 @@ class Preview:
         layout = layout_for(self.state.stereo, fb, self.state.res_scale)
         rig = self.camera.rig(layout.eye_size)
         self._apply_noise_settings()
-        if self.state.method != "dual" and self.renderer.settings.dof_aperture > 0:
+        if self.state.method != "dual" and self.renderer.settings.dof_diameter > 0:
             # depth of field blurs each eye's own frame (Renderer.plan refuses warp and reuse with it)
-            self.config_error = "depth of field (--aperture) blurs each eye's own frame: the second eye stays dual"
+            self.config_error = "depth of field (--dof-diameter) blurs each eye's own frame: the second eye stays dual"
             self.state.method = "dual"
         self.renderer.set_stereo(self.state.method)
         try:

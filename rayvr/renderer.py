@@ -11,7 +11,7 @@
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -19,19 +19,17 @@ from . import effects as effects_mod
 from . import materials as materials_mod
 from . import scene as scene_mod
 from . import stereo as stereo_mod
-from .accel.gpu import DEFAULT_TRAVERSAL, RAY_KINDS, check_layout, parse_traversal
-from .accel.bvh import BUILDS
 from .accel.scene import SceneAccel
-from .accumulation import MAX_DENOISE_ITERATIONS, Accumulator, sample_seed
+from .accumulation import Accumulator, sample_seed
 from .camera import StereoRig
 from .cameras import CAMERA_MODELS, Pinhole
-from .cameras.sampling import check_count
 from .context import GLContext, GpuError, create_context
 from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameTooLarge, Sizing, check_fits,
                     limit_problems)
-from .gpu_layout import TONEMAPPERS, VIEWS
+from .gpu_layout import VIEWS
 from .gpu_scene import GpuScene
-from .limits import FLOAT32_MAX, MAX_CAMERA_COORDINATE, MAX_FOCUS_DISTANCE, MIN_DISTANCE, check_range
+from .options import settings_class
+from .passes import primary_rays
 from .passes.core import core_passes
 from .passes.classify import pixel_counts
 from .passes.second_layer import depth_layers
@@ -39,8 +37,6 @@ from .passes.visibility import pick_layer_mode
 from .readback import AUX_CHANNELS, Reader
 from .timing import settle
 
-PRIMARY_MODES = ("raster", "rays")
-SECOND_LAYER_MODES = ("rays", "peel")  # passes/second_layer.py
 MAX_TILES = 64  # a frame that needs more tiles than this is refused (FrameTooLarge) instead
 HOST_BYTES_PER_PIXEL = 16  # colour, depth and the pixel buffers they come through, per eye pixel
 SAMPLES_IN_FLIGHT = 2  # samples of an accumulation queued on the GPU before the next is recorded
@@ -54,87 +50,16 @@ def work_dropped(timings: dict) -> bool:
     return len(timings) >= 2 and zeros * 2 > len(timings)
 
 
-@dataclass
+@settings_class
 class RenderSettings:
-    exposure: float = 1.0
-    tonemapper: str = "aces"  # gpu_layout.TONEMAPPERS (glsl/common/color.glsl)
-    ambient: tuple = (0.03, 0.03, 0.03)
-    background: tuple = (0.02, 0.02, 0.025)
-    layer_mode: str = "auto"  # auto | vertex | geometry | multiview | passes
-    primary: str = "raster"  # primary visibility: raster (visibility pass) | rays (BVH, passes/primary_rays.py)
-    seed: int = 0  # random sequence of the sampled effects (area-light points, glossy rays)
-    # Noise (rayvr/accumulation.py, passes/accumulate.py, passes/denoise.py):
-    accumulate: bool = False  # successive frames add samples while nothing changes; any change starts over
-    temporal: bool = False  # with accumulate: a camera move reprojects the history instead of dropping it
-    denoise: bool = False  # edge-aware à-trous filter on the pixels of the effects the config denoises
-    denoise_iterations: int = 4  # à-trous iterations (step 2^i); 1..MAX_ITERATIONS
-    # Second depth layer (ssr layers = 2): "rays" continues each primary ray past its first hit
-    # through the BVH, "peel" rasterizes again behind the first layer (rayvr bench ssrt times both).
-    second_layer: str = "rays"
-    stereo: str = "dual"  # how the second eye is made: rayvr/stereo.py STEREO_MODES
-    warp_layers: int = 2  # depth layers of the central view `warp` traces (2: disocclusions from the second)
-    quadtree_adapt: float = 0.0  # §6 distance-adaptive quadtree thresholds (accel/quadtree.py adaptive_thresholds)
-    # BVH node layout for primary, shadow and reflection/glossy rays (accel/gpu.py RAY_KINDS:
-    # bvh2, the binary reference, or wide bvh4/bvh8); the default is what `bench rays` measured
-    # fastest per kind on the H200 (accel/gpu.py DEFAULT_TRAVERSAL).
-    traversal: tuple = DEFAULT_TRAVERSAL
-    # How the BVH is built (accel/bvh.py BUILDS): "sah", the binned SAH, or "sbvh", with spatial
-    # splits (accel/sbvh.py: lower SAH cost, more triangle references, a longer build).
-    bvh_build: str = "sah"
-    # Thin-lens depth of field through screen-space rays (passes/dof.py; pinhole, stereo dual):
-    dof_aperture: float = 0.0  # lens diameter, scene units (0: off)
-    dof_focus: float = 2.0  # view depth in focus, scene units
-    dof_samples: int = 16  # lens rays per pixel
-    msaa: int = 1  # sub-rays per camera sample (cameras/sampling.py SAMPLE_COUNTS): rayvr's anti-aliasing
-    ssaa: bool = False  # shade every sub-ray (else once per pixel per distinct triangle: MSAA)
-    # Ray-cast primaries traced from per-tile BVH entry lists (passes/primary_rays.py; exact, bvh2).
-    # None: chosen per frame as measured on the H200 (culls_tiles).
-    tile_culling: bool | None = None
-
-    def __post_init__(self):
-        if self.tonemapper not in TONEMAPPERS:
-            raise ValueError(f"unknown tonemapper {self.tonemapper!r}; allowed: {', '.join(TONEMAPPERS)}")
-        self.exposure = check_range("exposure", self.exposure, 0.0, FLOAT32_MAX, lo_open=True)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2 ** 32:
-            raise ValueError(f"seed must be a whole number from 0 to {2 ** 32 - 1} (a GPU uint), got {self.seed!r}")
-        if not (isinstance(self.denoise_iterations, int) and 1 <= self.denoise_iterations <= MAX_DENOISE_ITERATIONS):
-            raise ValueError(f"denoise_iterations must be an integer in [1, {MAX_DENOISE_ITERATIONS}], "
-                             f"got {self.denoise_iterations!r}")
-        if isinstance(self.traversal, str):
-            self.traversal = parse_traversal(self.traversal)
-        if len(self.traversal) != len(RAY_KINDS):
-            raise ValueError(f"traversal needs a layout for each of {', '.join(RAY_KINDS)}, got {self.traversal!r}")
-        for layout in self.traversal:
-            check_layout(layout)
-        self.traversal = tuple(self.traversal)
-        if self.bvh_build not in BUILDS:
-            raise ValueError(f"unknown BVH build {self.bvh_build!r}; allowed: {', '.join(BUILDS)}")
-        if self.primary not in PRIMARY_MODES:
-            raise ValueError(f"unknown primary visibility {self.primary!r}; allowed: {', '.join(PRIMARY_MODES)}")
-        # GPU uniforms with the dof camera's float32 ranges (rayvr/limits.py)
-        self.dof_aperture = check_range("dof_aperture", self.dof_aperture, 0.0, MAX_CAMERA_COORDINATE)
-        self.dof_focus = check_range("dof_focus", self.dof_focus, MIN_DISTANCE, MAX_FOCUS_DISTANCE)
-        if not 1 <= int(self.dof_samples) <= 1024:
-            raise ValueError(f"dof_samples must be in 1..1024, got {self.dof_samples}")
-        if not (np.isfinite(self.quadtree_adapt) and self.quadtree_adapt >= 0):
-            raise ValueError(f"quadtree_adapt must be a number >= 0, got {self.quadtree_adapt}")
-        if self.second_layer not in SECOND_LAYER_MODES:
-            raise ValueError(f"unknown second layer {self.second_layer!r}; allowed: {', '.join(SECOND_LAYER_MODES)}")
-        stereo_mod.check_mode(self.stereo)
-        if self.warp_layers not in (1, 2):
-            raise ValueError(f"warp_layers must be 1 or 2, got {self.warp_layers!r}")
-        check_count(self.msaa)
-        if self.tile_culling not in (None, True, False):
-            raise ValueError(f"tile_culling must be True, False or None (auto), got {self.tile_culling!r}")
+    """How a Renderer renders: one field per render option (rayvr/options.py), declared by the
+    module that uses it (`rayvr options` lists them: type, default, allowed values, scope, flags).
+    `RenderSettings(exposure=2)` checks every value on construction (OptionError, a ValueError);
+    `to_dict()` / `from_dict()` carry them through files (the capture's job file)."""
 
     def culls_tiles(self, camera: str = "pinhole") -> bool:
-        """Whether ray-cast primaries of a `camera` model (its name) are tile-culled: tile_culling, or
-        when None, where it measured faster on the H200 (bench/results/h200/2026-11-30/primary/
-        after_rounds_tiles_packets, tile_culling_table5): with several sub-rays per sample (one cull
-        serves them all), for the models that declare it (CameraModel.culls_tiles_by_default)."""
-        if self.tile_culling is not None:
-            return self.tile_culling
-        return self.msaa > 1 and CAMERA_MODELS[camera].culls_tiles_by_default
+        """Whether ray-cast primaries of a `camera` model (its name) are tile-culled (passes/primary_rays.py)."""
+        return primary_rays.culls_tiles(self, camera)
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:
@@ -209,7 +134,7 @@ class Renderer:
         users = tuple((e, tuple(n for n, a in zip(names, self.assignments) if a.effect == e))
                       for e in effects_mod.EFFECTS if e in self.effects_in_use())
         samples = self.settings.msaa
-        primary = self.settings.primary if camera.rasterizable and samples == 1 else "rays"
+        primary = primary_rays.primary_visibility(self.settings, camera)
         color, st = view == "color", self.settings
         # Peeling needs the raster's depth: with ray-cast primaries the second layer is ray-cast too.
         second = self.settings.second_layer if primary == "raster" else "rays"
@@ -218,13 +143,13 @@ class Renderer:
         if stereo != "dual" and samples > 1:  # their passes read one G-buffer, not a frame of rounds
             raise ValueError(f"stereo mode {stereo!r} reprojects one sample per pixel: it cannot take --msaa "
                              f"{samples} (use --stereo dual)")
-        if color and st.dof_aperture > 0 and not (stereo == "dual" and camera.rasterizable):
+        if color and st.dof_diameter > 0 and not (stereo == "dual" and camera.rasterizable):
             # passes/dof.py blurs each eye's own pinhole frame: a warped or reused eye has none, and
             # the other models' rays are not that frame's (the dof model has a lens of its own)
             why = (f"the {camera.name} camera is not a pinhole" if not camera.rasterizable
                    else f"--stereo {stereo} makes an eye from the other's frame")
             hint = "its aperture parameter" if camera.name == "dof" else "the pinhole camera and --stereo dual"
-            raise ValueError(f"depth of field (--aperture) blurs each eye's own pinhole frame, and {why}: use {hint}")
+            raise ValueError(f"depth of field (--dof-diameter) blurs each eye's own pinhole frame, and {why}: use {hint}")
         warp = stereo == "warp"  # one central view is rendered; the warp pass makes both eyes from it
         return FramePlan(effects=self.effects_in_use(), view=view, layers=1 if warp else layers,
                          layer_mode=self.layer_mode, primary=primary, camera=camera.name, stereo=stereo,
@@ -232,7 +157,7 @@ class Renderer:
                          accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise,
                          depth_layers=max(depth_layers(self.assignments), st.warp_layers if warp else 1),
                          second_layer=second, traversal=st.traversal, bvh_build=st.bvh_build,
-                         dof=color and st.dof_aperture > 0,
+                         dof=color and st.dof_diameter > 0,
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
                          tile_culling=st.culls_tiles(camera.name) and primary == "rays",
                          channels=camera.channels, reconstruct=camera.sparse)

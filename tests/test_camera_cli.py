@@ -24,7 +24,7 @@ def test_capture_wide_fov_past_180_with_msaa(tmp_path):
     (["--camera-model", "distorted", "--camera-param", "samples=/nonexistent/lens.txt"],
      ["/nonexistent/lens.txt: cannot read camera sample file"]),
     (["--camera-model", "distorted", "--camera-param", "coefficients=-0.9"], ["folds over"]),
-    (["--msaa", "3"], ["--msaa", "invalid choice"]),
+    (["--msaa", "3"], ["--msaa", "unknown sub-ray count 3; allowed: 1, 4, 8, 16, 32"]),  # the options' one style
 ])
 def test_bad_camera_input_is_one_clear_line(tmp_path, args, words):
     run = rayvr("capture", "--out", str(tmp_path / "o"), "--size", "8x8", *args)

@@ -19,6 +19,7 @@ import numpy as np
 from .. import shaders
 from ..glsl_constants import declare
 from ..gpu_layout import BVH_LAYOUTS, SSBO, TILE_ENTRIES, TILE_RAYS
+from ..options import Option, declare as declare_option
 from ..timing import time_gpu
 from .bvh import Bvh, BufferTooLargeError
 from .wide import WideBvh, build_wide, node_words, pack as pack_wide
@@ -71,6 +72,25 @@ def check_layout(layout: str) -> int:
     if layout not in BVH_LAYOUTS:
         raise ValueError(f"BVH layout must be one of {', '.join(BVH_LAYOUTS)}, got {layout!r}")
     return BVH_LAYOUTS[layout]
+
+
+def traversal_value(value) -> tuple[str, str, str]:
+    """A layout per RAY_KINDS from 'bvh8', 'primary=bvh8,...' (parse_traversal) or a sequence of layouts."""
+    if isinstance(value, str):
+        return parse_traversal(value)
+    value = tuple(value) if isinstance(value, (tuple, list)) else value
+    if not isinstance(value, tuple) or len(value) != len(RAY_KINDS):
+        raise ValueError(f"traversal needs a layout for each of {', '.join(RAY_KINDS)}, got {value!r}")
+    for layout in value:
+        check_layout(layout)
+    return value
+
+
+TRAVERSAL = declare_option(Option(
+    "traversal", tuple, DEFAULT_TRAVERSAL, "BVH node layout of the traced rays: one for all (bvh2, bvh4, bvh8) or per "
+    "ray kind, e.g. primary=bvh8,shadow=bvh4,reflect=bvh2; kinds not named keep the default (the fastest on the "
+    "H200; bvh2 is the reference)", scope="plan", plan_field="traversal", metavar="LAYOUTS", convert=traversal_value,
+    commands=("capture", "preview")))
 
 
 def layout_defines(base_binding: int = DEFAULT_BINDING, layout: str = "bvh2", ordered: bool = True) -> dict:

@@ -1,5 +1,5 @@
 """`dof`: thin-lens depth of field through screen-space rays (Widmer et al. 2015 §5.2;
-glsl/post/dof.comp): each pixel's lens rays (RenderSettings dof_aperture, dof_focus,
+glsl/post/dof.comp): each pixel's lens rays (RenderSettings dof_diameter, dof_focus,
 dof_samples) from points of the lens disk through the pixel ray's point in focus, traced through
 the frame's quadtree, gathering the frame's final colour where they meet the screen (the hit
 pixel; behind a foreground object, the near side of the discontinuity: inpainting). Writes
@@ -13,11 +13,27 @@ from .. import shaders
 from ..cameras.sampling import concentric_disk
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..gpu_layout import IMAGE, SSBO
+from ..limits import MAX_CAMERA_COORDINATE, MAX_FOCUS_DISTANCE, MIN_DISTANCE
+from ..options import Option, declare
 from ..pcg import pcg_hash
 from . import scene_radiance
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 from .quadtree import set_tree_uniforms
 
+# The lens is named by its DIAMETER here; the `dof` camera model's `aperture` is its lens RADIUS
+# (cameras/thin_lens.py). `--aperture` / RenderSettings.dof_aperture, the old names of this
+# diameter, are still accepted (deprecated). Ranges: GPU uniforms with the dof camera's float32
+# ranges (rayvr/limits.py).
+DOF_DIAMETER = declare(Option("dof_diameter", float, 0.0, "depth of field through screen-space rays: lens DIAMETER "
+                              "in scene units, 0 = off (pinhole, stereo dual; the dof camera model's aperture is a "
+                              "lens radius)", scope="plan", plan_field="dof", bounds=(0, MAX_CAMERA_COORDINATE),
+                              commands=("capture", "preview"), deprecated_flags=("--aperture",),
+                              old_names=("dof_aperture",)))
+DOF_FOCUS = declare(Option("dof_focus", float, 2.0, "depth of field: view depth in focus, scene units",
+                           bounds=(MIN_DISTANCE, MAX_FOCUS_DISTANCE), flag="--focus-distance",
+                           commands=("capture", "preview")))
+DOF_SAMPLES = declare(Option("dof_samples", int, 16, "depth of field: lens rays per pixel", bounds=(1, 1024),
+                             commands=("capture", "preview")))
 THICKNESS = 0.02  # relative depth of each surface's slab: a lens ray deeper than that passed behind it
 HDR_DOF = Texture("rgba32f")
 
@@ -39,7 +55,8 @@ class DofPass(Pass):
         st, p = fc.settings, self.program
         set_eye_uniforms(p, fc)
         set_tree_uniforms(p, fc.gbuffer.size, fc.gbuffer.layers)
-        for name, v in (("dof_aperture", float(st.dof_aperture)), ("dof_focus", float(st.dof_focus)),
+        # (the shader's uniform dof_aperture is the lens diameter)
+        for name, v in (("dof_aperture", float(st.dof_diameter)), ("dof_focus", float(st.dof_focus)),
                         ("dof_samples", int(st.dof_samples)), ("dof_thickness", THICKNESS),
                         ("frame_seed", int(st.seed))):
             if name in p:

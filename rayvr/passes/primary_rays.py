@@ -50,7 +50,39 @@ from ..accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effect_registry import EFFECTS
 from ..frame import Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
 from ..gpu_layout import IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_RAYS, channel
+from ..options import Option, declare
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
+
+PRIMARY_MODES = ("raster", "rays")
+PRIMARY = declare(Option("primary", str, "raster", "primary visibility: the raster G-buffer pass, or camera rays "
+                         "through the BVH (rays anyway where --msaa or the camera model needs them)", scope="plan",
+                         plan_field="primary", choices=PRIMARY_MODES, label="primary visibility",
+                         commands=("capture", "preview", "info")))
+TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visibility culls the BVH per 16x8-pixel "
+                              "tile first (a frustum over every sub-ray, lens point and channel of the tile; the same "
+                              "hits, exact) and walks the binary layout; auto: with --msaa above 1 except foveated "
+                              "and dof cameras, where it measured faster; bench primary: each rays row without and "
+                              "with it", scope="plan", plan_field="tile_culling", auto=True,
+                              commands=("capture", "preview", "info", "bench")))
+
+
+def primary_visibility(settings, camera) -> str:
+    """The plan's primary visibility: `settings.primary` where a rasterizer can sample the camera
+    (a planar model, one sub-ray per sample), else ray-cast."""
+    return settings.primary if camera.rasterizable and settings.msaa == 1 else "rays"
+
+
+def culls_tiles(settings, camera: str = "pinhole") -> bool:
+    """Whether ray-cast primaries of a `camera` model (its name) are tile-culled: tile_culling, or
+    when None, where it measured faster on the H200 (bench/results/h200/2026-11-30/primary/
+    after_rounds_tiles_packets, tile_culling_table5): with several sub-rays per sample (one cull
+    serves them all), for the models that declare it (CameraModel.culls_tiles_by_default)."""
+    from ..cameras import CAMERA_MODELS
+
+    if settings.tile_culling is not None:
+        return settings.tile_culling
+    return settings.msaa > 1 and CAMERA_MODELS[camera].culls_tiles_by_default
+
 
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
 MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each

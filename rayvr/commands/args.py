@@ -1,0 +1,173 @@
+"""Arguments several commands share: argparse types with one-line errors, the stereo rig, the
+camera model, and the RenderSettings a command's flags (over a config's [render] table) give."""
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+from .. import options
+from ..inputs import MAX_IMAGE_SIDE
+from ..limits import MAX_DISTANCE  # --near, --far, --convergence, --ipd (the rig checks the rest of their ranges)
+
+# Bounds of the numbers the command line takes beside the render options (those declare their own):
+# a value outside them renders nothing useful and is refused before any work.
+MAX_FRAMES = 1_000_000
+MAX_BUDGET_MS = 1e6
+MAX_SPP = 1 << 20
+
+
+def size(text: str) -> tuple[int, int]:
+    try:
+        w, h = text.lower().split("x")
+        value = (int(w), int(h))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"size must be WIDTHxHEIGHT (e.g. 640x480), got {text[:40]!r}") from None
+    if min(value) < 1 or max(value) > MAX_IMAGE_SIDE:
+        raise argparse.ArgumentTypeError(f"size must be between 1x1 and {MAX_IMAGE_SIDE}x{MAX_IMAGE_SIDE}, "
+                                         f"got {text!r}")
+    return value
+
+
+def floats(n: int):
+    def parse(text: str):
+        try:
+            vals = [float(x) for x in text.split(",")]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {text!r}") from None
+        if len(vals) != n or not all(np.isfinite(vals)):
+            raise argparse.ArgumentTypeError(f"expected {n} finite comma-separated numbers, got {text!r}")
+        return vals
+    return parse
+
+
+def number(lo: float, hi: float, *, lo_open: bool = True, inf_ok: bool = False):
+    """argparse type: a float in (lo, hi] ([lo, hi] with lo_open=False); 'inf' too if inf_ok."""
+    interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]" + (" or inf" if inf_ok else "")
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number in {interval}, got {text[:40]!r}") from None
+        if inf_ok and value == math.inf:
+            return value
+        if not (math.isfinite(value) and (value > lo if lo_open else value >= lo) and value <= hi):
+            raise argparse.ArgumentTypeError(f"expected a finite number in {interval}, got {text!r}")
+        return value
+    return parse
+
+
+def count(lo: int, hi: int):
+    """argparse type: an integer in [lo, hi]."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number from {lo} to {hi}, got {text[:40]!r}") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"expected a whole number from {lo} to {hi}, got {value}")
+        return value
+    return parse
+
+
+FOV = number(0, 360)  # degrees; the camera model refuses what it cannot project (the pinhole: < 180)
+IPD = number(0, MAX_DISTANCE, lo_open=False)
+DISTANCE = number(0, MAX_DISTANCE)
+FRAMES = count(1, MAX_FRAMES)
+BUDGET_MS = number(0, MAX_BUDGET_MS)
+SPP = count(1, MAX_SPP)
+
+
+def add_rig_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("camera / stereo rig")
+    g.add_argument("--size", type=size, default=(640, 480), help="per-eye image size WxH (default 640x480)")
+    g.add_argument("--camera", type=floats(6), metavar="EX,EY,EZ,TX,TY,TZ",
+                   help="eye position and look-at target (default: the scene's camera or a framing view)")
+    g.add_argument("--fov", type=FOV, help="vertical field of view in degrees (the camera model sets the limit)")
+    g.add_argument("--ipd", type=IPD, default=0.064, help="interpupillary distance in scene units (default 0.064)")
+    g.add_argument("--convergence", type=DISTANCE, help="zero-parallax distance (default: parallel eyes, as HMDs)")
+    g.add_argument("--near", type=DISTANCE, help="near plane distance")
+    g.add_argument("--far", type=number(0, MAX_DISTANCE, inf_ok=True),
+                   help="far plane distance, greater than near (default: infinite, reversed-Z)")
+
+
+def add_camera_model_arguments(p: argparse.ArgumentParser) -> None:
+    """The camera model and its parameters (capture, preview, bench, info --graph); its sub-rays
+    (--msaa, --ssaa, --tile-culling) are render options."""
+    from ..cameras import CAMERA_MODELS
+
+    g = p.add_argument_group("camera model")
+    g.add_argument("--camera-model", choices=tuple(CAMERA_MODELS), default="pinhole",
+                   help="how each eye makes its rays; every model but the pinhole casts its primary rays "
+                        "(" + "; ".join(f"{n}: {m.doc}" for n, m in CAMERA_MODELS.items() if m.doc) + ")")
+    g.add_argument("--camera-param", action="append", metavar="KEY=VALUE",
+                   help="a camera model parameter, repeatable: distorted coefficients=K1,K2,K3[/K1,K2,K3/K1,K2,K3] "
+                        "center=CX,CY samples=FILE; wide mapping=spherical|equidistant fov_x=DEG; foveated "
+                        "gaze=X,Y fovea_mar=DEG mar_slope=S fovea_radius=DEG; dof aperture=RADIUS focus=D (the "
+                        "lens radius; --dof-diameter is the screen-space blur's lens diameter)")
+
+
+def add_render_arguments(p: argparse.ArgumentParser, command: str) -> None:
+    """The camera model's flags and every render option `command` offers (generated)."""
+    add_camera_model_arguments(p)
+    options.add_arguments(p, command)
+
+
+def render_values(args, command: str, config=None, **fixed) -> dict:
+    """The render option values a command runs with: a config's [render] table, then the flags
+    given, then `fixed` (what the command itself sets), with what each implies."""
+    return options.merged(getattr(config, "render", None) or {}, options.given_by_args(args, command), fixed)
+
+
+def settings_from_args(args, command: str, config=None, **fixed):
+    """RenderSettings of render_values (options not given keep their defaults)."""
+    from ..renderer import RenderSettings
+
+    return RenderSettings(**render_values(args, command, config, **fixed))
+
+
+def camera_from_args(args, settings=None, given: dict | None = None):
+    """The camera model --camera-model and --camera-param ask for; `settings` (and the options
+    `given`) are checked against it."""
+    from ..cameras import get_camera_model, parse_camera_params
+
+    if getattr(args, "convergence", None) is not None and args.camera_model == "wide":
+        # The wide camera maps angles, not a planar frustum: there is nothing to shear (cameras/wide.py).
+        raise ValueError("--convergence shears the eyes' planar frusta to zero parallax at a distance; the wide "
+                         "camera's eyes have none and stay parallel: leave out --convergence")
+    camera = get_camera_model(args.camera_model, **parse_camera_params(args.camera_model, args.camera_param))
+    msaa = settings.msaa if settings is not None else getattr(args, "msaa", None) or 1
+    if (given or {}).get("primary") == "raster" and (msaa > 1 or not camera.rasterizable):
+        # the renderer casts primary rays then (Renderer.plan): say so rather than ignore the flag
+        why = f"--msaa {msaa} casts sub-rays" if msaa > 1 else f"the {camera.name} camera cannot be rasterized"
+        raise ValueError(f"--primary raster: {why}, so primary visibility is ray-cast; leave out --primary raster")
+    return camera
+
+
+def rig_from_args(args, scene, camera):
+    from ..camera import Pose, StereoRig
+
+    kw = {"ipd": args.ipd, "camera": camera}
+    for key, attr in (("fov_y", "fov"), ("convergence", "convergence"), ("near", "near"), ("far", "far")):
+        if getattr(args, attr) is not None:
+            kw[key] = getattr(args, attr)
+    rig = StereoRig.for_scene(scene, size=args.size, **kw)
+    if args.camera:
+        rig.pose = Pose.look_at(args.camera[:3], args.camera[3:])
+    return rig
+
+
+def add_connect_timeout_argument(p: argparse.ArgumentParser) -> None:
+    from ..cluster import DEFAULT_CONNECT_TIMEOUT_S
+
+    p.add_argument("--connect-timeout", type=number(0, 86400), metavar="SECONDS",
+                   help=f"with --address: give up on a Ray cluster that does not answer within this time "
+                        f"(default {DEFAULT_CONNECT_TIMEOUT_S:g} s)")
+
+
+def connect_timeout(args) -> float:
+    from ..cluster import DEFAULT_CONNECT_TIMEOUT_S
+
+    return DEFAULT_CONNECT_TIMEOUT_S if args.connect_timeout is None else args.connect_timeout

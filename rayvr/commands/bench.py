@@ -1,0 +1,129 @@
+"""`rayvr bench AREA`: the GPU benchmarks (their table: rayvr/bench/__init__.py AREAS)."""
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from .. import options
+from ..accel.bvh import BUILDS
+from ..gpu_layout import BVH_LAYOUTS
+from .args import FOV, FRAMES, add_camera_model_arguments, add_connect_timeout_argument, camera_from_args
+from .args import count as _count, size as _size
+
+COMMAND = "bench"
+REPEAT = _count(1, 100_000)  # bench --repeat: timed frames per measurement
+
+
+def _worker_counts(text: str) -> str:
+    """argparse type: comma-separated worker counts, each from 1 to 1024 (kept as text)."""
+    try:
+        counts = [int(x) for x in text.split(",")]
+    except ValueError:
+        counts = []
+    if not counts or not all(1 <= c <= 1024 for c in counts):
+        raise argparse.ArgumentTypeError(f"expected worker counts from 1 to 1024, comma-separated, got {text[:40]!r}")
+    return text
+
+
+def _split(text: str) -> tuple[str, ...]:
+    return tuple(x.strip() for x in text.split(",") if x.strip())
+
+
+def _among(text: str, what: str, allowed, unique: bool = False) -> tuple[str, ...]:
+    """Comma-separated names, each in `allowed` (`unique`: repeats dropped)."""
+    names = tuple(dict.fromkeys(_split(text))) if unique else _split(text)
+    if not names or any(x not in allowed for x in names):
+        raise argparse.ArgumentTypeError(f"{what} must be among {', '.join(allowed)}, got {text!r}")
+    return names
+
+
+def _builds(text: str) -> tuple[str, ...]:
+    return _among(text, "BVH builds", BUILDS, unique=True)
+
+
+def _layouts(text: str) -> tuple[str, ...]:
+    return _among(text, "BVH layouts", BVH_LAYOUTS)
+
+
+def _names(text: str) -> tuple[str, ...]:
+    names = _split(text)
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
+    return names
+
+
+def _sample_counts(text: str) -> tuple[int, ...]:
+    from ..cameras.sampling import SAMPLE_COUNTS
+
+    try:
+        counts = tuple(int(x) for x in text.split(","))
+    except ValueError:
+        counts = ()
+    if not counts or any(n not in SAMPLE_COUNTS for n in counts):
+        raise argparse.ArgumentTypeError(f"sub-ray counts must be among {', '.join(map(str, SAMPLE_COUNTS))}, "
+                                         f"got {text!r}")
+    return counts
+
+
+def _budgets(text: str) -> list[float]:
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated milliseconds, got {text!r}") from None
+    if not values or not all(np.isfinite(values)) or min(values) <= 0:
+        raise argparse.ArgumentTypeError(f"budgets must be positive milliseconds, got {text!r}")
+    return values
+
+
+def add_parser(sub) -> None:
+    from ..bench import AREAS, areas_help
+
+    b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
+    b.add_argument("area", choices=tuple(AREAS), help=areas_help())
+    b.add_argument("--budget-ms", type=_budgets, default=[4.0, 8.0], help="frame budgets for 'budget' (default 4,8)")
+    b.add_argument("--out", default="bench/results", help="folder for JSON/markdown results")
+    b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")
+    b.add_argument("--scenes", default="default,sponza", help="comma-separated: default, sponza")
+    b.add_argument("--repeat", type=REPEAT, default=50,
+                   help="timed frames per measurement (default 50; rays and primary time half of it, photon, "
+                        "gi, tradeoff and budget a fifth, at least 1)")
+    b.add_argument("--quick", action="store_true", help="tiny sizes and few frames (CI smoke test)")
+    b.add_argument("--layouts", type=_layouts, default=tuple(BVH_LAYOUTS),
+                   help=f"rays: BVH node layouts to measure, comma-separated (default {','.join(BVH_LAYOUTS)}; "
+                        f"bvh2, the reference, always runs)")
+    b.add_argument("--bvh-build", type=_builds, metavar="BUILDS",
+                   help="rays, primary: BVH builds to measure, comma-separated among sah,sbvh (default sah; the "
+                        "first is the reference); bvh: the builds to compare (default sah,sbvh)")
+    b.add_argument("--no-tiles", action="store_true", help="rays, primary: leave out the tile frustum culling variant")
+    b.add_argument("--workers", type=_worker_counts, help="tradeoff/budget: spread the variants over N Ray workers; "
+                   "workers: the worker counts to time (default 1,2); needs pip install 'rayvr[cluster]'")
+    b.add_argument("--address", help="with --workers: an existing Ray cluster, 'auto' or HOST:PORT")
+    add_connect_timeout_argument(b)
+    b.add_argument("--frames", type=FRAMES, default=64, help="workers: frames of the capture path (default 64)")
+    b.add_argument("--backend", choices=("egl", "osmesa"))
+    b.add_argument("--fov", type=FOV, help="primary: vertical field of view of the --camera-model row")
+    b.add_argument("--configs", type=_names,
+                   help="primary: the bench views' rows to measure, comma-separated, alone (default: the paper's "
+                        "Table 5 rows at 2160x1200, then raster_gbuffer, pinhole at --size; among raster_gbuffer, "
+                        "pinhole, distorted, distorted_chromatic, foveated, wide_210x130, dof_0.5m, dof_0.25m, "
+                        "dof_0.1m); gi: the parts to measure (default all: photon, reuse, path)")
+    b.add_argument("--reference-spp", type=_count(16, 1 << 16),
+                   help="gi: samples per pixel of the path reference (default 1024; --quick 64)")
+    b.add_argument("--reference-photons", type=_count(256, 1 << 22),
+                   help="gi: photon paths of the photon tables' reference (default 4194304; --quick 32768)")
+    b.add_argument("--counts", type=_sample_counts,
+                   help="primary: sub-rays per sample of the bench views' rows, comma-separated (default 1,4,16)")
+    add_camera_model_arguments(b)
+    options.add_arguments(b, COMMAND)
+    b.set_defaults(func=cmd_bench)
+
+
+def cmd_bench(args) -> int:
+    from ..bench import run_area
+    from ..output import check_output_dir
+
+    out = check_output_dir(args.out)  # before any measuring: results are written after it
+    run_area(args, out, camera_from_args)
+    print(f"results in {out}/{args.area}.json and {args.area}.md")
+    return 0

@@ -1,0 +1,92 @@
+"""`rayvr info`: the GL device, a scene's material effects, the compiled frame graph."""
+from __future__ import annotations
+
+import json
+
+from . import args as shared
+
+COMMAND = "info"
+
+
+def add_parser(sub) -> None:
+    from ..gpu_layout import VIEWS
+
+    i = sub.add_parser("info", help="GL vendor, renderer, version, limits, extensions; a scene's material effects")
+    i.add_argument("scene", nargs="?", help="also list this scene's materials and their effects")
+    i.add_argument("--materials", help="material-ID config to apply to the scene")
+    i.add_argument("--backend", choices=("egl", "osmesa"))
+    i.add_argument("--json", action="store_true")
+    i.add_argument("--graph", nargs="?", const="text", choices=("text", "dot"),
+                   help="print the compiled frame graph (passes in order, why each runs, resources); "
+                        "'dot' for Graphviz")
+    i.add_argument("--size", type=shared.size, default="1440x1600",
+                   help="per-eye size the --graph resources are sized for")
+    i.add_argument("--view", choices=VIEWS, default="color", help="the view --graph is compiled for")
+    i.add_argument("--spp", type=shared.SPP, default=1, help="the --graph of a capture with this many samples a pixel")
+    shared.add_render_arguments(i, COMMAND)
+    i.set_defaults(func=cmd_info)
+
+
+def print_graph(args) -> int:
+    """`rayvr info SCENE --materials FILE --graph [dot]`: the compiled frame graph."""
+    from ..context import create_context
+    from ..frame import compile_graph
+    from ..materials import load_config
+    from ..renderer import Renderer, RenderSettings, candidate_passes
+
+    config = load_config(args.materials)
+    given = shared.render_values(args, COMMAND, config, **({"accumulate": True} if args.spp > 1 else {}))
+    settings = RenderSettings(**given)
+    camera = shared.camera_from_args(args, settings, given)
+    gl = create_context(args.backend)
+    try:
+        with Renderer(args.scene, config, gl=gl, settings=settings) as r:
+            plan = r.plan(layers=2, view=args.view, camera=camera)
+            graph = compile_graph(candidate_passes(plan), plan)  # passes are not built: nothing compiles
+            print(graph.dot() if args.graph == "dot" else graph.describe(r.sizing(args.size, plan.layers, plan)), end="")
+    finally:
+        gl.release()
+    if args.graph != "dot":
+        print()
+    return 0
+
+
+def cmd_info(args) -> int:
+    from ..context import create_context
+
+    if args.graph:
+        return print_graph(args)
+    gl = create_context(args.backend)
+    try:
+        info = gl.info()
+    finally:
+        gl.release()
+    if args.scene is not None or args.materials:
+        from .. import materials, scene
+
+        s = scene.load(args.scene)
+        cfg = materials.load_config(args.materials)
+        assigned = cfg.assign(s.material_names(), warn=False)
+        info["scene"] = {"summary": s.summary(), "materials": [
+            {"index": i, "name": m.name, "effect": a.effect, "rule": a.rule, "params": a.params}
+            for i, (m, a) in enumerate(zip(s.materials, assigned))],
+            "lights": [{"kind": l.kind, "source": l.source} for l in s.lights],
+            "unmatched_config_keys": cfg.unmatched(s.material_names())}
+    if args.json:
+        print(json.dumps(info, indent=1, default=str))
+        return 0
+    print(f"backend   {info['backend']}")
+    print(f"vendor    {info['vendor']}\nrenderer  {info['renderer']}\nversion   {info['version']}\nglsl      {info['glsl']}")
+    print("limits")
+    for k, v in info["limits"].items():
+        print(f"  {k:40s} {v}")
+    print("extensions rayvr uses")
+    for k, v in info["extensions"].items():
+        print(f"  {'yes' if v else 'no ':3s} {k}")
+    if "scene" in info:
+        print(info["scene"]["summary"])
+        for m in info["scene"]["materials"]:
+            print(f"  [{m['index']:3d}] {m['name']:24s} -> {m['effect']:12s} ({m['rule']})")
+        for key in info["scene"]["unmatched_config_keys"]:
+            print(f"  warning: config key {materials.short(repr(key))} matches no material")
+    return 0

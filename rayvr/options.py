@@ -1,0 +1,410 @@
+"""Render options, each declared once by the module that uses it (as Falcor's pass properties or
+Mitsuba's plugin properties): the tonemap pass declares `exposure` and `tonemapper`, the
+primary-ray pass `primary` and `tile_culling`, the stereo module `stereo` and `warp_layers`, ...
+
+    EXPOSURE = declare(Option("exposure", float, 1.0, "linear scale before tonemapping",
+                              bounds=(0, 1e6), lo_open=True, commands=("capture", "preview")))
+
+From the declarations come, with nothing else to write:
+- `RenderSettings`' fields, defaults and validation (`Option.check`, one message style);
+- the CLI flags of every command that offers an option (`add_arguments`; help from `doc`);
+- the `[render]` table of a materials TOML (`parse_table`; rayvr/materials.py);
+- `to_dict` / `from_dict` (the capture's job file) and the listing of `rayvr options`.
+
+An option's `scope` says what it changes: "plan" options select passes or programs: each reaches
+one FramePlan field (`plan_field`; Renderer.plan applies the owner's policy, e.g.
+passes/primary_rays.py primary_visibility), and the FramePlan keys the compiled graphs, so a change
+compiles another graph; "frame" options are values the passes read each frame (uniforms) and never
+change the plan; "material" options take part in every material's shading (ambient light).
+tests/test_options.py checks both directions for every declared option.
+
+This module imports nothing from rayvr: the owners import it. `all_options()` imports the owners,
+in OWNERS order, so the declaration order (RenderSettings' field order) is always the same.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import math
+import warnings
+from dataclasses import dataclass, field, fields
+from typing import Any, Callable
+
+SCOPES = ("plan", "frame", "material")
+COMMANDS = ("capture", "preview", "info", "bench")
+OWNERS = ("rayvr.passes.tonemap", "rayvr.passes.shade", "rayvr.passes.visibility", "rayvr.passes.primary_rays",
+          "rayvr.accumulation", "rayvr.passes.accumulate", "rayvr.passes.denoise", "rayvr.passes.second_layer",
+          "rayvr.stereo", "rayvr.passes.quadtree", "rayvr.accel.gpu", "rayvr.accel.bvh", "rayvr.passes.dof",
+          "rayvr.cameras.sampling")
+TABLE = "render"  # the materials TOML table that sets render options
+
+
+class OptionError(ValueError):
+    """A render option's value is not allowed; the message names the option and what is."""
+
+
+@dataclass(frozen=True)
+class Option:
+    """One render option: what it takes, what it does, who offers it (docs/options.md)."""
+
+    name: str  # the RenderSettings field and the TOML key
+    type: type  # bool, int, float, str or tuple (the value's Python type)
+    default: Any
+    doc: str  # one sentence: the CLI help, the `rayvr options` listing
+    scope: str = "frame"  # SCOPES
+    plan_field: str = ""  # scope "plan": the FramePlan field (the compiled graphs' key) its value reaches
+    bounds: tuple | None = None  # (lo, hi) of a number, inclusive unless lo_open
+    lo_open: bool = False
+    choices: tuple | None = None
+    label: str = ""  # the noun an unknown choice is named by ("unknown BVH build 'kd'"); default: name
+    commands: tuple = ()  # the CLI commands that offer it as a flag (COMMANDS)
+    flag: str = ""  # its CLI spelling (default --name-with-dashes)
+    deprecated_flags: tuple = ()  # older spellings still accepted (the help says which is current)
+    metavar: str | None = None
+    convert: Callable | None = None  # value (or CLI/TOML text) -> value, raising ValueError: custom types
+    auto: bool = False  # None is a value too: chosen per frame ("auto")
+    implies: tuple = ()  # (option, value) pairs set too when this one is given truthy and they are not
+    old_names: tuple = ()  # deprecated RenderSettings keywords / attributes still accepted for it
+    owner: str = ""  # the module that declared it (filled in by `declare`)
+
+    def __post_init__(self):
+        if self.scope not in SCOPES:
+            raise ValueError(f"option {self.name}: scope must be one of {', '.join(SCOPES)}, got {self.scope!r}")
+        if (self.scope == "plan") != bool(self.plan_field):
+            raise ValueError(f"option {self.name}: a plan option names the FramePlan field it reaches (plan_field), "
+                             f"no other option does")
+        unknown = [c for c in self.commands if c not in COMMANDS]
+        if unknown:
+            raise ValueError(f"option {self.name}: unknown command(s) {', '.join(unknown)}; allowed: "
+                             f"{', '.join(COMMANDS)}")
+        self.check(self.default)  # a declaration whose default it refuses is a bug, found at import
+
+    # -- validation: the one place, the one message style ----------------------------------
+    @property
+    def cli_flag(self) -> str:
+        return self.flag or "--" + self.name.replace("_", "-")
+
+    def allowed(self) -> str:
+        """What the option takes, in words: "(0, 1e+06]", "1..6", "one of aces, ...", "true or false"."""
+        if self.choices is not None:
+            return "one of " + ", ".join(map(str, self.choices))
+        if self.type is bool:
+            return "true or false" + (" (or unset: auto)" if self.auto else "")
+        if self.bounds is not None:
+            lo, hi = self.bounds
+            return f"{lo}..{hi}" if self.type is int else _interval(lo, hi, self.lo_open)
+        return self.metavar or self.type.__name__
+
+    def check(self, value, name: str | None = None):
+        """`value` as the option's type, or OptionError: "<name> must be ..., got <value>" (`name`:
+        another name the value was given by, a deprecated one)."""
+        who = name or self.name
+        if value is None and self.auto:
+            return None
+        if self.convert is not None:
+            try:
+                return self.convert(value)
+            except OptionError:
+                raise
+            except (ValueError, TypeError) as exc:
+                raise OptionError(str(exc)) from None
+        if self.type is bool:
+            if not (isinstance(value, bool) or type(value).__name__ in ("bool_", "bool")):  # numpy's too
+                raise OptionError(f"{who} must be {self.allowed()}, got {value!r}")
+            return bool(value)
+        if self.type is int:
+            value = self._whole(value, who)
+        elif self.type is float:
+            value = self._number(value, who)
+        if self.choices is not None and value not in self.choices:
+            raise OptionError(f"unknown {self.label or self.name} {value!r}; allowed: "
+                              f"{', '.join(map(str, self.choices))}")
+        return value
+
+    def _whole(self, value, who: str) -> int:
+        span = f" from {self.bounds[0]} to {self.bounds[1]}" if self.bounds is not None else ""
+        if isinstance(value, bool) or not _is_int(value):
+            raise OptionError(f"{who} must be a whole number{span}, got {value!r}")
+        value = int(value)
+        if self.bounds is not None and not self.bounds[0] <= value <= self.bounds[1]:
+            raise OptionError(f"{who} must be a whole number{span}, got {value}")
+        return value
+
+    def _number(self, value, who: str) -> float:
+        legal = _interval(*self.bounds, self.lo_open) if self.bounds is not None else "(-inf, inf)"
+        if isinstance(value, bool) or not _is_number(value):
+            raise OptionError(f"{who} must be a number in {legal}, got {value!r}")
+        v = float(value)
+        if not math.isfinite(v):
+            raise OptionError(f"{who} must be a finite number in {legal}, got {value!r}")
+        if self.bounds is not None:
+            lo, hi = self.bounds
+            if not ((v > lo if self.lo_open else v >= lo) and v <= hi):
+                raise OptionError(f"{who} must be in {legal}, got {value!r}")
+        return v
+
+    def from_text(self, text: str):
+        """The value of a CLI argument's text (numbers parsed, then checked)."""
+        if self.convert is None and self.type in (int, float):
+            try:
+                value = self.type(text)
+            except ValueError:
+                value = text  # check() names it as what it is not
+            return self.check(value)
+        return self.check(text)
+
+    # -- the CLI ------------------------------------------------------------------------
+    def add_to(self, parser) -> None:
+        """This option's flag on `parser`; unset, it stays None (the config or the default then)."""
+        spellings = [self.cli_flag, *self.deprecated_flags]
+        help_ = self.doc + self._help_default()
+        if self.deprecated_flags:
+            help_ += f"; {', '.join(self.deprecated_flags)}: deprecated spelling of {self.cli_flag}"
+        help_ = help_.replace("%", "%%")
+        if self.type is bool and self.auto:
+            parser.add_argument(*spellings, dest=self.name, action=argparse.BooleanOptionalAction, default=None,
+                                help=help_)
+        elif self.type is bool:
+            parser.add_argument(*spellings, dest=self.name, action="store_const", const=True, default=None,
+                                help=help_)
+        else:
+            metavar = self.metavar or ("{" + ",".join(map(str, self.choices)) + "}" if self.choices
+                                       else self.cli_flag.lstrip("-").replace("-", "_").upper())
+            parser.add_argument(*spellings, dest=self.name, type=_argparse_type(self), default=None,
+                                metavar=metavar, help=help_)
+
+    def _help_default(self) -> str:
+        if self.type is bool:
+            return "" if not self.auto else " (default: auto)"
+        default = ",".join(map(str, self.default)) if isinstance(self.default, tuple) else self.default
+        return f" (default {default})"
+
+    def describe(self) -> dict:
+        """The `rayvr options` entry."""
+        default = list(self.default) if isinstance(self.default, tuple) else self.default
+        return {"name": self.name, "type": self.type.__name__, "default": default, "allowed": self.allowed(),
+                "scope": self.scope, "plan_field": self.plan_field or None, "commands": list(self.commands),
+                "flag": self.cli_flag if self.commands else None, "deprecated_flags": list(self.deprecated_flags),
+                "owner": self.owner, "doc": self.doc}
+
+
+def _interval(lo, hi, lo_open: bool) -> str:
+    return f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) or type(value).__name__.startswith(("int", "uint"))  # numpy integers too
+
+
+def _is_number(value) -> bool:
+    return _is_int(value) or isinstance(value, float) or type(value).__name__.startswith("float")
+
+
+def _argparse_type(option: Option):
+    def parse(text: str):
+        try:
+            return option.from_text(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return parse
+
+
+# ------------------------------------------------------------------------------- the registry
+
+_REGISTRY: dict[str, Option] = {}
+_ORDERED: dict[str, Option] | None = None  # all_options()' answer while the registry stays as it is
+
+
+def declare(option: Option, owner: str | None = None) -> Option:
+    """Register `option`; its owner is `owner`, else the declaring module (the caller's __name__)."""
+    if option.name in _REGISTRY:
+        raise ValueError(f"render option {option.name!r} is declared twice ({_REGISTRY[option.name].owner} and "
+                         f"{owner or option.owner})")
+    if owner is None and not option.owner:
+        import sys
+
+        owner = sys._getframe(1).f_globals.get("__name__", "")
+    if owner:
+        option = _replace(option, owner=owner)
+    _REGISTRY[option.name] = option
+    return option
+
+
+def remove(name: str) -> None:
+    """Forget a declaration (tests that declare a toy option)."""
+    global _ORDERED
+    _REGISTRY.pop(name, None)
+    _ORDERED = None
+
+
+def _replace(option: Option, **kw) -> Option:
+    return Option(**{**{f.name: getattr(option, f.name) for f in fields(Option)}, **kw})
+
+
+def all_options() -> dict[str, Option]:
+    """Every declared option by name, in declaration order (the owners imported first)."""
+    global _ORDERED
+    if _ORDERED is not None and len(_ORDERED) == len(_REGISTRY):
+        return _ORDERED
+    for module in OWNERS:
+        importlib.import_module(module)
+    # By OWNERS, whichever module a process imported first; then any other declarer's (a plugin's).
+    rank = {m: i for i, m in enumerate(OWNERS)}
+    ordered = sorted(enumerate(_REGISTRY.values()), key=lambda io: (rank.get(io[1].owner, len(OWNERS)), io[0]))
+    _ORDERED = {o.name: o for _, o in ordered}
+    return _ORDERED
+
+
+def for_command(command: str) -> list[Option]:
+    return [o for o in all_options().values() if command in o.commands]
+
+
+def add_arguments(parser, command: str, title: str = "render options") -> None:
+    """The flags of every option `command` offers, in one argument group."""
+    group = parser.add_argument_group(title)
+    for option in for_command(command):
+        option.add_to(group)
+
+
+def given_by_args(args, command: str) -> dict:
+    """The options whose flags `args` holds (those left unset are not in it)."""
+    return {o.name: getattr(args, o.name) for o in for_command(command) if getattr(args, o.name, None) is not None}
+
+
+def merged(*layers: dict) -> dict:
+    """Option values of `layers` (a config's [render] table, then the CLI flags: later wins), with
+    what each given option implies (--temporal accumulates) where it is not given itself."""
+    out: dict = {}
+    for layer in layers:
+        out.update(layer)
+    known = all_options()
+    for name, value in list(out.items()):
+        if value and name in known:
+            for implied, v in known[name].implies:
+                out.setdefault(implied, v)
+    return out
+
+
+def parse_table(table, source: str) -> dict:
+    """The `[render]` table of a config file: {option: checked value}; one error naming the file,
+    the key and (for an unknown key) the allowed names."""
+    if not isinstance(table, dict):
+        raise OptionError(f"{source}: {TABLE}: expected a table of option = value entries")
+    known = all_options()
+    out = {}
+    for key, value in table.items():
+        if key not in known:
+            raise OptionError(f"{source}: {TABLE}.{str(key)[:80]}: unknown render option; allowed: "
+                              f"{', '.join(known)}")
+        try:
+            out[key] = known[key].check(value)
+        except OptionError as exc:
+            raise OptionError(f"{source}: {TABLE}.{exc}" if str(exc).startswith(key + " ")
+                              else f"{source}: {TABLE}.{key}: {exc}") from None
+    return out
+
+
+def check_all(values: dict) -> dict:
+    """Every option's value of `values` checked (a RenderSettings' __post_init__)."""
+    known = all_options()
+    return {k: known[k].check(v) for k, v in values.items()}
+
+
+# ------------------------------------------------------------------------------ RenderSettings
+
+def settings_class(cls):
+    """Make `cls` a dataclass whose fields are the declared options (type, default), in
+    declaration order, checked on construction; `to_dict()` / `from_dict()` give its values as
+    JSON-ready data and back. Options declared after the class was made (a plugin's, a test's)
+    are keywords and attributes too, their values kept in the field `more`."""
+    known = all_options()
+    cls.__annotations__ = {**{name: o.type if not o.auto else f"{o.type.__name__} | None"
+                              for name, o in known.items()}, "more": dict}
+    for name, o in known.items():
+        setattr(cls, name, o.default)
+    cls.more = field(default_factory=dict, repr=False)  # later declarations' values, by name
+
+    def __post_init__(self):
+        for name, value in check_all({n: getattr(self, n) for n in known}).items():
+            setattr(self, name, value)
+        later = all_options()
+        unknown = [k for k in self.more if k not in later or k in known]
+        if unknown:
+            raise OptionError(f"unknown render option(s) {', '.join(map(str, unknown))}; allowed: {', '.join(later)}")
+        self.more = {k: later[k].check(v) for k, v in self.more.items()}
+
+    def __getattr__(self, name):  # only for what is not a field: a later declaration's value or default
+        more = self.__dict__.get("more", {})
+        if name in more:
+            return more[name]
+        option = all_options().get(name)
+        if option is None or name in known:
+            raise AttributeError(f"{type(self).__name__} has no render option {name!r}")
+        return option.default
+
+    def to_dict(self) -> dict:
+        """The settings as JSON-ready values (tuples as lists), every option by name."""
+        values = {**{n: getattr(self, n) for n in known}, **self.more}
+        return {n: list(v) if isinstance(v, tuple) else v for n, v in values.items()}
+
+    @classmethod
+    def from_dict(klass, data: dict):
+        """Settings from to_dict()'s data (missing options keep their defaults; unknown names are refused)."""
+        if not isinstance(data, dict):
+            raise OptionError(f"render settings must be a table of option values, got {type(data).__name__}")
+        later = all_options()
+        unknown = [k for k in data if k not in later]
+        if unknown:
+            raise OptionError(f"unknown render option(s) {', '.join(map(str, unknown))}; allowed: {', '.join(later)}")
+        return klass(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
+
+    cls.__post_init__, cls.__getattr__, cls.to_dict, cls.from_dict = __post_init__, __getattr__, to_dict, from_dict
+    cls = dataclass(cls)
+    _accept_other_names(cls, known, {old: o for o in known.values() for old in o.old_names})
+    return cls
+
+
+def _accept_other_names(cls, known: dict, renamed: dict) -> None:
+    """Keywords of `cls` beyond its fields: deprecated names of an option (RenderSettings(dof_aperture=...),
+    a DeprecationWarning; given, it wins over the option's own, as dataclasses.replace passes both;
+    a bad value is named by the keyword it came by), and options declared after `cls` (into `more`).
+    The deprecated names are attributes too."""
+    init = cls.__init__
+
+    def __init__(self, *args, **kw):
+        for old, option in renamed.items():
+            if old in kw:
+                value = kw.pop(old)
+                warnings.warn(f"RenderSettings.{old} is deprecated: use {option.name}", DeprecationWarning,
+                              stacklevel=2)
+                kw[option.name] = option.check(value, name=old)
+        later = all_options()
+        extra = {k: kw.pop(k) for k in list(kw) if k in later and k not in known}
+        if extra:
+            kw["more"] = {**kw.get("more", {}), **extra}
+        init(self, *args, **kw)
+
+    for old, option in renamed.items():
+        setattr(cls, old, property(lambda self, n=option.name: getattr(self, n),
+                                   lambda self, v, n=option.name: setattr(self, n, v),
+                                   doc=f"deprecated: {option.name}"))
+    cls.__init__ = __init__
+
+
+# ----------------------------------------------------------------------------- the listing
+
+def listing(options: list[Option] | None = None) -> str:
+    """`rayvr options`: every option with its flag, type, default, allowed values, scope, commands and doc."""
+    lines = []
+    for o in options if options is not None else all_options().values():
+        d = o.describe()
+        default = ",".join(map(str, d["default"])) if isinstance(d["default"], list) else d["default"]
+        flag = d["flag"] or "(no flag)"
+        if d["deprecated_flags"]:
+            flag += f" (also {', '.join(d['deprecated_flags'])}, deprecated)"
+        lines.append(f"{o.name}  {flag}")
+        scope = f"plan (FramePlan.{o.plan_field})" if o.plan_field else o.scope
+        lines.append(f"    {d['type']}, default {default}, {d['allowed']}; scope {scope}; "
+                     f"commands: {', '.join(o.commands) or 'none (API and [render] only)'}; declared in {o.owner}")
+        lines.append(f"    {o.doc}")
+    return "\n".join(lines) + "\n"
