@@ -228,7 +228,7 @@ def settings_data(value) -> dict | None:
     writes, or the RenderSettings repr an older rayvr wrote (its values literals); None if neither."""
     import warnings
 
-    from .renderer import RenderSettings
+    from .settings import RenderSettings
 
     if isinstance(value, str):
         fields = _repr_fields(value)

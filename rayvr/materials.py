@@ -36,7 +36,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from . import options
+from . import options, settings
 from .effects import BACKGROUND_EFFECT, EFFECTS, PLANNED, effect_by_id, implemented_effects  # noqa: F401
 from .inputs import InputFileError, read_text
 
@@ -245,7 +245,7 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
         cfg.denoise = _check_denoise(data["denoise"], source)
     if options.TABLE in data:
         try:
-            cfg.render = options.parse_table(data[options.TABLE], source)
+            cfg.render = settings.parse_table(data[options.TABLE], source)
         except options.OptionError as exc:
             raise ConfigError(str(exc)) from None
     ids = data.get("ids", {})

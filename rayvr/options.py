@@ -5,11 +5,11 @@ primary-ray pass `primary` and `tile_culling`, the stereo module `stereo` and `w
     EXPOSURE = declare(Option("exposure", float, 1.0, "linear scale before tonemapping",
                               bounds=(0, 1e6), lo_open=True, commands=("capture", "preview")))
 
-From the declarations come, with nothing else to write:
+From the declarations come, with nothing else to write (rayvr/settings.py collects them):
 - `RenderSettings`' fields, defaults and validation (`Option.check`, one message style);
-- the CLI flags of every command that offers an option (`add_arguments`; help from `doc`);
-- the `[render]` table of a materials TOML (`parse_table`; rayvr/materials.py);
-- `to_dict` / `from_dict` (the capture's job file) and the listing of `rayvr options`.
+- the CLI flags of every command that offers an option (`Option.add_to`; help from `doc`);
+- the `[render]` table of a materials TOML (rayvr/materials.py);
+- `to_dict` / `from_dict` (the capture's job file) and the listing of `rayvr options` (`listing`).
 
 An option's `scope` says what it changes: "plan" options select passes or programs: each reaches
 one FramePlan field (`plan_field`; Renderer.plan applies the owner's policy, e.g.
@@ -18,24 +18,17 @@ compiles another graph; "frame" options are values the passes read each frame (u
 change the plan; "material" options take part in every material's shading (ambient light).
 tests/test_options.py checks both directions for every declared option.
 
-This module imports nothing from rayvr: the owners import it. `all_options()` imports the owners,
-in OWNERS order, so the declaration order (RenderSettings' field order) is always the same.
+This module imports nothing from rayvr (the lowest layer): the owners, at every layer, import it.
 """
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
-import warnings
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from typing import Any, Callable
 
 SCOPES = ("plan", "frame", "material")
 COMMANDS = ("capture", "preview", "info", "bench")
-OWNERS = ("rayvr.passes.tonemap", "rayvr.passes.shade", "rayvr.passes.visibility", "rayvr.passes.primary_rays",
-          "rayvr.accumulation", "rayvr.passes.accumulate", "rayvr.passes.denoise", "rayvr.passes.second_layer",
-          "rayvr.stereo", "rayvr.passes.quadtree", "rayvr.accel.gpu", "rayvr.accel.bvh", "rayvr.passes.dof",
-          "rayvr.cameras.sampling")
 TABLE = "render"  # the materials TOML table that sets render options
 
 
@@ -212,7 +205,6 @@ def _argparse_type(option: Option):
 # ------------------------------------------------------------------------------- the registry
 
 _REGISTRY: dict[str, Option] = {}
-_ORDERED: dict[str, Option] | None = None  # all_options()' answer while the registry stays as it is
 
 
 def declare(option: Option, owner: str | None = None) -> Option:
@@ -232,171 +224,25 @@ def declare(option: Option, owner: str | None = None) -> Option:
 
 def remove(name: str) -> None:
     """Forget a declaration (tests that declare a toy option)."""
-    global _ORDERED
     _REGISTRY.pop(name, None)
-    _ORDERED = None
 
 
 def _replace(option: Option, **kw) -> Option:
     return Option(**{**{f.name: getattr(option, f.name) for f in fields(Option)}, **kw})
 
 
-def all_options() -> dict[str, Option]:
-    """Every declared option by name, in declaration order (the owners imported first)."""
-    global _ORDERED
-    if _ORDERED is not None and len(_ORDERED) == len(_REGISTRY):
-        return _ORDERED
-    for module in OWNERS:
-        importlib.import_module(module)
-    # By OWNERS, whichever module a process imported first; then any other declarer's (a plugin's).
-    rank = {m: i for i, m in enumerate(OWNERS)}
-    ordered = sorted(enumerate(_REGISTRY.values()), key=lambda io: (rank.get(io[1].owner, len(OWNERS)), io[0]))
-    _ORDERED = {o.name: o for _, o in ordered}
-    return _ORDERED
-
-
-def for_command(command: str) -> list[Option]:
-    return [o for o in all_options().values() if command in o.commands]
-
-
-def add_arguments(parser, command: str, title: str = "render options") -> None:
-    """The flags of every option `command` offers, in one argument group."""
-    group = parser.add_argument_group(title)
-    for option in for_command(command):
-        option.add_to(group)
-
-
-def given_by_args(args, command: str) -> dict:
-    """The options whose flags `args` holds (those left unset are not in it)."""
-    return {o.name: getattr(args, o.name) for o in for_command(command) if getattr(args, o.name, None) is not None}
-
-
-def merged(*layers: dict) -> dict:
-    """Option values of `layers` (a config's [render] table, then the CLI flags: later wins), with
-    what each given option implies (--temporal accumulates) where it is not given itself."""
-    out: dict = {}
-    for layer in layers:
-        out.update(layer)
-    known = all_options()
-    for name, value in list(out.items()):
-        if value and name in known:
-            for implied, v in known[name].implies:
-                out.setdefault(implied, v)
-    return out
-
-
-def parse_table(table, source: str) -> dict:
-    """The `[render]` table of a config file: {option: checked value}; one error naming the file,
-    the key and (for an unknown key) the allowed names."""
-    if not isinstance(table, dict):
-        raise OptionError(f"{source}: {TABLE}: expected a table of option = value entries")
-    known = all_options()
-    out = {}
-    for key, value in table.items():
-        if key not in known:
-            raise OptionError(f"{source}: {TABLE}.{str(key)[:80]}: unknown render option; allowed: "
-                              f"{', '.join(known)}")
-        try:
-            out[key] = known[key].check(value)
-        except OptionError as exc:
-            raise OptionError(f"{source}: {TABLE}.{exc}" if str(exc).startswith(key + " ")
-                              else f"{source}: {TABLE}.{key}: {exc}") from None
-    return out
-
-
-def check_all(values: dict) -> dict:
-    """Every option's value of `values` checked (a RenderSettings' __post_init__)."""
-    known = all_options()
-    return {k: known[k].check(v) for k, v in values.items()}
-
-
-# ------------------------------------------------------------------------------ RenderSettings
-
-def settings_class(cls):
-    """Make `cls` a dataclass whose fields are the declared options (type, default), in
-    declaration order, checked on construction; `to_dict()` / `from_dict()` give its values as
-    JSON-ready data and back. Options declared after the class was made (a plugin's, a test's)
-    are keywords and attributes too, their values kept in the field `more`."""
-    known = all_options()
-    cls.__annotations__ = {**{name: o.type if not o.auto else f"{o.type.__name__} | None"
-                              for name, o in known.items()}, "more": dict}
-    for name, o in known.items():
-        setattr(cls, name, o.default)
-    cls.more = field(default_factory=dict, repr=False)  # later declarations' values, by name
-
-    def __post_init__(self):
-        for name, value in check_all({n: getattr(self, n) for n in known}).items():
-            setattr(self, name, value)
-        later = all_options()
-        unknown = [k for k in self.more if k not in later or k in known]
-        if unknown:
-            raise OptionError(f"unknown render option(s) {', '.join(map(str, unknown))}; allowed: {', '.join(later)}")
-        self.more = {k: later[k].check(v) for k, v in self.more.items()}
-
-    def __getattr__(self, name):  # only for what is not a field: a later declaration's value or default
-        more = self.__dict__.get("more", {})
-        if name in more:
-            return more[name]
-        option = all_options().get(name)
-        if option is None or name in known:
-            raise AttributeError(f"{type(self).__name__} has no render option {name!r}")
-        return option.default
-
-    def to_dict(self) -> dict:
-        """The settings as JSON-ready values (tuples as lists), every option by name."""
-        values = {**{n: getattr(self, n) for n in known}, **self.more}
-        return {n: list(v) if isinstance(v, tuple) else v for n, v in values.items()}
-
-    @classmethod
-    def from_dict(klass, data: dict):
-        """Settings from to_dict()'s data (missing options keep their defaults; unknown names are refused)."""
-        if not isinstance(data, dict):
-            raise OptionError(f"render settings must be a table of option values, got {type(data).__name__}")
-        later = all_options()
-        unknown = [k for k in data if k not in later]
-        if unknown:
-            raise OptionError(f"unknown render option(s) {', '.join(map(str, unknown))}; allowed: {', '.join(later)}")
-        return klass(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
-
-    cls.__post_init__, cls.__getattr__, cls.to_dict, cls.from_dict = __post_init__, __getattr__, to_dict, from_dict
-    cls = dataclass(cls)
-    _accept_other_names(cls, known, {old: o for o in known.values() for old in o.old_names})
-    return cls
-
-
-def _accept_other_names(cls, known: dict, renamed: dict) -> None:
-    """Keywords of `cls` beyond its fields: deprecated names of an option (RenderSettings(dof_aperture=...),
-    a DeprecationWarning; given, it wins over the option's own, as dataclasses.replace passes both;
-    a bad value is named by the keyword it came by), and options declared after `cls` (into `more`).
-    The deprecated names are attributes too."""
-    init = cls.__init__
-
-    def __init__(self, *args, **kw):
-        for old, option in renamed.items():
-            if old in kw:
-                value = kw.pop(old)
-                warnings.warn(f"RenderSettings.{old} is deprecated: use {option.name}", DeprecationWarning,
-                              stacklevel=2)
-                kw[option.name] = option.check(value, name=old)
-        later = all_options()
-        extra = {k: kw.pop(k) for k in list(kw) if k in later and k not in known}
-        if extra:
-            kw["more"] = {**kw.get("more", {}), **extra}
-        init(self, *args, **kw)
-
-    for old, option in renamed.items():
-        setattr(cls, old, property(lambda self, n=option.name: getattr(self, n),
-                                   lambda self, v, n=option.name: setattr(self, n, v),
-                                   doc=f"deprecated: {option.name}"))
-    cls.__init__ = __init__
+def declared() -> dict[str, Option]:
+    """The options declared so far, in declaration order (rayvr/settings.py's all_options() has
+    them all, in their owners' order)."""
+    return dict(_REGISTRY)
 
 
 # ----------------------------------------------------------------------------- the listing
 
-def listing(options: list[Option] | None = None) -> str:
-    """`rayvr options`: every option with its flag, type, default, allowed values, scope, commands and doc."""
+def listing(options: list[Option]) -> str:
+    """`rayvr options`: each option with its flag, type, default, allowed values, scope, commands and doc."""
     lines = []
-    for o in options if options is not None else all_options().values():
+    for o in options:
         d = o.describe()
         default = ",".join(map(str, d["default"])) if isinstance(d["default"], list) else d["default"]
         flag = d["flag"] or "(no flag)"

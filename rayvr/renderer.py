@@ -28,13 +28,13 @@ from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameT
                     limit_problems)
 from .gpu_layout import VIEWS
 from .gpu_scene import GpuScene
-from .options import settings_class
 from .passes import primary_rays
 from .passes.core import core_passes
 from .passes.classify import pixel_counts
 from .passes.second_layer import depth_layers
 from .passes.visibility import pick_layer_mode
 from .readback import AUX_CHANNELS, Reader
+from .settings import RenderSettings
 from .timing import settle
 
 MAX_TILES = 64  # a frame that needs more tiles than this is refused (FrameTooLarge) instead
@@ -48,18 +48,6 @@ def work_dropped(timings: dict) -> bool:
     when a fresh Renderer had queued ~20 s of samples: stale pixels, no GL error."""
     zeros = sum(v == 0.0 for v in timings.values())
     return len(timings) >= 2 and zeros * 2 > len(timings)
-
-
-@settings_class
-class RenderSettings:
-    """How a Renderer renders: one field per render option (rayvr/options.py), declared by the
-    module that uses it (`rayvr options` lists them: type, default, allowed values, scope, flags).
-    `RenderSettings(exposure=2)` checks every value on construction (OptionError, a ValueError);
-    `to_dict()` / `from_dict()` carry them through files (the capture's job file)."""
-
-    def culls_tiles(self, camera: str = "pinhole") -> bool:
-        """Whether ray-cast primaries of a `camera` model (its name) are tile-culled (passes/primary_rays.py)."""
-        return primary_rays.culls_tiles(self, camera)
 
 
 def _as_config(materials) -> materials_mod.MaterialConfig:

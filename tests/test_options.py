@@ -9,7 +9,7 @@ import warnings
 import pytest
 
 from conftest import run_rayvr
-from rayvr import options
+from rayvr import options, settings as settings_mod
 from rayvr.cli import build_parser, main
 from rayvr.frame import FramePlan
 from rayvr.materials import ConfigError, MaterialConfig, load_config, parse_config
@@ -45,7 +45,7 @@ def toml_error(tmp_path, body: str) -> str:
 
 
 def test_a_real_option_is_a_field_a_flag_of_each_command_a_toml_key_and_a_listing_entry(tmp_path, capsys):
-    option = options.all_options()["quadtree_adapt"]  # declared by passes/quadtree.py
+    option = settings_mod.all_options()["quadtree_adapt"]  # declared by passes/quadtree.py
     assert option.owner == "rayvr.passes.quadtree" and set(option.commands) == {"capture", "preview"}
     assert RenderSettings().quadtree_adapt == 0.0 and RenderSettings(quadtree_adapt=2).quadtree_adapt == 2.0
     for command in ("capture", "preview"):
@@ -85,7 +85,7 @@ def test_a_toy_option_declared_from_a_test_appears_everywhere_then_goes(tmp_path
     finally:
         options.remove("toy_glow")
     assert "unrecognized arguments: --toy-glow" in cli_error(capsys, "capture", "--toy-glow", "0.5")
-    assert "toy_glow" not in options.all_options()
+    assert "toy_glow" not in settings_mod.all_options()
     assert "unknown render option" in toml_error(tmp_path, "[render]\ntoy_glow = 0.5\n")
 
 
@@ -97,7 +97,7 @@ def test_a_toy_option_declared_from_a_test_appears_everywhere_then_goes(tmp_path
     ("bvh_build", "kd", "kd"), ("traversal", "shadow=bvh3", "shadow=bvh3")])
 def test_a_bad_value_is_the_same_error_from_the_cli_the_toml_and_render_settings(tmp_path, capsys, name, text, value):
     said = settings_error(**{name: value})
-    flag = options.all_options()[name].cli_flag
+    flag = settings_mod.all_options()[name].cli_flag
     line = cli_error(capsys, "capture", flag, text)
     assert line.startswith("rayvr capture: error: argument ") and line.endswith(f": {said} (see rayvr capture -h)")
     toml_value = json.dumps(value) if not (isinstance(value, float) and value != value) else "nan"
@@ -215,7 +215,7 @@ def test_plan_options_reach_their_plan_field_and_no_other_option_changes_the_pla
     (else a change would render with a stale graph), any other must leave the plan alone (else
     a uniform would recompile)."""
     config = MaterialConfig(default="shadows")  # a sampled effect: the denoiser has pixels to filter
-    for o in options.all_options().values():
+    for o in settings_mod.all_options().values():
         context = CONTEXT.get(o.name, {})
         plans = []
         for settings in (RenderSettings(**context), RenderSettings(**{**context, o.name: other_value(o)})):

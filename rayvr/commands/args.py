@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from .. import options
+from .. import settings as settings_mod
 from ..inputs import MAX_IMAGE_SIDE
 from ..limits import MAX_DISTANCE  # --near, --far, --convergence, --ipd (the rig checks the rest of their ranges)
 
@@ -112,13 +112,13 @@ def add_camera_model_arguments(p: argparse.ArgumentParser) -> None:
 def add_render_arguments(p: argparse.ArgumentParser, command: str) -> None:
     """The camera model's flags and every render option `command` offers (generated)."""
     add_camera_model_arguments(p)
-    options.add_arguments(p, command)
+    settings_mod.add_arguments(p, command)
 
 
 def render_values(args, command: str, config=None, **fixed) -> dict:
     """The render option values a command runs with: a config's [render] table, then the flags
     given, then `fixed` (what the command itself sets), with what each implies."""
-    return options.merged(getattr(config, "render", None) or {}, options.given_by_args(args, command), fixed)
+    return settings_mod.merged(getattr(config, "render", None) or {}, settings_mod.given_by_args(args, command), fixed)
 
 
 def settings_from_args(args, command: str, config=None, **fixed):

@@ -5,7 +5,7 @@ import argparse
 
 import numpy as np
 
-from .. import options
+from .. import settings as settings_mod
 from ..accel.bvh import BUILDS
 from ..gpu_layout import BVH_LAYOUTS
 from .args import FOV, FRAMES, add_camera_model_arguments, add_connect_timeout_argument, camera_from_args
@@ -115,7 +115,7 @@ def add_parser(sub) -> None:
     b.add_argument("--counts", type=_sample_counts,
                    help="primary: sub-rays per sample of the bench views' rows, comma-separated (default 1,4,16)")
     add_camera_model_arguments(b)
-    options.add_arguments(b, COMMAND)
+    settings_mod.add_arguments(b, COMMAND)
     b.set_defaults(func=cmd_bench)
 
 

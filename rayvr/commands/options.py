@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from .. import options
+from .. import options, settings as settings_mod
 
 
 def add_parser(sub) -> None:
@@ -15,7 +15,7 @@ def add_parser(sub) -> None:
 
 
 def cmd_options(args) -> int:
-    known = options.all_options()
+    known = settings_mod.all_options()
     unknown = [n for n in args.names if n not in known]
     if unknown:
         raise ValueError(f"unknown render option(s) {', '.join(unknown)}; allowed: {', '.join(known)}")
