@@ -60,6 +60,19 @@ def test_a_real_option_is_a_field_a_flag_of_each_command_a_toml_key_and_a_listin
     assert "declared in rayvr.passes.quadtree" in out and "Widmer" in out
 
 
+def test_every_module_that_declares_an_option_is_an_owner():
+    """RenderSettings' fields are the options of settings.OWNERS: a declaration elsewhere in rayvr
+    would be left out of them."""
+    import re
+    from pathlib import Path
+
+    root = Path(settings_mod.__file__).parent
+    declaring = {".".join(("rayvr",) + p.relative_to(root).with_suffix("").parts)
+                 for p in root.rglob("*.py") if re.search(r"^\w+ = declare(_option)?\(Option\(", p.read_text(), re.M)}
+    assert declaring == set(settings_mod.RANK)
+    assert {o.owner for o in settings_mod.all_options().values()} == declaring
+
+
 def test_a_toy_option_declared_from_a_test_appears_everywhere_then_goes(tmp_path, capsys):
     toy = options.declare(options.Option("toy_glow", float, 0.25, "glow of the toy pass", bounds=(0, 1),
                                          commands=("capture", "bench")), owner="tests.toy")
