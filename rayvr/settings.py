@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from . import accumulation, options, stereo
 from .accel import bvh, gpu
 from .cameras import sampling
-from .options import Option
+from .options import TABLE, Option, OptionError
 from .passes import accumulate, denoise, dof, primary_rays, quadtree, second_layer, shade, tonemap, visibility
 
 OWNERS = (tonemap, shade, visibility, primary_rays, accumulation, accumulate, denoise, second_layer, stereo, quadtree,
@@ -68,18 +68,17 @@ def parse_table(table, source: str) -> dict:
     """The `[render]` table of a config file: {option: checked value}; one error naming the file,
     the key and (for an unknown key) the allowed names."""
     if not isinstance(table, dict):
-        raise options.OptionError(f"{source}: {options.TABLE}: expected a table of option = value entries")
+        raise OptionError(f"{source}: {TABLE}: expected a table of option = value entries")
     known = all_options()
     out = {}
     for key, value in table.items():
         if key not in known:
-            raise options.OptionError(f"{source}: {options.TABLE}.{str(key)[:80]}: unknown render option; allowed: "
-                              f"{', '.join(known)}")
+            raise OptionError(f"{source}: {TABLE}.{str(key)[:80]}: unknown render option; allowed: {', '.join(known)}")
         try:
             out[key] = known[key].check(value)
-        except options.OptionError as exc:
-            raise options.OptionError(f"{source}: {options.TABLE}.{exc}" if str(exc).startswith(key + " ")
-                              else f"{source}: {options.TABLE}.{key}: {exc}") from None
+        except OptionError as exc:
+            where = f"{source}: {TABLE}."  # "render.exposure must be ...", "render.traversal: BVH layout ..."
+            raise OptionError(f"{where}{exc}" if str(exc).startswith(key + " ") else f"{where}{key}: {exc}") from None
     return out
 
 
@@ -109,7 +108,7 @@ def settings_class(cls):
         later = all_options()
         unknown = [k for k in self.more if k not in later or k in known]
         if unknown:
-            raise options.OptionError(f"unknown render option(s) {', '.join(map(str, unknown))}; allowed: {', '.join(later)}")
+            raise OptionError(f"unknown render option(s) {', '.join(map(str, unknown))}; allowed: {', '.join(later)}")
         self.more = {k: later[k].check(v) for k, v in self.more.items()}
 
     def __getattr__(self, name):  # only for what is not a field: a later declaration's value or default
@@ -130,11 +129,11 @@ def settings_class(cls):
     def from_dict(klass, data: dict):
         """Settings from to_dict()'s data (missing options keep their defaults; unknown names are refused)."""
         if not isinstance(data, dict):
-            raise options.OptionError(f"render settings must be a table of option values, got {type(data).__name__}")
+            raise OptionError(f"render settings must be a table of option values, got {type(data).__name__}")
         later = all_options()
         unknown = [k for k in data if k not in later]
         if unknown:
-            raise options.OptionError(f"unknown render option(s) {', '.join(map(str, unknown))}; allowed: {', '.join(later)}")
+            raise OptionError(f"unknown render option(s) {', '.join(map(str, unknown))}; allowed: {', '.join(later)}")
         return klass(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
 
     cls.__post_init__, cls.__getattr__, cls.to_dict, cls.from_dict = __post_init__, __getattr__, to_dict, from_dict
