@@ -32,7 +32,6 @@ DEFAULT_CONNECT_TIMEOUT_S = 30.0  # --connect-timeout: Ray itself retries an unr
 # Ray frees a killed actor's CPU or GPU a moment after ray.kill returns: workers closed just before
 # (bench workers 1,2 on one cluster) are waited for this long before the cluster counts as full.
 RESOURCE_WAIT_S = 10.0
-JOIN_SLICE_S = 0.1  # how soon a signal that reached another thread is handled while Ray connects
 
 
 class ClusterError(RuntimeError):
@@ -99,7 +98,7 @@ def connect_left_behind() -> bool:
 
 def _connect(ray, address: str, timeout: float, **kw) -> None:
     """ray.init(address=...) within `timeout` seconds, else one ClusterError. The connection is
-    made on a daemon thread: this one waits in short joins that Ctrl-C and SIGTERM end, where
+    made on a daemon thread: this one waits in a join that Ctrl-C and SIGTERM interrupt, where
     Ray's own wait blocks in C++ and would hold them off."""
     _reach(address, timeout)
     failure = []
@@ -114,11 +113,7 @@ def _connect(ray, address: str, timeout: float, **kw) -> None:
     try:
         with _StderrHidden():
             thread.start()
-            deadline = time.monotonic() + timeout
-            # Short joins: the kernel may deliver Ctrl-C or SIGTERM to one of Ray's threads, which
-            # wakes no long wait of this one; Python runs the handler when this thread next runs.
-            while thread.is_alive() and time.monotonic() < deadline:
-                thread.join(min(JOIN_SLICE_S, max(0.0, deadline - time.monotonic())))
+            thread.join(timeout)
     finally:
         if thread.is_alive():  # Ctrl-C, SIGTERM or the timeout: see connect_left_behind
             _left_behind.set()
