@@ -51,6 +51,13 @@ TriangleVerts scene_triangle(uint tri) {
     return t;
 }
 
+// The geometric normal (v1 - v0) x (v2 - v0) of a triangle, not unit (twice its area long): it
+// points to the front face, the side of the winding v0 -> v1 -> v2. Every shader that needs a
+// triangle's plane takes it from here (the numpy twin: accel/quadtree.py geometric_normals).
+vec3 triangle_normal(TriangleVerts tv) {
+    return cross(tv.p[1] - tv.p[0], tv.p[2] - tv.p[0]);
+}
+
 // Shading normal of a two-sided surface from the interpolated vertex normal ni (any length; zero:
 // the geometric normal ng): turned to ng's side first (a file's normals may be wound against its
 // triangles), then to face against the view direction d. Mitsuba's `twosided` shades alike.

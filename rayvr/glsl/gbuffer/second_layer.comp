@@ -53,7 +53,7 @@ void main() {
     vec4 layer = vec4(0.0);
     if (tri != NO_HIT) {
         TriangleVerts tv = scene_triangle(tri);
-        vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], ng = cross(e1, e2);
+        vec3 ng = triangle_normal(tv);
         float den = dot(d, ng);
         float t = dot(tv.p[0] - o, ng) / den;
         if (abs(den) > 1e-7 * length(ng) * length(d) && t * along > depth1) {

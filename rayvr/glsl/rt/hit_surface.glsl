@@ -8,12 +8,6 @@
 #include "../common/triangle_surface.glsl"
 #include "../accel/bvh.glsl"
 
-// Unit geometric normal of scene triangle `tri`, wound v0 -> v1 -> v2.
-vec3 triangle_normal(uint tri) {
-    TriangleVerts t = scene_triangle(tri);
-    return normalize(cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
-}
-
 // The point of triangle `tri` nearest p (p projected on its plane), from barycentrics as
 // bvh_hit_point computes a hit: the accuracy offset_ray (accel/ray.glsl) counts on. The G-buffer's
 // point is eye + t * dir, off the plane by rounding errors of the eye's distance (~1e-6 five units
@@ -21,7 +15,7 @@ vec3 triangle_normal(uint tri) {
 // rays started there hit their own surface (shadow rays: dark speckles).
 vec3 point_on_triangle(uint tri, vec3 p) {
     TriangleVerts tv = scene_triangle(tri);
-    vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], n = cross(e1, e2), q = p - tv.p[0];
+    vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], n = triangle_normal(tv), q = p - tv.p[0];
     vec2 b = vec2(dot(cross(q, e2), n), dot(cross(e1, q), n)) / dot(n, n);
     return tv.p[0] + b.x * e1 + b.y * e2;
 }
@@ -29,7 +23,7 @@ vec3 point_on_triangle(uint tri, vec3 p) {
 // ng: unit geometric normal, turned to face the incoming ray (the side secondary rays leave from).
 Surface surface_at_hit(Hit h, vec3 dir, out vec3 ng) {
     TriangleVerts tv = scene_triangle(h.prim);
-    ng = normalize(cross(tv.p[1] - tv.p[0], tv.p[2] - tv.p[0]));
+    ng = normalize(triangle_normal(tv));
     Surface s = triangle_surface(h.prim, tv, vec3(1.0 - h.uv.x - h.uv.y, h.uv.x, h.uv.y), ng, dir, 0.0);
     if (dot(ng, dir) > 0.0) ng = -ng;
     // From barycentrics on the scene triangle (the BVH's copy holds the same vertices in the same

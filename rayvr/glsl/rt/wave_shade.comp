@@ -128,7 +128,7 @@ void main() {
     Surface s = gbuffer_fetch(px);
     vec3 v = normalize(eye_position[px.z] - s.position);
     s.position = point_on_triangle(s.triangle, s.position);  // where its rays start
-    vec3 ng = triangle_normal(s.triangle);
+    vec3 ng = normalize(triangle_normal(scene_triangle(s.triangle)));
     if (dot(ng, v) < 0.0) ng = -ng;
     uint rng;
     uint mi = pixel_setup(px, rng);

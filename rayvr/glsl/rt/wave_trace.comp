@@ -71,7 +71,7 @@ bool screen_space_hit(uint p, vec3 o, vec3 d, out uint tri, out vec2 uv, out uin
 #endif
     if (tri == NO_HIT) return false;
     TriangleVerts tv = scene_triangle(tri);
-    vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], ng = cross(e1, e2);
+    vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], ng = triangle_normal(tv);
     float den = dot(dir, ng);
     if (abs(den) <= 1e-12 * length(ng) * length(dir)) return false;
     vec3 q = o + (dot(tv.p[0] - o, ng) / den) * dir - tv.p[0];

@@ -42,13 +42,9 @@ vec2 tangent_at(int eye, vec2 p) {
     return eye_tangents[eye].xz + p / pixels_per_tangent(eye);
 }
 
-// Geometric normal (v1 - v0) x (v2 - v0) of triangle `tri` (zero for NO_HIT): accel/quadtree.py
-// geometric_normals.
-vec3 geometric_normal(uint tri) {
-    if (tri == NO_HIT)
-        return vec3(0.0);
-    TriangleVerts tv = scene_triangle(tri);
-    return cross(tv.p[1] - tv.p[0], tv.p[2] - tv.p[0]);
+// The pixel's triangle's geometric normal (scene.glsl triangle_normal; zero for NO_HIT).
+vec3 pixel_normal(uint tri) {
+    return tri == NO_HIT ? vec3(0.0) : triangle_normal(scene_triangle(tri));
 }
 
 // The pixel's plane in tree layer p.z: false for background. z0 at the pixel centre, slopes
@@ -63,10 +59,10 @@ bool leaf_plane(ivec3 p, out float z0, out vec2 s) {
     bool second = p.z >= qt_eyes;
     vec4 l2 = second ? texelFetch(layer2, e, 0) : vec4(0.0);
     float depth = second ? l2.w : texelFetch(gb_position, e, 0).w;
-    vec3 nw = second ? l2.xyz : geometric_normal(texelFetch(gb_triangle, e, 0).x);
+    vec3 nw = second ? l2.xyz : pixel_normal(texelFetch(gb_triangle, e, 0).x);
 #else
     float depth = texelFetch(gb_position, e, 0).w;
-    vec3 nw = geometric_normal(texelFetch(gb_triangle, e, 0).x);
+    vec3 nw = pixel_normal(texelFetch(gb_triangle, e, 0).x);
 #endif
     if (!(depth > 0.0))
         return false;

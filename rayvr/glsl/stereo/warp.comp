@@ -67,7 +67,7 @@ bool triangle_crossing(uint tri, vec3 o, vec3 d, float z, out vec3 x, out float 
     if (tri == NO_HIT)
         return false;
     TriangleVerts tv = scene_triangle(tri);
-    vec3 ng = cross(tv.p[1] - tv.p[0], tv.p[2] - tv.p[0]);
+    vec3 ng = triangle_normal(tv);
     float dn = dot(d, ng);
     if (!(abs(dn) > 1e-7 * length(ng) * length(d)))
         return false;
@@ -84,7 +84,7 @@ bool triangle_crossing(uint tri, vec3 o, vec3 d, float z, out vec3 x, out float 
 vec3 shade_second_layer(uint tri, vec3 x, vec3 d) {
     if (tri == NO_HIT) return vec3(0.0);
     TriangleVerts tv = scene_triangle(tri);
-    vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], ng = cross(e1, e2), q = x - tv.p[0];
+    vec3 e1 = tv.p[1] - tv.p[0], e2 = tv.p[2] - tv.p[0], ng = triangle_normal(tv), q = x - tv.p[0];
     vec2 b = vec2(dot(cross(q, e2), ng), dot(cross(e1, q), ng)) / max(dot(ng, ng), 1e-30);
     vec3 w = max(vec3(1.0 - b.x - b.y, b), 0.0);
     Surface s = triangle_surface(tri, tv, w / max(w.x + w.y + w.z, 1e-30), ng, d, 0.0);
