@@ -27,6 +27,16 @@ SEED = declare(Option("seed", int, 0, "random sequence of the sampled effects: t
 HISTORY_CAP = 32  # samples a reprojected history counts for at most while the camera moves (Falcor SVGF)
 
 
+def temporal_problem(camera) -> str | None:
+    """Why temporal reprojection (RenderSettings.temporal) cannot follow `camera` (a rayvr.cameras
+    model), or None: the accumulate pass reprojects the history through the eyes' planar frusta,
+    which only a rasterizable model has (Renderer.plan refuses the others; the preview leaves it off)."""
+    if camera.rasterizable:
+        return None
+    return (f"temporal reprojection (--temporal) reprojects the last frame's samples through the eyes' planar "
+            f"frusta, which the {camera.name} camera does not have")
+
+
 def sample_seed(seed: int, sample: int) -> int:
     """The 32-bit seed of sample `sample` of a sequence seeded `seed` (sample 0: `seed` itself).
     A PCG-style integer hash, so seeds of neighbouring samples and sequences are unrelated."""

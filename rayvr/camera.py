@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cameras import CameraModel, Pinhole, get_camera_model
+from .cameras import DEFAULT_CAMERA_MODEL, CameraModel, get_camera_model
 from .limits import MAX_CAMERA_COORDINATE, MAX_DISTANCE, MIN_DISTANCE, check_range
 from .inputs import read_json
 from .output import atomic_write_bytes
@@ -121,7 +121,7 @@ class EyeView:
     near: float
     far: float | None
     size: tuple  # (width, height) in pixels
-    camera: CameraModel = field(default_factory=Pinhole)
+    camera: CameraModel = field(default_factory=lambda: get_camera_model(DEFAULT_CAMERA_MODEL))
     fov_y: float | None = None  # the rig's vertical field of view, degrees (non-planar models use it)
 
     def view_matrix(self, origin=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -180,7 +180,7 @@ class StereoRig:
     far: float | None = None
     eye_tangents: dict | None = None
     size: tuple = (640, 480)  # per-eye pixels (width, height)
-    camera: CameraModel | str = "pinhole"
+    camera: CameraModel | str = DEFAULT_CAMERA_MODEL
 
     def __post_init__(self):
         if isinstance(self.camera, str):

@@ -524,13 +524,15 @@ def render_frames(renderer: Renderer, job: CaptureJob, indices: list[int], progr
     return the summary; `on_frame(index)` is called after each frame's files are written. With
     `record` (a JobFolder's digest), each finished frame gets its record."""
     files, timings, unavailable, ran = [], [], set(), {}
+    rigs = [job.frame_rig(i) for i in indices]
+    if rigs:  # what the frames' plan refuses (Renderer.plan) is one line before any work, no progress bar
+        renderer.plan(len(rigs[0].eyes(job.eyes)), job.view, rigs[0].camera)
     bar = None
     if progress and len(indices) * job.spp > 1:
         from tqdm import tqdm
 
         # with --spp the bar counts samples: one frame of many samples is long work too
         bar = tqdm(total=len(indices) * job.spp, unit="sample" if job.spp > 1 else "frame", desc="capture")
-    rigs = [job.frame_rig(i) for i in indices]
     done = 0
     try:
         with interrupts_between_frames() as check_interrupt:

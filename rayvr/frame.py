@@ -22,13 +22,14 @@ builds no BVH and dispatches no ray because no pass that reads `bvh` is left.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import moderngl
 import numpy as np
 
 from .accel.gpu import DEFAULT_TRAVERSAL
+from .cameras import DEFAULT_CAMERA_MODEL
 
 from .gpu_layout import CHANNELS
 from .timing import TimerQuery, valid_elapsed_ns
@@ -43,7 +44,7 @@ class FramePlan:
     layers: int = 2
     layer_mode: str = "vertex"  # how the G-buffer reaches its layers: vertex | geometry | multiview | passes
     primary: str = "raster"  # primary visibility: "raster" (visibility pass) or "rays" (BVH)
-    camera: str = "pinhole"  # camera model (rayvr/cameras/)
+    camera: str = DEFAULT_CAMERA_MODEL  # camera model (rayvr/cameras/), its name
     samples: int = 1  # sub-rays per camera sample (cameras/sampling.py SAMPLE_COUNTS)
     shading: str = "msaa"  # with samples > 1: "msaa" shades once per distinct triangle, "ssaa" every sub-ray
     channels: int = 1  # colour channel sets of the camera model (cast and shaded one after another)
@@ -58,6 +59,9 @@ class FramePlan:
     traversal: tuple = DEFAULT_TRAVERSAL  # BVH layout per ray kind (accel/gpu.py RAY_KINDS)
     bvh_build: str = "sah"  # how the BVH is built: "sah" | "sbvh" (spatial splits; accel/sbvh.py)
     tile_culling: bool = False  # primary rays traced from tile frustum entry lists (passes/primary_rays.py)
+    # MSAA rounds leave a pixel with nothing in their slot as it is where exact (passes/primary_rays.py
+    # skips_empty_slots); False shades it as background of weight 0, the reference tests compare with
+    skip_empty_slots: bool = True
     # (effect, (material names, ...)) pairs, for the reasons --graph shows; not part of the key:
     # moving an effect to other materials compiles nothing new.
     users: tuple = field(default=(), compare=False)
@@ -90,6 +94,7 @@ class Sizing:
     assignments: tuple = ()
     max_ssbo_bytes: int = 0
     depth_layers: int = 1  # FramePlan.depth_layers
+    wave_buffer_bytes: int | None = None  # largest wavefront buffer (None: passes/trace_effect.py WAVE_BUFFER_BYTES)
 
     @property
     def pixels(self) -> int:
@@ -417,8 +422,7 @@ def check_fits(graph: CompiledGraph, sizing: Sizing, limits: DeviceLimits) -> No
     for _ in range(30):
         mid = (lo + hi) / 2
         size = (max(1, int(w * mid)), max(1, int(h * mid)))
-        if limit_problems(graph, Sizing(size, sizing.layers, sizing.scene, sizing.assignments,
-                                        sizing.max_ssbo_bytes, sizing.depth_layers), limits):
+        if limit_problems(graph, replace(sizing, size=size), limits):
             hi = mid
         else:
             lo = mid

@@ -26,7 +26,7 @@ import numpy as np
 
 from . import materials as materials_mod
 from . import shaders
-from .accumulation import MAX_DENOISE_ITERATIONS
+from .accumulation import MAX_DENOISE_ITERATIONS, temporal_problem
 from .camera import Pose, StereoRig, save_path
 from .gbuffer import NO_HIT
 
@@ -645,6 +645,10 @@ class Preview:
             return None
         layout = layout_for(self.state.stereo, fb, self.state.res_scale)
         rig = self.camera.rig(layout.eye_size)
+        if self.state.temporal and temporal_problem(rig.camera):
+            # G on a camera without planar frusta (Renderer.plan refuses temporal reprojection there)
+            self.config_error = f"{temporal_problem(rig.camera)}: G leaves it off"
+            self.state.temporal = False
         self._apply_noise_settings()
         if self.state.method != "dual" and self.renderer.settings.dof_diameter > 0:
             # depth of field blurs each eye's own frame (Renderer.plan refuses warp and reuse with it)

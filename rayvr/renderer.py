@@ -20,9 +20,9 @@ from . import materials as materials_mod
 from . import scene as scene_mod
 from . import stereo as stereo_mod
 from .accel.scene import SceneAccel
-from .accumulation import Accumulator, sample_seed
+from .accumulation import Accumulator, sample_seed, temporal_problem
 from .camera import StereoRig
-from .cameras import CAMERA_MODELS, Pinhole
+from .cameras import CAMERA_MODELS, DEFAULT_CAMERA_MODEL, get_camera_model
 from .context import GLContext, GpuError, create_context
 from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameTooLarge, Sizing, check_fits,
                     limit_problems)
@@ -69,12 +69,20 @@ def candidate_passes(plan: FramePlan) -> list:
 
 class Renderer:
     def __init__(self, scene=None, materials=None, *, gl: GLContext | None = None, backend: str | None = None,
-                 settings: RenderSettings | None = None):
+                 settings: RenderSettings | None = None, skip_empty_slots: bool = True,
+                 wave_buffer_bytes: int | None = None):
+        """`skip_empty_slots` (FramePlan) and `wave_buffer_bytes` (Sizing: the largest wavefront
+        buffer, default passes/trace_effect.py WAVE_BUFFER_BYTES) are for tests that compare the
+        fast paths with their references; the frames are the same either way."""
+        if wave_buffer_bytes is not None and not (isinstance(wave_buffer_bytes, int) and wave_buffer_bytes > 0):
+            raise ValueError(f"wave_buffer_bytes must be a positive whole number of bytes, got {wave_buffer_bytes!r}")
         self.scene = scene if isinstance(scene, scene_mod.Scene) else scene_mod.load(scene)
         self._owns_gl = gl is None
         self.gl = gl or create_context(backend)
         self.gl.make_current()  # every call of a Renderer into GL starts so (GLContext.make_current)
         self.settings = settings or RenderSettings()
+        self.skip_empty_slots = bool(skip_empty_slots)
+        self.wave_buffer_bytes = wave_buffer_bytes
         self.config = _as_config(materials)
         self.assignments = self.config.assign(self.scene.material_names())
         self.gpu_scene = GpuScene(self.gl, self.scene, self.assignments)
@@ -113,9 +121,10 @@ class Renderer:
         """The FramePlan this renderer's scene, config and settings give for `layers` eyes seen
         through `camera` (a rayvr.cameras model; default the pinhole). A camera a rasterizer cannot
         sample (not `rasterizable`), or sub-rays per sample (settings.msaa > 1: anti-aliasing), take
-        ray-cast primary visibility whatever the settings say.
+        ray-cast primary visibility whatever the settings say; such a camera refuses (ValueError)
+        temporal reprojection and depth of field, which need the eyes' planar frusta.
         `accumulate`: keep a running mean of samples (as `render(spp=N)`) whatever the settings say."""
-        camera = camera or Pinhole()
+        camera = camera or get_camera_model(DEFAULT_CAMERA_MODEL)
         if view not in VIEWS:
             raise ValueError(f"unknown view {view!r}; allowed: {', '.join(VIEWS)}")
         names = self.scene.material_names()
@@ -136,19 +145,23 @@ class Renderer:
             # the other models' rays are not that frame's (the dof model has a lens of its own)
             why = (f"the {camera.name} camera is not a pinhole" if not camera.rasterizable
                    else f"--stereo {stereo} makes an eye from the other's frame")
-            hint = "its aperture parameter" if camera.name == "dof" else "the pinhole camera and --stereo dual"
+            hint = (f"its {camera.lens_parameter} parameter" if camera.lens_parameter
+                    else "the pinhole camera and --stereo dual")
             raise ValueError(f"depth of field (--dof-diameter) blurs each eye's own pinhole frame, and {why}: use {hint}")
+        accumulates = color and (accumulate or st.accumulate or bool(denoise))
+        if accumulates and st.temporal and temporal_problem(camera):
+            raise ValueError(f"{temporal_problem(camera)}: leave out --temporal")
         warp = stereo == "warp"  # one central view is rendered; the warp pass makes both eyes from it
         return FramePlan(effects=self.effects_in_use(), view=view, layers=1 if warp else layers,
                          layer_mode=self.layer_mode, primary=primary, camera=camera.name, stereo=stereo,
                          output=stereo_mod.WARP_OUTPUT if warp else "ldr", users=users,
-                         accumulate=color and (accumulate or st.accumulate or bool(denoise)), denoise=denoise,
+                         accumulate=accumulates, denoise=denoise,
                          depth_layers=max(depth_layers(self.assignments), st.warp_layers if warp else 1),
                          second_layer=second, traversal=st.traversal, bvh_build=st.bvh_build,
                          dof=color and st.dof_diameter > 0,
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
                          tile_culling=st.culls_tiles(camera.name) and primary == "rays",
-                         channels=camera.channels, reconstruct=camera.sparse)
+                         channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots)
 
     def set_stereo(self, mode: str) -> None:
         """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/stereo.py)."""
@@ -162,7 +175,7 @@ class Renderer:
     def sizing(self, size, layers: int = 2, plan: FramePlan | None = None) -> Sizing:
         """What `plan`'s resources are sized by (its depth layers: warp may add one)."""
         return Sizing(tuple(size), layers, self.scene, tuple(self.assignments), self.gl.max_ssbo_bytes,
-                      plan.depth_layers if plan is not None else depth_layers(self.assignments))
+                      plan.depth_layers if plan is not None else depth_layers(self.assignments), self.wave_buffer_bytes)
 
     def record(self, rig: StereoRig, eyes: str = "both", view: str = "color", profile: bool = False,
                sample: int | None = None) -> FrameContext:

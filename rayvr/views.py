@@ -41,9 +41,10 @@ MAX_VIEWS = 1_000_000
 CONVENTION = ("OpenGL camera axes: +X right, +Y up, looking down -Z; camera_to_world maps camera to world "
               "coordinates; pixel rows top-down (cy from the top); depth files hold linear view depth "
               "along -Z, 0 = background")
-# The wide model's depth is the distance along each pixel's (unit) ray, as nerfstudio reads the
-# depth of its fisheye and equirectangular cameras, whose ray directions have length 1.
-WIDE_CONVENTION = CONVENTION.replace("linear view depth along -Z", "the distance along each pixel's ray")
+# The depth of a model whose depth is the distance along each pixel's (unit) ray (the wide one:
+# CameraModel.depth_along_ray), as nerfstudio reads the depth of its fisheye and equirectangular
+# cameras, whose ray directions have length 1.
+RAY_DEPTH_CONVENTION = CONVENTION.replace("linear view depth along -Z", "the distance along each pixel's ray")
 
 
 def _number(where: str, key: str, value, positive: bool = False) -> float:
@@ -247,52 +248,12 @@ def _views(spec: str, scene, rig: StereoRig) -> tuple[list[Pose], list]:
 
 PINHOLE_MODELS = ("OPENCV", "PINHOLE", "SIMPLE_PINHOLE")  # camera_model values of an undistorted pinhole
 DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
-NOT_DESCRIBED = "transforms.json (nerfstudio's camera models) cannot describe the {} camera: {}"
 
 
 def camera_model_fields(eye) -> dict:
-    """The camera model of one eye image as nerfstudio's transforms.json spells it: camera_model
-    and its intrinsics (pixels, rows top-down, centres at +0.5) and distortion, exactly the
-    camera rayvr renders; ValueError where none of those models is that camera.
-
-    nerfstudio (cameras/cameras.py) maps pixel (x, y) to c = ((x - cx) / fl_x, -(y - cy) / fl_y), then
-    OPENCV: direction (c, -1) after undistorting c (here no distortion: k = p = 0);
-    OPENCV_FISHEYE: theta = |c|, direction (sin(theta) c / theta, -cos(theta)) (k1..k4 = 0);
-    EQUIRECTANGULAR: yaw pi c_x, pitch pi c_y (any fl: sections of the sphere too)."""
-    cam, (w, h) = eye.camera, eye.size
-    name = cam.name
-    if name == "wide":
-        fx, fy = cam.field(eye)
-        if cam.mapping == "spherical":  # yaw a = (x / w - 1/2) fov_x is pi (x - cx) / fl_x
-            return {"camera_model": "EQUIRECTANGULAR", "fl_x": math.pi * w / fx, "fl_y": math.pi * h / fy,
-                    "cx": w / 2, "cy": h / 2}
-        # equidistant: the angle from the axis is |(a, b)|, a = (x - cx) / fl_x radians
-        fields = {"camera_model": "OPENCV_FISHEYE", "fl_x": w / fx, "fl_y": h / fy, "cx": w / 2, "cy": h / 2,
-                  "k1": 0.0, "k2": 0.0, "k3": 0.0, "k4": 0.0}
-        if math.hypot(fx, fy) / 2 > math.pi:  # the corners lie past 180 degrees, where rayvr makes no ray:
-            # nerfstudio then samples pixels within this radius of the centre only (a pixel inside, for its rounding)
-            fields["fisheye_crop_radius"] = math.pi * min(fields["fl_x"], fields["fl_y"]) - 1.0
-        return fields
-    if name == "distorted" and getattr(cam, "samples", None):
-        raise ValueError(NOT_DESCRIBED.format(name, f"its rays come from the measured sample file {cam.samples}"))
-    if name == "distorted" and any(any(k) for k in cam.coefficients):
-        raise ValueError(NOT_DESCRIBED.format(name, "its polynomial maps image points to view tangents, the inverse "
-                                                    "of OpenCV's radial model, around its own lens centre and per "
-                                                    "colour channel; use coefficients=0 (a pinhole) or the pinhole"))
-    if name == "dof" and cam.aperture > 0:
-        raise ValueError(NOT_DESCRIBED.format(name, f"its images are blurred by a lens of radius {cam.aperture:g}; "
-                                                    "use aperture=0 (a pinhole) or the pinhole"))
-    if name == "foveated":
-        raise ValueError(NOT_DESCRIBED.format(name, "its images are filled in between samples that thin out away "
-                                                    "from the gaze, and depth exists only at the samples; use the "
-                                                    "pinhole"))
-    if not cam.rasterizable and name not in ("distorted", "dof"):
-        raise ValueError(NOT_DESCRIBED.format(name, "no camera_model is written for it"))
-    # A planar frustum (pinhole, dof without aperture, distorted without distortion): OPENCV.
-    l, r, b, t = eye.tangents
-    return {"camera_model": "OPENCV", "fl_x": w / (r - l), "fl_y": h / (t - b), "cx": -l * w / (r - l),
-            "cy": t * h / (t - b), "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0,
-            "camera_angle_x": math.atan(r) - math.atan(l), "camera_angle_y": math.atan(t) - math.atan(b)}
+    """The camera model of one eye image as nerfstudio's transforms.json spells it: its model's
+    transforms_fields (rayvr/cameras/base.py); ValueError where none of nerfstudio's models is it."""
+    return eye.camera.transforms_fields(eye)
 
 
 def camera_record(eye) -> dict:
@@ -300,7 +261,7 @@ def camera_record(eye) -> dict:
     c2w = np.eye(4)
     c2w[:3, :3], c2w[:3, 3] = eye.rotation, eye.position
     return {"w": eye.size[0], "h": eye.size[1], **camera_model_fields(eye), "near": eye.near, "far": eye.far,
-            "camera_to_world": c2w.tolist(), "convention": WIDE_CONVENTION if eye.camera.name == "wide" else CONVENTION}
+            "camera_to_world": c2w.tolist(), "convention": RAY_DEPTH_CONVENTION if eye.camera.depth_along_ray else CONVENTION}
 
 
 def camera_json(eye) -> bytes:

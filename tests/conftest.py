@@ -34,6 +34,19 @@ def gl():
 
 
 @pytest.fixture
+def count_poll(monkeypatch):
+    """`count_poll(mode)`: how MSAA recording learns its round count from then on (passes/
+    primary_rays.py COUNT_POLL, a test hook each frame reads afresh: no program or resource depends
+    on it), restored after the test."""
+    from rayvr.passes import primary_rays
+
+    def set_poll(mode: str) -> None:
+        assert mode in primary_rays.COUNT_POLLS, f"COUNT_POLL is one of {primary_rays.COUNT_POLLS}, not {mode!r}"
+        monkeypatch.setattr(primary_rays, "COUNT_POLL", mode)
+    return set_poll
+
+
+@pytest.fixture
 def shared_scene():
     """Path to a file under ../shared/scenes, or skip when that folder is absent."""
     def get(rel: str) -> Path:

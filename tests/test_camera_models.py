@@ -337,3 +337,66 @@ def test_the_frame_reads_camera_capabilities_from_the_model_not_its_name(monkeyp
         plan = FramePlan(effects=frozenset({"ssr"}), view="quadtree_visits", camera=camera)
         assert (QuadtreePass().why(plan) is not None) == planar, camera
         assert (QuadtreeVisitsPass().why(plan) is not None) == planar, camera
+
+
+def test_a_model_registered_outside_rayvr_gets_its_declared_behaviour(monkeypatch, gl):
+    """Every capability the frame, the CLI and the camera files read is the model's declaration:
+    a model declared here, named like none of rayvr's, is refused --convergence, --temporal and
+    --aperture (pointing to its own lens parameter), writes ray-distance depth into transforms.json
+    and has no nerfstudio camera unless it says which; a planar copy of the pinhole keeps all."""
+    import argparse
+    from dataclasses import dataclass
+
+    from rayvr import Renderer
+    from rayvr.cameras.base import CameraModel
+    from rayvr.commands.args import camera_from_args
+    from rayvr.renderer import RenderSettings
+    from rayvr.views import camera_record
+
+    @dataclass(frozen=True)
+    class Angular(Pinhole):  # as a model registered from outside rayvr would be
+        name = "angular"
+        rasterizable = False
+        converges = False
+        depth_along_ray = True
+        lens_parameter = "iris"
+
+        def transforms_fields(self, eye):
+            raise self.not_described("it is made up for a test")
+
+    @dataclass(frozen=True)
+    class PlanarCopy(Pinhole):
+        name = "planar_copy"
+
+    @dataclass(frozen=True)
+    class Bare(CameraModel):
+        name = "bare"
+
+    for model in (Angular, PlanarCopy, Bare):
+        monkeypatch.setitem(CAMERA_MODELS, model.name, model)
+
+    def flags(model):
+        return argparse.Namespace(camera_model=model, camera_param=None, convergence=2.0, msaa=1, primary=None)
+    with pytest.raises(ValueError, match="--convergence .* the angular camera's eyes have none"):
+        camera_from_args(flags("angular"))
+    assert isinstance(camera_from_args(flags("planar_copy")), PlanarCopy)
+
+    with Renderer(gl=gl, settings=RenderSettings(accumulate=True, temporal=True)) as r:
+        with pytest.raises(ValueError, match="temporal reprojection .* the angular camera does not have"):
+            r.plan(camera=Angular())
+        assert r.plan(camera=PlanarCopy()).accumulate
+    with Renderer(gl=gl, settings=RenderSettings(dof_aperture=0.1)) as r:
+        with pytest.raises(ValueError, match="the angular camera is not a pinhole: use its iris parameter"):
+            r.plan(camera=Angular())
+        assert r.plan(camera=PlanarCopy()).dof
+
+    rig = StereoRig(POSE, fov_y=60, size=(8, 6), camera=PlanarCopy())
+    record = camera_record(rig.eye("left"))
+    assert record["camera_model"] == "OPENCV" and "view depth along -Z" in record["convention"]
+    angular_eye = StereoRig(POSE, fov_y=60, size=(8, 6), camera=Angular()).eye("left")
+    with pytest.raises(ValueError, match="cannot describe the angular camera: it is made up for a test"):
+        camera_record(angular_eye)
+    monkeypatch.setattr(Angular, "transforms_fields", PlanarCopy.transforms_fields)
+    assert "distance along each pixel's ray" in camera_record(angular_eye)["convention"]
+    with pytest.raises(ValueError, match="cannot describe the bare camera: no camera_model is written for it"):
+        Bare().transforms_fields(angular_eye)

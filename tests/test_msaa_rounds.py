@@ -1,8 +1,8 @@
 """MSAA rounds recorded without waiting for the GPU's round count (passes/primary_rays.py
-COUNT_POLL): the frame is bit-identical whether the count is known after the first round ("wait")
-or never while recording ("never": every channel set records msaa_slots rounds, those past the
-count skip every pixel), and whether empty slots are skipped or shaded as background of weight 0
-(SKIP_EMPTY_SLOTS); colour, depth and every aux channel."""
+COUNT_POLL, the conftest `count_poll` fixture): the frame is bit-identical whether the count is
+known after the first round ("wait") or never while recording ("never": every channel set records
+msaa_slots rounds, those past the count skip every pixel), and whether empty slots are skipped or
+shaded as background of weight 0 (FramePlan.skip_empty_slots); colour, depth and every aux channel."""
 import numpy as np
 import pytest
 
@@ -26,15 +26,15 @@ def room():
     return load(None)
 
 
-def frames(gl, room, settings, variants, camera=None, materials=None):
-    """One frame per (COUNT_POLL, SKIP_EMPTY_SLOTS) variant, each from a fresh Renderer (the select
+def frames(gl, room, count_poll, settings, variants, camera=None, materials=None):
+    """One frame per (COUNT_POLL, skip_empty_slots) variant, each from a fresh Renderer (the select
     is compiled with the variant), with its rounds recorded and needed per channel set and the
     last round's sample weights."""
     rig = StereoRig(POSE, ipd=0.064, fov_y=60, size=(32, 24), near=1e-3, **({"camera": camera} if camera else {}))
     out = []
     for poll, skip in variants:
-        primary_rays.COUNT_POLL, primary_rays.SKIP_EMPTY_SLOTS = poll, skip
-        with Renderer(room, materials, gl=gl, settings=settings) as r:
+        count_poll(poll)
+        with Renderer(room, materials, gl=gl, settings=settings, skip_empty_slots=skip) as r:
             frame = r.render(rig, aux=AUX)
             fc = r.record(rig)  # the same frame again, its rounds inspected
             r.gl.ctx.finish()
@@ -46,12 +46,6 @@ def frames(gl, room, settings, variants, camera=None, materials=None):
     return out
 
 
-@pytest.fixture(autouse=True)
-def restore(monkeypatch):
-    monkeypatch.setattr(primary_rays, "COUNT_POLL", primary_rays.COUNT_POLL)
-    monkeypatch.setattr(primary_rays, "SKIP_EMPTY_SLOTS", primary_rays.SKIP_EMPTY_SLOTS)
-
-
 def assert_same(a, b):
     for eye in ("left", "right"):
         np.testing.assert_array_equal(a[eye].color, b[eye].color)
@@ -61,7 +55,7 @@ def assert_same(a, b):
 
 
 @pytest.mark.parametrize("case", ["raster", "traced", "chromatic"])
-def test_msaa_frames_do_not_depend_on_when_the_round_count_is_known(gl, room, case):
+def test_msaa_frames_do_not_depend_on_when_the_round_count_is_known(gl, room, count_poll, case):
     """"traced": the room's own materials (mirror reflections, glossy, shadows: classify drops the
     skipped pixels from the effects' lists); "chromatic": three colour channel sets, each with its
     own count. The reference is the old schedule: count read after the first round (waiting), empty
@@ -69,7 +63,8 @@ def test_msaa_frames_do_not_depend_on_when_the_round_count_is_known(gl, room, ca
     materials = "rayvr/assets/default_room.toml" if case == "traced" else None
     camera = Distorted(coefficients=((0.1, 0.0, 0.0), (0.2, 0.0, 0.0), (0.3, 0.0, 0.0))) if case == "chromatic" else None
     (ref, ref_rounds, _), (late, late_rounds, late_w), (skip, skip_rounds, skip_w) = frames(
-        gl, room, RenderSettings(msaa=8), [("wait", False), ("never", True), ("wait", True)], camera, materials)
+        gl, room, count_poll, RenderSettings(msaa=8), [("wait", False), ("never", True), ("wait", True)], camera,
+        materials)
     slots = primary_rays.msaa_slots(FramePlan(frozenset(), samples=8))
     assert len(ref_rounds) == (3 if case == "chromatic" else 1)
     for recorded, needed in ref_rounds:
@@ -87,23 +82,34 @@ def test_msaa_frames_do_not_depend_on_when_the_round_count_is_known(gl, room, ca
     assert_same(skip, ref)
 
 
-def test_fence_poll_counts_rounds_and_renders_the_same(gl, room):
+def test_fence_poll_counts_rounds_and_renders_the_same(gl, room, count_poll):
     """The default schedule (a zero-timeout fence poll after each round) records between the
     needed rounds and msaa_slots, and gives the reference frame."""
-    (ref, ref_rounds, _), (got, rounds, _) = frames(gl, room, RenderSettings(msaa=4), [("wait", True), ("fence", True)])
+    (ref, ref_rounds, _), (got, rounds, _) = frames(gl, room, count_poll, RenderSettings(msaa=4), [("wait", True), ("fence", True)])
     ((recorded, needed),) = rounds
     assert [needed] == [n for _, n in ref_rounds] and needed <= recorded <= 4
     assert_same(got, ref)
 
 
-def test_ssr_frames_keep_empty_slots_as_background(gl, room):
+def test_ssr_frames_keep_empty_slots_as_background(gl, room, count_poll):
     """ssr traces the round's whole depth pyramid: empty slots are not skipped there (another
     pixel's G-buffer is read), rounds past the count still are; frames identical early or late."""
     cfg = parse_config({"materials": {"floor": {"effect": "ssr"}}}, "<msaa ssr test>")
     plan = FramePlan(frozenset({"ssr"}), samples=4)
     assert not primary_rays.skips_empty_slots(plan)
     assert primary_rays.skips_empty_slots(FramePlan(frozenset({"glossy", "shadows"}), samples=4))
-    (ref, ref_rounds, _), (late, late_rounds, _) = frames(gl, room, RenderSettings(msaa=4), [("wait", True), ("never", True)],
+    (ref, ref_rounds, _), (late, late_rounds, _) = frames(gl, room, count_poll, RenderSettings(msaa=4), [("wait", True), ("never", True)],
                                                           materials=cfg)
     assert late_rounds[0][0] == 4 and ref_rounds[0][0] == ref_rounds[0][1]
     assert_same(late, ref)
+
+
+def test_the_empty_slot_choice_keys_the_compiled_frame(gl, room):
+    """skip_empty_slots compiles into the MSAA select (MSAA_SKIP_EMPTY), so it is part of the frame
+    plan: a renderer given either value compiles its own graph for it, never the other's."""
+    with Renderer(room, gl=gl, settings=RenderSettings(msaa=4)) as fast, \
+            Renderer(room, gl=gl, settings=RenderSettings(msaa=4), skip_empty_slots=False) as reference:
+        skip, shade = fast.plan(), reference.plan()
+        assert skip.skip_empty_slots and not shade.skip_empty_slots and skip != shade
+        assert primary_rays.skips_empty_slots(skip) and not primary_rays.skips_empty_slots(shade)
+        assert fast.compiled(skip) is fast.compiled(skip) and fast.compiled(shade) is not fast.compiled(skip)

@@ -702,3 +702,24 @@ def test_preview_accumulates_while_still_and_a_move_starts_over(worker):
     assert out["moved"] == 0
     denoised, on, sample = out["denoise"]
     assert on and set(denoised) == {"shadows", "glossy"} and sample == 0  # a settings change starts over too
+
+
+def _temporal_key(camera):
+    import glfw
+
+    p = _preview(size=(64, 24), materials="rayvr/assets/default_room.toml", hud=True, rig_options={"camera": camera})
+    try:
+        p.frame()
+        _press(p, glfw.KEY_G)
+        p.frame()
+        return p.state.temporal, p.renderer.settings.temporal, p.config_error
+    finally:
+        p.close()
+
+
+def test_temporal_key_on_a_camera_it_cannot_reproject_stays_off_with_a_note(worker):
+    """G asks for temporal reprojection, which Renderer.plan refuses for a camera without planar
+    frusta: the preview keeps rendering with it off and says why; the pinhole takes it."""
+    state, setting, note = worker(_temporal_key, "wide")
+    assert not state and not setting and "temporal reprojection" in note and "wide camera" in note, note
+    assert worker(_temporal_key, "pinhole") == (True, True, None)

@@ -19,9 +19,10 @@ from rayvr.scene import Light, Material, from_arrays, load
 DARK = RenderSettings(ambient=(0.0, 0.0, 0.0), background=(0.0, 0.0, 0.0))
 
 
-def render(gl, scene, rig, config=None, settings=None, aux=("triangle", "material", "position")):
-    """The frame, its HDR colour ((eyes, H, W, 3) float32, rows top-down) and the passes that ran."""
-    r = Renderer(scene, parse_config(config or {}, "test"), gl=gl, settings=settings or RenderSettings())
+def render(gl, scene, rig, config=None, settings=None, aux=("triangle", "material", "position"), **renderer):
+    """The frame, its HDR colour ((eyes, H, W, 3) float32, rows top-down) and the passes that ran;
+    `renderer`: the Renderer's other keywords."""
+    r = Renderer(scene, parse_config(config or {}, "test"), gl=gl, settings=settings or RenderSettings(), **renderer)
     try:
         frame = r.render(rig, aux=tuple(aux) + ("hdr",))
         hdr = np.stack([frame.left.aux["hdr"], frame.right.aux["hdr"]])
@@ -449,7 +450,7 @@ def test_refit_moves_what_rays_see(gl, gpu_refit):
 
 # ------------------------------------------------------------------------------ wavefront buffers
 
-def test_wave_batches_and_shadow_chunks_give_the_same_image(gl, monkeypatch):
+def test_wave_batches_and_shadow_chunks_give_the_same_image(gl):
     """Effect passes under a tiny buffer limit (pixel list in batches, each surface's shadow rays
     in chunks) render what they render in one go, up to float summation order."""
     from rayvr.passes import trace_effect
@@ -462,9 +463,24 @@ def test_wave_batches_and_shadow_chunks_give_the_same_image(gl, monkeypatch):
     limit = 30_000
     batch, _, hit_chunk = trace_effect.wave_plan(40 * 30 * 2, 2, 3, limit)
     assert batch < 40 * 30 * 2 and hit_chunk < 3  # the limit does split both ways
-    monkeypatch.setattr(trace_effect, "WAVE_BUFFER_BYTES", limit)
-    _, split, _ = render(gl, scene, rig, cfg)
+    _, split, _ = render(gl, scene, rig, cfg, wave_buffer_bytes=limit)
     assert np.allclose(split, whole, rtol=2e-3, atol=1e-4), np.abs(split - whole).max()
+
+
+def test_the_wave_buffer_limit_is_the_renderers_and_sizes_its_buffers(gl):
+    """Renderer(wave_buffer_bytes=N) reaches the frame's sizing: its wavefront buffers stay within N
+    where another renderer's hold the whole frame at once; a limit that is no size is refused."""
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(40, 30))
+    cfg = parse_config(everything("glossy", samples=2), "test")
+    limit = 30_000
+    with Renderer(scene, cfg, gl=gl, wave_buffer_bytes=limit) as small, Renderer(scene, cfg, gl=gl) as whole:
+        small.render(rig)
+        whole.render(rig)
+        for name in ("rt_wave.glossy.paths", "rt_wave.glossy.shadows"):
+            assert small.resource(name).size <= limit < whole.resource(name).size, name
+    with pytest.raises(ValueError, match="wave_buffer_bytes must be a positive whole number of bytes, got 0"):
+        Renderer(scene, cfg, gl=gl, wave_buffer_bytes=0)
 
 
 def test_wave_plan_respects_the_limit():
@@ -624,11 +640,10 @@ def test_shadow_chunks_follow_each_events_own_rays(gl, monkeypatch):
     rig = StereoRig.for_scene(scene, size=(24, 18))
     cfg = {"default": "path", "params": {"path": {"samples": 4, "bounces": 2, "area_samples": 2}}}
     _, whole, _ = render(gl, scene, rig, cfg)
-    monkeypatch.setattr(trace_effect, "WAVE_BUFFER_BYTES", 24 * 18 * 2 * 4 * trace_effect.SLOT_BYTES)
     hits = []
     real_run = moderngl.ComputeShader.run_indirect
 
-    with Renderer(scene, parse_config(cfg, "<t>"), gl=gl) as r:
+    with Renderer(scene, parse_config(cfg, "<t>"), gl=gl, wave_buffer_bytes=24 * 18 * 2 * 4 * trace_effect.SLOT_BYTES) as r:
         plan = r.plan(2, "color", rig.eyes()[0].camera)
         shape = trace_effect.WaveShape(EFFECTS["path"], r.sizing(rig.size, 2, plan))
         assert shape.slots == rects * 2 * 4 + others and shape.hit_slots == rects * 2 + others

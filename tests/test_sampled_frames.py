@@ -224,7 +224,7 @@ def test_msaa_lists_ignore_what_the_buffer_held_before(gl, room):
 
 
 @pytest.mark.parametrize("poll", ["wait", "fence"])
-def test_msaa_rounds_are_counted_once_the_first_round_is_recorded(gl, room, monkeypatch, poll):
+def test_msaa_rounds_are_counted_once_the_first_round_is_recorded(gl, room, monkeypatch, count_poll, poll):
     """The CPU reads the MSAA round count after the first round's passes are all recorded (the GPU
     works through them meanwhile), at most once per frame; the rounds are still one per distinct
     triangle once it is known. "wait": the count is there as soon as it is asked for (llvmpipe's
@@ -233,7 +233,7 @@ def test_msaa_rounds_are_counted_once_the_first_round_is_recorded(gl, room, monk
     from rayvr.passes import primary_rays
     from rayvr.passes.sample_accumulate import SampleAccumulatePass
 
-    monkeypatch.setattr(primary_rays, "COUNT_POLL", poll)
+    count_poll(poll)
 
     events = []
     accumulate = SampleAccumulatePass.execute

@@ -65,12 +65,13 @@ def _bvh(args, out, camera_from_args):
 
 
 def _primary(args, out, camera_from_args):
+    from ..cameras import DEFAULT_CAMERA_MODEL
     from . import primary
 
     quick = args.quick
     # A --camera-model / --camera-param / --fov given: that camera (and the raster reference) only;
     # any subset (that, --configs, --counts, --msaa): the bench views' rows alone, not Table 5's.
-    custom = args.camera_model != "pinhole" or args.camera_param or args.fov is not None
+    custom = args.camera_model != DEFAULT_CAMERA_MODEL or args.camera_param or args.fov is not None
     subset = custom or args.configs or args.counts or args.msaa
     counts = args.counts or ((args.msaa,) if args.msaa else (1, 4) if quick else None)
     primary.run(out, size=(32, 24) if quick else args.size, scenes=_scenes(args),

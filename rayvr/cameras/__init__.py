@@ -18,6 +18,7 @@ from .thin_lens import ThinLens
 from .wide import Wide
 
 CAMERA_MODELS.update({m.name: m for m in (Pinhole, Distorted, Wide, Foveated, ThinLens)})
+DEFAULT_CAMERA_MODEL = Pinhole.name  # what a rig, a frame plan and --camera-model take when none is named
 # The values of the CAMERA_MODEL define (glsl/common/camera.glsl): CAMERA_<NAME> = 1, 2, ... in this order.
 for _id, _name in enumerate(CAMERA_MODELS, 1):
     declare(f"CAMERA_{_name.upper()}", _id)
@@ -71,5 +72,5 @@ def parse_camera_params(name: str, items) -> dict:
     return out
 
 
-__all__ = ["CAMERA_MODELS", "CameraModel", "CameraRays", "Distorted", "Foveated", "Pinhole", "ThinLens", "Wide",
+__all__ = ["CAMERA_MODELS", "DEFAULT_CAMERA_MODEL", "CameraModel", "CameraRays", "Distorted", "Foveated", "Pinhole", "ThinLens", "Wide",
            "get_camera_model", "parse_camera_params"]

@@ -33,6 +33,7 @@ GLSL uniform camera_channel) and take channel c of each set's colour (passes/sam
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
@@ -94,6 +95,18 @@ class CameraModel:
     # the frame's tile frustum culling is on by default at several sub-rays per sample (where it
     # measured faster on the H200: RenderSettings.culls_tiles)
     culls_tiles_by_default: ClassVar[bool] = True
+    # the eyes' images lie on planar frusta that StereoRig.convergence shears off-axis (zero parallax
+    # at a distance); False: the eyes map angles and stay parallel, and --convergence is refused
+    converges: ClassVar[bool] = True
+    # depth (frames, G-buffer) is the distance along each pixel's ray, not the view depth along -Z
+    # (near and far are spheres): what the written camera files say their depth is
+    depth_along_ray: ClassVar[bool] = False
+    # a field of view past what a planar frustum holds (up to and beyond 180 degrees): the model the
+    # planar models' errors advise for such fields
+    wide_angle: ClassVar[bool] = False
+    # the model's own parameter for a lens (depth of field), if it has one: what the refusal of
+    # the frame's --aperture blur points to instead
+    lens_parameter: ClassVar[str | None] = None
     glsl: ClassVar[str]  # the model's GLSL file, relative to rayvr/glsl/
     channels: ClassVar[int] = 1  # colour channel sets (a model may make it a property)
     sparse: ClassVar[bool] = False  # samples leave pixels between them, filled in for display (passes/sample_resolve.py)
@@ -174,6 +187,30 @@ class CameraModel:
     def bind(self, gl) -> None:
         """Bind GL resources the model's GLSL reads (textures); nothing by default."""
 
+    # -- camera files -------------------------------------------------------------------
+    def transforms_fields(self, eye: "EyeView") -> dict:
+        """The camera of one eye image as nerfstudio's transforms.json spells it (rayvr/views.py):
+        camera_model, its intrinsics (pixels, rows top-down, centres at +0.5) and distortion,
+        exactly the camera rayvr renders; ValueError (not_described) where none of nerfstudio's
+        models is this camera, as by default.
+
+        nerfstudio (cameras/cameras.py) maps pixel (x, y) to c = ((x - cx) / fl_x, -(y - cy) / fl_y), then
+        OPENCV: direction (c, -1) after undistorting c (here no distortion: k = p = 0);
+        OPENCV_FISHEYE: theta = |c|, direction (sin(theta) c / theta, -cos(theta)) (k1..k4 = 0);
+        EQUIRECTANGULAR: yaw pi c_x, pitch pi c_y (any fl: sections of the sphere too)."""
+        raise self.not_described("no camera_model is written for it")
+
+    def not_described(self, why: str) -> ValueError:
+        """The error of transforms_fields for a camera nerfstudio's models cannot describe."""
+        return ValueError(f"transforms.json (nerfstudio's camera models) cannot describe the {self.name} camera: {why}")
+
+
+def planar_transforms_fields(eye: "EyeView") -> dict:
+    """transforms_fields of an eye's undistorted planar frustum (its tangents): OPENCV."""
+    (w, h), (l, r, b, t) = eye.size, eye.tangents
+    return {"camera_model": "OPENCV", "fl_x": w / (r - l), "fl_y": h / (t - b), "cx": -l * w / (r - l),
+            "cy": t * h / (t - b), "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0,
+            "camera_angle_x": math.atan(r) - math.atan(l), "camera_angle_y": math.atan(t) - math.atan(b)}
 
 # The camera models by name (their registration order is the CAMERA_* enum's): filled by the package
 # (rayvr/cameras/__init__.py), which imports every model, so a model reads the others' traits here.

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..inputs import MAX_IMAGE_SIDE, read_text
 from ..limits import check_range, to_float32
-from .base import CameraModel, normalize
+from .base import CameraModel, normalize, planar_transforms_fields
 from .pinhole import MAX_TANGENT, check_planar_rig
 
 # Per channel R, G, B: a pincushion lens of a consumer HMD class, blue bent most.
@@ -211,6 +211,15 @@ class Distorted(CameraModel):
             s = new
         scale = np.where(rho > 0, s / np.where(rho > 0, rho, 1.0), 1.0)
         return center + rel * scale[..., None]
+
+    def transforms_fields(self, eye) -> dict:
+        if self.samples:
+            raise self.not_described(f"its rays come from the measured sample file {self.samples}")
+        if any(any(k) for k in self.coefficients):
+            raise self.not_described("its polynomial maps image points to view tangents, the inverse of OpenCV's "
+                                     "radial model, around its own lens centre and per colour channel; use "
+                                     "coefficients=0 (a pinhole) or the pinhole")
+        return planar_transforms_fields(eye)  # no distortion: the pinhole's panel
 
     def check_rig(self, rig) -> None:
         if self._table is not None:

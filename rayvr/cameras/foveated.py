@@ -69,6 +69,10 @@ class Foveated(Pinhole):
 
     rays = CameraModel.rays  # the generic path: footprints and the sample mask
 
+    def transforms_fields(self, eye) -> dict:
+        raise self.not_described("its images are filled in between samples that thin out away from the gaze, and "
+                                 "depth exists only at the samples; use the pinhole")
+
     def __post_init__(self):
         g = tuple(float(v) for v in self.gaze)
         if len(g) != 2 or not all(0.0 <= v <= 1.0 for v in g):

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import CAMERA_MODELS, CameraModel, CameraRays, normalize
+from .base import CAMERA_MODELS, CameraModel, CameraRays, normalize, planar_transforms_fields
 
 # Largest frustum tangent (x / -z at an image edge) the pinhole takes. Beyond it float32 clip
 # coordinates (raster) and pixel-ray directions (rays) lose the pixel and the two primary
@@ -34,7 +34,7 @@ def planar_directions(eye, x, y) -> np.ndarray:
 
 
 def _wide_angle_advice() -> str:
-    wide = [name for name, model in CAMERA_MODELS.items() if getattr(model, "wide_angle", False)]
+    wide = [name for name, model in CAMERA_MODELS.items() if model.wide_angle]
     return (f"use a wide-angle camera model ({', '.join(wide)})" if wide else
             "wider views need a wide-angle camera model, which this rayvr does not have yet")
 
@@ -83,6 +83,9 @@ class Pinhole(CameraModel):
 
     def check_rig(self, rig) -> None:
         check_planar_rig(rig)
+
+    def transforms_fields(self, eye) -> dict:
+        return planar_transforms_fields(eye)
 
     def ray_at(self, eye, channel, x, y, lens):
         d = planar_directions(eye, x, y)

@@ -29,6 +29,7 @@ class ThinLens(Pinhole):
     name = "dof"
     rasterizable = False
     culls_tiles_by_default = False  # lens rays widen the tiles' frusta: slower in the room at every focus (H200)
+    lens_parameter = "aperture"
     glsl = "cameras/thin_lens.glsl"
     doc = "thin-lens depth of field (aperture radius, focus distance); lens positions per sub-ray"
     aperture: float = 0.01  # lens radius, world units
@@ -54,6 +55,12 @@ class ThinLens(Pinhole):
                 raise ValueError(f"dof camera: aperture {self.aperture:g} is wider than {widest:.3g}, where float32 "
                                  f"rounding of the lens rays moves them {LENS_PIXEL_FRACTION:g} of a pixel at focus "
                                  f"{self.focus:g} on the {eye.name} eye's {eye.size[0]}x{eye.size[1]} image")
+
+    def transforms_fields(self, eye) -> dict:
+        if self.aperture > 0:
+            raise self.not_described(f"its images are blurred by a lens of radius {self.aperture:g}; use aperture=0 "
+                                     "(a pinhole) or the pinhole")
+        return super().transforms_fields(eye)  # a pinhole
 
     def ray_at(self, eye, channel, x, y, lens):
         d = planar_directions(eye, x, y)

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 
@@ -27,7 +26,9 @@ MAPPINGS = ("spherical", "equidistant")
 class Wide(CameraModel):
     name = "wide"
     glsl = "cameras/wide.glsl"
-    wide_angle: ClassVar[bool] = True
+    wide_angle = True
+    converges = False  # angles, not planar frusta: nothing to shear
+    depth_along_ray = True
     doc = "wide field of view past 180 degrees: spherical section or equidistant fisheye"
     mapping: str = "spherical"  # spherical | equidistant
     fov_x: float | None = None  # horizontal degrees (None: fov_y x width / height)
@@ -43,6 +44,20 @@ class Wide(CameraModel):
         w, h = eye.size
         fy = math.radians(eye.fov_y)
         return (math.radians(self.fov_x) if self.fov_x is not None else fy * w / h), fy
+
+    def transforms_fields(self, eye) -> dict:
+        w, h = eye.size
+        fx, fy = self.field(eye)
+        if self.mapping == "spherical":  # yaw a = (x / w - 1/2) fov_x is pi (x - cx) / fl_x
+            return {"camera_model": "EQUIRECTANGULAR", "fl_x": math.pi * w / fx, "fl_y": math.pi * h / fy,
+                    "cx": w / 2, "cy": h / 2}
+        # equidistant: the angle from the axis is |(a, b)|, a = (x - cx) / fl_x radians
+        fields = {"camera_model": "OPENCV_FISHEYE", "fl_x": w / fx, "fl_y": h / fy, "cx": w / 2, "cy": h / 2,
+                  "k1": 0.0, "k2": 0.0, "k3": 0.0, "k4": 0.0}
+        if math.hypot(fx, fy) / 2 > math.pi:  # the corners lie past 180 degrees, where rayvr makes no ray:
+            # nerfstudio then samples pixels within this radius of the centre only (a pixel inside, for its rounding)
+            fields["fisheye_crop_radius"] = math.pi * min(fields["fl_x"], fields["fl_y"]) - 1.0
+        return fields
 
     def check_rig(self, rig) -> None:
         if rig.eye_tangents:

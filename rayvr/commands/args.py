@@ -96,10 +96,10 @@ def add_rig_arguments(p: argparse.ArgumentParser) -> None:
 def add_camera_model_arguments(p: argparse.ArgumentParser) -> None:
     """The camera model and its parameters (capture, preview, bench, info --graph); its sub-rays
     (--msaa, --ssaa, --tile-culling) are render options."""
-    from ..cameras import CAMERA_MODELS
+    from ..cameras import CAMERA_MODELS, DEFAULT_CAMERA_MODEL
 
     g = p.add_argument_group("camera model")
-    g.add_argument("--camera-model", choices=tuple(CAMERA_MODELS), default="pinhole",
+    g.add_argument("--camera-model", choices=tuple(CAMERA_MODELS), default=DEFAULT_CAMERA_MODEL,
                    help="how each eye makes its rays; every model but the pinhole casts its primary rays "
                         "(" + "; ".join(f"{n}: {m.doc}" for n, m in CAMERA_MODELS.items() if m.doc) + ")")
     g.add_argument("--camera-param", action="append", metavar="KEY=VALUE",
@@ -131,12 +131,12 @@ def settings_from_args(args, command: str, config=None, **fixed):
 def camera_from_args(args, settings=None, given: dict | None = None):
     """The camera model --camera-model and --camera-param ask for; `settings` (and the options
     `given`) are checked against it."""
-    from ..cameras import get_camera_model, parse_camera_params
+    from ..cameras import CAMERA_MODELS, get_camera_model, parse_camera_params
 
-    if getattr(args, "convergence", None) is not None and args.camera_model == "wide":
-        # The wide camera maps angles, not a planar frustum: there is nothing to shear (cameras/wide.py).
-        raise ValueError("--convergence shears the eyes' planar frusta to zero parallax at a distance; the wide "
-                         "camera's eyes have none and stay parallel: leave out --convergence")
+    if getattr(args, "convergence", None) is not None and not CAMERA_MODELS[args.camera_model].converges:
+        # a model that maps angles has no planar frustum to shear (CameraModel.converges)
+        raise ValueError(f"--convergence shears the eyes' planar frusta to zero parallax at a distance; the "
+                         f"{args.camera_model} camera's eyes have none and stay parallel: leave out --convergence")
     camera = get_camera_model(args.camera_model, **parse_camera_params(args.camera_model, args.camera_param))
     msaa = settings.msaa if settings is not None else getattr(args, "msaa", None) or 1
     if (given or {}).get("primary") == "raster" and (msaa > 1 or not camera.rasterizable):

@@ -110,7 +110,6 @@ def print_capture(args, summary, summary_path, scene_summary) -> None:
 
 
 def cmd_capture(args) -> int:
-    from ..cameras import CAMERA_MODELS
     from ..capture import CaptureJob, JobFolder, job_identity, run_capture, write_summary
     from ..materials import load_config
     from ..output import check_output_dir
@@ -133,9 +132,6 @@ def cmd_capture(args) -> int:
         if settings.temporal:
             raise ValueError("--temporal carries each frame's samples into the next, so its frames render in "
                              "order in one process; leave out --workers")
-    if settings.temporal and not CAMERA_MODELS[args.camera_model].rasterizable:
-        raise ValueError(f"--temporal reprojects the last frame's samples through the eyes' planar frusta, "
-                         f"which the {args.camera_model} camera does not have: leave out --temporal")
     check_output_dir(args.out)  # fail before any rendering work; the folder is made with the first file
     if args.quiet:
         from ..accel.sbvh import set_progress_bars

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from .. import shaders
 from ..accumulation import HISTORY_CAP
-from ..cameras import CAMERA_MODELS
 from ..frame import FramePlan, Pass, Texture, read, write
 from ..glsl_constants import declare
 from ..gpu_layout import IMAGE
@@ -58,8 +57,7 @@ class AccumulatePass(Pass):
 
     def execute(self, fc) -> None:
         state = fc.samples
-        # the history is reprojected through the eyes' planar frusta
-        temporal = bool(fc.settings.temporal) and CAMERA_MODELS[fc.plan.camera].rasterizable
+        temporal = bool(fc.settings.temporal)  # (Renderer.plan refuses it where the camera cannot reproject)
         p = self.programs[int(temporal)]
         # a moved camera this pass cannot reproject for starts over
         p["reset"].value = int(state is None or state.reset or (state.moved and not temporal))

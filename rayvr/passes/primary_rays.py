@@ -25,8 +25,8 @@ visibility: the round's gbuffer resolve, shade, classify and sample_accumulate l
 alone, so the G-buffer stays the slot-0 round's and nothing is added. The frame is bit-identical
 however late the count is known (tests force both ends through COUNT_POLL). Empty slots above 0
 (a pixel with fewer triangles than the count, most pixels in most rounds) are skipped the same
-way where exact (`skips_empty_slots`): instead of a background resolved, shaded and added with
-weight 0, a 4-byte weight read per pass.
+way where exact (`skips_empty_slots`, FramePlan.skip_empty_slots): instead of a background
+resolved, shaded and added with weight 0, a 4-byte weight read per pass.
 
 Tile frustum culling (FramePlan.tile_culling, RenderSettings.tile_culling, `--tile-culling`; by
 default where it measured faster on the H200, RenderSettings.culls_tiles): each channel set's first
@@ -90,9 +90,10 @@ SAMPLE_WEIGHT = Texture("r32f")
 # How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without
 # waiting; "wait" reads it after the first round, waiting for the GPU; "never" does not read it
 # (every channel then records msaa_slots rounds). Frames are identical under all three (tests).
+# A test hook, not a setting: read afresh by each frame (no program or resource depends on it),
+# set only through tests/conftest.py's `count_poll` fixture.
 COUNT_POLLS = ("fence", "wait", "never")
 COUNT_POLL = "fence"
-SKIP_EMPTY_SLOTS = True  # False: empty slots above 0 are shaded as background of weight 0 (tests compare)
 
 
 def msaa_block(samples: int) -> tuple[int, int]:
@@ -156,7 +157,7 @@ def skips_empty_slots(plan: FramePlan) -> bool:
     instead of making them background of weight 0. Exact when no pass of the round reads another
     pixel's G-buffer: the one that does is the screen-space quadtree (its effects, ssr; stereo
     reuse, the other, takes no MSAA). Slot 0, the last real round, writes every pixel."""
-    return SKIP_EMPTY_SLOTS and not any(EFFECTS[e].uses_quadtree for e in plan.effects if e in EFFECTS)
+    return plan.skip_empty_slots and not any(EFFECTS[e].uses_quadtree for e in plan.effects if e in EFFECTS)
 
 
 def round_skip_reads(plan: FramePlan) -> list:

@@ -29,7 +29,9 @@ WAVE_PARAMS = (WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES)
 
 # Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.
 PATH_BYTES, SLOT_BYTES = 80, 48
-WAVE_BUFFER_BYTES = 1 << 30  # largest wavefront buffer: the device's storage-block limit or this
+# Largest wavefront buffer: the device's storage-block limit or this (Sizing.wave_buffer_bytes, from
+# Renderer(wave_buffer_bytes=...), gives another: tests split the waves with a small one).
+WAVE_BUFFER_BYTES = 1 << 30
 
 
 def wave_plan(pixel_capacity: int, paths_per_pixel: int, slots: int, limit: int,
@@ -82,7 +84,8 @@ class WaveShape:
         # A hit event lights its surface with `area_samples` points per rect light, never the
         # pixel event's set per path: its shadow rays fill the first hit_slots slots only.
         self.hit_slots = shadow_rays(prm[WAVE_AREA_SAMPLES])
-        limit = min(s.max_ssbo_bytes or WAVE_BUFFER_BYTES, WAVE_BUFFER_BYTES)
+        cap = s.wave_buffer_bytes or WAVE_BUFFER_BYTES
+        limit = min(s.max_ssbo_bytes or cap, cap)
         self.capacity_pixels = s.pixels
         self.batch, self.chunk, self.hit_chunk = wave_plan(s.pixels, self.paths_per_pixel, self.slots, limit,
                                                            self.hit_slots)
