@@ -2,8 +2,10 @@
 
 An effect declares, in one place:
   name, id        the config name; the value the G-buffer's effect channel holds for its pixels
-  params          typed parameters (type, range, default, doc): config validation and the GPU
-                  parameter block (8 words per material, floats included) are generated from them
+  params          typed parameters (type, range, default, doc, scope): config validation and the
+                  GPU parameter block (8 words per material, floats included) are generated from
+                  them; a frame-scoped one takes no word: one value per frame, reduced over the
+                  materials that use the effect (Param.reduce), reaches its programs as a uniform
   traced          True when its own passes shade its pixels from a pixel list (the `classify`
                   pass lists them; the `shade` pass skips them); False: `shade` lights them
   denoised        (traced effects) whether `--denoise` filters its pixels by default
@@ -35,6 +37,13 @@ from . import gpu_layout
 from .gpu_layout import BACKGROUND_EFFECT, MAX_EFFECT_ID, PARAM_WORDS  # noqa: F401  (the registry's names too)
 
 PARAM_TYPES = (int, float)
+# Where a parameter's value lives: "material", a word of each material's GPU block (the shaders read
+# material_param_int/float); "frame", one value per frame for every material of the effect (a
+# uniform `param_<name>` of its programs, frame_uniforms), made from theirs by the param's reducer.
+PARAM_SCOPES = ("material", "frame")
+# A frame-scoped parameter's one value from the values of the materials that use the effect:
+# the largest, the smallest, or "agree": they must give the same one (else a config error naming them).
+REDUCERS = {"max": max, "min": min, "agree": None}
 
 
 @dataclass(frozen=True)
@@ -44,10 +53,20 @@ class Param:
     lo: float | None = None
     hi: float | None = None
     doc: str = ""
+    scope: str = "material"  # PARAM_SCOPES
+    reduce: str | None = None  # frame scope: a REDUCERS key (default "agree"); material scope: None
 
     def __post_init__(self):
         if self.kind not in PARAM_TYPES:
             raise TypeError(f"effect parameters are int or float, got {self.kind!r}")
+        if self.scope not in PARAM_SCOPES:
+            raise TypeError(f"an effect parameter's scope is one of {', '.join(PARAM_SCOPES)}, got {self.scope!r}")
+        if self.scope == "material" and self.reduce is not None:
+            raise TypeError("a material-scoped parameter has a value per material: it takes no reducer")
+        if self.scope == "frame":
+            object.__setattr__(self, "reduce", self.reduce or "agree")
+            if self.reduce not in REDUCERS:
+                raise TypeError(f"a frame parameter's reducer is one of {', '.join(REDUCERS)}, got {self.reduce!r}")
 
     def allowed_range(self) -> str:
         return f"[{'-inf' if self.lo is None else self.lo}, {'inf' if self.hi is None else self.hi}]"
@@ -85,8 +104,8 @@ class Effect:
 
     # -- the GPU parameter block -------------------------------------------------------
     def param_slots(self) -> dict:
-        """parameter -> word in the material's parameter block (declaration order)."""
-        return {k: i for i, k in enumerate(self.params)}
+        """material-scoped parameter -> word in the material's parameter block (declaration order)."""
+        return {k: i for i, k in enumerate(k for k, p in self.params.items() if p.scope == "material")}
 
     def param_defines(self) -> dict:
         """PARAM_<NAME> = slot, for the effect's own shaders (read with material_param_int/float)."""
@@ -100,6 +119,34 @@ class Effect:
             fmt = "<i" if self.params[k].kind is int else "<f"
             words[i] = struct.unpack("<I", struct.pack(fmt, v))[0]
         return words
+
+    # -- frame-scoped parameters ---------------------------------------------------------
+    def frame_values(self, users) -> dict:
+        """The frame's value of each frame-scoped parameter from `users`, (material, its params)
+        pairs of the materials that use this effect, by the parameter's reducer (its default
+        without users). EffectError naming the materials where an "agree" parameter differs."""
+        out = {}
+        for k, p in self.params.items():
+            if p.scope != "frame":
+                continue
+            values = {name: params.get(k, p.default) for name, params in users}
+            if not values:
+                out[k] = p.default
+            elif p.reduce == "agree":
+                if len(set(values.values())) > 1:
+                    given = ", ".join(f"{name} {v!r}" for name, v in values.items())
+                    raise EffectError(f"{self.name}.{k} is one value per frame for every material of {self.name}, "
+                                      f"and they differ ({given}): give them one value")
+                out[k] = next(iter(values.values()))
+            else:
+                out[k] = REDUCERS[p.reduce](values.values())
+        return out
+
+    def frame_uniforms(self, program, users) -> None:
+        """Set `program`'s uniform param_<name> of each frame-scoped parameter it declares."""
+        for k, v in self.frame_values(users).items():
+            if f"param_{k}" in program:
+                program[f"param_{k}"].value = v
 
     def __repr__(self) -> str:
         return f"<effect {self.name} #{self.id}>"
@@ -120,8 +167,9 @@ def register(effect: Effect) -> Effect:
         raise EffectError(f"effect name must be an identifier, got {effect.name!r}")
     if effect.name in EFFECTS:
         raise EffectError(f"effect {effect.name!r} is registered already")
-    if len(effect.params) > PARAM_WORDS:
-        raise EffectError(f"effect {effect.name!r}: at most {PARAM_WORDS} parameters, got {len(effect.params)}")
+    if len(effect.param_slots()) > PARAM_WORDS:
+        raise EffectError(f"effect {effect.name!r}: at most {PARAM_WORDS} material-scoped parameters (its GPU "
+                          f"block), got {len(effect.param_slots())}; a value per frame can be scope=\"frame\"")
     used = {e.id for e in EFFECTS.values()}
     if effect.id < 0:
         effect.id = next(i for i in range(MAX_EFFECT_ID + 1) if i not in used)

@@ -8,7 +8,7 @@ shader loader serves it from `glsl_header()`; there is no such file on disk).
                       registry (rayvr/effect_registry.py) adds with `generated_lines`
   sentinels           NO_HIT, BACKGROUND_EFFECT, ROUND_SKIPPED
   declared constants  those other modules declare where they use them (rayvr/glsl_constants.py
-                      declare: the SSRT statuses, QT_*, the CAMERA_* enum, SSR_MIRROR_ROUGHNESS, ...)
+                      declare: the SSRT statuses, QT_*, the CAMERA_* enum, SCAN_BLOCK, ...)
 
 Names in GLSL are the Python names in upper case with a prefix: GB_UNIT_<CHANNEL>,
 GB_IMAGE_<CHANNEL>, SSBO_<NAME>, IMAGE_<NAME>, UNIT_<NAME>, EFFECT_<NAME>, VIEW_<NAME>,

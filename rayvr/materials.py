@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import options, settings
-from .effects import BACKGROUND_EFFECT, EFFECTS, PLANNED, effect_by_id, implemented_effects  # noqa: F401
+from .effects import BACKGROUND_EFFECT, EFFECTS, PLANNED, EffectError, effect_by_id, implemented_effects  # noqa: F401
 from .inputs import InputFileError, read_text
 
 log = logging.getLogger(__name__)
@@ -111,6 +111,11 @@ class MaterialConfig:
                     key, effect, over = "default", self.default, {}
             used_keys.add(key)
             result.append(Assignment(effect, self.effect_params(effect, over), key, self.importance_of.get(key, 1.0)))
+        for effect in dict.fromkeys(a.effect for a in result):  # frame parameters: one value each (Param.reduce)
+            try:
+                EFFECTS[effect].frame_values([(n, a.params) for n, a in zip(material_names, result) if a.effect == effect])
+            except EffectError as exc:
+                raise ConfigError(f"{self.source}: {exc}") from None
         if warn:
             unused = [f"materials.{k}" for k in self.by_name if f"materials.{k}" not in used_keys]
             unused += [f"ids.{k}" for k in self.by_id if f"ids.{k}" not in used_keys]

@@ -23,10 +23,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .effects import EFFECTS, implemented_effects
+from .effects.ssr import MIRROR_ROUGHNESS
 from .materials import MaterialConfig, parse_config
 from .renderer import RenderSettings
 
-MIRROR_ROUGHNESS = 0.05
 GLOSSY_DIELECTRIC_ROUGHNESS = 0.5
 
 # Quality of the reference; each is clamped to the effect parameter's allowed range.

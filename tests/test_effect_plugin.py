@@ -47,6 +47,8 @@ class FlatFillPass(Pass):
         fc.gpu_scene.bind()
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
         self.program["rt_capacity"].value = fc.sizing.pixels
+        self.effect.frame_uniforms(self.program, [(a.rule, a.params) for a in fc.gpu_scene.assignments
+                                                  if a.effect == self.effect.name])
         self.program.run_indirect(fc.resource("rt_list_args"), offset=16 * self.slot)
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
@@ -56,8 +58,10 @@ class FlatFillPass(Pass):
 
 class Flat(Effect):
     name = "flat"
-    doc = "its pixels glow at `glow` x their base colour (a test plugin)"
-    params = {"glow": Param(float, 2.5, 0.0, 100.0, "radiance per unit of base colour")}
+    doc = "its pixels glow at `glow` x `gain` x their base colour (a test plugin)"
+    params = {"glow": Param(float, 2.5, 0.0, 100.0, "radiance per unit of base colour"),
+              "gain": Param(float, 1.0, 0.0, 10.0, "one factor for the frame: the largest its materials ask for",
+                            scope="frame", reduce="max")}
     traced = True
 
     def passes(self):
@@ -102,7 +106,51 @@ def test_a_plugin_effect_validates_its_parameters(flat):
         parse_config({"materials": {"m": {"effect": "flat", "glow": "bright"}}}, "<t>")
     with pytest.raises(ConfigError, match="finite"):
         parse_config({"materials": {"m": {"effect": "flat", "glow": float("nan")}}}, "<t>")
-    assert parse_config({"default": "flat"}, "<t>").effect_params("flat") == {"glow": 2.5}
+    assert parse_config({"default": "flat"}, "<t>").effect_params("flat") == {"glow": 2.5, "gain": 1.0}
+
+
+def test_a_frame_parameter_is_one_uniform_of_the_largest_value_and_takes_no_material_word(gl, flat):
+    """`gain` is scope="frame", reduce="max": it has no word in the material block (no PARAM_GAIN),
+    and every flat pixel of a frame whose materials ask 2 and 1 is lit with gain 2."""
+    assert flat.param_slots() == {"glow": 0} and "PARAM_GAIN" not in flat.param_defines()
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(48, 36))
+    cfg = parse_config({"materials": {"mirror*": {"effect": "flat", "glow": 3.0, "gain": 2.0},
+                                      "floor": {"effect": "flat", "glow": 3.0, "gain": 1.0}}}, "<plugin test>")
+    with Renderer(scene, cfg, gl=gl, settings=RenderSettings(ambient=(0.0, 0.0, 0.0))) as r:
+        users = [(a.rule, a.params) for a in r.assignments if a.effect == "flat"]
+        assert {rule for rule, _ in users} == {"materials.mirror*", "materials.floor"}
+        assert flat.frame_values(users) == {"gain": 2.0} and flat.frame_values([]) == {"gain": 1.0}
+        frame = r.render(rig, aux=("hdr", "albedo", "effect"))
+    mine = np.stack([frame.left.aux["effect"], frame.right.aux["effect"]]) == flat.id
+    hdr = np.stack([frame.left.aux["hdr"], frame.right.aux["hdr"]])
+    albedo = np.stack([frame.left.aux["albedo"], frame.right.aux["albedo"]])
+    assert mine.sum() > 40 and np.allclose(hdr[mine], 6.0 * albedo[mine], rtol=2e-3, atol=1e-3)
+
+
+def test_a_frame_parameter_its_materials_must_agree_on_is_refused_naming_them():
+    class Tiled(Effect):
+        name = "tiled"
+        params = {"tile": Param(int, 16, 1, 64, "one tile size for the frame", scope="frame"),
+                  "glow": Param(float, 1.0, 0.0, 10.0)}
+
+    register(Tiled())
+    try:
+        assert Tiled.params["tile"].reduce == "agree"  # the default reducer of a frame parameter
+        cfg = parse_config({"default": "tiled", "materials": {"wall": {"effect": "tiled", "tile": 8, "glow": 2.0}}},
+                           "<agree test>")
+        with pytest.raises(ConfigError, match=r"^<agree test>: tiled.tile is one value per frame for every material "
+                                              r"of tiled, and they differ \(floor 16, wall 8\): give them one value$"):
+            cfg.assign(["floor", "wall"])
+        same = parse_config({"default": "tiled", "params": {"tiled": {"tile": 8}},
+                             "materials": {"wall": {"effect": "tiled", "glow": 2.0}}}, "<agree test>")
+        assert [a.params["glow"] for a in same.assign(["floor", "wall"])] == [1.0, 2.0]  # material values differ freely
+    finally:
+        unregister("tiled")
+    with pytest.raises(TypeError, match="takes no reducer"):
+        Param(float, 1.0, reduce="max")
+    with pytest.raises(TypeError, match="reducer is one of max, min, agree"):
+        Param(float, 1.0, scope="frame", reduce="mean")
 
 
 def test_registry_refuses_clashes(flat):

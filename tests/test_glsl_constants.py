@@ -132,7 +132,6 @@ def test_shared_constants_reach_the_header_exactly():
     from rayvr.accel import gpu, quadtree
     from rayvr.bench.tracers import dda, hiz
     from rayvr.cameras import CAMERA_MODELS
-    from rayvr.effects import ssr
     from rayvr.effects.photon import scan as photon_scan
     from rayvr.passes import reuse, warp
 
@@ -140,7 +139,7 @@ def test_shared_constants_reach_the_header_exactly():
     expected = {"SSRT_HIT": "1u", "SSRT_NONE": "4u", "SSRT_OCCLUDED": "5u", "QT_ON_LEAF": "3.814697265625e-06",
                 "QT_AABB_MARGIN": "9.5367431640625e-07", "QT_PLANE_BIT": "0x80000000u", "HIZ_EMPTY": "3e+38",
                 "DDA_EDGE": "0.00390625", "BVH_BINARY_STACK_SIZE": "64", "BVH_MISS": "0xFFFFFFFFu",
-                "SSR_MIRROR_ROUGHNESS": "0.05", "SCAN_BLOCK": "1024", "RECT_LIGHT_GRID": "4",
+                "SCAN_BLOCK": "1024", "RECT_LIGHT_GRID": "4",
                 "REUSE_NONE": "0xFFFFFFFFu", "WARP_COUNTS": "6", "WARP_COUNT_NODES": "5u"}
     assert {k: header.get(k) for k in expected} == expected
     # the values are the owners' (one declaration: dda and hiz take the quadtree's statuses)
@@ -148,7 +147,6 @@ def test_shared_constants_reach_the_header_exactly():
     assert float(header["QT_ON_LEAF"]) == quadtree.ON_LEAF == 2.0 ** -18
     assert np.float32(header["HIZ_EMPTY"]) == hiz.EMPTY and np.float32(header["DDA_BIAS"]) == dda.BIAS
     assert int(header["BVH_BINARY_STACK_SIZE"]) == gpu.STACK_SIZE
-    assert float(header["SSR_MIRROR_ROUGHNESS"]) == ssr.MIRROR_ROUGHNESS
     assert int(header["SCAN_BLOCK"]) == photon_scan.SCAN_BLOCK == photon_scan.SCAN_GROUP * photon_scan.SCAN_ITEMS
     assert int(header["REUSE_NONE"].rstrip("u"), 16) == reuse.REUSE_NONE
     assert [int(header[f"WARP_COUNT_{k.upper()}"].rstrip("u")) for k in warp.COUNTS] == list(range(len(warp.COUNTS)))

@@ -151,3 +151,27 @@ def test_glossy_rays_on_rough_materials(gl, rig):
     zero = StereoRig.for_scene(load(), size=(48, 36), ipd=0.0)
     f0, _ = render(gl, "ssr", zero, samples=4)
     assert np.array_equal(f0.left.aux["hdr"], f0.right.aux["hdr"])
+
+
+def test_the_quadtree_thresholds_are_frame_parameters_of_the_strictest_material():
+    """gamma_norm and gamma_dist build the one quadtree of a frame: frame-scoped (no material
+    words: ssr keeps its words for per-material values, mirror_roughness among them), reduced to the
+    strictest any ssr material asks for; materials that disagree fill the same material table as
+    materials that all ask for that strictest pair."""
+    from rayvr.effects import EFFECTS
+    from rayvr.effects.ssr import MIRROR_ROUGHNESS
+    from rayvr.gpu_scene import material_records
+    from rayvr.passes.quadtree import QuadtreePass
+
+    ssr = EFFECTS["ssr"]
+    assert "gamma_norm" not in ssr.param_slots() and "gamma_dist" not in ssr.param_slots()
+    assert "mirror_roughness" in ssr.param_slots() and ssr.params["mirror_roughness"].default == MIRROR_ROUGHNESS
+    scene = load()
+    mixed = parse_config({"materials": {"floor": {"effect": "ssr", "gamma_norm": 0.9, "gamma_dist": 0.01},
+                                        "mirror*": {"effect": "ssr", "gamma_norm": 0.99, "gamma_dist": 0.05}}}, "<t>")
+    strict = parse_config({"materials": {m: {"effect": "ssr", "gamma_norm": 0.99, "gamma_dist": 0.01}
+                                         for m in MIRRORS}}, "<t>")
+    mixed_a, strict_a = (c.assign(scene.material_names()) for c in (mixed, strict))
+    assert QuadtreePass().thresholds(mixed_a) == (0.99, 0.01) == QuadtreePass().thresholds(strict_a)
+    layers = [0] * len(scene.materials)
+    assert np.array_equal(material_records(scene, mixed_a, layers), material_records(scene, strict_a, layers))

@@ -1,7 +1,9 @@
 """`ssr`: reflections traced in screen space through the depth quadtree (Widmer et al. 2015,
 rayvr/passes/quadtree.py) instead of the BVH: a mirror ray on surfaces with roughness up to
-MIRROR_ROUGHNESS, and, with `samples` > 0, that many GGX rays (VNDF importance sampling, as
-`glossy`) on rougher ones (else mirror rays there too). A
+`mirror_roughness`, and, with `samples` > 0, that many GGX rays (VNDF importance sampling, as
+`glossy`) on rougher ones (else mirror rays there too). The quadtree's merge thresholds
+(`gamma_norm`, `gamma_dist`) are frame parameters: one tree serves every ssr material, built with
+the strictest any of them asks for. A
 surface is a slab of relative `thickness` behind each depth layer's planes. With `layers` = 1 a ray
 that goes deeper than the slab passed behind an object, and what it meets there is hidden from
 the screen; with `layers` = 2 the second depth layer (passes/second_layer.py) answers for the
@@ -14,14 +16,14 @@ screen is shaded like a BVH hit (its own direct light and shadows)."""
 import math
 
 from ..effect_registry import Effect, Param, register
-from ..glsl_constants import declare
 from ..passes.quadtree import GAMMA_DIST, GAMMA_NORM
 from ..passes.second_layer import DEPTH_LAYERS
 from ..passes.trace_effect import WAVE_AREA_SAMPLES, WAVE_BOUNCES, WAVE_SAMPLES, TraceEffectPass
 from .shadows import AREA_SAMPLES, AREA_SAMPLES_SWEEP
 
-# the roughness below which ssr traces one mirror path (the material block has no slot left for it)
-MIRROR_ROUGHNESS = declare("SSR_MIRROR_ROUGHNESS", 0.05)
+# the roughness up to which a surface is a mirror: ssr's default for one mirror path, and the
+# reference image's mirror class (rayvr/bench/reference.py)
+MIRROR_ROUGHNESS = 0.05
 COS = {deg: math.cos(math.radians(deg)) for deg in (3, 10, 25)}
 
 
@@ -30,9 +32,11 @@ class ScreenSpaceReflections(Effect):
     id = 2
     doc = "+ screen-space mirror and GGX reflections through the depth quadtree, BVH fallback"
     params = {
+        # one quadtree per frame: the strictest thresholds of the materials (passes/quadtree.py)
         GAMMA_NORM: Param(float, COS[10], 0.0, 1.0, "quadtree plane merge: cosine of the largest normal angle "
-                                                      "(1 = lossless)"),
-        GAMMA_DIST: Param(float, 1e-3, 0.0, 1.0, "quadtree plane merge: largest relative depth error (0 = lossless)"),
+                                                      "(1 = lossless)", scope="frame", reduce="max"),
+        GAMMA_DIST: Param(float, 1e-3, 0.0, 1.0, "quadtree plane merge: largest relative depth error (0 = lossless)",
+                          scope="frame", reduce="min"),
         DEPTH_LAYERS: Param(int, 1, 1, 2, "depth layers traced: 1 (behind an object is unknown) or 2 (the "
                                           "second layer answers there)"),
         "fallback": Param(int, 1, 0, 1, "1: trace in the BVH what the screen cannot answer; 0: misses see the "
@@ -40,8 +44,10 @@ class ScreenSpaceReflections(Effect):
         "thickness": Param(float, 0.02, 0.0, 1e30, "a surface is a slab this deep behind each layer (relative "
                                                     "depth); a ray deeper than that passed behind it"),
         WAVE_BOUNCES: Param(int, 1, 1, 4, "reflection bounces (each traced in screen space first)"),
-        WAVE_SAMPLES: Param(int, 0, 0, 1024, "GGX rays per pixel on surfaces rougher than MIRROR_ROUGHNESS "
+        WAVE_SAMPLES: Param(int, 0, 0, 1024, "GGX rays per pixel on surfaces rougher than mirror_roughness "
                                              "(0: a mirror ray everywhere)"),
+        "mirror_roughness": Param(float, MIRROR_ROUGHNESS, 0.0, 1.0, "surfaces up to this roughness take one "
+                                                                     "mirror ray whatever `samples` says"),
         WAVE_AREA_SAMPLES: AREA_SAMPLES,
     }
     traced = True

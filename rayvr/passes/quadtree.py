@@ -90,8 +90,8 @@ class QuadtreeBuilder:
 class QuadtreePass(Pass):
     """Reads the G-buffer, writes "quadtree". `gamma_norm` (a cosine) and `gamma_dist` (relative
     depth): the proxy-plane thresholds; the defaults (1, 0) build the lossless tree. Each frame the
-    strictest thresholds the materials of the effects that use the quadtree ask for (by the
-    parameters GAMMA_NORM and GAMMA_DIST, where the effect declares them) take their place."""
+    strictest thresholds the effects that use the quadtree ask for take their place: their frame
+    parameters GAMMA_NORM and GAMMA_DIST (where they declare them), reduced over their materials."""
 
     name = "quadtree"
     timed_kernels = True
@@ -100,10 +100,12 @@ class QuadtreePass(Pass):
         self.gamma_norm, self.gamma_dist = gamma_norm, gamma_dist
 
     def thresholds(self, assignments) -> tuple[float, float]:
-        users = [a.params for a in assignments if uses_quadtree(a.effect) and GAMMA_NORM in a.params]
-        if not users:
+        effects = sorted({a.effect for a in assignments if uses_quadtree(a.effect) and GAMMA_NORM in a.params})
+        if not effects:
             return self.gamma_norm, self.gamma_dist
-        return max(p[GAMMA_NORM] for p in users), min(p[GAMMA_DIST] for p in users)
+        # each effect's frame parameters (its reducers over its materials), the strictest of the effects
+        values = [EFFECTS[e].frame_values([(a.rule, a.params) for a in assignments if a.effect == e]) for e in effects]
+        return max(v[GAMMA_NORM] for v in values), min(v[GAMMA_DIST] for v in values)
 
     def why(self, plan: FramePlan) -> str | None:
         users = [e for e in sorted(plan.effects) if uses_quadtree(e)]

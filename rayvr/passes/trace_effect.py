@@ -165,11 +165,13 @@ class TraceEffectPass(Pass):
         common = {"ambient": tuple(fc.settings.ambient), "background": tuple(fc.settings.background),
                   "frame_seed": int(fc.settings.seed), "rt_capacity": n_pixels,
                   "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel}
+        users = [(a.rule, a.params) for a in fc.gpu_scene.assignments if a.effect == self.effect.name]
         for p in self.programs.values():
             set_eye_uniforms(p, fc)
             for k, v in common.items():
                 if k in p:
                     p[k].value = v
+            self.effect.frame_uniforms(p, users)  # its frame-scoped parameters (uniform param_<name>)
         fc.gbuffer.bind_for_reading()
         fc.gpu_scene.bind()
         fc.gpu_scene.textures.use(UNIT["base_color_textures"])

@@ -1,9 +1,7 @@
 // `ssr` (rayvr/effects/ssr.py) in the wavefront of rt/wave_shade.comp: the pixel event of
-// `reflections` (one Fresnel-weighted mirror path), except on surfaces rougher than
-// SSR_MIRROR_ROUGHNESS when `samples` > 0: that of `glossy` (`samples` GGX paths by VNDF
-// importance sampling); the paths'
-// rays are then traced through the quadtree first (rt/wave_trace.comp SSR_TRACE).
-// (SSR_MIRROR_ROUGHNESS: layout.glsl, from rayvr/effects/ssr.py MIRROR_ROUGHNESS)
+// `reflections` (one Fresnel-weighted mirror path), except on surfaces rougher than the material's
+// `mirror_roughness` when `samples` > 0: that of `glossy` (`samples` GGX paths by VNDF importance
+// sampling); the paths' rays are then traced through the quadtree first (rt/wave_trace.comp SSR_TRACE).
 #define effect_start_paths mirror_start_paths
 #include "reflections.glsl"
 #undef effect_start_paths
@@ -12,7 +10,7 @@
 #undef effect_start_paths
 
 void effect_start_paths(uint i, Surface s, vec3 v, vec3 ng, uint mi, inout uint rng) {
-    if (s.roughness > SSR_MIRROR_ROUGHNESS && material_param_int(mi, PARAM_SAMPLES) > 0) {
+    if (s.roughness > material_param_float(mi, PARAM_MIRROR_ROUGHNESS) && material_param_int(mi, PARAM_SAMPLES) > 0) {
         glossy_start_paths(i, s, v, ng, mi, rng);
         return;
     }
