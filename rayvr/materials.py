@@ -112,8 +112,9 @@ class MaterialConfig:
             used_keys.add(key)
             result.append(Assignment(effect, self.effect_params(effect, over), key, self.importance_of.get(key, 1.0)))
         for effect in dict.fromkeys(a.effect for a in result):  # frame parameters: one value each (Param.reduce)
+            users = [(name, a.params) for name, a in zip(material_names, result) if a.effect == effect]
             try:
-                EFFECTS[effect].frame_values([(n, a.params) for n, a in zip(material_names, result) if a.effect == effect])
+                EFFECTS[effect].frame_values(users)
             except EffectError as exc:
                 raise ConfigError(f"{self.source}: {exc}") from None
         if warn:

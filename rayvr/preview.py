@@ -645,9 +645,9 @@ class Preview:
             return None
         layout = layout_for(self.state.stereo, fb, self.state.res_scale)
         rig = self.camera.rig(layout.eye_size)
-        if self.state.temporal and temporal_problem(rig.camera):
-            # G on a camera without planar frusta (Renderer.plan refuses temporal reprojection there)
-            self.config_error = f"{temporal_problem(rig.camera)}: G leaves it off"
+        problem = temporal_problem(rig.camera) if self.state.temporal else None
+        if problem:  # G on a camera without planar frusta (Renderer.plan refuses temporal reprojection there)
+            self.config_error = f"{problem}: G leaves it off"
             self.state.temporal = False
         self._apply_noise_settings()
         if self.state.method != "dual" and self.renderer.settings.dof_diameter > 0:

@@ -149,8 +149,9 @@ class Renderer:
                     else "the pinhole camera and --stereo dual")
             raise ValueError(f"depth of field (--dof-diameter) blurs each eye's own pinhole frame, and {why}: use {hint}")
         accumulates = color and (accumulate or st.accumulate or bool(denoise))
-        if accumulates and st.temporal and temporal_problem(camera):
-            raise ValueError(f"{temporal_problem(camera)}: leave out --temporal")
+        problem = temporal_problem(camera) if accumulates and st.temporal else None
+        if problem:
+            raise ValueError(f"{problem}: leave out --temporal")
         warp = stereo == "warp"  # one central view is rendered; the warp pass makes both eyes from it
         return FramePlan(effects=self.effects_in_use(), view=view, layers=1 if warp else layers,
                          layer_mode=self.layer_mode, primary=primary, camera=camera.name, stereo=stereo,

@@ -261,7 +261,8 @@ def camera_record(eye) -> dict:
     c2w = np.eye(4)
     c2w[:3, :3], c2w[:3, 3] = eye.rotation, eye.position
     return {"w": eye.size[0], "h": eye.size[1], **camera_model_fields(eye), "near": eye.near, "far": eye.far,
-            "camera_to_world": c2w.tolist(), "convention": RAY_DEPTH_CONVENTION if eye.camera.depth_along_ray else CONVENTION}
+            "camera_to_world": c2w.tolist(),
+            "convention": RAY_DEPTH_CONVENTION if eye.camera.depth_along_ray else CONVENTION}
 
 
 def camera_json(eye) -> bytes:

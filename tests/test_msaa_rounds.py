@@ -85,7 +85,8 @@ def test_msaa_frames_do_not_depend_on_when_the_round_count_is_known(gl, room, co
 def test_fence_poll_counts_rounds_and_renders_the_same(gl, room, count_poll):
     """The default schedule (a zero-timeout fence poll after each round) records between the
     needed rounds and msaa_slots, and gives the reference frame."""
-    (ref, ref_rounds, _), (got, rounds, _) = frames(gl, room, count_poll, RenderSettings(msaa=4), [("wait", True), ("fence", True)])
+    (ref, ref_rounds, _), (got, rounds, _) = frames(gl, room, count_poll, RenderSettings(msaa=4),
+                                                    [("wait", True), ("fence", True)])
     ((recorded, needed),) = rounds
     assert [needed] == [n for _, n in ref_rounds] and needed <= recorded <= 4
     assert_same(got, ref)
@@ -98,8 +99,8 @@ def test_ssr_frames_keep_empty_slots_as_background(gl, room, count_poll):
     plan = FramePlan(frozenset({"ssr"}), samples=4)
     assert not primary_rays.skips_empty_slots(plan)
     assert primary_rays.skips_empty_slots(FramePlan(frozenset({"glossy", "shadows"}), samples=4))
-    (ref, ref_rounds, _), (late, late_rounds, _) = frames(gl, room, count_poll, RenderSettings(msaa=4), [("wait", True), ("never", True)],
-                                                          materials=cfg)
+    (ref, ref_rounds, _), (late, late_rounds, _) = frames(gl, room, count_poll, RenderSettings(msaa=4),
+                                                          [("wait", True), ("never", True)], materials=cfg)
     assert late_rounds[0][0] == 4 and ref_rounds[0][0] == ref_rounds[0][1]
     assert_same(late, ref)
 

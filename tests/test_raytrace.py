@@ -643,7 +643,8 @@ def test_shadow_chunks_follow_each_events_own_rays(gl, monkeypatch):
     hits = []
     real_run = moderngl.ComputeShader.run_indirect
 
-    with Renderer(scene, parse_config(cfg, "<t>"), gl=gl, wave_buffer_bytes=24 * 18 * 2 * 4 * trace_effect.SLOT_BYTES) as r:
+    limit = 24 * 18 * 2 * 4 * trace_effect.SLOT_BYTES
+    with Renderer(scene, parse_config(cfg, "<t>"), gl=gl, wave_buffer_bytes=limit) as r:
         plan = r.plan(2, "color", rig.eyes()[0].camera)
         shape = trace_effect.WaveShape(EFFECTS["path"], r.sizing(rig.size, 2, plan))
         assert shape.slots == rects * 2 * 4 + others and shape.hit_slots == rects * 2 + others

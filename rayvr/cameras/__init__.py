@@ -72,5 +72,5 @@ def parse_camera_params(name: str, items) -> dict:
     return out
 
 
-__all__ = ["CAMERA_MODELS", "DEFAULT_CAMERA_MODEL", "CameraModel", "CameraRays", "Distorted", "Foveated", "Pinhole", "ThinLens", "Wide",
-           "get_camera_model", "parse_camera_params"]
+__all__ = ["CAMERA_MODELS", "DEFAULT_CAMERA_MODEL", "CameraModel", "CameraRays", "Distorted", "Foveated", "Pinhole",
+           "ThinLens", "Wide", "get_camera_model", "parse_camera_params"]
