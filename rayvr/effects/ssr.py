@@ -22,7 +22,7 @@ from ..passes.trace_effect import WAVE_AREA_SAMPLES, WAVE_BOUNCES, WAVE_SAMPLES,
 from .shadows import AREA_SAMPLES, AREA_SAMPLES_SWEEP
 
 # the roughness up to which a surface is a mirror: ssr's default for one mirror path, and the
-# reference image's mirror class (rayvr/bench/reference.py)
+# reference image's mirror class (rayvr/reference.py)
 MIRROR_ROUGHNESS = 0.05
 COS = {deg: math.cos(math.radians(deg)) for deg in (3, 10, 25)}
 
