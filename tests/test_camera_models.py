@@ -341,9 +341,9 @@ def test_the_frame_reads_camera_capabilities_from_the_model_not_its_name(monkeyp
 
 def test_a_model_registered_outside_rayvr_gets_its_declared_behaviour(monkeypatch, gl):
     """Every capability the frame, the CLI and the camera files read is the model's declaration:
-    a model declared here, named like none of rayvr's, is refused --convergence, --temporal and
-    --aperture (pointing to its own lens parameter), writes ray-distance depth into transforms.json
-    and has no nerfstudio camera unless it says which; a planar copy of the pinhole keeps all."""
+    models declared here, named like none of rayvr's, are refused --convergence, --temporal and
+    --aperture (pointing to their own lens parameter), write ray-distance depth into transforms.json
+    and have no nerfstudio camera unless they say which; a planar copy of the pinhole keeps all."""
     import argparse
     from dataclasses import dataclass
 
@@ -369,10 +369,15 @@ def test_a_model_registered_outside_rayvr_gets_its_declared_behaviour(monkeypatc
         name = "planar_copy"
 
     @dataclass(frozen=True)
+    class RayDepth(Pinhole):
+        name = "ray_depth"
+        depth_along_ray = True
+
+    @dataclass(frozen=True)
     class Bare(CameraModel):
         name = "bare"
 
-    for model in (Angular, PlanarCopy, Bare):
+    for model in (Angular, PlanarCopy, RayDepth, Bare):
         monkeypatch.setitem(CAMERA_MODELS, model.name, model)
 
     def flags(model):
@@ -396,7 +401,7 @@ def test_a_model_registered_outside_rayvr_gets_its_declared_behaviour(monkeypatc
     angular_eye = StereoRig(POSE, fov_y=60, size=(8, 6), camera=Angular()).eye("left")
     with pytest.raises(ValueError, match="cannot describe the angular camera: it is made up for a test"):
         camera_record(angular_eye)
-    monkeypatch.setattr(Angular, "transforms_fields", PlanarCopy.transforms_fields)
-    assert "distance along each pixel's ray" in camera_record(angular_eye)["convention"]
+    ray_depth_eye = StereoRig(POSE, fov_y=60, size=(8, 6), camera=RayDepth()).eye("left")
+    assert "distance along each pixel's ray" in camera_record(ray_depth_eye)["convention"]
     with pytest.raises(ValueError, match="cannot describe the bare camera: no camera_model is written for it"):
         Bare().transforms_fields(angular_eye)
