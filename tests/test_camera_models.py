@@ -390,7 +390,7 @@ def test_a_model_registered_outside_rayvr_gets_its_declared_behaviour(monkeypatc
         with pytest.raises(ValueError, match="temporal reprojection .* the angular camera does not have"):
             r.plan(camera=Angular())
         assert r.plan(camera=PlanarCopy()).accumulate
-    with Renderer(gl=gl, settings=RenderSettings(dof_aperture=0.1)) as r:
+    with Renderer(gl=gl, settings=RenderSettings(dof_diameter=0.1)) as r:
         with pytest.raises(ValueError, match="the angular camera is not a pinhole: use its iris parameter"):
             r.plan(camera=Angular())
         assert r.plan(camera=PlanarCopy()).dof

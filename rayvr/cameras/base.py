@@ -105,7 +105,7 @@ class CameraModel:
     # planar models' errors advise for such fields
     wide_angle: ClassVar[bool] = False
     # the model's own parameter for a lens (depth of field), if it has one: what the refusal of
-    # the frame's --aperture blur points to instead
+    # the frame's --dof-diameter blur points to instead
     lens_parameter: ClassVar[str | None] = None
     glsl: ClassVar[str]  # the model's GLSL file, relative to rayvr/glsl/
     channels: ClassVar[int] = 1  # colour channel sets (a model may make it a property)
