@@ -134,7 +134,7 @@ RAYVR = Layout(
              "rayvr.budget": "rayvr.quality.budget",
              "rayvr.measure": "rayvr.quality.measure",  # fix/imports
              "rayvr.metrics": "rayvr.quality.metrics",  # fix/imports (from bench/)
-             "rayvr.reference": "rayvr.quality.reference",  # fix/imports (from bench/): the module, not the package
+             "rayvr.reference": "rayvr.quality.reference_images",  # fix/imports (from bench/): the module, not the package
          }),
         ("rayvr.app", "The front ends under the command line: capture (its files, multi-view sources), the "
          "preview and its HUD, and the cluster that spreads captures and sweeps over Ray workers.", {
