@@ -8,8 +8,8 @@ import os
 import signal
 import sys
 
-from .extras import MissingExtraError
-from .signals import handling
+from .util.extras import MissingExtraError
+from .util.signals import handling
 
 
 class OneLineErrors(argparse.ArgumentParser):
@@ -52,7 +52,7 @@ def sigterm_as_interrupt():
 
 def main(argv=None) -> int:
     code = run_command(argv)
-    from .cluster import connect_left_behind
+    from .app.cluster import connect_left_behind
     if argv is None and connect_left_behind():  # a process of its own: no exit handler may wait on Ray
         sys.stdout.flush()
         sys.stderr.flush()
@@ -64,12 +64,12 @@ def run_command(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="rayvr: %(message)s")
-    from .context import ContextError
-    from .materials import ConfigError
-    from .output import OutputError
-    from .scene import SceneError
-    from .shaders import ShaderError
-    from .cluster import ClusterError
+    from .gl.context import ContextError
+    from .scene.materials import ConfigError
+    from .util.output import OutputError
+    from .scene.loader import SceneError
+    from .gl.shaders import ShaderError
+    from .app.cluster import ClusterError
 
     with sigterm_as_interrupt() as sigterm:
         try:

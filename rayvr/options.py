@@ -8,12 +8,12 @@ primary-ray pass `primary` and `tile_culling`, the stereo module `stereo` and `w
 From the declarations come, with nothing else to write (rayvr/settings.py collects them):
 - `RenderSettings`' fields, defaults and validation (`Option.check`, one message style);
 - the CLI flags of every command that offers an option (`Option.add_to`; help from `doc`);
-- the `[render]` table of a materials TOML (rayvr/materials.py);
+- the `[render]` table of a materials TOML (rayvr/scene/materials.py);
 - `to_dict` / `from_dict` (the capture's job file) and the listing of `rayvr options` (`listing`).
 
 An option's `scope` says what it changes: "plan" options select passes or programs: each reaches
 one FramePlan field (`plan_field`; Renderer.plan applies the owner's policy, e.g.
-passes/primary_rays.py primary_visibility), and the FramePlan keys the compiled graphs, so a change
+frame/passes/primary_rays.py primary_visibility), and the FramePlan keys the compiled graphs, so a change
 compiles another graph; "frame" options are values the passes read each frame (uniforms) and never
 change the plan; "material" options take part in every material's shading (ambient light).
 tests/test_options.py checks both directions for every declared option.

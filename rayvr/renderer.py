@@ -15,27 +15,27 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import effects as effects_mod
-from . import materials as materials_mod
-from . import scene as scene_mod
-from . import stereo as stereo_mod
+from .frame import effects as effects_mod
+from .scene import materials as materials_mod
+from .scene import loader as scene_mod
+from .frame import stereo as stereo_mod
 from .accel.scene import SceneAccel
-from .accumulation import Accumulator, sample_seed, temporal_problem
-from .camera import StereoRig
-from .cameras import CAMERA_MODELS, DEFAULT_CAMERA_MODEL, get_camera_model
-from .context import GLContext, GpuError, create_context
-from .frame import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameTooLarge, Sizing, check_fits,
+from .frame.accumulation import Accumulator, sample_seed, temporal_problem
+from .frame.cameras.rig import StereoRig
+from .frame.cameras import CAMERA_MODELS, DEFAULT_CAMERA_MODEL, get_camera_model
+from .gl.context import GLContext, GpuError, create_context
+from .frame.graph import (EyeImage, Frame, FrameContext, FrameGraph, FramePlan, FrameTooLarge, Sizing, check_fits,
                     limit_problems)
-from .gpu_layout import VIEWS
-from .gpu_scene import GpuScene
-from .passes import primary_rays
-from .passes.core import core_passes
-from .passes.classify import pixel_counts
-from .passes.second_layer import depth_layers
-from .passes.visibility import pick_layer_mode
-from .readback import AUX_CHANNELS, Reader
+from .gl.gpu_layout import VIEWS
+from .scene.gpu_scene import GpuScene
+from .frame.passes import primary_rays
+from .frame.passes.core import core_passes
+from .frame.passes.classify import pixel_counts
+from .frame.passes.second_layer import depth_layers
+from .frame.passes.visibility import pick_layer_mode
+from .frame.readback import AUX_CHANNELS, Reader
 from .settings import RenderSettings
-from .timing import settle
+from .gl.timing import settle
 
 MAX_TILES = 64  # a frame that needs more tiles than this is refused (FrameTooLarge) instead
 HOST_BYTES_PER_PIXEL = 16  # colour, depth and the pixel buffers they come through, per eye pixel
@@ -72,7 +72,7 @@ class Renderer:
                  settings: RenderSettings | None = None, skip_empty_slots: bool = True,
                  wave_buffer_bytes: int | None = None):
         """`skip_empty_slots` (FramePlan) and `wave_buffer_bytes` (Sizing: the largest wavefront
-        buffer, default passes/trace_effect.py WAVE_BUFFER_BYTES) are for tests that compare the
+        buffer, default frame/passes/trace_effect.py WAVE_BUFFER_BYTES) are for tests that compare the
         fast paths with their references; the frames are the same either way."""
         if wave_buffer_bytes is not None and not (isinstance(wave_buffer_bytes, int) and wave_buffer_bytes > 0):
             raise ValueError(f"wave_buffer_bytes must be a positive whole number of bytes, got {wave_buffer_bytes!r}")
@@ -119,7 +119,7 @@ class Renderer:
     # -- the frame graph -------------------------------------------------------------
     def plan(self, layers: int = 2, view: str = "color", camera=None, accumulate: bool = False) -> FramePlan:
         """The FramePlan this renderer's scene, config and settings give for `layers` eyes seen
-        through `camera` (a rayvr.cameras model; default the pinhole). A camera a rasterizer cannot
+        through `camera` (a rayvr.frame.cameras model; default the pinhole). A camera a rasterizer cannot
         sample (not `rasterizable`), or sub-rays per sample (settings.msaa > 1: anti-aliasing), take
         ray-cast primary visibility whatever the settings say; such a camera refuses (ValueError)
         temporal reprojection and depth of field, which need the eyes' planar frusta.
@@ -141,7 +141,7 @@ class Renderer:
             raise ValueError(f"stereo mode {stereo!r} reprojects one sample per pixel: it cannot take --msaa "
                              f"{samples} (use --stereo dual)")
         if color and st.dof_diameter > 0 and not (stereo == "dual" and camera.rasterizable):
-            # passes/dof.py blurs each eye's own pinhole frame: a warped or reused eye has none, and
+            # frame/passes/dof.py blurs each eye's own pinhole frame: a warped or reused eye has none, and
             # the other models' rays are not that frame's (the dof model has a lens of its own)
             why = (f"the {camera.name} camera is not a pinhole" if not camera.rasterizable
                    else f"--stereo {stereo} makes an eye from the other's frame")
@@ -165,7 +165,7 @@ class Renderer:
                          channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots)
 
     def set_stereo(self, mode: str) -> None:
-        """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/stereo.py)."""
+        """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/frame/stereo.py)."""
         self.settings.stereo = stereo_mod.check_mode(mode)
 
     def compiled(self, plan: FramePlan | None = None):
@@ -183,7 +183,7 @@ class Renderer:
         """Run the frame's passes on the GPU (no readback); returns the context for readback.
         `profile`: time each kernel of multi-kernel passes instead of each pass (read_ms).
         `sample`: this frame is that sample of an accumulation (0 starts over); None: the
-        accumulator decides (rayvr/accumulation.py: the next sample while nothing changed)."""
+        accumulator decides (rayvr/frame/accumulation.py: the next sample while nothing changed)."""
         self.gl.make_current()
         eye_views = rig.eyes(eyes)
         plan = self.plan(len(eye_views), view, eye_views[0].camera, accumulate=sample is not None)
@@ -216,10 +216,10 @@ class Renderer:
             return {}
         mode = self._last.plan.stereo
         if mode == "reuse" and "reuse_map" in self._last.resources:  # (a debug view shades nothing)
-            from .passes.reuse import reuse_counts
+            from .frame.passes.reuse import reuse_counts
             return reuse_counts(self._last)
         if mode == "warp":
-            from .passes.warp import warp_counts
+            from .frame.passes.warp import warp_counts
             return warp_counts(self._last)
         return {}
 

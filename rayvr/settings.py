@@ -11,11 +11,12 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field
 
-from . import accumulation, options, stereo
+from .frame import accumulation, stereo
+from . import options
 from .accel import bvh, gpu
-from .cameras import sampling
+from .frame.cameras import sampling
 from .options import TABLE, Option, OptionError
-from .passes import accumulate, denoise, dof, primary_rays, quadtree, second_layer, shade, tonemap, visibility
+from .frame.passes import accumulate, denoise, dof, primary_rays, quadtree, second_layer, shade, tonemap, visibility
 
 OWNERS = (tonemap, shade, visibility, primary_rays, accumulation, accumulate, denoise, second_layer, stereo, quadtree,
           gpu, bvh, dof, sampling)
@@ -177,5 +178,5 @@ class RenderSettings:
     `to_dict()` / `from_dict()` carry them through files (the capture's job file)."""
 
     def culls_tiles(self, camera: str = "pinhole") -> bool:
-        """Whether ray-cast primaries of a `camera` model (its name) are tile-culled (passes/primary_rays.py)."""
+        """Whether ray-cast primaries of a `camera` model (its name) are tile-culled (frame/passes/primary_rays.py)."""
         return primary_rays.culls_tiles(self, camera)

@@ -23,7 +23,7 @@ os.environ.setdefault("RAYVR_GL_DEBUG", "1")
 
 @pytest.fixture(scope="session")
 def gl():
-    from rayvr.context import ContextError, create_context
+    from rayvr.gl.context import ContextError, create_context
 
     try:
         g = create_context(os.environ.get("RAYVR_GL_BACKEND") or None)
@@ -35,10 +35,10 @@ def gl():
 
 @pytest.fixture
 def count_poll(monkeypatch):
-    """`count_poll(mode)`: how MSAA recording learns its round count from then on (passes/
+    """`count_poll(mode)`: how MSAA recording learns its round count from then on (frame/passes/
     primary_rays.py COUNT_POLL, a test hook each frame reads afresh: no program or resource depends
     on it), restored after the test."""
-    from rayvr.passes import primary_rays
+    from rayvr.frame.passes import primary_rays
 
     def set_poll(mode: str) -> None:
         assert mode in primary_rays.COUNT_POLLS, f"COUNT_POLL is one of {primary_rays.COUNT_POLLS}, not {mode!r}"
@@ -95,7 +95,7 @@ def merge(*parts):
 
 
 def fail_writes(monkeypatch, code: int, path_contains: str = "") -> None:
-    """Writes through os.fdopen (rayvr/output.py's atomic writes) fail with OSError(code), as on a
+    """Writes through os.fdopen (rayvr/util/output.py's atomic writes) fail with OSError(code), as on a
     full disk, for files whose path contains `path_contains` (every file: "")."""
     real_fdopen = os.fdopen
 

@@ -1,5 +1,5 @@
 """A test harness: the photon map's GPU steps run alone on photons given from numpy, the same
-kernels the frame graph runs (rayvr/effects/photon/ cells.py, scan.py, sort.py, kdtree.py;
+kernels the frame graph runs (rayvr/frame/effects/photon/ cells.py, scan.py, sort.py, kdtree.py;
 glsl/photon/query.comp for radius queries), so each can be held to its numpy reference in
 rayvr/accel/photon_map.py (tests/test_photon_map.py)."""
 from __future__ import annotations
@@ -7,14 +7,14 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from rayvr import shaders
+from rayvr.gl import shaders
 from rayvr.accel.photon_map import PHOTON_WORDS, GridShape
-from rayvr.effects.photon.cells import CellKeys, set_grid_uniforms
-from rayvr.effects.photon.kdtree import kdtree_records
-from rayvr.effects.photon.scan import scan_words
-from rayvr.effects.photon.sort import RadixSort, table_words
-from rayvr.glsl_constants import declare
-from rayvr.gpu_layout import SSBO
+from rayvr.frame.effects.photon.cells import CellKeys, set_grid_uniforms
+from rayvr.frame.effects.photon.kdtree import kdtree_records
+from rayvr.frame.effects.photon.scan import scan_words
+from rayvr.frame.effects.photon.sort import RadixSort, table_words
+from rayvr.gl.glsl_constants import declare
+from rayvr.gl.gpu_layout import SSBO
 
 QUERY_GROUP = declare("PHOTON_QUERY_GROUP", 64)  # query points a query.comp group answers
 

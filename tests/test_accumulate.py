@@ -1,4 +1,4 @@
-"""Accumulation (rayvr/accumulation.py, passes/accumulate.py): successive samples of a still view
+"""Accumulation (rayvr/frame/accumulation.py, frame/passes/accumulate.py): successive samples of a still view
 average to the converged image like 1/sqrt(N), each sample draws its own random sequence, any
 change (pose, materials, scene, size, settings) starts over, and temporal reprojection carries the
 history of the surface points a moved camera still sees."""
@@ -8,11 +8,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from rayvr.accumulation import sample_seed
-from rayvr.camera import Pose, StereoRig
-from rayvr.materials import parse_config
+from rayvr.frame.accumulation import sample_seed
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.scene.materials import parse_config
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import load
+from rayvr.scene.loader import load
 
 # Area-light shadows at one sample a pixel, and a glossy floor: cheap and noisy.
 NOISY = {"default": "shadows", "params": {"shadows": {"area_samples": 1}},

@@ -43,7 +43,7 @@ def test_an_area_that_takes_no_workers_refuses_them(monkeypatch, tmp_path):
 
     ran = []
     monkeypatch.setitem(bench.AREAS, "toy", bench.Area("a toy area", lambda *a: ran.append(a)))
-    monkeypatch.setattr("rayvr.cluster.require_ray", lambda: None)
+    monkeypatch.setattr("rayvr.app.cluster.require_ray", lambda: None)
     args = build_parser().parse_args(["bench", "toy", "--workers", "2", "--out", str(tmp_path)])
     with pytest.raises(ValueError, match="--workers spreads the tradeoff and budget sweeps; bench toy runs in one"):
         args.func(args)

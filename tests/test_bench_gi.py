@@ -9,7 +9,7 @@ import shutil
 import pytest
 
 from conftest import quick_bench, run_rayvr
-from rayvr.accumulation import sample_seed
+from rayvr.frame.accumulation import sample_seed
 
 
 def rows_of(result, part):

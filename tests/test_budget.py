@@ -4,7 +4,7 @@ import time
 import numpy as np
 import pytest
 
-from rayvr.budget import COST_EPS_MS, MaterialOptions, Option, solve_budget
+from rayvr.quality.budget import COST_EPS_MS, MaterialOptions, Option, solve_budget
 
 # A ladder like rayvr's: each step up costs more and errs less.
 LADDER = ["raster", "ssr", "ssrt", "rt1", "rt2", "rt4", "path"]

@@ -11,7 +11,7 @@ import pytest
 from rayvr.accel import bvh_cache
 from rayvr.accel import scene as accel_scene
 from rayvr.accel.bvh import Bvh
-from rayvr.scene import from_arrays
+from rayvr.scene.loader import from_arrays
 
 TREE = ("node_lo", "node_hi", "left", "right", "start", "count", "depth", "prim_ids", "indices")
 

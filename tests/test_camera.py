@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from rayvr.camera import Pose, StereoRig, load_path, orbit, projection, save_path
+from rayvr.frame.cameras.rig import Pose, StereoRig, load_path, orbit, projection, save_path
 
 
 def test_reversed_z_infinite_depth_is_near_over_distance():

@@ -1,4 +1,4 @@
-"""The non-planar and sampled camera models (rayvr/cameras/): lens pre-distortion with chromatic
+"""The non-planar and sampled camera models (rayvr/frame/cameras/): lens pre-distortion with chromatic
 channels and its inverse, sample files, wide fields of view past 180 degrees, foveated sample
 counts, thin-lens depth of field, the sub-ray set; every model's GLSL against its numpy rays."""
 import math
@@ -6,13 +6,13 @@ import math
 import numpy as np
 import pytest
 
-from rayvr.camera import Pose, StereoRig
-from rayvr.cameras import (CAMERA_MODELS, Distorted, Foveated, Pinhole, ThinLens, Wide, get_camera_model,
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.cameras import (CAMERA_MODELS, Distorted, Foveated, Pinhole, ThinLens, Wide, get_camera_model,
                            parse_camera_params)
-from rayvr.cameras.base import pixel_grid
-from rayvr.cameras.distorted import load_samples, write_samples
-from rayvr.cameras.foveated import dither_rank
-from rayvr.cameras.sampling import SAMPLE_COUNTS, subsamples
+from rayvr.frame.cameras.base import pixel_grid
+from rayvr.frame.cameras.distorted import load_samples, write_samples
+from rayvr.frame.cameras.foveated import dither_rank
+from rayvr.frame.cameras.sampling import SAMPLE_COUNTS, subsamples
 
 from test_cameras import glsl_rays
 
@@ -250,7 +250,7 @@ def test_foveated_reconstruction_fills_between_samples():
     model = Foveated(mar_slope=0.1, fovea_radius=2.0)
     eye = rig_for(model, size=(64, 48)).eye("left")
     y, x = np.mgrid[0:48, 0:64]
-    # Linear in the fill's units y = x / (1 + x) of the colour x (cameras/foveated.py): exact there.
+    # Linear in the fill's units y = x / (1 + x) of the colour x (frame/cameras/foveated.py): exact there.
     linear = np.stack([0.2 + 0.01 * x, 0.2 + 0.005 * y, 0.3 + 0.0 * x], axis=-1)
     smooth = linear / (1.0 - linear)
     sample = model.footprint(eye) > 0
@@ -316,9 +316,9 @@ def test_the_frame_reads_camera_capabilities_from_the_model_not_its_name(monkeyp
     pinhole gets, and a model that declines tile culling does not get it by default."""
     from dataclasses import dataclass
 
-    from rayvr.cameras import CAMERA_MODELS, Pinhole
-    from rayvr.frame import FramePlan
-    from rayvr.passes.quadtree import QuadtreePass, QuadtreeVisitsPass
+    from rayvr.frame.cameras import CAMERA_MODELS, Pinhole
+    from rayvr.frame.graph import FramePlan
+    from rayvr.frame.passes.quadtree import QuadtreePass, QuadtreeVisitsPass
     from rayvr.renderer import RenderSettings
 
     @dataclass(frozen=True)
@@ -348,10 +348,10 @@ def test_a_model_registered_outside_rayvr_gets_its_declared_behaviour(monkeypatc
     from dataclasses import dataclass
 
     from rayvr import Renderer
-    from rayvr.cameras.base import CameraModel
+    from rayvr.frame.cameras.base import CameraModel
     from rayvr.commands.args import camera_from_args
     from rayvr.renderer import RenderSettings
-    from rayvr.views import camera_record
+    from rayvr.app.views import camera_record
 
     @dataclass(frozen=True)
     class Angular(Pinhole):  # as a model registered from outside rayvr would be

@@ -1,4 +1,4 @@
-"""Camera models (rayvr/cameras/): the pinhole's numpy rays and footprints, its GLSL twin, the
+"""Camera models (rayvr/frame/cameras/): the pinhole's numpy rays and footprints, its GLSL twin, the
 registry and the pinhole's field-of-view limit."""
 import math
 from dataclasses import dataclass
@@ -7,11 +7,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from rayvr import shaders
-from rayvr.camera import Pose, StereoRig
-from rayvr.cameras import CAMERA_MODELS, Pinhole, get_camera_model
-from rayvr.cameras.pinhole import MAX_TANGENT
-from rayvr.passes.compute import set_eye_uniforms
+from rayvr.gl import shaders
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.cameras import CAMERA_MODELS, Pinhole, get_camera_model
+from rayvr.frame.cameras.pinhole import MAX_TANGENT
+from rayvr.frame.passes.compute import set_eye_uniforms
 
 HMD_TANGENTS = {"left": (-1.3, 1.0, -1.1, 1.2), "right": (-1.0, 1.3, -1.1, 1.2)}
 
@@ -240,7 +240,7 @@ def test_raster_and_ray_cast_visibility_agree_at_the_pinhole_limit(gl):
     view the pinhole takes (measured: 99.99 %; beyond 1.5x the limit they drift apart)."""
     from rayvr import Renderer
     from rayvr.renderer import RenderSettings
-    from rayvr.scene import load
+    from rayvr.scene.loader import load
 
     scene, size = load(None), (160, 120)
     pose = Pose.look_at([0.3, 1.5, 1.0], [0, 1.2, -1])  # inside the room: every pixel sees a wall

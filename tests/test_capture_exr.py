@@ -9,8 +9,8 @@ import pytest
 
 from conftest import run_rayvr
 from rayvr import cli
-from rayvr.camera import StereoRig
-from rayvr.output import OutputError, write_exr
+from rayvr.frame.cameras.rig import StereoRig
+from rayvr.util.output import OutputError, write_exr
 
 
 def read_exr(path):
@@ -27,7 +27,7 @@ def rgb(channels):
 def test_exr_capture_round_trips_hdr_and_float_aux(gl, tmp_path):
     pytest.importorskip("OpenEXR")
     from rayvr import Renderer
-    from rayvr.capture import CaptureJob, run_capture
+    from rayvr.app.capture import CaptureJob, run_capture
 
     aux = ("depth", "normal", "position", "albedo", "zbuffer", "material", "triangle")
     with Renderer(gl=gl) as r:

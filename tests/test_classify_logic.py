@@ -20,13 +20,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rayvr import shaders
-from rayvr.camera import StereoRig
-from rayvr.effects import EFFECTS, traced_effects
-from rayvr.materials import parse_config
-from rayvr.passes.classify import ClassifyPass
+from rayvr.gl import shaders
+from rayvr.frame.cameras.rig import StereoRig
+from rayvr.frame.effects import EFFECTS, traced_effects
+from rayvr.scene.materials import parse_config
+from rayvr.frame.passes.classify import ClassifyPass
 from rayvr.renderer import Renderer
-from rayvr.scene import load
+from rayvr.scene.loader import load
 
 EXTENSIONS = ("#extension GL_KHR_shader_subgroup_basic : require",
               "#extension GL_KHR_shader_subgroup_ballot : require")

@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 from conftest import run_rayvr
-from rayvr.camera import orbit, save_path
+from rayvr.frame.cameras.rig import orbit, save_path
 
 
 rayvr = run_rayvr  # the CLI in a child process (conftest)
@@ -308,7 +308,7 @@ def test_default_primary_follows_the_camera_and_msaa(tmp_path):
 def test_settings_of_the_wrong_type_or_range_are_one_value_error(kind, kw, says):
     """The API's settings: a wrong type or a value the GPU's uint would wrap is a ValueError
     naming the setting (not numpy's TypeError, not a silently wrapped seed)."""
-    from rayvr.camera import StereoRig
+    from rayvr.frame.cameras.rig import StereoRig
     from rayvr.renderer import RenderSettings
 
     with pytest.raises(ValueError, match=says):

@@ -1,4 +1,4 @@
-"""Captures over Ray workers (rayvr/cluster.py): the EGL device each GPU worker takes, the
+"""Captures over Ray workers (rayvr/app/cluster.py): the EGL device each GPU worker takes, the
 dispatch with retries, and on a local Ray with 2 CPU workers: byte-identical frames, a worker
 killed mid-run, resuming, and the missing extra."""
 import importlib.util
@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from conftest import quick_bench, run_rayvr
-from rayvr.camera import orbit, save_path
+from rayvr.frame.cameras.rig import orbit, save_path
 from rayvr.cli import main
-from rayvr.context import ContextError, EglDevice, assigned_egl_device, egl_device_for_gpu
-from rayvr.output import OutputError
+from rayvr.gl.context import ContextError, EglDevice, assigned_egl_device, egl_device_for_gpu
+from rayvr.util.output import OutputError
 
 NV = "EGL_NV_device_cuda EGL_EXT_device_drm"
 SOFTWARE = EglDevice(0, "EGL_MESA_device_software", None)
@@ -58,7 +58,7 @@ def test_egl_device_that_cannot_be_found_is_a_clear_error():
 
 
 def test_this_machines_egl_devices_enumerate():
-    from rayvr.context import egl_devices
+    from rayvr.gl.context import egl_devices
 
     try:
         devices = egl_devices()
@@ -109,7 +109,7 @@ class FakeActor:
 
 
 def fake_cluster(workers):
-    from rayvr.cluster import Cluster
+    from rayvr.app.cluster import Cluster
 
     c = Cluster.__new__(Cluster)
     c.ray, c.actors, c.started = FakeRay(), [FakeActor(k) for k in range(workers)], False
@@ -135,7 +135,7 @@ def test_a_dead_workers_task_is_retried_with_only_its_unfinished_frames():
 
 
 def test_a_task_that_kills_every_worker_fails_after_max_attempts():
-    from rayvr.cluster import MAX_ATTEMPTS
+    from rayvr.app.cluster import MAX_ATTEMPTS
 
     results, retried, failed = fake_cluster(2).run([[0], [1]], lambda a, c: Ref(("died", None)) if c == [1] else
                                                    Ref(("ok", c)), size=len)
@@ -169,8 +169,8 @@ class FakeRayCluster(FakeRay):
 
 
 def test_workers_wait_for_the_cpus_that_workers_closed_just_before_still_hold(monkeypatch):
-    from rayvr import cluster
-    from rayvr.cluster import Cluster, WorkerSpec
+    from rayvr.app import cluster
+    from rayvr.app.cluster import Cluster, WorkerSpec
 
     ray = FakeRayCluster([1, 1, 1, 2])
     monkeypatch.setattr(cluster, "require_ray", lambda: ray)
@@ -179,8 +179,8 @@ def test_workers_wait_for_the_cpus_that_workers_closed_just_before_still_hold(mo
 
 
 def test_workers_that_do_not_fit_once_the_wait_is_over_are_one_clear_error(monkeypatch):
-    from rayvr import cluster
-    from rayvr.cluster import Cluster, ClusterError, WorkerSpec
+    from rayvr.app import cluster
+    from rayvr.app.cluster import Cluster, ClusterError, WorkerSpec
 
     monkeypatch.setattr(cluster, "require_ray", lambda: FakeRayCluster([1]))
     monkeypatch.setattr(cluster, "RESOURCE_WAIT_S", 0.3)
@@ -207,9 +207,9 @@ SIZE = (24, 16)
 
 
 def path_job(gl, out, poses, **kw):
-    from rayvr.camera import StereoRig
-    from rayvr.capture import CaptureJob
-    from rayvr.scene import load
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.app.capture import CaptureJob
+    from rayvr.scene.loader import load
 
     rig = StereoRig.for_scene(load(None), size=SIZE, ipd=0.064)  # what `rayvr capture --path` builds
     return CaptureJob(rig, poses, out_dir=out, **kw)
@@ -220,7 +220,7 @@ def frames_on_disk(out):
 
 
 def test_a_rerun_renders_only_the_frames_not_complete_on_disk(gl, tmp_path):
-    from rayvr.capture import job_identity, run_capture
+    from rayvr.app.capture import job_identity, run_capture
     from rayvr.renderer import Renderer
 
     poses = orbit([0, 1, -1], 3.0, 0.5, 4)
@@ -270,7 +270,7 @@ def local_ray():
 @pytest.fixture(scope="module")
 def reference(gl, tmp_path_factory):
     """A 16-frame path file and its single-process capture."""
-    from rayvr.capture import run_capture
+    from rayvr.app.capture import run_capture
     from rayvr.renderer import Renderer
 
     root = tmp_path_factory.mktemp("cluster")
@@ -296,7 +296,7 @@ def test_workers_give_the_same_bytes_as_one_process(local_ray, reference, capsys
 
 @pytest.fixture(scope="module")
 def cluster(local_ray):
-    from rayvr.cluster import Cluster, WorkerSpec
+    from rayvr.app.cluster import Cluster, WorkerSpec
 
     with Cluster(2, WorkerSpec()) as c:  # the built-in room; sweeps load benchmark scenes by name
         assert len({w["pid"] for w in c.ready()}) == 2
@@ -304,8 +304,8 @@ def cluster(local_ray):
 
 
 def test_a_worker_killed_mid_run_still_gives_every_frame_and_a_rerun_skips_them(gl, cluster, reference):
-    from rayvr.capture import job_identity
-    from rayvr.cluster import run_capture_distributed
+    from rayvr.app.capture import job_identity
+    from rayvr.app.cluster import run_capture_distributed
 
     root, poses, single = reference
     out, crash = root / "killed", root / "crashed"
@@ -323,8 +323,8 @@ def test_a_worker_killed_mid_run_still_gives_every_frame_and_a_rerun_skips_them(
 
 
 def test_workers_resume_only_the_frames_they_verify_and_the_folder_is_held(gl, cluster, reference):
-    from rayvr.capture import JobFolder, job_identity
-    from rayvr.cluster import run_capture_distributed
+    from rayvr.app.capture import JobFolder, job_identity
+    from rayvr.app.cluster import run_capture_distributed
 
     root, poses, single = reference
     out = root / "resumed"
@@ -345,9 +345,9 @@ def test_workers_resume_only_the_frames_they_verify_and_the_folder_is_held(gl, c
 def test_sweep_variants_measured_on_workers_match_this_process(gl, cluster):
     from rayvr.bench.scenes import bench_scenes, load_bench_scene
     from rayvr.bench.tradeoff import run_sweep, variants
-    from rayvr.cluster import sweep_measurer
-    from rayvr.measure import RendererPool, Variant, local_measurer
-    from rayvr.materials import load_config
+    from rayvr.app.cluster import sweep_measurer
+    from rayvr.quality.measure import RendererPool, Variant, local_measurer
+    from rayvr.scene.materials import load_config
 
     (name, scene, rig), = bench_scenes(["default"], (16, 12), {})
     chosen = variants(scene, load_config(None), quick=True)[:3]
@@ -436,8 +436,8 @@ def test_a_connect_given_up_while_ray_init_runs_is_remembered_for_the_exit(silen
     wait on the thread left in ray.init for ever."""
     import threading
 
-    from rayvr import cluster
-    from rayvr.cluster import ClusterError, _connect, connect_left_behind
+    from rayvr.app import cluster
+    from rayvr.app.cluster import ClusterError, _connect, connect_left_behind
 
     monkeypatch.setattr(cluster, "_left_behind", threading.Event())
     released = threading.Event()

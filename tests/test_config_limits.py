@@ -3,7 +3,7 @@ absurd nesting and oversized files are refused with one ConfigError naming the f
 import pytest
 
 from conftest import run_rayvr
-from rayvr.materials import ECHO_LIMIT, MAX_CONFIG_BYTES, ConfigError, load_config, parse_config, short
+from rayvr.scene.materials import ECHO_LIMIT, MAX_CONFIG_BYTES, ConfigError, load_config, parse_config, short
 
 HUGE = "x" * 10_000_000  # 10 MB
 

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from rayvr.context import ContextError, create_context
+from rayvr.gl.context import ContextError, create_context
 
 
 def test_context_is_4_3_core_with_what_rayvr_needs(gl):
@@ -50,7 +50,7 @@ def test_egl_and_osmesa_render_the_same_frame(tmp_path):
 def test_no_context_error_is_clear():
     """With every backend broken the error names each one and why."""
     env = {**os.environ, "GLCONTEXT_LINUX_LIBEGL": "/nonexistent/libEGL.so", "LD_LIBRARY_PATH": "/nonexistent"}
-    code = ("import ctypes.util, rayvr.context as c\n"
+    code = ("import ctypes.util, rayvr.gl.context as c\n"
             "ctypes.util.find_library = lambda name: '/nonexistent/lib' + name + '.so'\n"
             "try:\n    c.create_context()\nexcept c.ContextError as e:\n    print(e)\n")
     run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
@@ -63,7 +63,7 @@ def test_gbuffer_suite_passes_under_osmesa():
     from pathlib import Path
 
     here = Path(__file__).parent
-    probe = subprocess.run([sys.executable, "-c", "import rayvr.context as c; c.create_context('osmesa')"],
+    probe = subprocess.run([sys.executable, "-c", "import rayvr.gl.context as c; c.create_context('osmesa')"],
                            capture_output=True, text=True, timeout=120)
     if probe.returncode != 0:
         pytest.skip(f"OSMesa unavailable: {probe.stderr.strip().splitlines()[-1:]}")
@@ -78,9 +78,9 @@ def test_a_gl_error_during_a_frame_is_an_error_not_an_image(gl):
     """A failed GL call while a frame is drawn (here an out-of-range buffer binding made from a
     pass, as an exhausted device or a too-large dispatch would) raises GpuError naming the
     error; a clean frame raises nothing, and errors left from before the frame do not count."""
-    from rayvr import scene as scene_mod
-    from rayvr.camera import StereoRig
-    from rayvr.context import GpuError
+    from rayvr.scene import loader as scene_mod
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.gl.context import GpuError
     from rayvr.renderer import Renderer
 
     scene = scene_mod.load(None)
@@ -109,8 +109,8 @@ def test_a_released_renderer_leaves_no_dead_framebuffer_bound(gl):
     """Renderers come and go on one context (benchmarks, tests): after one is released, the
     next one's frames (with accumulation, whose readback made moderngl rebind its current
     framebuffer by name) report no GL error, and moderngl's current framebuffer is alive."""
-    from rayvr import scene as scene_mod
-    from rayvr.camera import StereoRig
+    from rayvr.scene import loader as scene_mod
+    from rayvr.frame.cameras.rig import StereoRig
     from rayvr.renderer import Renderer
 
     scene = scene_mod.load(None)
@@ -129,8 +129,8 @@ def test_a_second_context_made_or_released_in_the_process_leaves_the_first_one_w
     Renderer made without gl=) took them over, and kept them after its release: the first
     context's next frame failed on every name (glBindFramebuffer(non-gen name)). Renderers on
     two live contexts in turn, and on the first after the second is released, draw the same frame."""
-    from rayvr import scene as scene_mod
-    from rayvr.camera import StereoRig
+    from rayvr.scene import loader as scene_mod
+    from rayvr.frame.cameras.rig import StereoRig
     from rayvr.renderer import Renderer
 
     scene = scene_mod.load(None)
@@ -182,9 +182,9 @@ def test_an_accumulation_keeps_at_most_two_samples_queued_on_the_gpu(gl, monkeyp
     fresh Renderer that queued ~20 s of samples unsynchronised read back the previous Renderer's
     image with 0 ms timings and no GL error. Here: no more than SAMPLES_IN_FLIGHT fences are
     outstanding when a sample is recorded, and every fence is waited for or released."""
-    from rayvr import scene as scene_mod
-    from rayvr.camera import StereoRig
-    from rayvr.context import GLContext
+    from rayvr.scene import loader as scene_mod
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.gl.context import GLContext
     from rayvr.renderer import SAMPLES_IN_FLIGHT, Renderer
 
     made, open_at_record = [], []
@@ -214,9 +214,9 @@ def test_a_frame_whose_passes_all_read_0_ns_on_a_gpu_is_an_error(gl, monkeypatch
     (its commands never ran) with no GL error: on a hardware GPU such a frame raises GpuError.
     A pass that records nothing (the bvh pass once built) may read 0 alone; llvmpipe, whose
     timers can read 0 for short passes, is not checked."""
-    from rayvr import scene as scene_mod
-    from rayvr.camera import StereoRig
-    from rayvr.context import GLContext, GpuError
+    from rayvr.scene import loader as scene_mod
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.gl.context import GLContext, GpuError
     from rayvr.renderer import Renderer, work_dropped
 
     assert work_dropped({"bvh": 0.001, "visibility": 0.0, "shade": 0.0, "tonemap": 0.0})

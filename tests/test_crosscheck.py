@@ -1,4 +1,4 @@
-"""rayvr's reference vs Mitsuba 3 (rayvr.bench.mitsuba_ref, rayvr.reference).
+"""rayvr's reference vs Mitsuba 3 (rayvr.bench.mitsuba_ref, rayvr.quality.reference_images).
 
 Tiny images. Tests that render or evaluate with Mitsuba skip without it (the `mi` fixture); the
 reference choices and the Cornell box loading run everywhere. Tests that need the shared Cornell
@@ -10,11 +10,11 @@ import json
 import numpy as np
 import pytest
 
-from rayvr import scene as scene_mod
-from rayvr import reference as ref_mod
-from rayvr.camera import Pose, StereoRig
-from rayvr.materials import implemented_effects
-from rayvr.scene import Material
+from rayvr.scene import loader as scene_mod
+from rayvr.quality import reference_images as ref_mod
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.scene.materials import implemented_effects
+from rayvr.scene.loader import Material
 
 from rayvr.bench import mitsuba_ref as M  # imports Mitsuba only when it is used
 

@@ -16,9 +16,9 @@ import pytest
 
 from conftest import merge, quad
 from rayvr.bench.tracers.dda import HIT, NEAR, NONE, OFFSCREEN, DdaCamera, DdaTracer, read_linear_depth, trace_dda
-from rayvr.camera import Pose, StereoRig
+from rayvr.frame.cameras.rig import Pose, StereoRig
 from rayvr.renderer import Renderer
-from rayvr.scene import Material, from_arrays
+from rayvr.scene.loader import Material, from_arrays
 
 SIZE = (64, 48)
 

@@ -1,5 +1,5 @@
-"""The denoiser (passes/denoise.py, glsl/post/denoise.comp) against its numpy reference
-(rayvr/numpy_denoise.py), and what it must do: keep a sharp edge in depth, normal or albedo sharp
+"""The denoiser (frame/passes/denoise.py, glsl/post/denoise.comp) against its numpy reference
+(rayvr/reference/denoise.py), and what it must do: keep a sharp edge in depth, normal or albedo sharp
 (an analytic step), lower the error of a noisy image against a converged reference, keep both
 eyes identical with IPD 0, never make a NaN."""
 from __future__ import annotations
@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rayvr.camera import StereoRig
-from rayvr.effects import EFFECTS
-from rayvr.materials import ConfigError, parse_config
-from rayvr.numpy_denoise import denoise
+from rayvr.frame.cameras.rig import StereoRig
+from rayvr.frame.effects import EFFECTS
+from rayvr.scene.materials import ConfigError, parse_config
+from rayvr.reference.denoise import denoise
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import load
+from rayvr.scene.loader import load
 
 # Every sampled effect of the room at one sample a pixel: as noisy as it gets.
 NOISY = {"default": "shadows", "params": {"shadows": {"area_samples": 1}},
@@ -173,7 +173,7 @@ def _step_scene_gpu(kind: str):
     0.9 and 0.15. A large rect light just above makes the direct light noisy at one sample."""
     from conftest import merge, quad
 
-    from rayvr.scene import Light, Material, from_arrays
+    from rayvr.scene.loader import Light, Material, from_arrays
 
     far = 4.0 if kind == "depth" else 2.0
     left = quad((-2.5, 0.0, -2.0), (2.5, 0.0, 0.0), (0.0, 3.0, 0.0))
@@ -191,7 +191,7 @@ def test_gpu_denoiser_keeps_a_rendered_step_sharp(gl, kind):
     """On the GPU, end to end: the columns either side of the step keep their own side's level
     (their ratio to a 32-sample reference is that of their side's inside: the luminance edge-stop
     biases every pixel alike, but nothing comes across the step) while the noise goes down."""
-    from rayvr.camera import Pose
+    from rayvr.frame.cameras.rig import Pose
 
     scene = _step_scene_gpu(kind)
     cfg = parse_config({"default": "shadows", "params": {"shadows": {"area_samples": 1}}}, "<step>")
@@ -216,7 +216,7 @@ def test_gpu_denoiser_keeps_a_rendered_step_sharp(gl, kind):
 
 
 def test_packed_normal_guide_is_within_1e_4_radians():
-    from rayvr.numpy_denoise import octahedral_normal
+    from rayvr.reference.denoise import octahedral_normal
 
     n = np.random.default_rng(3).normal(size=(10000, 3))
     n = np.concatenate([n, np.eye(3), -np.eye(3)])

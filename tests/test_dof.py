@@ -1,16 +1,16 @@
-"""Thin-lens depth of field through screen-space rays (passes/dof.py, glsl/post/dof.comp; Widmer
+"""Thin-lens depth of field through screen-space rays (frame/passes/dof.py, glsl/post/dof.comp; Widmer
 et al. 2015 §5.2). Analytic checks on the step scene (a quad at view depth ~4 in front of a wall at
 ~6): focused on the wall, every lens ray through a wall point in focus meets it there, so wall
 pixels away from the quad keep their colour exactly; the out-of-focus quad's edge blurs into the
 wall over the thin lens's circle of confusion; a vanishing aperture is the pinhole image; IPD 0
-gives identical eyes. The GPU gather equals the numpy reference (passes/dof.py gather_reference)."""
+gives identical eyes. The GPU gather equals the numpy reference (frame/passes/dof.py gather_reference)."""
 
 import numpy as np
 import pytest
 
 from conftest import run_rayvr
 from test_quadtree import scenes
-from rayvr.camera import StereoRig
+from rayvr.frame.cameras.rig import StereoRig
 from rayvr.renderer import Renderer, RenderSettings
 
 
@@ -76,14 +76,14 @@ def test_bad_dof_settings_are_one_line_errors(tmp_path):
 
 
 def test_gpu_gather_equals_numpy_reference(gl):
-    """dof.comp against passes/dof.py gather_reference (numpy: the same lens points from the
+    """dof.comp against frame/passes/dof.py gather_reference (numpy: the same lens points from the
     surface's random stream, lens rays traced by the numpy quadtree traversal) on the step scene's
     left eye, from the frame's own G-buffer, tree and colour: per pixel the same mean colour
     (float32 vs float64 traces may pick the neighbouring pixel for a ray exactly on an edge: a few
     pixels may differ)."""
     from rayvr.accel import quadtree as qt
-    from rayvr.passes import scene_radiance
-    from rayvr.passes.dof import gather_reference
+    from rayvr.frame.passes import scene_radiance
+    from rayvr.frame.passes.dof import gather_reference
 
     scene, rig = scenes()["step"]
     settings = RenderSettings(dof_aperture=2.5, dof_focus=5.8, dof_samples=3, seed=7)

@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 
 from conftest import run_rayvr
-from rayvr import shaders
-from rayvr.camera import StereoRig
-from rayvr.effects import Effect, Param, register, traced_effects, unregister
-from rayvr.frame import FramePlan, Pass, compose, read
-from rayvr.gpu_layout import IMAGE
-from rayvr.materials import ConfigError, parse_config
-from rayvr.passes.classify import bind_lists
+from rayvr.gl import shaders
+from rayvr.frame.cameras.rig import StereoRig
+from rayvr.frame.effects import Effect, Param, register, traced_effects, unregister
+from rayvr.frame.graph import FramePlan, Pass, compose, read
+from rayvr.gl.gpu_layout import IMAGE
+from rayvr.scene.materials import ConfigError, parse_config
+from rayvr.frame.passes.classify import bind_lists
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import load
+from rayvr.scene.loader import load
 
 HERE = Path(__file__).resolve().parent / "toy_effect"
 
@@ -154,7 +154,7 @@ def test_a_frame_parameter_its_materials_must_agree_on_is_refused_naming_them():
 
 
 def test_registry_refuses_clashes(flat):
-    from rayvr.effects import EffectError
+    from rayvr.frame.effects import EffectError
 
     with pytest.raises(EffectError, match="registered already"):
         register(Flat())

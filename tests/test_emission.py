@@ -1,4 +1,4 @@
-"""Which side emissive geometry lights, checked analytically (rayvr/scene.py Material.double_sided).
+"""Which side emissive geometry lights, checked analytically (rayvr/scene/loader.py Material.double_sided).
 
 The rule: emission leaves a triangle's front face only (the side its winding's normal points to),
 unless the material is double-sided (glTF `doubleSided`; OBJ emitters are one-sided). It holds for
@@ -20,12 +20,12 @@ import numpy as np
 import pytest
 
 from conftest import merge, quad
-from rayvr import scene as scene_mod
-from rayvr.camera import Pose, StereoRig
-from rayvr.materials import parse_config
-from rayvr.numpy_shading import brdf_cos, shade_eye
+from rayvr.scene import loader as scene_mod
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.scene.materials import parse_config
+from rayvr.reference.shading import brdf_cos, shade_eye
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import Light, Material, from_arrays
+from rayvr.scene.loader import Light, Material, from_arrays
 
 L = 3.0                                  # the lamp's radiance
 LAMP_C, LAMP_HALF = np.array([0.0, 1.0, -0.6]), 0.5   # unit square, 1 above the floor
@@ -365,7 +365,7 @@ def test_a_double_sided_lamp_is_the_sum_of_its_two_one_sided_halves(gl, effect):
 def test_a_one_sided_emitter_facing_away_from_all_geometry_is_warned_about(caplog):
     """A lamp wound the wrong way lights nothing: a warning names it rather than a silent black
     room; a lamp facing the floor, or a double-sided one, is not warned about."""
-    with caplog.at_level("WARNING", logger="rayvr.scene"):
+    with caplog.at_level("WARNING", logger="rayvr.scene.loader"):
         lamp_scene(True, False)
         lamp_scene(False, True)
         assert not caplog.records

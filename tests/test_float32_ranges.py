@@ -1,4 +1,4 @@
-"""Values that are finite in float64 but overflow or flush to zero in the GPU's float32 (rayvr/limits.py
+"""Values that are finite in float64 but overflow or flush to zero in the GPU's float32 (rayvr/gl/limits.py
 and the camera checks that use it): refused in one line before any work, or rendered right at the
 edge of their range; and every JSON a capture writes is valid JSON (no NaN or Infinity)."""
 import json
@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from conftest import run_rayvr
-from rayvr.camera import Pose, StereoRig
-from rayvr.cameras import Distorted
-from rayvr.cameras.pinhole import MIN_PIXEL_TANGENT
-from rayvr.limits import (FLOAT32_MAX, FLOAT32_NORMAL_MIN, MAX_CAMERA_COORDINATE, MAX_DISTANCE, MIN_DISTANCE,
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.cameras import Distorted
+from rayvr.frame.cameras.pinhole import MIN_PIXEL_TANGENT
+from rayvr.gl.limits import (FLOAT32_MAX, FLOAT32_NORMAL_MIN, MAX_CAMERA_COORDINATE, MAX_DISTANCE, MIN_DISTANCE,
                           check_range, to_float32)
 
 
@@ -103,8 +103,8 @@ def test_camera_positions_beyond_float32_are_one_line_before_any_frame(tmp_path)
 
 
 def test_view_positions_are_checked_against_the_scene_before_rendering():
-    from rayvr.scene import load
-    from rayvr.views import views_for
+    from rayvr.scene.loader import load
+    from rayvr.app.views import views_for
 
     scene = load(None)
     rig = StereoRig.for_scene(scene, size=(16, 12))
@@ -179,7 +179,7 @@ def test_the_narrowest_fov_renders_right_in_raster_and_rays(gl):
     third of the step; at 1e-6 degrees rays found 17 %)."""
     from rayvr import Renderer
     from rayvr.renderer import RenderSettings
-    from rayvr.scene import load
+    from rayvr.scene.loader import load
 
     scene, size = load(None), (48, 36)
     corner = scene.world_vertices()[scene.indices.reshape(-1, 3)[len(scene.indices) // 9, 0]]
@@ -199,7 +199,7 @@ def test_the_narrowest_fov_renders_right_in_raster_and_rays(gl):
 def test_the_shortest_near_plane_renders_the_same_depths(gl):
     """near 1e-18: reversed-Z depth near / distance stays a normal float32; the frame equals near 0.05's."""
     from rayvr import Renderer
-    from rayvr.scene import load
+    from rayvr.scene.loader import load
 
     scene = load(None)
     pose = Pose.look_at([0.3, 1.5, 2.5], [0, 1.2, -1])

@@ -1,4 +1,4 @@
-"""The foveated camera's reconstruction for display (cameras/foveated.py reconstruct, its GLSL twin
+"""The foveated camera's reconstruction for display (frame/cameras/foveated.py reconstruct, its GLSL twin
 glsl/shade/sample_resolve.comp) against a dense reference: the pinhole's frame of the same rays,
 which has every pixel the foveated frame samples and the ones between."""
 from dataclasses import replace
@@ -8,10 +8,10 @@ import pytest
 
 from conftest import quad
 from rayvr import Renderer
-from rayvr.camera import Pose, StereoRig
-from rayvr.cameras import Foveated
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.cameras import Foveated
 from rayvr.renderer import RenderSettings
-from rayvr.scene import Material, from_arrays
+from rayvr.scene.loader import Material, from_arrays
 
 SIZE = (64, 48)
 MODEL = Foveated(gaze=(0.15, 0.2), mar_slope=0.1, fovea_radius=2.0)  # sparse away from the gaze

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from rayvr.frame import Buffer, FramePlan, GraphError, Pass, Texture, compile_graph, compose, read, write
+from rayvr.frame.graph import Buffer, FramePlan, GraphError, Pass, Texture, compile_graph, compose, read, write
 
 PLAN = FramePlan(effects=frozenset({"raster"}))
 
@@ -55,7 +55,7 @@ def test_errors_name_the_resource_and_passes():
 
 
 def test_buffer_sizes_follow_their_rule_and_describe_prints_them():
-    from rayvr.frame import Sizing
+    from rayvr.frame.graph import Sizing
 
     class Lists(Pass):
         name = "lists"

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from conftest import run_rayvr
-from rayvr.camera import StereoRig
-from rayvr.frame import (RESOURCE_BYTES_LIMIT, DeviceLimits, FrameTooLarge, Sizing, check_fits, compile_graph,
+from rayvr.frame.cameras.rig import StereoRig
+from rayvr.frame.graph import (RESOURCE_BYTES_LIMIT, DeviceLimits, FrameTooLarge, Sizing, check_fits, compile_graph,
                          limit_problems)
-from rayvr.materials import parse_config
+from rayvr.scene.materials import parse_config
 from rayvr.renderer import Renderer, candidate_passes
-from rayvr.scene import load
+from rayvr.scene.loader import load
 
 
 def _graph(gl, config=None):

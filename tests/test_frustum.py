@@ -9,7 +9,7 @@ from conftest import merge, quad
 from rayvr.accel.bvh import build_bvh, trace_reference
 from rayvr.accel.frustum import entry_subtrees, tile_frusta, tile_order
 from rayvr.accel.gpu import MISS, GpuBvh, RayTracer
-from rayvr.gpu_layout import TILE_RAYS
+from rayvr.gl.gpu_layout import TILE_RAYS
 from test_traversal_gpu import agreement
 
 

@@ -6,11 +6,11 @@ import pytest
 import trimesh
 
 from conftest import merge, quad
-from rayvr.camera import Pose, StereoRig
-from rayvr.gbuffer import NO_HIT
-from rayvr.materials import parse_config
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.gbuffer import NO_HIT
+from rayvr.scene.materials import parse_config
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import Material, from_arrays, load
+from rayvr.scene.loader import Material, from_arrays, load
 
 ALL_AUX = ("depth", "zbuffer", "position", "normal", "albedo", "material", "effect", "triangle")
 
@@ -204,7 +204,7 @@ def test_file_normals_against_the_winding_shade_the_side_in_view(gl, wound):
     whichever way the file wound it (Mitsuba's `twosided` flips by the shading normal alike), so
     such a quad under a point light shades exactly as with normals along its winding; before, the
     normal was flipped by the geometric side only and turned away: the lit quad came out black."""
-    from rayvr.scene import Light
+    from rayvr.scene.loader import Light
     verts, faces = quad((0.0, 0.0, -3.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0))  # winding faces +z
     if wound == "away":  # the camera sees the triangles' back
         faces = faces[:, ::-1]
@@ -226,8 +226,8 @@ def test_file_normals_against_the_winding_shade_the_side_in_view(gl, wound):
             assert (nz > 0.99).all(), (sign, e, nz.min())  # towards the camera (+z)
         a, b = out[1.0][e].aux["hdr"][quad_px], out[-1.0][e].aux["hdr"][quad_px]
         assert a.mean() > 0.05 and np.array_equal(a, b)
-    # the numpy reference (rayvr/numpy_shading.py) turns the normal the same way
-    from rayvr.numpy_shading import shade_eye
+    # the numpy reference (rayvr/reference/shading.py) turns the normal the same way
+    from rayvr.reference.shading import shade_eye
     sc = from_arrays(verts, faces, normals=np.tile([0.0, 0.0, -1.0 if wound == "towards" else 1.0], (4, 1)),
                      materials=[Material("m", roughness=0.6)], lights=light)
     ref = shade_eye(sc, rig.eye("left"), "raster", ambient=(0.0, 0.0, 0.0))

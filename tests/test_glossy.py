@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from conftest import merge, quad
-from rayvr.camera import Pose, StereoRig
-from rayvr.materials import parse_config
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.scene.materials import parse_config
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import Light, Material, from_arrays
+from rayvr.scene.loader import Light, Material, from_arrays
 
 DARK = RenderSettings(ambient=(0.0, 0.0, 0.0), background=(0.0, 0.0, 0.0))
 WALL_X, WALL_H = 1000.0, 1.0e5

@@ -1,4 +1,4 @@
-"""Constants the shaders share with Python are declared once, in Python (rayvr/glsl_constants.py
+"""Constants the shaders share with Python are declared once, in Python (rayvr/gl/glsl_constants.py
 declare, emitted in the generated layout.glsl), and never typed into a shader by hand."""
 import importlib
 import pkgutil
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import rayvr
-from rayvr import glsl_constants, gpu_layout
-from rayvr.glsl_constants import declare, literal
-from rayvr.shaders import GLSL_DIR
+from rayvr.gl import glsl_constants, gpu_layout
+from rayvr.gl.glsl_constants import declare, literal
+from rayvr.gl.shaders import GLSL_DIR
 
 # A number, or arithmetic of numbers: `64`, `0xFFFFFFFFu`, `1e-4`, `(1.0 / 256.0)`, `-1.0`.
 _NUMBER = r"[-+]?(?:0[xX][0-9a-fA-F]+|\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?)[uUfF]?"
@@ -131,9 +131,9 @@ def test_shared_constants_reach_the_header_exactly():
     import_every_module()
     from rayvr.accel import gpu, quadtree
     from rayvr.bench.tracers import dda, hiz
-    from rayvr.cameras import CAMERA_MODELS
-    from rayvr.effects.photon import scan as photon_scan
-    from rayvr.passes import reuse, warp
+    from rayvr.frame.cameras import CAMERA_MODELS
+    from rayvr.frame.effects.photon import scan as photon_scan
+    from rayvr.frame.passes import reuse, warp
 
     header = {m.group(1): m.group(2) for m in re.finditer(r"(?m)^#define (\w+) (.*)$", gpu_layout.glsl_header())}
     expected = {"SSRT_HIT": "1u", "SSRT_NONE": "4u", "SSRT_OCCLUDED": "5u", "QT_ON_LEAF": "3.814697265625e-06",
@@ -208,7 +208,7 @@ def test_a_shader_is_compiled_where_its_constants_are_declared():
     """A declared constant reaches the header once its owner is imported, so each module that compiles
     a shader must import (directly or through others) the owner of every declared constant the shader
     uses, or the shader would not build where that module alone is imported."""
-    from rayvr.shaders import load_source
+    from rayvr.gl.shaders import load_source
 
     root = GLSL_DIR.parent
     sources = {f"rayvr.{'.'.join(p.relative_to(root).with_suffix('').parts)}".removesuffix(".__init__"): p

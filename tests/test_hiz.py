@@ -17,9 +17,9 @@ from conftest import merge, quad
 from rayvr.bench.tracers import hiz
 from rayvr.accel import quadtree as qt
 from rayvr.bench.tracers.dda import read_linear_depth
-from rayvr.camera import Pose, StereoRig
+from rayvr.frame.cameras.rig import Pose, StereoRig
 from rayvr.renderer import Renderer
-from rayvr.scene import from_arrays
+from rayvr.scene.loader import from_arrays
 
 SIZE = (64, 48)
 ODD = (37, 29)

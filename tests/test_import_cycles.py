@@ -5,8 +5,8 @@ The graph is read from the source with `ast`, so an import hidden inside a funct
 at the top. What an import statement costs in Python decides its edges:
 
 - `import a.b.c` / `from a.b.c import n`: an edge to a.b.c, and to each package above it that the
-  importer is not inside itself (importing `rayvr.effects.ssr` from `rayvr.passes` runs
-  `rayvr/effects/__init__.py`; from inside `rayvr.effects` that package is already running).
+  importer is not inside itself (importing `rayvr.frame.effects.ssr` from `rayvr.frame.passes` runs
+  `rayvr/frame/effects/__init__.py`; from inside `rayvr.frame.effects` that package is already running).
 - `from a.b import n`: also an edge to a.b.n when n is a module (`from . import shaders`).
 - `from . import n` / `from .. import n` where n is a module: an edge to that module alone; where n
   is a name: an edge to the package, which is then imported back *for names*: a cycle with its
@@ -27,17 +27,21 @@ BENCH_USERS = {"rayvr.commands.bench"}
 # below, never one above. A module or package is placed by its longest listed prefix; a new module
 # must be placed (the test says so).
 LAYERS = (
-    ("rayvr.glsl_constants", "rayvr.options"),
-    ("rayvr.gpu_layout",),
-    ("rayvr.effect_registry", "rayvr.cameras", "rayvr.shaders", "rayvr.limits", "rayvr.inputs", "rayvr.pcg",
-     "rayvr.timing", "rayvr.signals", "rayvr.extras", "rayvr.output", "rayvr.camera", "rayvr.scene", "rayvr.stereo",
-     "rayvr.context", "rayvr.accumulation"),
-    ("rayvr.accel", "rayvr.gbuffer", "rayvr.frame"),
-    ("rayvr.passes",),
-    ("rayvr.effects",),
-    ("rayvr.materials", "rayvr.gpu_scene", "rayvr.numpy_denoise", "rayvr.numpy_shading", "rayvr.renderer",
-     "rayvr.readback", "rayvr.views", "rayvr.capture_files", "rayvr.capture", "rayvr.metrics", "rayvr.reference",
-     "rayvr.measure", "rayvr.budget", "rayvr.cluster", "rayvr.preview", "rayvr.hud", "rayvr.settings"),
+    # the packages of tools/relayout.py's layout: their __init__ imports nothing
+    ("rayvr.gl", "rayvr.util", "rayvr.scene", "rayvr.frame", "rayvr.reference", "rayvr.quality", "rayvr.app"),
+    ("rayvr.gl.glsl_constants", "rayvr.options"),
+    ("rayvr.gl.gpu_layout",),
+    ("rayvr.frame.effect_registry", "rayvr.frame.cameras", "rayvr.gl.shaders", "rayvr.gl.limits", "rayvr.util.inputs",
+     "rayvr.frame.pcg", "rayvr.gl.timing", "rayvr.util.signals", "rayvr.util.extras", "rayvr.util.output",
+     "rayvr.frame.cameras.rig", "rayvr.scene.loader", "rayvr.frame.stereo", "rayvr.gl.context",
+     "rayvr.frame.accumulation"),
+    ("rayvr.accel", "rayvr.frame.gbuffer", "rayvr.frame.graph"),
+    ("rayvr.frame.passes",),
+    ("rayvr.frame.effects",),
+    ("rayvr.scene.materials", "rayvr.scene.gpu_scene", "rayvr.reference.denoise", "rayvr.reference.shading",
+     "rayvr.renderer", "rayvr.frame.readback", "rayvr.app.views", "rayvr.app.capture_files", "rayvr.app.capture",
+     "rayvr.quality.metrics", "rayvr.quality.reference_images", "rayvr.quality.measure", "rayvr.quality.budget",
+     "rayvr.app.cluster", "rayvr.app.preview", "rayvr.app.hud", "rayvr.settings"),
     (BENCH,),
     ("rayvr.cli", "rayvr.commands", "rayvr.__main__", "rayvr"),
 )

@@ -56,7 +56,7 @@ def test_an_input_that_is_not_a_regular_file_is_one_line_at_once(tmp_path, flag,
 
 
 def test_an_input_file_over_its_size_cap_is_refused_before_reading(tmp_path):
-    from rayvr.inputs import MAX_JSON_BYTES
+    from rayvr.util.inputs import MAX_JSON_BYTES
 
     p = tmp_path / "huge.json"
     with open(p, "wb") as fh:  # sparse: nothing is written, the size says it all

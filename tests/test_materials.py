@@ -2,8 +2,8 @@ import logging
 
 import pytest
 
-from rayvr.effects import EFFECTS, PLANNED
-from rayvr.materials import ConfigError, load_config, parse_config
+from rayvr.frame.effects import EFFECTS, PLANNED
+from rayvr.scene.materials import ConfigError, load_config, parse_config
 
 NAMES = ["floor", "mirror_ball", "mirror_panel", "walls", "gold"]
 

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from rayvr import metrics as M
+from rayvr.quality import metrics as M
 
 
 def _image(h=48, w=64, seed=0):

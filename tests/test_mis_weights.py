@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rayvr import shaders
-from rayvr.gpu_layout import SSBO
+from rayvr.gl import shaders
+from rayvr.gl.gpu_layout import SSBO
 
 IN_BINDING, OUT_BINDING = max(SSBO.values()) + 1, max(SSBO.values()) + 2  # clear of the scene's buffers
 

@@ -1,4 +1,4 @@
-"""MSAA rounds recorded without waiting for the GPU's round count (passes/primary_rays.py
+"""MSAA rounds recorded without waiting for the GPU's round count (frame/passes/primary_rays.py
 COUNT_POLL, the conftest `count_poll` fixture): the frame is bit-identical whether the count is
 known after the first round ("wait") or never while recording ("never": every channel set records
 msaa_slots rounds, those past the count skip every pixel), and whether empty slots are skipped or
@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 
 from rayvr import Renderer
-from rayvr.camera import Pose, StereoRig
-from rayvr.cameras import Distorted
-from rayvr.frame import FramePlan
-from rayvr.gpu_layout import ROUND_SKIPPED
-from rayvr.materials import parse_config
-from rayvr.passes import primary_rays
-from rayvr.passes.classify import pixel_counts
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.cameras import Distorted
+from rayvr.frame.graph import FramePlan
+from rayvr.gl.gpu_layout import ROUND_SKIPPED
+from rayvr.scene.materials import parse_config
+from rayvr.frame.passes import primary_rays
+from rayvr.frame.passes.classify import pixel_counts
 from rayvr.renderer import RenderSettings
-from rayvr.scene import load
+from rayvr.scene.loader import load
 
 POSE = Pose.look_at([0.3, 1.5, 1.0], [0.3, 2.5, -1])  # the default room's ceiling corner: 3 triangles at most in a pixel
 AUX = ("hdr", "position", "normal", "albedo", "material", "triangle")

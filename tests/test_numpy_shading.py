@@ -1,4 +1,4 @@
-"""The GPU's direct lighting against an independent numpy reference (rayvr/numpy_shading.py).
+"""The GPU's direct lighting against an independent numpy reference (rayvr/reference/shading.py).
 
 Each case renders the left eye on the GPU (aux "hdr": linear colour before tone mapping, from a
 float16 target) and the same EyeView with the numpy reference, then compares the pixels whose
@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from conftest import merge, quad
-from rayvr.camera import Pose, StereoRig
-from rayvr.materials import parse_config
-from rayvr.numpy_shading import light_samples, shade_eye
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.scene.materials import parse_config
+from rayvr.reference.shading import light_samples, shade_eye
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import Light, Material, from_arrays, load
+from rayvr.scene.loader import Light, Material, from_arrays, load
 
 SIZE = (64, 48)
 AMBIENT = (0.10, 0.08, 0.06)       # large enough that a wrong ambient term fails the mean check

@@ -11,8 +11,8 @@ import pytest
 from conftest import run_rayvr
 from rayvr import options, settings as settings_mod
 from rayvr.cli import build_parser, main
-from rayvr.frame import FramePlan
-from rayvr.materials import ConfigError, MaterialConfig, load_config, parse_config
+from rayvr.frame.graph import FramePlan
+from rayvr.scene.materials import ConfigError, MaterialConfig, load_config, parse_config
 from rayvr.renderer import Renderer, RenderSettings
 
 
@@ -45,8 +45,8 @@ def toml_error(tmp_path, body: str) -> str:
 
 
 def test_a_real_option_is_a_field_a_flag_of_each_command_a_toml_key_and_a_listing_entry(tmp_path, capsys):
-    option = settings_mod.all_options()["quadtree_adapt"]  # declared by passes/quadtree.py
-    assert option.owner == "rayvr.passes.quadtree" and set(option.commands) == {"capture", "preview"}
+    option = settings_mod.all_options()["quadtree_adapt"]  # declared by frame/passes/quadtree.py
+    assert option.owner == "rayvr.frame.passes.quadtree" and set(option.commands) == {"capture", "preview"}
     assert RenderSettings().quadtree_adapt == 0.0 and RenderSettings(quadtree_adapt=2).quadtree_adapt == 2.0
     for command in ("capture", "preview"):
         assert parse(command, "--quadtree-adapt", "0.5").quadtree_adapt == 0.5
@@ -57,7 +57,7 @@ def test_a_real_option_is_a_field_a_flag_of_each_command_a_toml_key_and_a_listin
     assert main(["options", "quadtree_adapt"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("quadtree_adapt  --quadtree-adapt\n") and "[0, 1e+06]" in out and "scope frame" in out
-    assert "declared in rayvr.passes.quadtree" in out and "Widmer" in out
+    assert "declared in rayvr.frame.passes.quadtree" in out and "Widmer" in out
 
 
 def test_every_module_that_declares_an_option_is_an_owner():
@@ -139,7 +139,7 @@ def test_flags_override_the_config_render_table_and_imply_what_they_imply(tmp_pa
 
 
 def test_render_settings_round_trip_through_a_capture_job_file_and_an_old_one_resumes(tmp_path):
-    from rayvr.capture import identity_digest
+    from rayvr.app.capture import identity_digest
 
     out = tmp_path / "o"
     flags = ["--exposure", "2.5", "--traversal", "bvh2", "--seed", "3", "--tonemapper", "clamp"]
@@ -179,7 +179,7 @@ def test_rayvr_options_lists_every_render_setting(capsys):
     entries = json.loads(capsys.readouterr().out)
     assert [e["name"] for e in entries] == [f.name for f in dataclasses.fields(RenderSettings) if f.name != "more"]
     by_name = {e["name"]: e for e in entries}
-    assert by_name["exposure"]["allowed"] == "(0, 1e+06]" and by_name["exposure"]["owner"] == "rayvr.passes.tonemap"
+    assert by_name["exposure"]["allowed"] == "(0, 1e+06]" and by_name["exposure"]["owner"] == "rayvr.frame.passes.tonemap"
     assert by_name["msaa"]["plan_field"] == "samples" and by_name["msaa"]["flag"] == "--msaa"
     assert by_name["ambient"]["flag"] is None and by_name["ambient"]["scope"] == "material"
     assert main(["options", "nope"]) == 2
@@ -202,7 +202,7 @@ def test_the_screen_space_lens_is_a_diameter_and_the_old_names_still_work(capsys
     help_ = " ".join(capsys.readouterr().out.split())  # argparse wraps the lines
     assert "--dof-diameter DOF_DIAMETER, --aperture DOF_DIAMETER" in help_
     assert "--aperture: deprecated spelling of --dof-diameter" in help_ and "aperture=RADIUS" in help_
-    from rayvr.cameras.thin_lens import ThinLens
+    from rayvr.frame.cameras.thin_lens import ThinLens
     assert {f.name for f in dataclasses.fields(ThinLens)} >= {"aperture", "focus"}  # the model's own: a radius
 
 
@@ -244,7 +244,7 @@ def test_plan_options_reach_their_plan_field_and_no_other_option_changes_the_pla
 
 def test_background_is_a_flag_by_its_declaration_alone(tmp_path):
     """The recipe (docs/options.md): `background` became a flag of capture and preview by adding
-    `commands` to its declaration in passes/shade.py; nothing else changed."""
+    `commands` to its declaration in frame/passes/shade.py; nothing else changed."""
     for command in ("capture", "preview"):
         assert parse(command, "--background", "1,0,0.5").background == (1.0, 0.0, 0.5)
     run = run_rayvr("capture", "--size", "16x12", "--camera", "0,1,3,0,1,-1000", "--far", "5",

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import fail_writes
-from rayvr.output import (MAX_PREFIX_BYTES, OutputError, atomic_write_bytes, check_file_prefix, check_output_dir,
+from rayvr.util.output import (MAX_PREFIX_BYTES, OutputError, atomic_write_bytes, check_file_prefix, check_output_dir,
                           make_output_dir, write_npy, write_png)
 
 
@@ -72,8 +72,8 @@ def test_plain_prefixes_pass(prefix):
 
 
 def test_capture_job_refuses_a_prefix_outside_its_folder():
-    from rayvr.camera import StereoRig
-    from rayvr.capture import CaptureJob
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.app.capture import CaptureJob
 
     rig = StereoRig()
     with pytest.raises(ValueError, match="file prefix"):

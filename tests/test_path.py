@@ -4,7 +4,7 @@
   reflects with rayvr's BRDF. Every surface point sees the same thing, so the radiance leaving at
   cos mu from the normal solves L(mu) = E + int f(mu, l) cos(l) L(mu_l) dl (a ray leaving at mu
   meets the sphere at mu again): numpy solves it on a grid with its own BRDF
-  (rayvr/numpy_shading.py); a pure Lambert albedo a gives the textbook E / (1 - a).
+  (rayvr/reference/shading.py); a pure Lambert albedo a gives the textbook E / (1 - a).
 * MIS glossy: a rough metal floor under a rect light, lit by light samples + GGX rays with MIS,
   against the same floor where the lamp is no light at all (found by GGX rays alone, many samples).
 * NaN-free at grazing views and with a zero-area light; deterministic per seed."""
@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from conftest import merge, quad
-from rayvr.camera import Pose, StereoRig
-from rayvr.materials import parse_config
-from rayvr.numpy_shading import brdf_cos
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.scene.materials import parse_config
+from rayvr.reference.shading import brdf_cos
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import Light, Material, from_arrays
+from rayvr.scene.loader import Light, Material, from_arrays
 
 DARK = dict(ambient=(0.0, 0.0, 0.0), background=(0.0, 0.0, 0.0))
 

@@ -12,11 +12,11 @@ import pytest
 
 from conftest import merge, quad
 from rayvr.accel import photon_map as pm
-from rayvr.camera import Pose, StereoRig
-from rayvr.effects import EFFECTS
-from rayvr.materials import parse_config
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.effects import EFFECTS
+from rayvr.scene.materials import parse_config
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import Light, Material, from_arrays
+from rayvr.scene.loader import Light, Material, from_arrays
 
 ALBEDO = 0.01  # a dark floor: photons that bounce off it again are too few to matter (Russian roulette)
 E_BEAM = 1.0  # the directional light's irradiance across the beam
@@ -143,7 +143,7 @@ def test_room_ceiling_gets_indirect_light_finite_everywhere(gl):
     and walls; nothing is NaN or infinite at any pixel, grazing walls included."""
     from pathlib import Path
 
-    from rayvr.materials import config_with, load_config
+    from rayvr.scene.materials import config_with, load_config
 
     base = load_config(Path(__file__).resolve().parents[1] / "rayvr" / "assets" / "photon_room.toml")
     cfg = config_with(base, params={"photon": {"photons": 1 << 14, "radius": 0.5}})
@@ -168,7 +168,7 @@ def test_map_seed_changes_the_photon_map_not_the_direct_light(gl):
     (indirect >= 0) to that very direct light, while another frame seed's direct light differs."""
     from pathlib import Path
 
-    from rayvr.materials import config_with, load_config
+    from rayvr.scene.materials import config_with, load_config
 
     base = load_config(Path(__file__).resolve().parents[1] / "rayvr" / "assets" / "photon_room.toml")
     dark = RenderSettings(ambient=(0, 0, 0))
@@ -195,10 +195,10 @@ def test_map_seed_changes_the_photon_map_not_the_direct_light(gl):
 
 
 def test_kdtree_is_built_again_only_for_other_photons(renderer, monkeypatch):
-    """effects/photon/kdtree.py keeps its tree while the photons stay the same (a still view: the
+    """frame/effects/photon/kdtree.py keeps its tree while the photons stay the same (a still view: the
     bench times many frames of one map), and builds it again when they change: what it uploads is
     always the tree of this frame's photons."""
-    from rayvr.effects.photon import kdtree as photon_kdtree
+    from rayvr.frame.effects.photon import kdtree as photon_kdtree
 
     builds, build = [], photon_kdtree.kdtree_records
 

@@ -8,7 +8,7 @@
   ... + a^B) at every pixel, B the stored bounces. A point light has no side, so the test does
   not depend on the emission sidedness rule.
 * Glossy caustic: a rough white metal wall under a directional light throws its reflection on a
-  dark floor; numpy integrates rayvr's BRDF (rayvr/numpy_shading.py) over the wall for the
+  dark floor; numpy integrates rayvr's BRDF (rayvr/reference/shading.py) over the wall for the
   irradiance at each floor point, and the photons stored on the floor, and the estimate at each
   floor pixel, must match it (the GGX-sampled photon carries F G2 / G1, the BRDF's exact weight).
 """
@@ -21,11 +21,11 @@ import pytest
 
 from conftest import merge, quad
 from rayvr.accel import photon_map as pm
-from rayvr.camera import Pose, StereoRig
-from rayvr.materials import parse_config
-from rayvr.numpy_shading import brdf_cos
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.scene.materials import parse_config
+from rayvr.reference.shading import brdf_cos
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import Light, Material, from_arrays
+from rayvr.scene.loader import Light, Material, from_arrays
 
 DARK = RenderSettings(ambient=(0, 0, 0), background=(0, 0, 0))
 
@@ -282,7 +282,7 @@ def periscope_scene():
 
 def test_a_caustic_through_two_mirrors_is_stored_with_one_bounce(gl):
     """`bounces` counts the photons a path stores on diffuse surfaces; mirror reflections on the way
-    are free (effects/photon/trace.py: 'having passed through any number of mirror/glossy
+    are free (frame/effects/photon/trace.py: 'having passed through any number of mirror/glossy
     reflections'). With bounces = 1, the periscope's caustic must reach the floor: every photon
     path that meets mirror A stores one photon in the spot, of the beam's power over A
     (E x 0.5 m^2 in all), and the pixels there show irradiance E. (A floor -> mirror -> floor path

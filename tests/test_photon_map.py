@@ -54,7 +54,7 @@ def test_gpu_cells_counts_and_scan_equal_numpy(built):
 
 
 def test_gpu_scan_levels_equal_numpy(gl):
-    from rayvr.effects.photon.scan import Scan, scan_words
+    from rayvr.frame.effects.photon.scan import Scan, scan_words
 
     rng = np.random.default_rng(3)
     ctx = gl.ctx
@@ -148,8 +148,8 @@ def test_oct_normals_round_trip():
 def test_gpu_sort_in_rows_of_work_groups(gl, monkeypatch):
     """More work groups than one dispatch row holds (65535 on real GPUs; 7 here): rows of groups,
     the spare groups of the last row idle, the result still numpy's stable sort."""
-    from rayvr.effects.photon import scan as photon_scan
-    from rayvr.effects.photon.sort import RadixSort, table_words
+    from rayvr.frame.effects.photon import scan as photon_scan
+    from rayvr.frame.effects.photon.sort import RadixSort, table_words
 
     monkeypatch.setattr(photon_scan, "MAX_GROUPS", 7)
     rng = np.random.default_rng(4)
@@ -168,8 +168,8 @@ def test_gpu_sort_in_rows_of_work_groups(gl, monkeypatch):
 
 
 def test_lights_emit_in_proportion_to_power():
-    from rayvr.effects.photon.trace import light_power, light_table
-    from rayvr.scene import Light
+    from rayvr.frame.effects.photon.trace import light_power, light_table
+    from rayvr.scene.loader import Light
 
     class S:
         lights = [Light("point", intensity=1.0), Light("point", intensity=3.0),
@@ -186,8 +186,8 @@ def test_lights_emit_in_proportion_to_power():
 def test_shipped_photon_room_config_puts_the_room_on_photon():
     from pathlib import Path
 
-    from rayvr.materials import load_config
-    from rayvr.scene import load
+    from rayvr.scene.materials import load_config
+    from rayvr.scene.loader import load
 
     cfg = load_config(Path(__file__).resolve().parents[1] / "rayvr" / "assets" / "photon_room.toml")
     got = {n: a.effect for n, a in zip(load(None).material_names(), cfg.assign(load(None).material_names()))}

@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rayvr import materials
-from rayvr.camera import Pose, StereoRig
-from rayvr.preview import KEYS, RES_SCALES, STEREO_MODES, Camera, Controls, ViewState, layout_for
+from rayvr.scene import materials
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.app.preview import KEYS, RES_SCALES, STEREO_MODES, Camera, Controls, ViewState, layout_for
 from rayvr.renderer import VIEWS
 
 REPO = Path(__file__).resolve().parents[1]
@@ -211,7 +211,7 @@ def test_layouts_split_the_window_and_map_the_cursor_to_eye_texels():
 
 
 def test_hud_wrap_fits_lines_to_the_width():
-    from rayvr.preview import _wrap
+    from rayvr.app.preview import _wrap
 
     lines = _wrap("aaa bbb ccc ddd", 7, len)
     assert lines == ["aaa bbb", "ccc ddd"]
@@ -276,7 +276,7 @@ def worker(display):
 
 
 def _preview(**kw):
-    from rayvr.preview import Preview
+    from rayvr.app.preview import Preview
 
     kw.setdefault("vsync", False)
     kw.setdefault("res_scale", 1.0)
@@ -457,7 +457,7 @@ def _second_effect():
 
 
 def _config_reload(cfg_path):
-    from rayvr.gbuffer import NO_HIT
+    from rayvr.frame.gbuffer import NO_HIT
 
     effect = _second_effect()
     cfg = Path(cfg_path)
@@ -555,7 +555,7 @@ def _screenshot(out_dir):
 def test_screenshot_key_writes_what_rayvr_capture_writes(worker, tmp_path):
     from PIL import Image
 
-    from rayvr.capture import CaptureJob, file_name
+    from rayvr.app.capture import CaptureJob, file_name
 
     first, second = worker(_screenshot, str(tmp_path))
     rig = StereoRig(size=(64, 48))
@@ -593,7 +593,7 @@ def _record(path_file):
 
 def test_recorded_camera_path_replays_in_capture(worker, gl, tmp_path):
     from rayvr import Renderer
-    from rayvr.capture import CaptureJob, poses_for, run_capture
+    from rayvr.app.capture import CaptureJob, poses_for, run_capture
 
     path_file = tmp_path / "path.json"
     message = worker(_record, str(path_file))
@@ -622,8 +622,8 @@ def test_app_py_opens_renders_and_closes(display, tmp_path):
 def test_quadtree_key_steps_the_ssr_thresholds_of_the_config():
     """T sets (gamma_norm, gamma_dist) of every ssr material, per-material entries included, and
     cycles back to lossless."""
-    from rayvr.materials import parse_config
-    from rayvr.preview import QUADTREE_PRESETS, Preview
+    from rayvr.scene.materials import parse_config
+    from rayvr.app.preview import QUADTREE_PRESETS, Preview
 
     class Fake:  # the parts of Preview that T uses, without a window
         quadtree_preset = 0
@@ -654,7 +654,7 @@ def test_quadtree_key_steps_the_ssr_thresholds_of_the_config():
 
 
 def test_noise_keys_toggle_accumulation_denoiser_and_temporal_reprojection():
-    from rayvr.accumulation import MAX_DENOISE_ITERATIONS
+    from rayvr.frame.accumulation import MAX_DENOISE_ITERATIONS
 
     c = make_controls()
     assert c.state.accumulate and not c.state.denoise and not c.state.temporal  # accumulate while still

@@ -8,10 +8,10 @@ import pytest
 
 from conftest import merge, quad
 from rayvr.accel import quadtree as qt
-from rayvr.camera import Pose, StereoRig
-from rayvr.passes.quadtree import QuadtreePass, QuadtreeTracer
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.passes.quadtree import QuadtreePass, QuadtreeTracer
 from rayvr.renderer import Renderer
-from rayvr.scene import from_arrays
+from rayvr.scene.loader import from_arrays
 
 SIZE = (37, 29)  # not a power of two, odd both ways
 
@@ -608,7 +608,7 @@ def test_quadtree_pass_is_offered_only_to_effects_that_use_it(gl):
         p = QuadtreePass()
         assert p.why(r.plan()) is None
         assert "quadtree" not in r.compiled().pass_names
-        from rayvr.frame import Sizing
+        from rayvr.frame.graph import Sizing
         buf = p.io(r.plan())[1].type
         assert buf.nbytes(Sizing((37, 29), 2)) == qt.quadtree_bytes(37, 29, 2)
     finally:
@@ -618,9 +618,9 @@ def test_quadtree_pass_is_offered_only_to_effects_that_use_it(gl):
 def test_an_effect_that_uses_the_quadtree_gets_it_built_in_the_frame(gl):
     """A plugin effect with `uses_quadtree = True` and a pass reading "quadtree" makes the graph
     keep the quadtree pass; the tree it builds in the frame equals QuadtreeTracer's."""
-    from rayvr.effects import Effect, register, unregister
-    from rayvr.frame import Pass, compose, read
-    from rayvr.materials import parse_config
+    from rayvr.frame.effects import Effect, register, unregister
+    from rayvr.frame.graph import Pass, compose, read
+    from rayvr.scene.materials import parse_config
 
     class Probe(Pass):
         name = "qt_probe"

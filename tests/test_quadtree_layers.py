@@ -1,4 +1,4 @@
-"""The second depth layer (passes/second_layer.py: ray-traced and depth-peeled) and the
+"""The second depth layer (frame/passes/second_layer.py: ray-traced and depth-peeled) and the
 occlusion-aware multi-layer trace of the quadtree (§4.1: accel/quadtree.py trace_layers,
 glsl/ssrt/quadtree.glsl qt_trace_layers). References: the second-nearest triangle along each pixel
 ray by brute force over all triangles (float64), and the brute-force multi-layer height field
@@ -11,8 +11,8 @@ import pytest
 from test_quadtree import Layers, random_rays, scenes
 from rayvr.accel import quadtree as qt
 from rayvr.accel.bvh import intersect_triangles
-from rayvr.materials import parse_config
-from rayvr.passes.quadtree import QuadtreeTracer
+from rayvr.scene.materials import parse_config
+from rayvr.frame.passes.quadtree import QuadtreeTracer
 from rayvr.renderer import Renderer, RenderSettings
 
 TWO_LAYERS = parse_config({"default": "ssr", "params": {"ssr": {"layers": 2}}}, "<two layers>")

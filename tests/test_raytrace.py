@@ -1,4 +1,4 @@
-"""Ray-traced effects and primary visibility (passes/trace_effect.py, classify.py, primary_rays.py, glsl/rt/): pass-graph pruning,
+"""Ray-traced effects and primary visibility (frame/passes/trace_effect.py, classify.py, primary_rays.py, glsl/rt/): pass-graph pruning,
 pixel lists, analytic mirrors, bounce counts, cross-checks against Embree, soft-shadow convergence.
 Small images: these run on llvmpipe."""
 from __future__ import annotations
@@ -10,11 +10,11 @@ import trimesh
 
 from conftest import merge, quad, quick_bench, run_rayvr
 from rayvr.accel.bvh import offset_ray
-from rayvr.camera import Pose, StereoRig
-from rayvr.gbuffer import NO_HIT
-from rayvr.materials import EFFECTS, parse_config
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.gbuffer import NO_HIT
+from rayvr.scene.materials import EFFECTS, parse_config
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import Light, Material, from_arrays, load
+from rayvr.scene.loader import Light, Material, from_arrays, load
 
 DARK = RenderSettings(ambient=(0.0, 0.0, 0.0), background=(0.0, 0.0, 0.0))
 
@@ -453,7 +453,7 @@ def test_refit_moves_what_rays_see(gl, gpu_refit):
 def test_wave_batches_and_shadow_chunks_give_the_same_image(gl):
     """Effect passes under a tiny buffer limit (pixel list in batches, each surface's shadow rays
     in chunks) render what they render in one go, up to float summation order."""
-    from rayvr.passes import trace_effect
+    from rayvr.frame.passes import trace_effect
     scene = load()
     rig = StereoRig.for_scene(scene, size=(40, 30))
     cfg = {"default": "shadows", "params": {"shadows": {"area_samples": 3}},
@@ -484,7 +484,7 @@ def test_the_wave_buffer_limit_is_the_renderers_and_sizes_its_buffers(gl):
 
 
 def test_wave_plan_respects_the_limit():
-    from rayvr.passes.trace_effect import PATH_BYTES, SLOT_BYTES, wave_plan
+    from rayvr.frame.passes.trace_effect import PATH_BYTES, SLOT_BYTES, wave_plan
     for pixels, paths, slots, limit in ((4_608_000, 1, 4, 1 << 30), (4_608_000, 16, 64, 128 << 20),
                                         (100, 1, 2, 1 << 30), (10_000, 4, 1024, 200_000)):
         batch, pixel_chunk, hit_chunk = wave_plan(pixels, paths, slots, limit, hit_slots=max(1, slots // 4))
@@ -592,8 +592,8 @@ def test_cli_capture_primary_rays_and_bench_rays_quick(tmp_path):
 @pytest.mark.parametrize("ballot", ["khr", "arb", "shared"])
 @pytest.mark.parametrize("group", [(8, 8), (32, 16)])
 def test_classify_lists_every_traced_pixel_once_in_each_aggregation_mode(gl, ballot, group):
-    from rayvr.effects import traced_effects
-    from rayvr.passes.classify import BALLOT_MODES, ClassifyPass
+    from rayvr.frame.effects import traced_effects
+    from rayvr.frame.passes.classify import BALLOT_MODES, ClassifyPass
     ext = BALLOT_MODES[ballot][1]
     if ext and not gl.has_extension(ext):
         pytest.skip(f"no {ext}")
@@ -632,7 +632,7 @@ def test_shadow_chunks_follow_each_events_own_rays(gl, monkeypatch):
     path, the bounces run the hit kernel over the hit's chunks only (they ran over all of the
     pixel event's: 4 x the work here), the pixel event's chunks are `samples` times as large as
     a hit's, and the image is the one rendered in one go."""
-    from rayvr.passes import trace_effect
+    from rayvr.frame.passes import trace_effect
     scene = load()
     rects = sum(light.kind == "rect" for light in scene.lights)
     others = len(scene.lights) - rects

@@ -1,8 +1,8 @@
 import numpy as np
 
-from rayvr.camera import StereoRig, orbit
+from rayvr.frame.cameras.rig import StereoRig, orbit
 from rayvr.renderer import Renderer
-from rayvr.scene import load
+from rayvr.scene.loader import load
 
 
 def test_sequence_frames_equal_single_renders_and_depth_sources_agree(gl):
@@ -51,7 +51,7 @@ def test_wrapped_timer_readings_are_unavailable_not_numbers():
     """llvmpipe reads a raster pass's timer back as garbage now and then (4294967295 ns through
     32 bits): left out of the timings (listed as unavailable), never reported as 4294.967 ms.
     Readings are 64-bit, so a real 5 s pass (llvmpipe's glossy reference) is a number."""
-    from rayvr.frame import Frame, PassTimer
+    from rayvr.frame.graph import Frame, PassTimer
 
     class Query:
         def __init__(self, ns):
@@ -70,7 +70,7 @@ def test_a_timer_longer_than_the_wall_time_since_recording_is_garbage():
     seen); no GPU work can take longer than the real time since it was recorded."""
     import time
 
-    from rayvr.frame import PassTimer
+    from rayvr.frame.graph import PassTimer
 
     class Query:
         def __init__(self, ns):

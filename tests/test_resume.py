@@ -1,4 +1,4 @@
-"""What a capture keeps in its output folder (rayvr/capture.py JobFolder): resume skips only the
+"""What a capture keeps in its output folder (rayvr/app/capture.py JobFolder): resume skips only the
 frames whose records verify, one job writes into a folder at a time, a folder holding another
 job's frames is refused, and an output that cannot be written is one line before the work with
 nothing half-made left behind."""
@@ -154,7 +154,7 @@ def test_overwrite_replaces_another_jobs_frames_and_leaves_none_of_them(tmp_path
 
 def test_a_killed_job_leaves_no_stale_lock(tmp_path):
     out = tmp_path / "o"
-    hold = ("import sys, time; from pathlib import Path; from rayvr.capture import lock_folder; "
+    hold = ("import sys, time; from pathlib import Path; from rayvr.app.capture import lock_folder; "
             "Path(sys.argv[1]).mkdir(); lock_folder(Path(sys.argv[1])); print('locked', flush=True); time.sleep(600)")
     holder = subprocess.Popen([sys.executable, "-c", hold, str(out)], stdout=subprocess.PIPE, text=True)
     try:

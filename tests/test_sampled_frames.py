@@ -6,10 +6,10 @@ import pytest
 
 from rayvr import Renderer
 from rayvr.accel.bvh import build_bvh, trace_reference
-from rayvr.camera import Pose, StereoRig
-from rayvr.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
 from rayvr.renderer import RenderSettings
-from rayvr.scene import Material, from_arrays, load
+from rayvr.scene.loader import Material, from_arrays, load
 
 NO_HIT = 0xFFFFFFFF
 ROOM_POSE = Pose.look_at([0.3, 1.5, 1.0], [0, 1.2, -1])  # inside the default room: walls everywhere
@@ -104,7 +104,7 @@ def test_msaa_coverage_at_an_analytic_edge(gl):
     k = 32
     fx = (np.arange(w * k) + 0.5) / k
     fy = (h - (np.arange(h * k) + 0.5) / k)[:, None]
-    from rayvr.cameras.pinhole import planar_directions
+    from rayvr.frame.cameras.pinhole import planar_directions
     d = planar_directions(eye, fx[None, :], fy)
     area = inside_edge_triangle(np.zeros_like(d), d).reshape(h, k, w, k).mean(axis=(1, 3))
     # The sub-rays' own coverage: the same 16 rays, traced in numpy.
@@ -160,8 +160,8 @@ def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n):
     leaves partial pixel blocks) against passes/primary_rays.msaa_lists over numpy traces of the
     model's own sub-rays: the same distinct triangles, coverage masks, counts and order; the
     representative sub-ray is one nearest its mask's mean offset, its distance that sub-ray's."""
-    from rayvr.cameras.sampling import subsamples
-    from rayvr.passes.primary_rays import msaa_lists
+    from rayvr.frame.cameras.sampling import subsamples
+    from rayvr.frame.passes.primary_rays import msaa_lists
 
     w, h, slots = 30, 22, min(n, 8)
     rig = StereoRig(ROOM_POSE, ipd=0.064, fov_y=90, size=(w, h), near=1e-3)
@@ -230,8 +230,8 @@ def test_msaa_rounds_are_counted_once_the_first_round_is_recorded(gl, room, monk
     triangle once it is known. "wait": the count is there as soon as it is asked for (llvmpipe's
     timing); "fence": whenever the GPU gets there (an H200 is still on the first round when the
     CPU asks, so rounds are recorded before the count is known, up to the most a pixel may need)."""
-    from rayvr.passes import primary_rays
-    from rayvr.passes.sample_accumulate import SampleAccumulatePass
+    from rayvr.frame.passes import primary_rays
+    from rayvr.frame.passes.sample_accumulate import SampleAccumulatePass
 
     count_poll(poll)
 

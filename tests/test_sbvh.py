@@ -255,7 +255,7 @@ def test_bad_sbvh_parameters_are_rejected():
 @pytest.fixture(scope="module")
 def meshes():
     """(name, vertices, faces, SBVH, SAH BVH, rays, brute-force closest hits) for the thin mesh and the room."""
-    from rayvr import scene as scene_mod
+    from rayvr.scene import loader as scene_mod
     room = scene_mod.load(None)
     out = []
     for name, (v, f), n in (("thin", thin_mesh(300), 1500), ("room", (room.vertices, room.indices), 600)):
@@ -338,10 +338,10 @@ def test_refit_of_duplicated_references_stays_conservative(gl):
 def test_renderer_sbvh_frame_equals_the_sah_frame(gl):
     """--bvh-build sbvh through RenderSettings: ray-cast primary visibility, shadows and mirror rays hit
     the same scene triangles as on the SAH BVH (the G-buffer's triangle IDs are original IDs)."""
-    from rayvr.camera import StereoRig
-    from rayvr.materials import parse_config
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.scene.materials import parse_config
     from rayvr.renderer import Renderer, RenderSettings
-    from rayvr.scene import load
+    from rayvr.scene.loader import load
     scene = load()
     rig = StereoRig.for_scene(scene, size=(32, 24))
     cfg = parse_config({"default": "shadows", "materials": {"mirror*": {"effect": "reflections", "bounces": 2}}},

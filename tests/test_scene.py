@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from rayvr.scene import SceneError, from_arrays, load
+from rayvr.scene.loader import SceneError, from_arrays, load
 
 TRI = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
 
@@ -178,7 +178,7 @@ def test_obj_without_materials_splits_by_group(tmp_path, shared_scene):
 @pytest.mark.parametrize("angle", [0.0, 0.3, 45.0, 71.0])
 def test_square_and_rotated_rect_lights_are_recognised(angle):
     """Squares have no preferred in-plane axes: the fit must not depend on an SVD's choice."""
-    from rayvr.scene import Material, emissive_rect_lights
+    from rayvr.scene.loader import Material, emissive_rect_lights
 
     a = np.radians(angle)
     u = np.array([np.cos(a), 0.0, np.sin(a)]) * 0.8
@@ -388,7 +388,7 @@ def test_obj_missing_or_broken_texture_warns_naming_material_and_file(tmp_path, 
         s = load(_textured_obj(tmp_path, map_kd))
     assert s.materials[0].texture is None
     (rec,) = [r for r in caplog.records if r.levelname == "WARNING"]
-    assert rec.name == "rayvr.scene" and "'painted'" in rec.getMessage() and map_kd in rec.getMessage()
+    assert rec.name == "rayvr.scene.loader" and "'painted'" in rec.getMessage() and map_kd in rec.getMessage()
     assert why in rec.getMessage()
 
 
@@ -417,7 +417,7 @@ def test_gltf_missing_or_broken_texture_warns_naming_material_and_file(tmp_path,
     _textured_obj(tmp_path, "red.png")   # writes red.png and fake.png
     with caplog.at_level("WARNING"):
         s = load(_textured_glb(tmp_path / "t.glb", uri))
-    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING" and r.name == "rayvr.scene"]
+    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING" and r.name == "rayvr.scene.loader"]
     if why is None:
         assert s.materials[0].texture is not None and not warned
     else:

@@ -1,7 +1,7 @@
 import pytest
 
-from rayvr import shaders
-from rayvr.shaders import GLSL_DIR, ShaderError, load_source
+from rayvr.gl import shaders
+from rayvr.gl.shaders import GLSL_DIR, ShaderError, load_source
 from test_glsl_constants import import_every_module
 
 

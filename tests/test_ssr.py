@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rayvr.camera import StereoRig
-from rayvr.materials import parse_config
+from rayvr.frame.cameras.rig import StereoRig
+from rayvr.scene.materials import parse_config
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import load
+from rayvr.scene.loader import load
 
 DARK = RenderSettings(ambient=(0.0, 0.0, 0.0))
 MIRRORS = ("floor", "mirror*")
@@ -43,7 +43,7 @@ def test_graph_builds_the_quadtree_only_for_ssr(gl, rig, bvh):
 def test_ssr_matches_bvh_reflections_where_the_screen_sees_the_reflection(gl, rig, bvh, gammas):
     frame, _ = render(gl, "ssr", rig, **gammas)
     for eye in ("left", "right"):
-        mine = frame[eye].aux["effect"] == 2  # rayvr.effects.ssr id
+        mine = frame[eye].aux["effect"] == 2  # rayvr.frame.effects.ssr id
         assert mine.sum() > 500
         a, b = frame[eye].aux["hdr"], bvh[eye].aux["hdr"]
         assert np.array_equal(a[~mine], b[~mine])  # nothing else changes
@@ -158,10 +158,10 @@ def test_the_quadtree_thresholds_are_frame_parameters_of_the_strictest_material(
     words: ssr keeps its words for per-material values, mirror_roughness among them), reduced to the
     strictest any ssr material asks for; materials that disagree fill the same material table as
     materials that all ask for that strictest pair."""
-    from rayvr.effects import EFFECTS
-    from rayvr.effects.ssr import MIRROR_ROUGHNESS
-    from rayvr.gpu_scene import material_records
-    from rayvr.passes.quadtree import QuadtreePass
+    from rayvr.frame.effects import EFFECTS
+    from rayvr.frame.effects.ssr import MIRROR_ROUGHNESS
+    from rayvr.scene.gpu_scene import material_records
+    from rayvr.frame.passes.quadtree import QuadtreePass
 
     ssr = EFFECTS["ssr"]
     assert "gamma_norm" not in ssr.param_slots() and "gamma_dist" not in ssr.param_slots()

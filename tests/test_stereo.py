@@ -1,5 +1,5 @@
-"""Stereo modes beyond `dual` (rayvr/stereo.py): `reuse` (passes/reuse.py) and `warp`
-(passes/warp.py), each against `dual` on the same frame and against an independent reference:
+"""Stereo modes beyond `dual` (rayvr/frame/stereo.py): `reuse` (frame/passes/reuse.py) and `warp`
+(frame/passes/warp.py), each against `dual` on the same frame and against an independent reference:
 the numpy reuse map, the central view, mirror symmetry."""
 from dataclasses import replace
 
@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from conftest import merge, quad, run_rayvr
-from rayvr.camera import Pose, StereoRig
-from rayvr.frame import FramePlan, compile_graph
-from rayvr.passes.reuse import read_map, reference_map
-from rayvr.passes.warp import read_holes
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.graph import FramePlan, compile_graph
+from rayvr.frame.passes.reuse import read_map, reference_map
+from rayvr.frame.passes.warp import read_holes
 from rayvr.renderer import Renderer, RenderSettings, candidate_passes
-from rayvr.scene import from_arrays
+from rayvr.scene.loader import from_arrays
 
 SIZE = (64, 48)
 ROOM = "rayvr/assets/default_room.toml"
@@ -94,7 +94,7 @@ def test_reuse_map_equals_numpy_and_lists_skip_taken_pixels(room):
     assert (gpu >= 0).sum() > 0.8 * (f.right.depth > 0).sum()
     assert (gpu == ref).mean() >= 0.995, (gpu != ref).sum()
     # No right-eye pixel is both taken and in a traced effect's list; every other traced one is listed.
-    from rayvr.passes.classify import list_slots
+    from rayvr.frame.passes.classify import list_slots
     args = np.frombuffer(room.resource("rt_list_args").read(16 * list_slots()), np.uint32).reshape(-1, 4)
     packed = np.frombuffer(room.resource("rt_lists").read(), np.uint32)
     cap = SIZE[0] * SIZE[1] * 2
@@ -103,7 +103,7 @@ def test_reuse_map_equals_numpy_and_lists_skip_taken_pixels(room):
         v = packed[slot * cap: slot * cap + n]
         v = v[(v >> 28) == 1]
         np.add.at(listed, (SIZE[1] - 1 - ((v >> 14) & 0x3FFF), v & 0x3FFF), 1)
-    from rayvr.effects import traced_effects
+    from rayvr.frame.effects import traced_effects
     traced = np.isin(f.right.aux["effect"], [e.id for e in traced_effects()])
     assert listed.max() <= 1
     assert not (listed.astype(bool) & (gpu >= 0)).any()
@@ -113,7 +113,7 @@ def test_reuse_map_equals_numpy_and_lists_skip_taken_pixels(room):
 def test_reuse_shades_no_taken_pixel(gl):
     """Without the copy, a taken right-eye pixel keeps what the HDR target held before: neither
     `shade` nor a traced effect wrote it."""
-    from rayvr.frame import FrameGraph
+    from rayvr.frame.graph import FrameGraph
     with Renderer(None, ROOM, gl=gl) as r:
         r.graph = FrameGraph(gl, lambda plan: [p for p in candidate_passes(plan) if p.name != "reuse_copy"])
         r.settings.background = (1.0, 0.0, 1.0)
@@ -136,7 +136,7 @@ def test_reuse_gives_no_shading_to_a_surface_the_right_eye_sees_from_behind(gl):
     in the same plane and material: only "faces the right eye", tested with the right eye's
     position, refuses the landing). Its right-eye pixels shade themselves, as under `dual`;
     the wall behind, which both eyes see from the front, is reused."""
-    from rayvr.scene import Light, Material
+    from rayvr.scene.loader import Light, Material
 
     quad_v, quad_f = quad((0.0, 0.0, -1.9), (0.0, 0.0, 1.1), (0.0, 0.6, 0.0))
     wall_v, wall_f = quad((0.0, 0.0, -4.0), (4.0, 0.0, 0.0), (0.0, 3.0, 0.0))
@@ -245,7 +245,7 @@ def test_warp_traversal_equals_numpy_where_leaves_are_steep(raster_room):
     made from the box's shading normals had such hits (the streaks' cause, issue 20); the
     triangles' own planes reach no further than their pixel's surface."""
     from rayvr.accel import quadtree as qt
-    from rayvr.passes.warp import THICKNESS
+    from rayvr.frame.passes.warp import THICKNESS
 
     size = (96, 72)
     rig = StereoRig.for_scene(raster_room.scene, size=size)
@@ -362,7 +362,7 @@ def test_cli_stereo(tmp_path):
 
 
 def test_preview_b_key_cycles_the_stereo_mode():
-    from rayvr.preview import Camera, Controls, ViewState
+    from rayvr.app.preview import Camera, Controls, ViewState
 
     rig = StereoRig(Pose.look_at([0.0, 0.0, 5.0], [0.0, 0.0, 0.0]), size=(64, 48))
     c = Controls(Camera(rig, center=(0.0, 0.0, 0.0), extent=2.0), ViewState())
@@ -382,7 +382,7 @@ def test_tiled_frames_keep_the_stereo_mode(gl, mode):
     part of every eye's frustum (the central view's too): at IPD 0 the tiled eyes equal the whole
     frame's (but for rounding), and at a small IPD they differ only where a ray or a reused hit
     crossed a tile edge."""
-    from rayvr.frame import DeviceLimits
+    from rayvr.frame.graph import DeviceLimits
 
     with Renderer(None, None, gl=gl, settings=RenderSettings(stereo=mode)) as r:
         for ipd, bound in ((0.0, 0.01), (0.02, 1.5)):

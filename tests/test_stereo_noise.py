@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from rayvr.camera import Pose, StereoRig
-from rayvr.materials import parse_config
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.scene.materials import parse_config
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import load
+from rayvr.scene.loader import load
 
 NOISY = {"default": "shadows", "params": {"shadows": {"area_samples": 1}},
          "materials": {"gold": {"effect": "glossy", "samples": 1}, "floor": {"effect": "glossy", "samples": 1},
@@ -25,7 +25,7 @@ def _render(gl, rig, seed=0):
 
 def test_ipd_zero_gives_identical_eyes_with_sampled_effects(gl):
     """Every sampled effect of the ladder (soft shadows, glossy, path) in one view."""
-    from rayvr.effects import EFFECTS
+    from rayvr.frame.effects import EFFECTS
 
     scene = load()
     used = {e for e in ("shadows", "glossy", "path", "reflections") if e in EFFECTS}

@@ -1,4 +1,4 @@
-"""Tile frustum culling in the frame's primary rays (RenderSettings.tile_culling, passes/primary_rays.py,
+"""Tile frustum culling in the frame's primary rays (RenderSettings.tile_culling, frame/passes/primary_rays.py,
 glsl/accel/tile_cull.comp with TILE_CAMERA) against per-ray traversal from the root, the reference."""
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import pytest
 from PIL import Image
 
 from rayvr.accel.frustum import tile_grid
-from rayvr.camera import StereoRig
-from rayvr.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
-from rayvr.cameras.sampling import subsamples
-from rayvr.gpu_layout import NO_HIT, TILE_ENTRIES, TILE_PIXELS
+from rayvr.frame.cameras.rig import StereoRig
+from rayvr.frame.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
+from rayvr.frame.cameras.sampling import subsamples
+from rayvr.gl.gpu_layout import NO_HIT, TILE_ENTRIES, TILE_PIXELS
 from rayvr.renderer import Renderer, RenderSettings
 
 SIZE = (48, 24)   # 3 x 3 tiles an eye

@@ -1,9 +1,9 @@
-"""GPU timing helpers (rayvr/timing.py): settling waits out a GPU's clock ramp; a software
+"""GPU timing helpers (rayvr/gl/timing.py): settling waits out a GPU's clock ramp; a software
 rasterizer has none to wait for."""
 import itertools
 
-from rayvr import timing
-from rayvr.timing import settle, time_gpu, valid_elapsed_ns
+from rayvr.gl import timing
+from rayvr.gl.timing import settle, time_gpu, valid_elapsed_ns
 
 
 def test_settle_stops_once_the_last_runs_agree_with_the_runs_before():

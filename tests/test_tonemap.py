@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from conftest import merge, quad
-from rayvr.camera import Pose, StereoRig
+from rayvr.frame.cameras.rig import Pose, StereoRig
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.scene import Light, Material, from_arrays
+from rayvr.scene.loader import Light, Material, from_arrays
 
 COLS, ROWS = 8, 6
 

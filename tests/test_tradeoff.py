@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 
 from conftest import needs_flip, quick_bench, run_rayvr
-from rayvr import metrics
+from rayvr.quality import metrics
 from rayvr.bench import tradeoff as T
-from rayvr.camera import StereoRig
-from rayvr.materials import load_config, parse_config
-from rayvr.measure import config_for_assignment
-from rayvr.scene import load
+from rayvr.frame.cameras.rig import StereoRig
+from rayvr.scene.materials import load_config, parse_config
+from rayvr.quality.measure import config_for_assignment
+from rayvr.scene.loader import load
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +26,7 @@ def test_sweep_rows_are_the_metrics_of_the_rendered_images(gl, room):
     warm-up; the sampled effects are seeded from the settings, so the images are the same) and the
     row's PSNR computed here in numpy from those images."""
     scene, rig = room
-    from rayvr.reference import reference_config
+    from rayvr.quality.reference_images import reference_config
     from rayvr.renderer import Renderer
 
     ref = T.Variant("reference", "ref", reference_config(scene, quick=True))
@@ -63,7 +63,7 @@ def test_noise_knobs_are_variants_drawing_other_samples_than_the_reference():
     assert T.noisy_base(scene, base) is base
     names = scene.material_names()
     flat = T.noisy_base(scene, parse_config({"default": "raster"}))
-    from rayvr.effects import traced_effects
+    from rayvr.frame.effects import traced_effects
 
     last_sampled = [e.name for e in traced_effects() if e.denoised][-1]  # glossy today, path once it lands
     assert {a.effect for a in flat.assign(names, warn=False)} == {last_sampled}
@@ -89,11 +89,11 @@ def test_assignment_config_keeps_base_params_for_the_same_effect(room):
 @needs_flip
 def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
     scene, rig = room
-    from rayvr.reference import reference_config
+    from rayvr.quality.reference_images import reference_config
 
     base = load_config(None)
     ref = T.measure(gl, scene, rig, T.Variant("reference", "ref", reference_config(scene, quick=True)), repeat=1)
-    from rayvr.budget import per_material_options, solve_budget
+    from rayvr.quality.budget import per_material_options, solve_budget
 
     base_ms, options = per_material_options(gl, scene, rig, ref, base, metrics.DEFAULT_PPD, repeat=1,
                                             progress=False)
@@ -149,8 +149,8 @@ def test_reference_and_variants_draw_different_samples():
     import dataclasses
 
     from rayvr.bench.tradeoff import COMPARE_SETTINGS, reference_variant, variants
-    from rayvr.materials import parse_config
-    from rayvr.scene import load
+    from rayvr.scene.materials import parse_config
+    from rayvr.scene.loader import load
 
     scene = load()
     base = parse_config({"default": "shadows"}, "<t>")

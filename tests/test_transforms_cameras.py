@@ -1,6 +1,6 @@
 """transforms.json says each camera model's true camera, as nerfstudio reads it, or the capture is
 refused. Each model's written fields are checked by projecting world points along rayvr's own numpy
-rays (rayvr/cameras/*) with an independent numpy implementation of nerfstudio's camera models
+rays (rayvr/frame/cameras/*) with an independent numpy implementation of nerfstudio's camera models
 (nerfstudio/cameras/cameras.py: pixel (x, y) -> c = ((x - cx) / fl_x, -(y - cy) / fl_y); OPENCV is
 the perspective (c, -1) after OpenCV's radial-tangential distortion, OPENCV_FISHEYE the equidistant
 theta = |c| after OpenCV's fisheye polynomial, EQUIRECTANGULAR yaw pi c_x and polar angle
@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from conftest import run_rayvr
-from rayvr.camera import Pose, StereoRig
-from rayvr.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
-from rayvr.cameras.distorted import write_samples
-from rayvr.capture import CaptureJob
-from rayvr.scene import load
-from rayvr.views import transforms, views_for
+from rayvr.frame.cameras.rig import Pose, StereoRig
+from rayvr.frame.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
+from rayvr.frame.cameras.distorted import write_samples
+from rayvr.app.capture import CaptureJob
+from rayvr.scene.loader import load
+from rayvr.app.views import transforms, views_for
 
 POSE = Pose.look_at([0.3, 1.4, 2.0], [-0.2, 1.0, -1.0])
 
@@ -160,7 +160,7 @@ def test_refused_camera_is_one_line_and_writes_nothing(tmp_path):
 def test_a_transforms_json_of_another_camera_model_is_not_replayed_as_pinholes(tmp_path):
     (tmp_path / "t.json").write_text(json.dumps({"camera_model": "OPENCV_FISHEYE", "fl_x": 10.0, "frames": [
         {"transform_matrix": np.eye(4).tolist()}]}))
-    from rayvr.views import load_views
+    from rayvr.app.views import load_views
 
     with pytest.raises(ValueError, match=r"t\.json: camera_model 'OPENCV_FISHEYE': a views file's intrinsics are "
                                          r"a pinhole's"):

@@ -1,4 +1,4 @@
-"""Multi-view captures (rayvr/views.py): view files and generated views, and the transforms.json
+"""Multi-view captures (rayvr/app/views.py): view files and generated views, and the transforms.json
 NeRF / 3D Gaussian splatting tools read, checked by back-projecting the depth files through it
 with plain pinhole maths against the world positions rayvr wrote."""
 import json
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from conftest import run_rayvr
-from rayvr.camera import Pose
-from rayvr.views import grid_views, load_views, sphere_views, views_for
+from rayvr.frame.cameras.rig import Pose
+from rayvr.app.views import grid_views, load_views, sphere_views, views_for
 
 
 rayvr = run_rayvr  # the CLI in a child process (conftest)
@@ -121,8 +121,8 @@ def test_bad_views_file_names_file_view_and_key(tmp_path, views, words):
 @pytest.mark.parametrize("spec, words", [("sphere:0", ["sphere:N"]), ("grid:3", ["grid:NxM"]),
                                          ("grid:2x2:-1", ["positive spacing"])])
 def test_bad_generated_views_spec(spec, words):
-    from rayvr.camera import StereoRig
-    from rayvr.scene import load
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.scene.loader import load
 
     scene = load(None)
     with pytest.raises(ValueError) as e:

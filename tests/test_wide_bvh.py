@@ -189,10 +189,10 @@ def test_wide_layouts_match_embree_in_sponza(gl):
 def test_renderer_traversal_per_ray_kind_gives_the_reference_frame(gl, traversal):
     """Primary rays, shadow rays and mirror/glossy rays each through a wide layout: the same frame
     as the binary reference (same triangles hit, so the same shading)."""
-    from rayvr.camera import StereoRig
-    from rayvr.materials import parse_config
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.scene.materials import parse_config
     from rayvr.renderer import Renderer, RenderSettings
-    from rayvr.scene import load
+    from rayvr.scene.loader import load
     from test_raytrace import render
     scene = load()
     rig = StereoRig.for_scene(scene, size=(40, 30))

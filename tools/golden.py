@@ -86,7 +86,7 @@ def capture(name: str, args: list[str], work: Path) -> dict:
 
 
 def record(jobs: int) -> dict:
-    from rayvr.context import create_context
+    from rayvr.gl.context import create_context
 
     gl = create_context()
     renderer = gl.ctx.info.get("GL_RENDERER")

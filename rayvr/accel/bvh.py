@@ -51,8 +51,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..glsl_constants import declare
-from ..gpu_layout import BVH_FACE_SLACK
+from ..gl.glsl_constants import declare
+from ..gl.gpu_layout import BVH_FACE_SLACK
 from ..options import Option, declare as declare_option
 from .sah import _binned_sah, _half_area, _leaf_or_split, _segment_positions
 from .sbvh import build_sbvh

@@ -13,7 +13,7 @@ Plain per-ray traversal stays the reference: the hits are the same (tests/test_f
 the work differs (`RayTracer.trace(work=)` counts it on the GPU). A tile whose rays spread over a
 half-space or more is not culled (its list is the root's children); a tile without a valid ray gets
 an empty list. The frame's primary rays use the same kernel on their camera's sub-rays, a tile a
-TILE_SHAPE pixel block (passes/primary_rays.py, RenderSettings.tile_culling).
+TILE_SHAPE pixel block (frame/passes/primary_rays.py, RenderSettings.tile_culling).
 
 `tile_frusta` is the frustum math in numpy (float64), used by the tests to check that every ray's
 points lie inside its tile's planes; the GPU writes its planes too (`RayTracer.trace(tile_info=)`).
@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..glsl_constants import declare
-from ..gpu_layout import TILE_PIXELS, TILE_RAYS
+from ..gl.glsl_constants import declare
+from ..gl.gpu_layout import TILE_PIXELS, TILE_RAYS
 from .bvh import Bvh, valid_rays
 
 TILE_SHAPE = TILE_PIXELS   # pixels of a tile: TILE_RAYS = 16 * 8

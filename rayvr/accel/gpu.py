@@ -16,11 +16,11 @@ from typing import NamedTuple
 import moderngl
 import numpy as np
 
-from .. import shaders
-from ..glsl_constants import declare
-from ..gpu_layout import BVH_LAYOUTS, SSBO, TILE_ENTRIES, TILE_RAYS
+from ..gl import shaders
+from ..gl.glsl_constants import declare
+from ..gl.gpu_layout import BVH_LAYOUTS, SSBO, TILE_ENTRIES, TILE_RAYS
 from ..options import Option, declare as declare_option
-from ..timing import time_gpu
+from ..gl.timing import time_gpu
 from .bvh import Bvh, BufferTooLargeError
 from .wide import WideBvh, build_wide, node_words, pack as pack_wide
 
@@ -39,7 +39,7 @@ _MAX_GROUPS_X = 65535
 
 
 def _moderngl(ctx) -> moderngl.Context:
-    return getattr(ctx, "ctx", ctx)   # accept rayvr.context.GLContext or a bare moderngl context
+    return getattr(ctx, "ctx", ctx)   # accept rayvr.gl.context.GLContext or a bare moderngl context
 
 
 def max_ssbo_bytes(ctx) -> int:

@@ -5,7 +5,7 @@ search radius r over the scene's bounds with one empty cell of padding on each s
 z * nx * ny + y * nx + x (paper eq. 2), photons sorted by cell, `start[c]` = prefix sum of the
 counts (cell c holds photons start[c] .. start[c + 1]), and a query visits the 3x3x3 cells around
 the point as 9 runs of 3 cells that are contiguous in x. The GPU builds it per frame
-(effects/photon/cells.py, scan.py, sort.py); the functions here are the slow paths
+(frame/effects/photon/cells.py, scan.py, sort.py); the functions here are the slow paths
 that the tests hold it to:
 
   grid_cells / build_grid       cell per photon, counts, start indices, stable order by cell
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..glsl_constants import declare
+from ..gl.glsl_constants import declare
 
 PHOTON_WORDS = 8
 PHOTON_BYTES = 4 * PHOTON_WORDS

@@ -46,7 +46,7 @@ infinity on screen without a hit).
 
 GLSL: glsl/ssrt/quadtree_build.comp (build), glsl/ssrt/quadtree.glsl (decode + traversal),
 glsl/ssrt/quadtree_batch.comp (batch harness). The frame-graph pass and the GPU batch tracer
-(QuadtreeTracer): rayvr/passes/quadtree.py.
+(QuadtreeTracer): rayvr/frame/passes/quadtree.py.
 """
 from __future__ import annotations
 
@@ -56,8 +56,8 @@ from typing import NamedTuple
 import moderngl
 import numpy as np
 
-from ..glsl_constants import declare
-from ..gpu_layout import SSRT_RAY_GROUP
+from ..gl.glsl_constants import declare
+from ..gl.gpu_layout import SSRT_RAY_GROUP
 
 # A screen-space ray's status, shared by the three tracers (quadtree, bench/tracers/hiz.py, bench/tracers/dda.py)
 HIT = declare("SSRT_HIT", 1, uint=True)
@@ -144,7 +144,7 @@ def time_build_and_trace(ctx, program, origins, directions, eye, build, bind, re
     packed and uploaded once; `bind(rays, results, n)` binds them before each dispatch), after the
     times settle (timing.time_gpu: median of 5 batches of `repeats`); the quadtree and Hi-Z
     tracers' `time`. Returns {"build", "trace", "rays", "rays_per_s"}."""
-    from ..timing import time_gpu
+    from ..gl.timing import time_gpu
 
     rays = pack_screen_rays(origins, directions, eye)
     n = len(rays)

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import shaders
-from ..glsl_constants import declare
-from ..gpu_layout import SSBO
+from ..gl import shaders
+from ..gl.glsl_constants import declare
+from ..gl.gpu_layout import SSBO
 from .bvh import _check_vertices
 from .gpu import DEFAULT_BINDING, GpuBvh, _moderngl
 

@@ -37,7 +37,7 @@ def checked_configs(area: str, names, allowed) -> tuple[str, ...] | None:
 
 
 def _connect_timeout(args) -> float:
-    from ..cluster import DEFAULT_CONNECT_TIMEOUT_S
+    from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 
     return DEFAULT_CONNECT_TIMEOUT_S if args.connect_timeout is None else args.connect_timeout
 
@@ -65,7 +65,7 @@ def _bvh(args, out, camera_from_args):
 
 
 def _primary(args, out, camera_from_args):
-    from ..cameras import DEFAULT_CAMERA_MODEL
+    from ..frame.cameras import DEFAULT_CAMERA_MODEL
     from . import primary
 
     quick = args.quick
@@ -190,7 +190,7 @@ def areas_help() -> str:
 def run_area(args, out, camera_from_args) -> None:
     """Run bench `args.area` into the folder `out` (checked already): its optional extras and Ray
     first (one error before any work), then the area's own run."""
-    from ..extras import require
+    from ..util.extras import require
 
     area = AREAS.get(args.area)
     if area is None:
@@ -198,7 +198,7 @@ def run_area(args, out, camera_from_args) -> None:
     for module in area.needs:
         require(module, f"bench {args.area}")
     if args.workers or area.workers == "list":
-        from ..cluster import require_ray
+        from ..app.cluster import require_ray
 
         require_ray()  # the optional extra, before any work
         if not area.workers:

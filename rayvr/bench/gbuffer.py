@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import StereoRig
-from ..context import create_context
+from ..frame.cameras.rig import StereoRig
+from ..gl.context import create_context
 from ..renderer import Renderer, RenderSettings
 from .report import device_meta, write_report
 from .scenes import bench_scenes

@@ -32,15 +32,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..accumulation import sample_seed
-from ..context import create_context
-from ..materials import parse_config
+from ..frame.accumulation import sample_seed
+from ..gl.context import create_context
+from ..scene.materials import parse_config
 from ..renderer import Renderer, RenderSettings
 from . import photon, stereo
 from .rays import time_frame
 from .report import _plot, device_meta, write_report
 from .scenes import bench_scenes
-from ..measure import REFERENCE_SEED
+from ..quality.measure import REFERENCE_SEED
 
 PARTS = ("photon", "reuse", "path")
 SPP = (1, 4, 16)
@@ -120,7 +120,7 @@ def path_part(gl, name, scene, rig, quick, repeat, warmup, reference_spp, progre
     first: the accumulated rows' cost is spp times it)."""
     from tqdm import tqdm
 
-    from .. import metrics
+    from ..quality import metrics
 
     per, frames = reference_plan(reference_spp)
     bar = tqdm(total=frames + 2 * len(SPP), desc=f"path {name}", unit="step", disable=not progress)

@@ -44,10 +44,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import EyeView, Pose, StereoRig
-from ..extras import require
-from ..scene import Light, Material, Scene
-from .. import reference as ref_mod
+from ..frame.cameras.rig import EyeView, Pose, StereoRig
+from ..util.extras import require
+from ..scene.loader import Light, Material, Scene
+from ..quality import reference_images as ref_mod
 
 LLVM19_PATHS = ("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1", "/usr/lib/x86_64-linux-gnu/libLLVM-19.so")
 
@@ -246,7 +246,7 @@ def light_materials(scene: Scene) -> dict[int, int]:
     """{index of a rect light: index of the emissive material whose rectangle it is} (the light
     rayvr made of it, or one the file gave for the same rectangle): that material's triangles
     are drawn as the light's `rectangle`, not as a mesh."""
-    from ..scene import emissive_rect_lights, same_rectangle
+    from ..scene.loader import emissive_rect_lights, same_rectangle
 
     names = scene.material_names()
     found = {}
@@ -476,7 +476,7 @@ def load_cornell(path: Path) -> Scene:
     lights a scene without any gets."""
     import dataclasses
 
-    from .. import scene as scene_mod
+    from ..scene import loader as scene_mod
 
     scene = scene_mod.load(path)
     names = scene.material_names()
@@ -544,8 +544,8 @@ def crosscheck_scene(gl, scene: Scene, rig: StereoRig, *, spp=256, supersample=4
     `available` restricts rayvr's effects (e.g. ["raster"]: then the `unshadowed` mask, where
     no shadow ray would be blocked, is where the two must agree); by default every effect but
     `path` (the direct-light ladder; `crosscheck_gi` compares `path`)."""
-    from ..effects import implemented_effects
-    from .. import metrics
+    from ..frame.effects import implemented_effects
+    from ..quality import metrics
 
     mi = _mi()
     if available is None:
@@ -639,8 +639,8 @@ def crosscheck_gi(gl, scene: Scene, rig: StereoRig, *, spp=64, supersample=None,
     gi_supersample(spp)). The noise
     floor is Mitsuba against itself with another seed at the same spp: rayvr passes when its FLIP
     against Mitsuba is within that + 0.01 (`gi_within_noise`)."""
-    from ..materials import parse_config
-    from .. import metrics
+    from ..scene.materials import parse_config
+    from ..quality import metrics
 
     mi = _mi()
     s = int(supersample or gi_supersample(spp))
@@ -670,7 +670,7 @@ def crosscheck_gi(gl, scene: Scene, rig: StereoRig, *, spp=64, supersample=None,
 
 
 def _display(img, exposure):
-    from ..metrics import srgb_encode
+    from ..quality.metrics import srgb_encode
 
     return (srgb_encode(img * exposure) * 255 + 0.5).astype(np.uint8)
 
@@ -746,7 +746,7 @@ RESIDUALS = {
 def run(out_dir, quick: bool = False, progress: bool = True, gl=None, boxes=None, variant=None) -> dict:
     """`rayvr bench crosscheck`: every Cornell box with rayvr's reference and Mitsuba 3;
     writes crosscheck.json/.md and one PNG per box (rayvr | Mitsuba | FLIP). Returns the result."""
-    from ..context import create_context
+    from ..gl.context import create_context
     from .report import device_meta, write_report
     from .scenes import SHARED_SCENES
 
@@ -785,7 +785,7 @@ def run(out_dir, quick: bool = False, progress: bool = True, gl=None, boxes=None
             bar.close()
         meta = {**device_meta(gl.ctx.info if hasattr(gl, "ctx") else None),
                 "benchmark": "crosscheck", "quick": quick, "mitsuba": _mitsuba_version(),
-                "what": "rayvr's reference (rayvr.reference, bounces 1, no ambient) vs Mitsuba 3 in the same "
+                "what": "rayvr's reference (rayvr.quality.reference_images, bounces 1, no ambient) vs Mitsuba 3 in the same "
                         "light transport, linear radiance at one exposure; FLIP at the headset's ppd",
                 "pngs": "rayvr | Mitsuba | FLIP map (magma), same exposure, sRGB; crosscheck_gi_*: rayvr `path` | "
                         "Mitsuba `path`",

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import scene as scene_mod
-from ..camera import StereoRig, orbit
-from ..context import create_context
+from ..scene import loader as scene_mod
+from ..frame.cameras.rig import StereoRig, orbit
+from ..gl.context import create_context
 from ..renderer import Renderer
 from .report import device_meta, write_report
 from .scenes import SCENES, bench_scenes

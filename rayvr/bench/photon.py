@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..context import create_context
-from ..effects import EFFECTS
-from ..materials import parse_config
+from ..gl.context import create_context
+from ..frame.effects import EFFECTS
+from ..scene.materials import parse_config
 from ..renderer import Renderer
 from .report import _atomic_write, device_meta, write_report
 from .scenes import bench_scenes
@@ -74,7 +74,7 @@ def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
     `seed` (one renderer per scene: the programs are built once, every setting has the same frame
     graph). A setting whose first frame takes over SLOW_FRAME_MS is timed on that frame alone (and
     its kernels on one more).
-    A kd-tree setting builds its tree on the CPU once (effects/photon/kdtree.py keeps it while the
+    A kd-tree setting builds its tree on the CPU once (frame/effects/photon/kdtree.py keeps it while the
     photons stay the same); kd_cpu_ms times one such build."""
     from .rays import time_effect_stages
 
@@ -95,7 +95,7 @@ def measure(r: Renderer, rig, cfg, seed: int, repeat: int, warmup: int) -> dict:
     stages = time_effect_stages(r, rig, repeat=1 if slow or r.gl.is_software else min(repeat, 5))
     kd_cpu = None
     if kd:
-        from ..effects.photon.kdtree import kdtree_records
+        from ..frame.effects.photon.kdtree import kdtree_records
 
         t0 = time.perf_counter()
         kdtree_records(r.resource("photons").read())
@@ -115,7 +115,7 @@ def query_counts(r: Renderer, rig, eye) -> dict:
     QUERY_SAMPLES photon pixels of the eye, replayed in numpy (accel/photon_map) on the frame's own
     photon map: what the query's cost follows."""
     from ..accel import photon_map as pm
-    from ..effects.photon.setup import photon_setup
+    from ..frame.effects.photon.setup import photon_setup
 
     pix = eye.aux["effect"] == EFFECTS["photon"].id
     if not pix.any():
@@ -134,7 +134,7 @@ def query_counts(r: Renderer, rig, eye) -> dict:
 
 
 def row(name, size, photons, radius, estimator, m, ref) -> dict:
-    from .. import metrics
+    from ..quality import metrics
 
     ms, stages = m["ms"], m["stages"]
     kd = m["kd_cpu_ms"] is not None

@@ -16,7 +16,7 @@ summed over the rounds), from frames timed kernel by kernel. `sub_rays` counts t
 frame casts (samples x sub-rays x colour channel sets); `sub_grays_s` is sub_rays / primary_ms.
 MSAA frames shade once per pixel per distinct triangle: `rounds` is how many shading rounds the
 frame needed (the most distinct triangles any pixel saw, per channel set, summed over the sets);
-the CPU records rounds without waiting for that count (passes/primary_rays.py), so a frame may
+the CPU records rounds without waiting for that count (frame/passes/primary_rays.py), so a frame may
 record more, up to 8 per set, the extra ones skipping every pixel: `rounds_recorded` is the median
 a plain frame recorded (and `rounds_recorded_max`). `visibility_ms` is what
 makes the G-buffer: `visibility` + `gbuffer` passes (raster), `primary_rays` + `gbuffer` summed over
@@ -41,10 +41,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..accel.gpu import GpuBvh, RayTracer
-from ..camera import StereoRig
-from ..cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
-from ..cameras.sampling import SAMPLE_COUNTS
-from ..context import create_context
+from ..frame.cameras.rig import StereoRig
+from ..frame.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
+from ..frame.cameras.sampling import SAMPLE_COUNTS
+from ..gl.context import create_context
 from ..renderer import Renderer, RenderSettings
 from .rays import primary_rays, time_frame
 from .report import device_meta, write_report

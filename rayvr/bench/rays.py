@@ -46,10 +46,10 @@ from ..accel.bvh import offset_ray
 from ..accel.frustum import tile_order
 from ..accel.gpu import MISS, GpuBvh, RayTracer
 from ..accel.scene import build_scene_bvh
-from ..context import create_context
-from ..materials import parse_config
+from ..gl.context import create_context
+from ..scene.materials import parse_config
 from ..renderer import Renderer, RenderSettings
-from ..gpu_layout import TILE_ENTRIES, TILE_RAYS
+from ..gl.gpu_layout import TILE_ENTRIES, TILE_RAYS
 from .report import device_meta, write_report
 from .scenes import bench_scenes
 

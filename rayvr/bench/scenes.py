@@ -4,8 +4,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from .. import scene as scene_mod
-from ..camera import Pose, StereoRig
+from ..scene import loader as scene_mod
+from ..frame.cameras.rig import Pose, StereoRig
 
 # The workspace's third-party scenes (not shipped); RAYVR_SCENES points elsewhere.
 SHARED_SCENES = Path(os.environ.get("RAYVR_SCENES") or Path(__file__).resolve().parents[2].parent / "shared" / "scenes")

@@ -1,5 +1,5 @@
 """`rayvr bench ssrt`: screen-space ray tracing through the quadtree (Widmer et al. 2015,
-rayvr/passes/quadtree.py) against the perspective-correct DDA baseline (McGuire & Mara 2014,
+rayvr/frame/passes/quadtree.py) against the perspective-correct DDA baseline (McGuire & Mara 2014,
 rayvr/bench/tracers/dda.py), on the mirror rays of every G-buffer pixel of one eye.
 
 Reports per scene: quadtree build ms per layer (lossless and with merge thresholds), rays/s and
@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..context import create_context
-from ..passes.quadtree import QuadtreeTracer
+from ..gl.context import create_context
+from ..frame.passes.quadtree import QuadtreeTracer
 from ..renderer import Renderer
 from .report import device_meta, write_report
 from .scenes import bench_scenes
@@ -78,10 +78,10 @@ def effect_frames(gl, scene, rig, name: str, repeat: int, quick: bool = False) -
     of pixels whose second-layer triangle equals the ray-traced one."""
     from dataclasses import replace
 
-    from ..effects import EFFECTS
-    from ..materials import parse_config
+    from ..frame.effects import EFFECTS
+    from ..scene.materials import parse_config
     from ..renderer import RenderSettings
-    from .. import metrics
+    from ..quality import metrics
     from .rays import MIRRORS, time_frame
 
     out, images, layer2 = [], {}, {}

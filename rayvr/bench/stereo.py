@@ -1,4 +1,4 @@
-"""`rayvr bench stereo`: the stereo modes (rayvr/stereo.py) against each other on the same frame.
+"""`rayvr bench stereo`: the stereo modes (rayvr/frame/stereo.py) against each other on the same frame.
 
 Per scene and mode (dual, warp with two and with one depth layer, reuse), the benchmark's effect config (the room's shipped config;
 Sponza's hybrid frame of `rayvr bench rays`, floors on BVH reflections), both eyes:
@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..context import create_context
-from ..materials import load_config
+from ..gl.context import create_context
+from ..scene.materials import load_config
 from ..renderer import Renderer, RenderSettings
-from ..scene import ASSETS_DIR
+from ..scene.loader import ASSETS_DIR
 from .rays import hybrid_config, time_frame
 from .report import device_meta, write_report
 from .scenes import bench_scenes
@@ -57,7 +57,7 @@ def mode_rows(r: Renderer, rig, name: str, variants=VARIANTS, repeat: int = 20, 
     both accumulated over that many samples (`flip_vs_dual_converged_right`: the error the mode
     makes, view-dependent shading and resampling, with the sampling noise mostly gone; its floor
     `noise_floor_converged_right` is dual against dual with the other seed at that count)."""
-    from .. import metrics
+    from ..quality import metrics
 
     size = rig.size
     rows = []

@@ -3,11 +3,11 @@
 Every knob setting (a *variant*: a material config plus render settings plus a resolution
 scale) is rendered on the same stereo rig; its cost is the median GPU time of the whole frame
 (sum of the passes' timer queries) and its error is measured against the reference image (the
-most accurate setting rayvr has, from rayvr/reference.py) with mean FLIP at the headset's pixels
+most accurate setting rayvr has, from rayvr/quality/reference_images.py) with mean FLIP at the headset's pixels
 per degree, PSNR and SSIM, over the whole image and over the pixels the knob touches.
 
-How one variant is measured (rayvr/measure.py) is the renderer's own, shared with `--budget-ms`
-(rayvr/budget.py); this module is the sweep over the knobs and its report.
+How one variant is measured (rayvr/quality/measure.py) is the renderer's own, shared with `--budget-ms`
+(rayvr/quality/budget.py); this module is the sweep over the knobs and its report.
 """
 from __future__ import annotations
 
@@ -17,11 +17,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from .. import metrics
-from ..cluster import DEFAULT_CONNECT_TIMEOUT_S
-from ..effects import traced_effects
-from ..materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
-from ..measure import (BENCH_QUALITY, COMPARE_SETTINGS, Measured, RendererPool, Variant, local_measurer, measure,
+from ..quality import metrics
+from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
+from ..frame.effects import traced_effects
+from ..scene.materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
+from ..quality.measure import (BENCH_QUALITY, COMPARE_SETTINGS, Measured, RendererPool, Variant, local_measurer, measure,
                        reference_variant)
 
 
@@ -119,8 +119,8 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
 
 def _setups(names, size, base_config, skipped, quick=False):
     """(name, scene, rig, base config, reference variant) per available benchmark scene."""
-    from ..materials import load_config
-    from ..reference import reference_config
+    from ..scene.materials import load_config
+    from ..quality.reference_images import reference_config
     from .scenes import bench_scenes
 
     for name, scene, rig in bench_scenes(names, size, skipped):
@@ -135,7 +135,7 @@ def _workers(workers, address, connect_timeout):
     if not workers:
         yield None
         return
-    from ..cluster import Cluster, WorkerSpec
+    from ..app.cluster import Cluster, WorkerSpec
 
     with Cluster(workers, WorkerSpec(capture=False), address, connect_timeout) as cluster:
         yield cluster
@@ -144,7 +144,7 @@ def _workers(workers, address, connect_timeout):
 def _measurer(cluster, name, rig, repeat):
     if cluster is None:
         return None
-    from ..cluster import sweep_measurer
+    from ..app.cluster import sweep_measurer
     from .scenes import load_bench_scene
 
     return sweep_measurer(cluster, load_bench_scene, name, rig, repeat)
@@ -153,8 +153,8 @@ def _measurer(cluster, name, rig, repeat):
 @contextlib.contextmanager
 def _bench_gl(out_dir, backend):
     """Check the output folder first (fail before any work), then a GL context for the run."""
-    from ..context import create_context
-    from ..output import ensure_writable_dir
+    from ..gl.context import create_context
+    from ..util.output import ensure_writable_dir
 
     ensure_writable_dir(out_dir)
     gl = create_context(backend)
@@ -168,7 +168,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
         base_config=None, backend=None, progress=True, workers=None, address=None,
         connect_timeout=DEFAULT_CONNECT_TIMEOUT_S) -> dict:
     """Sweep every knob on each scene against its reference; write tradeoff.json/.md and plots.
-    `workers`: the variants spread over that many Ray workers (rayvr.cluster), the reference here."""
+    `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here."""
     from .report import device_meta, write_report
 
     rows, skipped = [], {}
@@ -182,7 +182,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
             rows += r
         meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
                 "ppd": ppd, "skipped": skipped, "workers": workers or 0,
-                "error": "vs the scene's reference (rayvr.reference); "
+                "error": "vs the scene's reference (rayvr.quality.reference_images); "
                 "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "tradeoff", result)
@@ -195,8 +195,8 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
                address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S) -> dict:
     """For each budget: the chosen effect per material, its predicted and measured ms and error.
     `workers`: the per-effect measurements spread over Ray workers; each pick is confirmed here."""
-    from ..budget import choose_under_budget, per_material_options
-    from ..output import write_png
+    from ..quality.budget import choose_under_budget, per_material_options
+    from ..util.output import write_png
     from .report import device_meta, write_report
 
     rows, skipped = [], {}
@@ -216,7 +216,7 @@ def run_budget(out_dir, budgets=(4.0, 8.0), size=(1440, 1600), scenes=("default"
                 "ppd": ppd, "skipped": skipped, "workers": workers or 0,
                 "model": "per material: extra GPU ms of each effect over all-raster and mean FLIP over its "
                          "pixels vs the reference; total error = sum importance x coverage x error; exact "
-                         "multiple-choice knapsack (rayvr.budget)"}
+                         "multiple-choice knapsack (rayvr.quality.budget)"}
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "budget", result)
     return result

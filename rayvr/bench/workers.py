@@ -2,7 +2,7 @@
 
 Each run is the whole capture users get: render, read back, encode and write the PNGs of both
 eyes, frame after frame. The single-process run is `run_capture` (frame N read back while N+1
-renders); the worker runs are `rayvr capture --workers N` (rayvr.cluster), timed after every worker
+renders); the worker runs are `rayvr capture --workers N` (rayvr.app.cluster), timed after every worker
 has loaded the scene, and warmed up on a short path first, as the single-process renderer is. The
 result says frames/s and ms per frame for each, the scaling of N workers against one, and the
 cost of going through Ray (one worker against the single process).
@@ -14,8 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..capture import CaptureJob, poses_for, run_capture
-from ..cluster import DEFAULT_CONNECT_TIMEOUT_S
+from ..app.capture import CaptureJob, poses_for, run_capture
+from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 from .report import device_meta, write_report
 from .scenes import bench_scenes
 
@@ -38,7 +38,7 @@ def _single_process(scene, config, rig, poses, warm, tmp: Path, backend) -> dict
 
 
 def _on_workers(n, spec, rig, poses, warm, tmp: Path, address, connect_timeout) -> dict:
-    from ..cluster import Cluster, run_capture_distributed
+    from ..app.cluster import Cluster, run_capture_distributed
 
     t0 = time.perf_counter()
     with Cluster(n, spec, address, connect_timeout) as cluster:
@@ -56,8 +56,8 @@ def _on_workers(n, spec, rig, poses, warm, tmp: Path, address, connect_timeout) 
 def run(out_dir, size=(1440, 1600), scenes=("sponza",), frames=64, workers=(1, 2), address=None, backend=None,
         base_config=None, progress=True, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S) -> dict:
     """Time the same capture path in one process and on each worker count; write workers.json/.md."""
-    from ..cluster import WorkerSpec, require_ray
-    from ..output import ensure_writable_dir
+    from ..app.cluster import WorkerSpec, require_ray
+    from ..util.output import ensure_writable_dir
     from ..renderer import RenderSettings
 
     require_ray()

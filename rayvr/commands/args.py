@@ -8,8 +8,8 @@ import math
 import numpy as np
 
 from .. import settings as settings_mod
-from ..inputs import MAX_IMAGE_SIDE
-from ..limits import MAX_DISTANCE  # --near, --far, --convergence, --ipd (the rig checks the rest of their ranges)
+from ..util.inputs import MAX_IMAGE_SIDE
+from ..gl.limits import MAX_DISTANCE  # --near, --far, --convergence, --ipd (the rig checks the rest of their ranges)
 
 # Bounds of the numbers the command line takes beside the render options (those declare their own):
 # a value outside them renders nothing useful and is refused before any work.
@@ -96,7 +96,7 @@ def add_rig_arguments(p: argparse.ArgumentParser) -> None:
 def add_camera_model_arguments(p: argparse.ArgumentParser) -> None:
     """The camera model and its parameters (capture, preview, bench, info --graph); its sub-rays
     (--msaa, --ssaa, --tile-culling) are render options."""
-    from ..cameras import CAMERA_MODELS, DEFAULT_CAMERA_MODEL
+    from ..frame.cameras import CAMERA_MODELS, DEFAULT_CAMERA_MODEL
 
     g = p.add_argument_group("camera model")
     g.add_argument("--camera-model", choices=tuple(CAMERA_MODELS), default=DEFAULT_CAMERA_MODEL,
@@ -131,7 +131,7 @@ def settings_from_args(args, command: str, config=None, **fixed):
 def camera_from_args(args, settings=None, given: dict | None = None):
     """The camera model --camera-model and --camera-param ask for; `settings` (and the options
     `given`) are checked against it."""
-    from ..cameras import CAMERA_MODELS, get_camera_model, parse_camera_params
+    from ..frame.cameras import CAMERA_MODELS, get_camera_model, parse_camera_params
 
     if getattr(args, "convergence", None) is not None and not CAMERA_MODELS[args.camera_model].converges:
         # a model that maps angles has no planar frustum to shear (CameraModel.converges)
@@ -147,7 +147,7 @@ def camera_from_args(args, settings=None, given: dict | None = None):
 
 
 def rig_from_args(args, scene, camera):
-    from ..camera import Pose, StereoRig
+    from ..frame.cameras.rig import Pose, StereoRig
 
     kw = {"ipd": args.ipd, "camera": camera}
     for key, attr in (("fov_y", "fov"), ("convergence", "convergence"), ("near", "near"), ("far", "far")):
@@ -160,7 +160,7 @@ def rig_from_args(args, scene, camera):
 
 
 def add_connect_timeout_argument(p: argparse.ArgumentParser) -> None:
-    from ..cluster import DEFAULT_CONNECT_TIMEOUT_S
+    from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 
     p.add_argument("--connect-timeout", type=number(0, 86400), metavar="SECONDS",
                    help=f"with --address: give up on a Ray cluster that does not answer within this time "
@@ -168,6 +168,6 @@ def add_connect_timeout_argument(p: argparse.ArgumentParser) -> None:
 
 
 def connect_timeout(args) -> float:
-    from ..cluster import DEFAULT_CONNECT_TIMEOUT_S
+    from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 
     return DEFAULT_CONNECT_TIMEOUT_S if args.connect_timeout is None else args.connect_timeout

@@ -7,7 +7,7 @@ import numpy as np
 
 from .. import settings as settings_mod
 from ..accel.bvh import BUILDS
-from ..gpu_layout import BVH_LAYOUTS
+from ..gl.gpu_layout import BVH_LAYOUTS
 from .args import FOV, FRAMES, add_camera_model_arguments, add_connect_timeout_argument, camera_from_args
 from .args import count as _count, size as _size
 
@@ -54,7 +54,7 @@ def _names(text: str) -> tuple[str, ...]:
 
 
 def _sample_counts(text: str) -> tuple[int, ...]:
-    from ..cameras.sampling import SAMPLE_COUNTS
+    from ..frame.cameras.sampling import SAMPLE_COUNTS
 
     try:
         counts = tuple(int(x) for x in text.split(","))
@@ -121,7 +121,7 @@ def add_parser(sub) -> None:
 
 def cmd_bench(args) -> int:
     from ..bench import run_area
-    from ..output import check_output_dir
+    from ..util.output import check_output_dir
 
     out = check_output_dir(args.out)  # before any measuring: results are written after it
     run_area(args, out, camera_from_args)

@@ -5,7 +5,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..extras import require
+from ..util.extras import require
 from . import args as shared
 
 COMMAND = "capture"
@@ -14,7 +14,7 @@ COMMAND = "capture"
 def prefix(text: str) -> str:
     import argparse
 
-    from ..output import check_file_prefix
+    from ..util.output import check_file_prefix
 
     try:
         return check_file_prefix(text)
@@ -23,9 +23,9 @@ def prefix(text: str) -> str:
 
 
 def add_parser(sub) -> None:
-    from ..gpu_layout import VIEWS
-    from ..output import EXR_EXTRA, FORMATS
-    from ..readback import AUX_CHANNELS
+    from ..gl.gpu_layout import VIEWS
+    from ..util.output import EXR_EXTRA, FORMATS
+    from ..frame.readback import AUX_CHANNELS
 
     c = sub.add_parser("capture", help="render headless to PNG/NPY or EXR (default: the built-in scene, both eyes)")
     c.add_argument("scene", nargs="?", help="glTF/GLB, OBJ or PLY file (default: built-in room)")
@@ -82,10 +82,10 @@ def file_identity(path) -> dict | None:
 
 def capture_poses(args, rig, scene):
     """(poses, per-frame rig overrides or None) of --views, --path, --frames or the rig's pose."""
-    from ..capture import poses_for
+    from ..app.capture import poses_for
 
     if args.views:
-        from ..views import views_for
+        from ..app.views import views_for
 
         return views_for(args.views, scene, rig)
     return poses_for(rig, scene, args.frames, args.path), None
@@ -110,9 +110,9 @@ def print_capture(args, summary, summary_path, scene_summary) -> None:
 
 
 def cmd_capture(args) -> int:
-    from ..capture import CaptureJob, JobFolder, job_identity, run_capture, write_summary
-    from ..materials import load_config
-    from ..output import check_output_dir
+    from ..app.capture import CaptureJob, JobFolder, job_identity, run_capture, write_summary
+    from ..scene.materials import load_config
+    from ..util.output import check_output_dir
     from ..renderer import Renderer, RenderSettings
 
     config = load_config(args.materials)  # its [render] table, under the flags
@@ -123,7 +123,7 @@ def cmd_capture(args) -> int:
     if not args.workers and (args.address or args.chunk or args.connect_timeout is not None):
         raise ValueError("--address, --connect-timeout and --chunk go with --workers N")
     if args.workers:
-        from ..cluster import require_ray
+        from ..app.cluster import require_ray
 
         require_ray()  # the optional extra, before any work
         if args.budget_ms is not None:
@@ -138,7 +138,7 @@ def cmd_capture(args) -> int:
 
         set_progress_bars(False)  # the BVH build's bar, which the Renderer starts deep inside a frame
     if args.format == "exr":
-        from ..output import openexr
+        from ..util.output import openexr
 
         openexr()  # the optional package, before any work
     aux = tuple(a for a in (args.aux or "").split(",") if a)
@@ -155,7 +155,7 @@ def cmd_capture(args) -> int:
         rig = shared.rig_from_args(args, r.scene, shared.camera_from_args(args, settings, given))
         pick = None
         if args.budget_ms is not None:
-            from ..budget import auto_config, describe_pick
+            from ..quality.budget import auto_config, describe_pick
 
             config, pick = auto_config(r, rig, args.budget_ms, progress=not args.quiet)
             r.set_materials(config)
@@ -173,7 +173,7 @@ def cmd_capture(args) -> int:
                 summary["budget"] = pick
             summary_path = write_summary(job, summary)
             if args.views:
-                from ..views import write_transforms
+                from ..app.views import write_transforms
 
                 write_transforms(job)
     print_capture(args, summary, summary_path, r.scene.summary())
@@ -182,10 +182,10 @@ def cmd_capture(args) -> int:
 
 def capture_on_workers(args, aux, settings, inputs, given) -> int:
     """`rayvr capture --workers N`: the frames in chunks over N Ray workers."""
-    from .. import scene as scene_mod
-    from ..capture import CaptureJob, JobFolder, job_identity, write_summary
-    from ..cluster import Cluster, WorkerSpec, run_capture_distributed
-    from ..materials import load_config
+    from ..scene import loader as scene_mod
+    from ..app.capture import CaptureJob, JobFolder, job_identity, write_summary
+    from ..app.cluster import Cluster, WorkerSpec, run_capture_distributed
+    from ..scene.materials import load_config
 
     scene = scene_mod.load(args.scene)  # for the rig and the poses; each worker loads its own
     load_config(args.materials).assign(scene.material_names(), warn=False)  # a bad config fails here, once
@@ -201,7 +201,7 @@ def capture_on_workers(args, aux, settings, inputs, given) -> int:
                                           crash_file=os.environ.get("RAYVR_TEST_CRASH_ONCE"), folder=folder)
         summary_path = write_summary(job, summary)
         if args.views:
-            from ..views import write_transforms
+            from ..app.views import write_transforms
 
             write_transforms(job)
     print_capture(args, summary, summary_path, scene.summary())

@@ -9,7 +9,7 @@ COMMAND = "info"
 
 
 def add_parser(sub) -> None:
-    from ..gpu_layout import VIEWS
+    from ..gl.gpu_layout import VIEWS
 
     i = sub.add_parser("info", help="GL vendor, renderer, version, limits, extensions; a scene's material effects")
     i.add_argument("scene", nargs="?", help="also list this scene's materials and their effects")
@@ -29,9 +29,9 @@ def add_parser(sub) -> None:
 
 def print_graph(args) -> int:
     """`rayvr info SCENE --materials FILE --graph [dot]`: the compiled frame graph."""
-    from ..context import create_context
-    from ..frame import compile_graph
-    from ..materials import load_config
+    from ..gl.context import create_context
+    from ..frame.graph import compile_graph
+    from ..scene.materials import load_config
     from ..renderer import Renderer, RenderSettings, candidate_passes
 
     config = load_config(args.materials)
@@ -52,7 +52,7 @@ def print_graph(args) -> int:
 
 
 def cmd_info(args) -> int:
-    from ..context import create_context
+    from ..gl.context import create_context
 
     if args.graph:
         return print_graph(args)
@@ -62,7 +62,7 @@ def cmd_info(args) -> int:
     finally:
         gl.release()
     if args.scene is not None or args.materials:
-        from .. import materials, scene
+        from ..scene import materials, loader as scene
 
         s = scene.load(args.scene)
         cfg = materials.load_config(args.materials)

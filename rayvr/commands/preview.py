@@ -7,7 +7,7 @@ COMMAND = "preview"
 
 
 def add_parser(sub) -> None:
-    from ..gpu_layout import VIEWS
+    from ..gl.gpu_layout import VIEWS
 
     v = sub.add_parser("preview", help="desktop stereo preview window (glfw); H in the window lists the keys")
     v.add_argument("scene", nargs="?", help="glTF/GLB, OBJ or PLY file (default: built-in room)")
@@ -36,7 +36,7 @@ def add_parser(sub) -> None:
 def start_config(path):
     """The config the window starts from, for its [render] table; a bad file is the window's to
     show (in its HUD, as every later edit of it), so it starts without the table."""
-    from ..materials import ConfigError, load_config
+    from ..scene.materials import ConfigError, load_config
 
     try:
         return load_config(path)
@@ -53,7 +53,7 @@ def preview_settings(args):
 
 
 def cmd_preview(args) -> int:
-    from ..preview import Preview
+    from ..app.preview import Preview
 
     settings, given = preview_settings(args)
     rig_options = {"ipd": args.ipd, "camera": shared.camera_from_args(args, settings, given)}

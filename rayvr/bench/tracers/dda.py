@@ -59,12 +59,12 @@ from typing import NamedTuple
 import moderngl
 import numpy as np
 
-from ... import shaders
+from ...gl import shaders
 from ...accel.gpu import WARMUP_S
 from ...accel.quadtree import HIT, NEAR, NONE, OFFSCREEN, dispatch_per_ray, pack_screen_rays
-from ...glsl_constants import declare
-from ...gpu_layout import SSBO
-from ...timing import time_gpu
+from ...gl.glsl_constants import declare
+from ...gl.gpu_layout import SSBO
+from ...gl.timing import time_gpu
 
 EDGE = declare("DDA_EDGE", np.float32(1.0 / 256.0))  # a column is tested if the segment reaches this far (px) into it
 BIAS = declare("DDA_BIAS", np.float32(1.0 / 256.0))  # the pixel is picked this far (px) along the ray from the sample
@@ -86,7 +86,7 @@ class DdaCamera:
 
     @classmethod
     def from_eye(cls, eye, origin) -> "DdaCamera":
-        """From a rayvr.camera.EyeView and the scene's origin (what the GPU's uniforms hold)."""
+        """From a rayvr.frame.cameras.rig.EyeView and the scene's origin (what the GPU's uniforms hold)."""
         u = eye.camera.uniforms([eye], origin)
         return cls(u["eye_position"][0].copy(), u["eye_rotation"][0].T.copy(), u["eye_tangents"][0].copy(),
                    float(f32(eye.near)), tuple(eye.size))

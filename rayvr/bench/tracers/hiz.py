@@ -24,7 +24,7 @@ starts where the ray leaves its origin's pixel (as the DDA skips the origin's co
 reflection rays, whose flat origin pixel would stop them wherever the surface recedes.
 
 `HizTracer(renderer)`: builds the pyramid of the renderer's last frame and traces ray batches
-on the GPU (glsl/ssrt/hiz_batch.comp), with the interface of rayvr/passes/quadtree.py
+on the GPU (glsl/ssrt/hiz_batch.comp), with the interface of rayvr/frame/passes/quadtree.py
 QuadtreeTracer (build, trace, time).
 """
 from __future__ import annotations
@@ -34,12 +34,12 @@ from typing import NamedTuple
 import moderngl
 import numpy as np
 
-from ... import shaders
+from ...gl import shaders
 from ...accel.quadtree import (HIT, INF, NEAR, NONE, OFFSCREEN, ScreenCamera, Trace, encode_aabbs, encode_planes,
                                level_offsets, level_sizes, screen_ray, set_level_uniforms, time_build_and_trace,
                                trace_screen_rays)
-from ...glsl_constants import declare
-from ...gpu_layout import SSBO
+from ...gl.glsl_constants import declare
+from ...gl.gpu_layout import SSBO
 
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
 EMPTY = declare("HIZ_EMPTY", np.float32(3.0e38))  # zmin of a cell without geometry (finite: EMPTY * 0 is 0, not NaN)
@@ -201,7 +201,7 @@ class HizResult(NamedTuple):
 
 class HizTracer:
     """Builds the min-max pyramid of a renderer's last frame and traces ray batches through it on
-    the GPU; the interface of rayvr/passes/quadtree.py QuadtreeTracer.
+    the GPU; the interface of rayvr/frame/passes/quadtree.py QuadtreeTracer.
 
         tracer = HizTracer(renderer)
         renderer.render(rig, aux=())

@@ -7,7 +7,7 @@
 //
 // Where a tile's rays come from:
 //   default        TILE_RAYS consecutive rays of the rays SSBO (accel/gpu.py RayTracer), one an invocation;
-//   TILE_CAMERA    the frame's camera rays (passes/primary_rays.py, tile culling on): a work group is
+//   TILE_CAMERA    the frame's camera rays (frame/passes/primary_rays.py, tile culling on): a work group is
 //                  a TILE_W x TILE_H pixel block of layer (eye) gl_WorkGroupID.z, an invocation one
 //                  pixel, and it bounds every ray primary.comp casts for that pixel: all
 //                  CAMERA_SUBSAMPLES sub-rays of its footprint (MSAA/SSAA offsets, thin-lens lens

@@ -1,13 +1,13 @@
 #version 430
 // Debugging tool for any camera model: writes every sample's camera ray, as the model's GLSL
 // makes it (common/camera.glsl with CAMERA_MODEL), into an SSBO, so it can be compared with the
-// model's numpy reference (rayvr/cameras/*.py rays(); tests/test_cameras.py does).
+// model's numpy reference (rayvr/frame/cameras/*.py rays(); tests/test_cameras.py does).
 // Build: shaders.compute(ctx, "cameras/camera_rays.comp", model.defines() + CAMERA_SUBSAMPLES);
 // set the per-eye uniforms (model.uniforms(eyes, origin)), camera_channel, subsample (-1: the
 // central ray, else sub-ray i) and image_size; run ceil(w/8) x ceil(h/8) x eyes groups.
 // Output, per eye, per GL row (bottom-up), per column: 4 vec4s
 //   origin (scene-local) + valid (1 or 0), direction + footprint, direction_x, direction_y (the neighbours).
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/camera.glsl"
 

@@ -1,4 +1,4 @@
-// HMD lens pre-distortion (rayvr/cameras/distorted.py): the panel point of a pixel, moved by the
+// HMD lens pre-distortion (rayvr/frame/cameras/distorted.py): the panel point of a pixel, moved by the
 // channel's radial polynomial around the eye's lens centre, or a measured sample table
 // (camera_use_table: per channel, bilinear between the sample centres, missing samples skipped).
 #include "../layout.glsl"

@@ -1,4 +1,4 @@
-// Foveated samples (rayvr/cameras/foveated.py): the pinhole's rays, at the pixels whose
+// Foveated samples (rayvr/frame/cameras/foveated.py): the pinhole's rays, at the pixels whose
 // ordered-dither rank lies below the density the linear MAR model asks for there.
 uniform vec2 camera_gaze;  // gaze point, fraction of the image (GL: y up)
 uniform vec3 camera_mar;   // fovea MAR (degrees), MAR slope, fovea radius (degrees)

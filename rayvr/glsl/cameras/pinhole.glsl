@@ -1,4 +1,4 @@
-// Pinhole camera model (rayvr/cameras/pinhole.py): rays from the eye through positions on the
+// Pinhole camera model (rayvr/frame/cameras/pinhole.py): rays from the eye through positions on the
 // plane z = -1 of the eye's frustum tangents, i.e. the rays the rasterizer samples. Included by
 // common/camera.glsl (CAMERA_MODEL CAMERA_PINHOLE); implements its model contract.
 // pinhole_direction: cameras/planar.glsl (included by common/camera.glsl)

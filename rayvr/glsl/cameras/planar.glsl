@@ -1,4 +1,4 @@
-// The planar frustum of the eye's tangents (rayvr/cameras/pinhole.py planar_directions): shared
+// The planar frustum of the eye's tangents (rayvr/frame/cameras/pinhole.py planar_directions): shared
 // by the models whose samples lie on it (pinhole, foveated, thin lens).
 #ifndef RAYVR_PLANAR_GLSL
 #define RAYVR_PLANAR_GLSL

@@ -1,10 +1,10 @@
 #version 430
-// The `samples` view (passes/sample_pattern.py): where the camera model samples. Each pixel with
+// The `samples` view (frame/passes/sample_pattern.py): where the camera model samples. Each pixel with
 // a sample is grey by its density (1 / footprint^2: foveated patterns fade outwards), black
 // without one; white lines are every 10 degrees of yaw and pitch of its ray (eye space), so a
 // lens pre-distortion bends them, a wide mapping spreads them; each colour channel set is drawn
 // into its own channel (chromatic pre-correction shows as coloured fringes).
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/camera.glsl"
 

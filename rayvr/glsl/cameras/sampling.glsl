@@ -1,4 +1,4 @@
-// Sub-samples of a camera sample (rayvr/cameras/sampling.py, which documents the set): sub-ray
+// Sub-samples of a camera sample (rayvr/frame/cameras/sampling.py, which documents the set): sub-ray
 // i of CAMERA_SUBSAMPLES has an offset in the sample's footprint (GL axes, footprint units) and
 // a position on the lens (unit disk). The same for every pixel and both eyes.
 #ifndef RAYVR_SAMPLING_GLSL

@@ -1,4 +1,4 @@
-// Thin-lens depth of field (rayvr/cameras/thin_lens.py): from lens point `lens` (unit disk,
+// Thin-lens depth of field (rayvr/frame/cameras/thin_lens.py): from lens point `lens` (unit disk,
 // scaled by the aperture) through the pinhole ray's point at view depth `focus`.
 uniform vec2 camera_thin_lens;  // aperture radius, focus distance (world units)
 

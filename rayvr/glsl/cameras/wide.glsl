@@ -1,4 +1,4 @@
-// Wide field of view (rayvr/cameras/wide.py): equal pixel steps are equal angles; spherical
+// Wide field of view (rayvr/frame/cameras/wide.py): equal pixel steps are equal angles; spherical
 // section (yaw, pitch) or equidistant fisheye (angle from the axis grows with the radius).
 uniform vec2 camera_fov;     // horizontal, vertical field of view, radians
 uniform int camera_mapping;  // 0 spherical, 1 equidistant (wide.py MAPPINGS)

@@ -1,8 +1,8 @@
 // Per-eye camera data and primary-ray generation, shared by every pass that needs the camera's
 // rays (ray-traced primary visibility, G-buffer resolve, shading). The rays come from the camera
-// model chosen by the CAMERA_MODEL define (a rayvr/cameras model's `defines()`; default the
+// model chosen by the CAMERA_MODEL define (a rayvr/frame/cameras model's `defines()`; default the
 // pinhole), whose file under glsl/cameras/ implements camera_ray_at and camera_footprint
-// (contract in rayvr/cameras/base.py). Uniform values: rayvr/cameras/base.py uniforms().
+// (contract in rayvr/frame/cameras/base.py). Uniform values: rayvr/frame/cameras/base.py uniforms().
 #ifndef RAYVR_CAMERA_GLSL
 #define RAYVR_CAMERA_GLSL
 
@@ -13,17 +13,17 @@ uniform vec2 eye_depth;        // near, far (0: infinite far plane)
 uniform int camera_channel;    // the colour channel set this frame round samples (CameraModel.channels)
 
 // One value per model, CAMERA_<NAME> = 1 .. CAMERA_MODEL_COUNT (CameraModel.glsl_define; layout.glsl,
-// from rayvr/cameras CAMERA_MODELS).
+// from rayvr/frame/cameras CAMERA_MODELS).
 #include "../layout.glsl"
 #ifndef CAMERA_MODEL
 #define CAMERA_MODEL CAMERA_PINHOLE
 #endif
 #if CAMERA_MODEL < 1 || CAMERA_MODEL > CAMERA_MODEL_COUNT
-#error unknown CAMERA_MODEL: the allowed values are listed in rayvr/cameras CAMERA_MODELS
+#error unknown CAMERA_MODEL: the allowed values are listed in rayvr/frame/cameras CAMERA_MODELS
 #endif
 #include "../cameras/sampling.glsl"
 
-// The model's contract (rayvr/cameras/base.py): the ray through continuous image position
+// The model's contract (rayvr/frame/cameras/base.py): the ray through continuous image position
 // `pixel` (GL: x right, y up, centres at +0.5) and unit-disk lens point `lens`, and the footprint
 // of the sample at a pixel centre (0: no sample there).
 bool camera_ray_at(int eye, vec2 pixel, vec2 size, vec2 lens, out vec3 origin, out vec3 direction);
@@ -81,7 +81,7 @@ float camera_depth_per_distance(int eye, vec3 d) {
 #endif
 }
 
-// Reversed-Z depth value -> linear view depth (see rayvr/camera.py projection()).
+// Reversed-Z depth value -> linear view depth (see rayvr/frame/cameras/rig.py projection()).
 float eye_view_depth(float z) {
     float n = eye_depth.x, f = eye_depth.y;
     return f == 0.0 ? n / z : n * f / (z * (f - n) + n);

@@ -1,7 +1,7 @@
 // Tonemapping and output encoding.
 #ifndef RAYVR_COLOR_GLSL
 #define RAYVR_COLOR_GLSL
-#include "../layout.glsl"  // TONEMAP_* (rayvr/gpu_layout.py TONEMAPPERS)
+#include "../layout.glsl"  // TONEMAP_* (rayvr/gl/gpu_layout.py TONEMAPPERS)
 
 // ACES filmic curve, Narkowicz 2015 fit (input is exposure-scaled linear radiance).
 vec3 tonemap_aces(vec3 x) {

@@ -1,5 +1,5 @@
 // Reading the layered G-buffer (layer = eye) from compute passes.
-// Channel table: rayvr/gpu_layout.py (CHANNELS); units from the generated layout.glsl.
+// Channel table: rayvr/gl/gpu_layout.py (CHANNELS); units from the generated layout.glsl.
 #ifndef RAYVR_GBUFFER_GLSL
 #define RAYVR_GBUFFER_GLSL
 #include "surface.glsl"

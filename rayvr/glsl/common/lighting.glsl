@@ -9,7 +9,7 @@
 #include "brdf.glsl"
 #include "mis.glsl"
 
-// RECT_LIGHT_GRID (layout.glsl, rayvr/gpu_layout.py): raster: fixed NxN points per rect light
+// RECT_LIGHT_GRID (layout.glsl, rayvr/gl/gpu_layout.py): raster: fixed NxN points per rect light
 
 #ifndef HAS_LIGHT_VISIBILITY
 vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist) { return contribution; }

@@ -1,4 +1,4 @@
-// Scene data shared by raster and compute passes (std430; layouts mirror rayvr/gpu_scene.py).
+// Scene data shared by raster and compute passes (std430; layouts mirror rayvr/scene/gpu_scene.py).
 #ifndef RAYVR_SCENE_GLSL
 #define RAYVR_SCENE_GLSL
 #include "../layout.glsl"
@@ -10,7 +10,7 @@ struct Material {
     float roughness;
     int texture_layer;    // -1: no base-colour texture
     uint effect;          // effect-ladder ID from the material config
-    uvec4 params[MATERIAL_PARAM_WORDS / 4];  // the effect's parameters (rayvr/effect_registry.py pack_params)
+    uvec4 params[MATERIAL_PARAM_WORDS / 4];  // the effect's parameters (rayvr/frame/effect_registry.py pack_params)
 };
 
 struct Light {
@@ -28,7 +28,7 @@ layout(std430, binding = SSBO_VERTICES) readonly buffer Vertices { float vertex_
 layout(std430, binding = SSBO_INDICES) readonly buffer Indices { uint index_data[]; };
 
 // Emission leaves a triangle's front face (the side its winding's normal points to) only, unless
-// the material is double-sided (rayvr/scene.py Material.double_sided); rect lights alike.
+// the material is double-sided (rayvr/scene/loader.py Material.double_sided); rect lights alike.
 bool emits_both_sides(Material m) { return m.emission.w > 0.5; }
 bool light_two_sided(Light li) { return li.u.w > 0.5; }
 

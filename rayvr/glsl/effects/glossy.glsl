@@ -1,4 +1,4 @@
-// `glossy` (rayvr/effects/glossy.py) in the wavefront of rt/wave_shade.comp: `samples` GGX
+// `glossy` (rayvr/frame/effects/glossy.py) in the wavefront of rt/wave_shade.comp: `samples` GGX
 // reflection paths per pixel by VNDF importance sampling (path j of pixel i is item j * n + i),
 // each weighted by F * G2/G1 / samples; the ambient term lights only the diffuse share.
 // A rect light is found both by the pixel's light samples and by the GGX rays that reach its

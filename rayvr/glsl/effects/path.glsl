@@ -1,4 +1,4 @@
-// `path` (rayvr/effects/path.py) in the wavefront of rt/wave_shade.comp: `samples` paths per
+// `path` (rayvr/frame/effects/path.py) in the wavefront of rt/wave_shade.comp: `samples` paths per
 // pixel (path j of pixel i is item j * n + i). At every vertex: the surface's emission, next-event
 // estimation (lighting.glsl's light samples, `area_samples` per rect light, shadow rays; at the
 // pixel's own surface area_samples x samples, one stratified lattice for all its paths) and one

@@ -1,4 +1,4 @@
-// `reflections` (rayvr/effects/reflections.py) in the wavefront of rt/wave_shade.comp: one mirror
+// `reflections` (rayvr/frame/effects/reflections.py) in the wavefront of rt/wave_shade.comp: one mirror
 // path per pixel, weighted by Fresnel; the ambient term lights only the diffuse share (the specular
 // share is traced). Stage 4 follows the path through up to `bounces` reflective surfaces.
 void effect_start_paths(uint i, Surface s, vec3 v, vec3 ng, uint mi, inout uint rng) {

@@ -1,4 +1,4 @@
-// `ssr` (rayvr/effects/ssr.py) in the wavefront of rt/wave_shade.comp: the pixel event of
+// `ssr` (rayvr/frame/effects/ssr.py) in the wavefront of rt/wave_shade.comp: the pixel event of
 // `reflections` (one Fresnel-weighted mirror path), except on surfaces rougher than the material's
 // `mirror_roughness` when `samples` > 0: that of `glossy` (`samples` GGX paths by VNDF importance
 // sampling); the paths' rays are then traced through the quadtree first (rt/wave_trace.comp SSR_TRACE).

@@ -1,5 +1,5 @@
 #version 430
-// Depth peeling (passes/second_layer.py, peel): the visibility raster again, keeping only
+// Depth peeling (frame/passes/second_layer.py, peel): the visibility raster again, keeping only
 // fragments strictly behind the G-buffer's surface in this pixel and not of its triangle; the
 // depth test then leaves the nearest of them: the second depth layer's triangle ID.
 #include "../layout.glsl"

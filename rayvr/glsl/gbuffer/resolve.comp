@@ -1,7 +1,7 @@
 #version 430
 // G-buffer resolve: from each pixel's triangle ID (visibility raster or ray-traced primary
 // hits) and the pixel's own camera ray, compute the exact hit on that triangle and fill every
-// G-buffer channel (rayvr/gpu_layout.py CHANNELS). Positions lie on the pixel's ray by
+// G-buffer channel (rayvr/gl/gpu_layout.py CHANNELS). Positions lie on the pixel's ray by
 // construction, so ray-traced passes and the G-buffer register exactly; texture LOD comes
 // from ray differentials (the neighbouring pixels' rays on the same triangle plane).
 // Normal, material and base colour come from common/triangle_surface.glsl, which secondary-ray
@@ -12,7 +12,7 @@
 #ifndef PRIMARY_RAYS
 #define PRIMARY_RAYS 0
 #endif
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/triangle_surface.glsl"
 #include "../common/camera.glsl"

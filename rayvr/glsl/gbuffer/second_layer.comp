@@ -1,5 +1,5 @@
 #version 430
-// The second depth layer (passes/second_layer.py): per pixel, the nearest surface behind the
+// The second depth layer (frame/passes/second_layer.py): per pixel, the nearest surface behind the
 // G-buffer's along the pixel's camera ray. SECOND_LAYER_PEEL 0: the ray continued through the BVH
 // past the first hit; 1: the triangle the peel raster (gbuffer/peel.frag) left. Either way the
 // layer is the ray's exact crossing of that triangle's plane: layer2 = (the triangle's unit
@@ -9,7 +9,7 @@
 #ifndef SECOND_LAYER_PEEL
 #define SECOND_LAYER_PEEL 0
 #endif
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/camera.glsl"
 #include "../common/gbuffer.glsl"

@@ -1,9 +1,9 @@
 #version 430
-// The hash grid's cells (effects/photon/cells.py): CELLS_STAGE 0 zeroes the counts (cells + 2
+// The hash grid's cells (frame/effects/photon/cells.py): CELLS_STAGE 0 zeroes the counts (cells + 2
 // words: the cells, the empty slots' bin, the total); CELLS_STAGE 1 gives every photon slot its
 // key (cell index, or grid_dead_key() for an empty slot, so empty slots sort last) with its slot
 // index, and counts the photons per cell. Integer atomics: the counts are exact and deterministic.
-#include "../layout.glsl"  // PHOTON_CELLS_GROUP: rayvr/effects/photon/cells.py
+#include "../layout.glsl"  // PHOTON_CELLS_GROUP: rayvr/frame/effects/photon/cells.py
 layout(local_size_x = PHOTON_CELLS_GROUP) in;
 #include "photon.glsl"
 

@@ -6,7 +6,7 @@
 //   2 kdtree       every photon within r, through the kd-tree
 //   3 kdtree_heap  the k nearest, through the kd-tree (the paper's baseline)
 // accel/photon_map.density is the numpy reference. PHOTON_ESTIMATORS (bit i: estimator i may be
-// asked for; effects/photon/shade.py compiles the frame's set) leaves out the heap and the kd-tree
+// asked for; frame/effects/photon/shade.py compiles the frame's set) leaves out the heap and the kd-tree
 // walk when no material uses them: the grid-only kernel carries no heap arrays (registers).
 #ifndef RAYVR_PHOTON_ESTIMATE_GLSL
 #define RAYVR_PHOTON_ESTIMATE_GLSL

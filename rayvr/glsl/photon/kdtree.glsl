@@ -1,5 +1,5 @@
 // Search the kd-tree photon map (the paper's baseline; built on the CPU by
-// accel/photon_map.build_kdtree, uploaded by effects/photon/kdtree.py): the node of array range
+// accel/photon_map.build_kdtree, uploaded by frame/effects/photon/kdtree.py): the node of array range
 // [lo, hi) is its median mid = (lo + hi) / 2, split along photon_extra (0..2); the near side is
 // searched first, the far side only if the splitting plane is within the (shrinking) radius.
 // Record 0 is a header (word 0: the photon count); the tree's array starts at record 1.

@@ -1,5 +1,5 @@
 #version 430
-// Stable LSD radix sort of (key, slot) pairs by key, 8 bits a round (effects/photon/sort.py).
+// Stable LSD radix sort of (key, slot) pairs by key, 8 bits a round (frame/effects/photon/sort.py).
 //   SORT_STAGE 0  histogram: each group of SORT_GROUP pairs counts its digits; the count of digit
 //                 d in group g goes to table[d * groups + g] (digit-major, so that the exclusive
 //                 scan of the table, glsl/photon/scan.comp, is every pair's first destination)
@@ -7,7 +7,7 @@
 //                 its group with the same digit (stable, deterministic): the digit counts of the
 //                 earlier chunks of 32 pairs (shared-memory histograms) plus a count within its chunk
 //   SORT_STAGE 2  permute: photon_map[i] = photons[slot of the i-th sorted pair]
-#include "../layout.glsl"  // SORT_GROUP, SORT_RADIX: rayvr/effects/photon/sort.py
+#include "../layout.glsl"  // SORT_GROUP, SORT_RADIX: rayvr/frame/effects/photon/sort.py
 #ifndef SORT_STAGE
 #define SORT_STAGE 0
 #endif

@@ -1,5 +1,5 @@
 #version 430
-// Photon tracing (effects/photon/trace.py): one invocation per photon path. A light is picked in
+// Photon tracing (frame/effects/photon/trace.py): one invocation per photon path. A light is picked in
 // proportion to its power (photon_lights: per light the power one path carries, rgb, and the
 // cumulative probability, w), the photon leaves it (point: uniform sphere; rect: cosine about its
 // normal, or about either normal when two-sided; directional: a disc over the scene's bounding
@@ -12,7 +12,7 @@
 // slots i * photon_stores + j in order; unused slots keep extra = 0 (empty).
 // Random numbers come from the path index and the frame seed: one photon map per frame, shared by
 // both eyes, the same for the same seed.
-#include "../layout.glsl"  // PHOTON_TRACE_GROUP: rayvr/effects/photon/trace.py
+#include "../layout.glsl"  // PHOTON_TRACE_GROUP: rayvr/frame/effects/photon/trace.py
 layout(local_size_x = PHOTON_TRACE_GROUP) in;
 #include "../rt/hit_surface.glsl"
 #include "../common/ggx_sample.glsl"

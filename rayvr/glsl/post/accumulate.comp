@@ -1,12 +1,12 @@
 #version 430
-// Accumulate: the running mean of the frame's samples per pixel (rayvr/passes/accumulate.py), and
+// Accumulate: the running mean of the frame's samples per pixel (rayvr/frame/passes/accumulate.py), and
 // the first two moments of the demodulated luminance, whose spread is the variance the denoiser's
 // luminance edge-stop uses (SVGF). While the view is still the history is this pixel's own
 // (reproject 0: read and written in place). With temporal reprojection a moved camera finds the
 // history where the surface point was in the previous frame: the point is projected through the
 // previous pinhole camera, and the history is dropped (disocclusion) when the depth stored there
 // disagrees or it was another material.
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/gbuffer.glsl"
 #include "demodulate.glsl"

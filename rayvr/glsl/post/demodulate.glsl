@@ -1,10 +1,10 @@
 // Albedo demodulation for the denoiser (SVGF): filter irradiance-like values c / albedo, so that
 // texture and colour edges are not blurred, and multiply the albedo back afterwards. The floor
-// keeps black albedo finite (Falcor uses 0.001). Mirrored by rayvr/numpy_denoise.py.
+// keeps black albedo finite (Falcor uses 0.001). Mirrored by rayvr/reference/denoise.py.
 #ifndef RAYVR_POST_DEMODULATE_GLSL
 #define RAYVR_POST_DEMODULATE_GLSL
 
-#include "../layout.glsl"  // DEMODULATE_FLOOR: rayvr/passes/accumulate.py
+#include "../layout.glsl"  // DEMODULATE_FLOOR: rayvr/frame/passes/accumulate.py
 
 vec3 demodulation_albedo(vec3 base_color) { return max(base_color, vec3(DEMODULATE_FLOOR)); }
 

@@ -1,7 +1,7 @@
 #version 430
-// Denoise: SVGF-style edge-aware à-trous wavelet filter (Schied et al. 2017; rayvr/passes/denoise.py)
+// Denoise: SVGF-style edge-aware à-trous wavelet filter (Schied et al. 2017; rayvr/frame/passes/denoise.py)
 // of the pixels whose effect the config denoises (bit `effect` of denoise_effects), both eyes at once.
-// Mirrored step by step by rayvr/numpy_denoise.py (the tests compare the two).
+// Mirrored step by step by rayvr/reference/denoise.py (the tests compare the two).
 //   DENOISE_STAGE 0  every pixel: the accumulated colour as it is (pixels nobody filters), and the
 //                    guides packed into 16 bytes (one fetch per tap instead of four)
 //   DENOISE_STAGE 1  denoised pixels: demodulate albedo, estimate the variance of the luminance
@@ -19,11 +19,11 @@
 #include "../common/gbuffer.glsl"
 #include "demodulate.glsl"
 
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 #if DENOISE_STAGE == 0
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #else
-#define TILE DENOISE_TILE  // passes/denoise.py
+#define TILE DENOISE_TILE  // frame/passes/denoise.py
 layout(local_size_x = TILE, local_size_y = TILE, local_size_z = 1) in;
 #endif
 

@@ -1,5 +1,5 @@
 #version 430
-// Thin-lens depth of field through screen-space rays (Widmer et al. 2015 §5.2; passes/dof.py):
+// Thin-lens depth of field through screen-space rays (Widmer et al. 2015 §5.2; frame/passes/dof.py):
 // per pixel, `dof_samples` rays from points of the lens disk (diameter dof_aperture, in the eye's
 // view plane) through the pixel ray's point at view depth dof_focus, traced through the frame's
 // quadtree (qt_trace_layers, one layer, slabs of dof_thickness); each gathers the frame's colour
@@ -9,7 +9,7 @@
 #ifndef HDR_FORMAT
 #define HDR_FORMAT rgba16f
 #endif
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/camera.glsl"
 #include "../common/gbuffer.glsl"

@@ -1,6 +1,6 @@
 // Per-effect pixel lists: the classify pass (rt/classify.comp) appends every pixel whose material
 // asks for a ray-traced effect to that effect's list; each effect pass then runs with an indirect
-// dispatch over its list only, both eyes at once. Layout mirrors rayvr/passes/classify.py.
+// dispatch over its list only, both eyes at once. Layout mirrors rayvr/frame/passes/classify.py.
 #ifndef RAYVR_RT_PIXEL_LIST_GLSL
 #define RAYVR_RT_PIXEL_LIST_GLSL
 #include "../layout.glsl"  // RT_SLOTS, RT_SLOT_TABLE: one list per traced effect of the registry

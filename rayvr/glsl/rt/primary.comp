@@ -12,7 +12,7 @@
 //   pixel merges its sub-rays' hits from shared memory: the distinct triangles (the background
 //   counts as one) with their coverage masks go to msaa_hits, most covered first, at most
 //   MSAA_SLOTS; the largest count of any pixel to msaa_count (at most one atomic per workgroup).
-//   passes/primary_rays.py msaa_lists is the numpy twin of the merge. (On the H200 this runs at the
+//   frame/passes/primary_rays.py msaa_lists is the numpy twin of the merge. (On the H200 this runs at the
 //   speed of the first version, one invocation per pixel looping over its sub-rays, 1.8 ms at 4x in
 //   the room view, 3.5 % faster at 16x; that version's ~80 ms frames came from msaa_count, see
 //   primary_rays.py.)
@@ -35,7 +35,7 @@
 #ifndef MSAA_SKIP_EMPTY
 #define MSAA_SKIP_EMPTY 0
 #endif
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 #if PRIMARY_MODE == 1
 layout(local_size_x = MSAA_GROUP) in;  // = MSAA_BLOCK_W * MSAA_BLOCK_H * CAMERA_SUBSAMPLES (a literal: GLSL 4.30)
 #else
@@ -68,7 +68,7 @@ uniform int subsample;  // PRIMARY_MODE 0
 uniform int msaa_round;  // PRIMARY_MODE 2
 
 // Closest hit of the camera ray (o, d) of pixel p: from the BVH root, or with tile culling
-// (TILE_ENTRIES_BINDING, passes/primary_rays.py) from the entry list of the pixel's tile, which
+// (TILE_ENTRIES_BINDING, frame/passes/primary_rays.py) from the entry list of the pixel's tile, which
 // tile_cull.comp made for every sub-ray of the tile's pixels: the same hit, less work.
 void cast_primary(ivec3 p, ivec2 size, vec3 o, vec3 d, out Hit h) {
     Ray r = primary_ray(p.z, o, d);

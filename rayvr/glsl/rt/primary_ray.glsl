@@ -14,7 +14,7 @@ Ray primary_ray(int eye, vec3 o, vec3 d) {
     return r;
 }
 
-// The frame tile (TILE_W x TILE_H pixels, passes/primary_rays.py) of pixel p (layer p.z) of an
+// The frame tile (TILE_W x TILE_H pixels, frame/passes/primary_rays.py) of pixel p (layer p.z) of an
 // image of `size` per layer: tiles in order x, then y, then layer, as tile_cull.comp writes them.
 uint primary_tile(ivec3 p, ivec2 size) {
     ivec2 n = (size + ivec2(TILE_W, TILE_H) - 1) / ivec2(TILE_W, TILE_H);

@@ -1,4 +1,4 @@
-// Wavefront state of the effect passes (rayvr/passes/trace_effect.py TraceEffectPass): the shading
+// Wavefront state of the effect passes (rayvr/frame/passes/trace_effect.py TraceEffectPass): the shading
 // kernels (rt/wave_shade.comp) write rays into these buffers, the lean trace kernels
 // (rt/wave_trace.comp) trace them at the batch tracer's speed, and the shading kernels read back.
 //

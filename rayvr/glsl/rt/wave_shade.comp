@@ -22,7 +22,7 @@
 #ifndef WAVE_STAGE
 #define WAVE_STAGE 3
 #endif
-#ifndef EFFECT  // built alone: as `shadows` (passes/trace_effect.py passes the effect's own values,
+#ifndef EFFECT  // built alone: as `shadows` (frame/passes/trace_effect.py passes the effect's own values,
 #define EFFECT EFFECT_SHADOWS  // EFFECT_PATHS among them: the loader needs it)
 #define RT_SLOT 0
 #define PARAM_AREA_SAMPLES PARAM_SHADOWS_AREA_SAMPLES

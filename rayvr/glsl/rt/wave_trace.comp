@@ -40,7 +40,7 @@ layout(local_size_x = RT_LOCAL_SIZE) in;
 #include "../common/scene.glsl"
 
 #if QT_DEPTH_LAYERS > 1
-layout(binding = UNIT_LAYER2_TRIANGLE) uniform usampler2DArray layer2_triangle;  // passes/second_layer.py
+layout(binding = UNIT_LAYER2_TRIANGLE) uniform usampler2DArray layer2_triangle;  // frame/passes/second_layer.py
 #endif
 
 // The path's ray through the quadtree of the eye that sees its pixel, over the material's

@@ -1,13 +1,13 @@
 #version 430
 // Debug views of G-buffer channels, written straight to the 8-bit output.
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/gbuffer.glsl"
 #include "../common/scene.glsl"
 #include "../common/color.glsl"
 
 layout(rgba8, binding = IMAGE_LDR) uniform writeonly image2DArray ldr_out;
-uniform int view;         // VIEW_* (rayvr/gpu_layout.py DEBUG_VIEWS)
+uniform int view;         // VIEW_* (rayvr/gl/gpu_layout.py DEBUG_VIEWS)
 uniform vec2 depth_range; // view-depth range mapped to black..white (log scale)
 
 vec3 hash_color(uint x) {

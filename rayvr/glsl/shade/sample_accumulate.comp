@@ -1,10 +1,10 @@
 #version 430
-// One round of a sampled frame (passes/sample_accumulate.py): adds each pixel's colour of this
+// One round of a sampled frame (frame/passes/sample_accumulate.py): adds each pixel's colour of this
 // round, times its weight (primary_rays: 1/N per SSAA sub-ray, coverage per MSAA triangle, 0 where
 // the camera has no sample, negative where an MSAA round skips the pixel), to the frame's sum; a
 // colour-channel round adds only its channel. Weights <= 0 leave the sum as it is (exact: they
 // add zero), so an MSAA round's empty pixels cost a 4-byte read.
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 
 layout(rgba16f, binding = IMAGE_HDR) uniform readonly image2DArray hdr_in;

@@ -1,7 +1,7 @@
 #version 430
-// The sampled frame's colour for display (passes/sample_resolve.py): the accumulated sum; with
+// The sampled frame's colour for display (frame/passes/sample_resolve.py): the accumulated sum; with
 // RECONSTRUCT (foveated) the pixels between samples filled in, coarse to fine, level by level
-// (cameras/foveated.py reconstruct is the numpy twin). The samples' nested dither lattices are
+// (frame/cameras/foveated.py reconstruct is the numpy twin). The samples' nested dither lattices are
 // complete down to some stride and partial below it, so a fill must use every sample as a corner
 // of the cells around it: filling each pixel from the finest cell whose four corners were all
 // samples skipped the samples of a partial lattice inside it, which stood out as single dots of
@@ -25,7 +25,7 @@
 #ifndef RECONSTRUCT
 #define RECONSTRUCT 0
 #endif
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/camera.glsl"
 

@@ -1,6 +1,6 @@
 #version 430
 // Tonemap: exposure, tonemapper (common/color.glsl), sRGB encoding into 8-bit output.
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/color.glsl"
 

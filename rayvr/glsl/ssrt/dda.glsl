@@ -27,7 +27,7 @@
 // Reads: the camera uniforms of common/camera.glsl (eye_position, eye_rotation, eye_tangents,
 // eye_depth.x = near) and the pixels' view depth through DDA_DEPTH(ivec3(x, y, eye)), by default
 // the G-buffer's linear_depth channel (0 = background) at texture unit GB_UNIT_LINEAR_DEPTH
-// (rayvr/gbuffer.py GBuffer.bind_for_reading binds it). Define DDA_DEPTH before including this
+// (rayvr/frame/gbuffer.py GBuffer.bind_for_reading binds it). Define DDA_DEPTH before including this
 // file to read depth from elsewhere.
 #ifndef RAYVR_SSRT_DDA_GLSL
 #define RAYVR_SSRT_DDA_GLSL

@@ -5,7 +5,7 @@
 // results at SSBO_HIZ_RESULTS, per ray uvec4(status, iterations, pixel x, pixel y as int bits),
 // uvec4(point in S as float bits, 0).
 #include "../layout.glsl"
-#define LOCAL_SIZE SSRT_RAY_GROUP  // rayvr/gpu_layout.py: the Python side dispatches by it
+#define LOCAL_SIZE SSRT_RAY_GROUP  // rayvr/gl/gpu_layout.py: the Python side dispatches by it
 layout(local_size_x = LOCAL_SIZE) in;
 
 #include "hiz.glsl"

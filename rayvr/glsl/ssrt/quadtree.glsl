@@ -18,7 +18,7 @@
 //
 // Reads: the camera uniforms (eye_position, eye_rotation, eye_tangents, eye_depth.x = near), the
 // nodes at SSBO_QUADTREE_NODES (layer after layer, levels leaves first), and the uniforms below
-// (rayvr/passes/quadtree.py tree_uniforms sets them).
+// (rayvr/frame/passes/quadtree.py tree_uniforms sets them).
 #ifndef RAYVR_SSRT_QUADTREE_GLSL
 #define RAYVR_SSRT_QUADTREE_GLSL
 #include "../layout.glsl"

@@ -1,12 +1,12 @@
 #version 430
 // Trace a batch of rays with qt_trace (ssrt/quadtree.glsl) through a built quadtree, for tests and
-// benchmarks (rayvr/passes/quadtree.py QuadtreeTracer). The same layout as ssrt/dda_batch.comp:
+// benchmarks (rayvr/frame/passes/quadtree.py QuadtreeTracer). The same layout as ssrt/dda_batch.comp:
 // rays at SSBO_QUADTREE_RAYS, per ray vec4(origin, eye layer as a float), vec4(direction, unused),
 // scene-local; results at SSBO_QUADTREE_RESULTS, per ray uvec4(status, nodes tested, pixel x,
 // pixel y as int bits), uvec4(point in S as float bits, depth layer hit as int bits). Traced with
 // qt_trace_layers through `trace_layers` depth layers, slabs of relative `trace_thickness`.
 #include "../layout.glsl"
-#define LOCAL_SIZE SSRT_RAY_GROUP  // rayvr/gpu_layout.py: the Python side dispatches by it
+#define LOCAL_SIZE SSRT_RAY_GROUP  // rayvr/gl/gpu_layout.py: the Python side dispatches by it
 layout(local_size_x = LOCAL_SIZE) in;
 
 #include "quadtree.glsl"

@@ -1,12 +1,12 @@
 #version 430
-// Build one level of the screen-space quadtree (rayvr/passes/quadtree.py runs one dispatch per
+// Build one level of the screen-space quadtree (rayvr/frame/passes/quadtree.py runs one dispatch per
 // level, leaves first; z = layer). Node format and the rules: rayvr/accel/quadtree.py, whose
 // build_reference this mirrors.
 //   level 0: each pixel's plane in S from the G-buffer: z0 = near / view depth (position.w), slopes
 //            from the geometric normal of the pixel's triangle (gb_triangle, the scene's vertices):
 //            the triangle's own plane, exactly (no finite differences; the shading normal, smoothed
 //            across faces, tilted neighbouring planes of one face apart, issue 20); tree layers
-//            past the eyes (qt_eyes) are the second depth layer's (passes/second_layer.py:
+//            past the eyes (qt_eyes) are the second depth layer's (frame/passes/second_layer.py:
 //            layer2 = its triangle's geometric normal facing the eye, view depth);
 //            background pixels are the AABB [0, 0]; the discontinuity flag from the 4 neighbours.
 //   level k: from the (up to 2 x 2) children at level k - 1: a proxy plane when all are planes and

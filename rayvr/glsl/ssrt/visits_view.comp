@@ -2,7 +2,7 @@
 // Debug view "quadtree_visits" (paper Fig. 1c/10): each covered pixel's mirror ray traced through
 // the screen-space quadtree of its eye (ssrt/quadtree.glsl); red = nodes tested (exact, up to 255),
 // green/blue = a heat ramp of the same count over 0..64; background black.
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "../common/gbuffer.glsl"
 #include "quadtree.glsl"

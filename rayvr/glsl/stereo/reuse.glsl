@@ -1,4 +1,4 @@
-// Stereo `reuse` (photon-mapping paper §3.3; rayvr/passes/reuse.py): which right-eye pixels take
+// Stereo `reuse` (photon-mapping paper §3.3; rayvr/frame/passes/reuse.py): which right-eye pixels take
 // the left eye's shading. reuse_map[i] for right-eye pixel i = x + y * width (GL rows) is the
 // left-eye pixel (same indexing) whose hit lands there and is visible from the right eye, or
 // REUSE_NONE: the right eye shades it itself. reuse_map[width * height + i] is, while the map is
@@ -6,7 +6,7 @@
 // `classify` and `shade` skip the taken pixels (STEREO_REUSE), so no right-eye pixel is shaded twice.
 #ifndef RAYVR_STEREO_REUSE_GLSL
 #define RAYVR_STEREO_REUSE_GLSL
-#include "../layout.glsl"  // REUSE_NONE: rayvr/passes/reuse.py
+#include "../layout.glsl"  // REUSE_NONE: rayvr/frame/passes/reuse.py
 #ifndef REUSE_ACCESS
 #define REUSE_ACCESS readonly
 #endif

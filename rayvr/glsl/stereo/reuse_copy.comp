@@ -1,7 +1,7 @@
 #version 430
-// Stereo `reuse`, the copy (rayvr/passes/reuse.py): each right-eye pixel of the map takes the
+// Stereo `reuse`, the copy (rayvr/frame/passes/reuse.py): each right-eye pixel of the map takes the
 // finished HDR colour of its left-eye pixel (after every effect composed its pixels).
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #include "reuse.glsl"
 

@@ -1,13 +1,13 @@
 #version 430
-// Stereo `reuse`, the map (rayvr/passes/reuse.py): every left-eye hit is projected into the right
+// Stereo `reuse`, the map (rayvr/frame/passes/reuse.py): every left-eye hit is projected into the right
 // eye; if the right eye sees it (the right eye's G-buffer pixel there shows the same surface: same
 // material, within `reuse_tolerance` x depth of the hit's tangent plane, facing the right eye), it
 // lands on that pixel. Of several landings on one pixel the one nearest its centre wins, then the
 // lowest left pixel index: three kernels (REUSE_STAGE 0 clear, 1 nearest distance, 2 owner) make
 // the choice deterministic with 32-bit atomics only.
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
-#ifndef REUSE_STAGE  // rayvr/passes/reuse.py builds one program per stage
+#ifndef REUSE_STAGE  // rayvr/frame/passes/reuse.py builds one program per stage
 #define REUSE_STAGE 0
 #endif
 #define REUSE_ACCESS

@@ -1,5 +1,5 @@
 #version 430
-// Stereo `warp` (Widmer et al. 2015 §5.1; rayvr/passes/warp.py): one eye synthesized from the
+// Stereo `warp` (Widmer et al. 2015 §5.1; rayvr/frame/passes/warp.py): one eye synthesized from the
 // central view. Each eye pixel's camera ray is traced through the central view's quadtree
 // (ssrt/quadtree.glsl qt_trace_layers, each surface a slab `warp_thickness` deep in relative z);
 // camera slot 0 is the central view (tree layer 0, and 1 for its second depth layer), slot 1 the
@@ -16,11 +16,11 @@
 //   left the central image first  (at the image borders) -> hole, the border pixel's colour
 //   reached infinity on screen    the background there
 // Writes colour (alpha 0 on holes) and linear view depth into layer `warp_layer`, and counts per
-// eye (glsl order = passes/warp.py COUNTS).
-#include "../layout.glsl"  // PIXEL_TILE: rayvr/passes/compute.py TILE
+// eye (glsl order = frame/passes/warp.py COUNTS).
+#include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #ifndef WARP_LAYERS
-#define WARP_LAYERS 2  // passes/warp.py sets it; the default lets the shader compile on its own
+#define WARP_LAYERS 2  // frame/passes/warp.py sets it; the default lets the shader compile on its own
 #endif
 #include "../ssrt/quadtree.glsl"
 #include "../common/gbuffer.glsl"
@@ -41,7 +41,7 @@ layout(std430, binding = SSBO_WARP_COUNTS) restrict buffer WarpCounts { uint war
 uniform int warp_layer;
 uniform float warp_thickness;
 
-// Per eye: the pixels of each kind WARP_COUNT_<kind> (the index of the kind in rayvr/passes/warp.py
+// Per eye: the pixels of each kind WARP_COUNT_<kind> (the index of the kind in rayvr/frame/passes/warp.py
 // COUNTS), then the nodes tested; WARP_COUNTS words in all (layout.glsl).
 shared uint group_counts[WARP_COUNTS];
 

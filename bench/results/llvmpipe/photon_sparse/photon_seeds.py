@@ -1,10 +1,10 @@
 import numpy as np, time
 from rayvr.bench.scenes import bench_scenes
-from rayvr import metrics
+from rayvr.quality import metrics
 from rayvr.bench import photon
 from rayvr.renderer import Renderer
-from rayvr.camera import StereoRig
-from rayvr.context import create_context
+from rayvr.frame.cameras.rig import StereoRig
+from rayvr.gl.context import create_context
 gl = create_context()
 for n, scene, view in bench_scenes(("sponza",), (96, 96), {}):
     cfg = photon.config(n, 512*512, 0.05, "grid")

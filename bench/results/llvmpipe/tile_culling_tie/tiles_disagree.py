@@ -5,7 +5,7 @@ from rayvr.bench.rays import primary_rays
 from rayvr.accel.gpu import RayTracer, GpuBvh
 from rayvr.accel.scene import build_scene_bvh
 from rayvr.accel.bvh import trace_brute_force
-from rayvr.context import create_context
+from rayvr.gl.context import create_context
 gl = create_context(None)
 w, h = (int(x) for x in sys.argv[1].split("x"))
 for name, scene, rig in bench_scenes(("sponza",), (w, h), {}):

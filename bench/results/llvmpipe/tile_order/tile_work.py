@@ -13,7 +13,7 @@ from rayvr.accel.gpu import GpuBvh
 from rayvr.bench.primary import tile_work
 from rayvr.bench.rays import primary_rays
 from rayvr.bench.scenes import bench_scenes
-from rayvr.context import create_context
+from rayvr.gl.context import create_context
 
 size = tuple(int(x) for x in (sys.argv[1] if len(sys.argv) > 1 else "720x800").split("x"))
 gl = create_context()

@@ -2,9 +2,9 @@
 import json, os, sys, time
 from dataclasses import replace
 import numpy as np
-from rayvr.context import create_context
+from rayvr.gl.context import create_context
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.materials import parse_config
+from rayvr.scene.materials import parse_config
 from rayvr.bench.scenes import bench_scenes
 from rayvr.bench.rays import time_effect_stages
 from rayvr.bench.photon import config as photon_config

@@ -1,8 +1,8 @@
 """Ad-hoc GPU profile: per-kernel ms of path/glossy/photon on room and Sponza (warm)."""
 import json, os, sys, time
-from rayvr.context import create_context
+from rayvr.gl.context import create_context
 from rayvr.renderer import Renderer
-from rayvr.materials import parse_config
+from rayvr.scene.materials import parse_config
 from rayvr.bench.scenes import bench_scenes
 from rayvr.bench.rays import time_effect_stages
 from rayvr.bench.photon import config as photon_config

@@ -4,14 +4,14 @@ directly by the CPU (the old way) or through GPU copies (the new way). Room view
 import sys, time
 import numpy as np
 import moderngl
-from rayvr import shaders
-from rayvr.passes import primary_rays as pr
-from rayvr.passes.compute import dispatch_per_pixel
+from rayvr.gl import shaders
+from rayvr.frame.passes import primary_rays as pr
+from rayvr.frame.passes.compute import dispatch_per_pixel
 from rayvr.bench.primary import primary_kernel_ms
 from rayvr.bench.rays import time_frame
 from rayvr.bench.scenes import bench_scenes
-from rayvr.camera import StereoRig
-from rayvr.context import create_context
+from rayvr.frame.cameras.rig import StereoRig
+from rayvr.gl.context import create_context
 from rayvr.renderer import Renderer, RenderSettings
 
 VARIANT = {"kernel": "new", "count": "copy"}

@@ -3,8 +3,8 @@ import json, os, sys
 import numpy as np
 from rayvr.bench.scenes import bench_scenes
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.materials import parse_config
-from rayvr.context import create_context
+from rayvr.scene.materials import parse_config
+from rayvr.gl.context import create_context
 gl = create_context(None)
 size = tuple(int(x) for x in (sys.argv[1] if len(sys.argv) > 1 else "1440x1600").split("x"))
 cfg = parse_config({"default": "path", "params": {"path": {"samples": 1, "bounces": 4, "area_samples": 1}}}, "p")

@@ -2,10 +2,10 @@
 import sys, json, os
 import numpy as np
 from rayvr.bench.scenes import bench_scenes
-from rayvr import metrics
+from rayvr.quality import metrics
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.materials import parse_config
-from rayvr.context import create_context
+from rayvr.scene.materials import parse_config
+from rayvr.gl.context import create_context
 gl = create_context(None)
 cfg = lambda n: parse_config({"default": "path", "params": {"path": {"samples": n, "bounces": 4}}}, "p")
 both = lambda f: np.concatenate([f.left.color, f.right.color], 1)

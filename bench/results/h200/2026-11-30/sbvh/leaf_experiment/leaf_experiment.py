@@ -5,7 +5,7 @@ from rayvr.accel.bvh import build_bvh
 from rayvr.accel.gpu import GpuBvh, RayTracer
 from rayvr.bench.rays import primary_rays, secondary_rays
 from rayvr.bench.scenes import bench_scenes
-from rayvr.context import create_context
+from rayvr.gl.context import create_context
 
 out = sys.argv[1]
 size = tuple(int(x) for x in sys.argv[2].split("x")) if len(sys.argv) > 2 else (1440, 1600)

@@ -1,12 +1,12 @@
 """H200 diagnostic: does render(spp=2) equal the mean of samples 0 and 1 rendered alone (Sponza path)?"""
 import sys, json, os
 import numpy as np
-import rayvr.passes.trace_effect as te
+import rayvr.frame.passes.trace_effect as te
 from rayvr.bench.scenes import bench_scenes
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.materials import parse_config
-from rayvr.accumulation import sample_seed
-from rayvr.context import create_context
+from rayvr.scene.materials import parse_config
+from rayvr.frame.accumulation import sample_seed
+from rayvr.gl.context import create_context
 gl = create_context(None)
 print("max_ssbo", gl.max_ssbo_bytes, "mem", getattr(gl, "memory_bytes", None), flush=True)
 cfg = lambda n: parse_config({"default": "path", "params": {"path": {"samples": n, "bounces": 4, "area_samples": 1}}}, "p")

@@ -3,8 +3,8 @@ import sys, json, os, time
 import numpy as np
 from rayvr.bench.scenes import bench_scenes
 from rayvr.renderer import Renderer, RenderSettings
-from rayvr.materials import parse_config
-from rayvr.context import create_context
+from rayvr.scene.materials import parse_config
+from rayvr.gl.context import create_context
 gl = create_context(None)
 cfg = lambda n: parse_config({"default": "path", "params": {"path": {"samples": n, "bounces": 4, "area_samples": 1}}}, "p")
 hdr = lambda f: np.concatenate([f.left.aux["hdr"][..., :3], f.right.aux["hdr"][..., :3]], 1).astype(np.float64)

@@ -1,0 +1,304 @@
+"""Multi-view captures (light fields, training views for NeRF / 3D Gaussian splatting): where the
+views come from and the camera files that describe them.
+
+A view source is a JSON file (`--views FILE`) or a generated set around the scene
+(`--views sphere:N`, `--views grid:NxM[:SPACING]`). A file holds a list of views, or an object
+with "views" or "frames" (so a `transforms.json` can be replayed) whose top-level intrinsics are
+the views' defaults. Each view has a pose, one of
+    "transform_matrix": 4x4 camera-to-world, OpenGL axes (what transforms.json holds)
+    "position" + "rotation" (3x3 camera-to-world), or "position" + "target" (+ "up")
+and optional intrinsics at the capture's --size, one of
+    "fov_y" (degrees), "camera_angle_x" (radians, horizontal, as NeRF), or
+    "fl_x" (+ "fl_y", "cx", "cy", pixels; rows top-down, so cy is measured from the top).
+
+Every image a multi-view capture writes is described in `transforms.json` in the layout NeRF's
+Blender loader, instant-ngp, nerfstudio and 3D Gaussian splatting read: `camera_angle_x`,
+`fl_x`/`fl_y`/`cx`/`cy`/`w`/`h`, and per frame `file_path` (no extension: those loaders append
+`.png`), `depth_file_path` and a camera-to-world `transform_matrix` in OpenGL axes (+X right, +Y
+up, looking down -Z). Stereo views give two frames each, one per eye, with the eye's own pose.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..frame.cameras.rig import Pose, StereoRig, _check_pose, check_camera_positions
+from .capture_files import aux_file, file_name
+from ..frame.cameras.pinhole import MAX_TANGENT, MIN_PIXEL_TANGENT
+from ..util.inputs import read_json
+from ..gl.limits import MAX_CAMERA_COORDINATE, check_range
+from ..util.output import atomic_write_bytes
+
+POSE_KEYS = ("transform_matrix", "position", "rotation", "target", "up")
+INTRINSIC_KEYS = ("fov_y", "camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
+# What transforms.json files carry besides poses and intrinsics: read past, never used.
+PASSED_KEYS = ("file_path", "depth_file_path", "camera_file_path", "mask_path", "colmap_im_id", "name",
+               "camera_angle_y")
+MAX_VIEWS = 1_000_000
+CONVENTION = ("OpenGL camera axes: +X right, +Y up, looking down -Z; camera_to_world maps camera to world "
+              "coordinates; pixel rows top-down (cy from the top); depth files hold linear view depth "
+              "along -Z, 0 = background")
+# The depth of a model whose depth is the distance along each pixel's (unit) ray (the wide one:
+# CameraModel.depth_along_ray), as nerfstudio reads the depth of its fisheye and equirectangular
+# cameras, whose ray directions have length 1.
+RAY_DEPTH_CONVENTION = CONVENTION.replace("linear view depth along -Z", "the distance along each pixel's ray")
+
+
+def _number(where: str, key: str, value, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{where}: {key!r} must be a finite number, got {value!r}")
+    if positive and value <= 0:
+        raise ValueError(f"{where}: {key!r} must be > 0, got {value!r}")
+    return float(value)
+
+
+def view_pose(d: dict, where: str) -> Pose:
+    """A view's pose from transform_matrix, position+rotation or position+target(+up)."""
+    try:
+        if "transform_matrix" in d:
+            m = np.asarray(d["transform_matrix"], dtype=np.float64)
+            if m.shape != (4, 4):
+                raise ValueError(f"transform_matrix must be 4x4, got shape {m.shape}")
+            if not np.allclose(m[3], (0, 0, 0, 1)):
+                raise ValueError(f"transform_matrix's last row must be 0 0 0 1, got {m[3].tolist()}")
+            pose = Pose(m[:3, 3].copy(), m[:3, :3].copy())
+        elif "position" in d and ("rotation" in d or "target" in d):
+            pose = Pose.from_dict(d)
+        else:
+            raise ValueError("needs 'transform_matrix', 'position' + 'rotation' or 'position' + 'target'")
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{where}: {exc}") from None
+    problem = _check_pose(pose)
+    if problem:
+        raise ValueError(f"{where}: {problem}")
+    return pose
+
+
+def view_intrinsics(d: dict, size, where: str) -> dict | None:
+    """StereoRig fields a view's intrinsics set (fov_y, or per-eye tangents from focal lengths and
+    principal point), or None for the rig's own."""
+    w, h = size
+    for key, want in (("w", w), ("h", h)):
+        if key in d and _number(where, key, d[key], positive=True) != want:
+            raise ValueError(f"{where}: the view is {d.get('w', w)}x{d.get('h', h)} pixels but the capture's "
+                             f"--size is {w}x{h}; every view renders at --size")
+    given = [k for k in ("fov_y", "camera_angle_x", "fl_x") if k in d]
+    if "fov_y" in given and len(given) > 1:
+        raise ValueError(f"{where}: give one of fov_y, camera_angle_x, fl_x, not {' and '.join(given)}")
+    if len(given) > 1:  # transforms.json carries both; they must tell the same camera
+        fx, cx = _number(where, "fl_x", d["fl_x"], positive=True), _number(where, "cx", d.get("cx", w / 2))
+        ax = _number(where, "camera_angle_x", d["camera_angle_x"], positive=True)
+        if not math.isclose(math.atan(cx / fx) + math.atan((w - cx) / fx), ax, rel_tol=1e-6):
+            raise ValueError(f"{where}: camera_angle_x {ax:g} disagrees with fl_x {fx:g} and cx {cx:g} at width {w}")
+        d = {k: v for k, v in d.items() if k != "camera_angle_x"}  # then fl_x says the rest (fl_y, cy)
+    if "fov_y" in d:
+        fov = _number(where, "fov_y", d["fov_y"], positive=True)
+        if fov >= 180:
+            raise ValueError(f"{where}: fov_y must be below 180 degrees, got {fov}")
+        return {"fov_y": fov}
+    if "camera_angle_x" in d:
+        ax = _number(where, "camera_angle_x", d["camera_angle_x"], positive=True)
+        if ax >= math.pi:
+            raise ValueError(f"{where}: camera_angle_x must be below pi radians, got {ax}")
+        return {"fov_y": math.degrees(2 * math.atan(math.tan(ax / 2) * h / w))}
+    if "fl_x" in d:
+        fx = _number(where, "fl_x", d["fl_x"], positive=True)
+        fy = _number(where, "fl_y", d.get("fl_y", fx), positive=True)
+        cx = _number(where, "cx", d.get("cx", w / 2))
+        cy = _number(where, "cy", d.get("cy", h / 2))
+        if not (0 < cx < w and 0 < cy < h):
+            raise ValueError(f"{where}: principal point ({cx:g}, {cy:g}) lies outside the {w}x{h} image")
+        # A pixel is 1 / fl of tangent and the image's edges reach (distance to cx or cy) / fl: both
+        # within the pinhole's float32 precision (frame/cameras/pinhole.py).
+        for key, f, reach in (("fl_x", fx, max(cx, w - cx)), ("fl_y", fy, max(cy, h - cy))):
+            check_range(f"{where}: {key!r} (pixels)", f, reach / MAX_TANGENT, 1.0 / MIN_PIXEL_TANGENT)
+        t = (-cx / fx, (w - cx) / fx, -(h - cy) / fy, cy / fy)
+        return {"eye_tangents": {"left": t, "right": t}}
+    for key in ("fl_y", "cx", "cy"):
+        if key in d:
+            raise ValueError(f"{where}: {key!r} needs 'fl_x'")
+    return None
+
+
+def load_views(path, size) -> tuple[list[Pose], list]:
+    """(poses, per-view rig overrides) from a views file; errors name the file, the view and the key."""
+    path = Path(path)
+    data = read_json(path, "views file")
+    defaults = {}
+    if isinstance(data, dict):
+        lists = [k for k in ("views", "frames") if k in data]
+        if not lists:
+            raise ValueError(f"{path}: a views file is a list of views or an object with 'views' or 'frames'")
+        model = data.get("camera_model", "OPENCV")
+        distortion = [k for k in DISTORTION_KEYS if data.get(k, 0.0) != 0.0]
+        if model not in PINHOLE_MODELS or distortion:
+            raise ValueError(f"{path}: camera_model {model!r}{' with ' + distortion[0] if distortion else ''}: a "
+                             f"views file's intrinsics are a pinhole's (camera_model {', '.join(PINHOLE_MODELS)}, no "
+                             f"distortion); give another camera with --camera-model")
+        defaults = {k: v for k, v in data.items() if k in INTRINSIC_KEYS}
+        data = data[lists[0]]
+    if not isinstance(data, list) or not data:
+        raise ValueError(f"{path}: the views must be a non-empty list")
+    if len(data) > MAX_VIEWS:
+        raise ValueError(f"{path}: {len(data)} views; at most {MAX_VIEWS}")
+    poses, overrides = [], []
+    for i, d in enumerate(data):
+        where = f"{path}: view {i}"
+        if not isinstance(d, dict):
+            raise ValueError(f"{where}: must be an object, got {type(d).__name__}")
+        unknown = [k for k in d if k not in POSE_KEYS + INTRINSIC_KEYS + PASSED_KEYS + DISTORTION_KEYS]
+        distorted = [k for k in DISTORTION_KEYS if d.get(k, 0.0) != 0.0]
+        if distorted:
+            raise ValueError(f"{where}: {distorted[0]} {d[distorted[0]]!r}: a view's intrinsics are a pinhole's, "
+                             f"without distortion")
+        if unknown:
+            raise ValueError(f"{where}: unknown key {unknown[0]!r}; a view has {', '.join(POSE_KEYS + INTRINSIC_KEYS)}")
+        own = [k for k in ("fov_y", "camera_angle_x", "fl_x") if k in d]
+        merged = {**({} if own else defaults), **d}  # a view's own intrinsics replace the file's defaults
+        poses.append(view_pose(d, where))
+        overrides.append(view_intrinsics(merged, size, where))
+    return poses, overrides
+
+
+def sphere_views(center, radius: float, n: int) -> list[Pose]:
+    """n views on a sphere (Fibonacci lattice: even spacing, no two at a pole) looking at center."""
+    center = np.asarray(center, np.float64)
+    golden = math.pi * (3 - math.sqrt(5))
+    out = []
+    for i in range(n):
+        y = 1 - (2 * i + 1) / n
+        r = math.sqrt(max(1 - y * y, 0.0))
+        d = np.array([r * math.cos(golden * i), y, r * math.sin(golden * i)])
+        out.append(Pose.look_at(center + radius * d, center))
+    return out
+
+
+def grid_views(pose: Pose, nx: int, ny: int, spacing: float) -> list[Pose]:
+    """An nx x ny camera array (a light-field rig): parallel views on the plane through `pose`
+    across its view direction, `spacing` apart, rows top to bottom, columns left to right."""
+    right, up = pose.rotation[:, 0], pose.rotation[:, 1]
+    out = []
+    for j in range(ny):
+        for i in range(nx):
+            offset = (i - (nx - 1) / 2) * spacing * right - (j - (ny - 1) / 2) * spacing * up
+            out.append(Pose(pose.position + offset, pose.rotation.copy()))
+    return out
+
+
+def _spec_counts(spec: str, kind: str, parts: int) -> list[int]:
+    try:
+        counts = [int(x) for x in spec.split("x")]
+    except ValueError:
+        counts = []
+    if len(counts) != parts or min(counts) < 1 or math.prod(counts) > MAX_VIEWS:
+        shape = "N" if parts == 1 else "NxM"
+        raise ValueError(f"--views {kind}:{shape} needs {'a whole number' if parts == 1 else 'whole numbers'} "
+                         f"from 1 (at most {MAX_VIEWS} views), got {spec!r}")
+    return counts
+
+
+def views_for(spec: str, scene, rig: StereoRig) -> tuple[list[Pose], list]:
+    """(poses, rig overrides) of `--views SPEC`: sphere:N, grid:NxM[:SPACING] or a views file,
+    each view checked before any rendering: its camera lies within the GPU's float32 range of the
+    scene, its rig renders, and transforms.json can describe its camera model."""
+    poses, overrides = _views(spec, scene, rig)
+    where = f"--views {spec}"
+    check_camera_positions(poses, scene.origin, f"{where}: view")
+    checked = {}
+    for i, extra in enumerate(overrides):
+        key = repr(extra)
+        if key in checked:
+            continue
+        try:
+            view_rig = StereoRig(**{**rig.__dict__, "pose": poses[i], **(extra or {})})
+            for eye in view_rig.eyes():
+                camera_model_fields(eye)
+        except ValueError as exc:
+            raise ValueError(f"{where}: view {i}: {exc}") from None
+        checked[key] = True
+    return poses, overrides
+
+
+def _views(spec: str, scene, rig: StereoRig) -> tuple[list[Pose], list]:
+    kind, _, rest = spec.partition(":")
+    target = scene.center if scene.camera is None else rig.pose.position + rig.pose.forward * 2.0
+    distance = float(np.linalg.norm(rig.pose.position - target)) or 1.0
+    if kind == "sphere" and rest:
+        (n,) = _spec_counts(rest, "sphere", 1)
+        return sphere_views(target, distance, n), [None] * n
+    if kind == "grid" and rest:
+        counts, _, spacing = rest.partition(":")
+        nx, ny = _spec_counts(counts, "grid", 2)
+        step = 0.05 * distance  # default: the array spans a few degrees of the scene
+        if spacing:
+            try:
+                step = float(spacing)
+            except ValueError:
+                step = -1.0
+            widest = MAX_CAMERA_COORDINATE / max(nx, ny)  # the array's span stays within the GPU's float32 range
+            if not (math.isfinite(step) and 0 < step <= widest):
+                raise ValueError(f"--views grid:NxM:SPACING needs a positive spacing, at most {widest:.3g} for "
+                                 f"{nx}x{ny} views, got {spacing!r}")
+        return grid_views(rig.pose, nx, ny, step), [None] * (nx * ny)
+    return load_views(spec, rig.size)
+
+
+PINHOLE_MODELS = ("OPENCV", "PINHOLE", "SIMPLE_PINHOLE")  # camera_model values of an undistorted pinhole
+DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
+
+
+def camera_model_fields(eye) -> dict:
+    """The camera model of one eye image as nerfstudio's transforms.json spells it: its model's
+    transforms_fields (rayvr/frame/cameras/base.py); ValueError where none of nerfstudio's models is it."""
+    return eye.camera.transforms_fields(eye)
+
+
+def camera_record(eye) -> dict:
+    """One eye image's camera (an EyeView): its camera model (camera_model_fields) and camera-to-world."""
+    c2w = np.eye(4)
+    c2w[:3, :3], c2w[:3, 3] = eye.rotation, eye.position
+    return {"w": eye.size[0], "h": eye.size[1], **camera_model_fields(eye), "near": eye.near, "far": eye.far,
+            "camera_to_world": c2w.tolist(),
+            "convention": RAY_DEPTH_CONVENTION if eye.camera.depth_along_ray else CONVENTION}
+
+
+def camera_json(eye) -> bytes:
+    """camera_record as JSON, refused (ValueError) if a value would be NaN or infinite, which JSON lacks."""
+    return json.dumps(camera_record(eye), indent=1, allow_nan=False).encode()
+
+
+def transforms(job) -> dict:
+    """transforms.json for a capture job (rayvr.app.capture.CaptureJob): one frame per eye image."""
+    frames = []
+    for i in range(len(job.poses)):
+        rig = job.frame_rig(i)
+        for eye in job.eye_names:
+            cam = camera_record(rig.eye(eye))
+            image = file_name(job, i, eye, "color" if job.view == "color" else job.view, "png")
+            frame = {"file_path": f"./{image.stem}", "transform_matrix": cam["camera_to_world"],
+                     **{k: v for k, v in cam.items() if k not in RECORD_ONLY}}
+            if "depth" in job.aux:
+                frame["depth_file_path"] = f"./{aux_file(job, i, eye, 'depth').name}"
+            frames.append(frame)
+    own = [k for k in frames[0] if k not in ("file_path", "transform_matrix", "depth_file_path")]
+    # A value every frame shares goes to the top only, the others stay in each frame: nerfstudio
+    # takes a top-level intrinsic for every frame, and camera_model from the top alone.
+    top = {k: frames[0][k] for k in own if all(f[k] == frames[0][k] for f in frames)}
+    if "camera_model" not in top:
+        raise ValueError("transforms.json: the frames' camera models differ; nerfstudio reads one for all")
+    for f in frames:
+        for k in top:
+            del f[k]
+    return {**top, "frames": frames}
+
+
+RECORD_ONLY = ("camera_to_world", "near", "far")  # camera_record's keys transforms.json leaves out
+
+
+def write_transforms(job) -> Path:
+    p = job.out_dir / "transforms.json"
+    atomic_write_bytes(p, json.dumps(transforms(job), indent=1, allow_nan=False).encode())
+    return p

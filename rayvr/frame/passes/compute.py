@@ -1,0 +1,45 @@
+"""Helpers shared by compute passes."""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from ...gl.glsl_constants import declare
+
+TILE = declare("PIXEL_TILE", 8)  # local_size_x/y of every per-pixel compute shader
+
+
+def dispatch_per_pixel(fc, program: moderngl.ComputeShader) -> None:
+    """One invocation per pixel per layer, then make the writes visible to what follows."""
+    w, h = fc.sizing.size
+    program.run((w + TILE - 1) // TILE, (h + TILE - 1) // TILE, fc.sizing.layers)
+    fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
+
+def camera_defines(plan) -> dict:
+    """CAMERA_MODEL and CAMERA_SUBSAMPLES for programs that include glsl/common/camera.glsl (the
+    plan's camera model and sub-rays per sample)."""
+    from ..cameras import CAMERA_MODELS
+
+    return {"CAMERA_MODEL": "CAMERA_" + CAMERA_MODELS[plan.camera].name.upper(), "CAMERA_SUBSAMPLES": plan.samples}
+
+
+def set_eye_uniforms(program, fc) -> None:
+    """The per-eye camera block of glsl/common/camera.glsl, with the values the eyes' camera
+    model gives (rayvr/frame/cameras/base.py uniforms), the colour channel set of this frame round
+    (fc.round) and the model's textures. Uniforms the shader does not use are skipped: GLSL
+    compilers drop them. The block is computed once per frame (fc.uniform_cache): a sampled frame
+    sets it for every pass of every round, and the CPU records rounds while the GPU works."""
+    model = fc.eyes[0].camera
+    cache = getattr(fc, "uniform_cache", None)
+    block = None if cache is None else cache.get("camera")
+    if block is None:
+        block = {name: value if isinstance(value, bytes) else np.ascontiguousarray(value).tobytes()
+                 for name, value in model.uniforms(fc.eyes, fc.scene.origin).items()}
+        if cache is not None:
+            cache["camera"] = block
+    channel = np.array([getattr(getattr(fc, "round", None), "channel", 0)], np.int32).tobytes()
+    for name, value in {**block, "camera_channel": channel}.items():
+        if name in program:
+            program[name].write(value)
+    model.bind(fc.gl)

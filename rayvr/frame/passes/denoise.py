@@ -1,0 +1,129 @@
+"""`denoise`: an edge-aware à-trous wavelet filter in the style of SVGF (Schied et al., HPG 2017),
+over the pixels of the effects the material config denoises (glsl/post/denoise.comp; the numpy
+reference is rayvr/reference/denoise.py).
+
+It filters the accumulated colour (`hdr_accum`, frame/passes/accumulate.py) divided by the G-buffer's
+albedo (demodulated, so texture and colour edges stay sharp), `iterations` times with a 5x5
+B3-spline kernel whose taps lie 2^i pixels apart, each tap weighted by depth (against the
+plane of the centre), normal, albedo and luminance scaled by the estimated standard deviation
+of the noise (temporal moments of the samples, or a 7x7 spatial estimate before 4 samples), and
+multiplies the albedo back. Only pixels of the denoised effects are filtered and only taps on
+pixels of the same effect count, so a `raster` wall never blurs into a `glossy` floor. Writes
+`hdr_denoised`, which tonemap shows.
+
+The kernels run over 16x16 tiles of the image (not the classify pass's pixel lists): a work
+group loads its tile and apron into workgroup memory once and takes every tap from there; an
+à-trous step of 2^i works on the lattice of pixels 2^i apart, so its taps stay in the tile. A
+tile without a denoised pixel stops after one fetch a pixel.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import moderngl
+
+from ...gl import shaders
+from ..effect_registry import EFFECTS
+from ..graph import FramePlan, Pass, Texture, read, write
+from ...gl.gpu_layout import IMAGE
+from ..accumulation import MAX_DENOISE_ITERATIONS
+from ...options import Option, declare
+from .accumulate import ACCUM
+from .compute import dispatch_per_pixel
+
+DENOISE = declare(Option("denoise", bool, False, "edge-aware a-trous denoiser on the pixels of the effects the "
+                                               "config's `denoise` key lists (default: every traced effect)",
+                         scope="plan", plan_field="denoise", commands=("capture", "preview", "info")))
+DENOISE_ITERATIONS = declare(Option("denoise_iterations", int, 4, "a-trous iterations (step 2^i; implies --denoise)",
+                                    bounds=(1, MAX_DENOISE_ITERATIONS), metavar="K", commands=("capture", "preview"),
+                                    implies=(("denoise", True),)))
+DENOISE_TILE = 16  # one work group of glsl/post/denoise.comp filters 16x16 lattice points
+
+
+@dataclass(frozen=True)
+class DenoiseParams:
+    """The edge-stops' scales (SVGF's σz, σn, σl; σa ours, in base-colour units)."""
+
+    sigma_depth: float = 1.0
+    sigma_normal: float = 128.0
+    sigma_luminance: float = 4.0
+    sigma_albedo: float = 0.25
+
+
+DEFAULTS = DenoiseParams()
+GUIDE = Texture("rgba32ui")  # depth, octahedral normal, 8-bit base colour, effect: one fetch per tap
+GRADIENT = Texture("rg32f")  # the view depth's screen-space gradient, once per frame
+VARIANCE = Texture("r32f")  # the variance blurred 3x3, once per iteration
+
+
+class DenoisePass(Pass):
+    name = "denoise"
+    timed_kernels = True
+
+    def why(self, plan: FramePlan) -> str | None:
+        if not plan.denoise or plan.view != "color":
+            return None
+        return f"denoise on ({', '.join(plan.denoise)})"
+
+    def io(self, plan: FramePlan) -> list:
+        return [read("gbuffer"), read("hdr_accum"), read("accum_moments"),
+                write("denoise.ping", ACCUM), write("denoise.pong", ACCUM), write("denoise.guide", GUIDE),
+                write("denoise.gradient", GRADIENT), write("denoise.variance", VARIANCE), write("hdr_denoised", ACCUM)]
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        self.programs = {s: shaders.compute(gl.ctx, "post/denoise.comp", {"DENOISE_STAGE": s, "DENOISE_TILE": DENOISE_TILE})
+                         for s in (0, 1, 2, 3)}
+
+    def execute(self, fc) -> None:
+        iterations = int(fc.settings.denoise_iterations)
+        mask = sum(1 << EFFECTS[name].id for name in fc.plan.denoise)
+        fc.gbuffer.bind_for_reading()
+        color, moments = fc.resource("hdr_accum"), fc.resource("accum_moments")
+        out, ping, pong = fc.resource("hdr_denoised"), fc.resource("denoise.ping"), fc.resource("denoise.pong")
+        guide = fc.resource("denoise.guide")
+        color.bind_to_image(IMAGE["denoise_color"], read=True, write=False)
+        moments.bind_to_image(IMAGE["denoise_moments"], read=True, write=False)
+        fc.resource("denoise.gradient").bind_to_image(IMAGE["denoise_gradient"], read=True, write=True)
+        fc.resource("denoise.variance").bind_to_image(IMAGE["denoise_variance"], read=True, write=True)
+        for p in self.programs.values():
+            for k, v in {**DEFAULTS.__dict__, "denoise_effects": mask}.items():
+                if k in p:
+                    p[k].value = v
+        w, h = fc.sizing.size
+
+        def over_tiles(p, step=1):
+            blocks = lambda n: -(-n // (DENOISE_TILE * step)) * step  # noqa: E731
+            p.run(blocks(w), blocks(h), fc.sizing.layers)
+            fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
+        def passthrough():
+            out.bind_to_image(IMAGE["denoise_out"], read=False, write=True)
+            guide.bind_to_image(IMAGE["denoise_guide"], read=False, write=True)
+            dispatch_per_pixel(fc, self.programs[0])
+            guide.bind_to_image(IMAGE["denoise_guide"], read=True, write=False)
+
+        def prepare():
+            ping.bind_to_image(IMAGE["denoise_out"], read=False, write=True)
+            over_tiles(self.programs[1])
+
+        fc.stage("passthrough", passthrough)
+        fc.stage("prepare", prepare)
+        src, dst = ping, pong
+        for i in range(iterations):
+            last = i == iterations - 1
+
+            def iterate(i=i, src=src, dst=dst, last=last):
+                src.bind_to_image(IMAGE["denoise_in"], read=True, write=False)
+                over_tiles(self.programs[2])  # the variance blur of this iteration's input
+                p = self.programs[3]
+                p["step_size"].value = 1 << i
+                p["last_iteration"].value = int(last)
+                (out if last else dst).bind_to_image(IMAGE["denoise_out"], read=False, write=True)
+                over_tiles(p, 1 << i)
+            fc.stage(f"atrous{i}", iterate)
+            src, dst = dst, src
+
+    def release(self) -> None:
+        for p in self.programs.values():
+            p.release()
+

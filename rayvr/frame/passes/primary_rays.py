@@ -1,0 +1,300 @@
+"""`primary_rays`: the ray-traced alternative to the visibility raster (RenderSettings.primary =
+"rays", and any camera model a rasterizer cannot sample, or sub-rays per sample): each sample's
+camera ray through the BVH (glsl/rt/primary.comp), leaving the triangle ID, the sub-ray and the
+hit distance for the G-buffer resolve.
+
+Sampled frames (FramePlan.sampled) run in rounds (frame/graph.py FrameGraph.execute): per colour
+channel set, then per sub-ray (SSAA: each round casts one sub-ray of every sample) or per slot
+of the distinct triangles the sub-rays hit (MSAA: the first round of a channel casts all N
+sub-rays, keeps the distinct triangles with their coverage masks, and counts on the GPU how many
+rounds the channel needs, the most any pixel has; each round then shades one triangle per
+pixel). The MSAA trace casts one sub-ray per invocation (a workgroup: a block of pixels times
+their sub-rays) and merges each pixel's hits in shared memory; `msaa_lists` is the numpy twin of
+that merge. Each round also writes every pixel's weight in the frame's colour (`sample_weight`),
+which `sample_accumulate` applies.
+
+The CPU never waits for the count (Round.start_polled): it is copied to a readback buffer behind
+a fence, and after each round is recorded the fence is polled without waiting; until it answers,
+another round is recorded (at most msaa_slots), so the GPU is never left idle while the CPU
+waits and then records (H200, room, 4x: ~1.3 ms of the frame was that). Each round's select
+takes its slot from the count on the GPU: round k of a channel selects slot count - 1 - k, so
+slots run from the last to 0 and the G-buffer the frame keeps (depth, aux channels) is each
+pixel's most covered triangle. A round past the count (slot < 0: recorded before the count was
+known) gives every pixel the weight ROUND_SKIPPED (glsl/common/round_skip.glsl) and writes no
+visibility: the round's gbuffer resolve, shade, classify and sample_accumulate leave those pixels
+alone, so the G-buffer stays the slot-0 round's and nothing is added. The frame is bit-identical
+however late the count is known (tests force both ends through COUNT_POLL). Empty slots above 0
+(a pixel with fewer triangles than the count, most pixels in most rounds) are skipped the same
+way where exact (`skips_empty_slots`, FramePlan.skip_empty_slots): instead of a background
+resolved, shaded and added with weight 0, a 4-byte weight read per pass.
+
+Tile frustum culling (FramePlan.tile_culling, RenderSettings.tile_culling, `--tile-culling`; by
+default where it measured faster on the H200, RenderSettings.culls_tiles): each channel set's first
+round first runs a `cull` stage (glsl/accel/tile_cull.comp with TILE_CAMERA): one workgroup per
+TILE_PIXELS block of pixels (16 x 8 = TILE_RAYS samples) bounds every ray the rounds will cast there
+(all sub-rays of each sample's footprint, thin-lens lens points, this channel set's distortion) with
+a conservative frustum and lists the BVH entry nodes it meets, nearest first; the trace then starts
+each ray from its tile's entries instead of the root. Exact: the same triangle and distance as
+per-ray traversal (tests/test_tile_culling_frame.py). The entries are child pairs of the binary
+layout, so with tile culling primary rays walk `bvh2`, whatever `traversal` names for them. Tiles
+whose rays spread beyond ~84 deg (wide cameras at low resolution) fall back to the root's children.
+"""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from ...gl import shaders
+from ...accel.frustum import tile_grid
+from ...accel.gpu import DEFAULT_BINDING, layout_defines
+from ..effect_registry import EFFECTS
+from ..graph import Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
+from ...gl.gpu_layout import IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_RAYS, channel
+from ...options import Option, declare
+from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
+
+PRIMARY_MODES = ("raster", "rays")
+PRIMARY = declare(Option("primary", str, "raster", "primary visibility: the raster G-buffer pass, or camera rays "
+                         "through the BVH (rays anyway where --msaa or the camera model needs them)", scope="plan",
+                         plan_field="primary", choices=PRIMARY_MODES, label="primary visibility",
+                         commands=("capture", "preview", "info")))
+TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visibility culls the BVH per 16x8-pixel "
+                              "tile first (a frustum over every sub-ray, lens point and channel of the tile; the same "
+                              "hits, exact) and walks the binary layout; auto: with --msaa above 1 except foveated "
+                              "and dof cameras, where it measured faster; bench primary: each rays row without and "
+                              "with it", scope="plan", plan_field="tile_culling", auto=True,
+                              commands=("capture", "preview", "info", "bench")))
+
+
+def primary_visibility(settings, camera) -> str:
+    """The plan's primary visibility: `settings.primary` where a rasterizer can sample the camera
+    (a planar model, one sub-ray per sample), else ray-cast."""
+    return settings.primary if camera.rasterizable and settings.msaa == 1 else "rays"
+
+
+def culls_tiles(settings, camera: str = "pinhole") -> bool:
+    """Whether ray-cast primaries of a `camera` model (its name) are tile-culled: tile_culling, or
+    when None, where it measured faster on the H200 (bench/results/h200/2026-11-30/primary/
+    after_rounds_tiles_packets, tile_culling_table5): with several sub-rays per sample (one cull
+    serves them all), for the models that declare it (CameraModel.culls_tiles_by_default)."""
+    from ..cameras import CAMERA_MODELS
+
+    if settings.tile_culling is not None:
+        return settings.tile_culling
+    return settings.msaa > 1 and CAMERA_MODELS[camera].culls_tiles_by_default
+
+
+MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
+MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
+SAMPLE_WEIGHT = Texture("r32f")
+# How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without
+# waiting; "wait" reads it after the first round, waiting for the GPU; "never" does not read it
+# (every channel then records msaa_slots rounds). Frames are identical under all three (tests).
+# A test hook, not a setting: read afresh by each frame (no program or resource depends on it),
+# set only through tests/conftest.py's `count_poll` fixture.
+COUNT_POLLS = ("fence", "wait", "never")
+COUNT_POLL = "fence"
+
+
+def msaa_block(samples: int) -> tuple[int, int]:
+    """Pixels (w, h) of an MSAA trace workgroup: MSAA_GROUP / samples pixels, as square as a power of two allows."""
+    pixels = max(1, MSAA_GROUP // samples)
+    w = 1 << (pixels.bit_length() // 2)
+    return w, pixels // w
+
+
+def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int,
+               sampled: np.ndarray | None = None) -> np.ndarray:
+    """Numpy twin of primary.comp's MSAA merge: per pixel, from its N sub-rays' triangles `tris`
+    (..., N) (NO_HIT: background) and distances `ts`, the list msaa_hits holds, (slots, ..., 4)
+    uint32 entries (triangle, coverage mask, representative sub-ray | count << 8 | covered << 16
+    (entry 0 only), distance bits), most covered first, ties in order of first sub-ray; unused
+    entries zero here (the GPU leaves entries past a pixel's count as the buffer held them: only
+    the first count are defined, and only those are read). `offsets` (N, 2): the sub-rays' footprint offsets (cameras/sampling.subsamples);
+    the representative is the sub-ray nearest the mean offset of its mask (the first of equally
+    near ones). `sampled` (...): False where the pixel has no sample (an empty list)."""
+    tris = np.asarray(tris, np.uint32)
+    shape, n_sub = tris.shape[:-1], tris.shape[-1]
+    flat_t, flat_d = tris.reshape(-1, n_sub), np.asarray(ts, np.float32).reshape(-1, n_sub)
+    ok = np.ones(len(flat_t), bool) if sampled is None else np.asarray(sampled, bool).reshape(-1)
+    out = np.zeros((slots, len(flat_t), 4), np.uint32)
+    out[0, :, 0] = NO_HIT
+    for px in np.flatnonzero(ok):
+        ids, masks = [], []
+        for i, tri in enumerate(flat_t[px]):
+            if tri in ids:
+                masks[ids.index(tri)] |= 1 << i
+            elif len(ids) < slots:
+                ids.append(tri)
+                masks.append(1 << i)
+        pop = [bin(m).count("1") for m in masks]
+        order = sorted(range(len(ids)), key=lambda k: (-pop[k], k))
+        for rank, k in enumerate(order):
+            bits = [i for i in range(n_sub) if masks[k] >> i & 1]
+            dist = ((offsets[bits] - offsets[bits].mean(0)) ** 2).sum(1)
+            best = bits[int(np.argmin(dist))]
+            meta = best | ((len(ids) << 8) | (sum(pop) << 16) if rank == 0 else 0)
+            out[rank, px] = (ids[k], masks[k], meta, flat_d[px, best].view(np.uint32))
+    return out.reshape((slots,) + shape + (4,))
+
+
+def frame_tiles(sizing) -> int:
+    """Tiles of a frame (tile culling): TILE_PIXELS blocks of every layer."""
+    nx, ny = tile_grid(*sizing.size)
+    return nx * ny * sizing.layers
+
+
+def msaa_slots(plan: FramePlan) -> int:
+    return min(plan.samples, MAX_SLOTS)
+
+
+def uses_msaa(plan: FramePlan) -> bool:
+    return plan.samples > 1 and plan.shading == "msaa"
+
+
+def skips_empty_slots(plan: FramePlan) -> bool:
+    """Whether a round leaves the pixels with nothing in its slot (a slot above 0) as they are
+    instead of making them background of weight 0. Exact when no pass of the round reads another
+    pixel's G-buffer: the one that does is the screen-space quadtree (its effects, ssr; stereo
+    reuse, the other, takes no MSAA). Slot 0, the last real round, writes every pixel."""
+    return plan.skip_empty_slots and not any(EFFECTS[e].uses_quadtree for e in plan.effects if e in EFFECTS)
+
+
+def round_skip_reads(plan: FramePlan) -> list:
+    """What a pass of the rounds reads to leave the pixels an MSAA round skips (glsl/common/round_skip.glsl)."""
+    return [read("sample_weight")] if uses_msaa(plan) else []
+
+
+def round_skip_defines(plan: FramePlan) -> dict:
+    return {"ROUND_SKIP": int(uses_msaa(plan))}
+
+
+def bind_round_skip(fc) -> None:
+    if uses_msaa(fc.plan):
+        fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=True, write=False)
+
+
+class PrimaryRaysPass(Pass):
+    name = "primary_rays"
+    timed_kernels = True
+
+    def why(self, plan: FramePlan) -> str | None:
+        if plan.primary != "rays":
+            return None
+        sub = f", {plan.samples} sub-rays per sample ({plan.shading})" if plan.samples > 1 else ""
+        tiles = ", tile frustum culling (bvh2)" if plan.tile_culling else ""
+        return f"primary visibility = rays ({plan.camera} camera{sub}{tiles})"
+
+    def io(self, plan: FramePlan) -> list:
+        out = [read("bvh"), write("visibility", GBufferChannels(("triangle", "position")))]
+        if plan.sampled:
+            out.append(write("sample_weight", SAMPLE_WEIGHT))
+        if uses_msaa(plan):
+            slots = msaa_slots(plan)
+            # Slot-major: slot k of every pixel, then slot k + 1 (coalesced writes and reads).
+            out += [write("msaa_hits", Buffer(lambda s, n=slots: s.pixels * n * 16, f"{slots} x 16 bytes per pixel")),
+                    write("msaa_count", Buffer(lambda s: 4, "4 bytes"))]
+        if plan.tile_culling:
+            out += [write("tile_entries", Buffer(lambda s: frame_tiles(s) * (TILE_ENTRIES + 1) * 4,
+                                                 f"{TILE_ENTRIES + 1} words per {TILE_RAYS}-pixel tile")),
+                    write("tile_planes", Buffer(lambda s: frame_tiles(s) * 80, "5 planes per tile"))]
+        return out
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        # the primary rays' BVH layout; tile entry lists name binary child pairs
+        self.layout = "bvh2" if plan.tile_culling else plan.traversal[0]
+        self.block = msaa_block(plan.samples)
+        tiles = {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": TILE_ENTRIES, "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
+                 "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
+        base = {**layout_defines(DEFAULT_BINDING, self.layout), **camera_defines(plan), "SAMPLED": int(plan.sampled),
+                "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
+                "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples,
+                "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles}
+        self.msaa = uses_msaa(plan)
+        self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
+                         for mode in ((1, 2) if self.msaa else (0,))}
+        self.cull = (shaders.compute(gl.ctx, "accel/tile_cull.comp", {**layout_defines(DEFAULT_BINDING, "bvh2"),
+                                                                     **camera_defines(plan), **tiles, "TILE_CAMERA": 1})
+                     if plan.tile_culling else None)
+        # msaa_count is zeroed and read back through copies (GPU-side), never written or read by the
+        # CPU itself: the CPU reading it every frame made the NVIDIA driver keep it in host memory,
+        # and each atomic on it then took ~1.1 us across the bus (H200: 80 ms for one per
+        # workgroup of the 2x1440x1600 MSAA trace, 1.8 ms with these copies;
+        # bench/results/h200/2026-11-30/primary/README.md). The readback holds one count per channel set.
+        self.count_io = [gl.ctx.buffer(bytes(4)), gl.ctx.buffer(reserve=4 * plan.channels)] if self.msaa else []
+        self.fences = {}  # channel set -> the fence after its count's copy (until read)
+
+    def execute(self, fc) -> None:
+        rnd = fc.round
+        for program in self.programs.values():
+            set_eye_uniforms(program, fc)
+        fc.accel.layout(self.layout).bind(DEFAULT_BINDING)
+        gb = fc.gbuffer
+        for name in ("position", "triangle"):
+            gb.textures[name].bind_to_image(channel(name).image, read=False, write=True)
+        if "sample_weight" in fc.resources:
+            fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=False, write=True)
+        if self.cull is not None:
+            self.cull_tiles(fc)
+        if not self.msaa:
+            if rnd.first:  # SSAA: one round per sub-ray; 1x: one
+                rnd.start(fc.plan.samples)
+            self.programs[0]["subsample"].value = rnd.slot
+            fc.stage("cast", lambda: dispatch_per_pixel(fc, self.programs[0]))
+            return
+        fc.resource("msaa_hits").bind_to_storage_buffer(SSBO["msaa_hits"])
+        count = fc.resource("msaa_count")
+        count.bind_to_storage_buffer(SSBO["msaa_count"])
+        if rnd.first:
+            zero, readback = self.count_io
+            fc.gl.ctx.copy_buffer(count, zero)
+            fc.stage("trace", lambda: self.dispatch_trace(fc))
+            if rnd.active:  # the rounds this channel needs: the most distinct triangles any pixel saw
+                fc.gl.ctx.copy_buffer(readback, count, write_offset=4 * rnd.channel)
+                rnd.start_polled(self.count_reader(fc, rnd.channel), msaa_slots(fc.plan))
+            else:
+                rnd.start(1)
+        # Slot = count - 1 - this: rounds of this channel set before this one; -1: slot 0 (no rounds).
+        self.programs[2]["msaa_round"].value = rnd.ordinal if rnd.active else -1
+        fc.stage("select", lambda: dispatch_per_pixel(fc, self.programs[2]))
+
+    def count_reader(self, fc, channel: int):
+        """Round.start_polled's count(wait) for the channel set's count just copied to the readback."""
+        old = self.fences.pop(channel, None)  # a fence of an earlier frame nobody asked about
+        if old is not None:
+            old.release()
+        fence = self.fences[channel] = fc.gl.fence()
+        readback = self.count_io[1]
+        if COUNT_POLL not in COUNT_POLLS:
+            raise ValueError(f"primary_rays.COUNT_POLL must be one of {', '.join(COUNT_POLLS)}, got {COUNT_POLL!r}")
+        ready = {"fence": fence.ready, "wait": lambda: True, "never": lambda: False}[COUNT_POLL]
+
+        def count(wait: bool) -> int | None:
+            if not wait and not ready():
+                return None
+            fence.release()
+            return max(1, int(np.frombuffer(readback.read(), np.uint32)[channel]))
+        return count
+
+    def cull_tiles(self, fc) -> None:
+        """Tile culling: the tiles' entry lists, made in each channel set's first round (they bound
+        every sub-ray the set's rounds cast), read by every round's trace."""
+        fc.resource("tile_entries").bind_to_storage_buffer(SSBO["tile_entries"])
+        fc.resource("tile_planes").bind_to_storage_buffer(SSBO["tile_planes"])
+        if not fc.round.first:
+            return
+        set_eye_uniforms(self.cull, fc)
+        self.cull["image_size"].value = tuple(fc.sizing.size)
+        nx, ny = tile_grid(*fc.sizing.size)
+        fc.stage("cull", lambda: (self.cull.run(nx, ny, fc.sizing.layers),
+                                  fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)))
+
+    def dispatch_trace(self, fc) -> None:
+        """One workgroup per block of pixels (msaa_block), one invocation per sub-ray."""
+        (w, h), (bw, bh) = fc.sizing.size, self.block
+        self.programs[1].run(-(-w // bw), -(-h // bh), fc.sizing.layers)
+        fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
+    def release(self) -> None:
+        for p in [*self.programs.values(), *self.count_io, *self.fences.values(), *([self.cull] if self.cull else [])]:
+            p.release()

@@ -1,0 +1,49 @@
+"""`sample_accumulate`: a sampled frame's colour (FramePlan.sampled: sub-rays per sample, colour
+channel sets, sparse foveated samples) is the weighted sum of its rounds' `hdr`
+(glsl/shade/sample_accumulate.comp). The frame graph runs this pass and everything it depends on
+once per round (frame/graph.py Round): SSAA shades every sub-ray, MSAA every distinct triangle of a
+pixel once, a chromatic camera each colour channel on its own rays."""
+from __future__ import annotations
+
+from ...gl import shaders
+from ..graph import FramePlan, Pass, Texture, read, write
+from ...gl.gpu_layout import IMAGE
+from .compute import dispatch_per_pixel
+
+SAMPLE_SUM = Texture("rgba32f")
+
+
+def sampling_reason(plan: FramePlan) -> str:
+    parts = []
+    if plan.samples > 1:
+        parts.append(f"{plan.samples} sub-rays per sample, {plan.shading}")
+    if plan.channels > 1:
+        parts.append(f"{plan.channels} colour channel sets ({plan.camera} camera)")
+    if plan.reconstruct:
+        parts.append(f"sparse samples ({plan.camera} camera)")
+    return "; ".join(parts)
+
+
+class SampleAccumulatePass(Pass):
+    name = "sample_accumulate"
+
+    def why(self, plan: FramePlan) -> str | None:
+        return sampling_reason(plan) if plan.sampled else None
+
+    def io(self, plan: FramePlan) -> list:
+        return [read("hdr"), read("sample_weight"), write("sample_sum", SAMPLE_SUM)]
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        self.program = shaders.compute(gl.ctx, "shade/sample_accumulate.comp")
+
+    def execute(self, fc) -> None:
+        rnd = fc.round
+        self.program["first"].value = int(rnd.index == 0)
+        self.program["channel"].value = rnd.channel if fc.plan.channels > 1 else -1
+        fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=True, write=False)
+        fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=True, write=False)
+        fc.resource("sample_sum").bind_to_image(IMAGE["sample_sum"], read=True, write=True)
+        dispatch_per_pixel(fc, self.program)
+
+    def release(self) -> None:
+        self.program.release()

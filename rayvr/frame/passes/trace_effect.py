@@ -1,0 +1,234 @@
+"""`rt_<effect>`: a traced effect (shadows, reflections, glossy, path) as a wavefront over its pixel list,
+both eyes at once: shading kernels (glsl/rt/wave_shade.comp, with the effect's own part included
+from Effect.shader, e.g. glsl/effects/glossy.glsl) write rays into buffers, lean kernels
+(rt/wave_trace.comp) trace them. Per batch of the effect's pixel list:
+    prep; pixel event (+ shadow rays); then per bounce: closest hits, hit event (+ shadow rays);
+    finish (fused into the last shadow kernel when a pixel has one path).
+The shadow rays of an event may be split into chunks and the pixel list into batches so that no
+buffer exceeds the device's storage-block limit. The pass composes its pixels of `hdr` over what
+`shade` wrote."""
+from __future__ import annotations
+
+import moderngl
+
+from ...gl import shaders
+from ...accel.gpu import DEFAULT_BINDING, GpuBvh, layout_defines
+from ..effect_registry import Effect, traced_effects
+from ..graph import Buffer, FramePlan, Pass, Sizing, compose, read, write
+from ...gl.gpu_layout import IMAGE, SSBO, UNIT
+from .classify import bind_lists
+from .compute import camera_defines, set_eye_uniforms
+from .quadtree import set_tree_uniforms
+from .second_layer import bind_second_layer
+
+# The material parameters the wavefront reads by name, from an effect that declares them in `params`
+# (keyed by these): the hit events after the pixel's (an effect whose rays go on, `follows_rays`), the
+# paths per pixel, and the points per rect light of each event's shadow rays (PARAM_AREA_SAMPLES).
+WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES = "bounces", "samples", "area_samples"
+WAVE_PARAMS = (WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES)
+
+# Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.
+PATH_BYTES, SLOT_BYTES = 80, 48
+# Largest wavefront buffer: the device's storage-block limit or this (Sizing.wave_buffer_bytes, from
+# Renderer(wave_buffer_bytes=...), gives another: tests split the waves with a small one).
+WAVE_BUFFER_BYTES = 1 << 30
+
+
+def wave_plan(pixel_capacity: int, paths_per_pixel: int, slots: int, limit: int,
+              hit_slots: int | None = None) -> tuple[int, int, int]:
+    """(pixels per batch, shadow slots per chunk of a pixel event, of a hit event) so that no
+    wavefront buffer exceeds `limit` bytes. A pixel event's slots are rows of the batch's pixels,
+    a hit event's rows of its paths (`hit_slots`: a hit's shadow rays, default `slots`)."""
+    hit_slots = slots if hit_slots is None else hit_slots
+    batch = max(1, min(pixel_capacity, limit // (PATH_BYTES * paths_per_pixel)))
+    if SLOT_BYTES * batch * paths_per_pixel > limit:  # not even one slot of every path fits
+        batch = max(1, limit // (SLOT_BYTES * paths_per_pixel))
+    pixel_chunk = max(1, min(slots, limit // (SLOT_BYTES * batch)))
+    hit_chunk = max(1, min(hit_slots, limit // (SLOT_BYTES * batch * paths_per_pixel)))
+    return batch, pixel_chunk, hit_chunk
+
+
+def chunk_ranges(total: int, size: int) -> list:
+    """(first, count) of consecutive chunks of `size` covering `total` slots."""
+    return [(k, min(size, total - k)) for k in range(0, total, size)]
+
+
+def effect_maxima(assignments, effect: str) -> dict:
+    """The largest of each integer parameter over the materials that use `effect` (sizes the waves)."""
+    out = dict.fromkeys(WAVE_PARAMS, 1)
+    for a in assignments:
+        if a.effect == effect:
+            for k in out:
+                out[k] = max(out[k], int(a.params.get(k, 1)))
+    return out
+
+
+def follows_rays(effect: Effect) -> bool:
+    """Its rays go on past the pixel's surface for `bounces` hit events (reflections, glossy, path)."""
+    return effect.reflective or effect.path_vertices
+
+
+class WaveShape:
+    """How an effect's wavefront is cut for one frame: batches, shadow chunks, path counts."""
+
+    def __init__(self, effect: Effect, s: Sizing):
+        prm = effect_maxima(s.assignments, effect.name)
+        self.bounces = prm[WAVE_BOUNCES] if follows_rays(effect) else 0  # hit events after the pixel's
+        self.paths_per_pixel = prm[WAVE_SAMPLES] if WAVE_SAMPLES in effect.params else 1
+        lights = s.scene.lights if s.scene is not None else ()
+
+        def shadow_rays(per_rect: int) -> int:  # of one surface: per_rect points a rect light, 1 another
+            return sum(per_rect if light.kind == "rect" else 1 for light in lights) or 1
+        per_path = prm[WAVE_SAMPLES] if effect.shader_defines.get("PIXEL_LIGHT_SAMPLES_PER_PATH") else 1
+        self.slots = shadow_rays(prm[WAVE_AREA_SAMPLES] * per_path)
+        # A hit event lights its surface with `area_samples` points per rect light, never the
+        # pixel event's set per path: its shadow rays fill the first hit_slots slots only.
+        self.hit_slots = shadow_rays(prm[WAVE_AREA_SAMPLES])
+        cap = s.wave_buffer_bytes or WAVE_BUFFER_BYTES
+        limit = min(s.max_ssbo_bytes or cap, cap)
+        self.capacity_pixels = s.pixels
+        self.batch, self.chunk, self.hit_chunk = wave_plan(s.pixels, self.paths_per_pixel, self.slots, limit,
+                                                           self.hit_slots)
+        self.capacity = self.batch * self.paths_per_pixel  # paths the buffers hold
+
+    @property
+    def shadow_slots(self) -> int:
+        """ShadowSlot records the shadow buffer holds: the larger of the two events' chunks."""
+        return max(self.batch * self.chunk, self.capacity * self.hit_chunk)
+
+    @property
+    def chunks(self) -> list:
+        """(first slot, count) of each chunk of the pixel event's shadow slots."""
+        return chunk_ranges(self.slots, self.chunk)
+
+    @property
+    def hit_chunks(self) -> list:
+        """The chunks a hit event's shadow rays fall in (the last one ends the path)."""
+        return chunk_ranges(self.hit_slots, self.hit_chunk)
+
+
+class TraceEffectPass(Pass):
+    timed_kernels = True
+
+    def __init__(self, effect: Effect):
+        self.effect = effect
+        self.name = f"rt_{effect.name}"
+        self.slot = [e.name for e in traced_effects()].index(effect.name)
+        key = f"rt_wave.{effect.name}"
+        self.buffers = {
+            "paths": (f"{key}.paths", Buffer(lambda s: WaveShape(effect, s).capacity * PATH_BYTES,
+                                             "80 B per path of a batch")),
+            "shadows": (f"{key}.shadows", Buffer(lambda s: WaveShape(effect, s).shadow_slots * SLOT_BYTES,
+                                                 "48 B per shadow ray of a batch's chunk")),
+            "args": (f"{key}.args", Buffer(lambda s: 32, "2 indirect dispatches")),
+        }
+
+    def why(self, plan: FramePlan) -> str | None:
+        if plan.view != "color" or self.effect.name not in plan.effects:
+            return None
+        names = plan.materials_using(self.effect.name)
+        return f"effect {self.effect.name}" + (f" ({', '.join(names)})" if names else "")
+
+    def io(self, plan: FramePlan) -> list:
+        screen = [read("quadtree")] if self.effect.uses_quadtree else []
+        if self.effect.uses_quadtree and plan.depth_layers > 1:
+            screen.append(read("layer2_triangle"))
+        return [read("gbuffer"), read("bvh"), read("rt_lists"), read("rt_list_args"), compose("hdr")] + screen + \
+            [write(name, t) for name, t in self.buffers.values()]
+
+    def setup(self, gl, plan: FramePlan) -> None:
+        d = {**GpuBvh.defines(DEFAULT_BINDING), **self.effect.param_defines(), "EFFECT": self.effect.id, **self.effect.shader_defines,
+             "RT_SLOT": self.slot, "EFFECT_PATHS": self.effect.shader, **camera_defines(plan)}
+        self.shade_defines = d  # a subclass may compile variants of the shading kernels
+        trace, shade = "rt/wave_trace.comp", "rt/wave_shade.comp"
+        # The tracing kernels take the plan's layout for their ray kind; the shading kernels only
+        # read triangles (the same buffer in every layout) and stay on the binary defines.
+        _, shadow, reflect = plan.traversal
+        self.layouts = {"closest": reflect, "shadow": shadow, "shadow_finish": shadow}
+        ds, dr = ({**d, **layout_defines(DEFAULT_BINDING, x)} for x in (shadow, reflect))
+        self.programs = {
+            "prep": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 0}),
+            # screen-space effects (ssr) find closest hits in the quadtree first (SSR_TRACE)
+            "closest": shaders.compute(gl.ctx, trace, {**dr, "WAVE_STAGE": 1, "QT_DEPTH_LAYERS": plan.depth_layers,
+                                                       "SSR_TRACE": int(self.effect.uses_quadtree)}),
+            "shadow": shaders.compute(gl.ctx, trace, {**ds, "WAVE_STAGE": 2}),
+            "shadow_finish": shaders.compute(gl.ctx, trace, {**ds, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
+            "pixel": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 3}),
+            "finish": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 5}),
+        }
+        if follows_rays(self.effect):
+            self.programs["hit"] = shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 4})
+
+    def execute(self, fc) -> None:
+        shape = WaveShape(self.effect, fc.sizing)
+        n_pixels = shape.capacity_pixels
+        common = {"ambient": tuple(fc.settings.ambient), "background": tuple(fc.settings.background),
+                  "frame_seed": int(fc.settings.seed), "rt_capacity": n_pixels,
+                  "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel}
+        users = [(a.rule, a.params) for a in fc.gpu_scene.assignments if a.effect == self.effect.name]
+        for p in self.programs.values():
+            set_eye_uniforms(p, fc)
+            for k, v in common.items():
+                if k in p:
+                    p[k].value = v
+            self.effect.frame_uniforms(p, users)  # its frame-scoped parameters (uniform param_<name>)
+        fc.gbuffer.bind_for_reading()
+        fc.gpu_scene.bind()
+        fc.gpu_scene.textures.use(UNIT["base_color_textures"])
+        fc.accel.gpu.bind(DEFAULT_BINDING)
+        bind_lists(fc)
+        for part, (name, _) in self.buffers.items():
+            fc.resource(name).bind_to_storage_buffer(SSBO[f"wave_{part}"])
+        fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
+        self.bind_extra(fc)
+        wave_args = fc.resource(self.buffers["args"][0])
+        if self.effect.uses_quadtree:
+            fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
+            set_tree_uniforms(self.programs["closest"], fc.gbuffer.size, fc.gbuffer.layers)
+            bind_second_layer(fc)
+        barrier = fc.gl.ctx.memory_barrier
+
+        def run(name, items=1, **uniforms):
+            p = self.programs[name]
+            for k, v in uniforms.items():
+                if k in p:
+                    p[k].value = v
+
+            def go():
+                fc.accel.layout(self.layouts.get(name, "bvh2")).bind(DEFAULT_BINDING)
+                if name == "prep":
+                    p.run(1, 1, 1)
+                else:
+                    p.run_indirect(wave_args, offset=16 * items)
+                barrier(moderngl.ALL_BARRIER_BITS)
+            fc.stage(name, go)
+
+        one_path, bounces, chunks, hit_chunks = shape.paths_per_pixel == 1, shape.bounces, shape.chunks, shape.hit_chunks
+        for base in range(0, n_pixels, shape.batch):
+            for p in self.programs.values():
+                if "wave_batch_base" in p:
+                    p["wave_batch_base"].value = base
+            run("prep")
+            for ci, (first, count) in enumerate(chunks):
+                last = ci == len(chunks) - 1
+                run("pixel", 0, wave_slot_first=first, wave_slot_count=count, wave_slot_stride=shape.batch)
+                fuse = last and bounces == 0 and one_path
+                run("shadow_finish" if fuse else "shadow", 0, wave_items=0, wave_slot_first=first,
+                    wave_slot_count=count, wave_slot_stride=shape.batch)
+            for b in range(bounces):
+                run("closest", 1)
+                for ci, (first, count) in enumerate(hit_chunks):
+                    last = ci == len(hit_chunks) - 1
+                    run("hit", 1, wave_bounce=b, wave_last_chunk=int(last), wave_slot_first=first,
+                        wave_slot_count=count, wave_slot_stride=shape.capacity)
+                    fuse = last and b == bounces - 1 and one_path
+                    run("shadow_finish" if fuse else "shadow", 1, wave_items=1, wave_slot_stride=shape.capacity)
+            if not one_path:
+                run("finish", 0)
+
+    def bind_extra(self, fc) -> None:
+        """What a subclass binds beyond the wavefront's buffers (frame/effects/photon/shade.py: the photon map)."""
+
+    def release(self) -> None:
+        for p in self.programs.values():
+            p.release()

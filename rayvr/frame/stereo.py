@@ -1,0 +1,57 @@
+"""Stereo modes: how the second eye is made (DESIGN.md "Stereo").
+
+    dual    both eyes fully: one layered G-buffer, every pass over both layers
+    reuse   the photon-mapping paper's §3.3: the left eye is shaded; each left hit the right eye
+            also sees (visibility test against the right eye's G-buffer) gives its shading to the
+            right-eye pixel it lands on (frame/passes/reuse.py); only the right-eye pixels left empty are
+            shaded (classify and shade skip the others), for every effect
+    warp    Widmer et al. 2015 §5.1: one central view (between the eyes) is rendered and shaded;
+            each eye is synthesized by tracing its camera rays through the central view's quadtree
+            (frame/passes/warp.py), two depth layers by default (the second layer's surfaces shaded
+            as the `raster` rung); rays that pass behind every layer or leave the central image
+            are holes, counted and inpainted from the background side
+
+The mode is a render setting (`RenderSettings.stereo`, `--stereo`); it enters the FramePlan, so
+the frame graph compiles the passes the mode needs and no others. A frame of one eye has no
+second eye to make: it is always `dual`. `warp` and `reuse` project points between planar
+frusta, so they need the pinhole camera model.
+"""
+from __future__ import annotations
+
+from ..options import Option, declare
+
+STEREO_MODES = ("dual", "warp", "reuse")
+PLANAR_MODES = ("warp", "reuse")  # need a planar (pinhole) projection
+WARP_OUTPUT = "stereo_ldr"  # the warped eyes (the frame's output under `warp`)
+WARP_DEPTH = "stereo_depth"  # each warped eye's linear view depth
+
+
+STEREO = declare(Option("stereo", str, "dual", "how the second eye is made: dual renders both; warp synthesizes "
+                        "both from a central view through its screen-space quadtree; reuse gives the right eye the "
+                        "left eye's shading where it sees the same surface", scope="plan", choices=STEREO_MODES,
+                        label="stereo mode", plan_field="stereo", commands=("capture", "preview", "info")))
+WARP_LAYERS = declare(Option("warp_layers", int, 2, "depth layers of the central view warp traces: 2 finds what lies "
+                             "behind its first surfaces (the second layer, --second-layer), 1 inpaints those "
+                             "disocclusions", scope="plan", plan_field="depth_layers", choices=(1, 2),
+                             label="warp layer count", commands=("capture", "preview")))
+
+
+def check_mode(mode: str) -> str:
+    return STEREO.check(mode)
+
+
+def effective_mode(mode: str, eyes: int, camera) -> str:
+    """The mode a frame of `eyes` eyes through `camera` (a rayvr.frame.cameras model) uses: one eye is
+    always `dual`; a camera a rasterizer cannot sample is refused for warp/reuse."""
+    check_mode(mode)
+    if eyes != 2:
+        return "dual"
+    if mode in PLANAR_MODES and not camera.rasterizable:
+        raise ValueError(f"stereo mode {mode!r} reprojects between planar frusta: it needs the pinhole camera, "
+                         f"not {camera.name!r} (use --stereo dual)")
+    return mode
+
+
+def rendered_eyes(rig, eyes: str, mode: str) -> list:
+    """The eyes whose G-buffer a frame renders: the central eye under `warp`, else the asked ones."""
+    return [rig.eye("center")] if mode == "warp" else rig.eyes(eyes)

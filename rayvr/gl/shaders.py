@@ -1,0 +1,146 @@
+"""GLSL sources under rayvr/glsl/, with `#include "path"` and compile errors mapped to file:line.
+
+`#include "layout.glsl"` (from any folder: "../layout.glsl") is the header rayvr/gl/gpu_layout.py
+generates: the constants the CPU and the shaders share. `#include NAME` includes the file the
+define NAME names (a path under the root): how a shared kernel takes an effect's own part.
+
+Each file gets a source-string number; `#line` directives around every include make the
+driver report (number, line), and `ShaderError` turns that back into `glsl/file.glsl:line`
+(Mesa writes `0:12(3): error`, NVIDIA `0(12) : error`). A file is included once per
+program, whatever the number of `#include`s naming it.
+"""
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import moderngl
+
+from . import gpu_layout
+
+GLSL_DIR = Path(__file__).resolve().parents[1] / "glsl"
+_INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*(//.*)?$')
+# `#include NAME`: the file is the value of define NAME, a path under the root (an effect's part)
+_INCLUDE_DEFINE = re.compile(r'^\s*#\s*include\s+([A-Za-z_]\w*)\s*(//.*)?$')
+_VERSION = re.compile(r"^\s*#\s*version\b")
+# Mesa: "0:12(3): error: ..."   NVIDIA: "0(12) : error C0000: ..."
+_LOG_LOCATION = re.compile(r"(?m)^(?:ERROR: )?(\d+)(?::(\d+)\((\d+)\)|\((\d+)\))")
+
+
+class ShaderError(RuntimeError):
+    """A shader failed to load, compile or link; the message names the original file and line."""
+
+
+@dataclass
+class ShaderSource:
+    text: str
+    files: list[str] = field(default_factory=list)  # source-string number -> file name
+
+    def map_log(self, log: str) -> str:
+        def where(m: re.Match) -> str:
+            idx = int(m.group(1))
+            line = m.group(2) or m.group(4)
+            name = self.files[idx] if idx < len(self.files) else f"<source {idx}>"
+            return f"glsl/{name}:{line}"
+        return _LOG_LOCATION.sub(where, log)
+
+
+# Sources generated from Python rather than read from disk.
+GENERATED = {"layout.glsl": gpu_layout.glsl_header}
+
+
+def _read(name: str, root: Path) -> str:
+    """A file under `root`, else under rayvr/glsl/ (so shaders outside rayvr, such as an effect
+    plugin's, can include rayvr's common code), else a generated source."""
+    if name in GENERATED:
+        return GENERATED[name]()
+    for base in dict.fromkeys((root, GLSL_DIR)):
+        path = (base / name).resolve()
+        if path.is_file():
+            return path.read_text()
+    raise ShaderError(f"shader file not found: {(root / name).resolve()}")
+
+
+def load_source(name: str, defines: dict | None = None, root: Path = GLSL_DIR) -> ShaderSource:
+    """Resolve includes of `name` (relative to glsl/) and put `defines` after its #version."""
+    files: list[str] = []
+    out: list[str] = []
+    included = {name}
+
+    def emit(file: str, is_top: bool) -> None:
+        idx = len(files)
+        files.append(file)
+        if not is_top:
+            out.append(f"#line 1 {idx}")
+        lines = _read(file, root).splitlines()
+        # Defines go right after #version, so that #if blocks around #extension lines see them.
+        version = [n for n, line in enumerate(lines, 1) if _VERSION.match(line)]
+        header_end = version[0] if (is_top and version) else -1
+        for lineno, line in enumerate(lines, start=1):
+            m = _INCLUDE.match(line) or _INCLUDE_DEFINE.match(line)
+            if m and m.re is _INCLUDE_DEFINE:
+                if m.group(1) not in (defines or {}):
+                    raise ShaderError(f"glsl/{file}:{lineno}: #include {m.group(1)} needs the define {m.group(1)} "
+                                      f"(the path of the file to include)")
+                child = os.path.normpath(str(defines[m.group(1)]))
+            elif m:
+                child = os.path.normpath(os.path.join(os.path.dirname(file), m.group(1)))
+            if m:
+                if child not in included:  # once per program; this also stops cycles
+                    included.add(child)
+                    emit(child, False)
+                    out.append(f"#line {lineno + 1} {idx}")
+                else:
+                    out.append("")
+                continue
+            out.append(line)
+            if lineno == header_end:
+                out.extend(f"#define {k} {_define_value(v)}" for k, v in (defines or {}).items())
+                out.append(f"#line {lineno + 1} {idx}")
+
+    emit(name, True)
+    text = "\n".join(out) + "\n"
+    if not text.lstrip().startswith("#version"):
+        raise ShaderError(f"glsl/{name}: the first line must be a #version directive")
+    return ShaderSource(text, files)
+
+
+def _define_value(value) -> str:
+    if isinstance(value, bool):
+        return "1" if value else "0"
+    return str(value)
+
+
+def _wrap(sources: dict[str, ShaderSource], fn):
+    try:
+        return fn()
+    except moderngl.Error as exc:
+        msg = str(exc)
+        for stage, src in sources.items():
+            msg = src.map_log(msg) if src else msg
+        names = ", ".join(f"{stage}=glsl/{s.files[0]}" for stage, s in sources.items() if s)
+        raise ShaderError(f"shader build failed ({names}):\n{msg}") from None
+
+
+def program(ctx: moderngl.Context, vertex: str, fragment: str | None = None,
+            geometry: str | None = None, defines: dict | None = None, root: Path = GLSL_DIR) -> moderngl.Program:
+    """Build a raster program from files under glsl/."""
+    sources = {"vertex": load_source(vertex, defines, root)}
+    if fragment:
+        sources["fragment"] = load_source(fragment, defines, root)
+    if geometry:
+        sources["geometry"] = load_source(geometry, defines, root)
+    return _wrap(sources, lambda: ctx.program(
+        vertex_shader=sources["vertex"].text,
+        fragment_shader=sources["fragment"].text if fragment else None,
+        geometry_shader=sources["geometry"].text if geometry else None,
+    ))
+
+
+def compute(ctx: moderngl.Context, name: str, defines: dict | None = None,
+            root: Path = GLSL_DIR) -> moderngl.ComputeShader:
+    """Build a compute shader from a file under glsl/."""
+    src = load_source(name, defines, root)
+    return _wrap({"compute": src}, lambda: ctx.compute_shader(src.text))

@@ -1,0 +1,376 @@
+"""Automatic per-material effects under a frame budget (`--budget-ms`, `rayvr bench budget`).
+
+Model
+-----
+Each material ``m`` offers options ``o`` (an effect on the ladder, e.g. ``raster``, ``ssr``,
+``rt1``), each with a measured GPU cost ``cost_ms[m, o]`` and a measured error ``error[m, o]``.
+The frame costs::
+
+    total_ms = base_ms + sum_m cost_ms[m, o_m]
+
+(``base_ms`` is everything that does not depend on the choice: G-buffer, tonemap, ...) and its
+error is::
+
+    total_error = sum_m importance_m * coverage_m * error[m, o_m]
+
+``error`` is meant as the mean error (e.g. mean FLIP) over the pixels of that material, and
+``coverage`` as the fraction of the screen those pixels cover, so ``coverage * error`` is the
+material's share of the whole-image mean error; coverage already falls with distance, which is
+how distance enters. Leave coverage at 1 if your errors are already whole-image contributions.
+``importance`` (default 1) is the user's weight from the scene config.
+
+We pick one option per material minimising ``total_error`` subject to ``total_ms <= budget_ms``:
+a multiple-choice knapsack. Costs are assumed additive (passes of different materials do not
+overlap or share work), which is the approximation the measured per-material costs make.
+
+Solver
+------
+Exact, on the real (not rounded) costs: dynamic programming over materials that keeps, after each
+material, only the Pareto-optimal partial assignments (no other partial one is both cheaper and
+lower-error) and drops those that cannot fit even with the cheapest options for the remaining
+materials. The optimum is an extension of a Pareto-optimal prefix, so nothing optimal is lost.
+The fronts stay small in practice (hundreds to a few thousand points for 50 materials x 7 effects),
+and each step is a handful of numpy sorts.
+
+If even the cheapest assignment exceeds the budget, the cheapest one (ties broken by error) is
+returned with ``feasible=False`` instead of raising.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import metrics
+from ..frame.effects import implemented_effects
+from .measure import (BENCH_QUALITY, RendererPool, Variant, config_for_assignment, local_measurer, measure,
+                      reference_variant)
+from .reference_images import reference_config
+
+# Slack for floating-point sums when comparing against the budget (1 ns in ms units).
+COST_EPS_MS = 1e-6
+
+
+@dataclass(frozen=True)
+class Option:
+    """One effect a material can use, with its measured cost (ms) and error."""
+
+    effect: str
+    cost_ms: float
+    error: float
+
+
+@dataclass
+class MaterialOptions:
+    """The options of one material plus its weights (see the module docstring)."""
+
+    name: str
+    options: list[Option]
+    importance: float = 1.0
+    coverage: float = 1.0
+
+    @property
+    def weight(self) -> float:
+        return self.importance * self.coverage
+
+
+@dataclass
+class BudgetResult:
+    """The chosen assignment and what it costs.
+
+    ``choice[i]`` indexes ``materials[i].options``; ``assignment`` maps material name to effect.
+    ``error`` is the weighted total error; ``feasible`` is False when nothing fits the budget
+    (then the cheapest assignment is returned).
+    """
+
+    budget_ms: float
+    base_ms: float
+    total_ms: float
+    error: float
+    feasible: bool
+    choice: list[int]
+    assignment: dict[str, str]
+    materials: list[MaterialOptions] = field(repr=False)
+
+    def rows(self) -> list[dict]:
+        """One row per material (for `report.write_report`)."""
+        out = []
+        for m, i in zip(self.materials, self.choice):
+            o = m.options[i]
+            out.append({
+                "material": m.name,
+                "effect": o.effect,
+                "cost_ms": o.cost_ms,
+                "error": o.error,
+                "importance": m.importance,
+                "coverage": m.coverage,
+                "weighted_error": m.weight * o.error,
+            })
+        return out
+
+    def summary(self) -> dict:
+        return {
+            "budget_ms": self.budget_ms,
+            "base_ms": self.base_ms,
+            "total_ms": self.total_ms,
+            "error": self.error,
+            "feasible": self.feasible,
+        }
+
+
+def _finite(x, what: str, nonneg: bool = True) -> float:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        raise TypeError(f"{what} must be a number, got {x!r}") from None
+    if not math.isfinite(v) or (nonneg and v < 0):
+        raise ValueError(f"{what} must be a finite{' non-negative' if nonneg else ''} number, got {x!r}")
+    return v
+
+
+def _as_option(o, where: str) -> Option:
+    if isinstance(o, Option):
+        effect, cost, err = o.effect, o.cost_ms, o.error
+    elif isinstance(o, dict):
+        try:
+            effect, cost, err = o["effect"], o["cost_ms"], o["error"]
+        except KeyError as e:
+            raise ValueError(f"{where}: option dict needs 'effect', 'cost_ms', 'error' (missing {e})") from None
+    else:
+        try:
+            effect, cost, err = o
+        except (TypeError, ValueError):
+            raise TypeError(f"{where}: an option is (effect, cost_ms, error), got {o!r}") from None
+    return Option(str(effect), _finite(cost, f"{where} {effect!r} cost_ms"),
+                  _finite(err, f"{where} {effect!r} error", nonneg=False))
+
+
+def as_materials(materials) -> list[MaterialOptions]:
+    """Normalise input: `MaterialOptions`, or dicts with ``name``, ``options`` (a list of
+    `Option`, ``(effect, cost_ms, error)`` tuples or dicts) and optional ``importance`` and
+    ``coverage``. Validates numbers and unique names."""
+    out: list[MaterialOptions] = []
+    seen = set()
+    for k, m in enumerate(materials):
+        if isinstance(m, MaterialOptions):
+            name, opts, imp, cov = m.name, m.options, m.importance, m.coverage
+        elif isinstance(m, dict):
+            if "name" not in m or "options" not in m:
+                raise ValueError(f"material #{k} needs 'name' and 'options'")
+            name, opts = m["name"], m["options"]
+            imp, cov = m.get("importance", 1.0), m.get("coverage", 1.0)
+        else:
+            raise TypeError(f"material #{k} must be a MaterialOptions or dict, got {type(m).__name__}")
+        name = str(name)
+        if name in seen:
+            raise ValueError(f"material name {name!r} appears twice")
+        seen.add(name)
+        opts = [_as_option(o, f"material {name!r}") for o in opts]
+        if not opts:
+            raise ValueError(f"material {name!r} has no options")
+        out.append(MaterialOptions(name, opts, _finite(imp, f"material {name!r} importance"),
+                                   _finite(cov, f"material {name!r} coverage")))
+    return out
+
+
+def _pareto(cost: np.ndarray, err: np.ndarray) -> np.ndarray:
+    """Indices of the points no other point beats on both cost and error (one per tie)."""
+    order = np.lexsort((err, cost))  # by cost, then error
+    e = err[order]
+    best_before = np.minimum.accumulate(np.concatenate(([np.inf], e[:-1])))
+    return order[e < best_before]
+
+
+def solve_budget(materials, budget_ms: float, base_ms: float = 0.0) -> BudgetResult:
+    """Choose one option per material minimising weighted error with total ms <= budget_ms.
+
+    See the module docstring for the model. Exact; ``feasible=False`` (with the cheapest
+    assignment) when even that exceeds the budget.
+    """
+    mats = as_materials(materials)
+    budget_ms = _finite(budget_ms, "budget_ms", nonneg=False)
+    base_ms = _finite(base_ms, "base_ms")
+
+    costs = [np.array([o.cost_ms for o in m.options]) for m in mats]
+    errs = [m.weight * np.array([o.error for o in m.options]) for m in mats]
+
+    # Cheapest assignment (lowest error among equally cheap options): the fallback, and a bound.
+    cheapest = [int(np.lexsort((e, c))[0]) for c, e in zip(costs, errs)]
+    min_cost = np.array([c[i] for c, i in zip(costs, cheapest)])
+    # rest[k]: the least any assignment of materials k.. can cost.
+    rest = np.concatenate((np.cumsum(min_cost[::-1])[::-1], [0.0]))
+    limit = budget_ms + COST_EPS_MS
+
+    if base_ms + rest[0] > limit:
+        return _result(mats, cheapest, budget_ms, base_ms, costs, errs, feasible=False)
+
+    # Front after k materials: partial costs/errors, plus for back-tracking the index into the
+    # previous front and the option chosen.
+    f_cost = np.array([base_ms])
+    f_err = np.array([0.0])
+    parents: list[np.ndarray] = []
+    picks: list[np.ndarray] = []
+    for k, (c, e) in enumerate(zip(costs, errs)):
+        n_opt = len(c)
+        cand_cost = (f_cost[:, None] + c[None, :]).ravel()
+        cand_err = (f_err[:, None] + e[None, :]).ravel()
+        # Keep only prefixes that can still be completed within the budget.
+        ok = np.flatnonzero(cand_cost + rest[k + 1] <= limit)
+        keep = ok[_pareto(cand_cost[ok], cand_err[ok])]
+        f_cost, f_err = cand_cost[keep], cand_err[keep]
+        parents.append(keep // n_opt)
+        picks.append(keep % n_opt)
+
+    best = int(np.argmin(f_err))
+    choice = [0] * len(mats)
+    for k in range(len(mats) - 1, -1, -1):
+        choice[k] = int(picks[k][best])
+        best = int(parents[k][best])
+    return _result(mats, choice, budget_ms, base_ms, costs, errs, feasible=True)
+
+
+def _result(mats, choice, budget_ms, base_ms, costs, errs, feasible) -> BudgetResult:
+    total = base_ms + sum(float(c[i]) for c, i in zip(costs, choice))
+    error = sum(float(e[i]) for e, i in zip(errs, choice))
+    return BudgetResult(
+        budget_ms=budget_ms,
+        base_ms=base_ms,
+        total_ms=total,
+        error=error,
+        feasible=feasible,
+        choice=list(choice),
+        assignment={m.name: m.options[i].effect for m, i in zip(mats, choice)},
+        materials=mats,
+    )
+
+
+# --------------------------------------------------------- measured options, then solved
+
+def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
+                         effects=None, repeat=10, min_coverage=1e-4, progress=True, pool=None, measure_all=None):
+    """Per material and effect: extra GPU ms over all-`raster` and the error left on its pixels.
+
+    One render per effect (the whole scene on that rung) instead of one per material and
+    effect: a material's error is the mean FLIP over its own pixels in that render, and the
+    effect's extra cost is shared out over materials in proportion to their pixels (the traced
+    passes run over compacted pixel lists, so their cost follows pixel counts). Both are
+    approximations: reflections also show other materials, and dispatch overheads are shared;
+    the chosen assignment is therefore rendered and measured for real afterwards.
+    Materials covering < min_coverage of the image stay `raster`. `measure_all`: how the
+    per-effect renders are measured (measure.local_measurer by default; cluster.sweep_measurer: Ray workers)."""
+    effects = list(effects or implemented_effects())
+    names = scene.material_names()
+    ids = reference_image.material
+    coverage = np.bincount(np.where(ids < len(names), ids, len(names)).ravel(),
+                           minlength=len(names) + 1)[:len(names)] / ids.size
+    importance = [a.importance for a in base.assign(names, warn=False)]
+    covered = [i for i in range(len(names)) if coverage[i] >= min_coverage]
+    flip_maps, extra_ms, raster_ms = {}, {}, None
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name}")
+    measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
+    whole_scene = [Variant("budget", e, config_for_assignment(base, scene, {n: e for n in names})) for e in effects]
+    try:
+        for e, m in zip(effects, measure_all(whole_scene, bar)):
+            flip_maps[e] = metrics.flip_map(reference_image.image, m.image, ppd=ppd)
+            extra_ms[e] = m.gpu_ms
+            if e == "raster":
+                raster_ms = m.gpu_ms
+    finally:
+        if bar is not None:
+            bar.close()
+    if raster_ms is None:
+        raise ValueError("the budget model needs 'raster' among the effects (it is the cost baseline)")
+    share = coverage / max(coverage[covered].sum(), 1e-12)
+    options = []
+    for i in covered:
+        mask = ids == i
+        opts = [Option(e, max(extra_ms[e] - raster_ms, 0.0) * share[i], float(flip_maps[e][mask].mean()))
+                for e in effects]
+        options.append(MaterialOptions(names[i], opts, importance=importance[i], coverage=float(coverage[i])))
+    return raster_ms, options
+
+
+BUDGET_TOLERANCE = 1.02  # measured frames within 2 % of the budget count as within (timer noise)
+BUDGET_ROUNDS = 4
+
+
+def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
+                        ppd: float, repeat=10, progress=True, pool=None, options=None) -> dict:
+    """Pick effects per material for `budget_ms`, render the pick and measure it.
+
+    The per-material costs are estimates (a traced effect also has fixed costs, classify and
+    dispatch, that come with its first material); when the measured frame overshoots, the chosen
+    options' costs are scaled by measured/predicted and the choice is solved again, at most
+    BUDGET_ROUNDS times. If no round fits, the best measured pick that did fit is returned, else
+    the cheapest assignment. `options`: (base_ms, per-material options) measured already, to
+    solve several budgets from one measurement."""
+    base_ms, options = options or per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
+                                                       progress=progress, pool=pool)
+
+    def attempt(opts, budget):
+        result = solve_budget(opts, budget, base_ms=base_ms)
+        cfg = config_for_assignment(base, scene, result.assignment)
+        chosen = measure(gl, scene, rig, Variant("budget", budget_ms, cfg), repeat, pool=pool)
+        return {"budget_ms": budget_ms, "predicted_ms": result.total_ms, "measured_ms": chosen.gpu_ms,
+                "within_budget": chosen.gpu_ms <= budget_ms * BUDGET_TOLERANCE, "feasible": result.feasible,
+                "predicted_error": result.error, "measured_flip": metrics.flip(reference_image.image, chosen.image, ppd=ppd),
+                "assignment": result.assignment, "config": cfg, "image": chosen.image}
+
+    scale: dict = {}
+    tried = []
+    for _ in range(BUDGET_ROUNDS):
+        adjusted = [MaterialOptions(
+            o.name, [Option(x.effect, x.cost_ms * scale.get((o.name, x.effect), 1.0), x.error)
+                     for x in o.options], importance=o.importance, coverage=o.coverage) for o in options]
+        pick = attempt(adjusted, budget_ms)
+        tried.append(pick)
+        predicted_extra, measured_extra = pick["predicted_ms"] - base_ms, pick["measured_ms"] - base_ms
+        if pick["within_budget"] or not pick["feasible"] or predicted_extra <= 0:
+            break
+        factor = measured_extra / predicted_extra
+        for name, effect in pick["assignment"].items():
+            if effect != "raster":
+                scale[(name, effect)] = scale.get((name, effect), 1.0) * max(factor, 1.0)
+    fitting = [p for p in tried if p["within_budget"]]
+    if fitting:
+        best = min(fitting, key=lambda p: p["measured_flip"])
+    elif tried[-1]["feasible"]:
+        best = attempt(options, 0.0)  # the cheapest assignment: nothing cheaper exists
+        tried.append(best)
+    else:
+        best = tried[-1]
+    return {**best, "rounds": len(tried)}
+
+
+def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repeat: int = 5,
+                progress: bool = True):
+    """`--budget-ms` for capture and preview: effects per material of `renderer.scene` that keep the
+    frame within `budget_ms` on this device with the least error, starting from the renderer's
+    current config. Returns the config and the summary (predicted and measured ms and FLIP)."""
+    ppd = metrics.DEFAULT_PPD if ppd is None else ppd
+
+    gl, scene = renderer.gl, renderer.scene
+    reference = reference_variant(
+        reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
+    with RendererPool(gl) as pool:
+        ref = measure(gl, scene, rig, reference, repeat=1, warmup=1, pool=pool)
+        pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)
+    summary = {k: v for k, v in pick.items() if k not in ("config", "image")}
+    return pick["config"], summary
+
+
+def describe_pick(summary: dict) -> str:
+    """A few lines for the terminal or the HUD."""
+    state = ("within" if summary["within_budget"] else "OVER") + ("" if summary["feasible"] else " (cheapest assignment)")
+    lines = [f"budget {summary['budget_ms']:g} ms: {state}; predicted {summary['predicted_ms']:.2f} ms, "
+             f"measured {summary['measured_ms']:.2f} ms, mean FLIP {summary['measured_flip']:.4f}"]
+    by_effect: dict = {}
+    for name, effect in summary["assignment"].items():
+        by_effect.setdefault(effect, []).append(name)
+    lines += [f"  {e:12s} {', '.join(sorted(n))}" for e, n in sorted(by_effect.items())]
+    return "\n".join(lines)

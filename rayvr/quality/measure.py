@@ -1,0 +1,145 @@
+"""One render variant measured: a material config, render settings, a resolution scale and samples
+per image, rendered on a stereo rig; its cost is the median GPU time of the whole frame (the sum
+of the passes' timer queries), its image what the viewer would see. Choosing effects under a frame
+budget (`--budget-ms`, rayvr/quality/budget.py) runs on this, and so do the benchmarks' sweeps
+(rayvr/bench/tradeoff.py); both judge a variant against the reference (rayvr/quality/reference_images.py)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..frame.cameras.rig import StereoRig
+from ..scene.materials import MaterialConfig
+from .reference_images import reference_settings
+from ..renderer import Renderer, RenderSettings
+
+
+def _compare_settings():
+    """One RenderSettings for the reference and every variant, so only the knob differs: no
+    ambient term (it stands in for indirect light, which only the reference would model), the
+    ACES tonemapper users see."""
+    return reference_settings(tonemapper="aces")
+
+
+# The reference draws other random numbers than the variants it judges: with a shared seed a
+# variant at a sample count shares the reference's noise and scores better than it should.
+REFERENCE_SEED = 0x5EED0001
+
+
+def reference_variant(config: MaterialConfig) -> "Variant":
+    """The reference as a variant: COMPARE_SETTINGS but its own seed."""
+    return Variant("reference", "reference", config, replace(COMPARE_SETTINGS, seed=REFERENCE_SEED))
+
+
+# The reference for GPU sweeps at 2x1440x1600: REFERENCE_QUALITY's 256 glossy samples x 256
+# area samples per hit would take minutes a frame there; this converges to within the FLIP
+# differences the knobs make (64 glossy directions or paths, 16 light samples, 4 bounces).
+BENCH_QUALITY = {"bounces": 4, "samples": 64, "area_samples": 16, "path_samples": 64}
+
+
+@dataclass
+class Variant:
+    knob: str  # what is varied ("effect", "bounces", "resolution_scale", ...)
+    value: object
+    config: MaterialConfig
+    settings: RenderSettings = field(default_factory=lambda: COMPARE_SETTINGS)
+    scale: float = 1.0  # render at scale x size, compare upscaled to full size
+    touches: tuple = ()  # material names this variant changes (the error mask); () = whole image
+    spp: int = 1  # samples accumulated per image (its cost: spp x the GPU ms of one sample)
+
+    @property
+    def label(self) -> str:
+        return f"{self.knob}={self.value}"
+
+
+COMPARE_SETTINGS = _compare_settings()
+
+
+@dataclass
+class Measured:
+    gpu_ms: float
+    image: np.ndarray  # uint8 HxWx3, both eyes side by side, full size
+    material: np.ndarray  # uint32 HxW material index per pixel (same layout)
+
+
+def config_for_assignment(base: MaterialConfig, scene, effects: dict) -> MaterialConfig:
+    """A config giving each material (by index, so glob characters in names cannot misfire) the
+    effect in `effects` (default `raster`), keeping the base config's parameters for it when the
+    effect is the one the base gives it."""
+    names = scene.material_names()
+    by_id = {}
+    for i, (name, a) in enumerate(zip(names, base.assign(names, warn=False))):
+        e = effects.get(name, "raster")
+        by_id[i] = (e, a.params if a.effect == e else base.effect_params(e))
+    return MaterialConfig(default="raster", params={k: dict(v) for k, v in base.params.items()}, by_id=by_id,
+                          source=f"{base.source} (assignment)")
+
+
+class RendererPool:
+    """One Renderer per (scene, settings), reused across variants: a variant only swaps the
+    material config, so shaders compile and the BVH builds once per sweep, not per variant."""
+
+    def __init__(self, gl):
+        self.gl, self._renderers = gl, {}
+
+    def get(self, scene, settings: RenderSettings, config: MaterialConfig) -> Renderer:
+        key = (id(scene), repr(settings))
+        r = self._renderers.get(key)
+        if r is None:
+            r = self._renderers[key] = Renderer(scene, config, gl=self.gl, settings=settings)
+        else:
+            r.set_materials(config)
+        return r
+
+    def release(self) -> None:
+        for r in self._renderers.values():
+            r.release()
+        self._renderers.clear()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+
+def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmup: int = 3,
+            pool: RendererPool | None = None) -> Measured:
+    w, h = rig.size
+    small = (max(1, round(w * variant.scale)), max(1, round(h * variant.scale)))
+    own = pool is None
+    pool = pool or RendererPool(gl)
+    r = pool.get(scene, variant.settings, variant.config)
+    try:
+        sized = rig.with_size(small)
+        r.warm_up(sized)
+        rigs = [sized] * (warmup + repeat)
+        totals, last = [], None
+        for i, frame in enumerate(r.render_sequence(rigs, aux=("material",), spp=variant.spp)):
+            if i >= warmup:  # an image of spp samples costs spp frames (their last one timed)
+                totals.append(sum(frame.timings.values()) * variant.spp)
+            last = frame
+    finally:
+        if own:
+            pool.release()
+    image = np.hstack([last.left.color, last.right.color])
+    material = np.hstack([last.left.aux["material"], last.right.aux["material"]])
+    if small != (w, h):
+        from PIL import Image
+
+        image = np.asarray(Image.fromarray(image).resize((2 * w, h), Image.BILINEAR))
+        material = np.asarray(Image.fromarray(material.astype(np.int32)).resize((2 * w, h), Image.NEAREST)).astype(np.uint32)
+    return Measured(float(np.median(totals)), image, material)
+
+
+def local_measurer(gl, scene, rig: StereoRig, repeat: int, pool: RendererPool | None = None):
+    """`measure_all(variants, bar)`: each variant measured here, in order, the bar counting them.
+    rayvr.app.cluster.sweep_measurer is the same over Ray workers (`rayvr bench tradeoff --workers`)."""
+    def measure_all(variants, bar=None):
+        for v in variants:
+            m = measure(gl, scene, rig, v, repeat, pool=pool)
+            if bar is not None:
+                bar.update(1)
+            yield m
+    return measure_all
