@@ -1,8 +1,10 @@
 """A test harness: the photon map's GPU steps run alone on photons given from numpy, the same
 kernels the frame graph runs (rayvr/frame/effects/photon/ cells.py, scan.py, sort.py, kdtree.py;
-glsl/photon/query.comp for radius queries), so each can be held to its numpy reference in
+tests/glsl/photon_query.comp for radius queries), so each can be held to its numpy reference in
 rayvr/accel/photon_map.py (tests/test_photon_map.py)."""
 from __future__ import annotations
+
+from pathlib import Path
 
 import moderngl
 import numpy as np
@@ -16,7 +18,8 @@ from rayvr.frame.effects.photon.sort import RadixSort, table_words
 from rayvr.gl.glsl_constants import declare
 from rayvr.gl.gpu_layout import SSBO
 
-QUERY_GROUP = declare("PHOTON_QUERY_GROUP", 64)  # query points a query.comp group answers
+TEST_GLSL = Path(__file__).parent / "glsl"  # the tests' own shaders (rayvr/glsl/ for their includes)
+QUERY_GROUP = declare("PHOTON_QUERY_GROUP", 64)  # query points a photon_query.comp group answers
 
 
 class GpuPhotonMap:
@@ -60,7 +63,7 @@ class GpuPhotonMap:
         """Per point, the indices (into the photon map, or into the kd-tree's array) within radius."""
         key = bool(kdtree)
         if key not in self._queries:
-            self._queries[key] = shaders.compute(self.ctx, "photon/query.comp", {"QUERY_KDTREE": int(key)})
+            self._queries[key] = shaders.compute(self.ctx, "photon_query.comp", {"QUERY_KDTREE": int(key)}, root=TEST_GLSL)
         prog = self._queries[key]
         pts = np.zeros((len(points), 4), np.float32)
         pts[:, :3] = points

@@ -1,7 +1,7 @@
 // Search the hash grid (photon-mapping paper §3.1): the 3x3x3 cells around q as 9 runs of three
 // cells adjacent in x, which are contiguous in the sorted photon map (photon_start[c] ..
 // photon_start[c + 3]). Every photon closer than sqrt(photon_search_r2()) goes to photon_visit;
-// both are the includer's (glsl/photon/estimate.glsl, query.comp).
+// both are the includer's (glsl/photon/estimate.glsl; the tests' photon_query.comp).
 #ifndef RAYVR_PHOTON_GRID_GLSL
 #define RAYVR_PHOTON_GRID_GLSL
 #include "photon.glsl"

@@ -3,10 +3,10 @@
 // query_radius of each query point through the hash grid (QUERY_KDTREE 0) or the kd-tree (1),
 // written as indices into the searched array: found[q * query_capacity + j], the count (which may
 // exceed the capacity) to counts[q].
-#include "../layout.glsl"  // PHOTON_QUERY_GROUP: tests/photon_gpu.py
+#include "layout.glsl"  // PHOTON_QUERY_GROUP: tests/photon_gpu.py
 layout(local_size_x = PHOTON_QUERY_GROUP) in;
-#include "grid.glsl"
-#include "kdtree.glsl"
+#include "photon/grid.glsl"  // rayvr/glsl/photon: the loader falls back to rayvr's shaders
+#include "photon/kdtree.glsl"
 
 layout(std430, binding = SSBO_PHOTON_QUERIES) readonly restrict buffer Queries { vec4 queries[]; };
 layout(std430, binding = SSBO_PHOTON_FOUND) writeonly restrict buffer Found { uint found[]; };
