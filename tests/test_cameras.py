@@ -151,20 +151,32 @@ def test_glsl_camera_ray_matches_numpy(gl, make_rig):
         assert np.abs(dir_y - (rays.directions - rays.ddy)).max() < bound
 
 
-def test_glsl_unknown_camera_model_fails_to_build(gl):
-    with pytest.raises(shaders.ShaderError, match="glsl/common/camera.glsl:22 ?: .*unknown CAMERA_MODEL"):
-        shaders.compute(gl.ctx, "cameras/camera_rays.comp", {"CAMERA_MODEL": "CAMERA_NOPE"})
+def test_glsl_unknown_camera_model_fails_to_build(gl, tmp_path):
+    """A model's file that is not there is named with the include that asked for it; a model id
+    without its file (defines not taken from the model) is refused where camera.glsl reads it."""
+    missing = tmp_path / "nope.glsl"
+    with pytest.raises(shaders.ShaderError, match=r"^glsl/common/camera.glsl:\d+: #include CAMERA_MODEL_FILE "
+                                                  rf"\(CAMERA_MODEL_FILE = {missing}\): shader file not found: {missing}$"):
+        shaders.compute(gl.ctx, "cameras/camera_rays.comp", {**Pinhole.defines(), "CAMERA_MODEL_FILE": str(missing)})
+    with pytest.raises(shaders.ShaderError, match="glsl/common/camera.glsl:\\d+ ?: .*CAMERA_MODEL without CAMERA_MODEL_FILE"):
+        shaders.compute(gl.ctx, "cameras/camera_rays.comp", {"CAMERA_MODEL": "CAMERA_WIDE"})
 
 
 # ---------------------------------------------------------------- (4) registry
 
 def test_registry_lists_models_with_their_glsl():
-    camera_glsl = (shaders.GLSL_DIR / "common" / "camera.glsl").read_text()
+    """Each model's defines() name its id (declared in the generated header) and its GLSL file,
+    which the program built from them includes; without defines, the pinhole's."""
+    header = dict(line.split()[1:3] for line in shaders.GENERATED["layout.glsl"]().splitlines()
+                  if line.startswith("#define ") and len(line.split()) == 3)
     for name, cls in CAMERA_MODELS.items():
         model = get_camera_model(name)
         assert model.name == name and isinstance(model, cls)
-        assert (shaders.GLSL_DIR / model.glsl).is_file()
-        assert f'#include "../{model.glsl}"' in camera_glsl and f"CAMERA_MODEL == {model.glsl_define}" in camera_glsl
+        defines = model.defines()
+        assert defines["CAMERA_MODEL"] == f"CAMERA_{name.upper()}" and defines["CAMERA_MODEL_FILE"] == model.glsl
+        assert int(header[defines["CAMERA_MODEL"]]) == list(CAMERA_MODELS).index(name) + 1
+        assert shaders.load_source("cameras/camera_rays.comp", defines).files[-1] == model.glsl
+    assert shaders.load_source("cameras/camera_rays.comp").files[-1] == Pinhole.glsl
 
 
 @pytest.mark.parametrize("make", [lambda: get_camera_model("fisheye"), lambda: StereoRig(camera="fisheye")])

@@ -2,7 +2,9 @@
 
 `#include "layout.glsl"` (from any folder: "../layout.glsl") is the header rayvr/gl/gpu_layout.py
 generates: the constants the CPU and the shaders share. `#include NAME` includes the file the
-define NAME names (a path under the root): how a shared kernel takes an effect's own part.
+define NAME names (a path under the root, or an absolute path: a plugin's file outside rayvr):
+how a shared kernel takes an effect's own part or the camera model's code. `#include NAME or
+"path"` falls back to "path" (relative to the including file) where NAME is not defined.
 
 Each file gets a source-string number; `#line` directives around every include make the
 driver report (number, line), and `ShaderError` turns that back into `glsl/file.glsl:line`
@@ -22,8 +24,8 @@ from . import gpu_layout
 
 GLSL_DIR = Path(__file__).resolve().parents[1] / "glsl"
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*(//.*)?$')
-# `#include NAME`: the file is the value of define NAME, a path under the root (an effect's part)
-_INCLUDE_DEFINE = re.compile(r'^\s*#\s*include\s+([A-Za-z_]\w*)\s*(//.*)?$')
+# `#include NAME [or "fallback"]`: the file is the value of define NAME (an effect's part, a camera model)
+_INCLUDE_DEFINE = re.compile(r'^\s*#\s*include\s+([A-Za-z_]\w*)(?:\s+or\s+"([^"]+)")?\s*(//.*)?$')
 _VERSION = re.compile(r"^\s*#\s*version\b")
 # Mesa: "0:12(3): error: ..."   NVIDIA: "0(12) : error C0000: ..."
 _LOG_LOCATION = re.compile(r"(?m)^(?:ERROR: )?(\d+)(?::(\d+)\((\d+)\)|\((\d+)\))")
@@ -42,9 +44,14 @@ class ShaderSource:
         def where(m: re.Match) -> str:
             idx = int(m.group(1))
             line = m.group(2) or m.group(4)
-            name = self.files[idx] if idx < len(self.files) else f"<source {idx}>"
-            return f"glsl/{name}:{line}"
+            name = display_name(self.files[idx]) if idx < len(self.files) else f"<source {idx}>"
+            return f"{name}:{line}"
         return _LOG_LOCATION.sub(where, log)
+
+
+def display_name(name: str) -> str:
+    """How messages name a shader file: glsl/<path> under a root, an absolute path as it is."""
+    return name if os.path.isabs(name) else f"glsl/{name}"
 
 
 # Sources generated from Python rather than read from disk.
@@ -56,11 +63,19 @@ def _read(name: str, root: Path) -> str:
     plugin's, can include rayvr's common code), else a generated source."""
     if name in GENERATED:
         return GENERATED[name]()
+    path = _find(name, root)
+    if path is None:
+        raise ShaderError(f"shader file not found: {(root / name).resolve()}")
+    return path.read_text()
+
+
+def _find(name: str, root: Path) -> Path | None:
+    """The file `name` names: under `root`, else under rayvr/glsl/; an absolute name is itself."""
     for base in dict.fromkeys((root, GLSL_DIR)):
         path = (base / name).resolve()
         if path.is_file():
-            return path.read_text()
-    raise ShaderError(f"shader file not found: {(root / name).resolve()}")
+            return path
+    return None
 
 
 def load_source(name: str, defines: dict | None = None, root: Path = GLSL_DIR) -> ShaderSource:
@@ -80,16 +95,26 @@ def load_source(name: str, defines: dict | None = None, root: Path = GLSL_DIR) -
         header_end = version[0] if (is_top and version) else -1
         for lineno, line in enumerate(lines, start=1):
             m = _INCLUDE.match(line) or _INCLUDE_DEFINE.match(line)
+            where = f"{display_name(file)}:{lineno}"
             if m and m.re is _INCLUDE_DEFINE:
-                if m.group(1) not in (defines or {}):
-                    raise ShaderError(f"glsl/{file}:{lineno}: #include {m.group(1)} needs the define {m.group(1)} "
+                named, fallback = m.group(1), m.group(2)
+                if named in (defines or {}):
+                    child = os.path.normpath(str(defines[named]))
+                    asked = f"#include {named} ({named} = {defines[named]})"
+                elif fallback:
+                    child = os.path.normpath(os.path.join(os.path.dirname(file), fallback))
+                    asked = f'#include {named} or "{fallback}" ({named} not defined)'
+                else:
+                    raise ShaderError(f"{where}: #include {named} needs the define {named} "
                                       f"(the path of the file to include)")
-                child = os.path.normpath(str(defines[m.group(1)]))
             elif m:
                 child = os.path.normpath(os.path.join(os.path.dirname(file), m.group(1)))
+                asked = f'#include "{m.group(1)}"'
             if m:
                 if child not in included:  # once per program; this also stops cycles
                     included.add(child)
+                    if child not in GENERATED and _find(child, root) is None:
+                        raise ShaderError(f"{where}: {asked}: shader file not found: {(root / child).resolve()}")
                     emit(child, False)
                     out.append(f"#line {lineno + 1} {idx}")
                 else:
@@ -103,7 +128,7 @@ def load_source(name: str, defines: dict | None = None, root: Path = GLSL_DIR) -
     emit(name, True)
     text = "\n".join(out) + "\n"
     if not text.lstrip().startswith("#version"):
-        raise ShaderError(f"glsl/{name}: the first line must be a #version directive")
+        raise ShaderError(f"{display_name(name)}: the first line must be a #version directive")
     return ShaderSource(text, files)
 
 
@@ -120,7 +145,7 @@ def _wrap(sources: dict[str, ShaderSource], fn):
         msg = str(exc)
         for stage, src in sources.items():
             msg = src.map_log(msg) if src else msg
-        names = ", ".join(f"{stage}=glsl/{s.files[0]}" for stage, s in sources.items() if s)
+        names = ", ".join(f"{stage}={display_name(s.files[0])}" for stage, s in sources.items() if s)
         raise ShaderError(f"shader build failed ({names}):\n{msg}") from None
 
 

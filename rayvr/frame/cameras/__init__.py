@@ -2,27 +2,24 @@
 
 Only the pinhole can be rasterized; every other model (lens-distorted per-channel samples,
 spherical wide views, foveated patterns, thin lens: one module each, in CAMERA_MODELS) forces
-ray-cast primary visibility. See base.py for the contract, sampling.py for sub-rays.
+ray-cast primary visibility. See base.py for the contract and register_camera_model (how a model
+from outside rayvr is added too), sampling.py for sub-rays.
 """
 from __future__ import annotations
 
 import dataclasses
 import typing
 
-from ...gl.glsl_constants import declare
-from .base import CAMERA_MODELS, CameraModel, CameraRays
+from .base import CAMERA_MODELS, CameraModel, CameraRays, register_camera_model, unregister_camera_model
 from .distorted import Distorted
 from .foveated import Foveated
 from .pinhole import Pinhole
 from .thin_lens import ThinLens
 from .wide import Wide
 
-CAMERA_MODELS.update({m.name: m for m in (Pinhole, Distorted, Wide, Foveated, ThinLens)})
+for _model in (Pinhole, Distorted, Wide, Foveated, ThinLens):  # their CAMERA_<NAME> ids: 1, 2, ... in this order
+    register_camera_model(_model)
 DEFAULT_CAMERA_MODEL = Pinhole.name  # what a rig, a frame plan and --camera-model take when none is named
-# The values of the CAMERA_MODEL define (glsl/common/camera.glsl): CAMERA_<NAME> = 1, 2, ... in this order.
-for _id, _name in enumerate(CAMERA_MODELS, 1):
-    declare(f"CAMERA_{_name.upper()}", _id)
-declare("CAMERA_MODEL_COUNT", len(CAMERA_MODELS))
 
 
 def get_camera_model(name: str, **params) -> CameraModel:
@@ -73,4 +70,5 @@ def parse_camera_params(name: str, items) -> dict:
 
 
 __all__ = ["CAMERA_MODELS", "DEFAULT_CAMERA_MODEL", "CameraModel", "CameraRays", "Distorted", "Foveated", "Pinhole",
-           "ThinLens", "Wide", "get_camera_model", "parse_camera_params"]
+           "ThinLens", "Wide", "get_camera_model", "parse_camera_params", "register_camera_model",
+           "unregister_camera_model"]

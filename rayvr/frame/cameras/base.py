@@ -16,15 +16,20 @@ pattern's samples) and may give a sample a footprint wider than a pixel (foveate
 (MSAA/SSAA for rays, thin-lens positions) come from the low-discrepancy set of sampling.py:
 sub-ray i of N goes through `centre + offset_i * footprint` and lens point `lens_i`.
 
-The GLSL contract (a model's file is included by glsl/common/camera.glsl, which declares the
-per-eye uniforms and builds camera_ray / camera_subray / the neighbours from these two; the
-model may declare more uniforms, named camera_*):
+The GLSL contract (a model's file, `glsl`, is included by glsl/common/camera.glsl through the
+CAMERA_MODEL_FILE define of `defines()`; camera.glsl declares the per-eye uniforms and builds
+camera_ray / camera_subray / the neighbours from these two; the model may declare more uniforms,
+named camera_*):
 
     // the ray through continuous image position `pixel` and unit-disk lens point `lens`;
     // false where that position makes no ray (e.g. beyond a fisheye's 180 degrees)
     bool camera_ray_at(int eye, vec2 pixel, vec2 size, vec2 lens, out vec3 origin, out vec3 direction);
     // the footprint side (pixels) of the sample at pixel centre `pixel`; 0: no sample there
     float camera_footprint(int eye, vec2 pixel, vec2 size);
+
+A model is added by `register_camera_model(cls)` (rayvr's own through the same function), from
+inside rayvr or outside it: it then has a name in CAMERA_MODELS and a CAMERA_<NAME> id in the
+generated header (layout.glsl), which every program compiled afterwards sees.
 
 Per-colour-channel sample sets (HMD chromatic pre-correction, HVVR's split-colour samples):
 `channels` C > 1 makes the frame cast its primary rays once per channel (`rays(eye, channel=c)`,
@@ -35,11 +40,14 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from ...gl.glsl_constants import declare
 from ...gl.limits import to_float32
+from ...gl.shaders import GLSL_DIR
 from .sampling import subsamples
 
 if TYPE_CHECKING:  # rayvr.frame.cameras.rig imports this package; the eye is only a type here
@@ -107,19 +115,28 @@ class CameraModel:
     # the model's own parameter for a lens (depth of field), if it has one: what the refusal of
     # the frame's --dof-diameter blur points to instead
     lens_parameter: ClassVar[str | None] = None
-    glsl: ClassVar[str]  # the model's GLSL file, relative to rayvr/glsl/
+    glsl: ClassVar[str]  # the model's GLSL file: relative to rayvr/glsl/, or absolute (a model outside rayvr)
     channels: ClassVar[int] = 1  # colour channel sets (a model may make it a property)
     sparse: ClassVar[bool] = False  # samples leave pixels between them, filled in for display (frame/passes/sample_resolve.py)
     doc: ClassVar[str] = ""
 
-    @property
-    def glsl_define(self) -> str:
-        """The value of the CAMERA_MODEL define that selects this model in common/camera.glsl."""
-        return "CAMERA_" + self.name.upper()
+    @classmethod
+    def glsl_id(cls) -> str:
+        """The model's id in the generated header (register_camera_model declares it): the value of
+        the CAMERA_MODEL define, which shaders compare (`#if CAMERA_MODEL == CAMERA_WIDE`)."""
+        return "CAMERA_" + cls.name.upper()
 
-    def defines(self) -> dict:
-        """Shader defines for programs that include common/camera.glsl."""
-        return {"CAMERA_MODEL": self.glsl_define}
+    @classmethod
+    def glsl_path(cls) -> Path:
+        """The model's GLSL file (`glsl` under rayvr/glsl/; an absolute `glsl` is itself)."""
+        return GLSL_DIR / cls.glsl
+
+    @classmethod
+    def defines(cls) -> dict:
+        """What a program that includes common/camera.glsl needs from the model: its id, its GLSL
+        file (the include's path) and the declared capabilities the shaders read."""
+        return {"CAMERA_MODEL": cls.glsl_id(), "CAMERA_MODEL_FILE": cls.glsl,
+                "CAMERA_DEPTH_ALONG_RAY": int(cls.depth_along_ray)}
 
     @classmethod
     def parameters(cls) -> dict:
@@ -212,6 +229,39 @@ def planar_transforms_fields(eye: "EyeView") -> dict:
             "cy": t * h / (t - b), "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0,
             "camera_angle_x": math.atan(r) - math.atan(l), "camera_angle_y": math.atan(t) - math.atan(b)}
 
-# The camera models by name (their registration order is the CAMERA_* enum's): filled by the package
-# (rayvr/frame/cameras/__init__.py), which imports every model, so a model reads the others' traits here.
+# The camera models by name, in registration order (register_camera_model; the package,
+# rayvr/frame/cameras/__init__.py, registers rayvr's own), so a model reads the others' traits here.
 CAMERA_MODELS: dict[str, type[CameraModel]] = {}
+# The CAMERA_<NAME> id of each model name ever registered: 1, 2, ... in registration order. A name
+# keeps its id when unregistered (the header's constant cannot change), so no id is given twice.
+_CAMERA_IDS: dict[str, int] = {}
+
+
+def register_camera_model(cls: type[CameraModel]) -> type[CameraModel]:
+    """Add camera model `cls` to CAMERA_MODELS and declare its CAMERA_<NAME> id in the generated
+    header, for programs compiled from then on; returns `cls` (a class decorator too). Refuses, in
+    one line, what is not a CameraModel subclass, a name that is no identifier or is taken (its id
+    included: names differing in case only), and a GLSL file that does not exist."""
+    what = getattr(cls, "__qualname__", repr(cls))
+    if not (isinstance(cls, type) and issubclass(cls, CameraModel)):
+        raise TypeError(f"camera model {what}: not a subclass of rayvr.frame.cameras.CameraModel")
+    name = getattr(cls, "name", None)
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ValueError(f"camera model {what}: its name must be an identifier, got {name!r}")
+    taken = [n for n in CAMERA_MODELS if n.upper() == name.upper()]
+    if taken:
+        raise ValueError(f"camera model {what}: the name {name!r} is taken by the registered "
+                         f"{CAMERA_MODELS[taken[0]].__qualname__} ({taken[0]!r})")
+    glsl = getattr(cls, "glsl", None)
+    if not isinstance(glsl, str) or not glsl:
+        raise ValueError(f"camera model {name!r}: `glsl` must name its GLSL file (under rayvr/glsl/ or absolute)")
+    if not cls.glsl_path().is_file():
+        raise ValueError(f"camera model {name!r}: its GLSL file {cls.glsl_path()} does not exist")
+    declare(f"CAMERA_{name.upper()}", _CAMERA_IDS.setdefault(name.upper(), len(_CAMERA_IDS) + 1))
+    CAMERA_MODELS[name] = cls
+    return cls
+
+
+def unregister_camera_model(name: str) -> None:
+    """Take model `name` out of CAMERA_MODELS (a test's own model); its id stays declared."""
+    CAMERA_MODELS.pop(name, None)

@@ -17,11 +17,11 @@ def dispatch_per_pixel(fc, program: moderngl.ComputeShader) -> None:
 
 
 def camera_defines(plan) -> dict:
-    """CAMERA_MODEL and CAMERA_SUBSAMPLES for programs that include glsl/common/camera.glsl (the
-    plan's camera model and sub-rays per sample)."""
+    """The defines of programs that include glsl/common/camera.glsl: the plan's camera model's
+    (CameraModel.defines: its id, its GLSL file, its capabilities) and its sub-rays per sample."""
     from ..cameras import CAMERA_MODELS
 
-    return {"CAMERA_MODEL": "CAMERA_" + CAMERA_MODELS[plan.camera].name.upper(), "CAMERA_SUBSAMPLES": plan.samples}
+    return {**CAMERA_MODELS[plan.camera].defines(), "CAMERA_SUBSAMPLES": plan.samples}
 
 
 def set_eye_uniforms(program, fc) -> None:

@@ -1,8 +1,9 @@
 // Per-eye camera data and primary-ray generation, shared by every pass that needs the camera's
 // rays (ray-traced primary visibility, G-buffer resolve, shading). The rays come from the camera
-// model chosen by the CAMERA_MODEL define (a rayvr/frame/cameras model's `defines()`; default the
-// pinhole), whose file under glsl/cameras/ implements camera_ray_at and camera_footprint
-// (contract in rayvr/frame/cameras/base.py). Uniform values: rayvr/frame/cameras/base.py uniforms().
+// model whose `defines()` the program is built with (rayvr/frame/cameras/base.py; none: the pinhole):
+// CAMERA_MODEL, its CAMERA_<NAME> id; CAMERA_MODEL_FILE, its GLSL file (under glsl/ or absolute),
+// which implements camera_ray_at and camera_footprint; CAMERA_DEPTH_ALONG_RAY, a capability it
+// declares. Uniform values: rayvr/frame/cameras/base.py uniforms().
 #ifndef RAYVR_CAMERA_GLSL
 #define RAYVR_CAMERA_GLSL
 
@@ -12,14 +13,16 @@ uniform vec4 eye_tangents[2];  // frustum tangents: left, right, bottom, top
 uniform vec2 eye_depth;        // near, far (0: infinite far plane)
 uniform int camera_channel;    // the colour channel set this frame round samples (CameraModel.channels)
 
-// One value per model, CAMERA_<NAME> = 1 .. CAMERA_MODEL_COUNT (CameraModel.glsl_define; layout.glsl,
-// from rayvr/frame/cameras CAMERA_MODELS).
+// One id per registered model, CAMERA_<NAME> = 1, 2, ... (layout.glsl: register_camera_model
+// declares them), so a shader may still ask which model it is built for.
 #include "../layout.glsl"
 #ifndef CAMERA_MODEL
-#define CAMERA_MODEL CAMERA_PINHOLE
+#define CAMERA_MODEL CAMERA_PINHOLE  // and the include of the model's file below takes pinhole.glsl
+#elif !defined(CAMERA_MODEL_FILE)
+#error CAMERA_MODEL without CAMERA_MODEL_FILE: build the program with the camera model's defines()
 #endif
-#if CAMERA_MODEL < 1 || CAMERA_MODEL > CAMERA_MODEL_COUNT
-#error unknown CAMERA_MODEL: the allowed values are listed in rayvr/frame/cameras CAMERA_MODELS
+#ifndef CAMERA_DEPTH_ALONG_RAY
+#define CAMERA_DEPTH_ALONG_RAY 0
 #endif
 #include "../cameras/sampling.glsl"
 
@@ -71,10 +74,11 @@ vec3 eye_ray_direction(int eye, vec2 pixel, vec2 size) {
 vec3 eye_forward(int eye) { return -eye_rotation[eye][2]; }
 
 // A frame's depth per unit of distance along unit ray direction d: view depth (along the view
-// axis, as the rasterizer's near and far planes) for the planar models; for the wide model, whose
-// rays reach sideways and backwards, depth is the distance itself (near and far are spheres).
+// axis, as the rasterizer's near and far planes) for the planar models; for a model that declares
+// depth_along_ray (the wide one, whose rays reach sideways and backwards), depth is the distance
+// itself (near and far are spheres).
 float camera_depth_per_distance(int eye, vec3 d) {
-#if CAMERA_MODEL == CAMERA_WIDE
+#if CAMERA_DEPTH_ALONG_RAY
     return 1.0;
 #else
     return dot(d, eye_forward(eye));
@@ -87,20 +91,10 @@ float eye_view_depth(float z) {
     return f == 0.0 ? n / z : n * f / (z * (f - n) + n);
 }
 
-// The chosen model's code, last: the model files skipped by the #if still count lines, which
-// would shift the line numbers of anything after them in this file in compile errors. Shared
-// model code comes first: the loader includes a file once, even where an #if drops that copy.
+// The model's code, last, after the planar models' shared code (pinhole_direction), which any
+// model may call. The loader reads CAMERA_MODEL_FILE from the program's defines (a model's file
+// outside rayvr is an absolute path); without it, the pinhole's.
 #include "../cameras/planar.glsl"
-#if CAMERA_MODEL == CAMERA_PINHOLE
-#include "../cameras/pinhole.glsl"
-#elif CAMERA_MODEL == CAMERA_DISTORTED
-#include "../cameras/distorted.glsl"
-#elif CAMERA_MODEL == CAMERA_WIDE
-#include "../cameras/wide.glsl"
-#elif CAMERA_MODEL == CAMERA_FOVEATED
-#include "../cameras/foveated.glsl"
-#elif CAMERA_MODEL == CAMERA_DOF
-#include "../cameras/thin_lens.glsl"
-#endif
+#include CAMERA_MODEL_FILE or "../cameras/pinhole.glsl"
 
 #endif
