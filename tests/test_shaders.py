@@ -67,3 +67,22 @@ def test_include_named_by_a_define(tmp_path):
     assert "part_a" in src.text and src.files == ["main.comp", "part/a.glsl"]
     with pytest.raises(ShaderError, match=r"glsl/main.comp:2: #include PART needs the define PART"):
         load_source("main.comp", root=tmp_path)
+
+
+def test_include_named_by_a_define_with_a_fallback_and_an_absolute_path(tmp_path):
+    """`#include NAME or "path"` takes the define's file, else "path" (relative to the including
+    file); a define may name an absolute path (a plugin's file outside the root), and a file that
+    is not there is one line naming the include that asked for it."""
+    root = tmp_path / "root"
+    write(root, "lib/default.glsl", "int part_default() { return 0; }\n")
+    write(root, "main.comp", '#version 430\n#include PART or "lib/default.glsl"\nvoid main() {}\n')
+    assert load_source("main.comp", root=root).files == ["main.comp", "lib/default.glsl"]
+    outside = tmp_path / "elsewhere" / "plugin.glsl"
+    write(tmp_path, "elsewhere/plugin.glsl", "int part_plugin() { return 2; }\n")
+    src = load_source("main.comp", {"PART": str(outside)}, root=root)
+    assert "part_plugin" in src.text and "part_default" not in src.text and src.files[1] == str(outside)
+    assert src.map_log("0:2(3): error: x\n1:1(5): error: y") == f"glsl/main.comp:2: error: x\n{outside}:1: error: y"
+    missing = tmp_path / "gone.glsl"
+    with pytest.raises(ShaderError) as e:
+        load_source("main.comp", {"PART": str(missing)}, root=root)
+    assert str(e.value) == f"glsl/main.comp:2: #include PART (PART = {missing}): shader file not found: {missing}"

@@ -1,6 +1,6 @@
 #version 430
 // Debugging tool for any camera model: writes every sample's camera ray, as the model's GLSL
-// makes it (common/camera.glsl with CAMERA_MODEL), into an SSBO, so it can be compared with the
+// makes it (common/camera.glsl with the model's defines()), into an SSBO, so it can be compared with the
 // model's numpy reference (rayvr/frame/cameras/*.py rays(); tests/test_cameras.py does).
 // Build: shaders.compute(ctx, "cameras/camera_rays.comp", model.defines() + CAMERA_SUBSAMPLES);
 // set the per-eye uniforms (model.uniforms(eyes, origin)), camera_channel, subsample (-1: the
