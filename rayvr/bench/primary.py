@@ -40,10 +40,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..accel.gpu import GpuBvh, RayTracer
+from ..accel.gpu import RayTracer
 from ..frame.cameras.rig import StereoRig
 from ..frame.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
-from ..frame.cameras.sampling import SAMPLE_COUNTS
 from ..gl.context import create_context
 from ..renderer import Renderer, RenderSettings
 from .rays import primary_rays, time_frame

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..gl.context import create_context
 from ..scene.materials import load_config
-from ..renderer import Renderer, RenderSettings
+from ..renderer import Renderer
 from ..scene.loader import ASSETS_DIR
 from .rays import hybrid_config, time_frame
 from .report import device_meta, write_report

@@ -8,7 +8,6 @@ from outside rayvr is added too), sampling.py for sub-rays.
 from __future__ import annotations
 
 import dataclasses
-import typing
 
 from .base import CAMERA_MODELS, CameraModel, CameraRays, register_camera_model, unregister_camera_model
 from .distorted import Distorted
