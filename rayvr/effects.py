@@ -1,11 +1,11 @@
-"""Moved to rayvr.frame.effects (issue 21's layout). Kept for code written against the old path
+"""Moved to rayvr.frame.effects (rayvr's modules in packages by layer). Kept for code written against the old path
 (docs/architecture.md 'Add an effect': from rayvr.effects import Effect, Param, register): its names
 resolve here with a DeprecationWarning.
 """
 
 
 def __getattr__(name):
-    """A name of the module that was rayvr.effects before the layout of issue 21, from where it is now,
+    """A name of the module that was rayvr.effects before rayvr's modules moved into packages by layer, from where it is now,
     with a DeprecationWarning (lazily: importing this module imports nothing)."""
     import importlib
     import pkgutil

@@ -195,7 +195,7 @@ def test_moves_and_rewrites_every_form(repo, capsys):
                           "`data/thing.txt`.\ntoy/view/rig.py  the rig\n\n<!-- relayout: packages -->\n## Packages\n")
     assert doc.endswith("\n<!-- /relayout -->\n\n## Layers\n") and max(map(len, doc.splitlines()[3:])) <= 100
     assert " ".join(doc.split("## Packages")[1].split()) == (
-        "One package per part of the renderer (`tools/relayout.py` LAYOUT, issue 21); packages import each other "
+        "One package per part of the renderer (`tools/relayout.py` LAYOUT); packages import each other "
         "in one direction: base <- view <- scene. Importing a package runs no other module (its `__init__.py` "
         "imports nothing). - `toy/base/`: Plain helpers. - `toy/view/`: Views and their passes. - `toy/scene/`: "
         "What is shown. - `toy/keep.py`: stays on top - resources found by path, not imported: `toy/data/` "

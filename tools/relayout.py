@@ -151,12 +151,12 @@ RAYVR = Layout(
         "rayvr.__main__": "python -m rayvr",
         "rayvr.cli": "the top layer with __main__: the command line, the one door into the benchmarks (bench imports "
                      "app.cluster, so the command line cannot sit in app/ without a package cycle)",
-        "rayvr.commands": "fix/options: the command line's commands, beside cli.py for the same reason",
+        "rayvr.commands": "the command line's commands, beside cli.py for the same reason",
         "rayvr.renderer": "the Renderer puts scene, accel and frame together: the API's entry point, above them",
-        "rayvr.settings": "fix/options: RenderSettings, one field per render option, beside the Renderer that takes it",
-        "rayvr.options": "fix/options: the render options every layer declares (imports nothing from rayvr)",
-        "rayvr.accel": "already a package: acceleration structures",
-        "rayvr.bench": "already a package: the benchmarks, reached only through the command line",
+        "rayvr.settings": "RenderSettings, one field per render option, beside the Renderer that takes it",
+        "rayvr.options": "the render options every layer declares (imports nothing from rayvr)",
+        "rayvr.accel": "acceleration structures",
+        "rayvr.bench": "the benchmarks, reached only through the command line",
     },
     shims={
         "rayvr.frame": "docs/architecture.md 'Add a pass': from rayvr.frame import Pass, Texture, read, write",
@@ -304,7 +304,7 @@ def make_plan(root: Path, layout: Layout) -> Plan:
             staying = pkg in tree.packages and pkg not in plan.renames
             if not staying and pkg not in plan.new_packages:
                 plan.new_packages[pkg] = next((why for p, why, _ in layout.groups if p == pkg),
-                                              f"{pkg} (issue 21's layout).")
+                                              f"{pkg} (rayvr's modules in packages by layer).")
     for rel in python_files(root, layout):
         plan.edits[rel] = rewrite_python(plan, rel)
     for rel in text_files(root, layout):
@@ -329,7 +329,7 @@ def packages_section(plan: Plan, text: str) -> str:
         return textwrap.fill(text, 100, initial_indent="- ", subsequent_indent="  ", break_on_hyphens=False)
 
     lines = [SECTION_START, "## Packages", "",
-             textwrap.fill(f"One package per part of the renderer (`tools/relayout.py` LAYOUT, issue 21); packages "
+             textwrap.fill(f"One package per part of the renderer (`tools/relayout.py` LAYOUT); packages "
                            f"import each other in one direction: {layout.order}. Importing a package runs no "
                            f"other module (its `__init__.py` imports nothing).", 100, break_on_hyphens=False), ""]
     for package, why, moves in layout.groups:
@@ -774,7 +774,7 @@ def rewrite_text(plan: Plan, rel: Path):
 SHIM_CODE = '''
 
 def __getattr__(name):
-    """A name of the module that was {old} before the layout of issue 21, from where it is now,
+    """A name of the module that was {old} before rayvr's modules moved into packages by layer, from where it is now,
     with a DeprecationWarning (lazily: importing this {kind} imports nothing)."""
     import importlib
     import pkgutil
@@ -806,7 +806,7 @@ def make_shims(plan: Plan) -> dict:
             kind = "package"
         else:
             rel = module_file(old, False)
-            text = docstring(f"Moved to {new} (issue 21's layout). Kept for code written against the old path "
+            text = docstring(f"Moved to {new} (rayvr's modules in packages by layer). Kept for code written against the old path "
                              f"({why}): its names resolve here with a DeprecationWarning.")
             kind = "module"
         out[rel] = text + SHIM_CODE.format(old=old, new=new, kind=kind)

@@ -8,7 +8,7 @@ accumulation and the readback of the images.
 
 
 def __getattr__(name):
-    """A name of the module that was rayvr.frame before the layout of issue 21, from where it is now,
+    """A name of the module that was rayvr.frame before rayvr's modules moved into packages by layer, from where it is now,
     with a DeprecationWarning (lazily: importing this package imports nothing)."""
     import importlib
     import pkgutil
