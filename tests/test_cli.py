@@ -264,10 +264,10 @@ def test_preview_without_a_display_is_one_line_with_glfws_reason():
 @pytest.mark.parametrize("args, says", [
     (("--msaa", "4", "--primary", "raster"), "--primary raster: --msaa 4 casts sub-rays"),
     (("--camera-model", "wide", "--primary", "raster"), "--primary raster: the wide camera cannot be rasterized"),
-    (("--aperture", "0.1", "--camera-model", "wide"), "the wide camera is not a pinhole"),
-    (("--aperture", "0.1", "--camera-model", "dof"), "use its aperture parameter"),
-    (("--aperture", "0.1", "--stereo", "warp"), "--stereo warp makes an eye from the other's frame"),
-    (("--aperture", "0.1", "--stereo", "reuse"), "--stereo reuse makes an eye from the other's frame")])
+    (("--dof-diameter", "0.1", "--camera-model", "wide"), "the wide camera is not a pinhole"),
+    (("--dof-diameter", "0.1", "--camera-model", "dof"), "use its aperture parameter"),
+    (("--dof-diameter", "0.1", "--stereo", "warp"), "--stereo warp makes an eye from the other's frame"),
+    (("--dof-diameter", "0.1", "--stereo", "reuse"), "--stereo reuse makes an eye from the other's frame")])
 def test_flags_a_frame_would_ignore_are_one_line(tmp_path, args, says):
     """A flag the frame cannot honour (it used to be dropped, the frame rendered without it) is
     refused in one line, before anything is written."""
@@ -278,16 +278,16 @@ def test_flags_a_frame_would_ignore_are_one_line(tmp_path, args, says):
 
 
 def test_the_renderer_refuses_depth_of_field_it_cannot_apply(gl):
-    """The API as the CLI: a frame plan with --aperture under warp (no frame of its own for the
+    """The API as the CLI: a frame plan with --dof-diameter under warp (no frame of its own for the
     blur to use) is an error, not a frame without the blur; one eye is a frame of its own."""
     from rayvr import Renderer
     from rayvr.renderer import RenderSettings
 
-    with Renderer(gl=gl, settings=RenderSettings(dof_aperture=0.1, stereo="warp")) as r:
+    with Renderer(gl=gl, settings=RenderSettings(dof_diameter=0.1, stereo="warp")) as r:
         with pytest.raises(ValueError, match="depth of field"):
             r.plan(layers=2)
         assert r.plan(layers=1).dof  # one eye: a dual frame, blurred
-    with Renderer(gl=gl, settings=RenderSettings(dof_aperture=0.1)) as r:
+    with Renderer(gl=gl, settings=RenderSettings(dof_diameter=0.1)) as r:
         assert r.plan(layers=2).dof
 
 

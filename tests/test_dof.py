@@ -37,11 +37,11 @@ def test_depth_of_field_focus_and_blur(gl):
     sharp, passes = render(gl, scene, rig)
     assert "dof" not in passes
     wall_depth = float(np.median(sharp.left.depth[sharp.left.depth > 5.5]))
-    tiny, passes = render(gl, scene, rig, dof_aperture=1e-5, dof_focus=wall_depth, dof_samples=4)
+    tiny, passes = render(gl, scene, rig, dof_diameter=1e-5, dof_focus=wall_depth, dof_samples=4)
     assert passes.index("quadtree") < passes.index("dof") < passes.index("tonemap")
     assert np.abs(tiny.left.aux["hdr"] - sharp.left.aux["hdr"]).max() < 1e-3
     aperture = 2.5  # a circle of confusion of ~2.4 pixels on the quad (29 rows)
-    blur, _ = render(gl, scene, rig, dof_aperture=aperture, dof_focus=wall_depth, dof_samples=64)
+    blur, _ = render(gl, scene, rig, dof_diameter=aperture, dof_focus=wall_depth, dof_samples=64)
     a, b = blur.left.aux["hdr"], sharp.left.aux["hdr"]
     assert np.isfinite(a).all() and np.isfinite(blur.right.aux["hdr"]).all()
     depth = sharp.left.depth
@@ -62,17 +62,17 @@ def test_depth_of_field_focus_and_blur(gl):
     assert changed[edge].mean() > 0.5                                  # out of focus: blurred
     assert not changed[~near_quad].any()                               # and nothing beyond the CoC
     zero = StereoRig(rig.pose, ipd=0.0, fov_y=60, size=rig.size)
-    z, _ = render(gl, scene, zero, dof_aperture=aperture, dof_focus=wall_depth, dof_samples=8)
+    z, _ = render(gl, scene, zero, dof_diameter=aperture, dof_focus=wall_depth, dof_samples=8)
     assert np.array_equal(z.left.aux["hdr"], z.right.aux["hdr"])
 
 
 def test_bad_dof_settings_are_one_line_errors(tmp_path):
-    with pytest.raises(ValueError, match="dof_aperture"):
-        RenderSettings(dof_aperture=-1.0)
+    with pytest.raises(ValueError, match="dof_diameter"):
+        RenderSettings(dof_diameter=-1.0)
     with pytest.raises(ValueError, match="dof_focus"):
         RenderSettings(dof_focus=0.0)
-    run = run_rayvr("capture", "--aperture", "-2", "--out", tmp_path, timeout=60)
-    assert run.returncode == 2 and "Traceback" not in run.stderr and "--aperture" in run.stderr
+    run = run_rayvr("capture", "--dof-diameter", "-2", "--out", tmp_path, timeout=60)
+    assert run.returncode == 2 and "Traceback" not in run.stderr and "--dof-diameter" in run.stderr
 
 
 def test_gpu_gather_equals_numpy_reference(gl):
@@ -86,7 +86,7 @@ def test_gpu_gather_equals_numpy_reference(gl):
     from rayvr.frame.passes.dof import gather_reference
 
     scene, rig = scenes()["step"]
-    settings = RenderSettings(dof_aperture=2.5, dof_focus=5.8, dof_samples=3, seed=7)
+    settings = RenderSettings(dof_diameter=2.5, dof_focus=5.8, dof_samples=3, seed=7)
     with Renderer(scene, None, gl=gl, settings=settings) as r:
         r.render(rig, aux=())
         w, h = rig.size

@@ -231,7 +231,7 @@ def test_every_json_a_multi_view_capture_writes_is_valid_json(tmp_path):
     assert camera["far"] is None and camera["near"] > 0
 
 
-@pytest.mark.parametrize("kw, words", [(dict(dof_aperture=1e300), r"dof_aperture must be in \[0, 1e\+18\]"),
+@pytest.mark.parametrize("kw, words", [(dict(dof_diameter=1e300), r"dof_diameter must be in \[0, 1e\+18\]"),
                                        (dict(dof_focus=1e-300), r"dof_focus must be in \[1e-18, 1e\+12\]"),
                                        (dict(dof_focus=1e25), r"dof_focus must be in \[1e-18, 1e\+12\]")])
 def test_render_settings_dof_values_stay_in_float32_ranges(kw, words):

@@ -55,8 +55,7 @@ class DofPass(Pass):
         st, p = fc.settings, self.program
         set_eye_uniforms(p, fc)
         set_tree_uniforms(p, fc.gbuffer.size, fc.gbuffer.layers)
-        # (the shader's uniform dof_aperture is the lens diameter)
-        for name, v in (("dof_aperture", float(st.dof_diameter)), ("dof_focus", float(st.dof_focus)),
+        for name, v in (("dof_diameter", float(st.dof_diameter)), ("dof_focus", float(st.dof_focus)),
                         ("dof_samples", int(st.dof_samples)), ("dof_thickness", THICKNESS),
                         ("frame_seed", int(st.seed))):
             if name in p:

@@ -1,6 +1,6 @@
 #version 430
 // Thin-lens depth of field through screen-space rays (Widmer et al. 2015 §5.2; frame/passes/dof.py):
-// per pixel, `dof_samples` rays from points of the lens disk (diameter dof_aperture, in the eye's
+// per pixel, `dof_samples` rays from points of the lens disk (diameter dof_diameter, in the eye's
 // view plane) through the pixel ray's point at view depth dof_focus, traced through the frame's
 // quadtree (qt_trace_layers, one layer, slabs of dof_thickness); each gathers the frame's colour
 // where it meets the screen: the hit pixel, the near side of an occlusion (inpainting), else where
@@ -18,7 +18,7 @@ layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) i
 
 layout(HDR_FORMAT, binding = IMAGE_DOF_IN) uniform readonly image2DArray dof_in;
 layout(rgba32f, binding = IMAGE_DOF_OUT) uniform writeonly image2DArray dof_out;
-uniform float dof_aperture;   // lens diameter, scene units
+uniform float dof_diameter;   // lens diameter, scene units
 uniform float dof_focus;      // view depth in focus, scene units
 uniform int dof_samples;
 uniform float dof_thickness;  // relative depth of each surface's slab
@@ -45,7 +45,7 @@ void main() {
     vec3 sum = vec3(0.0);
     int n = max(dof_samples, 1);
     for (int i = 0; i < n; ++i) {
-        vec2 l = concentric_disk(rng_next2(rng)) * (0.5 * dof_aperture);
+        vec2 l = concentric_disk(rng_next2(rng)) * (0.5 * dof_diameter);
         vec3 lens = o + eye_rotation[p.z] * vec3(l, 0.0);
         QtResult r = qt_trace_layers(p.z, lens, focus - lens, 1, dof_thickness);
         ivec2 at = (r.status == QT_HIT || r.status == QT_OCCLUDED) && r.pixel.x >= 0
