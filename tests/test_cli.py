@@ -313,3 +313,14 @@ def test_settings_of_the_wrong_type_or_range_are_one_value_error(kind, kw, says)
 
     with pytest.raises(ValueError, match=says):
         (RenderSettings if kind == "settings" else StereoRig)(**kw)
+
+
+@pytest.mark.parametrize("command", ["capture", "preview"])
+def test_the_rigs_pose_is_pose_and_camera_is_its_old_name(command):
+    """--pose places the rig (the camera model is --camera-model); --camera still means the same."""
+    from rayvr.cli import build_parser
+
+    parse = build_parser().parse_args
+    new = parse([command, "--pose", "0,1,3,0,1,-1"])
+    old = parse([command, "--camera", "0,1,3,0,1,-1"])
+    assert tuple(new.pose) == tuple(old.pose) == (0.0, 1.0, 3.0, 0.0, 1.0, -1.0)

@@ -64,7 +64,7 @@ def runs() -> dict[str, list[str]]:
     out["aux"] = ["--aux", "depth,zbuffer,position,normal,albedo,material,effect,triangle,hdr"]
     out["frames=2"] = ["--frames", "2"]
     out["views=sphere:2"] = ["--views", "sphere:2"]
-    out["pose"] = ["--camera", "0.3,1.4,2.2,0,1,0", "--fov", "75", "--ipd", "0.07", "--near", "0.05"]
+    out["pose"] = ["--pose", "0.3,1.4,2.2,0,1,0", "--fov", "75", "--ipd", "0.07", "--near", "0.05"]
     return out
 
 

@@ -83,8 +83,10 @@ SPP = count(1, MAX_SPP)
 def add_rig_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("camera / stereo rig")
     g.add_argument("--size", type=size, default=(640, 480), help="per-eye image size WxH (default 640x480)")
-    g.add_argument("--camera", type=floats(6), metavar="EX,EY,EZ,TX,TY,TZ",
-                   help="eye position and look-at target (default: the scene's camera or a framing view)")
+    # --pose, not --camera: the camera model is --camera-model (the old spelling still works)
+    g.add_argument("--pose", "--camera", dest="pose", type=floats(6), metavar="EX,EY,EZ,TX,TY,TZ",
+                   help="the rig's position and look-at target (default: the scene's camera or a framing view; "
+                        "--camera is the old name)")
     g.add_argument("--fov", type=FOV, help="vertical field of view in degrees (the camera model sets the limit)")
     g.add_argument("--ipd", type=IPD, default=0.064, help="interpupillary distance in scene units (default 0.064)")
     g.add_argument("--convergence", type=DISTANCE, help="zero-parallax distance (default: parallel eyes, as HMDs)")
@@ -154,8 +156,8 @@ def rig_from_args(args, scene, camera):
         if getattr(args, attr) is not None:
             kw[key] = getattr(args, attr)
     rig = StereoRig.for_scene(scene, size=args.size, **kw)
-    if args.camera:
-        rig.pose = Pose.look_at(args.camera[:3], args.camera[3:])
+    if args.pose:
+        rig.pose = Pose.look_at(args.pose[:3], args.pose[3:])
     return rig
 
 
