@@ -80,9 +80,8 @@ BUDGET_MS = number(0, MAX_BUDGET_MS)
 SPP = count(1, MAX_SPP)
 
 
-def add_rig_arguments(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("camera / stereo rig")
-    g.add_argument("--size", type=size, default=(640, 480), help="per-eye image size WxH (default 640x480)")
+def add_pose_arguments(g) -> None:
+    """Where the rig stands and how its eyes look (capture, preview: rig_keywords reads them)."""
     # --pose, not --camera: the camera model is --camera-model (the old spelling still works)
     g.add_argument("--pose", "--camera", dest="pose", type=floats(6), metavar="EX,EY,EZ,TX,TY,TZ",
                    help="the rig's position and look-at target (default: the scene's camera or a framing view; "
@@ -90,6 +89,12 @@ def add_rig_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--fov", type=FOV, help="vertical field of view in degrees (the camera model sets the limit)")
     g.add_argument("--ipd", type=IPD, default=0.064, help="interpupillary distance in scene units (default 0.064)")
     g.add_argument("--convergence", type=DISTANCE, help="zero-parallax distance (default: parallel eyes, as HMDs)")
+
+
+def add_rig_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("camera / stereo rig")
+    g.add_argument("--size", type=size, default=(640, 480), help="per-eye image size WxH (default 640x480)")
+    add_pose_arguments(g)
     g.add_argument("--near", type=DISTANCE, help="near plane distance")
     g.add_argument("--far", type=number(0, MAX_DISTANCE, inf_ok=True),
                    help="far plane distance, greater than near (default: infinite, reversed-Z)")
@@ -148,14 +153,20 @@ def camera_from_args(args, settings=None, given: dict | None = None):
     return camera
 
 
+def rig_keywords(args, camera) -> dict:
+    """StereoRig keywords of the rig flags given (add_pose_arguments; --near and --far where the
+    command has them)."""
+    kw = {"ipd": args.ipd, "camera": camera}
+    for key, attr in (("fov_y", "fov"), ("convergence", "convergence"), ("near", "near"), ("far", "far")):
+        if getattr(args, attr, None) is not None:
+            kw[key] = getattr(args, attr)
+    return kw
+
+
 def rig_from_args(args, scene, camera):
     from ..frame.cameras.rig import Pose, StereoRig
 
-    kw = {"ipd": args.ipd, "camera": camera}
-    for key, attr in (("fov_y", "fov"), ("convergence", "convergence"), ("near", "near"), ("far", "far")):
-        if getattr(args, attr) is not None:
-            kw[key] = getattr(args, attr)
-    rig = StereoRig.for_scene(scene, size=args.size, **kw)
+    rig = StereoRig.for_scene(scene, size=args.size, **rig_keywords(args, camera))
     if args.pose:
         rig.pose = Pose.look_at(args.pose[:3], args.pose[3:])
     return rig

@@ -19,11 +19,7 @@ def add_parser(sub) -> None:
     v.add_argument("--view", choices=VIEWS, default="color", help="colour or a debug view at start (V cycles)")
     v.add_argument("--scale", type=float, help="resolution scale (default 1, 0.5 on a CPU rasterizer)")
     v.add_argument("--no-vsync", action="store_true", help="start with vsync off (Y toggles)")
-    v.add_argument("--pose", "--camera", dest="pose", type=shared.floats(6), metavar="EX,EY,EZ,TX,TY,TZ",
-                   help="start position and look-at target (--camera is the old name)")
-    v.add_argument("--fov", type=shared.FOV, help="vertical field of view in degrees")
-    v.add_argument("--ipd", type=shared.IPD, default=0.064, help="interpupillary distance (default 0.064)")
-    v.add_argument("--convergence", type=shared.DISTANCE, help="zero-parallax distance (default: parallel eyes)")
+    shared.add_pose_arguments(v.add_argument_group("camera / stereo rig at start"))
     v.add_argument("--out", default="shots", help="screenshot folder (default ./shots)")
     v.add_argument("--record", default="camera_path.json", help="camera path file P writes")
     v.add_argument("--frames", type=shared.FRAMES, help="close after N frames (smoke tests)")
@@ -56,10 +52,7 @@ def cmd_preview(args) -> int:
     from ..app.preview import Preview
 
     settings, given = preview_settings(args)
-    rig_options = {"ipd": args.ipd, "camera": shared.camera_from_args(args, settings, given)}
-    for key, attr in (("fov_y", "fov"), ("convergence", "convergence")):
-        if getattr(args, attr) is not None:
-            rig_options[key] = getattr(args, attr)
+    rig_options = shared.rig_keywords(args, shared.camera_from_args(args, settings, given))
     look_at = (args.pose[:3], args.pose[3:]) if args.pose else None
     with Preview(args.scene, args.materials, size=args.size, vsync=not args.no_vsync, stereo=args.mode,
                  stereo_method=settings.stereo, view=args.view, res_scale=args.scale, rig_options=rig_options,
