@@ -107,9 +107,7 @@ def settings_class(cls):
         for name, value in check_all({n: getattr(self, n) for n in known}).items():
             setattr(self, name, value)
         later = all_options()
-        unknown = [k for k in self.more if k not in later or k in known]
-        if unknown:
-            raise OptionError(f"unknown render option(s) {', '.join(map(str, unknown))}; allowed: {', '.join(later)}")
+        _refuse_unknown([k for k in self.more if k not in later or k in known], later)
         self.more = {k: later[k].check(v) for k, v in self.more.items()}
 
     def __getattr__(self, name):  # only for what is not a field: a later declaration's value or default
@@ -132,15 +130,18 @@ def settings_class(cls):
         if not isinstance(data, dict):
             raise OptionError(f"render settings must be a table of option values, got {type(data).__name__}")
         later = all_options()
-        unknown = [k for k in data if k not in later]
-        if unknown:
-            raise OptionError(f"unknown render option(s) {', '.join(map(str, unknown))}; allowed: {', '.join(later)}")
+        _refuse_unknown([k for k in data if k not in later], later)
         return klass(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
 
     cls.__post_init__, cls.__getattr__, cls.to_dict, cls.from_dict = __post_init__, __getattr__, to_dict, from_dict
     cls = dataclass(cls)
     _accept_other_names(cls, known, {old: o for o in known.values() for old in o.old_names})
     return cls
+
+
+def _refuse_unknown(names: list, allowed) -> None:
+    if names:
+        raise OptionError(f"unknown render option(s) {', '.join(map(str, names))}; allowed: {', '.join(allowed)}")
 
 
 def _accept_other_names(cls, known: dict, renamed: dict) -> None:
