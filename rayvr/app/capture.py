@@ -309,10 +309,10 @@ def _short(value) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def lock_folder(folder: Path, why: str = "") -> int | None:
+def lock_folder(folder: Path, why=lambda: "") -> int | None:
     """Hold `folder` for one job: an exclusive flock on its .rayvr-lock, which the kernel drops
     when the process ends, so a crashed job leaves no stale lock. OutputError if a job holds it
-    (`why` ends its message)."""
+    (`why()`, asked only then, ends its message)."""
     path = folder / LOCK_NAME
     try:
         import fcntl
@@ -330,7 +330,7 @@ def lock_folder(folder: Path, why: str = "") -> int | None:
             holder = os.pread(fd, 200, 0).decode("utf-8", "replace").strip() or "another process"
             os.close(fd)
             raise OutputError(f"{folder}: output folder is busy: another capture ({holder}) is writing into it; "
-                              f"wait for it to end or use another --out{why}") from None
+                              f"wait for it to end or use another --out{why()}") from None
         except OSError as exc:  # a file system without locks
             os.close(fd)
             log.warning("%s: cannot lock the output folder (%s); two jobs writing into it would go unnoticed",
@@ -396,7 +396,7 @@ class JobFolder:
         check_output_files(self.paths())
         self._created = create_output_dir(job.out_dir)
         try:
-            self._lock = lock_folder(job.out_dir, why=self._how_the_job_file_differs())
+            self._lock = lock_folder(job.out_dir, why=self._how_the_job_file_differs)
             if self.overwrite and self.sequence:
                 for name in self._frame_files_on_disk():  # the user asked: no frame of theirs is kept
                     (job.out_dir / name).unlink(missing_ok=True)
