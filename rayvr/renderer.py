@@ -135,6 +135,10 @@ class Renderer:
         color, st = view == "color", self.settings
         # Peeling needs the raster's depth: with ray-cast primaries the second layer is ray-cast too.
         second = self.settings.second_layer if primary == "raster" else "rays"
+        culled = st.culls_tiles(camera.name) and primary == "rays"
+        if st.tile_lists and primary == "rays" and not culled:
+            raise ValueError("tile triangle lists (--tile-lists) start from the tile culling's entry lists: "
+                             "leave out --tile-culling false")
         denoise = tuple(sorted(self.denoised_effects())) if color and st.denoise else ()
         stereo = stereo_mod.effective_mode(self.settings.stereo, layers, camera)
         if stereo != "dual" and samples > 1:  # their passes read one G-buffer, not a frame of rounds
@@ -161,7 +165,7 @@ class Renderer:
                          second_layer=second, traversal=st.traversal, bvh_build=st.bvh_build,
                          dof=color and st.dof_diameter > 0,
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
-                         tile_culling=st.culls_tiles(camera.name) and primary == "rays",
+                         tile_culling=culled, tile_lists=primary_rays.tile_list_bound(st, camera.name) if culled else 0,
                          channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots)
 
     def set_stereo(self, mode: str) -> None:

@@ -208,8 +208,8 @@ def test_the_screen_space_lens_is_a_diameter_and_the_old_names_still_work(capsys
 
 # An allowed value other than the default, and what it needs to reach the plan at all.
 OTHER = {"traversal": "bvh2", "layer_mode": "passes", "ambient": (0.1, 0.2, 0.3), "background": (0.3, 0.2, 0.1),
-         "stereo": "reuse"}
-CONTEXT = {"ssaa": {"msaa": 4}, "tile_culling": {"primary": "rays"}, "warp_layers": {"stereo": "warp"}}
+         "stereo": "reuse", "tile_lists": 64}
+CONTEXT = {"ssaa": {"msaa": 4}, "tile_culling": {"primary": "rays"}, "tile_lists": {"primary": "rays"}, "warp_layers": {"stereo": "warp"}}
 
 
 def other_value(o: options.Option):

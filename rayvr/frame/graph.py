@@ -59,6 +59,7 @@ class FramePlan:
     traversal: tuple = DEFAULT_TRAVERSAL  # BVH layout per ray kind (accel/gpu.py RAY_KINDS)
     bvh_build: str = "sah"  # how the BVH is built: "sah" | "sbvh" (spatial splits; accel/sbvh.py)
     tile_culling: bool = False  # primary rays traced from tile frustum entry lists (frame/passes/primary_rays.py)
+    tile_lists: int = 0  # with tile culling: the bound of each tile's triangle list, 0 none (primary_rays.py)
     # MSAA rounds leave a pixel with nothing in their slot as it is where exact (frame/passes/primary_rays.py
     # skips_empty_slots); False shades it as background of weight 0, the reference tests compare with
     skip_empty_slots: bool = True

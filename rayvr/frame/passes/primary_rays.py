@@ -45,6 +45,7 @@ import moderngl
 import numpy as np
 
 from ...gl import shaders
+from ...gl.glsl_constants import declare as declare_constant
 from ...accel.frustum import tile_grid
 from ...accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effect_registry import EFFECTS
@@ -66,6 +67,24 @@ TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visi
                               commands=("capture", "preview", "info", "bench")))
 
 
+TILE_LIST_BOUNDS = (16, 32, 64, 128, 256, 512, 1024)  # triangles a tile's list may hold (a power of two: its sort)
+TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibility tests each 16x8-pixel tile's rays "
+                            "against the tile's own list of at most N triangles (those of its frustum, nearest "
+                            "first, from workgroup memory; the same hits, exact); a tile with more walks the BVH "
+                            "from its entries; 0: off; implies tile culling; auto: where it measured faster",
+                            scope="plan", plan_field="tile_lists", choices=(0,) + TILE_LIST_BOUNDS, auto=True,
+                            implies=(("tile_culling", True),), label="tile list bound", metavar="N",
+                            commands=("capture", "preview", "info", "bench")))
+# The tile list stage (glsl/accel/tile_tris.comp): invocations a tile, nodes one sweep of a tile's walk
+# may hold (more: the tile overflows, as with more than its bound of triangles), and the count that says so.
+TILE_LIST_GROUP = declare_constant("TILE_LIST_GROUP", 128)
+TILE_FRONT = declare_constant("TILE_FRONT", 256)
+TILE_OVERFLOW = declare_constant("TILE_OVERFLOW", 0xFFFFFFFF, uint=True)
+# The edge filter's rounding bound (glsl/rt/tile_list_cast.glsl), relative to the edge's vertex
+# distances: the exact test's and the filter's float errors are a few ulps (~1e-7) of those.
+EDGE_SLACK = declare_constant("EDGE_SLACK", 1e-5)
+
+
 def primary_visibility(settings, camera) -> str:
     """The plan's primary visibility: `settings.primary` where a rasterizer can sample the camera
     (a planar model, one sub-ray per sample), else ray-cast."""
@@ -81,7 +100,17 @@ def culls_tiles(settings, camera: str = "pinhole") -> bool:
 
     if settings.tile_culling is not None:
         return settings.tile_culling
+    if settings.tile_lists:  # the lists start from the cull's entries
+        return True
     return settings.msaa > 1 and CAMERA_MODELS[camera].culls_tiles_by_default
+
+
+def tile_list_bound(settings, camera: str = "pinhole") -> int:
+    """The triangles a tile's list holds at most for ray-cast primaries of a `camera` model (its
+    name) when they are tile-culled; 0: no lists, per-ray traversal from the tile's entries."""
+    if settings.tile_lists is not None:
+        return settings.tile_lists
+    return 0
 
 
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
@@ -183,6 +212,7 @@ class PrimaryRaysPass(Pass):
             return None
         sub = f", {plan.samples} sub-rays per sample ({plan.shading})" if plan.samples > 1 else ""
         tiles = ", tile frustum culling (bvh2)" if plan.tile_culling else ""
+        tiles += f", tile triangle lists of {plan.tile_lists}" if plan.tile_lists else ""
         return f"primary visibility = rays ({plan.camera} camera{sub}{tiles})"
 
     def io(self, plan: FramePlan) -> list:
@@ -198,6 +228,9 @@ class PrimaryRaysPass(Pass):
             out += [write("tile_entries", Buffer(lambda s: frame_tiles(s) * (TILE_ENTRIES + 1) * 4,
                                                  f"{TILE_ENTRIES + 1} words per {TILE_RAYS}-pixel tile")),
                     write("tile_planes", Buffer(lambda s: frame_tiles(s) * 80, "5 planes per tile"))]
+        if plan.tile_lists:
+            out.append(write("tile_tris", Buffer(lambda s, n=plan.tile_lists: frame_tiles(s) * (n + 1) * 8,
+                                                 f"{plan.tile_lists + 1} x 8 bytes per tile")))
         return out
 
     def setup(self, gl, plan: FramePlan) -> None:
@@ -206,16 +239,20 @@ class PrimaryRaysPass(Pass):
         self.block = msaa_block(plan.samples)
         tiles = {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": TILE_ENTRIES, "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
                  "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
+        lists = {"TILE_TRIS": plan.tile_lists, "TILE_TRIS_BINDING": SSBO["tile_tris"]} if plan.tile_lists else {}
         base = {**layout_defines(DEFAULT_BINDING, self.layout), **camera_defines(plan), "SAMPLED": int(plan.sampled),
                 "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
                 "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples,
-                "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles}
+                "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles, **lists}
         self.msaa = uses_msaa(plan)
         self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
                          for mode in ((1, 2) if self.msaa else (0,))}
         self.cull = (shaders.compute(gl.ctx, "accel/tile_cull.comp", {**layout_defines(DEFAULT_BINDING, "bvh2"),
                                                                      **camera_defines(plan), **tiles, "TILE_CAMERA": 1})
                      if plan.tile_culling else None)
+        self.lists = (shaders.compute(gl.ctx, "accel/tile_tris.comp", {**layout_defines(DEFAULT_BINDING, "bvh2"),
+                                                                      **tiles, **lists})
+                      if plan.tile_lists else None)
         # msaa_count is zeroed and read back through copies (GPU-side), never written or read by the
         # CPU itself: the CPU reading it every frame made the NVIDIA driver keep it in host memory,
         # and each atomic on it then took ~1.1 us across the bus (H200: 80 ms for one per
@@ -281,6 +318,8 @@ class PrimaryRaysPass(Pass):
         every sub-ray the set's rounds cast), read by every round's trace."""
         fc.resource("tile_entries").bind_to_storage_buffer(SSBO["tile_entries"])
         fc.resource("tile_planes").bind_to_storage_buffer(SSBO["tile_planes"])
+        if self.lists is not None:
+            fc.resource("tile_tris").bind_to_storage_buffer(SSBO["tile_tris"])
         if not fc.round.first:
             return
         set_eye_uniforms(self.cull, fc)
@@ -288,6 +327,9 @@ class PrimaryRaysPass(Pass):
         nx, ny = tile_grid(*fc.sizing.size)
         fc.stage("cull", lambda: (self.cull.run(nx, ny, fc.sizing.layers),
                                   fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)))
+        if self.lists is not None:  # each tile's triangles, from its entries (HVVR's tile beams)
+            fc.stage("lists", lambda: (self.lists.run(nx, ny, fc.sizing.layers),
+                                       fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)))
 
     def dispatch_trace(self, fc) -> None:
         """One workgroup per block of pixels (msaa_block), one invocation per sub-ray."""
@@ -296,5 +338,6 @@ class PrimaryRaysPass(Pass):
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
     def release(self) -> None:
-        for p in [*self.programs.values(), *self.count_io, *self.fences.values(), *([self.cull] if self.cull else [])]:
+        for p in [*self.programs.values(), *self.count_io, *self.fences.values(), *([self.cull] if self.cull else []),
+                  *([self.lists] if self.lists else [])]:
             p.release()

@@ -99,26 +99,32 @@ bool bvh_begin(Ray r, out Hit h, out RayShear s, out vec3 inv) {
     return true;
 }
 
-// Test the triangles of one leaf, shrinking h.t on every closer hit. A hit at exactly h.t (a ray
-// through an edge two triangles share) goes to the lower triangle ID, so every layout and the
-// tile-culled traversal, which meet the two in different orders, report the same one.
+// Test the triangle in BVH slot `slot` (its three vec4s a, b, c; a.w: the original ID bits),
+// shrinking h.t on a closer hit. A hit at exactly h.t (a ray through an edge two triangles share)
+// goes to the lower triangle ID, so every layout, the tile-culled traversal and the tile triangle
+// lists (rt/primary.comp), which meet the two in different orders, report the same one.
+bool bvh_test_triangle(RayShear s, uint slot, vec4 a, vec4 b, vec4 c, float tmin, inout Hit h) {
+    BVH_WORK(2);
+    float t;
+    vec2 uv;
+    // with a hit so far, admit t == h.t: the next float up is the open bound
+    float tmax = h.prim == BVH_MISS ? h.t : uintBitsToFloat(floatBitsToUint(h.t) + 1u);
+    if (intersect_triangle(s, a.xyz, b.xyz, c.xyz, tmin, tmax, t, uv)
+        && (t < h.t || floatBitsToUint(a.w) < h.prim)) {
+        h.t = t;
+        h.uv = uv;
+        h.slot = slot;
+        h.prim = floatBitsToUint(a.w);
+        return true;
+    }
+    return false;
+}
+
+// Test the triangles of one leaf (bvh_test_triangle); with any_hit, stop at the first hit.
 bool bvh_leaf(RayShear s, int first, int count, float tmin, bool any_hit, inout Hit h) {
     bool found = false;
     for (int i = first; i < first + count; ++i) {
-        BVH_WORK(2);
-        vec4 a = bvh_tris[3 * i];
-        vec4 b = bvh_tris[3 * i + 1];
-        vec4 c = bvh_tris[3 * i + 2];
-        float t;
-        vec2 uv;
-        // with a hit so far, admit t == h.t: the next float up is the open bound
-        float tmax = h.prim == BVH_MISS ? h.t : uintBitsToFloat(floatBitsToUint(h.t) + 1u);
-        if (intersect_triangle(s, a.xyz, b.xyz, c.xyz, tmin, tmax, t, uv)
-            && (t < h.t || floatBitsToUint(a.w) < h.prim)) {
-            h.t = t;
-            h.uv = uv;
-            h.slot = uint(i);
-            h.prim = floatBitsToUint(a.w);
+        if (bvh_test_triangle(s, uint(i), bvh_tris[3 * i], bvh_tris[3 * i + 1], bvh_tris[3 * i + 2], tmin, h)) {
             found = true;
             if (any_hit)
                 return true;

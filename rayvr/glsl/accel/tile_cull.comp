@@ -38,6 +38,7 @@ layout(local_size_x = TILE_RAYS) in;
 
 #define TILE_CULL_WRITER 1   // declares tile_entries writable itself
 #include "bvh.glsl"
+#include "tile_frustum.glsl"
 
 // TILE_MIN_COS: layout.glsl (rayvr/accel/frustum.py MIN_COS)
 
@@ -97,18 +98,6 @@ shared bool cut_opened;
                                                                      : max(red[lid], red[lid + st])); \
         barrier(); \
     } \
-}
-
-bool frustum_overlaps(vec4 planes[5], vec3 lo, vec3 hi) {
-    vec3 c = 0.5 * (lo + hi), e = 0.5 * (hi - lo);   // an inverted (empty) box has e < 0: culled
-    for (int k = 0; k < 5; ++k) {
-        vec3 n = planes[k].xyz;
-        float m = dot(n, c) - dot(abs(n), e);
-        float eps = TILE_SLACK * (dot(abs(n), abs(c) + abs(e)) + abs(planes[k].w));
-        if (m > planes[k].w + eps)
-            return false;
-    }
-    return true;
 }
 
 void main() {
@@ -263,7 +252,7 @@ void main() {
     // of c.x (keys at once, then a stable insertion sort; equal keys keep tree order). A ray then
     // meets near entries first, its h.t shrinks early and farther entries fail their slab test, or
     // end its walk (bvh2.glsl bvh_traverse_entries). The hits cannot change: the leaf test's tie
-    // rule (bvh.glsl bvh_leaf) makes them independent of the order.
+    // rule (bvh.glsl bvh_test_triangle) makes them independent of the order.
     if (lid < uint(count)) {
         uint e = cut[cur][lid];
         int parent = int(e >> 1u);

@@ -67,15 +67,28 @@ shared vec2 sub_offset[CAMERA_SUBSAMPLES];  // camera_subpixel(i), computed once
 uniform int subsample;  // PRIMARY_MODE 0
 uniform int msaa_round;  // PRIMARY_MODE 2
 
-// Closest hit of the camera ray (o, d) of pixel p: from the BVH root, or with tile culling
-// (TILE_ENTRIES_BINDING, frame/passes/primary_rays.py) from the entry list of the pixel's tile, which
-// tile_cull.comp made for every sub-ray of the tile's pixels: the same hit, less work.
-void cast_primary(ivec3 p, ivec2 size, vec3 o, vec3 d, out Hit h) {
-    Ray r = primary_ray(p.z, o, d);
-#ifdef TILE_ENTRIES_BINDING
-    trace_closest_in_tile(r, primary_tile(p, size), h);
+#if PRIMARY_MODE == 1
+#define PRIMARY_GROUP MSAA_GROUP
 #else
-    trace_closest(r, h);
+#define PRIMARY_GROUP (PIXEL_TILE * PIXEL_TILE)
+#endif
+#if defined(TILE_TRIS_BINDING) && PRIMARY_MODE != 2
+#include "tile_list_cast.glsl"
+#endif
+
+// Closest hit h of the camera ray (o, d) of pixel p where `valid` (h as it was elsewhere): from the
+// BVH root, or with tile culling (TILE_ENTRIES_BINDING, frame/passes/primary_rays.py) from the entry
+// list of the pixel's tile, which tile_cull.comp made for every sub-ray of the tile's pixels, or with
+// tile lists (TILE_TRIS_BINDING) against the tile's triangle list (tile_list_cast.glsl): the same
+// hit, less work. Called by every invocation of the group (the tile list path shares workgroup memory).
+void cast_primary(ivec3 p, ivec2 size, bool valid, vec3 o, vec3 d, inout Hit h) {
+    Ray r = primary_ray(p.z, o, d);
+#if defined(TILE_TRIS_BINDING) && PRIMARY_MODE != 2
+    cast_tile_list(r, primary_tile(p, size), valid, h);
+#elif defined(TILE_ENTRIES_BINDING)
+    if (valid) trace_closest_in_tile(r, primary_tile(p, size), h);
+#else
+    if (valid) trace_closest(r, h);
 #endif
 }
 
@@ -165,7 +178,8 @@ void main() {
     Hit h;
     h.prim = BVH_MISS;
     h.t = 0.0;
-    if (inside && camera_subray(p.z, vec2(p.xy) + 0.5, vec2(size), sub, o, d)) cast_primary(p, size, o, d, h);
+    bool valid = inside && camera_subray(p.z, vec2(p.xy) + 0.5, vec2(size), sub, o, d);
+    cast_primary(p, size, valid, o, d, h);
     sub_tri[lid] = h.prim;
     sub_t[lid] = h.t;
     barrier();
@@ -174,19 +188,20 @@ void main() {
     // One round is the least a frame runs (primary_rays.py): only a count above 1 needs telling, and
     // only when it is above what is already there (most workgroups see one triangle per pixel).
     if (lid == 0u && group_count > 1u && group_count > msaa_count) atomicMax(msaa_count, group_count);
-#else
-    if (!inside) return;
+#elif PRIMARY_MODE == 0
     vec2 pixel = vec2(p.xy) + 0.5;
-#if PRIMARY_MODE == 0
     vec3 o, d;
     Hit h;
     h.prim = BVH_MISS;
     h.t = 0.0;
+    bool valid = inside && camera_subray(p.z, pixel, vec2(size), uint(subsample), o, d);
+    cast_primary(p, size, valid, o, d, h);   // every invocation: the tile list path shares memory
+    if (!inside) return;
     bool sample_here = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
-    if (camera_subray(p.z, pixel, vec2(size), uint(subsample), o, d)) cast_primary(p, size, o, d, h);
     // A pixel without a sample (foveated) weighs nothing: the resolve fills it for display.
     store(p, h.prim, uint(subsample), h.t, sample_here ? 1.0 / float(CAMERA_SUBSAMPLES) : 0.0);
 #else
+    if (!inside) return;
     int slot = msaa_round < 0 ? 0 : int(max(msaa_count, 1u)) - 1 - msaa_round;
     uvec4 head = slot >= 0 ? HIT(0) : uvec4(0u);  // a round past the count reads no list
     uint n = (head.z >> 8) & 255u, covered = head.z >> 16;
@@ -198,6 +213,5 @@ void main() {
     } else {
         store(p, BVH_MISS, 0u, 0.0, 0.0);  // nothing in this slot: shaded as background, weighs nothing
     }
-#endif
 #endif
 }
