@@ -72,6 +72,12 @@ MAX_DUPLICATION = 0.3       # SBVH: at most 30 % more triangle references than t
 # 16.9 s, SAH cost 55.95; 64 -> 6.8 s, 56.92 (the SAH build: 69.05)
 SPATIAL_MIN_REFS = 64
 TRIANGLE_BYTES = 48
+# Box tests admit boxes entered up to this factor beyond the closest hit so far (glsl/accel/bvh.glsl
+# bvh_reach): a box's computed entry and a hit's computed distance each carry a few ulps, and a
+# triangle lying in its box's face (a floor) is entered at its own hit distance, so without it the
+# traversal order decided whether a closer hit was found (H200, Sponza, an edge pixel of a tile-culled
+# frame: bench/results/h200/2026-12-02/lists). 2^-16: ~128 ulps.
+HIT_REACH = declare("BVH_HIT_REACH", 1.0 + 2.0 ** -16)
 SAFE_INVERSE_TINY = declare("BVH_SAFE_INVERSE_TINY", 1e-20)  # safe_inverse (and bvh.glsl's): |d| below it is zero
 # offset_ray (and glsl/accel/ray.glsl's): within OFFSET_ORIGIN_BAND of the origin a fixed distance
 # OFFSET_FLOAT_SCALE along the normal, else OFFSET_INT_SCALE float ulps per unit normal.

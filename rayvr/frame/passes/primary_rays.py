@@ -77,6 +77,7 @@ TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibilit
                             commands=("capture", "preview", "info", "bench")))
 # The tile list stage (glsl/accel/tile_tris.comp): invocations a tile, nodes one sweep of a tile's walk
 # may hold (more: the tile overflows, as with more than its bound of triangles), and the count that says so.
+DEFAULT_TILE_TRIS = declare_constant("DEFAULT_TILE_TRIS", 256)  # the bound where the renderer picks lists
 TILE_LIST_GROUP = declare_constant("TILE_LIST_GROUP", 128)
 TILE_FRONT = declare_constant("TILE_FRONT", 256)
 TILE_OVERFLOW = declare_constant("TILE_OVERFLOW", 0xFFFFFFFF, uint=True)

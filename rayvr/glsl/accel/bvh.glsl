@@ -74,16 +74,23 @@ vec3 bvh_safe_inverse(vec3 d) {
     return 1.0 / mix(d, sgn * tiny, lessThan(abs(d), vec3(tiny)));
 }
 
+// How far beyond the closest hit so far t a box may start and still be entered (BVH_HIT_REACH:
+// rayvr/accel/bvh.py HIT_REACH): a closer hit in a box whose computed entry rounds past t is found
+// whatever the order of the walk, so every layout and order returns the same hit.
+float bvh_reach(float t) {
+    return t * BVH_HIT_REACH;
+}
+
 // Slab test with the near/far plane of each axis picked by the direction's sign (an inverted empty
 // box then never overlaps). far is widened by 1 + 2 gamma(3) (Ize 2013) so float rounding cannot
-// cull a box that the ray grazes.
+// cull a box that the ray grazes; tmax (the closest hit so far) by bvh_reach.
 bool bvh_slab(vec3 o, vec3 inv, vec3 lo, vec3 hi, float tmin, float tmax, out float tnear) {
     bvec3 neg = lessThan(inv, vec3(0.0));
     vec3 t0 = (mix(lo, hi, neg) - o) * inv;
     vec3 t1 = (mix(hi, lo, neg) - o) * inv;
     tnear = max(max(t0.x, t0.y), max(t0.z, tmin));
     float tfar = min(min(t1.x, t1.y), t1.z) * 1.00000024;
-    return tnear <= min(tfar, tmax);
+    return tnear <= min(tfar, bvh_reach(tmax));
 }
 
 // Start of every layout's traversal: h = a miss at tmax; false for a ray that traces nothing.

@@ -35,7 +35,7 @@ bool bvh2_walk(Ray r, RayShear s, vec3 inv, bool any_hit, inout Hit h, int node)
             if (bvh_leaf(s, m.x, m.z, r.tmin, any_hit, h) && any_hit)
                 return true;
             hl = false;
-            hr = hr && tr <= h.t;
+            hr = hr && tr <= bvh_reach(h.t);
         }
         if (hr && m.w > 0) {
             if (bvh_leaf(s, m.y, m.w, r.tmin, any_hit, h) && any_hit)

@@ -51,7 +51,7 @@ layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhWide { u
         vec3 t0 = vec3(BVH_NEAR(0, i), BVH_NEAR(1, i), BVH_NEAR(2, i)) * step + base_near; \
         vec3 t1 = vec3(BVH_FAR(0, i), BVH_FAR(1, i), BVH_FAR(2, i)) * step + base_far; \
         tn[i] = max(max(t0.x, t0.y), max(t0.z, r.tmin)); \
-        if (tn[i] <= min(min(min(t1.x, t1.y), t1.z) * 1.00000024, h.t)) { \
+        if (tn[i] <= min(min(min(t1.x, t1.y), t1.z) * 1.00000024, bvh_reach(h.t))) { \
             entered |= 1u << (i); \
             if (BVH_BYTE(6, i) != 0u) leaves |= 1u << (i); \
         } \
@@ -59,7 +59,7 @@ layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhWide { u
 // Internal child i: dropped when it starts beyond a hit found in this node's leaves; else the nearest.
 #define BVH_CHILD_NEAREST(i) \
     if ((inner & (1u << (i))) != 0u) { \
-        if (tn[i] > h.t) inner &= ~(1u << (i)); \
+        if (tn[i] > bvh_reach(h.t)) inner &= ~(1u << (i)); \
         else if (tn[i] < nearest_t) { nearest_t = tn[i]; nearest = (i); } \
     }
 

@@ -12,6 +12,16 @@
 // rays then walk the BVH from the tile's entries (bvh2.glsl trace_closest_in_tile). Never a
 // dropped triangle: a list holds every triangle of the tile's frustum, or the tile has none.
 #include "../layout.glsl"
+#ifndef TILE_TRIS                 // the pass sets them (frame/passes/primary_rays.py)
+#define TILE_TRIS DEFAULT_TILE_TRIS
+#define TILE_TRIS_BINDING SSBO_TILE_TRIS
+#endif
+#ifndef TILE_ENTRIES_BINDING
+#define TILE_RAYS DEFAULT_TILE_RAYS
+#define TILE_ENTRIES DEFAULT_TILE_ENTRIES
+#define TILE_ENTRIES_BINDING SSBO_TILE_ENTRIES
+#define TILE_PLANES_BINDING SSBO_TILE_PLANES
+#endif
 layout(local_size_x = TILE_LIST_GROUP) in;
 #include "bvh.glsl"           // BVH_WIDTH 2, with TILE_ENTRIES_BINDING: tile_entries, tile_planes
 #include "tile_frustum.glsl"
