@@ -140,7 +140,30 @@ def _tradeoff(args, out, camera_from_args):
 def _budget(args, out, camera_from_args):
     from . import tradeoff
 
-    tradeoff.run_budget(out, budgets=tuple(args.budget_ms), quick=args.quick, **_sweep_arguments(args))
+    tradeoff.run_budget(out, budgets=tuple(args.budget_ms or tradeoff.BUDGETS_MS), quick=args.quick,
+                        **_sweep_arguments(args))
+
+
+def _vr(args, out, camera_from_args):
+    from .. import settings as settings_mod
+    from ..util.extras import require
+    from . import vr
+
+    quick = vr.QUICK if args.quick else {}
+    budgets = args.budget_ms or (vr.BUDGET_MS,)
+    if len(budgets) != 1:
+        raise ValueError(f"bench vr --budget-ms takes one budget (its budget config), got {len(budgets)}")
+    configs = args.configs or quick.get("configs", vr.MATERIAL_CONFIGS)
+    if "budget" in configs:
+        require("flip_evaluator", "bench vr --configs budget")  # the pick predicts image error with FLIP
+    # the render flags given (--tile-culling, --ssaa) are one variant of every row; --msaa is the counts
+    fields = {k: v for k, v in settings_mod.given_by_args(args, "bench").items() if k != "msaa"}
+    variants = {",".join(f"{k}={v}" for k, v in fields.items()): fields} if fields else None
+    vr.run(out, size=quick.get("size", args.size), scenes=_scenes(args), poses=args.poses or quick.get("poses", vr.POSES),
+           pose_seed=args.pose_seed, cameras=args.cameras or quick.get("cameras", vr.CAMERAS),
+           counts=args.counts or ((args.msaa,) if args.msaa else quick.get("counts", vr.COUNTS)), configs=configs,
+           variants=variants, budget_ms=budgets[0], repeat=2 if args.quick else share(args.repeat, 5),
+           warmup=1 if args.quick else 3, quick=args.quick, backend=args.backend)
 
 
 def _crosscheck(args, out, camera_from_args):
@@ -180,6 +203,9 @@ AREAS: dict[str, Area] = {
     "crosscheck": Area("the reference vs Mitsuba 3 on the Cornell boxes", _crosscheck, ("mitsuba",) + FLIP),
     "workers": Area("frames/s of a capture path in one process and on --workers N,M Ray workers", _workers,
                     workers="list"),
+    "vr": Area("the headset's frame on --poses N seeded random head poses (--pose-seed): camera model (--cameras) x "
+               "MSAA (--counts) x materials config (--configs shadows,room,budget): GPU ms per pass and frame, "
+               "median / worst / best over the poses", _vr),
 }
 
 

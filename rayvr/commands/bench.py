@@ -13,6 +13,8 @@ from .args import count as _count, size as _size
 
 COMMAND = "bench"
 REPEAT = _count(1, 100_000)  # bench --repeat: timed frames per measurement
+MAX_POSES = 10_000  # bench vr --poses
+MAX_SEED = 2**63 - 1  # bench vr --pose-seed: numpy's generators take any non-negative integer
 
 
 def _worker_counts(text: str) -> str:
@@ -78,10 +80,13 @@ def _budgets(text: str) -> list[float]:
 
 def add_parser(sub) -> None:
     from ..bench import AREAS, areas_help
+    from ..bench.head_poses import POSE_SEED
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
     b.add_argument("area", choices=tuple(AREAS), help=areas_help())
-    b.add_argument("--budget-ms", type=_budgets, default=[4.0, 8.0], help="frame budgets for 'budget' (default 4,8)")
+    b.add_argument("--budget-ms", type=_budgets,
+                   help="budget: the frame budgets, comma-separated (default 4,8); vr: the one budget of its budget "
+                        "config (default 11.1)")
     b.add_argument("--out", default="bench/results", help="folder for JSON/markdown results")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")
     b.add_argument("--scenes", default="default,sponza", help="comma-separated: default, sponza")
@@ -107,13 +112,21 @@ def add_parser(sub) -> None:
                    help="primary: the bench views' rows to measure, comma-separated, alone (default: the paper's "
                         "Table 5 rows at 2160x1200, then raster_gbuffer, pinhole at --size; among raster_gbuffer, "
                         "pinhole, distorted, distorted_chromatic, foveated, wide_210x130, dof_0.5m, dof_0.25m, "
-                        "dof_0.1m); gi: the parts to measure (default all: photon, reuse, path)")
+                        "dof_0.1m); gi: the parts to measure (default all: photon, reuse, path); vr: the materials "
+                        "configs (default shadows,room,budget)")
     b.add_argument("--reference-spp", type=_count(16, 1 << 16),
                    help="gi: samples per pixel of the path reference (default 1024; --quick 64)")
     b.add_argument("--reference-photons", type=_count(256, 1 << 22),
                    help="gi: photon paths of the photon tables' reference (default 4194304; --quick 32768)")
     b.add_argument("--counts", type=_sample_counts,
-                   help="primary: sub-rays per sample of the bench views' rows, comma-separated (default 1,4,16)")
+                   help="primary: sub-rays per sample of the bench views' rows, comma-separated (default 1,4,16); "
+                        "vr: the MSAA counts (default 1,4,16,32)")
+    b.add_argument("--cameras", type=_names,
+                   help="vr: the camera models, comma-separated among primary's --configs names (default "
+                        "raster_gbuffer,pinhole,distorted_chromatic,foveated,wide_210x130,dof_0.5m)")
+    b.add_argument("--poses", type=_count(1, MAX_POSES), help="vr: random head poses per scene (default 8; --quick 2)")
+    b.add_argument("--pose-seed", type=_count(0, MAX_SEED), default=POSE_SEED,
+                   help=f"vr: the seed the head poses are drawn from (default {POSE_SEED})")
     add_camera_model_arguments(b)
     settings_mod.add_arguments(b, COMMAND)
     b.set_defaults(func=cmd_bench)

@@ -1,0 +1,278 @@
+"""`rayvr bench vr`: the frame a headset asks for, timed on seeded random head poses (issue 22).
+
+Per scene (the built-in room `default`, and Sponza from the shared scenes when present), `poses`
+head poses are drawn inside the room or Sponza's nave (rayvr/bench/head_poses.py: eye height and yaw
+drawn, pitch within +-20 degrees, the bench rig's IPD, fov and near plane), and every cell of a
+grid is timed on each of them:
+
+  materials config x variant x camera model x MSAA count
+
+- materials configs (MATERIAL_CONFIGS): `shadows`, shadows on every material plus the scene's mirrors
+  on one-bounce BVH reflections (bench/rays.py MIRRORS: what `bench rays` and `bench stereo` call the
+  hybrid frame); `room`, rayvr/assets/default_room.toml (the room only); `budget`, the effects
+  capture's `--budget-ms` picks for `budget_ms` (default 11.1 ms, a 90 Hz frame), chosen once per
+  scene on its bench view at the bench's size, starting from the scene's shipped config;
+- variants: extra RenderSettings fields per row ({name: {field: value}}, default one variant
+  `default` without any), so rows such as a renderer switch on and off need no new bench;
+- camera models: bench/primary.py CONFIGS, ray-cast primary visibility (the pinhole's `pinhole`
+  row too), with the raster G-buffer pinhole row `raster_gbuffer` (1x only) for reference;
+- MSAA: sub-rays per sample (RenderSettings.msaa).
+
+Each (cell, pose) is one row of vr.json: the median GPU ms of the frame and of every pass over
+`repeat` frames after a warm-up that lasts until frame times settle (bench/rays.py time_frame; GL
+timer queries), and `visibility_ms`, what makes the G-buffer (bench/primary.py's definition). vr.md
+has a table per scene: each cell's median, worst and best frame over the poses, the pose that was
+worst, and its most expensive passes. The report is rewritten after every cell (a run cut short keeps
+what it measured); rows of scenes a run does not measure stay from the folder's earlier vr.json
+when it was taken on the same device with the same size, poses and seed, so the scenes can run as
+separate commands.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..frame.cameras.rig import StereoRig
+from ..gl.context import create_context
+from ..renderer import Renderer, RenderSettings
+from ..scene.materials import load_config
+from .head_poses import EYE_HEIGHT_M, MAX_PITCH_DEG, POSE_SEED, draw_poses, pose_bounds, region
+from .primary import CONFIGS as CAMERA_CONFIGS
+from .rays import MIRRORS, hybrid_config, time_frame
+from .report import device_meta, write_report
+from .scenes import bench_scenes, shipped_config
+
+MATERIAL_CONFIGS = ("shadows", "room", "budget")
+CAMERAS = ("raster_gbuffer", "pinhole", "distorted_chromatic", "foveated", "wide_210x130", "dof_0.5m")
+COUNTS = (1, 4, 16, 32)
+POSES = 8
+BUDGET_MS = 11.1  # a 90 Hz headset's frame
+VARIANTS = {"default": {}}
+GRID_FIELDS = ("primary", "msaa")  # the grid sets these per row; a variant may not
+WARMUP_S = 0.3  # the first pose of a cell warms the clocks that long at least; the next ones settle only
+TOP_PASSES = 3  # passes vr.md names per cell
+# what --quick measures (CI, llvmpipe): the room, tiny, two poses, a few cells
+QUICK = {"size": (32, 24), "poses": 2, "cameras": ("raster_gbuffer", "pinhole", "distorted_chromatic"),
+         "counts": (1, 4), "configs": ("shadows", "room")}
+# earlier rows are kept only when these meta entries match
+SAME_RUN = ("gl_renderer", "gl_version", "per_eye_size", "quick", "poses", "pose_seed")
+
+
+def checked_variants(variants) -> dict:
+    """{name: RenderSettings fields}, each refused in one line before any work when RenderSettings
+    does not take it or it sets a field the grid sets."""
+    variants = dict(VARIANTS if variants is None else variants)
+    if not variants:
+        raise ValueError("bench vr needs at least one variant")
+    for name, fields in variants.items():
+        clash = [f for f in fields if f in GRID_FIELDS]
+        if clash:
+            raise ValueError(f"bench vr variant {name!r} sets {', '.join(clash)}, which the grid sets per row")
+        RenderSettings(**fields)  # an unknown option or value: its one-line refusal
+    return variants
+
+
+def checked_grid(cameras, counts, configs) -> None:
+    from ..frame.cameras.sampling import SAMPLE_COUNTS
+
+    for what, names, allowed in (("--cameras", cameras, CAMERA_CONFIGS), ("--configs", configs, MATERIAL_CONFIGS),
+                                 ("--counts", counts, SAMPLE_COUNTS)):
+        if not names or any(x not in allowed for x in names):
+            raise ValueError(f"bench vr {what} must be among {', '.join(map(str, allowed))}, "
+                             f"got {','.join(map(str, names)) or 'none'}")
+
+
+def cells(cameras, counts, configs, variants) -> list[tuple]:
+    """(config, variant, camera, msaa) in the order they are timed: the raster reference at 1x only."""
+    return [(c, v, cam, n) for c in configs for v in variants for cam in cameras for n in counts
+            if CAMERA_CONFIGS[cam][2] == "rays" or n == 1]
+
+
+def materials_config(gl, config: str, name: str, scene, rig, budget_ms: float, progress: bool):
+    """The MaterialConfig of `config` for scene `name` and what to record about it, or (None, why)
+    where it does not apply. `budget` renders its pick on `gl` through `rig` (capture's --budget-ms)."""
+    if config == "shadows":
+        return hybrid_config(name), {"default": "shadows", "reflections": list(MIRRORS.get(name, ())), "bounces": 1}
+    if config == "room":
+        if name != "default":
+            return None, "the room's config (default_room.toml) is the room's only"
+        return load_config(shipped_config(name)), {"file": "rayvr/assets/default_room.toml"}
+    from ..quality.budget import auto_config, describe_pick
+
+    base = shipped_config(name)
+    with Renderer(scene, load_config(base), gl=gl) as r:
+        picked, pick = auto_config(r, rig, budget_ms, progress=progress)
+    if progress:
+        print(describe_pick(pick), flush=True)
+    return picked, {"budget_ms": budget_ms, "base": base.name if base else "all raster", "picked_on": "the bench view",
+                    **pick}
+
+
+def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: float) -> dict:
+    names, med, total = time_frame(r, rig, repeat, warmup, warmup_s)
+    passes = {k: med[k] for k in names if k in med}
+    visibility = passes.get("visibility", 0.0) + passes.get("primary_rays", 0.0) + passes.get("gbuffer", 0.0)
+    return {"frame_ms": total, "visibility_ms": visibility, "passes": passes}
+
+
+def kept_rows(path: Path, meta: dict, scenes) -> tuple[list, dict]:
+    """Rows (and per-scene meta) of an earlier vr.json at `path` for scenes this run does not
+    measure, if that run matches this one (SAME_RUN); else nothing."""
+    try:
+        old = json.loads(path.read_text())
+        om = old["meta"]
+        if any(om.get(k) != meta.get(k) for k in SAME_RUN):
+            return [], {}
+        rows = [r for r in old["rows"] if r["scene"] not in scenes]
+        return rows, {s: m for s, m in om.get("scenes", {}).items() if s not in scenes and any(r["scene"] == s for r in rows)}
+    except (OSError, ValueError, KeyError, TypeError):
+        return [], {}
+
+
+def spread(rows) -> list[dict]:
+    """Per scene and cell (config, variant, camera, msaa): frame ms median / worst / best over the
+    poses, the worst pose, the median visibility ms and the median of each pass, most expensive first."""
+    groups: dict = {}
+    for r in rows:
+        groups.setdefault((r["scene"], r["config"], r["variant"], r["camera"], r["msaa"]), []).append(r)
+    out = []
+    for (scene, config, variant, camera, msaa), group in groups.items():
+        frame = [g["frame_ms"] for g in group]
+        worst = group[int(np.argmax(frame))]
+        passes = {k: float(np.median([g["passes"].get(k, 0.0) for g in group])) for k in group[0]["passes"]}
+        out.append({"scene": scene, "config": config, "variant": variant, "camera": camera, "msaa": msaa,
+                    "primary": group[0]["primary"], "poses": len(group), "median_ms": float(np.median(frame)),
+                    "worst_ms": max(frame), "best_ms": min(frame), "worst_pose": worst["pose"]["index"],
+                    "visibility_median_ms": float(np.median([g["visibility_ms"] for g in group])),
+                    "visibility_worst_ms": max(g["visibility_ms"] for g in group),
+                    "passes": dict(sorted(passes.items(), key=lambda kv: -kv[1]))})
+    return out
+
+
+def markdown(result: dict) -> str:
+    meta, rows = result["meta"], result["rows"]
+    w, h = meta["per_eye_size"]
+    lines = ["# rayvr bench vr: the headset's frame on random head poses", "",
+             f"- **device**: {meta.get('gl_renderer')} ({meta.get('gl_vendor')}), driver {meta.get('gl_version')}",
+             f"- **resolution**: 2x{w}x{h} (both eyes, {w}x{h} each)",
+             f"- **poses**: {meta['poses']} per scene, seed {meta['pose_seed']} (--pose-seed); eye height "
+             f"{EYE_HEIGHT_M[0]}-{EYE_HEIGHT_M[1]} m above the floor, yaw 0-360 deg, pitch within +-{MAX_PITCH_DEG:g} "
+             f"deg, no roll, IPD {meta['ipd']} m",
+             f"- **timing**: {meta['what_times_include']}",
+             f"- **grid**: configs {', '.join(meta['configs'])}; variants "
+             + ", ".join(f"{k} {json.dumps(v)}" for k, v in meta["variants"].items())
+             + f"; cameras {', '.join(meta['cameras'])}; MSAA {', '.join(map(str, meta['counts']))}",
+             f"- **date**: {meta.get('date')}, rayvr {meta.get('rayvr')}, {meta['seconds']:.0f} s"]
+    if not meta.get("timings_meaningful", True):
+        lines.append("- **A software rasterizer: its GL timer queries do not measure GPU work; the ms are for "
+                     "correctness only.**")
+    if meta.get("kept_rows"):
+        lines.append(f"- **kept**: {meta['kept_rows']}")
+    for name, why in meta.get("skipped", {}).items():
+        lines.append(f"- **skipped** {name}: {why}")
+    lines.append("")
+    summary = spread(rows)
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        sm = meta["scenes"].get(scene, {})
+        b = sm.get("pose_bounds", {})
+        lines += [f"## {scene}", "", f"Heads inside {sm.get('region', '')}: "
+                  + ", ".join(f"{a} {lo:.2f} to {hi:.2f} m" for a, (lo, hi) in b.items()) + ".", ""]
+        for config, why in sm.get("configs_skipped", {}).items():
+            lines += [f"Config {config} not measured: {why}.", ""]
+        if "budget" in sm.get("configs", {}):
+            pick = sm["configs"]["budget"]
+            by_effect: dict = {}
+            for material, effect in pick["assignment"].items():
+                by_effect.setdefault(effect, []).append(material)
+            fit = ("within it" if pick["within_budget"] else "OVER it") + ("" if pick["feasible"] else
+                                                                            ", the cheapest assignment")
+            lines += [f"Config budget: `--budget-ms {pick['budget_ms']:g}` picked on {pick['picked_on']} from "
+                      f"{pick['base']}: measured {pick['measured_ms']:.2f} ms there ({fit}); "
+                      + "; ".join(f"{e}: {', '.join(sorted(m))}" for e, m in sorted(by_effect.items())) + ".", ""]
+        lines += ["| config | variant | camera | primary | MSAA | poses | median ms | worst ms | best ms | worst pose "
+                  "| visibility median / worst ms | top passes (median ms) |", "|" + "---|" * 12]
+        for s in (s for s in summary if s["scene"] == scene):
+            top = ", ".join(f"{k} {v:.3f}" for k, v in list(s["passes"].items())[:TOP_PASSES])
+            lines.append(f"| {s['config']} | {s['variant']} | {s['camera']} | {s['primary']} | {s['msaa']} | "
+                         f"{s['poses']} | {s['median_ms']:.3f} | {s['worst_ms']:.3f} | {s['best_ms']:.3f} | "
+                         f"{s['worst_pose']} | {s['visibility_median_ms']:.3f} / {s['visibility_worst_ms']:.3f} | {top} |")
+        lines.append("")
+    return "\n".join(lines) + "\n"
+
+
+def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, pose_seed=POSE_SEED,
+        cameras=CAMERAS, counts=COUNTS, configs=MATERIAL_CONFIGS, variants=None, budget_ms=BUDGET_MS,
+        repeat=10, warmup=3, quick=False, backend=None, progress=True, gl=None) -> dict:
+    """Time the grid (cells) on `poses` head poses of each of `scenes` into `out_dir` (vr.json, vr.md).
+    `variants`: {name: RenderSettings fields} added to every row's settings (default VARIANTS); `gl`:
+    a context to render on (default: a new one from `backend`, released at the end)."""
+    from tqdm import tqdm
+
+    variants = checked_variants(variants)
+    checked_grid(cameras, counts, configs)
+    if poses < 1:
+        raise ValueError(f"bench vr --poses must be at least 1, got {poses}")
+    grid = cells(cameras, counts, configs, variants)
+    out = Path(out_dir)
+    t_start = time.perf_counter()
+    own = gl is None
+    gl = gl or create_context(backend)
+    rows, skipped = [], {}
+    try:
+        meta = {**device_meta(gl.info()), "bench": "vr", "per_eye_size": list(size), "quick": quick,
+                "poses": poses, "pose_seed": pose_seed, "repeat": repeat, "warmup_frames": warmup,
+                "configs": list(configs), "variants": variants, "cameras": list(cameras), "counts": list(counts),
+                "budget_ms": budget_ms, "timings_meaningful": not gl.is_software, "skipped": skipped,
+                "what_times_include": f"median GPU ms (GL timer queries per pass, summed over a frame's rounds) "
+                                      f"over {repeat} frames of both eyes, after a warm-up until frame times settle "
+                                      f"(at least {WARMUP_S} s on each cell's first pose); no readback",
+                "scenes": {}, "seconds": 0.0}
+        kept, kept_meta = kept_rows(out / "vr.json", meta, scenes)
+        meta["scenes"].update(kept_meta)
+        if kept:
+            meta["kept_rows"] = f"{len(kept)} rows of {', '.join(kept_meta)} from the folder's earlier vr.json"
+
+        def write() -> None:
+            meta["seconds"] = time.perf_counter() - t_start
+            result = {"meta": meta, "rows": kept + rows}
+            write_report(out, "vr", result, md=markdown(result))
+
+        for name, scene, view in bench_scenes(scenes, size, skipped):
+            heads = draw_poses(scene, name, poses, pose_seed)
+            meta["ipd"] = view.ipd
+            sm = meta["scenes"][name] = {"region": region(name).what, "pose_bounds": pose_bounds(scene, name),
+                                         "fov_y": view.fov_y, "near": view.near, "configs": {}, "configs_skipped": {},
+                                         "poses": [p.to_dict() for p in heads]}
+            mats = {}
+            for config in configs:
+                mats[config], about = materials_config(gl, config, name, scene, view, budget_ms, progress)
+                sm["configs" if mats[config] is not None else "configs_skipped"][config] = about
+            todo = [c for c in grid if mats[c[0]] is not None]
+            bar = tqdm(total=len(todo) * len(heads), desc=f"vr {name}", unit="frame", disable=not progress)
+            with Renderer(scene, gl=gl) as r:
+                for config, variant, camera, msaa in todo:
+                    model, fov, primary = CAMERA_CONFIGS[camera]
+                    r.set_materials(mats[config])
+                    r.settings = RenderSettings(primary=primary, msaa=msaa, **variants[variant])
+                    culled = r.plan(camera=model).tile_culling
+                    for head in heads:
+                        rig = StereoRig(head.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=size,
+                                        camera=model)
+                        timed = frame_row(r, rig, repeat, warmup, WARMUP_S if head.index == 0 else 0.0)
+                        rows.append({"scene": name, "pose": head.to_dict(), "config": config, "variant": variant,
+                                     "camera": camera, "camera_model": model.name, "primary": primary, "msaa": msaa,
+                                     "tile_culling": culled, **timed})
+                        bar.update(1)
+                    cell = [x["frame_ms"] for x in rows[-len(heads):]]
+                    bar.write(f"  {name:8s} {config:8s} {variant:10s} {camera:20s} {msaa:2d}x frame median "
+                              f"{np.median(cell):.3f} ms, worst {max(cell):.3f}, best {min(cell):.3f}")
+                    write()
+            bar.close()
+        write()
+    finally:
+        if own:
+            gl.release()
+    return {"meta": meta, "rows": kept + rows}
