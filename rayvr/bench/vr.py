@@ -71,7 +71,10 @@ def checked_variants(variants) -> dict:
         clash = [f for f in fields if f in GRID_FIELDS]
         if clash:
             raise ValueError(f"bench vr variant {name!r} sets {', '.join(clash)}, which the grid sets per row")
-        RenderSettings(**fields)  # an unknown option or value: its one-line refusal
+        try:
+            RenderSettings.from_dict(fields)
+        except ValueError as exc:  # an unknown option or a bad value
+            raise ValueError(f"bench vr variant {name!r}: {exc}") from None
     return variants
 
 

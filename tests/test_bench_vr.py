@@ -1,0 +1,208 @@
+"""`rayvr bench vr`: the headset's frame on seeded random head poses (issue 22). The figures come
+from the GPU machine; here: the quick run's rows and report, the poses, the refusals."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from conftest import quick_bench, run_rayvr
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    """`rayvr bench vr --quick` once for the module: (vr.json, vr.md text)."""
+    out = tmp_path_factory.mktemp("vr")
+    result = quick_bench("vr", out)
+    return result, (out / "vr.md").read_text()
+
+
+@pytest.fixture(scope="module")
+def room():
+    from rayvr.scene import loader
+
+    return loader.load(None)
+
+
+def test_the_quick_bench_times_every_cell_on_every_pose(quick):
+    result, md = quick
+    meta, rows = result["meta"], result["rows"]
+    assert meta["bench"] == "vr" and meta["gl_renderer"] and meta["per_eye_size"] == [32, 24]
+    poses = meta["scenes"]["default"]["poses"]
+    assert len(poses) == meta["poses"] >= 2
+    # the grid the meta names: every camera at every count (the raster G-buffer at 1x only), every config
+    expected = {(c, cam, n, p["index"]) for c in meta["configs"] for cam in meta["cameras"] for n in meta["counts"]
+                for p in poses if cam != "raster_gbuffer" or n == 1}
+    assert len(expected) > 2 * len(poses)
+    got = [(r["config"], r["camera"], r["msaa"], r["pose"]["index"]) for r in rows]
+    assert sorted(got) == sorted(expected)  # each once
+    assert {r["scene"] for r in rows} == {"default"} and {r["variant"] for r in rows} == {"default"}
+    for r in rows:
+        assert math.isfinite(r["frame_ms"]) and r["frame_ms"] > 0, r
+        assert r["passes"] and all(math.isfinite(v) and v >= 0 for v in r["passes"].values()), r
+        assert ("visibility" if r["camera"] == "raster_gbuffer" else "primary_rays") in r["passes"]
+        assert r["primary"] == ("raster" if r["camera"] == "raster_gbuffer" else "rays")
+        assert r["pose"] == poses[r["pose"]["index"]]
+    assert "## default" in md and meta["gl_renderer"] in md
+    assert "2x32x24" in md
+
+
+def _md_cells(md: str) -> dict:
+    """vr.md's table rows: (scene, config, variant, camera, msaa) -> (median, worst, best, worst pose)."""
+    out, scene = {}, None
+    for line in md.splitlines():
+        if line.startswith("## "):
+            scene = line[3:].strip()
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if scene and line.startswith("|") and len(cells) == 12 and cells[4].isdigit():
+            key = (scene, cells[0], cells[1], cells[2], int(cells[4]))
+            out[key] = (float(cells[6]), float(cells[7]), float(cells[8]), int(cells[9]))
+    return out
+
+
+def test_the_worst_column_is_the_slowest_pose(quick):
+    """vr.md's median / worst / best frame ms of a cell, recomputed from vr.json's rows of its poses."""
+    result, md = quick
+    table = _md_cells(md)
+    groups: dict = {}
+    for r in result["rows"]:
+        groups.setdefault((r["scene"], r["config"], r["variant"], r["camera"], r["msaa"]), []).append(r)
+    assert set(table) == set(groups)
+    for key, rows in groups.items():
+        frame = [r["frame_ms"] for r in rows]
+        median, worst, best, worst_pose = table[key]
+        assert worst == pytest.approx(max(frame), abs=6e-4), key
+        assert best == pytest.approx(min(frame), abs=6e-4), key
+        assert median == pytest.approx(float(np.median(frame)), abs=6e-4), key
+        assert worst_pose == max(rows, key=lambda r: r["frame_ms"])["pose"]["index"]
+    assert any(len({r["frame_ms"] for r in rows}) > 1 for rows in groups.values())  # poses really differ
+
+
+def test_poses_come_back_from_the_seed(quick, room):
+    from rayvr.bench.head_poses import draw_poses
+
+    result, _ = quick
+    assert result["meta"]["pose_seed"] == 22  # the fixed default
+    bench = result["meta"]["scenes"]["default"]["poses"]
+    assert [p.to_dict() for p in draw_poses(room, "default", len(bench), 22)] == bench  # what the bench timed
+    again, other = draw_poses(room, "default", 8, 22), draw_poses(room, "default", 8, 23)
+    assert again == draw_poses(room, "default", 8, 22)
+    assert draw_poses(room, "default", 3, 22) == again[:3]  # the count does not move the first poses
+    for a, b in zip(again, other):
+        assert a.position != b.position and a.yaw_deg != b.yaw_deg and a.pitch_deg != b.pitch_deg
+
+
+def _eyes_clear_of_triangles(scene, rig_kw, poses) -> None:
+    """Every eye lies inside the scene's bounds and at least `near` away from every triangle's box
+    (so from every triangle): inside the room, not in a wall, a box or a pillar."""
+    from rayvr.frame.cameras.rig import StereoRig
+
+    tris = scene.world_vertices()[scene.indices]
+    lo, hi = tris.min(axis=1), tris.max(axis=1)
+    bounds = np.asarray(scene.bounds)
+    for p in poses:
+        rig = StereoRig(p.pose, **rig_kw)
+        for eye in rig.eyes():
+            e = eye.position
+            assert np.all(e > bounds[0] + rig.near) and np.all(e < bounds[1] - rig.near), (p, e)
+            gap = np.linalg.norm(np.maximum(np.maximum(lo - e, e - hi), 0.0), axis=1)
+            assert gap.min() >= rig.near, (p, e, gap.min())
+
+
+def _check_orientation(poses) -> None:
+    for p in poses:
+        r = p.pose.rotation
+        assert np.allclose(r.T @ r, np.eye(3), atol=1e-12)
+        forward, right = -r[:, 2], r[:, 0]
+        pitch = math.degrees(math.asin(forward[1]))
+        assert abs(pitch) <= 20.0 and pitch == pytest.approx(p.pitch_deg, abs=1e-9)
+        assert abs(right[1]) < 1e-12  # no roll: the eyes stay level
+        yaw = math.degrees(math.atan2(-forward[0], -forward[2])) % 360.0  # 0 along -Z, turning left
+        assert yaw == pytest.approx(p.yaw_deg % 360.0, abs=1e-9)
+    pitches = [p.pitch_deg for p in poses]
+    assert min(pitches) < -10 and max(pitches) > 10  # drawn across the range, not one fixed view
+
+
+def test_room_poses_stay_inside_the_room(room):
+    from rayvr.bench.head_poses import draw_poses
+    from rayvr.frame.cameras.rig import StereoRig
+
+    poses = draw_poses(room, "default", 64, 22)
+    base = StereoRig.for_scene(room)
+    _eyes_clear_of_triangles(room, {"ipd": base.ipd, "near": base.near}, poses)
+    _check_orientation(poses)
+    heights = [p.position[1] for p in poses]
+    assert 1.5 <= min(heights) and max(heights) <= 1.8  # eye height above the room's floor at 0
+
+
+def test_sponza_poses_stay_inside_the_nave(shared_scene):
+    from rayvr.bench.head_poses import draw_poses
+    from rayvr.bench.scenes import SCENES
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.scene import loader
+
+    sponza = loader.load(shared_scene(SCENES["sponza"][0]))
+    poses = draw_poses(sponza, "sponza", 32, 22)
+    base = StereoRig.for_scene(sponza)
+    _eyes_clear_of_triangles(sponza, {"ipd": base.ipd, "near": 0.05}, poses)
+    _check_orientation(poses)
+    # the nave: between the colonnades (pillars from |z| = 2.06 m), above its floor (y = 0.09 m)
+    assert all(abs(p.position[2]) < 2.0 and 1.5 < p.position[1] - 0.09 < 1.85 for p in poses)
+
+
+def test_variants_name_their_rows_and_reach_the_settings(tmp_path, gl):
+    """A variant's RenderSettings fields are in the rows timed under its name: the tile culling
+    switch here (on by default with MSAA, off in the variant)."""
+    from rayvr.bench import vr
+
+    result = vr.run(tmp_path, size=(16, 12), scenes=("default",), poses=1, cameras=("pinhole",), counts=(4,),
+                    configs=("shadows",), variants={"default": {}, "per_ray": {"tile_culling": False}}, repeat=1,
+                    warmup=1, progress=False, gl=gl)
+    culled = {r["variant"]: r["tile_culling"] for r in result["rows"]}
+    assert culled == {"default": True, "per_ray": False}
+    assert json.loads((tmp_path / "vr.json").read_text())["meta"]["variants"]["per_ray"] == {"tile_culling": False}
+
+
+def test_rows_of_scenes_not_measured_stay(tmp_path, gl):
+    """A run of one scene keeps the other scene's rows of the folder's earlier run (same device, size,
+    poses and seed), so the scenes can run as separate commands; another seed starts afresh."""
+    from rayvr.bench import vr
+
+    kw = dict(size=(16, 12), scenes=("default",), poses=1, cameras=("pinhole",), counts=(1,), configs=("shadows",),
+              repeat=1, warmup=1, progress=False, gl=gl)
+    first = vr.run(tmp_path, **kw)
+    data = json.loads((tmp_path / "vr.json").read_text())
+    other = {**data["rows"][0], "scene": "sponza"}
+    data["rows"].append(other)
+    data["meta"]["scenes"]["sponza"] = data["meta"]["scenes"]["default"]
+    (tmp_path / "vr.json").write_text(json.dumps(data))
+    kept = vr.run(tmp_path, **kw)
+    assert [r["scene"] for r in kept["rows"]] == ["sponza", "default"] and "## sponza" in (tmp_path / "vr.md").read_text()
+    assert len(first["rows"]) == 1
+    fresh = vr.run(tmp_path, **{**kw, "pose_seed": 5})
+    assert [r["scene"] for r in fresh["rows"]] == ["default"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--configs", "glossy"), "bench vr --configs must be among shadows, room, budget, got glossy"),
+    (("--counts", "3"), "sub-ray counts must be among 1, 4, 8, 16, 32, got '3'"),
+    (("--poses", "0"), "argument --poses: expected a whole number from 1 to"),
+    (("--cameras", "pinhole,fisheye"), "bench vr --cameras must be among raster_gbuffer, pinhole"),
+])
+def test_bad_input_is_one_line(tmp_path, args, message):
+    run = run_rayvr("bench", "vr", "--quick", "--out", tmp_path, *args)
+    assert run.returncode == 2
+    assert message in run.stderr and len(run.stderr.strip().splitlines()) == 1, run.stderr
+    assert not (tmp_path / "vr.json").exists()
+
+
+def test_a_variant_may_not_set_what_the_grid_sets(tmp_path):
+    from rayvr.bench import vr
+
+    with pytest.raises(ValueError, match="variant 'x' sets msaa, which the grid sets per row"):
+        vr.run(tmp_path, variants={"x": {"msaa": 4}})
+    with pytest.raises(ValueError, match="variant .x.: unknown render option.s. no_such_option"):
+        vr.run(tmp_path, variants={"x": {"no_such_option": 1}})
+    assert not (tmp_path / "vr.json").exists()
