@@ -165,24 +165,40 @@ def test_variants_name_their_rows_and_reach_the_settings(tmp_path, gl):
     assert json.loads((tmp_path / "vr.json").read_text())["meta"]["variants"]["per_ray"] == {"tile_culling": False}
 
 
-def test_rows_of_scenes_not_measured_stay(tmp_path, gl):
-    """A run of one scene keeps the other scene's rows of the folder's earlier run (same device, size,
-    poses and seed), so the scenes can run as separate commands; another seed starts afresh."""
+def test_rows_of_scenes_and_configs_not_measured_stay(tmp_path, gl):
+    """A run keeps the rows of the scenes and configs it does not measure from the folder's earlier
+    run (same device, size, poses and seed), so they can run as separate commands; another seed
+    starts afresh."""
     from rayvr.bench import vr
 
-    kw = dict(size=(16, 12), scenes=("default",), poses=1, cameras=("pinhole",), counts=(1,), configs=("shadows",),
-              repeat=1, warmup=1, progress=False, gl=gl)
-    first = vr.run(tmp_path, **kw)
+    kw = dict(size=(16, 12), scenes=("default",), poses=1, cameras=("pinhole",), counts=(1,), repeat=1, warmup=1,
+              progress=False, gl=gl)
+    vr.run(tmp_path, configs=("shadows",), **kw)
     data = json.loads((tmp_path / "vr.json").read_text())
-    other = {**data["rows"][0], "scene": "sponza"}
-    data["rows"].append(other)
+    data["rows"].append({**data["rows"][0], "scene": "sponza", "frame_ms": 123.0})
     data["meta"]["scenes"]["sponza"] = data["meta"]["scenes"]["default"]
     (tmp_path / "vr.json").write_text(json.dumps(data))
-    kept = vr.run(tmp_path, **kw)
-    assert [r["scene"] for r in kept["rows"]] == ["sponza", "default"] and "## sponza" in (tmp_path / "vr.md").read_text()
-    assert len(first["rows"]) == 1
-    fresh = vr.run(tmp_path, **{**kw, "pose_seed": 5})
-    assert [r["scene"] for r in fresh["rows"]] == ["default"]
+    kept = vr.run(tmp_path, configs=("room",), **kw)
+    assert [(r["scene"], r["config"]) for r in kept["rows"]] == [("default", "shadows"), ("sponza", "shadows"),
+                                                                  ("default", "room")]
+    assert set(kept["meta"]["scenes"]["default"]["configs"]) == {"shadows", "room"}
+    md = (tmp_path / "vr.md").read_text()
+    assert "## sponza" in md and "| 123.000 |" in md and "| room | default | pinhole |" in md
+    again = vr.run(tmp_path, configs=("room",), **kw)  # measured again: replaced, not doubled
+    assert [(r["scene"], r["config"]) for r in again["rows"]] == [("default", "shadows"), ("sponza", "shadows"),
+                                                                   ("default", "room")]
+    fresh = vr.run(tmp_path, configs=("room",), pose_seed=5, **kw)
+    assert [(r["scene"], r["config"]) for r in fresh["rows"]] == [("default", "room")]
+
+
+def test_a_missing_scene_is_skipped_with_its_reason(tmp_path, gl, monkeypatch):
+    from rayvr.bench import scenes, vr
+
+    monkeypatch.setattr(scenes, "SHARED_SCENES", tmp_path / "no_scenes")
+    result = vr.run(tmp_path, size=(16, 12), scenes=("sponza",), poses=1, cameras=("pinhole",), counts=(1,),
+                    configs=("shadows",), repeat=1, warmup=1, progress=False, gl=gl)
+    assert result["rows"] == [] and "not found" in result["meta"]["skipped"]["sponza"]
+    assert "**skipped** sponza:" in (tmp_path / "vr.md").read_text()
 
 
 @pytest.mark.parametrize("args, message", [

@@ -159,8 +159,8 @@ def _vr(args, out, camera_from_args):
     # the render flags given (--tile-culling, --ssaa) are one variant of every row; --msaa is the counts
     fields = {k: v for k, v in settings_mod.given_by_args(args, "bench").items() if k != "msaa"}
     variants = {",".join(f"{k}={v}" for k, v in fields.items()): fields} if fields else None
-    vr.run(out, size=quick.get("size", args.size), scenes=_scenes(args), poses=args.poses or quick.get("poses", vr.POSES),
-           pose_seed=args.pose_seed, cameras=args.cameras or quick.get("cameras", vr.CAMERAS),
+    vr.run(out, size=quick.get("size", args.size), scenes=_scenes(args),
+           poses=args.poses or quick.get("poses", vr.POSES), pose_seed=args.pose_seed, cameras=args.cameras or quick.get("cameras", vr.CAMERAS),
            counts=args.counts or ((args.msaa,) if args.msaa else quick.get("counts", vr.COUNTS)), configs=configs,
            variants=variants, budget_ms=budgets[0], repeat=2 if args.quick else share(args.repeat, 5),
            warmup=1 if args.quick else 3, quick=args.quick, backend=args.backend)

@@ -23,9 +23,9 @@ Each (cell, pose) is one row of vr.json: the median GPU ms of the frame and of e
 timer queries), and `visibility_ms`, what makes the G-buffer (bench/primary.py's definition). vr.md
 has a table per scene: each cell's median, worst and best frame over the poses, the pose that was
 worst, and its most expensive passes. The report is rewritten after every cell (a run cut short keeps
-what it measured); rows of scenes a run does not measure stay from the folder's earlier vr.json
-when it was taken on the same device with the same size, poses and seed, so the scenes can run as
-separate commands.
+what it measured); rows of the scenes and configs a run does not measure stay from the folder's
+earlier vr.json when it was taken on the same device with the same size, poses and seed, so the
+scenes and configs can run as separate commands.
 """
 from __future__ import annotations
 
@@ -110,8 +110,8 @@ def materials_config(gl, config: str, name: str, scene, rig, budget_ms: float, p
         picked, pick = auto_config(r, rig, budget_ms, progress=progress)
     if progress:
         print(describe_pick(pick), flush=True)
-    return picked, {"budget_ms": budget_ms, "base": base.name if base else "all raster", "picked_on": "the bench view",
-                    **pick}
+    return picked, {"budget_ms": budget_ms, "base": base.name if base else "all raster",
+                    "picked_on": "the bench view (pinhole, default render settings)", **pick}
 
 
 def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: float) -> dict:
@@ -121,17 +121,17 @@ def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: f
     return {"frame_ms": total, "visibility_ms": visibility, "passes": passes}
 
 
-def kept_rows(path: Path, meta: dict, scenes) -> tuple[list, dict]:
-    """Rows (and per-scene meta) of an earlier vr.json at `path` for scenes this run does not
-    measure, if that run matches this one (SAME_RUN); else nothing."""
+def kept_rows(path: Path, meta: dict, measured: set) -> tuple[list, dict]:
+    """Rows of an earlier vr.json at `path` whose (scene, config) this run does not measure, and
+    that run's per-scene meta, if it matches this run (SAME_RUN); else nothing."""
     try:
         old = json.loads(path.read_text())
         om = old["meta"]
         if any(om.get(k) != meta.get(k) for k in SAME_RUN):
             return [], {}
-        rows = [r for r in old["rows"] if r["scene"] not in scenes]
-        return rows, {s: m for s, m in om.get("scenes", {}).items() if s not in scenes and any(r["scene"] == s for r in rows)}
-    except (OSError, ValueError, KeyError, TypeError):
+        rows = [r for r in old["rows"] if (r["scene"], r["config"]) not in measured]
+        return rows, {s: m for s, m in om["scenes"].items() if any(r["scene"] == s for r in rows)}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return [], {}
 
 
@@ -163,7 +163,7 @@ def markdown(result: dict) -> str:
              f"- **resolution**: 2x{w}x{h} (both eyes, {w}x{h} each)",
              f"- **poses**: {meta['poses']} per scene, seed {meta['pose_seed']} (--pose-seed); eye height "
              f"{EYE_HEIGHT_M[0]}-{EYE_HEIGHT_M[1]} m above the floor, yaw 0-360 deg, pitch within +-{MAX_PITCH_DEG:g} "
-             f"deg, no roll, IPD {meta['ipd']} m",
+             f"deg, no roll; the bench rig's IPD, fov and near plane",
              f"- **timing**: {meta['what_times_include']}",
              f"- **grid**: configs {', '.join(meta['configs'])}; variants "
              + ", ".join(f"{k} {json.dumps(v)}" for k, v in meta["variants"].items())
@@ -182,7 +182,8 @@ def markdown(result: dict) -> str:
         sm = meta["scenes"].get(scene, {})
         b = sm.get("pose_bounds", {})
         lines += [f"## {scene}", "", f"Heads inside {sm.get('region', '')}: "
-                  + ", ".join(f"{a} {lo:.2f} to {hi:.2f} m" for a, (lo, hi) in b.items()) + ".", ""]
+                  + ", ".join(f"{a} {lo:.2f} to {hi:.2f} m" for a, (lo, hi) in b.items())
+                  + f"; IPD {sm.get('ipd')} m, fov {sm.get('fov_y')} deg, near {sm.get('near')} m.", ""]
         for config, why in sm.get("configs_skipped", {}).items():
             lines += [f"Config {config} not measured: {why}.", ""]
         if "budget" in sm.get("configs", {}):
@@ -201,7 +202,8 @@ def markdown(result: dict) -> str:
             top = ", ".join(f"{k} {v:.3f}" for k, v in list(s["passes"].items())[:TOP_PASSES])
             lines.append(f"| {s['config']} | {s['variant']} | {s['camera']} | {s['primary']} | {s['msaa']} | "
                          f"{s['poses']} | {s['median_ms']:.3f} | {s['worst_ms']:.3f} | {s['best_ms']:.3f} | "
-                         f"{s['worst_pose']} | {s['visibility_median_ms']:.3f} / {s['visibility_worst_ms']:.3f} | {top} |")
+                         f"{s['worst_pose']} | {s['visibility_median_ms']:.3f} / {s['visibility_worst_ms']:.3f} | "
+                         f"{top} |")
         lines.append("")
     return "\n".join(lines) + "\n"
 
@@ -233,10 +235,11 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
                                       f"over {repeat} frames of both eyes, after a warm-up until frame times settle "
                                       f"(at least {WARMUP_S} s on each cell's first pose); no readback",
                 "scenes": {}, "seconds": 0.0}
-        kept, kept_meta = kept_rows(out / "vr.json", meta, scenes)
+        kept, kept_meta = kept_rows(out / "vr.json", meta, {(s, c) for s in scenes for c in configs})
         meta["scenes"].update(kept_meta)
         if kept:
-            meta["kept_rows"] = f"{len(kept)} rows of {', '.join(kept_meta)} from the folder's earlier vr.json"
+            which = sorted({f"{r['scene']}/{r['config']}" for r in kept})
+            meta["kept_rows"] = f"{len(kept)} rows ({', '.join(which)}) from the folder's earlier vr.json"
 
         def write() -> None:
             meta["seconds"] = time.perf_counter() - t_start
@@ -245,10 +248,12 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
 
         for name, scene, view in bench_scenes(scenes, size, skipped):
             heads = draw_poses(scene, name, poses, pose_seed)
-            meta["ipd"] = view.ipd
+            earlier = meta["scenes"].get(name, {})  # what the configs kept from the earlier run were
             sm = meta["scenes"][name] = {"region": region(name).what, "pose_bounds": pose_bounds(scene, name),
-                                         "fov_y": view.fov_y, "near": view.near, "configs": {}, "configs_skipped": {},
-                                         "poses": [p.to_dict() for p in heads]}
+                                         "ipd": view.ipd, "fov_y": view.fov_y, "near": view.near,
+                                         "configs": {c: v for c, v in earlier.get("configs", {}).items()
+                                                     if c not in configs},
+                                         "configs_skipped": {}, "poses": [p.to_dict() for p in heads]}
             mats = {}
             for config in configs:
                 mats[config], about = materials_config(gl, config, name, scene, view, budget_ms, progress)
