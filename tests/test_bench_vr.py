@@ -35,7 +35,9 @@ def test_the_quick_bench_times_every_cell_on_every_pose(quick):
     # the grid the meta names: every camera at every count (the raster G-buffer at 1x only), every config
     expected = {(c, cam, n, p["index"]) for c in meta["configs"] for cam in meta["cameras"] for n in meta["counts"]
                 for p in poses if cam != "raster_gbuffer" or n == 1}
-    assert len(expected) > 2 * len(poses)
+    # the quick grid still holds what the rows compare: raster vs rays pinhole, another model, MSAA
+    assert {"raster_gbuffer", "pinhole"} < set(meta["cameras"]) and {"shadows", "room"} <= set(meta["configs"])
+    assert 1 in meta["counts"] and max(meta["counts"]) > 1
     got = [(r["config"], r["camera"], r["msaa"], r["pose"]["index"]) for r in rows]
     assert sorted(got) == sorted(expected)  # each once
     assert {r["scene"] for r in rows} == {"default"} and {r["variant"] for r in rows} == {"default"}

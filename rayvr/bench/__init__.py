@@ -156,11 +156,12 @@ def _vr(args, out, camera_from_args):
     configs = args.configs or quick.get("configs", vr.MATERIAL_CONFIGS)
     if "budget" in configs:
         require("flip_evaluator", "bench vr --configs budget")  # the pick predicts image error with FLIP
-    # the render flags given (--tile-culling, --ssaa) are one variant of every row; --msaa is the counts
+    # the render flags given (--tile-culling, --tile-lists, --ssaa) are one variant of every row; --msaa: the counts
     fields = {k: v for k, v in settings_mod.given_by_args(args, "bench").items() if k != "msaa"}
     variants = {",".join(f"{k}={v}" for k, v in fields.items()): fields} if fields else None
     vr.run(out, size=quick.get("size", args.size), scenes=_scenes(args),
-           poses=args.poses or quick.get("poses", vr.POSES), pose_seed=args.pose_seed, cameras=args.cameras or quick.get("cameras", vr.CAMERAS),
+           poses=args.poses or quick.get("poses", vr.POSES), pose_seed=args.pose_seed,
+           cameras=args.cameras or quick.get("cameras", vr.CAMERAS),
            counts=args.counts or ((args.msaa,) if args.msaa else quick.get("counts", vr.COUNTS)), configs=configs,
            variants=variants, budget_ms=budgets[0], repeat=2 if args.quick else share(args.repeat, 5),
            warmup=1 if args.quick else 3, quick=args.quick, backend=args.backend)
