@@ -72,18 +72,26 @@ uniform int msaa_round;  // PRIMARY_MODE 2
 #else
 #define PRIMARY_GROUP (PIXEL_TILE * PIXEL_TILE)
 #endif
-#if defined(TILE_TRIS_BINDING) && PRIMARY_MODE != 2
+// TILE_LIST_PART (with tile lists, frame/passes/primary_rays.py): 1 casts the tiles that have a
+// list, from it; 2 the tiles whose list overflowed, per ray from their entries; 0: no lists.
+#ifndef TILE_LIST_PART
+#define TILE_LIST_PART 0
+#endif
+#if TILE_LIST_PART != 0
+layout(std430, binding = TILE_TRIS_BINDING) readonly restrict buffer TileTris { uvec2 tile_tris[]; };
+#endif
+#if TILE_LIST_PART == 1 && PRIMARY_MODE != 2
 #include "tile_list_cast.glsl"
 #endif
 
 // Closest hit h of the camera ray (o, d) of pixel p where `valid` (h as it was elsewhere): from the
 // BVH root, or with tile culling (TILE_ENTRIES_BINDING, frame/passes/primary_rays.py) from the entry
 // list of the pixel's tile, which tile_cull.comp made for every sub-ray of the tile's pixels, or with
-// tile lists (TILE_TRIS_BINDING) against the tile's triangle list (tile_list_cast.glsl): the same
+// tile lists (TILE_LIST_PART 1) against the tile's triangle list (tile_list_cast.glsl): the same
 // hit, less work. Called by every invocation of the group (the tile list path shares workgroup memory).
 void cast_primary(ivec3 p, ivec2 size, bool valid, vec3 o, vec3 d, inout Hit h) {
     Ray r = primary_ray(p.z, o, d);
-#if defined(TILE_TRIS_BINDING) && PRIMARY_MODE != 2
+#if TILE_LIST_PART == 1 && PRIMARY_MODE != 2
     cast_tile_list(r, primary_tile(p, size), valid, h);
 #elif defined(TILE_ENTRIES_BINDING)
     if (valid) trace_closest_in_tile(r, primary_tile(p, size), h);
@@ -168,6 +176,11 @@ void main() {
     ivec3 extent = imageSize(img_triangle);
     ivec2 size = extent.xy;
     bool inside = all(lessThan(p.xy, size));
+#if TILE_LIST_PART != 0 && PRIMARY_MODE != 2
+    // The group's pixels lie in one tile: the whole group leaves the tiles of the other part.
+    if ((tile_tris[primary_tile(p, size) * uint(TILE_TRIS + 1)].x == TILE_OVERFLOW) != (TILE_LIST_PART == 2))
+        return;
+#endif
 #if PRIMARY_MODE != 0
     uint pixels = uint(extent.x * extent.y * extent.z), index = uint((p.z * size.y + p.y) * size.x + p.x);
 #endif

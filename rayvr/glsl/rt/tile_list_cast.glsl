@@ -16,11 +16,11 @@
 //     edge's vertex distances) cannot hit it: 3 dot products instead of the exact test. The
 //     triangle is then a cone from the origin: d = aA + bB + cC with a, b, c >= 0 for a hit,
 //     and the plane of edge AB gives c times the triple product [A B C].
-// A tile whose list overflowed (TILE_OVERFLOW) walks the BVH from its entries, one ray an invocation.
+// A tile whose list overflowed (TILE_OVERFLOW) is cast by another program (rt/primary.comp
+// TILE_LIST_PART 2), per ray from its entries: the walk's registers would slow the list path.
 #ifndef RAYVR_RT_TILE_LIST_CAST_GLSL
 #define RAYVR_RT_TILE_LIST_CAST_GLSL
 
-layout(std430, binding = TILE_TRIS_BINDING) readonly restrict buffer TileTris { uvec2 tile_tris[]; };
 
 shared vec4 list_tri[3][PRIMARY_GROUP];    // the load's vertices (a.w: the original ID bits)
 shared vec4 list_edge[3][PRIMARY_GROUP];   // edge planes through the group's origin, w: their slack
@@ -45,12 +45,7 @@ void cast_tile_list(Ray r, uint tile, bool valid, inout Hit h) {
     bool live = valid && bvh_begin(r, hit, s, inv);
     if (valid)
         h = hit;   // a valid ray that traces nothing is a miss at tmax, as trace_closest makes it
-    uint n = tile_tris[head].x;
-    if (n == TILE_OVERFLOW) {   // uniform: one tile a group
-        if (valid)
-            trace_closest_in_tile(r, tile, h);
-        return;
-    }
+    uint n = tile_tris[head].x;   // not TILE_OVERFLOW: those tiles are rt/primary.comp's TILE_LIST_PART 2
     // One origin for the whole group? (the edge filter's condition)
     if (lid == 0u) {
         list_leader = 0xFFFFFFFFu;
