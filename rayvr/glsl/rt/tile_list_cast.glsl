@@ -31,10 +31,10 @@ shared uint list_leader;
 shared uint list_one_origin;
 shared vec3 list_origin;
 
-// Whether a list key (a lower bound of c.x over its triangle) lies beyond the ray's reach.
-bool list_beyond(float key, float co, float cd, float t) {
-    float reach = co + t * cd;
-    return key > reach + TILE_SLACK * (abs(co) + abs(t * cd));
+// The largest list key (a lower bound of c.x over its triangle) a ray whose closest hit so far is at
+// t can still meet: c.x of its points up to t, with the rounding slack.
+float list_reach(float co, float cd, float t) {
+    return co + t * cd + TILE_SLACK * (abs(co) + abs(t * cd));
 }
 
 void cast_tile_list(Ray r, uint tile, bool valid, inout Hit h) {
@@ -76,36 +76,35 @@ void cast_tile_list(Ray r, uint tile, bool valid, inout Hit h) {
             list_tri[2][lid] = d;
             list_slot[lid] = e.x;
             list_key[lid] = uintBitsToFloat(e.y);
-            if (edges) {
-                vec3 A = a.xyz - origin, B = b.xyz - origin, C = d.xyz - origin;
-                vec3 ab = cross(A, B), bc = cross(B, C), ca = cross(C, A);
-                float triple = dot(ab, C), la = length(A), lb = length(B), lc = length(C);
-                // A triangle nearly edge-on to the origin: the triple product's sign is not sure, no filter.
-                float sg = abs(triple) > EDGE_SLACK * la * lb * lc ? sign(triple) : 0.0;
-                list_edge[0][lid] = sg * vec4(ab, EDGE_SLACK * la * lb);
-                list_edge[1][lid] = sg * vec4(bc, EDGE_SLACK * lb * lc);
-                list_edge[2][lid] = sg * vec4(ca, EDGE_SLACK * lc * la);
-            }
+            // Edge planes (xyz) with their slack (w): a ray passes where dot(xyz, d) + w |d| >= 0 for
+            // all three. Zero planes (no common origin; a triangle nearly edge-on to the origin, whose
+            // triple product's sign is not sure) pass every ray.
+            vec3 A = a.xyz - origin, B = b.xyz - origin, C = d.xyz - origin;
+            vec3 ab = cross(A, B), bc = cross(B, C), ca = cross(C, A);
+            float triple = dot(ab, C), la = length(A), lb = length(B), lc = length(C);
+            float sg = edges && abs(triple) > EDGE_SLACK * la * lb * lc ? sign(triple) : 0.0;
+            list_edge[0][lid] = vec4(sg * ab, abs(sg) * EDGE_SLACK * la * lb);
+            list_edge[1][lid] = vec4(sg * bc, abs(sg) * EDGE_SLACK * lb * lc);
+            list_edge[2][lid] = vec4(sg * ca, abs(sg) * EDGE_SLACK * lc * la);
         }
         if (lid == 0u)
             list_more[load & 1u] = 0u;
         barrier();
         uint m = min(uint(PRIMARY_GROUP), n - base);
         if (live) {
+            float reach = list_reach(co, cd, h.t);
             for (uint j = 0u; j < m; ++j) {
-                if (list_beyond(list_key[j], co, cd, h.t))
+                if (list_key[j] > reach)
                     break;   // sorted: every later triangle lies beyond too
-                if (edges) {
-                    // a zero (unsure) plane passes: its slack is zero and -0 * dlen is not above 0
-                    vec4 e0 = list_edge[0][j], e1 = list_edge[1][j], e2 = list_edge[2][j];
-                    if (dot(e0.xyz, r.direction) < -abs(e0.w) * dlen || dot(e1.xyz, r.direction) < -abs(e1.w) * dlen ||
-                        dot(e2.xyz, r.direction) < -abs(e2.w) * dlen)
-                        continue;
-                }
-                bvh_test_triangle(s, list_slot[j], list_tri[0][j], list_tri[1][j], list_tri[2][j], r.tmin, h);
+                // one branch for the three planes (no short-circuit: their loads overlap)
+                vec4 e0 = list_edge[0][j], e1 = list_edge[1][j], e2 = list_edge[2][j];
+                float inside = min(min(dot(e0.xyz, r.direction) + e0.w * dlen, dot(e1.xyz, r.direction) + e1.w * dlen),
+                                   dot(e2.xyz, r.direction) + e2.w * dlen);
+                if (!(inside < 0.0) &&   // (a NaN passes: the exact test decides)
+                    bvh_test_triangle(s, list_slot[j], list_tri[0][j], list_tri[1][j], list_tri[2][j], r.tmin, h))
+                    reach = list_reach(co, cd, h.t);
             }
-            if (base + uint(PRIMARY_GROUP) < n &&
-                !list_beyond(uintBitsToFloat(tile_tris[head + 1u + base + uint(PRIMARY_GROUP)].y), co, cd, h.t))
+            if (base + uint(PRIMARY_GROUP) < n && !(uintBitsToFloat(tile_tris[head + 1u + base + uint(PRIMARY_GROUP)].y) > reach))
                 list_more[load & 1u] = 1u;
         }
         barrier();
