@@ -99,7 +99,7 @@ def test_the_renderer_draws_what_embree_finds_along_the_models_rays(gl, orthogra
         o = (rays.origins - scene.origin + rig.near * rays.directions).reshape(-1, 3).astype(np.float32)
         d = rays.directions.reshape(-1, 3).astype(np.float32)
         hit = es.run(np.ascontiguousarray(o), np.ascontiguousarray(d), output=1)
-        expected = np.where(hit["primID"] >= 0, hit["primID"], NO_HIT).astype(np.uint32)
+        expected = np.where(hit["primID"] >= 0, hit["primID"].astype(np.int64), NO_HIT).astype(np.uint32)
         distance = np.where(hit["primID"] >= 0, hit["tfar"] + rig.near, np.inf)  # from the image plane
         image = frame.eyes[eye.name]
         triangle = image.aux["triangle"].reshape(-1)
