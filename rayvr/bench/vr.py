@@ -155,6 +155,52 @@ def spread(rows) -> list[dict]:
     return out
 
 
+# Issue 22's targets for the headset's frame, judged on the worst pose: (name, what, camera, msaa,
+# kind, bound) where kind "ms" bounds the primary_rays pass, "grays" is a least rate of its 1x rays
+# (GRays/s), and "ratio:<camera>:<msaa>" bounds the frame against that cell's frame on the same pose
+# and config.
+TARGETS = (
+    ("msaa16_primary", "16x MSAA primary visibility <= 3.0 ms", "pinhole", 16, "ms", 3.0),
+    ("msaa32_primary", "32x MSAA primary visibility <= 5.0 ms", "pinhole", 32, "ms", 5.0),
+    ("chromatic_frame", "distorted chromatic frame <= 1.25x the pinhole ray-cast frame", "distorted_chromatic", 1,
+     "ratio:pinhole:1", 1.25),
+    ("msaa4_frame", "4x MSAA frame <= 1.3x the 1x ray-cast frame", "pinhole", 4, "ratio:pinhole:1", 1.3),
+    ("primary_rate", "1x ray-cast primary visibility >= 6 GRays/s", "pinhole", 1, "grays", 6.0),
+)
+
+
+def targets(rows, per_eye_size) -> list[dict]:
+    """Each target of TARGETS per scene and variant whose cells were measured: the worst pose's
+    figure (over the poses and configs) and whether it meets the bound."""
+    w, h = per_eye_size
+    cell = {(r["scene"], r["config"], r["variant"], r["camera"], r["msaa"], r["pose"]["index"]): r for r in rows}
+    out = []
+    for scene, variant in dict.fromkeys((r["scene"], r["variant"]) for r in rows):
+        for name, what, camera, msaa, kind, bound in TARGETS:
+            figures = []  # (figure, pose, config)
+            for (sc, config, var, cam, n, pose), r in cell.items():
+                if (sc, var, cam, n) != (scene, variant, camera, msaa):
+                    continue
+                primary_ms = r["passes"].get("primary_rays", 0.0)
+                if kind == "ms":
+                    figures.append((primary_ms, pose, config))
+                elif kind == "grays" and primary_ms > 0:
+                    figures.append((2 * w * h / primary_ms / 1e6, pose, config))
+                elif kind.startswith("ratio:"):
+                    _, base_camera, base_msaa = kind.split(":")
+                    base = cell.get((sc, config, var, base_camera, int(base_msaa), pose))
+                    if base is not None:
+                        figures.append((r["frame_ms"] / base["frame_ms"], pose, config))
+            if not figures:
+                continue
+            lowest_is_worst = kind == "grays"
+            figure, pose, config = min(figures) if lowest_is_worst else max(figures)
+            out.append({"scene": scene, "variant": variant, "target": name, "what": what, "bound": bound,
+                        "worst": figure, "worst_pose": pose, "worst_config": config,
+                        "met": figure >= bound if lowest_is_worst else figure <= bound})
+    return out
+
+
 def markdown(result: dict) -> str:
     meta, rows = result["meta"], result["rows"]
     w, h = meta["per_eye_size"]
@@ -205,6 +251,15 @@ def markdown(result: dict) -> str:
                          f"{s['worst_pose']} | {s['visibility_median_ms']:.3f} / {s['visibility_worst_ms']:.3f} | "
                          f"{top} |")
         lines.append("")
+        judged = [t for t in targets(rows, meta["per_eye_size"]) if t["scene"] == scene]
+        if judged:
+            lines += ["Issue 22's targets, on the worst pose (over the poses and configs measured):", "",
+                      "| target | variant | worst | pose, config | met |", "|---|---|---|---|---|"]
+            for t in judged:
+                unit = " GRays/s" if t["target"] == "primary_rate" else ("x" if "frame" in t["target"] else " ms")
+                lines.append(f"| {t['what']} | {t['variant']} | {t['worst']:.3f}{unit} | {t['worst_pose']}, "
+                             f"{t['worst_config']} | {'yes' if t['met'] else 'NO'} |")
+            lines.append("")
     return "\n".join(lines) + "\n"
 
 
@@ -243,6 +298,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
 
         def write() -> None:
             meta["seconds"] = time.perf_counter() - t_start
+            meta["targets"] = targets(kept + rows, size)  # (write_report keeps meta and rows)
             result = {"meta": meta, "rows": kept + rows}
             write_report(out, "vr", result, md=markdown(result))
 
