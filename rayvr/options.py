@@ -154,7 +154,7 @@ class Option:
         if self.deprecated_flags:
             help_ += f"; {', '.join(self.deprecated_flags)}: deprecated spelling of {self.cli_flag}"
         help_ = help_.replace("%", "%%")
-        if self.type is bool and self.auto:
+        if self.type is bool and (self.auto or self.default):  # on by default: --no-NAME turns it off
             parser.add_argument(*spellings, dest=self.name, action=argparse.BooleanOptionalAction, default=None,
                                 help=help_)
         elif self.type is bool:
@@ -168,7 +168,7 @@ class Option:
 
     def _help_default(self) -> str:
         if self.type is bool:
-            return "" if not self.auto else " (default: auto)"
+            return " (default: auto)" if self.auto else (" (default: on)" if self.default else "")
         default = ",".join(map(str, self.default)) if isinstance(self.default, tuple) else self.default
         return f" (default {default})"
 

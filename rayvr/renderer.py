@@ -166,6 +166,8 @@ class Renderer:
                          dof=color and st.dof_diameter > 0,
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
                          tile_culling=culled, tile_lists=primary_rays.tile_list_bound(st, camera.name) if culled else 0,
+                         share_channels=primary == "rays" and primary_rays.shares_channels(
+                             st, camera, samples, self.effects_in_use(), culled, view),
                          channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots)
 
     def set_stereo(self, mode: str) -> None:

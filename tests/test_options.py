@@ -11,6 +11,7 @@ import pytest
 from conftest import run_rayvr
 from rayvr import options, settings as settings_mod
 from rayvr.cli import build_parser, main
+from rayvr.frame.cameras import Distorted
 from rayvr.frame.graph import FramePlan
 from rayvr.scene.materials import ConfigError, MaterialConfig, load_config, parse_config
 from rayvr.renderer import Renderer, RenderSettings
@@ -209,7 +210,9 @@ def test_the_screen_space_lens_is_a_diameter_and_the_old_names_still_work(capsys
 # An allowed value other than the default, and what it needs to reach the plan at all.
 OTHER = {"traversal": "bvh2", "layer_mode": "passes", "ambient": (0.1, 0.2, 0.3), "background": (0.3, 0.2, 0.1),
          "stereo": "reuse", "tile_lists": 64}
-CONTEXT = {"ssaa": {"msaa": 4}, "tile_culling": {"primary": "rays"}, "tile_lists": {"primary": "rays"}, "warp_layers": {"stereo": "warp"}}
+# The camera an option needs to reach the plan at all (the chromatic model's three channel sets).
+CAMERA_CONTEXT = {"share_channel_shading": {"camera": Distorted()}}
+CONTEXT = {"share_channel_shading": {"primary": "rays"}, "ssaa": {"msaa": 4}, "tile_culling": {"primary": "rays"}, "tile_lists": {"primary": "rays"}, "warp_layers": {"stereo": "warp"}}
 
 
 def other_value(o: options.Option):
@@ -233,7 +236,7 @@ def test_plan_options_reach_their_plan_field_and_no_other_option_changes_the_pla
         plans = []
         for settings in (RenderSettings(**context), RenderSettings(**{**context, o.name: other_value(o)})):
             with Renderer(None, config, gl=gl, settings=settings) as r:  # (the layer mode is picked here)
-                plans.append(r.plan(layers=2))
+                plans.append(r.plan(layers=2, **CAMERA_CONTEXT.get(o.name, {})))
         base, changed = plans
         if o.scope == "plan":
             assert o.plan_field in {f.name for f in dataclasses.fields(FramePlan)}

@@ -38,7 +38,8 @@ def rig_for(r, camera, fov, size=SIZE):
 
 def render(r, rig, samples, culled):
     """(triangle IDs of both eyes, colour of both eyes, the frame's tile lists or None)."""
-    r.settings = RenderSettings(primary="rays", msaa=samples, tile_culling=culled)
+    # share_channel_shading off: tile culling turns it off (tests/test_shared_channels.py), the reference must not differ by it
+    r.settings = RenderSettings(primary="rays", msaa=samples, tile_culling=culled, share_channel_shading=False)
     f = r.render(rig, aux=("triangle",))
     lists = None
     if culled:

@@ -32,6 +32,7 @@ from ..accel.gpu import DEFAULT_TRAVERSAL
 from .cameras import DEFAULT_CAMERA_MODEL
 
 from ..gl.gpu_layout import CHANNELS
+from ..gl.glsl_constants import declare
 from ..gl.timing import TimerQuery, valid_elapsed_ns
 
 
@@ -60,6 +61,7 @@ class FramePlan:
     bvh_build: str = "sah"  # how the BVH is built: "sah" | "sbvh" (spatial splits; accel/sbvh.py)
     tile_culling: bool = False  # primary rays traced from tile frustum entry lists (frame/passes/primary_rays.py)
     tile_lists: int = 0  # with tile culling: the bound of each tile's triangle list, 0 none (primary_rays.py)
+    share_channels: bool = False  # red and blue take green's shading where they hit its triangle (primary_rays.py)
     # MSAA rounds leave a pixel with nothing in their slot as it is where exact (frame/passes/primary_rays.py
     # skips_empty_slots); False shades it as background of weight 0, the reference tests compare with
     skip_empty_slots: bool = True
@@ -602,10 +604,15 @@ class Round:
                      self.count, self.known)
 
 
+# Green, cast last of three colour channel sets: the G-buffer the frame keeps (depth, aux) is the
+# middle wavelength's, and with shared channel shading its round shades for the channels that hit
+# its triangles (frame/passes/primary_rays.py shares_channels).
+SHARED_CHANNEL = declare("SHARED_CHANNEL", 1)
+
+
 def channel_order(channels: int) -> list:
-    """Colour channel sets in the order a frame casts them: green last, so the G-buffer the frame
-    keeps (depth, aux) is the middle wavelength's."""
-    return [0, 2, 1] if channels == 3 else list(range(channels))
+    """Colour channel sets in the order a frame casts them: green (SHARED_CHANNEL) last."""
+    return [0, 2, SHARED_CHANNEL] if channels == 3 else list(range(channels))
 
 
 @dataclass

@@ -49,7 +49,7 @@ from ...gl.glsl_constants import declare as declare_constant
 from ...accel.frustum import tile_grid
 from ...accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effect_registry import EFFECTS
-from ..graph import Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
+from ..graph import SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
 from ...gl.gpu_layout import IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_RAYS, channel
 from ...options import Option, declare
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
@@ -86,6 +86,14 @@ TILE_OVERFLOW = declare_constant("TILE_OVERFLOW", 0xFFFFFFFF, uint=True)
 EDGE_SLACK = declare_constant("EDGE_SLACK", 1e-5)
 
 
+SHARE_CHANNELS = declare(Option("share_channel_shading", bool, True, "a chromatic camera (three colour channel "
+                                "sets) shades its red and blue rays only where they hit another triangle than "
+                                "the pixel's green ray; where they hit the same one they take green's shading "
+                                "(HVVR's shared shading: the approximation and its error are in README); "
+                                "false: every channel shaded on its own", scope="plan", plan_field="share_channels",
+                                commands=("capture", "preview", "info", "bench")))
+
+
 def primary_visibility(settings, camera) -> str:
     """The plan's primary visibility: `settings.primary` where a rasterizer can sample the camera
     (a planar model, one sub-ray per sample), else ray-cast."""
@@ -114,10 +122,20 @@ def tile_list_bound(settings, camera: str = "pinhole") -> int:
     return 0
 
 
+def shares_channels(settings, camera, samples: int, effects, culled: bool, view: str) -> bool:
+    """Whether a frame's red and blue rounds take green's shading where they hit its triangle: a
+    camera of three channel sets, one sub-ray per sample, the colour view, no tile culling (its
+    entries bound one channel set's rays, not green's too), and no effect that reads other pixels'
+    G-buffer in a round (the quadtree's: a skipped pixel's G-buffer is an earlier round's)."""
+    return (settings.share_channel_shading and camera.channels == 3 and samples == 1 and not culled
+            and view == "color" and not any(EFFECTS[e].uses_quadtree for e in effects if e in EFFECTS))
+
+
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
 MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
 LIST_MSAA_GROUP = 64  # with tile lists (each group loads its tile's list)
 SAMPLE_WEIGHT = Texture("r32f")
+CHANNEL_IDS = Texture("r32ui")  # shared channel shading: green's triangle; the channels that hit it (bit = channel)
 # How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without
 # waiting; "wait" reads it after the first round, waiting for the GPU; "never" does not read it
 # (every channel then records msaa_slots rounds). Frames are identical under all three (tests).
@@ -192,17 +210,23 @@ def skips_empty_slots(plan: FramePlan) -> bool:
     return plan.skip_empty_slots and not any(EFFECTS[e].uses_quadtree for e in plan.effects if e in EFFECTS)
 
 
+def skips_rounds(plan: FramePlan) -> bool:
+    """Whether a round may leave pixels alone (glsl/common/round_skip.glsl): MSAA slots a pixel has
+    not, and with shared channel shading the red and blue pixels that hit green's triangle."""
+    return uses_msaa(plan) or plan.share_channels
+
+
 def round_skip_reads(plan: FramePlan) -> list:
-    """What a pass of the rounds reads to leave the pixels an MSAA round skips (glsl/common/round_skip.glsl)."""
-    return [read("sample_weight")] if uses_msaa(plan) else []
+    """What a pass of the rounds reads to leave the pixels a round skips (glsl/common/round_skip.glsl)."""
+    return [read("sample_weight")] if skips_rounds(plan) else []
 
 
 def round_skip_defines(plan: FramePlan) -> dict:
-    return {"ROUND_SKIP": int(uses_msaa(plan))}
+    return {"ROUND_SKIP": int(skips_rounds(plan))}
 
 
 def bind_round_skip(fc) -> None:
-    if uses_msaa(fc.plan):
+    if skips_rounds(fc.plan):
         fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=True, write=False)
 
 
@@ -231,6 +255,8 @@ class PrimaryRaysPass(Pass):
             out += [write("tile_entries", Buffer(lambda s: frame_tiles(s) * (TILE_ENTRIES + 1) * 4,
                                                  f"{TILE_ENTRIES + 1} words per {TILE_RAYS}-pixel tile")),
                     write("tile_planes", Buffer(lambda s: frame_tiles(s) * 80, "5 planes per tile"))]
+        if plan.share_channels:
+            out += [write("channel_probe", CHANNEL_IDS), write("channel_match", CHANNEL_IDS)]
         if plan.tile_lists:
             out.append(write("tile_tris", Buffer(lambda s, n=plan.tile_lists: frame_tiles(s) * (n + 1) * 8,
                                                  f"{plan.tile_lists + 1} x 8 bytes per tile")))
@@ -247,7 +273,7 @@ class PrimaryRaysPass(Pass):
                 "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
                 "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples,
                 "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles, **lists,
-                "TILE_LIST_PART": 1 if plan.tile_lists else 0}
+                "TILE_LIST_PART": 1 if plan.tile_lists else 0, "SHARE_CHANNELS": int(plan.share_channels)}
         self.msaa = uses_msaa(plan)
         self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
                          for mode in ((1, 2) if self.msaa else (0,))}
@@ -287,6 +313,8 @@ class PrimaryRaysPass(Pass):
         if not self.msaa:
             if rnd.first:  # SSAA: one round per sub-ray; 1x: one
                 rnd.start(fc.plan.samples)
+            if fc.plan.share_channels:
+                self.share_channels(fc)
             casts = [self.programs[0], *([self.overflow] if self.overflow else [])]
             for program in casts:
                 program["subsample"].value = rnd.slot
@@ -307,6 +335,22 @@ class PrimaryRaysPass(Pass):
         # Slot = count - 1 - this: rounds of this channel set before this one; -1: slot 0 (no rounds).
         self.programs[2]["msaa_round"].value = rnd.ordinal if rnd.active else -1
         fc.stage("select", lambda: dispatch_per_pixel(fc, self.programs[2]))
+
+    def share_channels(self, fc) -> None:
+        """Shared channel shading: the frame's first round first casts green's rays into
+        channel_probe; the red and blue rounds then compare (share_mode 2, glsl/rt/primary.comp),
+        green's, last, casts as ever and sample_accumulate gives its colour to the channels that
+        matched."""
+        program, rnd = self.programs[0], fc.round
+        fc.resource("channel_probe").bind_to_image(IMAGE["channel_probe"], read=True, write=True)
+        fc.resource("channel_match").bind_to_image(IMAGE["channel_match"], read=True, write=True)
+        if rnd.index == 0:
+            program["camera_channel"].value = SHARED_CHANNEL
+            program["share_mode"].value = 1
+            program["subsample"].value = 0
+            fc.stage("probe", lambda: dispatch_per_pixel(fc, program))
+            program["camera_channel"].value = rnd.channel
+        program["share_mode"].value = 0 if rnd.channel == SHARED_CHANNEL else 2
 
     def count_reader(self, fc, channel: int):
         """Round.start_polled's count(wait) for the channel set's count just copied to the readback."""

@@ -31,10 +31,12 @@ class SampleAccumulatePass(Pass):
         return sampling_reason(plan) if plan.sampled else None
 
     def io(self, plan: FramePlan) -> list:
-        return [read("hdr"), read("sample_weight"), write("sample_sum", SAMPLE_SUM)]
+        return [read("hdr"), read("sample_weight"), write("sample_sum", SAMPLE_SUM)] + (
+            [read("channel_match")] if plan.share_channels else [])
 
     def setup(self, gl, plan: FramePlan) -> None:
-        self.program = shaders.compute(gl.ctx, "shade/sample_accumulate.comp")
+        self.program = shaders.compute(gl.ctx, "shade/sample_accumulate.comp",
+                                       {"SHARE_CHANNELS": int(plan.share_channels)})
 
     def execute(self, fc) -> None:
         rnd = fc.round
@@ -43,6 +45,8 @@ class SampleAccumulatePass(Pass):
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=True, write=False)
         fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=True, write=False)
         fc.resource("sample_sum").bind_to_image(IMAGE["sample_sum"], read=True, write=True)
+        if fc.plan.share_channels:
+            fc.resource("channel_match").bind_to_image(IMAGE["channel_match"], read=True, write=False)
         dispatch_per_pixel(fc, self.program)
 
     def release(self) -> None:

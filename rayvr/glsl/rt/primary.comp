@@ -65,6 +65,19 @@ shared float sub_t[MSAA_GROUP];    //   pixel-major: the block's pixel j has ent
 shared vec2 sub_offset[CAMERA_SUBSAMPLES];  // camera_subpixel(i), computed once per workgroup
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
+// SHARE_CHANNELS (PRIMARY_MODE 0, frame/passes/primary_rays.py shares_channels): share_mode 1 casts
+// the green channel into channel_probe (its triangle alone: the frame's first round); 2, in the red
+// and blue rounds, leaves the pixels whose ray hits green's triangle to green (weight ROUND_SKIPPED,
+// no visibility written: common/round_skip.glsl) and marks them in channel_match (bit = channel),
+// whose colour sample_accumulate then takes from green's round; 0: green's round, as ever.
+#ifndef SHARE_CHANNELS
+#define SHARE_CHANNELS 0
+#endif
+#if SHARE_CHANNELS
+layout(r32ui, binding = IMAGE_CHANNEL_PROBE) uniform uimage2DArray img_probe;
+layout(r32ui, binding = IMAGE_CHANNEL_MATCH) uniform uimage2DArray img_match;
+uniform int share_mode;
+#endif
 uniform int msaa_round;  // PRIMARY_MODE 2
 
 #if PRIMARY_MODE == 1
@@ -211,6 +224,22 @@ void main() {
     cast_primary(p, size, valid, o, d, h);   // every invocation: the tile list path shares memory
     if (!inside) return;
     bool sample_here = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
+#if SHARE_CHANNELS
+    if (share_mode == 1) {
+        imageStore(img_probe, p, uvec4(sample_here ? h.prim : NO_HIT));
+        return;
+    }
+    if (share_mode == 2) {
+        // the same triangle (or both background) as green's ray: green's shading serves this channel
+        bool same = sample_here && imageLoad(img_probe, p).x == h.prim;
+        uint bits = camera_channel == 0 ? 0u : imageLoad(img_match, p).x;   // red's round is the first
+        imageStore(img_match, p, uvec4(bits | (same ? 1u << uint(camera_channel) : 0u)));
+        if (same) {
+            imageStore(img_weight, p, vec4(ROUND_SKIPPED));
+            return;
+        }
+    }
+#endif
     // A pixel without a sample (foveated) weighs nothing: the resolve fills it for display.
     store(p, h.prim, uint(subsample), h.t, sample_here ? 1.0 / float(CAMERA_SUBSAMPLES) : 0.0);
 #else

@@ -10,6 +10,14 @@ layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) i
 layout(rgba16f, binding = IMAGE_HDR) uniform readonly image2DArray hdr_in;
 layout(r32f, binding = IMAGE_SAMPLE_WEIGHT) uniform readonly image2DArray weight_in;
 layout(rgba32f, binding = IMAGE_SAMPLE_SUM) uniform image2DArray sum;
+#ifndef SHARE_CHANNELS
+#define SHARE_CHANNELS 0
+#endif
+#if SHARE_CHANNELS
+// Shared channel shading (frame/passes/primary_rays.py shares_channels): the channels whose ray hit
+// green's triangle (bit = channel), skipped in their own rounds; green's round adds its colour to them.
+layout(r32ui, binding = IMAGE_CHANNEL_MATCH) uniform readonly uimage2DArray match_in;
+#endif
 uniform int first;    // the frame's first round: start from zero
 uniform int channel;  // -1: all three; else this colour channel only
 
@@ -26,5 +34,15 @@ void main() {
     if (channel < 0) acc.rgb += w * c;
     else acc[channel] += w * c[channel];
     if (channel <= 0) acc.a += w;  // the weight of one channel set: 0 where no sample was made
+#if SHARE_CHANNELS
+    if (channel == SHARED_CHANNEL) {
+        uint matched = imageLoad(match_in, p).x;
+        for (int k = 0; k < 3; ++k) {
+            if (k == SHARED_CHANNEL || (matched & (1u << uint(k))) == 0u) continue;
+            acc[k] += w * c[k];
+            if (k == 0) acc.a += w;   // red's round, which adds the weight, left this pixel to green
+        }
+    }
+#endif
     imageStore(sum, p, acc);
 }
