@@ -33,6 +33,22 @@ def gl():
     g.release()
 
 
+@pytest.fixture(scope="module")
+def room(gl):
+    """A Renderer of the built-in room (a module's own `room` fixture takes its place there)."""
+    from rayvr.renderer import Renderer
+
+    with Renderer(None, gl=gl) as r:
+        yield r
+
+
+def camera_rig(r, camera, fov=None, size=(48, 24)):
+    """The renderer's scene's stereo rig for `camera` (vertical `fov` or the default); 48 x 24: 3 x 3 frame tiles an eye."""
+    from rayvr.frame.cameras.rig import StereoRig
+
+    return StereoRig.for_scene(r.scene, size=size, camera=camera, **({"fov_y": fov} if fov else {}))
+
+
 @pytest.fixture
 def count_poll(monkeypatch):
     """`count_poll(mode)`: how MSAA recording learns its round count from then on (frame/passes/

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import camera_rig
 from PIL import Image
 
 from rayvr.accel.frustum import tile_grid
-from rayvr.frame.cameras.rig import StereoRig
 from rayvr.frame.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
 from rayvr.frame.cameras.sampling import subsamples
 from rayvr.gl.gpu_layout import NO_HIT, TILE_ENTRIES, TILE_PIXELS
-from rayvr.renderer import Renderer, RenderSettings
+from rayvr.renderer import RenderSettings
 
 SIZE = (48, 24)   # 3 x 3 tiles an eye
 
@@ -24,16 +24,6 @@ CASES = {
     "foveated": (Foveated(), 1, None),
     "wide 210x130": (Wide(fov_x=210.0), 1, 130.0),
 }
-
-
-@pytest.fixture(scope="module")
-def room(gl):
-    with Renderer(None, gl=gl) as r:
-        yield r
-
-
-def rig_for(r, camera, fov, size=SIZE):
-    return StereoRig.for_scene(r.scene, size=size, camera=camera, **({"fov_y": fov} if fov else {}))
 
 
 def render(r, rig, samples, culled):
@@ -54,7 +44,7 @@ def render(r, rig, samples, culled):
 @pytest.mark.parametrize("case", list(CASES))
 def test_tile_culled_frame_equals_per_ray(room, case):
     camera, samples, fov = CASES[case]
-    rig = rig_for(room, camera, fov)
+    rig = camera_rig(room, camera, fov)
     tri, color, _ = render(room, rig, samples, False)
     tri_c, color_c, (lists, planes) = render(room, rig, samples, True)
     assert (tri != NO_HIT).mean() > 0.5
@@ -69,7 +59,7 @@ def test_tile_culled_frame_equals_per_ray(room, case):
 def test_tiles_too_wide_fall_back_to_the_root(room):
     """A 210-degree view at 16 x 8 pixels is one tile an eye, its rays over more than a half-space:
     its list is the root's children and the hits are still per-ray traversal's."""
-    rig = rig_for(room, Wide(fov_x=210.0), 130.0, size=TILE_PIXELS)
+    rig = camera_rig(room, Wide(fov_x=210.0), 130.0, size=TILE_PIXELS)
     tri, _, _ = render(room, rig, 1, False)
     tri_c, _, (lists, planes) = render(room, rig, 1, True)
     assert np.array_equal(tri, tri_c) and (tri != NO_HIT).any()
@@ -105,7 +95,7 @@ def test_every_sub_ray_lies_inside_its_tile_planes(room, case):
     """The planes the GPU wrote for each tile hold every point o + t d of every sub-ray of its pixels
     (footprint offsets, lens points; the last channel set culled: green, channel_order)."""
     camera, samples, fov = CASES[case]
-    rig = rig_for(room, camera, fov)
+    rig = camera_rig(room, camera, fov)
     _, _, (lists, planes) = render(room, rig, samples, True)
     nx, ny = tile_grid(*SIZE)
     channel = 1 if camera.channels == 3 else 0

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import camera_rig
 
 from rayvr.accel.frustum import tile_grid
 from rayvr.frame.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
-from rayvr.frame.cameras.rig import StereoRig
 from rayvr.frame.passes.primary_rays import TILE_OVERFLOW
 from rayvr.gl.gpu_layout import NO_HIT, TILE_PIXELS
-from rayvr.renderer import Renderer, RenderSettings
+from rayvr.renderer import RenderSettings
 
 SIZE = (48, 24)   # 3 x 3 tiles an eye
 
@@ -27,16 +27,6 @@ CASES = {
     "dof 4x at 1.5": (ThinLens(aperture=0.08, focus=1.5), 4, None),
     "dof 4x at 6": (ThinLens(aperture=0.08, focus=6.0), 4, None),
 }
-
-
-@pytest.fixture(scope="module")
-def room(gl):
-    with Renderer(None, gl=gl) as r:
-        yield r
-
-
-def rig_for(r, camera, fov, size=SIZE):
-    return StereoRig.for_scene(r.scene, size=size, camera=camera, **({"fov_y": fov} if fov else {}))
 
 
 def render(r, rig, samples, lists, ssaa=False):
@@ -57,7 +47,7 @@ def render(r, rig, samples, lists, ssaa=False):
 @pytest.mark.parametrize("case", list(CASES))
 def test_tile_lists_give_the_per_ray_frame(room, case):
     camera, samples, fov = CASES[case]
-    rig = rig_for(room, camera, fov)
+    rig = camera_rig(room, camera, fov)
     tri, depth, color, _ = render(room, rig, samples, 0)
     tri_l, depth_l, color_l, words = render(room, rig, samples, 256)
     assert (tri != NO_HIT).mean() > 0.5
@@ -69,13 +59,13 @@ def test_tile_lists_give_the_per_ray_frame(room, case):
 
 
 def test_ssaa_rounds_cast_from_the_lists_too(room):
-    rig = rig_for(room, Pinhole(), None)
+    rig = camera_rig(room, Pinhole(), None)
     assert np.array_equal(render(room, rig, 4, 0, ssaa=True)[2], render(room, rig, 4, 64, ssaa=True)[2])
 
 
 def test_lists_that_overflow_change_nothing(room):
     """A bound of 16 triangles overflows the busier tiles, whose rays then walk from their entries."""
-    rig = rig_for(room, Pinhole(), None)
+    rig = camera_rig(room, Pinhole(), None)
     tri, depth, color, _ = render(room, rig, 4, 0)
     tri_l, depth_l, color_l, words = render(room, rig, 4, 16)
     counts = words[:, 0, 0]
@@ -86,7 +76,7 @@ def test_lists_that_overflow_change_nothing(room):
 def test_a_tile_too_wide_to_cull_has_no_list(room):
     """A 210-degree view at 16 x 8 pixels: one tile an eye, not culled (tile_cull.comp's fallback),
     so no list: its rays walk the BVH."""
-    rig = rig_for(room, Wide(fov_x=210.0), 130.0, size=TILE_PIXELS)
+    rig = camera_rig(room, Wide(fov_x=210.0), 130.0, size=TILE_PIXELS)
     tri, _, _, _ = render(room, rig, 1, 0)
     tri_l, _, _, words = render(room, rig, 1, 256)
     assert (words[:, 0, 0] == TILE_OVERFLOW).all() and np.array_equal(tri, tri_l)
@@ -96,7 +86,7 @@ def test_each_list_holds_what_its_rays_hit_nearest_first(room):
     """Numpy reading of the GPU's lists: every triangle a ray of the tile hits (the per-ray frame's
     IDs) is listed; entries are distinct BVH slots sorted by key, and each key is at most the
     triangle's nearest vertex along the tile's central direction (its far plane's normal)."""
-    rig = rig_for(room, Pinhole(), None)
+    rig = camera_rig(room, Pinhole(), None)
     tri, _, _, _ = render(room, rig, 1, 0)
     _, _, _, words = render(room, rig, 1, 256)
     planes = np.frombuffer(room.resource("tile_planes").read(), np.float32)[:len(words) * 20].reshape(-1, 5, 4)
@@ -126,7 +116,7 @@ def test_each_list_holds_what_its_rays_hit_nearest_first(room):
 
 
 def test_tile_lists_need_tile_culling(room):
-    rig = rig_for(room, Pinhole(), None)
+    rig = camera_rig(room, Pinhole(), None)
     room.settings = RenderSettings(primary="rays", tile_culling=False, tile_lists=64)
     with pytest.raises(ValueError, match="tile culling"):
         room.render(rig)
