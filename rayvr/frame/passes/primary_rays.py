@@ -38,6 +38,18 @@ each ray from its tile's entries instead of the root. Exact: the same triangle a
 per-ray traversal (tests/test_tile_culling_frame.py). The entries are child pairs of the binary
 layout, so with tile culling primary rays walk `bvh2`, whatever `traversal` names for them. Tiles
 whose rays spread beyond ~84 deg (wide cameras at low resolution) fall back to the root's children.
+
+Tile triangle lists (FramePlan.tile_lists, `--tile-lists N`, off unless asked: slower than the
+entries on the H200, bench/results/h200/2026-12-02/lists): after the cull a `lists` stage
+(glsl/accel/tile_tris.comp) lists each tile's frustum triangles nearest first; the cast/trace then
+tests a workgroup's rays against its tile's list from workgroup memory (glsl/rt/tile_list_cast.glsl),
+and a second program casts the tiles whose list overflowed per ray from their entries. Exact.
+
+Shared channel shading (FramePlan.share_channels, `share_channel_shading`, shares_channels): with a
+chromatic camera at one sub-ray per sample, the frame's first round first casts green's rays into
+`channel_probe` (a `probe` stage); red's and blue's casts give the pixels whose ray hits green's
+triangle the weight ROUND_SKIPPED (their rounds shade and trace nothing there) and mark them in
+`channel_match`, from which sample_accumulate adds green's colour to those channels.
 """
 from __future__ import annotations
 
@@ -77,7 +89,7 @@ TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibilit
                             commands=("capture", "preview", "info", "bench")))
 # The tile list stage (glsl/accel/tile_tris.comp): invocations a tile, nodes one sweep of a tile's walk
 # may hold (more: the tile overflows, as with more than its bound of triangles), and the count that says so.
-DEFAULT_TILE_TRIS = declare_constant("DEFAULT_TILE_TRIS", 256)  # the bound where the renderer picks lists
+DEFAULT_TILE_TRIS = declare_constant("DEFAULT_TILE_TRIS", 256)  # tile_tris.comp's bound when compiled alone (tests)
 TILE_LIST_GROUP = declare_constant("TILE_LIST_GROUP", 128)
 TILE_FRONT = declare_constant("TILE_FRONT", 256)
 TILE_OVERFLOW = declare_constant("TILE_OVERFLOW", 0xFFFFFFFF, uint=True)
@@ -133,7 +145,6 @@ def shares_channels(settings, camera, samples: int, effects, culled: bool, view:
 
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
 MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
-LIST_MSAA_GROUP = 64  # with tile lists (each group loads its tile's list)
 SAMPLE_WEIGHT = Texture("r32f")
 CHANNEL_IDS = Texture("r32ui")  # shared channel shading: green's triangle; the channels that hit it (bit = channel)
 # How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without
@@ -145,10 +156,10 @@ COUNT_POLLS = ("fence", "wait", "never")
 COUNT_POLL = "fence"
 
 
-def msaa_block(samples: int, group: int = MSAA_GROUP) -> tuple[int, int]:
-    """Pixels (w, h) of an MSAA trace workgroup: `group` / samples pixels, as square as a power of
-    two allows (a block lies inside one TILE_PIXELS tile for groups up to 128 x samples)."""
-    pixels = max(1, group // samples)
+def msaa_block(samples: int) -> tuple[int, int]:
+    """Pixels (w, h) of an MSAA trace workgroup: MSAA_GROUP / samples pixels, as square as a power
+    of two allows (inside one TILE_PIXELS tile: the tile lists' cast loads one tile's list a group)."""
+    pixels = max(1, MSAA_GROUP // samples)
     w = 1 << (pixels.bit_length() // 2)
     return w, pixels // w
 
@@ -265,7 +276,7 @@ class PrimaryRaysPass(Pass):
     def setup(self, gl, plan: FramePlan) -> None:
         # the primary rays' BVH layout; tile entry lists name binary child pairs
         self.layout = "bvh2" if plan.tile_culling else plan.traversal[0]
-        self.block = msaa_block(plan.samples, LIST_MSAA_GROUP if plan.tile_lists else MSAA_GROUP)
+        self.block = msaa_block(plan.samples)
         tiles = {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": TILE_ENTRIES, "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
                  "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
         lists = {"TILE_TRIS": plan.tile_lists, "TILE_TRIS_BINDING": SSBO["tile_tris"]} if plan.tile_lists else {}
