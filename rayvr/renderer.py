@@ -138,7 +138,7 @@ class Renderer:
         culled = st.culls_tiles(camera.name) and primary == "rays"
         if st.tile_lists and primary == "rays" and not culled:
             raise ValueError("tile triangle lists (--tile-lists) start from the tile culling's entry lists: "
-                             "leave out --tile-culling false")
+                             "leave out --no-tile-culling (tile_culling=False)")
         denoise = tuple(sorted(self.denoised_effects())) if color and st.denoise else ()
         stereo = stereo_mod.effective_mode(self.settings.stereo, layers, camera)
         if stereo != "dual" and samples > 1:  # their passes read one G-buffer, not a frame of rounds

@@ -4,8 +4,6 @@ Run from the repository root: python bench/results/llvmpipe/2026-12-02-shared-ch
 import json
 import sys
 
-import numpy as np
-
 from rayvr.bench.rays import hybrid_config
 from rayvr.bench.report import device_meta
 from rayvr.frame.cameras import Distorted
