@@ -49,7 +49,8 @@ Shared channel shading (FramePlan.share_channels, `share_channel_shading`, share
 chromatic camera at one sub-ray per sample, the frame's first round first casts green's rays into
 `channel_probe` (a `probe` stage); red's and blue's casts give the pixels whose ray hits green's
 triangle the weight ROUND_SKIPPED (their rounds shade and trace nothing there) and mark them in
-`channel_match`, from which sample_accumulate adds green's colour to those channels.
+`channel_match`, from which sample_accumulate adds green's colour to those channels; green's round
+writes the probe's hits instead of casting its rays a second time.
 """
 from __future__ import annotations
 
@@ -146,7 +147,8 @@ def shares_channels(settings, camera, samples: int, effects, culled: bool, view:
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
 MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
 SAMPLE_WEIGHT = Texture("r32f")
-CHANNEL_IDS = Texture("r32ui")  # shared channel shading: green's triangle; the channels that hit it (bit = channel)
+# Shared channel shading: green's hits (triangle, distance bits); the channels that hit green's triangle (bit = channel)
+CHANNEL_PROBE, CHANNEL_MATCH = Texture("rg32ui"), Texture("r32ui")
 # How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without
 # waiting; "wait" reads it after the first round, waiting for the GPU; "never" does not read it
 # (every channel then records msaa_slots rounds). Frames are identical under all three (tests).
@@ -267,7 +269,7 @@ class PrimaryRaysPass(Pass):
                                                  f"{TILE_ENTRIES + 1} words per {TILE_RAYS}-pixel tile")),
                     write("tile_planes", Buffer(lambda s: frame_tiles(s) * 80, "5 planes per tile"))]
         if plan.share_channels:
-            out += [write("channel_probe", CHANNEL_IDS), write("channel_match", CHANNEL_IDS)]
+            out += [write("channel_probe", CHANNEL_PROBE), write("channel_match", CHANNEL_MATCH)]
         if plan.tile_lists:
             out.append(write("tile_tris", Buffer(lambda s, n=plan.tile_lists: frame_tiles(s) * (n + 1) * 8,
                                                  f"{plan.tile_lists + 1} x 8 bytes per tile")))
@@ -349,9 +351,9 @@ class PrimaryRaysPass(Pass):
 
     def share_channels(self, fc) -> None:
         """Shared channel shading: the frame's first round first casts green's rays into
-        channel_probe; the red and blue rounds then compare (share_mode 2, glsl/rt/primary.comp),
-        green's, last, casts as ever and sample_accumulate gives its colour to the channels that
-        matched."""
+        channel_probe; the red and blue rounds then compare (share_mode 2, glsl/rt/primary.comp);
+        green's, last, takes its visibility from the probe (share_mode 3) and sample_accumulate
+        gives its colour to the channels that matched."""
         program, rnd = self.programs[0], fc.round
         fc.resource("channel_probe").bind_to_image(IMAGE["channel_probe"], read=True, write=True)
         fc.resource("channel_match").bind_to_image(IMAGE["channel_match"], read=True, write=True)
@@ -361,7 +363,7 @@ class PrimaryRaysPass(Pass):
             program["subsample"].value = 0
             fc.stage("probe", lambda: dispatch_per_pixel(fc, program))
             program["camera_channel"].value = rnd.channel
-        program["share_mode"].value = 0 if rnd.channel == SHARED_CHANNEL else 2
+        program["share_mode"].value = 3 if rnd.channel == SHARED_CHANNEL else 2
 
     def count_reader(self, fc, channel: int):
         """Round.start_polled's count(wait) for the channel set's count just copied to the readback."""

@@ -66,15 +66,16 @@ shared vec2 sub_offset[CAMERA_SUBSAMPLES];  // camera_subpixel(i), computed once
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
 // SHARE_CHANNELS (PRIMARY_MODE 0, frame/passes/primary_rays.py shares_channels): share_mode 1 casts
-// the green channel into channel_probe (its triangle alone: the frame's first round); 2, in the red
-// and blue rounds, leaves the pixels whose ray hits green's triangle to green (weight ROUND_SKIPPED,
-// no visibility written: common/round_skip.glsl) and marks them in channel_match (bit = channel),
-// whose colour sample_accumulate then takes from green's round; 0: green's round, as ever.
+// the green channel into channel_probe (its triangle and distance: the frame's first round); 2, in
+// the red and blue rounds, leaves the pixels whose ray hits green's triangle to green (weight
+// ROUND_SKIPPED, no visibility written: common/round_skip.glsl) and marks them in channel_match
+// (bit = channel), whose colour sample_accumulate then takes from green's round; 3, green's round,
+// writes the probe's hits as its visibility instead of casting the same rays again.
 #ifndef SHARE_CHANNELS
 #define SHARE_CHANNELS 0
 #endif
 #if SHARE_CHANNELS
-layout(r32ui, binding = IMAGE_CHANNEL_PROBE) uniform uimage2DArray img_probe;
+layout(rg32ui, binding = IMAGE_CHANNEL_PROBE) uniform uimage2DArray img_probe;
 layout(r32ui, binding = IMAGE_CHANNEL_MATCH) uniform uimage2DArray img_match;
 uniform int share_mode;
 #endif
@@ -216,6 +217,16 @@ void main() {
     if (lid == 0u && group_count > 1u && group_count > msaa_count) atomicMax(msaa_count, group_count);
 #elif PRIMARY_MODE == 0
     vec2 pixel = vec2(p.xy) + 0.5;
+    float weight = 1.0 / float(CAMERA_SUBSAMPLES);
+#if SHARE_CHANNELS
+    if (share_mode == 3) {   // green's hits, cast by the probe (no tile lists here: no shared memory to fill)
+        if (!inside) return;
+        uvec2 green = imageLoad(img_probe, p).xy;
+        bool sampled = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
+        store(p, green.x, uint(subsample), uintBitsToFloat(green.y), sampled ? weight : 0.0);
+        return;
+    }
+#endif
     vec3 o, d;
     Hit h;
     h.prim = BVH_MISS;
@@ -226,7 +237,7 @@ void main() {
     bool sample_here = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
 #if SHARE_CHANNELS
     if (share_mode == 1) {
-        imageStore(img_probe, p, uvec4(sample_here ? h.prim : NO_HIT));
+        imageStore(img_probe, p, uvec4(h.prim, floatBitsToUint(h.t), 0u, 0u));
         return;
     }
     if (share_mode == 2) {
@@ -241,7 +252,7 @@ void main() {
     }
 #endif
     // A pixel without a sample (foveated) weighs nothing: the resolve fills it for display.
-    store(p, h.prim, uint(subsample), h.t, sample_here ? 1.0 / float(CAMERA_SUBSAMPLES) : 0.0);
+    store(p, h.prim, uint(subsample), h.t, sample_here ? weight : 0.0);
 #else
     if (!inside) return;
     int slot = msaa_round < 0 ? 0 : int(max(msaa_count, 1u)) - 1 - msaa_round;
