@@ -294,9 +294,9 @@ class PrimaryRaysPass(Pass):
         # tiles: from the lists, and per ray from the entries where a list overflowed. One program with
         # both paths held the BVH walk's registers in the list path too (H200, room, 16x: 13.7 ms, 10.7
         # without the walk).
-        self.overflow = (shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": 1 if self.msaa else 0,
-                                                                      "TILE_LIST_PART": 2})
-                         if plan.tile_lists else None)
+        self.overflow = ([shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": 1 if self.msaa else 0,
+                                                                       "TILE_LIST_PART": 2})]
+                         if plan.tile_lists else [])  # the second cast/trace program, or none
         self.cull = (shaders.compute(gl.ctx, "accel/tile_cull.comp", {**layout_defines(DEFAULT_BINDING, "bvh2"),
                                                                      **camera_defines(plan), **tiles, "TILE_CAMERA": 1})
                      if plan.tile_culling else None)
@@ -313,7 +313,7 @@ class PrimaryRaysPass(Pass):
 
     def execute(self, fc) -> None:
         rnd = fc.round
-        for program in [*self.programs.values(), *([self.overflow] if self.overflow else [])]:
+        for program in [*self.programs.values(), *self.overflow]:
             set_eye_uniforms(program, fc)
         fc.accel.layout(self.layout).bind(DEFAULT_BINDING)
         gb = fc.gbuffer
@@ -328,7 +328,7 @@ class PrimaryRaysPass(Pass):
                 rnd.start(fc.plan.samples)
             if fc.plan.share_channels:
                 self.share_channels(fc)
-            casts = [self.programs[0], *([self.overflow] if self.overflow else [])]
+            casts = [self.programs[0], *self.overflow]
             for program in casts:
                 program["subsample"].value = rnd.slot
             fc.stage("cast", lambda: [dispatch_per_pixel(fc, program) for program in casts])
@@ -404,11 +404,11 @@ class PrimaryRaysPass(Pass):
     def dispatch_trace(self, fc) -> None:
         """One workgroup per block of pixels (msaa_block), one invocation per sub-ray."""
         (w, h), (bw, bh) = fc.sizing.size, self.block
-        for program in [self.programs[1], *([self.overflow] if self.overflow else [])]:
+        for program in [self.programs[1], *self.overflow]:
             program.run(-(-w // bw), -(-h // bh), fc.sizing.layers)
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
     def release(self) -> None:
-        for p in [*self.programs.values(), *([self.overflow] if self.overflow else []), *self.count_io, *self.fences.values(), *([self.cull] if self.cull else []),
-                  *([self.lists] if self.lists else [])]:
+        for p in [*self.programs.values(), *self.overflow, *self.count_io, *self.fences.values(),
+                  *([self.cull] if self.cull else []), *([self.lists] if self.lists else [])]:
             p.release()
