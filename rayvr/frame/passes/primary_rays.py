@@ -43,10 +43,7 @@ Tile triangle lists (FramePlan.tile_lists, `--tile-lists N`, off unless asked: s
 entries on the H200, bench/results/h200/2026-12-02/lists): after the cull a `lists` stage
 (glsl/accel/tile_tris.comp) lists each tile's frustum triangles nearest first; the cast/trace then
 tests a workgroup's rays against its tile's list from workgroup memory (glsl/rt/tile_list_cast.glsl),
-and a second program casts the tiles whose list overflowed per ray from their entries. Exact. The
-MSAA trace from the lists runs one invocation per pixel over all its sub-rays (MSAA_PIXEL_LISTS,
-HVVR's per-sample kernel): each listed triangle is fetched once for the pixel, and the pixel's cone
-of sub-ray directions against the triangle's edge planes rejects it for every sub-ray at once.
+and a second program casts the tiles whose list overflowed per ray from their entries. Exact.
 
 Shared channel shading (FramePlan.share_channels, `share_channel_shading`, shares_channels): with a
 chromatic camera at one sub-ray per sample, the frame's first round first casts green's rays into
@@ -161,18 +158,10 @@ COUNT_POLLS = ("fence", "wait", "never")
 COUNT_POLL = "fence"
 
 
-# The MSAA trace from tile lists (MSAA_PIXEL_LISTS) runs one invocation per pixel: a block of at most
-# PIXEL_LIST_PIXELS pixels, and at most PIXEL_LIST_SUBRAYS sub-rays, whose directions and hits the
-# workgroup keeps (20 bytes each, within the 48 KB every GL 4.3 device gives beside the list loads).
-PIXEL_LIST_PIXELS, PIXEL_LIST_SUBRAYS = 64, 1024
-
-
-def msaa_block(samples: int, per_pixel: bool = False) -> tuple[int, int]:
-    """Pixels (w, h) of an MSAA trace workgroup: MSAA_GROUP / samples pixels (one invocation a
-    sub-ray), or with `per_pixel` (one invocation a pixel, the tile lists' trace) PIXEL_LIST_PIXELS
-    pixels and at most PIXEL_LIST_SUBRAYS sub-rays; as square as a power of two allows, inside one
-    TILE_PIXELS tile (the tile lists' casts load one tile's list a group)."""
-    pixels = min(PIXEL_LIST_PIXELS, PIXEL_LIST_SUBRAYS // samples) if per_pixel else max(1, MSAA_GROUP // samples)
+def msaa_block(samples: int) -> tuple[int, int]:
+    """Pixels (w, h) of an MSAA trace workgroup: MSAA_GROUP / samples pixels, as square as a power
+    of two allows (inside one TILE_PIXELS tile: the tile lists' cast loads one tile's list a group)."""
+    pixels = max(1, MSAA_GROUP // samples)
     w = 1 << (pixels.bit_length() // 2)
     return w, pixels // w
 
@@ -290,20 +279,17 @@ class PrimaryRaysPass(Pass):
         # the primary rays' BVH layout; tile entry lists name binary child pairs
         self.layout = "bvh2" if plan.tile_culling else plan.traversal[0]
         self.block = msaa_block(plan.samples)
-        self.msaa = uses_msaa(plan)
         tiles = {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": TILE_ENTRIES, "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
                  "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
         lists = {"TILE_TRIS": plan.tile_lists, "TILE_TRIS_BINDING": SSBO["tile_tris"]} if plan.tile_lists else {}
         base = {**layout_defines(DEFAULT_BINDING, self.layout), **camera_defines(plan), "SAMPLED": int(plan.sampled),
-                "MSAA_SLOTS": msaa_slots(plan), **self.block_defines(self.block, plan.samples),
+                "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
+                "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples,
                 "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles, **lists,
                 "TILE_LIST_PART": 1 if plan.tile_lists else 0, "SHARE_CHANNELS": int(plan.share_channels)}
-        # The MSAA trace from the lists: one invocation per pixel (HVVR's per-sample kernel).
-        pixel_block = msaa_block(plan.samples, per_pixel=True) if self.msaa and plan.tile_lists else None
-        own = {1: self.block_defines(pixel_block, plan.samples, per_pixel=True)} if pixel_block else {}
-        self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, **own.get(mode, {}), "PRIMARY_MODE": mode})
+        self.msaa = uses_msaa(plan)
+        self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
                          for mode in ((1, 2) if self.msaa else (0,))}
-        self.trace_blocks = {self.programs[1]: pixel_block} if pixel_block else {}  # trace program -> its block
         # With tile lists the cast (mode 0) or trace (mode 1) is two programs, each skipping the other's
         # tiles: from the lists, and per ray from the entries where a list overflowed. One program with
         # both paths held the BVH walk's registers in the list path too (H200, room, 16x: 13.7 ms, 10.7
@@ -415,18 +401,10 @@ class PrimaryRaysPass(Pass):
             fc.stage("lists", lambda: (self.lists.run(nx, ny, fc.sizing.layers),
                                        fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)))
 
-    @staticmethod
-    def block_defines(block, samples: int, per_pixel: bool = False) -> dict:
-        """An MSAA trace program's block: its pixels, sub-rays and invocations (MSAA_PIXEL_LISTS: one a pixel)."""
-        pixels = block[0] * block[1]
-        return {"MSAA_BLOCK_W": block[0], "MSAA_BLOCK_H": block[1], "MSAA_SUBRAYS": pixels * samples,
-                "MSAA_GROUP": pixels if per_pixel else pixels * samples, "MSAA_PIXEL_LISTS": int(per_pixel)}
-
     def dispatch_trace(self, fc) -> None:
-        """One workgroup per block of pixels (msaa_block): one invocation per sub-ray, or per pixel."""
-        w, h = fc.sizing.size
+        """One workgroup per block of pixels (msaa_block), one invocation per sub-ray."""
+        (w, h), (bw, bh) = fc.sizing.size, self.block
         for program in [self.programs[1], *self.overflow]:
-            bw, bh = self.trace_blocks.get(program, self.block)
             program.run(-(-w // bw), -(-h // bh), fc.sizing.layers)
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 

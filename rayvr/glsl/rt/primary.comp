@@ -35,12 +35,6 @@
 #ifndef MSAA_SKIP_EMPTY
 #define MSAA_SKIP_EMPTY 0
 #endif
-// MSAA_PIXEL_LISTS (PRIMARY_MODE 1 with tile lists, TILE_LIST_PART 1): one invocation per pixel of
-// the MSAA_BLOCK_W x MSAA_BLOCK_H block casts all its sub-rays (rt/tile_list_cast.glsl
-// cast_tile_list_pixel); MSAA_SUBRAYS: the block's sub-rays (its pixels times CAMERA_SUBSAMPLES).
-#ifndef MSAA_PIXEL_LISTS
-#define MSAA_PIXEL_LISTS 0
-#endif
 #include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 #if PRIMARY_MODE == 1
 layout(local_size_x = MSAA_GROUP) in;  // = MSAA_BLOCK_W * MSAA_BLOCK_H * CAMERA_SUBSAMPLES (a literal: GLSL 4.30)
@@ -66,8 +60,8 @@ layout(std430, binding = SSBO_MSAA_COUNT) buffer MsaaCount { uint msaa_count; };
 #if PRIMARY_MODE == 1
 // The workgroup's largest count: at most one global atomic per workgroup, not one per pixel.
 shared uint group_count;
-shared uint sub_tri[MSAA_SUBRAYS];   // each sub-ray's triangle (BVH_MISS: background) and distance,
-shared float sub_t[MSAA_SUBRAYS];    //   pixel-major: the block's pixel j has entries j * N .. j * N + N - 1
+shared uint sub_tri[MSAA_GROUP];   // each sub-ray's triangle (BVH_MISS: background) and distance,
+shared float sub_t[MSAA_GROUP];    //   pixel-major: the block's pixel j has entries j * N .. j * N + N - 1
 shared vec2 sub_offset[CAMERA_SUBSAMPLES];  // camera_subpixel(i), computed once per workgroup
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
@@ -184,11 +178,7 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base) {
 #endif
 
 void main() {
-#if PRIMARY_MODE == 1 && MSAA_PIXEL_LISTS
-    uint lid = gl_LocalInvocationIndex, j = lid;   // invocation = pixel of the workgroup's block
-    ivec3 p = ivec3(ivec2(gl_WorkGroupID.xy) * ivec2(MSAA_BLOCK_W, MSAA_BLOCK_H) +
-                    ivec2(j % uint(MSAA_BLOCK_W), j / uint(MSAA_BLOCK_W)), gl_WorkGroupID.z);
-#elif PRIMARY_MODE == 1
+#if PRIMARY_MODE == 1
     // Invocation -> (pixel of the workgroup's block, sub-ray): a pixel's sub-rays are neighbouring
     // invocations (one warp traces a few neighbouring pixels' sub-rays: coherent rays).
     uint lid = gl_LocalInvocationIndex, sub = lid % uint(CAMERA_SUBSAMPLES), j = lid / uint(CAMERA_SUBSAMPLES);
@@ -208,16 +198,7 @@ void main() {
 #if PRIMARY_MODE != 0
     uint pixels = uint(extent.x * extent.y * extent.z), index = uint((p.z * size.y + p.y) * size.x + p.x);
 #endif
-#if PRIMARY_MODE == 1 && MSAA_PIXEL_LISTS
-    if (lid == 0u) group_count = 0u;
-    if (lid < uint(CAMERA_SUBSAMPLES)) sub_offset[lid] = camera_subpixel(lid);  // a block has at least N pixels
-    uint base = j * uint(CAMERA_SUBSAMPLES);
-    cast_tile_list_pixel(p, size, inside, primary_tile(p, size), base);
-    barrier();
-    if (inside) atomicMax(group_count, msaa_merge(p, size, index, pixels, base));
-    barrier();
-    if (lid == 0u && group_count > 1u && group_count > msaa_count) atomicMax(msaa_count, group_count);
-#elif PRIMARY_MODE == 1
+#if PRIMARY_MODE == 1
     if (lid == 0u) group_count = 0u;
     if (lid < uint(CAMERA_SUBSAMPLES)) sub_offset[lid] = camera_subpixel(lid);
     vec3 o, d;
