@@ -20,6 +20,7 @@ SIZE = (48, 24)   # 3 x 3 tiles an eye
 CASES = {
     "pinhole 1x": (Pinhole(), 1, None),
     "pinhole 16x msaa": (Pinhole(), 16, None),
+    "pinhole 32x msaa": (Pinhole(), 32, None),   # the per-pixel trace's smaller block (8x4)
     "distorted chromatic 4x": (Distorted(), 4, None),
     "foveated": (Foveated(), 1, None),
     "wide 210x130": (Wide(fov_x=210.0), 1, 130.0),

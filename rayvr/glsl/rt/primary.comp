@@ -128,52 +128,65 @@ void store(ivec3 p, uint tri, uint sub, float t, float weight) {
 #define HIT(k) msaa_hits[index + uint(k) * pixels]
 #endif
 #if PRIMARY_MODE == 1
-// The sample at pixel p, whose sub-rays' hits are sub_tri/sub_t[base ..]: its distinct triangles
-// to msaa_hits; their number.
-uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base) {
+shared uint sub_mask[MSAA_GROUP];                           // each sub-ray's triangle's coverage mask
+shared uint pixel_first[MSAA_BLOCK_W * MSAA_BLOCK_H];       // the first sub-ray on each distinct triangle
+shared uint pixel_covered[MSAA_BLOCK_W * MSAA_BLOCK_H];     // sub-rays on the kept triangles
+
+// The sample at pixel p, block pixel j, whose sub-rays' hits are sub_tri/sub_t[base ..]: its
+// distinct triangles to msaa_hits; their number. Every invocation of the group calls it, each for
+// its own sub-ray `sub` (all lanes work: one lane per pixel merging alone left 15 of 16 idle at 16x):
+// the first sub-ray on a triangle writes that triangle's entry.
+uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint sub, uint j, bool inside) {
+    // The coverage mask of this sub-ray's triangle (sub-ray i is bit i); distinct triangles are
+    // numbered in order of their first sub-ray, and only the first MSAA_SLOTS are kept (the
+    // sub-rays on the others are dropped).
+    uint tri = sub_tri[base + sub], mask = 0u;
+    for (uint k = 0u; k < uint(CAMERA_SUBSAMPLES); k++)
+        mask |= sub_tri[base + k] == tri ? 1u << k : 0u;
+    bool first = uint(findLSB(mask)) == sub;
+    if (sub == 0u) {
+        pixel_first[j] = 0u;
+        pixel_covered[j] = 0u;
+    }
+    barrier();
+    if (first) atomicOr(pixel_first[j], 1u << sub);
+    barrier();
+    uint firsts = pixel_first[j];
+    bool kept = first && uint(bitCount(firsts & ((1u << sub) - 1u))) < uint(MSAA_SLOTS);
+    sub_mask[base + sub] = mask;
+    if (kept) atomicAdd(pixel_covered[j], uint(bitCount(mask)));
+    barrier();
+    if (!inside) return 0u;
     if (!(camera_footprint(p.z, vec2(p.xy) + 0.5, vec2(size)) > 0.0)) {
-        HIT(0) = uvec4(BVH_MISS, 0u, 0u, 0u);  // no sample at this pixel (foveated): an empty list, filled for display
+        if (sub == 0u)
+            HIT(0) = uvec4(BVH_MISS, 0u, 0u, 0u);  // no sample at this pixel (foveated): an empty list, filled for display
         return 0u;
     }
-    // Distinct triangles and their coverage masks (sub-ray i is bit i).
-    uint ids[MSAA_SLOTS], masks[MSAA_SLOTS];
-    int n = 0;
-    for (int i = 0; i < CAMERA_SUBSAMPLES; i++) {
-        uint tri = sub_tri[base + uint(i)];
-        int k = 0;
-        while (k < n && ids[k] != tri) k++;
-        if (k == n) {
-            if (n == MSAA_SLOTS) continue;  // more triangles than slots: this sub-ray is dropped
-            ids[n] = tri;
-            masks[n] = 0u;
-            n++;
-        }
-        masks[k] |= 1u << uint(i);
-    }
-    uint covered = 0u;
-    for (int k = 0; k < n; k++) covered += uint(bitCount(masks[k]));
-    for (int k = 0; k < n; k++) {
+    uint n = min(uint(bitCount(firsts)), uint(MSAA_SLOTS));
+    if (kept) {
         // Stored most covered first (slot 0 is the pixel's main surface, the G-buffer the frame
-        // keeps): the slot is the entry's rank, ties in order of first sub-ray.
-        int rank = 0;
-        for (int j = 0; j < n; j++)
-            rank += int(bitCount(masks[j]) > bitCount(masks[k]) || (bitCount(masks[j]) == bitCount(masks[k]) && j < k));
+        // keeps): the slot is the entry's rank among the kept, ties in order of first sub-ray.
+        uint pop = uint(bitCount(mask)), rank = 0u, seen = 0u;
+        for (uint m = firsts; m != 0u && seen < n; m &= m - 1u, seen++) {
+            uint k = uint(findLSB(m)), pk = uint(bitCount(sub_mask[base + k]));
+            rank += uint(pk > pop || (pk == pop && k < sub));
+        }
         // The sub-ray nearest the mean of the mask's footprint offsets: shaded for all of them
         // (the mask's bits in increasing order; the first of equally near ones).
         vec2 mean_offset = vec2(0.0);
-        for (uint m = masks[k]; m != 0u; m &= m - 1u) mean_offset += sub_offset[findLSB(m)];
-        mean_offset /= float(bitCount(masks[k]));
+        for (uint m = mask; m != 0u; m &= m - 1u) mean_offset += sub_offset[findLSB(m)];
+        mean_offset /= float(pop);
         int best = 0;
         float best_d = 1e30;
-        for (uint m = masks[k]; m != 0u; m &= m - 1u) {
+        for (uint m = mask; m != 0u; m &= m - 1u) {
             int i = findLSB(m);
             vec2 e = sub_offset[i] - mean_offset;
             if (dot(e, e) < best_d) { best = i; best_d = dot(e, e); }
         }
-        uint meta = uint(best) | (rank == 0 ? (uint(n) << 8) | (covered << 16) : 0u);
-        HIT(rank) = uvec4(ids[k], masks[k], meta, floatBitsToUint(sub_t[base + uint(best)]));
+        uint meta = uint(best) | (rank == 0u ? (n << 8) | (pixel_covered[j] << 16) : 0u);
+        HIT(rank) = uvec4(tri, mask, meta, floatBitsToUint(sub_t[base + uint(best)]));
     }
-    return uint(n);
+    return n;
 }
 #endif
 
@@ -210,7 +223,8 @@ void main() {
     sub_tri[lid] = h.prim;
     sub_t[lid] = h.t;
     barrier();
-    if (inside && sub == 0u) atomicMax(group_count, msaa_merge(p, size, index, pixels, lid));
+    uint n = msaa_merge(p, size, index, pixels, j * uint(CAMERA_SUBSAMPLES), sub, j, inside);
+    if (inside && sub == 0u) atomicMax(group_count, n);
     barrier();
     // One round is the least a frame runs (primary_rays.py): only a count above 1 needs telling, and
     // only when it is above what is already there (most workgroups see one triangle per pixel).
