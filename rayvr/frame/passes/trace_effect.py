@@ -120,7 +120,7 @@ class TraceEffectPass(Pass):
                                              "80 B per path of a batch")),
             "shadows": (f"{key}.shadows", Buffer(lambda s: WaveShape(effect, s).shadow_slots * SLOT_BYTES,
                                                  "48 B per shadow ray of a batch's chunk")),
-            "args": (f"{key}.args", Buffer(lambda s: 64, "4 indirect dispatches")),
+            "args": (f"{key}.args", Buffer(lambda s: 32, "2 indirect dispatches")),
         }
 
     def why(self, plan: FramePlan) -> str | None:
@@ -144,16 +144,15 @@ class TraceEffectPass(Pass):
         # The tracing kernels take the plan's layout for their ray kind; the shading kernels only
         # read triangles (the same buffer in every layout) and stay on the binary defines.
         _, shadow, reflect = plan.traversal
-        self.layouts = {"closest": reflect, "shadow": shadow}
+        self.layouts = {"closest": reflect, "shadow": shadow, "shadow_finish": shadow}
         ds, dr = ({**d, **layout_defines(DEFAULT_BINDING, x)} for x in (shadow, reflect))
         self.programs = {
             "prep": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 0}),
             # screen-space effects (ssr) find closest hits in the quadtree first (SSR_TRACE)
             "closest": shaders.compute(gl.ctx, trace, {**dr, "WAVE_STAGE": 1, "QT_DEPTH_LAYERS": plan.depth_layers,
                                                        "SSR_TRACE": int(self.effect.uses_quadtree)}),
-            "shadow": shaders.compute(gl.ctx, trace, {**ds, "WAVE_STAGE": 2}),   # one invocation a shadow ray
-            "shadow_sum": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 6}),
-            "shadow_sum_finish": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 6, "WAVE_FINISH": 1}),
+            "shadow": shaders.compute(gl.ctx, trace, {**ds, "WAVE_STAGE": 2}),
+            "shadow_finish": shaders.compute(gl.ctx, trace, {**ds, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
             "pixel": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 3}),
             "finish": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 5}),
         }
@@ -165,9 +164,7 @@ class TraceEffectPass(Pass):
         n_pixels = shape.capacity_pixels
         common = {"ambient": tuple(fc.settings.ambient), "background": tuple(fc.settings.background),
                   "frame_seed": int(fc.settings.seed), "rt_capacity": n_pixels,
-                  "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel,
-                  "wave_pixel_slots": max((c for _, c in shape.chunks), default=0),
-                  "wave_hit_slots": max((c for _, c in shape.hit_chunks), default=0)}
+                  "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel}
         users = [(a.rule, a.params) for a in fc.gpu_scene.assignments if a.effect == self.effect.name]
         for p in self.programs.values():
             set_eye_uniforms(p, fc)
@@ -216,7 +213,8 @@ class TraceEffectPass(Pass):
                 last = ci == len(chunks) - 1
                 run("pixel", 0, wave_slot_first=first, wave_slot_count=count, wave_slot_stride=shape.batch)
                 fuse = last and bounces == 0 and one_path
-                self.shadows(run, 0, fuse, wave_slot_first=first, wave_slot_count=count, wave_slot_stride=shape.batch)
+                run("shadow_finish" if fuse else "shadow", 0, wave_items=0, wave_slot_first=first,
+                    wave_slot_count=count, wave_slot_stride=shape.batch)
             for b in range(bounces):
                 run("closest", 1)
                 for ci, (first, count) in enumerate(hit_chunks):
@@ -224,16 +222,9 @@ class TraceEffectPass(Pass):
                     run("hit", 1, wave_bounce=b, wave_last_chunk=int(last), wave_slot_first=first,
                         wave_slot_count=count, wave_slot_stride=shape.capacity)
                     fuse = last and b == bounces - 1 and one_path
-                    self.shadows(run, 1, fuse, wave_slot_stride=shape.capacity)
+                    run("shadow_finish" if fuse else "shadow", 1, wave_items=1, wave_slot_stride=shape.capacity)
             if not one_path:
                 run("finish", 0)
-
-    @staticmethod
-    def shadows(run, items: int, finish: bool, **uniforms) -> None:
-        """The shadow rays of the event over `items` (0: the batch's pixels, 1: its paths): traced one
-        invocation each, then summed per item (and with `finish` the pixel's colour written)."""
-        run("shadow", 2 + items, wave_items=items, **uniforms)
-        run("shadow_sum_finish" if finish else "shadow_sum", items, wave_items=items, **uniforms)
 
     def bind_extra(self, fc) -> None:
         """What a subclass binds beyond the wavefront's buffers (frame/effects/photon/shade.py: the photon map)."""

@@ -31,9 +31,8 @@ struct ShadowSlot {
 
 layout(std430, binding = SSBO_WAVE_PATHS) restrict buffer WavePaths { WavePath wave_paths[]; };
 layout(std430, binding = SSBO_WAVE_SHADOWS) restrict buffer WaveShadows { ShadowSlot wave_shadows[]; };
-// [0]: dispatch over the batch's pixels, [1]: over its paths; w = item count. [2], [3]: the same
-// times the event's most shadow slots in z (the shadow trace: one invocation per shadow ray).
-layout(std430, binding = SSBO_WAVE_ARGS) restrict buffer WaveArgs { uvec4 wave_args[4]; };
+// [0]: dispatch over the batch's pixels, [1]: over its paths; w = item count.
+layout(std430, binding = SSBO_WAVE_ARGS) restrict buffer WaveArgs { uvec4 wave_args[2]; };
 
 uniform uint wave_capacity;         // paths the buffers hold
 uniform uint wave_slot_stride;      // items per row of the shadow slots (this event's capacity)

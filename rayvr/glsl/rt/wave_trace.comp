@@ -3,12 +3,9 @@
 // keep the batch tracer's registers and occupancy while the shading lives in rt/wave_shade.comp.
 //   WAVE_STAGE 0  prep: dispatch sizes of this batch from the effect's pixel count (one thread)
 //   WAVE_STAGE 1  closest: each active path's ray -> its hit
-//   WAVE_STAGE 2  shadow: every stored shadow ray, one invocation each (slot k = workgroup z),
-//                 any hit; an occluded ray's contribution is zeroed in its slot
-//   WAVE_STAGE 6  shadow_sum: each item's slots summed in slot order and added to its radiance;
-//                 with WAVE_FINISH the pixel's colour is written as well (one path per pixel, last
-//                 event). (One invocation per item tracing its rays in turn, the stage before, left
-//                 most lanes idle while a few traced their last rays.)
+//   WAVE_STAGE 2  shadow: each item's stored shadow rays, any hit; unoccluded contributions are
+//                 added to its radiance; with WAVE_FINISH the pixel's colour is written as well
+//                 (one path per pixel, last event)
 #ifndef WAVE_STAGE
 #define WAVE_STAGE 1
 #endif
@@ -18,21 +15,17 @@
 #include "wave.glsl"
 #if WAVE_STAGE == 0
 layout(local_size_x = 1) in;
-uniform uint wave_pixel_slots;  // the most shadow slots of a pixel event's chunk (frame/passes/trace_effect.py)
-uniform uint wave_hit_slots;    // of a hit event's chunk
-uvec4 dispatch_of(uint n, uint layers) {
+uvec4 dispatch_of(uint n) {
     uint groups = (n + uint(RT_LOCAL_SIZE) - 1u) / uint(RT_LOCAL_SIZE);
     uint gx = min(groups, RT_MAX_GROUPS_X);
     uint gy = gx == 0u ? 1u : (groups + gx - 1u) / gx;
-    return uvec4(gx, gy, layers, n);
+    return uvec4(gx, gy, 1u, n);
 }
 void main() {
     uint total = rt_args[RT_SLOT].w;
     uint n = total > wave_batch_base ? min(total - wave_batch_base, wave_capacity / wave_paths_per_pixel) : 0u;
-    wave_args[0] = dispatch_of(n, 1u);
-    wave_args[1] = dispatch_of(n * wave_paths_per_pixel, 1u);
-    wave_args[2] = dispatch_of(n, max(wave_pixel_slots, 1u));
-    wave_args[3] = dispatch_of(n * wave_paths_per_pixel, max(wave_hit_slots, 1u));
+    wave_args[0] = dispatch_of(n);
+    wave_args[1] = dispatch_of(n * wave_paths_per_pixel);
 }
 #else
 layout(local_size_x = RT_LOCAL_SIZE) in;
@@ -113,17 +106,6 @@ void main() {
     trace_closest(Ray(o.xyz, o.w, d.xyz, d.w), h);
     wave_paths[p].hit = uvec4(h.slot, h.prim, floatBitsToUint(h.uv.x), floatBitsToUint(h.uv.y));
 }
-#elif WAVE_STAGE == 2
-uniform uint wave_items;  // 0: the batch's pixels, 1: its paths (wave_args index)
-void main() {
-    uint q = wave_index(), k = gl_WorkGroupID.z;
-    if (q >= wave_args[wave_items].w || k >= floatBitsToUint(wave_paths[q].throughput.w)) return;
-    uint at = k * wave_slot_stride + q;
-    vec4 o = wave_shadows[at].origin;
-    vec4 d = wave_shadows[at].direction;
-    if (trace_any(Ray(o.xyz, o.w, d.xyz, d.w)))
-        wave_shadows[at].light = vec4(0.0);
-}
 #else
 #ifdef WAVE_FINISH
 layout(rgba16f, binding = IMAGE_HDR) uniform writeonly image2DArray hdr_out;
@@ -134,8 +116,13 @@ void main() {
     if (q >= wave_args[wave_items].w) return;
     uint n = floatBitsToUint(wave_paths[q].throughput.w);
     vec3 sum = vec3(0.0);
-    for (uint k = 0u; k < n; ++k)   // in slot order, as one invocation tracing them in turn summed
-        sum += wave_shadows[k * wave_slot_stride + q].light.rgb;   // an occluded ray's is zero
+    for (uint k = 0u; k < n; ++k) {
+        uint at = k * wave_slot_stride + q;
+        vec4 o = wave_shadows[at].origin;
+        vec4 d = wave_shadows[at].direction;
+        if (!trace_any(Ray(o.xyz, o.w, d.xyz, d.w)))
+            sum += wave_shadows[at].light.rgb;
+    }
 #ifdef WAVE_FINISH
     imageStore(hdr_out, wave_pixel(q), vec4(wave_paths[q].radiance.rgb + sum, 1.0));
 #else
