@@ -168,7 +168,8 @@ class Renderer:
                          tile_culling=culled, tile_lists=primary_rays.tile_list_bound(st, camera.name) if culled else 0,
                          share_channels=primary == "rays" and primary_rays.shares_channels(
                              st, camera, samples, self.effects_in_use(), culled, view),
-                         channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots)
+                         channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots,
+                         light_picks=st.light_picks)
 
     def set_stereo(self, mode: str) -> None:
         """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/frame/stereo.py)."""
@@ -182,7 +183,8 @@ class Renderer:
     def sizing(self, size, layers: int = 2, plan: FramePlan | None = None) -> Sizing:
         """What `plan`'s resources are sized by (its depth layers: warp may add one)."""
         return Sizing(tuple(size), layers, self.scene, tuple(self.assignments), self.gl.max_ssbo_bytes,
-                      plan.depth_layers if plan is not None else depth_layers(self.assignments), self.wave_buffer_bytes)
+                      plan.depth_layers if plan is not None else depth_layers(self.assignments), self.wave_buffer_bytes,
+                      plan.light_picks if plan is not None else self.settings.light_picks)
 
     def record(self, rig: StereoRig, eyes: str = "both", view: str = "color", profile: bool = False,
                sample: int | None = None) -> FrameContext:

@@ -15,11 +15,12 @@ from .frame import accumulation, stereo
 from . import options
 from .accel import bvh, gpu
 from .frame.cameras import sampling
+from .scene import light_selection
 from .options import TABLE, Option, OptionError
 from .frame.passes import accumulate, denoise, dof, primary_rays, quadtree, second_layer, shade, tonemap, visibility
 
 OWNERS = (tonemap, shade, visibility, primary_rays, accumulation, accumulate, denoise, second_layer, stereo, quadtree,
-          gpu, bvh, dof, sampling)
+          gpu, bvh, dof, sampling, light_selection)
 RANK = {m.__name__: i for i, m in enumerate(OWNERS)}
 _ordered: list = [None, {}]  # (the declarations, all_options()' answer to them)
 

@@ -62,6 +62,7 @@ class FramePlan:
     tile_culling: bool = False  # primary rays traced from tile frustum entry lists (frame/passes/primary_rays.py)
     tile_lists: int = 0  # with tile culling: the bound of each tile's triangle list, 0 none (primary_rays.py)
     share_channels: bool = False  # red and blue take green's shading where they hit its triangle (primary_rays.py)
+    light_picks: int = 0  # lights the traced effects draw per surface by power, 0 every light (scene/light_selection.py)
     # MSAA rounds leave a pixel with nothing in their slot as it is where exact (frame/passes/primary_rays.py
     # skips_empty_slots); False shades it as background of weight 0, the reference tests compare with
     skip_empty_slots: bool = True
@@ -98,6 +99,7 @@ class Sizing:
     max_ssbo_bytes: int = 0
     depth_layers: int = 1  # FramePlan.depth_layers
     wave_buffer_bytes: int | None = None  # largest wavefront buffer (None: frame/passes/trace_effect.py WAVE_BUFFER_BYTES)
+    light_picks: int = 0  # FramePlan.light_picks (the wavefront's shadow slots per surface)
 
     @property
     def pixels(self) -> int:

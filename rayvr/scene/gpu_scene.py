@@ -6,8 +6,9 @@ import numpy as np
 
 from ..frame.effects import EFFECTS, PARAM_WORDS
 from ..gl.gpu_layout import LIGHT_KINDS, SSBO
-from .materials import Assignment
+from .light_selection import pick_table
 from .loader import Light, Scene
+from .materials import Assignment
 
 MATERIAL_DTYPE = np.dtype([("base_color", "<f4", 4), ("emission", "<f4", 4), ("metallic", "<f4"),
                            ("roughness", "<f4"), ("texture_layer", "<i4"), ("effect", "<u4"),
@@ -50,6 +51,10 @@ def light_records(scene: Scene) -> np.ndarray:
         rec[0]["position_kind"][3] = LIGHT_KIND_ID["point"]
     for i, light in enumerate(scene.lights):
         rec[i] = _light_record(light, scene.origin)
+    if scene.lights:  # light_selection.py: each light's probability and the running sum, for --light-picks
+        lo, hi = scene.bounds
+        pmf, cdf = pick_table(scene.lights, 0.5 * float(np.linalg.norm(hi - lo)))
+        rec["radiance"][:, 3], rec["direction"][:, 3] = pmf, cdf
     return rec
 
 

@@ -16,6 +16,7 @@ from ...accel.gpu import DEFAULT_BINDING, GpuBvh, layout_defines
 from ..effect_registry import Effect, traced_effects
 from ..graph import Buffer, FramePlan, Pass, Sizing, compose, read, write
 from ...gl.gpu_layout import IMAGE, SSBO, UNIT
+from ...scene.light_selection import shadow_rays_per_surface
 from .classify import bind_lists
 from .compute import camera_defines, set_eye_uniforms
 from .quadtree import set_tree_uniforms
@@ -78,7 +79,7 @@ class WaveShape:
         lights = s.scene.lights if s.scene is not None else ()
 
         def shadow_rays(per_rect: int) -> int:  # of one surface: per_rect points a rect light, 1 another
-            return sum(per_rect if light.kind == "rect" else 1 for light in lights) or 1
+            return shadow_rays_per_surface(lights, per_rect, s.light_picks)
         per_path = prm[WAVE_SAMPLES] if effect.shader_defines.get("PIXEL_LIGHT_SAMPLES_PER_PATH") else 1
         self.slots = shadow_rays(prm[WAVE_AREA_SAMPLES] * per_path)
         # A hit event lights its surface with `area_samples` points per rect light, never the
@@ -164,7 +165,8 @@ class TraceEffectPass(Pass):
         n_pixels = shape.capacity_pixels
         common = {"ambient": tuple(fc.settings.ambient), "background": tuple(fc.settings.background),
                   "frame_seed": int(fc.settings.seed), "rt_capacity": n_pixels,
-                  "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel}
+                  "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel,
+                  "light_picks": fc.plan.light_picks}
         users = [(a.rule, a.params) for a in fc.gpu_scene.assignments if a.effect == self.effect.name]
         for p in self.programs.values():
             set_eye_uniforms(p, fc)

@@ -30,53 +30,70 @@ vec2 rect_light_sample(int k, int n) {
 }
 #endif
 
-vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float roughness) {
-    vec3 sum = vec3(0.0);
-    for (int i = 0; i < lights.length(); ++i) {
-        Light li = lights[i];
-        int kind = int(li.position_kind.w);
-        if (kind == LIGHT_DIRECTIONAL) {
-            vec3 l = -normalize(li.direction.xyz);
-            vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
-            if (any(greaterThan(f, vec3(0.0))))
-                sum += shadowed(f * li.radiance.rgb, p, n, l, 1e30);
-        } else if (kind == LIGHT_POINT) {
-            vec3 d = li.position_kind.xyz - p;
-            float dist = length(d);
-            if (dist <= 0.0) continue;
+// Light i's contribution at the surface, divided by its pick pdf (light_pick_pdf: 1 when every
+// light is taken), added to sum sample by sample.
+void add_light(int i, vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float roughness, float pick_pdf,
+               inout vec3 sum) {
+    Light li = lights[i];
+    int kind = int(li.position_kind.w);
+    if (kind == LIGHT_DIRECTIONAL) {
+        vec3 l = -normalize(li.direction.xyz);
+        vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
+        if (any(greaterThan(f, vec3(0.0))))
+            sum += shadowed(f * li.radiance.rgb / pick_pdf, p, n, l, 1e30);
+    } else if (kind == LIGHT_POINT) {
+        vec3 d = li.position_kind.xyz - p;
+        float dist = length(d);
+        if (dist <= 0.0) return;
+        vec3 l = d / dist;
+        vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
+        if (any(greaterThan(f, vec3(0.0))))
+            sum += shadowed(f * li.radiance.rgb / (dist * dist) / pick_pdf, p, n, l, dist);
+    } else if (kind == LIGHT_RECT) {
+        // Radiance L over area A: E = sum L * cos_l * cos_s / d^2 * A / N over N points.
+        vec3 c = li.position_kind.xyz, u = li.u.xyz, w = li.v.xyz;
+        vec3 ln = normalize(cross(u, w));
+        float area = 4.0 * length(cross(u, w));
+        if (!(area > 0.0)) return;  // a zero-area light emits nothing (and has no normal)
+        int N = rect_light_sample_count();
+        for (int k = 0; k < N; ++k) {
+            vec2 s = rect_light_sample(k, N) * 2.0 - 1.0;
+            vec3 q = c + s.x * u + s.y * w;
+            vec3 d = q - p;
+            float dist2 = dot(d, d);
+            if (dist2 <= 0.0) continue;
+            float dist = sqrt(dist2);
             vec3 l = d / dist;
-            vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
-            if (any(greaterThan(f, vec3(0.0))))
-                sum += shadowed(f * li.radiance.rgb / (dist * dist), p, n, l, dist);
-        } else if (kind == LIGHT_RECT) {
-            // Radiance L over area A: E = sum L * cos_l * cos_s / d^2 * A / N over N points.
-            vec3 c = li.position_kind.xyz, u = li.u.xyz, w = li.v.xyz;
-            vec3 ln = normalize(cross(u, w));
-            float area = 4.0 * length(cross(u, w));
-            if (!(area > 0.0)) continue;  // a zero-area light emits nothing (and has no normal)
-            int N = rect_light_sample_count();
-            for (int k = 0; k < N; ++k) {
-                vec2 s = rect_light_sample(k, N) * 2.0 - 1.0;
-                vec3 q = c + s.x * u + s.y * w;
-                vec3 d = q - p;
-                float dist2 = dot(d, d);
-                if (dist2 <= 0.0) continue;
-                float dist = sqrt(dist2);
-                vec3 l = d / dist;
-                float cos_light = dot(ln, -l);
-                if (light_two_sided(li)) cos_light = abs(cos_light);
-                if (cos_light <= 0.0) continue;  // behind a one-sided light
+            float cos_light = dot(ln, -l);
+            if (light_two_sided(li)) cos_light = abs(cos_light);
+            if (cos_light <= 0.0) continue;  // behind a one-sided light
 #ifdef LIGHT_MIS
-                vec3 f = light_mis_brdf_cos(n, v, l, base_color, metallic, roughness,
-                                            float(N) * dist2 / (cos_light * area));
+            vec3 f = light_mis_brdf_cos(n, v, l, base_color, metallic, roughness,
+                                        pick_pdf * float(N) * dist2 / (cos_light * area));
 #else
-                vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
+            vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);
 #endif
-                if (!any(greaterThan(f, vec3(0.0)))) continue;
-                sum += shadowed(f * li.radiance.rgb * cos_light / dist2 * (area / float(N)), p, n, l, dist);
-            }
+            if (!any(greaterThan(f, vec3(0.0)))) continue;
+            sum += shadowed(f * li.radiance.rgb * cos_light / dist2 * (area / float(N)) / pick_pdf, p, n, l, dist);
         }
     }
+}
+
+vec3 direct_light(vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, float roughness) {
+    vec3 sum = vec3(0.0);
+#ifdef HAS_LIGHT_PICKS  // a traced effect (rt/shadow_rays.glsl): with --light-picks, K lights drawn by power
+    if (light_picks > 0) {
+        for (int j = 0; j < light_picks; ++j) {
+            int i = pick_light(rng_next(light_pick_rng));
+            float pdf = light_pick_pdf(i);
+            if (pdf > 0.0)
+                add_light(i, p, n, v, base_color, metallic, roughness, pdf, sum);
+        }
+        return sum;
+    }
+#endif
+    for (int i = 0; i < lights.length(); ++i)
+        add_light(i, p, n, v, base_color, metallic, roughness, 1.0, sum);
     return sum;
 }
 

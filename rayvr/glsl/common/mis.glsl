@@ -75,7 +75,8 @@ vec3 sample_brdf(vec3 n, vec3 v, vec3 base_color, float metallic, float roughnes
 }
 
 // Solid-angle pdf with which direct_light() (lighting.glsl) samples the rect light that the ray
-// from `origin` along unit `dir` meets at `q` (its `area_samples` points folded in: x count);
+// from `origin` along unit `dir` meets at `q` (its `area_samples` points folded in: x count; with
+// --light-picks, x its pick pdf);
 // 0 when q is on no rect light; -1 on a one-sided rect light's back, which emits nothing.
 float rect_light_pdf(vec3 origin, vec3 dir, vec3 q, float count) {
     for (int i = 0; i < lights.length(); ++i) {
@@ -95,7 +96,7 @@ float rect_light_pdf(vec3 origin, vec3 dir, vec3 q, float count) {
         if (light_two_sided(li)) cos_light = abs(cos_light);
         if (cos_light <= 0.0) return -1.0;
         vec3 e = q - origin;
-        return count * dot(e, e) / (cos_light * area);
+        return light_pick_pdf(i) * count * dot(e, e) / (cos_light * area);
     }
     return 0.0;
 }

@@ -15,8 +15,8 @@ struct Material {
 
 struct Light {
     vec4 position_kind;   // xyz scene-local position (rect: centre), w kind
-    vec4 radiance;        // rgb colour * intensity
-    vec4 direction;       // directional: direction light travels
+    vec4 radiance;        // rgb colour * intensity; w: its probability of a pick (scene/light_selection.py)
+    vec4 direction;       // directional: direction light travels; w: the picks' running sum up to it
     vec4 u;               // rect: half-edge vectors; w 1: emits on both sides (light_two_sided)
     vec4 v;
 };
@@ -31,6 +31,23 @@ layout(std430, binding = SSBO_INDICES) readonly buffer Indices { uint index_data
 // the material is double-sided (rayvr/scene/loader.py Material.double_sided); rect lights alike.
 bool emits_both_sides(Material m) { return m.emission.w > 0.5; }
 bool light_two_sided(Light li) { return li.u.w > 0.5; }
+
+// --light-picks (rayvr/scene/light_selection.py): 0, every light lights every surface; K > 0, the
+// traced effects draw K lights per surface by power. Set by the wavefront passes.
+uniform int light_picks;
+
+// The light a uniform u in [0, 1) draws: the first whose running sum exceeds u (the last's is 1).
+int pick_light(float u) {
+    int lo = 0, hi = lights.length() - 1;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (lights[mid].direction.w > u) hi = mid; else lo = mid + 1;
+    }
+    return lo;
+}
+
+// Light i's share of its surface's light samples: K x its probability with picks, 1 without.
+float light_pick_pdf(int i) { return light_picks > 0 ? float(light_picks) * lights[i].radiance.w : 1.0; }
 
 // Parameter `slot` of material m's effect (PARAM_<EFFECT>_<NAME>, or PARAM_<NAME> in an effect's
 // own shaders): ints as int32, floats as float32 bits.

@@ -52,7 +52,7 @@ bool path_last_vertex(uint mi) {
 
 void path_vertex_begin(uint p, uint mi, inout uint rng) {
     rng = path_rng(rng, p / wave_args[0].w, wave_bounce + 1);
-    shadow_lattice_shift = rng_next2(rng);  // this vertex's own light samples
+    light_samples_begin(rng);  // this vertex's own light samples
     mis_bsdf_samples = path_last_vertex(mi) ? 0.0 : 1.0;  // the last vertex takes no BSDF sample
 }
 

@@ -12,12 +12,23 @@
 #define RAYVR_RT_SHADOW_RAYS_GLSL
 #define HAS_LIGHT_VISIBILITY
 #define HAS_RECT_LIGHT_SAMPLES
+#define HAS_LIGHT_PICKS
 #include "../accel/bvh.glsl"
+#include "../common/random.glsl"
 #include "wave.glsl"
 
 vec3 shadow_geometric_normal;  // unit geometric normal of the surface being lit (either side)
 int shadow_area_samples = 1;   // points per rect light
 vec2 shadow_lattice_shift;     // per-pixel random shift of the lattice
+uint light_pick_rng;           // the surface's stream of light picks (--light-picks)
+
+// A surface's light sampling state from its random stream: the lattice's shift, and the light
+// picks' own stream (hashed off the surface's, which it leaves where it was, so frames without
+// picks draw what they always drew).
+void light_samples_begin(inout uint rng) {
+    shadow_lattice_shift = rng_next2(rng);
+    light_pick_rng = pcg_hash(rng ^ 0x68E31DA4u);
+}
 
 int rect_light_sample_count() { return shadow_area_samples; }
 

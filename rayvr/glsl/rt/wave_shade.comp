@@ -83,7 +83,7 @@ uint pixel_setup(ivec3 px, out uint rng) {
     float footprint = position.w * (t.w - t.z) / float(textureSize(gb_material, 0).y);
     rng = rng_seed_surface(position.xyz, footprint, frame_seed);
     shadow_area_samples = max(material_param_int(mi, PARAM_AREA_SAMPLES), 1);
-    shadow_lattice_shift = rng_next2(rng);
+    light_samples_begin(rng);
 #ifdef LIGHT_MIS  // the pixel's light samples against its `samples` BSDF rays
     mis_bsdf_samples = float(max(material_param_int(mi, PARAM_SAMPLES), 1));
 #endif
