@@ -167,6 +167,14 @@ def _vr(args, out, camera_from_args):
            warmup=1 if args.quick else 3, quick=args.quick, backend=args.backend)
 
 
+def _lights(args, out, camera_from_args):
+    from . import lights
+
+    lights.run(out, size=(32, 24) if args.quick else args.size, scenes=_scenes(args),
+               poses=1 if args.quick else (args.poses or 2), repeat=2 if args.quick else share(args.repeat, 5),
+               frames=2 if args.quick else 4, reference_frames=2 if args.quick else 8, backend=args.backend)
+
+
 def _crosscheck(args, out, camera_from_args):
     from . import mitsuba_ref
 
@@ -198,6 +206,8 @@ AREAS: dict[str, Area] = {
     "gi": Area("issue 11's global illumination figures (the photon tables over 128²-512² x 0.02-0.2 m, Table 5 "
                "dual vs reuse, path at 1/4/16 spp with and without the denoiser; targets met or missed)", _gi, FLIP),
     "stereo": Area("the stereo modes dual, warp, reuse (ms per pass, FLIP against dual, holes)", _stereo, FLIP),
+    "lights": Area("light picks by power (--light-picks 1, 4, 16) against every light on the bench scenes with 64 "
+                   "added point lights: GPU ms, MSE against the converged frame, MSE at equal time", _lights),
     "peers": Area("frames/s against pyrender", _peers),
     "tradeoff": Area("every knob's GPU ms vs error against the reference", _tradeoff, FLIP, workers="one"),
     "budget": Area("effects per material chosen under --budget-ms", _budget, FLIP, workers="one"),
