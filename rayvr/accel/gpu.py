@@ -6,8 +6,10 @@ dispatching: node buffer at binding `base`, triangle buffer at `base + 1` (defau
 scene buffers 0..2 of glsl/common/scene.glsl).
 
 Node layouts (`gpu_layout.BVH_LAYOUTS`): `bvh2`, the binary child-pair nodes of bvh.py (the
-reference), and `bvh4` / `bvh8`, wide nodes with quantized child boxes collapsed from it (wide.py).
-All share the triangle buffer, so every layout reports the same triangle slots and IDs.
+reference), `bvh4` / `bvh8`, wide nodes with quantized child boxes collapsed from it (wide.py), and
+`cwbvh`, the compressed 8-wide BVH of Ylitie et al. 2017 (cwbvh.py; its node buffer holds copies of
+its leaves' triangles, each naming its binary slot). All bind the binary triangle buffer and report
+its triangle slots and IDs.
 """
 from __future__ import annotations
 
@@ -18,10 +20,11 @@ import numpy as np
 
 from ..gl import shaders
 from ..gl.glsl_constants import declare
-from ..gl.gpu_layout import BVH_LAYOUTS, SSBO, TILE_ENTRIES, TILE_RAYS
+from ..gl.gpu_layout import BVH_LAYOUTS, COMPRESSED_LAYOUT, SSBO, TILE_ENTRIES, TILE_RAYS
 from ..options import Option, declare as declare_option
 from ..gl.timing import time_gpu
 from .bvh import Bvh, BufferTooLargeError
+from .cwbvh import CwBvh, build_cwbvh, pack as pack_cwbvh
 from .wide import WideBvh, build_wide, node_words, pack as pack_wide
 
 DEFAULT_BINDING = SSBO["bvh_nodes"]  # nodes here, triangles at +1 (gpu_layout.SSBO)
@@ -30,6 +33,8 @@ STACK_SIZE = declare("BVH_BINARY_STACK_SIZE", 64)  # bvh.glsl's default BVH_STAC
 # against the tree's depth, wide.group_stack_bound).
 WIDE_STACK_SIZES = {4: 32, 8: 32}
 WIDE_MAX_NODES = 1 << 24   # a stack entry holds the node index in 24 bits
+# The compressed layout's stack: (group base, mask) pairs, one a level (two ints each in bvh_stack).
+CWBVH_STACK_ENTRIES = 32
 MISS = declare("BVH_MISS", 0xFFFFFFFF, uint=True)
 MODES = {"closest": 0, "any": 1, "reflect": 2, "through": 3}
 _LOCAL_SIZE = declare("TRACE_RAYS_LOCAL", 64)  # glsl/accel/trace_rays.comp's local size
@@ -87,7 +92,7 @@ def traversal_value(value) -> tuple[str, str, str]:
 
 
 TRAVERSAL = declare_option(Option(
-    "traversal", tuple, DEFAULT_TRAVERSAL, "BVH node layout of the traced rays: one for all (bvh2, bvh4, bvh8) or per "
+    "traversal", tuple, DEFAULT_TRAVERSAL, "BVH node layout of the traced rays: one for all (bvh2, bvh4, bvh8, cwbvh) or per "
     "ray kind, e.g. primary=bvh8,shadow=bvh4,reflect=bvh2; kinds not named keep the default (the fastest on the "
     "H200; bvh2 is the reference)", scope="plan", plan_field="traversal", metavar="LAYOUTS", convert=traversal_value,
     commands=("capture", "preview")))
@@ -99,7 +104,9 @@ def layout_defines(base_binding: int = DEFAULT_BINDING, layout: str = "bvh2", or
     width = check_layout(layout)
     d = {"BVH_NODES_BINDING": base_binding, "BVH_TRIS_BINDING": base_binding + 1,
          "BVH_STACK_SIZE": WIDE_STACK_SIZES.get(width, STACK_SIZE), "BVH_WIDTH": width}
-    if width > 2:
+    if layout == COMPRESSED_LAYOUT:   # octant order, no nearest-first: `ordered` does not apply
+        d.update(BVH_COMPRESSED=1, BVH_STACK_SIZE=2 * CWBVH_STACK_ENTRIES)
+    elif width > 2:
         d.update(BVH_NODE_VEC4=node_words(width) // 4, BVH_ORDERED=int(ordered))
     return d
 
@@ -109,7 +116,8 @@ class GpuBvh:
 
     def __init__(self, ctx, bvh: Bvh, limit: int | None = None, layout: str = "bvh2"):
         """`limit`: bytes per storage block; default: the device's GL_MAX_SHADER_STORAGE_BLOCK_SIZE.
-        `layout`: bvh2 (binary, the reference), bvh4 or bvh8 (wide, collapsed from `bvh`)."""
+        `layout`: bvh2 (binary, the reference), bvh4 or bvh8 (wide, collapsed from `bvh`), cwbvh
+        (compressed 8-wide, collapsed from `bvh`)."""
         self.ctx = _moderngl(ctx)
         self.bvh = bvh
         self.layout = layout
@@ -119,8 +127,15 @@ class GpuBvh:
         if bvh.max_depth > STACK_SIZE:
             raise ValueError(f"BVH depth {bvh.max_depth} exceeds the GPU traversal stack ({STACK_SIZE}); "
                              f"build with max_depth <= {STACK_SIZE}")
-        self.wide: WideBvh | None = None
-        if self.width > 2:
+        self.wide: WideBvh | CwBvh | None = None
+        if layout == COMPRESSED_LAYOUT:
+            self.wide = build_cwbvh(bvh)
+            if self.wide.group_stack_bound > CWBVH_STACK_ENTRIES:
+                raise ValueError(f"{layout}: a traversal may hold {self.wide.group_stack_bound} stack entries, "
+                                 f"more than the GPU stack ({CWBVH_STACK_ENTRIES}); use bvh2")
+            if self.limit and self.wide.nbytes > self.limit:
+                raise BufferTooLargeError("bvh_nodes", self.wide.nbytes, self.limit)
+        elif self.width > 2:
             self.wide = build_wide(bvh, self.width)
             if self.wide.group_stack_bound > WIDE_STACK_SIZES[self.width]:
                 raise ValueError(f"{layout}: a traversal may hold {self.wide.group_stack_bound} stack entries, "
@@ -136,6 +151,9 @@ class GpuBvh:
     def _pack_nodes(self) -> np.ndarray:
         if self.wide is None:
             return self.bvh.pack_nodes()
+        if isinstance(self.wide, CwBvh):
+            self.wide.packed = pack_cwbvh(self.wide)   # same tree, boxes from the current vertices
+            return self.wide.packed
         self.wide.packed = pack_wide(self.bvh, self.wide.child)   # same children, new boxes
         return self.wide.packed
 
@@ -216,9 +234,11 @@ class RayTracer:
         if key not in self._programs:
             if mode not in MODES:
                 raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
-            if (tiles or work) and self.gpu_bvh.width != 2:
-                what = "tile frustum culling walks" if tiles else "work counts count"
-                raise ValueError(f"{what} the bvh2 layout, not {self.gpu_bvh.layout}")
+            counted = self.gpu_bvh.width == 2 or self.gpu_bvh.layout == COMPRESSED_LAYOUT
+            if (tiles and self.gpu_bvh.width != 2) or (work and not counted):
+                what = "tile frustum culling walks the bvh2 layout" if tiles else \
+                    "work counts count the bvh2 and cwbvh layouts"
+                raise ValueError(f"{what}, not {self.gpu_bvh.layout}")
             defines = dict(self.gpu_bvh.own_defines(self.base, self.ordered), TRACE_MODE=MODES[mode],
                            OFFSET_RAYS=int(offset), RAYS_BINDING=self.base + 2, HITS_BINDING=self.base + 3,
                            **(self.tile_defines() if tiles else {}),
@@ -242,7 +262,7 @@ class RayTracer:
               offset: bool = True, tiles: bool = False, tile_info: dict | None = None, work: dict | None = None):
         """Trace rays; returns Hits, or for mode='any' a bool array (occluded). With `tiles`, the
         culled traversal; `tile_info` then receives each tile's entry list and frustum planes.
-        `work` (binary layout): receives each ray's traversal work, counted on the GPU (bvh.glsl
+        `work` (bvh2 and cwbvh layouts): receives each ray's traversal work, counted on the GPU (bvh.glsl
         BVH_COUNT_WORK): `node_visits` (nodes fetched by walks), `entry_tests` (tile entry boxes
         tested), `triangle_tests`."""
         rays = pack_rays(origins, directions, tmin, tmax)

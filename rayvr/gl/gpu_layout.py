@@ -98,8 +98,10 @@ LIGHT_KINDS = ("point", "directional", "rect")
 NO_HIT = 0xFFFFFFFF
 ROUND_SKIPPED = -1.0  # sample_weight of a pixel an MSAA round leaves alone (glsl/common/round_skip.glsl)
 SSRT_RAY_GROUP = 64  # invocations per group of the screen-space batch shaders (glsl/ssrt/*_batch.comp)
-# BVH node layouts (accel/gpu.py) -> node width: binary child pairs (the reference), wide quantized.
-BVH_LAYOUTS = {"bvh2": 2, "bvh4": 4, "bvh8": 8}
+# BVH node layouts (accel/gpu.py) -> node width: binary child pairs (the reference), wide quantized,
+# and the compressed 8-wide BVH of Ylitie et al. 2017 (accel/cwbvh.py).
+BVH_LAYOUTS = {"bvh2": 2, "bvh4": 4, "bvh8": 8, "cwbvh": 8}
+COMPRESSED_LAYOUT = "cwbvh"
 # Tile frustum culling (HVVR): rays a tile (one work group), entry nodes a tile's list holds at most.
 TILE_RAYS = 128
 TILE_ENTRIES = 32

@@ -1,6 +1,7 @@
 // BVH traversal: trace_closest() and trace_any(), over the layout BVH_WIDTH picks (GpuBvh.defines):
 //   2: the child-pair binary BVH of rayvr/accel/bvh.py (bvh2.glsl), the reference layout;
-//   4, 8: the wide BVHs with quantized child boxes of rayvr/accel/wide.py (bvh_wide.glsl).
+//   4, 8: the wide BVHs with quantized child boxes of rayvr/accel/wide.py (bvh_wide.glsl);
+//   8 with BVH_COMPRESSED 1: the compressed 8-wide BVH of rayvr/accel/cwbvh.py (cwbvh.glsl).
 // One traversal body per layout, shared by every ray kind (primary, shadow, reflection, glossy).
 //
 // Buffers (std430, bound by GpuBvh.bind(base) at base and base + 1; pass GpuBvh.defines(base)):
@@ -27,6 +28,9 @@
 #ifndef BVH_WIDTH
 #define BVH_WIDTH 2
 #endif
+#ifndef BVH_COMPRESSED
+#define BVH_COMPRESSED 0
+#endif
 
 #ifndef BVH_GLOBAL_STACK
 #define BVH_GLOBAL_STACK 1
@@ -47,7 +51,7 @@ int bvh_stack[BVH_STACK_SIZE];
 layout(std430, binding = BVH_TRIS_BINDING) readonly restrict buffer BvhTriangles { vec4 bvh_tris[]; };
 
 // BVH_COUNT_WORK (tests, benchmarks: accel/gpu.py RayTracer.trace(work=)): the invocation's traversal
-// work, counted by the binary layout: x nodes fetched by walks, y tile entry boxes tested, z
+// work, counted by the binary and compressed layouts: x nodes fetched by walks, y tile entry boxes tested, z
 // ray-triangle tests. Counts depend on the BVH and the rays, not the device.
 #ifndef BVH_COUNT_WORK
 #define BVH_COUNT_WORK 0
@@ -142,6 +146,8 @@ bool bvh_leaf(RayShear s, int first, int count, float tmin, bool any_hit, inout 
 
 #if BVH_WIDTH == 2
 #include "bvh2.glsl"
+#elif BVH_COMPRESSED
+#include "cwbvh.glsl"
 #else
 #include "bvh_wide.glsl"
 #endif
