@@ -1,0 +1,290 @@
+"""The compressed 8-wide BVH (accel/cwbvh.py, glsl/accel/cwbvh.glsl) against the binary reference:
+its collapse against a brute force, its decoded boxes, its octant order, its numpy walk, the GPU
+traversal (hits bit for bit bvh2's) and a rendered frame."""
+from __future__ import annotations
+
+import functools
+import itertools
+
+import numpy as np
+import pytest
+
+from rayvr.accel.bvh import build_bvh, trace_reference, widen
+from rayvr.accel.cwbvh import (EMPTY, INTERNAL, LEAF, LEAF_TRIANGLES, NODE_COST, NODE_WORDS, TRIANGLE_COST,
+                               build_cwbvh, octant_slots, ray_octants, trace_cwbvh_reference, unpack)
+from rayvr.accel.gpu import MISS, GpuBvh, RayTracer
+from rayvr.accel.sah import _half_area
+from test_traversal_gpu import cube, rays_at, soup
+
+
+def room_rays(n, seed):
+    """The built-in room's triangles and random rays from inside it."""
+    from rayvr.scene.loader import load
+    scene = load()
+    v, f = np.asarray(scene.vertices, np.float32), np.asarray(scene.indices, np.int64)
+    rng = np.random.default_rng(seed)
+    lo, hi = v.min(0), v.max(0)
+    o = rng.uniform(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), (n, 3)).astype(np.float32)
+    return v, f, o, rng.normal(size=(n, 3)).astype(np.float32)
+
+
+def cases():
+    v, f = soup(1500, seed=1)
+    o, d = rays_at(v, 2500, seed=3)
+    yield "soup", v, f, o.astype(np.float32), d.astype(np.float32)
+    yield "room", *room_rays(2500, seed=4)
+
+
+def collapsed_cost(cw) -> float:
+    """The SAH cost of the built tree: every node's area x NODE_COST, every leaf child's area x
+    TRIANGLE_COST x its triangles (the boxes the build made, float64 areas)."""
+    lo, hi = (x.astype(np.float64) for x in cw.child_boxes())
+    area = _half_area(lo, hi)
+    used = cw.kind != EMPTY
+    node_area = _half_area(np.where(used[..., None], lo, np.inf).min(1), np.where(used[..., None], hi, -np.inf).max(1))
+    leaf = cw.kind == LEAF
+    return float(NODE_COST * node_area.sum() + TRIANGLE_COST * (area[leaf] * cw.tri_count[leaf]).sum())
+
+
+def brute_force_cost(bvh) -> float:
+    """Least SAH cost over every collapse of the binary tree into nodes of at most 8 children, each
+    child a subtree of the node's: a leaf of at most LEAF_TRIANGLES triangles or another node."""
+    area = _half_area(bvh.node_lo.astype(np.float64), bvh.node_hi.astype(np.float64))
+
+    @functools.cache
+    def tris(n):
+        return int(bvh.count[n]) if bvh.left[n] < 0 else tris(bvh.left[n]) + tris(bvh.right[n])
+
+    @functools.cache
+    def cuts(n):                     # every set of at most 8 subtrees that covers n's subtree
+        out = [(n,)]
+        if bvh.left[n] >= 0:
+            out += [a + b for a, b in itertools.product(cuts(bvh.left[n]), cuts(bvh.right[n])) if len(a + b) <= 8]
+        return out
+
+    @functools.cache
+    def child(n):
+        leaf = area[n] * TRIANGLE_COST * tris(n) if tris(n) <= LEAF_TRIANGLES else np.inf
+        return min(leaf, node(n)) if bvh.left[n] >= 0 else leaf
+
+    @functools.cache
+    def node(n):
+        best = min(sum(child(c) for c in a + b) for a, b in itertools.product(cuts(bvh.left[n]), cuts(bvh.right[n]))
+                   if len(a + b) <= 8)
+        return area[n] * NODE_COST + best
+    return node(0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_collapse_is_the_least_sah_cost_of_every_collapse(seed):
+    v, f = soup(14, seed=seed)
+    bvh = build_bvh(v, f, max_leaf_size=1)
+    assert bvh.max_depth >= 4
+    assert collapsed_cost(build_cwbvh(bvh)) == pytest.approx(brute_force_cost(bvh), rel=1e-9)
+
+
+def test_every_triangle_once_leaves_small_internal_children_consecutive():
+    v, f = soup(3000, seed=2)
+    bvh = build_bvh(v, f)                                     # leaves up to 8 triangles: halved for the layout
+    assert bvh.count.max() > LEAF_TRIANGLES
+    cw = build_cwbvh(bvh)
+    assert np.array_equal(np.sort(cw.tri_slot), np.arange(bvh.reference_count))
+    assert cw.tri_count.max() <= LEAF_TRIANGLES and (cw.tri_count[cw.kind == LEAF] >= 1).all()
+    assert cw.tri_count.sum(1).max() <= 24
+    nodes = cw.packed[:cw.node_count * 5].reshape(-1, NODE_WORDS)
+    _, _, imask, base, tri_base, meta, _ = unpack(nodes)
+    for n in range(cw.node_count):
+        inner = np.flatnonzero(cw.kind[n] == INTERNAL)
+        assert np.array_equal(cw.child[n, inner], base[n] + np.arange(len(inner)))   # slot order, one base
+        assert imask[n] == sum(1 << int(s) for s in inner)
+    # each node but the root has one parent; the triangle section follows the nodes
+    assert np.array_equal(np.sort(cw.child[cw.kind == INTERNAL]), np.arange(1, cw.node_count))
+    assert tri_base.min() == cw.node_count * 5
+    assert (meta[cw.kind == EMPTY] == 0).all() and (meta[cw.kind == INTERNAL] & 0x1F >= 24).all()
+    assert cw.stats()["mean_children"] > 4 and cw.build_seconds > 0
+
+
+@pytest.mark.parametrize("offset,scale", [(0.0, 1.0), (1e5, 1.0), (0.0, 1e-3), (-3e4, 40.0)])
+def test_decoded_boxes_contain_their_children(offset, scale):
+    v, f = soup(800, seed=5)
+    v = (v * scale + offset).astype(np.float32)
+    cw = build_cwbvh(build_bvh(v, f))
+    lo, hi = cw.decode()
+    clo, chi = cw.child_boxes()
+    used = cw.kind != EMPTY
+    wlo, whi = widen(clo[used], chi[used])
+    assert (lo[used] <= wlo).all() and (hi[used] >= whi).all()          # the quantized box holds the float box
+    tri = cw.bvh.triangles()
+    for j in range(LEAF_TRIANGLES):                                      # which holds its triangles
+        m = (cw.kind == LEAF) & (j < cw.tri_count)
+        t = tri[cw.tri_slot[cw.tri_first[m] + j]]
+        assert (lo[m] <= t.min(1)).all() and (hi[m] >= t.max(1)).all()
+    p, s = np.nonzero(cw.kind == INTERNAL)                               # and its node's children
+    c = cw.child[p, s]
+    inner = cw.kind[c] != EMPTY
+    assert (np.where(inner[..., None], clo[c], np.inf) >= lo[p, s][:, None]).all()
+    assert (np.where(inner[..., None], chi[c], -np.inf) <= hi[p, s][:, None]).all()
+
+
+def test_octant_order_places_children_by_corner_and_is_a_permutation():
+    corners = np.array([[(s >> 2) & 1, (s >> 1) & 1, s & 1] for s in range(8)], np.float32) * 2 - 1
+    rng = np.random.default_rng(1)
+    order = np.stack([rng.permutation(8) for _ in range(5)])
+    lo = (corners[order] - 0.3).astype(np.float32)
+    hi = (corners[order] + 0.3).astype(np.float32)
+    slot_of = octant_slots(lo, hi, np.ones((5, 8), bool))
+    assert np.array_equal(slot_of, order)                 # the child at corner s goes to slot s
+    used = rng.random((200, 8)) < 0.6
+    c = rng.normal(size=(200, 8, 3)).astype(np.float32)
+    slot_of = octant_slots(c - 0.1, c + 0.1, used)
+    assert (np.sort(slot_of, axis=1) == np.arange(8)).all()
+    cw = build_cwbvh(build_bvh(*soup(2000, seed=3)))
+    # in the built tree, along +x the children of slots with bit 4 clear come first: their centres
+    # lie at or below those of bit 4 set, on average
+    lo, hi = cw.child_boxes()
+    cx = 0.5 * (lo[..., 0] + hi[..., 0])
+    both = (cw.kind[:, :4] != EMPTY).any(1) & (cw.kind[:, 4:] != EMPTY).any(1)
+    low = np.where(cw.kind[:, :4] != EMPTY, cx[:, :4], np.nan)
+    high = np.where(cw.kind[:, 4:] != EMPTY, cx[:, 4:], np.nan)
+    assert (np.nanmean(low[both], 1) < np.nanmean(high[both], 1)).mean() > 0.9
+    assert ray_octants([[1, -1, 1], [-1, 1, -1], [0, 0, -0.0]]).tolist() == [2, 5, 0]
+
+
+@pytest.mark.parametrize("case", ["soup", "room"])
+def test_numpy_walk_matches_binary_reference(case):
+    name, v, f, o, d = next(c for c in cases() if c[0] == case)
+    bvh = build_bvh(v, f)
+    cw = build_cwbvh(bvh)
+    prim, t, _, _ = trace_reference(bvh, o, d)
+    assert 0.3 < (prim != MISS).mean()
+    stats, ref_stats = {}, {}
+    cp, ct, _, _ = trace_cwbvh_reference(cw, o, d, stats=stats)
+    assert np.array_equal(cp, prim) and np.array_equal(ct, t)
+    trace_reference(bvh, o, d, stats=ref_stats)
+    assert stats["node_visits"].mean() < ref_stats["pair_node_visits"].mean()
+    occ = trace_cwbvh_reference(cw, o, d, tmax=0.5, any_hit=True)
+    assert np.array_equal(occ, trace_reference(bvh, o, d, tmax=0.5, any_hit=True))
+
+
+def traces(gl, bvh, o, d, tmax, layouts=("bvh2", "cwbvh")):
+    out = {}
+    for layout in layouts:
+        gb = GpuBvh(gl, bvh, layout=layout)
+        rt = RayTracer(gl, gb)
+        work = {}
+        out[layout] = (rt.trace(o, d, tmax=tmax, work=work), rt.trace(o, d, tmax=tmax * 0.5, mode="any"), work)
+        gb.release()
+    return out
+
+
+def assert_bitwise_bvh2(out):
+    (ref, ref_any, _), (h, occ, _) = out["bvh2"], out["cwbvh"]
+    assert np.array_equal(h.prim, ref.prim)
+    for a, b in ((h.t, ref.t), (h.u, ref.u), (h.v, ref.v)):
+        assert np.array_equal(a.view(np.uint32), b.view(np.uint32))
+    assert np.array_equal(occ, ref_any)
+
+
+@pytest.mark.parametrize("case", ["soup", "room"])
+def test_gpu_cwbvh_returns_bvh2_hits_bit_for_bit(gl, case):
+    name, v, f, o, d = next(c for c in cases() if c[0] == case)
+    bvh = build_bvh(v, f)
+    out = traces(gl, bvh, o, d, np.float32(40.0))
+    assert_bitwise_bvh2(out)
+    h, _, work = out["cwbvh"]
+    assert 0.3 < (h.prim != MISS).mean()
+    stats = {}
+    trace_cwbvh_reference(build_cwbvh(bvh), o, d, tmax=np.float32(40.0), stats=stats)
+    # the GPU fetches the nodes the numpy walk does (its box test is a little wider)
+    assert (work["node_visits"] >= stats["node_visits"]).mean() > 0.99
+    assert abs(work["node_visits"].mean() / stats["node_visits"].mean() - 1) < 0.01
+    assert work["node_visits"].mean() < out["bvh2"][2]["node_visits"].mean()
+
+
+def test_gpu_cwbvh_axis_rays_edges_degenerate_rays_and_ties(gl):
+    v, f = cube()
+    grid = np.array([-1.5, -1.0, -0.5, 0.0, 0.3, 1.0, 1.5], np.float32)
+    a, b = [x.ravel() for x in np.meshgrid(grid, grid)]
+    o, d = [], []
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            oo = np.zeros((len(a), 3), np.float32)
+            oo[:, axis] = -5.0 * sign
+            oo[:, (axis + 1) % 3], oo[:, (axis + 2) % 3] = a, b
+            dd = np.zeros_like(oo)
+            dd[:, axis] = sign
+            o.append(oo)
+            d.append(dd)
+    o.append(np.array([[-5, 1, 0], [-5, 1.0001, 0], [0, 0, 0], [0, 0, 0]], np.float32))
+    d.append(np.array([[1, 0, 0], [1, 0, 0], [0, 0, 0], [np.nan, 0, 1]], np.float32))
+    o, d = np.concatenate(o), np.concatenate(d)
+    out = traces(gl, build_bvh(v, f, max_leaf_size=1), o, d, np.float32(100.0))
+    assert_bitwise_bvh2(out)
+    h = out["cwbvh"][0]
+    inside = np.concatenate([(np.abs(a) <= 1) & (np.abs(b) <= 1)] * 6)
+    assert (h.prim[:len(inside)][inside] != MISS).all() and np.allclose(h.t[:len(inside)][inside], 4.0)
+    assert h.prim[-4] != MISS and (h.prim[-3:] == MISS).all()
+    # two triangles sharing an edge the rays go down onto: the lower ID, whichever is met first
+    v = np.array([[0.5, -1, 0], [0.5, 1, 0], [1.5, 0, 0], [-0.5, 0, 1]], np.float32)
+    y = np.linspace(-0.9, 0.9, 7, dtype=np.float32)
+    o = np.stack([np.full_like(y, 0.5), y, np.full_like(y, 5.0)], 1)
+    d = np.tile(np.float32([0, 0, -1]), (len(y), 1))
+    for f in (np.array([[0, 1, 2], [0, 1, 3]]), np.array([[0, 1, 3], [0, 1, 2]])):
+        bvh = build_bvh(v, f, max_leaf_size=1)
+        assert (trace_cwbvh_reference(build_cwbvh(bvh), o, d)[0] == 0).all()
+        assert (traces(gl, bvh, o, d, np.float32(100.0))["cwbvh"][0].prim == 0).all()
+
+
+def test_gpu_cwbvh_empty_single_triangle_and_refit(gl):
+    o = np.array([[0.2, 0.2, -1], [5, 5, -1]], np.float32)
+    d = np.array([[0, 0, 1], [0, 0, 1]], np.float32)
+    one = build_bvh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]]))
+    empty = build_bvh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int64))
+    h = RayTracer(gl, GpuBvh(gl, one, layout="cwbvh")).trace(o, d)
+    assert h.prim.tolist() == [0, MISS] and h.t[0] == pytest.approx(1.0)
+    assert (RayTracer(gl, GpuBvh(gl, empty, layout="cwbvh")).trace(o, d).prim == MISS).all()
+    assert not trace_cwbvh_reference(build_cwbvh(empty), o, d, any_hit=True).any()
+    v, f = soup(600, seed=3)
+    bvh = build_bvh(v, f)
+    gb = GpuBvh(gl, bvh, layout="cwbvh")
+    moved = (v * 1.3 + np.sin(v[:, [1, 2, 0]])).astype(np.float32)
+    bvh.refit(moved)
+    gb.update()
+    o, d = rays_at(moved, 2000, seed=4)
+    fresh = RayTracer(gl, GpuBvh(gl, build_bvh(moved, f))).trace(o, d)
+    h = RayTracer(gl, gb).trace(o, d)
+    assert np.array_equal(h.prim, fresh.prim) and np.array_equal(h.t, fresh.t)
+
+
+def test_deep_tree_is_a_clear_error(gl, monkeypatch):
+    from rayvr.accel import gpu
+    monkeypatch.setattr(gpu, "CWBVH_STACK_ENTRIES", 1)
+    with pytest.raises(ValueError, match="cwbvh: a traversal may hold .* stack entries, more than the GPU stack"):
+        GpuBvh(gl, build_bvh(*soup(2000)), layout="cwbvh")
+
+
+def test_frame_through_cwbvh_is_bit_identical_to_bvh2(gl):
+    """The room with rayvr/assets/default_room.toml (shadows, glossy, mirror reflections), every ray
+    kind through the compressed layout: the binary layout's frame, bit for bit."""
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.renderer import Renderer, RenderSettings
+    from rayvr.scene.loader import load
+    from rayvr.scene.materials import load_config
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=(40, 30))
+    config = load_config("rayvr/assets/default_room.toml")
+    frames = {}
+    for layout in ("bvh2", "cwbvh"):
+        r = Renderer(scene, config, gl=gl, settings=RenderSettings(primary="rays", traversal=layout))
+        try:
+            frames[layout] = r.render(rig, aux=("triangle", "hdr"))
+            if layout == "cwbvh":
+                assert set(r.accel.wide) == {"cwbvh"}
+        finally:
+            r.release()
+    for eye in ("left", "right"):
+        a, b = frames["bvh2"].eyes[eye], frames["cwbvh"].eyes[eye]
+        assert np.array_equal(a.color, b.color) and np.array_equal(a.depth, b.depth)
+        for k in ("triangle", "hdr"):
+            assert np.array_equal(a.aux[k].view(np.uint8), b.aux[k].view(np.uint8))
+    assert (frames["bvh2"].left.aux["triangle"] != MISS).mean() > 0.5
