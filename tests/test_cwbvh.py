@@ -91,6 +91,7 @@ def test_every_triangle_once_leaves_small_internal_children_consecutive():
     assert np.array_equal(np.sort(cw.tri_slot), np.arange(bvh.reference_count))
     assert cw.tri_count.max() <= LEAF_TRIANGLES and (cw.tri_count[cw.kind == LEAF] >= 1).all()
     assert cw.tri_count.sum(1).max() <= 24
+    assert NODE_WORDS * 4 == 80                               # 80-byte nodes: 5 uvec4
     nodes = cw.packed[:cw.node_count * 5].reshape(-1, NODE_WORDS)
     _, _, imask, base, tri_base, meta, _ = unpack(nodes)
     for n in range(cw.node_count):
@@ -270,6 +271,8 @@ def test_frame_through_cwbvh_is_bit_identical_to_bvh2(gl):
     from rayvr.renderer import Renderer, RenderSettings
     from rayvr.scene.loader import load
     from rayvr.scene.materials import load_config
+    from rayvr.accel.gpu import parse_traversal
+    assert parse_traversal("cwbvh") == ("cwbvh",) * 3
     scene = load()
     rig = StereoRig.for_scene(scene, size=(40, 30))
     config = load_config("rayvr/assets/default_room.toml")

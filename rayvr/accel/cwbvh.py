@@ -52,6 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..gl.glsl_constants import declare
 from .bvh import Bvh, EMPTY_HI, EMPTY_LO, RayWalk, _slab
 from .sah import _half_area, _segment_positions
 from .wide import _bytes_to_words, _decode, _quantize, _words_to_bytes
@@ -61,6 +62,11 @@ LEAF_TRIANGLES = 3      # a leaf child's triangles: 3 bits of unary count in its
 NODE_COST = 1.0         # the paper's SAH constants (c_node, c_prim)
 TRIANGLE_COST = 0.3
 NODE_WORDS = 20         # 80 bytes
+NODE_VEC4 = declare("BVH_CW_NODE_VEC4", NODE_WORDS // 4)
+# glsl/accel/cwbvh.glsl widens the ray's per-node plane bases by this fraction of their size
+# (> 4 ulp: their rounding is absolute, not relative to t), as bvh_wide.glsl does, so the test of a
+# quantized box stays conservative.
+BOX_MARGIN = declare("BVH_CW_MARGIN", 1e-6)
 TRIANGLE_VEC4 = 3
 EMPTY, INTERNAL, LEAF = 0, 1, 2
 INTERNAL_META = 0b00100000 | 24   # | slot
@@ -80,7 +86,7 @@ class CwBvh:
     tri_slot: np.ndarray   # (M,) binary triangle slot of each triangle position, leaf order
     depth: np.ndarray      # (N,) depth of each node (root 0)
     build_seconds: float = 0.0
-    packed: np.ndarray | None = None   # (N * 5 + M * 3, 4) uint32
+    packed: np.ndarray | None = None   # (N * NODE_VEC4 + M * TRIANGLE_VEC4, 4) uint32
 
     @property
     def node_count(self) -> int:
@@ -104,7 +110,7 @@ class CwBvh:
 
     def decode(self) -> tuple[np.ndarray, np.ndarray]:
         """(N, 8, 3) float32 child boxes lo, hi exactly as the GPU decodes them (slot order)."""
-        return decode_boxes(self.packed[:self.node_count * 5].reshape(-1, NODE_WORDS))
+        return decode_boxes(self.packed[:self.node_count * NODE_VEC4].reshape(-1, NODE_WORDS))
 
     def child_boxes(self) -> tuple[np.ndarray, np.ndarray]:
         """(N, 8, 3) float32 tight boxes of each slot's child (inverted for empty slots)."""
@@ -336,7 +342,7 @@ def build_cwbvh(bvh: Bvh) -> CwBvh:
 # ====================================================================== packing
 
 def pack(cw: CwBvh) -> np.ndarray:
-    """(N * 5 + M * 3, 4) uint32: the nodes, then the triangles (module docstring); boxes from the
+    """(N * NODE_VEC4 + M * TRIANGLE_VEC4, 4) uint32: the nodes, then the triangles (module docstring); boxes from the
     binary BVH's current vertices (after `bvh.refit`, the same tree with new boxes)."""
     N, M = cw.node_count, len(cw.tri_slot)
     lo, hi = cw.child_boxes()
@@ -350,7 +356,7 @@ def pack(cw: CwBvh) -> np.ndarray:
     first_child = np.where(cw.kind == INTERNAL, cw.child, np.iinfo(np.int64).max).min(axis=1)
     nodes[:, 4] = np.where(has, first_child, 0)
     node_tri = cw.tri_first[:, 0]                              # first triangle position of the node
-    nodes[:, 5] = N * 5 + TRIANGLE_VEC4 * node_tri
+    nodes[:, 5] = N * NODE_VEC4 + TRIANGLE_VEC4 * node_tri
     meta = np.where(cw.kind == INTERNAL, INTERNAL_META | np.arange(WIDTH),
                     np.where(cw.kind == LEAF, (_UNARY[cw.tri_count] << 5) | (cw.tri_first - node_tri[:, None]), 0))
     nodes[:, 6:8] = _bytes_to_words(meta)
@@ -391,19 +397,20 @@ def ray_octants(directions) -> np.ndarray:
 
 
 def trace_cwbvh_reference(cw: CwBvh, origins, directions, tmin=0.0, tmax=np.inf, any_hit: bool = False,
-                          stats: dict | None = None):
+                          stats: dict | None = None, octant_order: bool = True):
     """The packed CWBVH walked for all rays at once, decoded from the buffer alone (float64 slabs
     on the float32-decoded boxes): what glsl/accel/cwbvh.glsl does, children in slot order XOR the
     ray's octant, a node's triangles before its children. Returns what `bvh.trace_reference`
-    returns; `stats` receives `node_visits` (nodes fetched per ray) and `triangle_tests`."""
+    returns; `stats` receives `node_visits` (nodes fetched per ray) and `triangle_tests`.
+    `octant_order` False: every ray in slot order (what the octant placement saves, measured)."""
     N = cw.node_count
-    nodes = cw.packed[:N * 5].reshape(N, NODE_WORDS)
-    tri_words = cw.packed[N * 5:].reshape(-1, TRIANGLE_VEC4, 4)
+    nodes = cw.packed[:N * NODE_VEC4].reshape(N, NODE_WORDS)
+    tri_words = cw.packed[N * NODE_VEC4:].reshape(-1, TRIANGLE_VEC4, 4)
     tri_slot = tri_words[:, 1, 3].astype(np.int64)             # the triangle's binary slot
     _, _, imask, child_base, tri_base, meta, _ = unpack(nodes)
     lo, hi = (x.astype(np.float64) for x in decode_boxes(nodes))
     w = RayWalk(cw.bvh, origins, directions, tmin, tmax, any_hit, WIDTH * cw.group_stack_bound + 1)
-    octant = ray_octants(w.d)
+    octant = ray_octants(w.d) if octant_order else np.zeros(w.n, np.int64)
     w.push(np.flatnonzero(w.ok), np.zeros(int(w.ok.sum()), np.int64))
     # rel[imask, s] = bitCount(imask & ((1 << s) - 1)): the internal children stored before slot s
     rel = np.array([[bin(m & ((1 << s) - 1)).count("1") for s in range(WIDTH)] for m in range(256)])
@@ -424,7 +431,7 @@ def trace_cwbvh_reference(cw: CwBvh, origins, directions, tmin=0.0, tmax=np.inf,
             leaf = e & ((m & 0x1F) < 24)
             r, n, mm = active[leaf], node[leaf], m[leaf]
             cnt = np.array([0, 1, 0, 2, 0, 0, 0, 3])[mm >> 5]
-            first = (tri_base[n] - N * 5) // TRIANGLE_VEC4 + (mm & 0x1F)
+            first = (tri_base[n] - N * NODE_VEC4) // TRIANGLE_VEC4 + (mm & 0x1F)
             for j in range(LEAF_TRIANGLES):
                 t = j < cnt
                 w.leaf(r[t], tri_slot[first[t] + j], np.ones(int(t.sum()), np.int64))

@@ -23,11 +23,10 @@
 #ifndef RAYVR_ACCEL_CWBVH_GLSL
 #define RAYVR_ACCEL_CWBVH_GLSL
 
-#define BVH_CW_NODE_VEC4 5   // cwbvh.NODE_WORDS / 4
+// BVH_CW_NODE_VEC4 (uvec4 a node), BVH_CW_MARGIN: layout.glsl (rayvr/accel/cwbvh.py)
 layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhCompressed { uvec4 bvh_cw[]; };
 
 #define BVH_CW_WORD(w) nd[(w) >> 2][(w) & 3]
-#define BVH_CW_MARGIN 1.0e-6
 // byte i (a constant) of the 8-byte plane held in words (w0, w1)
 #define BVH_CW_BYTE(w0, w1, i) float(((((i) < 4) ? (w0) : (w1)) >> (8u * uint((i) & 3))) & 0xFFu)
 #define BVH_CW_CHILD(i) { \
@@ -112,7 +111,6 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
 }
 
 #undef BVH_CW_WORD
-#undef BVH_CW_MARGIN
 #undef BVH_CW_BYTE
 #undef BVH_CW_CHILD
 #endif
