@@ -15,7 +15,10 @@ Traversal variants (`VARIANTS`, picked with `layouts` and `tiles`), each on the 
 kind: `bvh2` (the binary child-pair nodes, the reference), `bvh2+tiles` (tile frustum culling: the
 cull dispatch plus the trace from the tiles' entry lists, accel/frustum.py), `bvh4`/`bvh8` (wide
 quantized nodes, nearest-first for closest and any hits) and their `-unordered` forms (timed on closest-hit
-rays only). The camera rays are listed tile by tile (16 x 8 pixel blocks,
+rays only), and `cwbvh` (the compressed 8-wide BVH of Ylitie et al. 2017, accel/cwbvh.py: octant-ordered
+children, no sort). Layouts with GPU work counters (bvh2, cwbvh) also report `node_fetches_per_ray`
+and `triangle_tests_per_ray` (means over the rays, counted in a separate dispatch of the same rays;
+None for bvh4/bvh8, whose traversal has no counters). The camera rays are listed tile by tile (16 x 8 pixel blocks,
 frustum.tile_order), and so are the secondary rays made from their hits; `bvh2 rows` traces the
 primary rays in row order, as runs before the variants did. `agree_with_bvh2` is the fraction of
 rays with the reference's triangle (or occlusion); `speedup_vs_bvh2` its rays/s ratio; `best` in
@@ -66,7 +69,9 @@ def hybrid_config(name: str):
 # (variant, layout, ordered closest hits, tile frustum culling)
 VARIANTS = (("bvh2", "bvh2", True, False), ("bvh2+tiles", "bvh2", True, True),
             ("bvh4", "bvh4", True, False), ("bvh4-unordered", "bvh4", False, False),
-            ("bvh8", "bvh8", True, False), ("bvh8-unordered", "bvh8", False, False))
+            ("bvh8", "bvh8", True, False), ("bvh8-unordered", "bvh8", False, False),
+            ("cwbvh", "cwbvh", True, False))
+COUNTED_LAYOUTS = ("bvh2", "cwbvh")   # RayTracer.trace(work=) counts their traversal
 
 
 def primary_rays(rig, origin, tiled: bool = False):
@@ -184,7 +189,7 @@ def time_effect_stages(renderer, rig, repeat=5) -> dict:
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, workers=None,
-        backend=None, progress=True, layouts=("bvh2", "bvh4", "bvh8"), tiles: bool = True,
+        backend=None, progress=True, layouts=("bvh2", "bvh4", "bvh8", "cwbvh"), tiles: bool = True,
         builds=("sah",)) -> dict:
     """`layouts` and `tiles` pick the traversal variants (VARIANTS); bvh2 is always measured (the
     reference every variant is compared with). `builds` (bvh.BUILDS): each variant runs on a BVH of
@@ -233,7 +238,8 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                     for b, (variant, layout, ordered, tiled), vo, vd in runs:
                         vrt = RayTracer(gl, gpus[b, layout], ordered=ordered)
                         g = vrt.time_trace(vo, vd, tmax=tmax, mode=mode, repeats=repeat, tiles=tiled)
-                        mine = vrt.trace(vo, vd, tmax=tmax, mode=mode, tiles=tiled)
+                        work = {} if layout in COUNTED_LAYOUTS else None
+                        mine = vrt.trace(vo, vd, tmax=tmax, mode=mode, tiles=tiled, work=work)
                         mine = mine if mode == "any" else mine.prim
                         agree = float((mine == ref_prim).mean()) if variant != "bvh2 rows" else None
                         ref_rate = ref_rate or g["rays_per_s"]
@@ -246,7 +252,9 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                                "rays": len(vo), "gpu_ms": g["gpu_ms"], "gpu_ms_min": g["gpu_ms_min"],
                                "gpu_ms_max": g["gpu_ms_max"], "cull_ms": g["cull_ms"],
                                "gpu_grays_s": g["rays_per_s"] / 1e9, "speedup_vs_bvh2": g["rays_per_s"] / ref_rate,
-                               "agree_with_bvh2": agree}
+                               "agree_with_bvh2": agree,
+                               "node_fetches_per_ray": float(work["node_visits"].mean()) if work else None,
+                               "triangle_tests_per_ray": float(work["triangle_tests"].mean()) if work else None}
                         if pool is not None and label == "bvh2":
                             ref, secs, trace_secs = embree_trace(pool, workers, kind, len(ro), repeat=3)
                             if mode == "any":
@@ -265,6 +273,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                         if progress:
                             print(f"  {name:8s} {kind:8s} {label:20s} {row['gpu_grays_s']:.3f} GRays/s GPU"
                                   f" ({row['speedup_vs_bvh2']:.2f}x bvh2" + (f", agree {agree:.4%})" if agree is not None else ")")
+                                  + (f", {row['node_fetches_per_ray']:.1f} node fetches a ray" if work else "")
                                   + (f", Embree {row['embree_grays_s']:.3f} ({row['speedup_vs_embree']:.1f}x; "
                                      f"{row['speedup_vs_embree_trace']:.1f}x its trace calls alone),"
                                      f" agree {row['agree_with_embree']:.4%}" if "embree_ms" in row else ""))
