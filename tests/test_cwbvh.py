@@ -291,3 +291,18 @@ def test_frame_through_cwbvh_is_bit_identical_to_bvh2(gl):
         for k in ("triangle", "hdr"):
             assert np.array_equal(a.aux[k].view(np.uint8), b.aux[k].view(np.uint8))
     assert (frames["bvh2"].left.aux["triangle"] != MISS).mean() > 0.5
+
+
+def test_capture_with_traversal_cwbvh_writes_the_bvh2_images(tmp_path):
+    """`rayvr capture --traversal cwbvh` (ray-cast primary, the room's default_room.toml): the
+    same PNGs, pixel for pixel, as --traversal bvh2."""
+    from PIL import Image
+    from conftest import run_rayvr
+    common = ("capture", "--materials", "rayvr/assets/default_room.toml", "--size", "32x24", "--primary", "rays", "-q")
+    images = {}
+    for layout in ("bvh2", "cwbvh"):
+        run = run_rayvr(*common, "--traversal", layout, "--out", tmp_path / layout)
+        assert run.returncode == 0, run.stderr
+        images[layout] = [np.asarray(Image.open(tmp_path / layout / f"frame_{eye}.png")) for eye in ("left", "right")]
+    for a, b in zip(images["bvh2"], images["cwbvh"]):
+        assert a.shape == b.shape and np.array_equal(a, b) and a.std() > 5
