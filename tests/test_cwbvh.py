@@ -266,9 +266,11 @@ def test_deep_tree_is_a_clear_error(gl, monkeypatch):
         GpuBvh(gl, build_bvh(*soup(2000)), layout="cwbvh")
 
 
-def test_frame_through_cwbvh_is_bit_identical_to_bvh2(gl):
-    """The room with rayvr/assets/default_room.toml (shadows, glossy, mirror reflections), every ray
-    kind through the compressed layout: the binary layout's frame, bit for bit."""
+@pytest.mark.parametrize("materials", ["default_room.toml", "photon_room.toml", "path"])
+def test_frame_through_cwbvh_is_bit_identical_to_bvh2(gl, materials):
+    """The room with rayvr/assets/default_room.toml (shadows, glossy, mirror reflections), with
+    photon_room.toml (photon paths) and path traced, every ray kind through the compressed layout:
+    the binary layout's frame, bit for bit."""
     from rayvr.frame.cameras.rig import StereoRig
     from rayvr.renderer import Renderer, RenderSettings
     from rayvr.scene.loader import load
@@ -277,7 +279,9 @@ def test_frame_through_cwbvh_is_bit_identical_to_bvh2(gl):
     assert parse_traversal("cwbvh") == ("cwbvh",) * 3
     scene = load()
     rig = StereoRig.for_scene(scene, size=(40, 30))
-    config = load_config("rayvr/assets/default_room.toml")
+    from rayvr.scene.materials import parse_config
+    config = parse_config({"default": "path"}, "test") if materials == "path" else \
+        load_config(f"rayvr/assets/{materials}")
     frames = {}
     for layout in ("bvh2", "cwbvh"):
         r = Renderer(scene, config, gl=gl, settings=RenderSettings(primary="rays", traversal=layout))
@@ -293,6 +297,9 @@ def test_frame_through_cwbvh_is_bit_identical_to_bvh2(gl):
         for k in ("triangle", "hdr"):
             assert np.array_equal(a.aux[k].view(np.uint8), b.aux[k].view(np.uint8))
     assert (frames["bvh2"].left.aux["triangle"] != MISS).mean() > 0.5
+    traced = {"default_room.toml": {"rt_shadows", "rt_glossy", "rt_reflections"},
+              "photon_room.toml": {"photon_trace", "rt_photon"}, "path": {"rt_path"}}[materials]
+    assert traced <= set(frames["cwbvh"].passes)
 
 
 def test_capture_with_traversal_cwbvh_writes_the_bvh2_images(tmp_path):
