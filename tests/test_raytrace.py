@@ -575,7 +575,8 @@ def test_cli_capture_primary_rays_and_bench_rays_quick(tmp_path):
     assert {"bvh", "primary_rays", "classify", "rt_shadows", "rt_reflections"} <= set(summary["passes"])
     assert "visibility" not in summary["passes"]
     result = quick_bench("rays", tmp_path / "b")
-    assert {r["rays_kind"] for r in result["rows"]} == {"primary", "shadow", "reflect"}
+    kinds = {"primary", "shadow", "reflect", "glossy_0.1", "glossy_0.3", "glossy_0.6", "diffuse", "area_shadow"}
+    assert {r["rays_kind"] for r in result["rows"]} == kinds   # the room has a rect light: area shadows too
     assert all(r["build_s"] > 0 and r["sah_cost"] > 0 for r in result["rows"])
     if "agree_with_embree" in result["rows"][0]:
         assert min(r["agree_with_embree"] for r in result["rows"] if "agree_with_embree" in r) > 0.99
@@ -584,7 +585,7 @@ def test_cli_capture_primary_rays_and_bench_rays_quick(tmp_path):
     for kind in ("primary", "reflect"):
         assert {r["variant"] for r in result["rows"] if r["rays_kind"] == kind} >= {v[0] for v in VARIANTS}
     assert all(r["agree_with_bvh2"] == 1.0 for r in result["rows"] if r["variant"] != "bvh2 rows")
-    assert set(result["meta"]["best"]) == {f"default/{k}" for k in ("primary", "shadow", "reflect")}
+    assert set(result["meta"]["best"]) == {f"default/{k}" for k in kinds}
     frame = result["meta"]["hybrid_frames"][0]
     assert {"rt_shadows", "rt_reflections", "classify"} <= set(frame["pass_ms"]) and frame["mirror_pixel_fraction"] > 0
 
@@ -663,3 +664,23 @@ def test_shadow_chunks_follow_each_events_own_rays(gl, monkeypatch):
     batches = -(-24 * 18 * 2 // shape.batch)
     assert len(hits) == batches * 2 * shape.hit_slots
     assert np.allclose(split, whole, rtol=2e-3, atol=1e-4), np.abs(split - whole).max()
+
+
+def test_bench_glossy_rays_sample_ggx_visible_normals():
+    """bench rays' glossy rays (rayvr/bench/rays.py ggx_visible_normals) against GGX itself: seen
+    head-on the visible normals are D(m) cos(m), whose tan^2 theta is alpha^2 u / (1 - u) for a
+    uniform u (quantiles compared); seen obliquely every normal faces the viewer and the upper side."""
+    from rayvr.bench.rays import ggx_visible_normals
+
+    rng = np.random.default_rng(3)
+    n, alpha = 200_000, 0.3
+    m = ggx_visible_normals(np.tile([[0.0, 0.0, 1.0]], (n, 1)), alpha, rng.random(n), rng.random(n))
+    assert np.allclose(np.linalg.norm(m, axis=1), 1.0, atol=1e-9)
+    tan2 = (m[:, 0] ** 2 + m[:, 1] ** 2) / m[:, 2] ** 2
+    q = np.array([0.1, 0.25, 0.5, 0.75, 0.9])
+    assert np.allclose(np.quantile(tan2, q), alpha ** 2 * q / (1 - q), rtol=0.02)
+    v = np.tile([[np.sin(1.2), 0.0, np.cos(1.2)]], (n, 1))
+    m = ggx_visible_normals(v, 0.6, rng.random(n), rng.random(n))
+    assert ((m * v).sum(1) >= -1e-9).all() and (m[:, 2] >= 0).all()
+    # and leaning towards the viewer: the visible normals' mean tilts towards +x
+    assert m[:, 0].mean() > 0.05

@@ -8,6 +8,13 @@ Per scene (the benchmark views of rayvr/bench/scenes.py, both eyes of the stereo
             rect light (or along its directional light), any hit
   reflect   mirror reflection of each primary ray at its hit (geometric normal), closest hit:
             incoherent secondary rays
+  glossy_R  a GGX reflection of each primary ray at its hit, roughness R in GLOSSY_ROUGHNESS
+            (visible normals sampled as Heitz 2018 describes, alpha = R^2; a direction under the
+            surface reflected back over it, as the glossy effect does), closest hit
+  diffuse   a cosine-weighted bounce from each primary hit, closest hit: path tracing's rays
+  area_shadow  from each primary hit to a uniform random point of the scene's first rect light
+            (none without one), any hit: the soft shadows' rays
+The sampled kinds draw from RAY_SEED: every variant traces the same rays.
 GPU rays/s come from GL timer queries around `repeat` dispatches of rayvr/glsl/accel/trace_rays.comp
 with the rays already on the GPU, after a warm-up until times settle.
 
@@ -112,7 +119,71 @@ def secondary_rays(scene, bvh, o, d, hits):
         so = offset_ray(p, np.where((n @ l)[:, None] >= 0, n, -n))
         sd, stmax = np.broadcast_to(l, p.shape).astype(np.float32), np.float32(3e38)
     rd = d[h] - 2 * (d[h] * n).sum(1, keepdims=True) * n
-    return {"shadow": (so, sd, stmax, "any"), "reflect": (offset_ray(p, n), rd.astype(np.float32), np.float32(3e38), "closest")}
+    out = {"shadow": (so, sd, stmax, "any"), "reflect": (offset_ray(p, n), rd.astype(np.float32), np.float32(3e38), "closest")}
+    return {**out, **sampled_rays(scene, p, n, d[h])}
+
+
+GLOSSY_ROUGHNESS = (0.1, 0.3, 0.6)
+RAY_SEED = 7
+
+
+def _basis(n):
+    """Two unit tangents (t, b) completing each unit normal n to a right-handed frame."""
+    a = np.where(np.abs(n[:, :1]) > 0.9, np.array([[0.0, 1.0, 0.0]]), np.array([[1.0, 0.0, 0.0]]))
+    t = np.cross(a, n)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    return t, np.cross(n, t)
+
+
+def ggx_visible_normals(v_local, alpha, u1, u2):
+    """Microfacet normals (local frame, z up) of GGX width alpha seen from v_local, drawn in
+    proportion to their visible area (Heitz 2018: the view stretched to the unit hemisphere, a
+    point of its projected disk lifted onto it, stretched back)."""
+    vh = np.stack([alpha * v_local[:, 0], alpha * v_local[:, 1], v_local[:, 2]], 1)
+    vh /= np.linalg.norm(vh, axis=1, keepdims=True)
+    lensq = vh[:, 0] ** 2 + vh[:, 1] ** 2
+    t1 = np.where(lensq[:, None] > 0, np.stack([-vh[:, 1], vh[:, 0], np.zeros_like(lensq)], 1)
+                  / np.sqrt(np.maximum(lensq, 1e-30))[:, None], np.array([[1.0, 0.0, 0.0]]))
+    t2 = np.cross(vh, t1)
+    r, phi = np.sqrt(u1), 2 * np.pi * u2
+    a, b = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1.0 + vh[:, 2])
+    b = (1.0 - s) * np.sqrt(np.maximum(1.0 - a * a, 0.0)) + s * b
+    nh = a[:, None] * t1 + b[:, None] * t2 + np.sqrt(np.maximum(1.0 - a * a - b * b, 0.0))[:, None] * vh
+    m = np.stack([alpha * nh[:, 0], alpha * nh[:, 1], np.maximum(nh[:, 2], 0.0)], 1)
+    return m / np.maximum(np.linalg.norm(m, axis=1, keepdims=True), 1e-30)
+
+
+def sampled_rays(scene, p, n, d):
+    """The sampled secondary kinds from hit points p (geometric normals n facing the eye, camera
+    directions d): glossy reflections at GLOSSY_ROUGHNESS, a diffuse bounce, area-light shadows."""
+    rng = np.random.default_rng(RAY_SEED)
+    n64, d64 = n.astype(np.float64), d.astype(np.float64) / np.linalg.norm(d, axis=1, keepdims=True)
+    t, b = _basis(n64)
+    o = offset_ray(p, n)
+    out = {}
+    v = -d64
+    v_local = np.stack([(v * t).sum(1), (v * b).sum(1), np.maximum((v * n64).sum(1), 1e-4)], 1)
+    for rough in GLOSSY_ROUGHNESS:
+        m_local = ggx_visible_normals(v_local, max(rough * rough, 1e-3), rng.random(len(p)), rng.random(len(p)))
+        m = m_local[:, :1] * t + m_local[:, 1:2] * b + m_local[:, 2:] * n64
+        l = d64 - 2 * (d64 * m).sum(1, keepdims=True) * m
+        under = (l * n64).sum(1, keepdims=True) <= 0
+        l = np.where(under, l - 2 * (l * n64).sum(1, keepdims=True) * n64, l)
+        out[f"glossy_{rough:g}"] = (o, l.astype(np.float32), np.float32(3e38), "closest")
+    r, phi = np.sqrt(rng.random(len(p))), 2 * np.pi * rng.random(len(p))
+    z = np.sqrt(np.maximum(1.0 - r * r, 0.0))
+    bounce = (r * np.cos(phi))[:, None] * t + (r * np.sin(phi))[:, None] * b + z[:, None] * n64
+    out["diffuse"] = (o, bounce.astype(np.float32), np.float32(3e38), "closest")
+    rect = next((li for li in scene.lights if li.kind == "rect"), None)
+    if rect is not None:
+        st = rng.uniform(-1.0, 1.0, (len(p), 2))
+        q = (np.asarray(rect.position) - scene.origin) + st[:, :1] * np.asarray(rect.u) + st[:, 1:] * np.asarray(rect.v)
+        to = q - p
+        side = np.where((to * n64).sum(1, keepdims=True) >= 0, n, -n)
+        so = offset_ray(p, side)
+        out["area_shadow"] = (so, (q - so).astype(np.float32), np.float32(1.0 - 1e-4), "any")
+    return out
 
 
 # -------------------------------------------------------------------------- Embree, all cores
