@@ -177,6 +177,9 @@ class GLContext:
         _current = self
         if os.environ.get(DEBUG_ENV, "") not in ("", "0"):
             self.log_errors()
+        from .timing import start_software_timers  # timing imports this module
+
+        start_software_timers(self)
 
     def make_current(self) -> None:
         """Make this the thread's current context if another one is: GL calls go to the current
@@ -192,10 +195,14 @@ class GLContext:
         is bound first: moderngl rebinds its current framebuffer by name after some calls, and a
         deleted name there is GL_INVALID_OPERATION in the next Renderer on this context."""
         if getattr(self.ctx.fbo, "glo", None) == fbo.glo:
-            if self._parking is None:
-                self._parking = self.ctx.framebuffer([self.ctx.renderbuffer((1, 1))])
-            self._parking.use()
+            self.parking_framebuffer().use()
         fbo.release()
+
+    def parking_framebuffer(self):
+        """A live 1x1 framebuffer of this context, made once, to bind when nothing else may be."""
+        if self._parking is None:
+            self._parking = self.ctx.framebuffer([self.ctx.renderbuffer((1, 1))])
+        return self._parking
 
     def gl_errors(self) -> list[str]:
         """The GL errors raised since the last call (glGetError until GL_NO_ERROR), named; with
