@@ -182,6 +182,7 @@ def test_info_lists_gl_and_scene_effects(tmp_path):
     run = rayvr("info", "--materials", str(cfg))
     assert run.returncode == 0, run.stderr
     assert "mirror" in run.stdout and "raster" in run.stdout and "'nope' matches no material" in run.stdout
+    assert "None" not in run.stdout  # a field the driver does not report reads "unknown"
 
 
 def test_bench_quick_writes_results(tmp_path):

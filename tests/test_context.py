@@ -17,6 +17,15 @@ def test_context_is_4_3_core_with_what_rayvr_needs(gl):
     assert gl.raw.has("glFramebufferTexture")
 
 
+def test_info_reads_the_glsl_version_and_every_limit_from_the_driver(gl):
+    # moderngl's ctx.info has no GLSL version nor compute shared memory size: both printed None.
+    info = gl.info()
+    major, minor = (int(p) for p in info["glsl"].split()[0].split(".")[:2])
+    assert (major, minor) >= (4, 30)
+    assert all(isinstance(v, int) and v > 0 for v in info["limits"].values()), info["limits"]
+    assert info["limits"]["GL_MAX_COMPUTE_SHARED_MEMORY_SIZE"] >= 32768  # the GL 4.3 minimum
+
+
 def test_unknown_backend_lists_what_was_tried():
     with pytest.raises(ContextError) as e:
         create_context("vulkan")

@@ -51,6 +51,11 @@ def print_graph(args) -> int:
     return 0
 
 
+def known(value) -> str:
+    """A field the driver did not report is said to be unknown, not printed as None."""
+    return "unknown" if value is None else str(value)
+
+
 def cmd_info(args) -> int:
     from ..gl.context import create_context
 
@@ -76,10 +81,11 @@ def cmd_info(args) -> int:
         print(json.dumps(info, indent=1, default=str))
         return 0
     print(f"backend   {info['backend']}")
-    print(f"vendor    {info['vendor']}\nrenderer  {info['renderer']}\nversion   {info['version']}\nglsl      {info['glsl']}")
+    for key in ("vendor", "renderer", "version", "glsl"):
+        print(f"{key:9s} {known(info[key])}")
     print("limits")
     for k, v in info["limits"].items():
-        print(f"  {k:40s} {v}")
+        print(f"  {k:40s} {known(v)}")
     print("extensions rayvr uses")
     for k, v in info["extensions"].items():
         print(f"  {'yes' if v else 'no ':3s} {k}")

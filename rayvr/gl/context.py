@@ -68,6 +68,7 @@ _RAW_SIGNATURES: dict[str, tuple] = {
     "glClearBufferfv": (None, (_u, _i, ctypes.POINTER(ctypes.c_float))),
     "glGetError": (_u, ()),
     "glGetIntegerv": (None, (_u, ctypes.POINTER(_i))),
+    "glGetString": (ctypes.c_char_p, (_u,)),
     # Timer queries with 64-bit results (moderngl reads 32 bits: passes over 4.29 s saturate).
     "glGenQueries": (None, (_i, ctypes.POINTER(_u))),
     "glDeleteQueries": (None, (_i, ctypes.POINTER(_u))),
@@ -87,6 +88,12 @@ _RAW_SIGNATURES: dict[str, tuple] = {
 GL_SYNC_GPU_COMMANDS_COMPLETE, GL_SYNC_FLUSH_COMMANDS_BIT = 0x9117, 0x1
 GL_ALREADY_SIGNALED, GL_TIMEOUT_EXPIRED, GL_CONDITION_SATISFIED, GL_WAIT_FAILED = 0x911A, 0x911B, 0x911C, 0x911D
 GL_GPU_MEMORY_INFO_DEDICATED_VIDMEM_NVX = 0x9047  # kB
+GL_SHADING_LANGUAGE_VERSION = 0x8B8C
+# The limits `rayvr info` reports, by their GL enums (moderngl's ctx.info lacks some of them).
+INFO_LIMITS = {"GL_MAX_TEXTURE_SIZE": 0x0D33, "GL_MAX_ARRAY_TEXTURE_LAYERS": 0x88FF,
+               "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 0x90DE, "GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS": 0x90EB,
+               "GL_MAX_COMPUTE_SHARED_MEMORY_SIZE": 0x8262, "GL_MAX_COLOR_ATTACHMENTS": 0x8CDF,
+               "GL_MAX_SAMPLES": 0x8D57}
 GL_UNSIGNED_BYTE = 0x1401
 GL_DEBUG_OUTPUT, GL_DEBUG_OUTPUT_SYNCHRONOUS, GL_DEBUG_TYPE_ERROR, GL_DONT_CARE = 0x92E0, 0x8242, 0x824C, 0x1100
 DEBUG_ENV = "RAYVR_GL_DEBUG"  # 1: a frame's GL error names the call the driver refused (the suite sets it)
@@ -265,21 +272,28 @@ class GLContext:
     def info(self) -> dict:
         """Vendor, renderer, version, limits and the extensions rayvr uses."""
         i = self.ctx.info
-        limits = {k: i.get(k) for k in (
-            "GL_MAX_TEXTURE_SIZE", "GL_MAX_ARRAY_TEXTURE_LAYERS", "GL_MAX_SHADER_STORAGE_BLOCK_SIZE",
-            "GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS", "GL_MAX_COMPUTE_SHARED_MEMORY_SIZE",
-            "GL_MAX_COLOR_ATTACHMENTS", "GL_MAX_SAMPLES",
-        )}
+        limits = {k: i.get(k) if i.get(k) is not None else self._integer(enum) for k, enum in INFO_LIMITS.items()}
         return {
             "backend": self.backend,
             "vendor": i.get("GL_VENDOR"),
             "renderer": i.get("GL_RENDERER"),
             "version": i.get("GL_VERSION"),
-            "glsl": i.get("GL_SHADING_LANGUAGE_VERSION"),
+            "glsl": i.get("GL_SHADING_LANGUAGE_VERSION") or self._string(GL_SHADING_LANGUAGE_VERSION),
             "version_code": self.ctx.version_code,
             "limits": limits,
             "extensions": {e: (e in self.ctx.extensions) for e in EXTENSIONS_OF_INTEREST},
         }
+
+    def _integer(self, enum: int) -> int | None:
+        """glGetIntegerv(enum), or None where the driver does not know it (a refused query leaves
+        the value unwritten; the limits asked for are never negative)."""
+        value = ctypes.c_int(-1)
+        self.raw.glGetIntegerv(enum, ctypes.byref(value))
+        return value.value if value.value >= 0 else None
+
+    def _string(self, enum: int) -> str | None:
+        value = self.raw.glGetString(enum)
+        return value.decode("utf-8", "replace") if value else None
 
     @property
     def is_software(self) -> bool:
