@@ -325,3 +325,11 @@ def test_the_rigs_pose_is_pose_and_camera_is_its_old_name(command):
     new = parse([command, "--pose", "0,1,3,0,1,-1"])
     old = parse([command, "--camera", "0,1,3,0,1,-1"])
     assert tuple(new.pose) == tuple(old.pose) == (0.0, 1.0, 3.0, 0.0, 1.0, -1.0)
+
+
+def test_bench_writes_outside_the_committed_results_unless_told():
+    from rayvr.cli import build_parser
+
+    args = build_parser().parse_args(["bench", "gbuffer", "--quick"])
+    assert os.path.normpath(args.out) == "bench-out"  # was bench/results, the committed results
+    assert build_parser().parse_args(["bench", "gbuffer", "--out", "x"]).out == "x"

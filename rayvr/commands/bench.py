@@ -15,6 +15,8 @@ COMMAND = "bench"
 REPEAT = _count(1, 100_000)  # bench --repeat: timed frames per measurement
 MAX_POSES = 10_000  # bench vr --poses
 MAX_SEED = 2**63 - 1  # bench vr --pose-seed: numpy's generators take any non-negative integer
+# Where results go unless --out says: a working folder, never the repository's committed results.
+DEFAULT_OUT = "bench-out"
 
 
 def _worker_counts(text: str) -> str:
@@ -87,7 +89,8 @@ def add_parser(sub) -> None:
     b.add_argument("--budget-ms", type=_budgets,
                    help="budget: the frame budgets, comma-separated (default 4,8); vr: the one budget of its budget "
                         "config (default 11.1)")
-    b.add_argument("--out", default="bench/results", help="folder for JSON/markdown results")
+    b.add_argument("--out", default=DEFAULT_OUT, help=f"folder for JSON/markdown results (default ./{DEFAULT_OUT}: "
+                   "the repository's committed bench/results/ is only written when named)")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")
     b.add_argument("--scenes", default="default,sponza", help="comma-separated: default, sponza")
     b.add_argument("--repeat", type=REPEAT, default=50,
