@@ -135,3 +135,42 @@ def test_bad_views_is_one_line_on_the_command_line(tmp_path):
     run = rayvr("capture", "--views", str(tmp_path / "v.json"), "--out", str(tmp_path / "o"))
     assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1 and "view 0" in run.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_sphere_views_in_the_built_in_room_stand_inside_it_above_the_floor_and_outside_its_objects():
+    # The room's bounds hold its camera: the sphere around the view's target once reached 0.7 m
+    # under the floor and 0.1 m over the ceiling.
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.scene import loader
+
+    room = loader.load(None)
+    rig = StereoRig.for_scene(room, size=(32, 32))
+    poses, _ = views_for("sphere:64", room, rig)
+    assert len(poses) == 64
+    (x0, y0, z0), (x1, y1, z1) = room.bounds
+    objects = {}
+    for i, m in enumerate(room.materials):
+        corners = room.world_vertices()[room.indices[room.triangle_material == i].ravel()]
+        objects[m.name] = corners.min(axis=0), corners.max(axis=0)
+    solid = [objects[n] for n in ("glass", "box_blue", "box_white", "gold", "mirror")]
+    for k, pose in enumerate(poses):
+        for eye in rig.__class__(**{**rig.__dict__, "pose": pose}).eyes():
+            x, y, z = eye.position
+            assert x0 < x < x1 and z0 < z < z1, (k, eye.position)  # inside the walls
+            assert y0 + 0.1 < y < y1, (k, eye.position)  # above the floor, under the ceiling
+            assert not any(np.all(eye.position > lo) and np.all(eye.position < hi) for lo, hi in solid), k
+    spread = np.array([p.position for p in poses])
+    assert np.ptp(spread, axis=0).min() > 1.0  # still views from every side, not a huddle
+
+
+def test_sphere_views_around_an_object_keep_the_sphere_through_the_camera():
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.scene import loader
+
+    cube = loader.from_arrays(np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float),
+                              np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                                        [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]))
+    rig = StereoRig.for_scene(cube, size=(32, 32))
+    poses, _ = views_for("sphere:8", cube, rig)
+    distance = np.linalg.norm(rig.pose.position - cube.center)
+    np.testing.assert_allclose([np.linalg.norm(p.position - cube.center) for p in poses], distance)

@@ -2,7 +2,10 @@
 views come from and the camera files that describe them.
 
 A view source is a JSON file (`--views FILE`) or a generated set around the scene
-(`--views sphere:N`, `--views grid:NxM[:SPACING]`). A file holds a list of views, or an object
+(`--views sphere:N`, `--views grid:NxM[:SPACING]`). A sphere's views look at its centre; in a
+scene whose bounds hold the camera (a room, seen from inside) the sphere is shrunk into the
+bounds, 10 % of each extent from the walls, floor and ceiling, and a view that stands in or behind
+an object, or within 15 % of the radius of a surface, moves nearer the centre. A file holds a list of views, or an object
 with "views" or "frames" (so a `transforms.json` can be replayed) whose top-level intrinsics are
 the views' defaults. Each view has a pose, one of
     "transform_matrix": 4x4 camera-to-world, OpenGL axes (what transforms.json holds)
@@ -176,6 +179,79 @@ def sphere_views(center, radius: float, n: int) -> list[Pose]:
     return out
 
 
+# An enclosed scene (its bounds hold the capture's camera: a room) keeps its views this share of
+# each axis's extent away from the bounds' faces: off the floor, the ceiling and the walls.
+ROOM_MARGIN = 0.1
+# A view in a room keeps at least this share of the sphere's radius of free space along each axis.
+ROOM_CLEARANCE = 0.15
+# Radii a view that is not in free space tries instead, as shares of the sphere's radius, along
+# its own direction from the centre.
+ROOM_RETREATS = (0.75, 0.5, 0.25)
+AXES = np.vstack([np.eye(3), -np.eye(3)])
+
+
+def encloses(scene, position) -> bool:
+    """The scene's bounds hold `position`: a room or a building seen from inside."""
+    lo, hi = np.asarray(scene.bounds, np.float64)  # world coordinates, as the pose's
+    p = np.asarray(position, np.float64)
+    return bool(np.all(p > lo) and np.all(p < hi))
+
+
+def room_sphere(scene, target, distance: float) -> tuple[np.ndarray, float]:
+    """Centre and radius of a view sphere inside an enclosed scene's free box (its bounds shrunk
+    by ROOM_MARGIN of each extent): the target moved into that box, the radius at most `distance`
+    and small enough that the sphere stays inside it."""
+    lo, hi = np.asarray(scene.bounds, np.float64)
+    margin = ROOM_MARGIN * (hi - lo)
+    lo, hi = lo + margin, hi - margin
+    center = np.clip(np.asarray(target, np.float64), lo, hi)
+    return center, float(min(distance, *(center - lo), *(hi - center)))
+
+
+def in_free_space(scene, bvh, positions, center, clearance: float) -> np.ndarray:
+    """Per position: no surface nearer than `clearance` along any axis, and nothing between it
+    and `center`, which it looks at (a view inside an object, or behind one, sees that object)."""
+    from ..accel.bvh import trace_reference
+
+    p = np.asarray(positions, np.float64) - scene.origin
+    to_center = np.asarray(center, np.float64) - scene.origin - p
+    reach = np.linalg.norm(to_center, axis=1)
+    rays = len(AXES) + 1
+    origins = np.repeat(p, rays, axis=0)
+    directions = np.concatenate([np.broadcast_to(AXES, (len(p), *AXES.shape)),
+                                 (to_center / np.maximum(reach, 1e-12)[:, None])[:, None]], axis=1).reshape(-1, 3)
+    tmax = np.concatenate([np.full((len(p), len(AXES)), clearance), reach[:, None]], axis=1).ravel()
+    blocked = trace_reference(bvh, origins, directions, tmax=tmax, any_hit=True)
+    return ~blocked.reshape(len(p), rays).any(axis=1)
+
+
+def room_views(scene, target, distance: float, n: int) -> list[Pose]:
+    """sphere_views for an enclosed scene: the sphere inside its free box (room_sphere), each view
+    that stands in or behind an object or against a surface (in_free_space) moved nearer the centre
+    along its own direction; ValueError when one finds no free place."""
+    from ..accel.scene import build_scene_bvh
+
+    center, radius = room_sphere(scene, target, distance)
+    poses = sphere_views(center, radius, n)
+    bvh = build_scene_bvh(scene, progress=False)
+    clearance = ROOM_CLEARANCE * radius
+    free = in_free_space(scene, bvh, [q.position for q in poses], center, clearance)
+    for share in ROOM_RETREATS:
+        stuck = np.flatnonzero(~free)
+        if not len(stuck):
+            break
+        moved = [center + share * (poses[i].position - center) for i in stuck]
+        ok = in_free_space(scene, bvh, moved, center, clearance)
+        for i, position, good in zip(stuck, moved, ok):
+            if good:
+                poses[i], free[i] = Pose.look_at(position, center), True
+    if not free.all():
+        i = int(np.flatnonzero(~free)[0])
+        raise ValueError(f"--views sphere:{n}: view {i} finds no free space between the room's centre "
+                         f"{np.round(center, 3).tolist()} and its place on the sphere (radius {radius:.3g})")
+    return poses
+
+
 def grid_views(pose: Pose, nx: int, ny: int, spacing: float) -> list[Pose]:
     """An nx x ny camera array (a light-field rig): parallel views on the plane through `pose`
     across its view direction, `spacing` apart, rows top to bottom, columns left to right."""
@@ -228,6 +304,8 @@ def _views(spec: str, scene, rig: StereoRig) -> tuple[list[Pose], list]:
     distance = float(np.linalg.norm(rig.pose.position - target)) or 1.0
     if kind == "sphere" and rest:
         (n,) = _spec_counts(rest, "sphere", 1)
+        if encloses(scene, rig.pose.position):  # a room: views inside it, not under its floor
+            return room_views(scene, target, distance, n), [None] * n
         return sphere_views(target, distance, n), [None] * n
     if kind == "grid" and rest:
         counts, _, spacing = rest.partition(":")
