@@ -31,6 +31,8 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+# The commands that render a scene: without --materials, the built-in room gets its own config there.
+ROOM_COMMANDS = ("capture", "preview")
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for a process Ctrl-C ended
 EXIT_TERMINATED = 128 + signal.SIGTERM
 
@@ -64,6 +66,11 @@ def run_command(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="rayvr: %(message)s")
+    notice = None
+    if args.command in ROOM_COMMANDS:
+        from .scene.defaults import materials_for
+
+        args.materials, notice = materials_for(args.scene, args.materials)
     from .gl.context import ContextError
     from .scene.materials import ConfigError
     from .util.output import OutputError
@@ -73,7 +80,10 @@ def run_command(argv=None) -> int:
 
     with sigterm_as_interrupt() as sigterm:
         try:
-            return args.func(args)
+            code = args.func(args)
+            if notice and code == 0 and not getattr(args, "quiet", False):  # after the work: an error stays one line
+                print(notice, file=sys.stderr)
+            return code
         except (ContextError, ConfigError, SceneError, OutputError, ShaderError, ClusterError, MissingExtraError,
                 ValueError) as exc:
             print(f"rayvr {args.command}: error: {exc}", file=sys.stderr)

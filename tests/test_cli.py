@@ -32,7 +32,9 @@ def test_capture_default_scene_stereo_pair_with_aux(tmp_path):
     assert np.abs(left - right).mean() > 0.5  # two different eyes
     assert "gbuffer" in run.stdout and "total" in run.stdout
     summary = json.loads((tmp_path / "frame_timings.json").read_text())
-    assert summary["passes"] == ["visibility", "gbuffer", "shade", "tonemap"]  # raster-only graph
+    # the room's own config (rayvr/assets/default_room.toml): shadows, mirrors and glossy are traced
+    assert {"rt_shadows", "rt_reflections", "rt_glossy"} <= set(summary["passes"])
+    assert "default_room.toml" in run.stderr  # said, in one line
     assert set(summary["gpu_ms_mean"]) | set(summary["gpu_ms_unavailable"]) == set(summary["passes"])
     assert all(0 <= v < 2**31 / 1e6 for v in summary["gpu_ms_mean"].values())  # no wrapped timer values
     assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]
@@ -170,6 +172,28 @@ def test_output_folder_is_made_with_the_first_file(tmp_path):
     assert run.returncode == 0, run.stderr
     assert sorted(p.name for p in out.iterdir()) == ["frame_left.png", "frame_left_depth.npy", "frame_right.png",
                                                      "frame_right_depth.npy", "frame_timings.json"]
+
+
+def test_the_built_in_room_renders_its_own_effects_unless_raster_is_asked_for(tmp_path):
+    # A first run used to show the room all raster: no shadows, a black mirror ball.
+    from rayvr.scene.loader import load
+
+    room = load(None)
+    shown, plain = tmp_path / "default", tmp_path / "raster"
+    run = rayvr("capture", "--size", "64x48", "--eye", "left", "--aux", "material", "--out", str(shown))
+    assert run.returncode == 0, run.stderr
+    assert sum("default_room.toml" in line for line in run.stderr.splitlines()) == 1
+    run = rayvr("capture", "--size", "64x48", "--eye", "left", "--materials", "raster.toml", "--out", str(plain),
+                "-q")  # a shipped config by its file name
+    assert run.returncode == 0, run.stderr and "default_room.toml" not in run.stderr
+    traced = np.asarray(Image.open(shown / "frame_left.png")).astype(int)
+    raster = np.asarray(Image.open(plain / "frame_left.png")).astype(int)
+    material = np.load(shown / "frame_left_material.npy")
+    names = room.material_names()
+    for name in ("mirror", "floor"):  # a reflection; the floor's gloss and the shadows cast on it
+        where = material == names.index(name)
+        assert where.sum() > 20, name
+        assert np.abs(traced[where] - raster[where]).mean() > 4, name
 
 
 def test_info_lists_gl_and_scene_effects(tmp_path):
