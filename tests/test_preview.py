@@ -342,7 +342,7 @@ def _window_stereo_methods(size):
             p.frame()
             out[p.state.method] = (p.frame(grab=True), p.last_frame.plan.stereo, p.last_frame.pass_names)
             _press(p, __import__("glfw").KEY_B)
-        return out, p.camera.rig((1, 1)), "\n".join(t for t, _ in p.hud_lines(p.last_layout, (size[0], size[1])))
+        return out, p.camera.rig((1, 1)), " ".join(t for t, _ in p.hud_lines(p.last_layout, (size[0], size[1])))
     finally:
         p.close()
 
@@ -445,7 +445,7 @@ def test_synthetic_key_and_mouse_events_drive_the_window(worker):
     # T: the next quadtree preset for the ssr materials (none here: the message says so)
     assert "quadtree thresholds: 3 deg, 1e-5" in out["quadtree_message"] and "no material uses ssr" in out["quadtree_message"]
     assert out["reset"]
-    hud = "\n".join(out["hud"])
+    hud = " ".join(out["hud"])
     for needle in ("ms/frame", "GPU ms", "gbuffer", "left  view", "scale 0.75", "cursor: ", "IPD"):
         assert needle in hud, needle
     assert out["resized"] == ((75, 30), (75, 30))
@@ -522,7 +522,7 @@ def test_config_edits_on_disk_change_effect_ids_on_the_next_frame(worker, tmp_pa
     error, ids, hud = out["bad_effect"]
     assert "warp9" in error and "default" in error and "materials.toml" in error
     assert ids == out["ids1"]  # the last good config stays
-    hud = "\n".join(hud)
+    hud = " ".join(hud)
     assert "config error" in hud and "warp9" in hud
     error, ids = out["bad_toml"]
     assert "not valid TOML" in error and ids == out["ids1"]
@@ -723,3 +723,57 @@ def test_temporal_key_on_a_camera_it_cannot_reproject_stays_off_with_a_note(work
     state, setting, note = worker(_temporal_key, "wide")
     assert not state and not setting and "temporal reprojection" in note and "wide camera" in note, note
     assert worker(_temporal_key, "pinhole") == (True, True, None)
+
+
+# ------------------------------------------------------------------- the HUD's layout
+
+def _atlas_measure(size):
+    from rayvr.app.hud import FontAtlas
+
+    font = FontAtlas(size)
+    return font.line_height, font.width
+
+
+@pytest.mark.parametrize("window", [(1280, 720), (960, 540), (640, 360), (600, 400)])
+def test_the_help_overlay_fits_small_windows(window):
+    # At 14 px the 28 rows of keys (20 px each) were cut off in windows under about 590 pixels high.
+    from rayvr.app.hud import MARGIN, font_size_for, help_layout
+
+    place = help_layout(window, KEYS, font_size_for(window, 14), _atlas_measure)
+    x, y, w, h = place.box
+    assert place.fits and MARGIN <= x and x + w <= window[0] - MARGIN and MARGIN <= y and y + h <= window[1] - MARGIN
+    assert place.columns * place.rows >= len(KEYS) + 1  # every key, and the title
+    line_height, width = _atlas_measure(place.font_size)
+    assert all(width(k) < place.key_width for k, _ in KEYS)  # a key never runs into its description
+    assert h >= place.rows * line_height
+
+
+def test_the_hud_font_follows_the_window_down_to_a_floor():
+    from rayvr.app.hud import MIN_FONT_SIZE, font_size_for
+
+    assert font_size_for((1920, 1080), 14) == font_size_for((1280, 720), 14) == 14
+    assert font_size_for((640, 360), 14) == 7 and font_size_for((1280, 360), 14) == 7  # the tighter side
+    assert font_size_for((100, 60), 14) == MIN_FONT_SIZE
+    assert font_size_for((640, 360), 28) == 14  # a high-DPI screen's doubled font, halved
+
+
+def _window_hud_share(size):
+    """The share of the window the HUD panel covers after one frame, and the help overlay's layout."""
+    from rayvr.app.hud import PAD, help_layout
+
+    p = _preview(size=size, hud=True, materials="rayvr/assets/default_room.toml")
+    try:
+        p.frame()
+        lines = [t for t, _ in p.hud_lines(p.last_layout, size)]
+        w = max(p.hud.width(t) for t in lines) + 2 * PAD
+        h = len(lines) * p.hud.line_height + 2 * PAD
+        place = help_layout(size, KEYS, p.hud.font_size, p.hud.measure)
+        return w * h / (size[0] * size[1]), place.fits
+    finally:
+        p.close()
+
+
+def test_the_hud_covers_a_small_share_of_a_small_window(worker):
+    share, help_fits = worker(_window_hud_share, (640, 360))
+    assert share < 0.25, share  # at 14 px it covered about half of it
+    assert help_fits

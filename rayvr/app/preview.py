@@ -748,7 +748,9 @@ class Preview:
         return f"cursor: {name} (#{index}) -> {effect.name if effect else effect_id}  [{rule}]"
 
     def hud_lines(self, layout: Layout, fb) -> list:
-        """The HUD text, (text, rgba) per line."""
+        """The HUD text, (text, rgba) per line, wrapped to the window (hud.text_width_for)."""
+        from .hud import text_width_for
+
         s, cam = self.state, self.camera
         white, dim, red, yellow = (1, 1, 1, 1), (0.7, 0.7, 0.7, 1), (1, 0.35, 0.3, 1), (1, 0.85, 0.3, 1)
         fps = 1000.0 / self.frame_ms if self.frame_ms > 0 else 0.0
@@ -779,31 +781,37 @@ class Preview:
             lines.append((f"effects from config: {src}", white))
         if self.config_error:
             lines.append(("config error, keeping the last good config:", red))
-            width = max(200, fb[0] - 40)
-            lines += [(ln, red) for ln in _wrap(self.config_error, width, self.hud.width)]
+            lines.append((self.config_error, red))
         if self.recorded is not None:
             lines.append((f"REC camera path: {len(self.recorded)} pose(s), P stops and saves", red))
         if self.message and time.perf_counter() < self._message_until:
             lines.append((self.message, yellow))
         lines.append(("H: help", dim))
-        return lines
+        width = text_width_for(fb)
+        return [(piece, color) for text, color in lines for piece in _wrap(text, width, self.hud.width)]
 
     def _draw_hud(self, layout: Layout, fb) -> None:
+        from .hud import HELP_COLUMN_GAP, MARGIN, PAD, help_layout
+
         hud = self.hud
+        hud.set_window_size(fb)  # the font follows the window
         if self.state.hud and not self.state.help:
-            hud.panel(8, 8, self.hud_lines(layout, fb))
+            hud.panel(MARGIN, MARGIN, self.hud_lines(layout, fb), pad=PAD)
         if self.state.help:
-            key_w = max(hud.width(k) for k, _ in KEYS) + 16
-            rows = [("rayvr preview: keys", (1, 0.85, 0.3, 1))] + [(f"{k}", (1, 1, 1, 1)) for k, _ in KEYS]
-            w = key_w + max(hud.width(d) for _, d in KEYS) + 12
-            h = len(rows) * hud.line_height + 12
-            x, y = max(8, (fb[0] - w) // 2), max(8, (fb[1] - h) // 2)
+            place = help_layout(fb, KEYS, hud.font_size, hud.measure)
+            hud.use_font_size(place.font_size)
+            x, y, w, h = place.box
             hud.rect(x, y, w, h, (0.0, 0.0, 0.0, 0.8))
-            hud.text(x + 6, y + 6, rows[0][0], rows[0][1])
-            for i, (k, d) in enumerate(KEYS, start=1):
-                ty = y + 6 + i * hud.line_height
-                hud.text(x + 6, ty, k, (0.6, 0.85, 1.0, 1.0))
-                hud.text(x + 6 + key_w, ty, d)
+            rows = [("rayvr preview: keys", None)] + list(KEYS)
+            for i, (k, d) in enumerate(rows):
+                column, row = divmod(i, place.rows)
+                tx = x + PAD + column * (place.column_width + HELP_COLUMN_GAP)
+                ty = y + PAD + row * hud.line_height
+                if d is None:
+                    hud.text(tx, ty, k, (1, 0.85, 0.3, 1))
+                    continue
+                hud.text(tx, ty, k, (0.6, 0.85, 1.0, 1.0))
+                hud.text(tx + place.key_width, ty, d)
         hud.draw(fb)
 
     # -- loop and lifetime --------------------------------------------------------------
