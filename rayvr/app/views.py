@@ -5,9 +5,9 @@ A view source is a JSON file (`--views FILE`) or a generated set around the scen
 (`--views sphere:N`, `--views grid:NxM[:SPACING]`). A sphere's views look at its centre; in a
 scene whose bounds hold the camera (a room, seen from inside) the sphere is shrunk into the
 bounds, 10 % of each extent from the walls, floor and ceiling, and a view that stands in or behind
-an object, or within 15 % of the radius of a surface, moves nearer the centre. A file holds a list of views, or an object
-with "views" or "frames" (so a `transforms.json` can be replayed) whose top-level intrinsics are
-the views' defaults. Each view has a pose, one of
+an object, or within 15 % of the radius of a surface, moves nearer the centre. A file holds a
+list of views, or an object with "views" or "frames" (so a `transforms.json` can be replayed)
+whose top-level intrinsics are the views' defaults. Each view has a pose, one of
     "transform_matrix": 4x4 camera-to-world, OpenGL axes (what transforms.json holds)
     "position" + "rotation" (3x3 camera-to-world), or "position" + "target" (+ "up")
 and optional intrinsics at the capture's --size, one of
@@ -199,12 +199,14 @@ def encloses(scene, position) -> bool:
 
 def room_sphere(scene, target, distance: float) -> tuple[np.ndarray, float]:
     """Centre and radius of a view sphere inside an enclosed scene's free box (its bounds shrunk
-    by ROOM_MARGIN of each extent): the target moved into that box, the radius at most `distance`
-    and small enough that the sphere stays inside it."""
+    by ROOM_MARGIN of each extent): the target moved into the box's middle half, the radius at most
+    `distance` and small enough that the sphere stays inside the box."""
     lo, hi = np.asarray(scene.bounds, np.float64)
     margin = ROOM_MARGIN * (hi - lo)
     lo, hi = lo + margin, hi - margin
-    center = np.clip(np.asarray(target, np.float64), lo, hi)
+    # The centre keeps to the middle half of the box: a target by a wall still leaves a sphere.
+    quarter = 0.25 * (hi - lo)
+    center = np.clip(np.asarray(target, np.float64), lo + quarter, hi - quarter)
     return center, float(min(distance, *(center - lo), *(hi - center)))
 
 
