@@ -44,7 +44,7 @@ QUADTREE_PRESETS = (("lossless", 1.0, 0.0), ("3 deg, 1e-5", math.cos(math.radian
 EYE_UNIT, ATLAS_UNIT = 8, 9  # texture units clear of the G-buffer's 0..6
 PICK_BINDING = 7  # SSBO binding clear of the scene's 0..4 and the BVH's 8..
 
-# The keys, in the order the help overlay and README list them.
+# The keys, in the order the help overlay and docs/usage.md list them.
 KEYS = (
     ("W A S D", "fly forward / left / back / right (orbit: nearer, turn, farther, turn)"),
     ("Q E", "fly down / up (orbit: tilt)"),

@@ -42,6 +42,7 @@ class TimerQuery:
     def release(self) -> None:
         self.raw.glDeleteQueries(1, ctypes.byref(ctypes.c_uint(self.name)))
 
+
 def start_software_timers(gl) -> None:
     """Make a software rasterizer's first timer query read a time (call once per new context).
 

@@ -102,7 +102,7 @@ EDGE_SLACK = declare_constant("EDGE_SLACK", 1e-5)
 SHARE_CHANNELS = declare(Option("share_channel_shading", bool, True, "a chromatic camera (three colour channel "
                                 "sets) shades its red and blue rays only where they hit another triangle than "
                                 "the pixel's green ray; where they hit the same one they take green's shading "
-                                "(HVVR's shared shading: the approximation and its error are in README); "
+                                "(HVVR's shared shading: the approximation and its error are in docs/design.md); "
                                 "false: every channel shaded on its own", scope="plan", plan_field="share_channels",
                                 commands=("capture", "preview", "info", "bench")))
 
