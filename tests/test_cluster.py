@@ -286,8 +286,9 @@ def test_workers_give_the_same_bytes_as_one_process(local_ray, reference, capsys
     assert len(single) == 32
     out = root / "workers"
     w, h = SIZE
+    # the reference's config: the CLI would give the built-in room its own (default_room.toml)
     assert main(["capture", "--path", str(root / "path.json"), "--size", f"{w}x{h}", "--out", str(out),
-                 "--workers", "2", "--chunk", "3"]) == 0
+                 "--materials", "raster.toml", "--workers", "2", "--chunk", "3"]) == 0
     assert "frames: 16 written, 0 skipped, 0 retried, 0 failed" in capsys.readouterr().out
     assert frames_on_disk(out) == single  # byte for byte, every frame, both eyes
     summary = json.loads((out / "frame_timings.json").read_text())

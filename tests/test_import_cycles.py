@@ -38,7 +38,7 @@ LAYERS = (
     ("rayvr.accel", "rayvr.frame.gbuffer", "rayvr.frame.graph"),
     ("rayvr.frame.passes",),
     ("rayvr.frame.effects",),
-    ("rayvr.scene.materials", "rayvr.scene.gpu_scene", "rayvr.reference.denoise", "rayvr.reference.shading",
+    ("rayvr.scene.materials", "rayvr.scene.defaults", "rayvr.scene.gpu_scene", "rayvr.reference.denoise", "rayvr.reference.shading",
      "rayvr.renderer", "rayvr.frame.readback", "rayvr.app.views", "rayvr.app.capture_files", "rayvr.app.capture",
      "rayvr.quality.metrics", "rayvr.quality.reference_images", "rayvr.quality.measure", "rayvr.quality.budget",
      "rayvr.app.cluster", "rayvr.app.preview", "rayvr.app.hud", "rayvr.settings"),

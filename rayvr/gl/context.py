@@ -184,9 +184,23 @@ class GLContext:
         _current = self
         if os.environ.get(DEBUG_ENV, "") not in ("", "0"):
             self.log_errors()
-        from .timing import start_software_timers  # timing imports this module
+        self._start_software_timers()
 
-        start_software_timers(self)
+    def _start_software_timers(self) -> None:
+        """Make a software rasterizer's first timer query read a time.
+
+        llvmpipe records a query's start inside the scene it is binning, and a context has none
+        before its first clear or draw: the first query of a context then has no start and reads
+        the end timestamp alone (~ the machine's uptime), so the first pass of every run read
+        "unavailable". Clearing a 1x1 framebuffer starts that scene; nothing else sees it."""
+        if not is_software_renderer(self.ctx):
+            return
+        bound = self.ctx.fbo  # None on a new headless context: the parking framebuffer stays bound
+        parking = self.parking_framebuffer()
+        parking.use()
+        parking.clear()
+        if bound is not None:
+            bound.use()
 
     def make_current(self) -> None:
         """Make this the thread's current context if another one is: GL calls go to the current

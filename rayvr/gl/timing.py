@@ -42,24 +42,6 @@ class TimerQuery:
     def release(self) -> None:
         self.raw.glDeleteQueries(1, ctypes.byref(ctypes.c_uint(self.name)))
 
-
-def start_software_timers(gl) -> None:
-    """Make a software rasterizer's first timer query read a time (call once per new context).
-
-    llvmpipe records a query's start inside the scene it is binning, and a context has none
-    before its first clear or draw: the first query of a context then has no start and reads
-    the end timestamp alone (~ the machine's uptime), so the first pass of every run read
-    "unavailable". Clearing a 1x1 framebuffer starts that scene; nothing else sees it."""
-    if not is_software_renderer(gl.ctx):
-        return
-    bound = gl.ctx.fbo  # None on a new headless context: the parking framebuffer stays bound
-    parking = gl.parking_framebuffer()
-    parking.use()
-    parking.clear()
-    if bound is not None:
-        bound.use()
-
-
 # llvmpipe reads a raster pass's timer back as garbage now and then: 4294967295 ns through 32
 # bits; through 64, the end timestamp alone (~ the machine's uptime: 3164585 ms was seen). No GPU
 # work takes longer than the wall time since it was recorded: a reading over that is garbage.
