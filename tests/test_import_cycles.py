@@ -33,7 +33,7 @@ LAYERS = (
     ("rayvr.gl.gpu_layout",),
     ("rayvr.frame.effect_registry", "rayvr.frame.cameras", "rayvr.gl.shaders", "rayvr.gl.limits", "rayvr.util.inputs",
      "rayvr.frame.pcg", "rayvr.gl.timing", "rayvr.util.signals", "rayvr.util.extras", "rayvr.util.output",
-     "rayvr.frame.cameras.rig", "rayvr.scene.loader", "rayvr.frame.stereo", "rayvr.gl.context",
+     "rayvr.frame.cameras.rig", "rayvr.scene.loader", "rayvr.scene.light_selection", "rayvr.frame.stereo", "rayvr.gl.context",
      "rayvr.frame.accumulation"),
     ("rayvr.accel", "rayvr.frame.gbuffer", "rayvr.frame.graph"),
     ("rayvr.frame.passes",),
