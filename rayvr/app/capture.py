@@ -1,5 +1,7 @@
-"""Headless capture: stills, stereo pairs and camera paths to PNG (colour) and NPY (aux), or with
-format "exr" also the linear HDR colour and the float aux channels as OpenEXR."""
+"""Headless capture: stills, stereo pairs and camera paths to PNG (colour) and NPY (aux), with
+format "exr" also the linear HDR colour and the float aux channels as OpenEXR, with format "npy"
+the colour as NPY too. Frames are encoded and written on a pool of threads while the next ones
+render (app/writers.py)."""
 from __future__ import annotations
 
 import ast
@@ -12,6 +14,7 @@ import re
 import signal
 import socket
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +24,9 @@ from ..util.inputs import read_json
 from ..util.output import (FORMATS, OutputError, atomic_write_bytes, check_file_prefix, check_output_dir,
                      check_output_files, create_output_dir, openexr, remove_empty_dirs, write_exr, write_npy,
                      write_png)
-from .capture_files import aux_file, file_name
+from .capture_files import aux_file, color_file, file_name
+from .writers import (DEFAULT_PNG_COMPRESSION, FrameWriter, PipelineTimes, check_png_compression, check_writers,
+                      default_writers)
 from ..renderer import Frame, Renderer
 from ..util.signals import handling
 from .views import camera_json
@@ -48,9 +53,16 @@ class CaptureJob:
     spp: int = 1  # samples accumulated into each frame (each with its own sample index)
     rig_overrides: list | None = None  # per frame: StereoRig fields that differ (a view's intrinsics)
     cameras: bool = False  # also write each eye's camera (intrinsics, camera-to-world) as JSON
+    # How the files are written, not what they show (so not part of job_identity: a rerun with
+    # other values resumes the same job): zlib level of the PNGs, writer threads (None: one per core).
+    png_compression: int = DEFAULT_PNG_COMPRESSION
+    writers: int | None = None
 
     def __post_init__(self):
         check_file_prefix(self.prefix)  # every file stays inside out_dir
+        check_png_compression(self.png_compression)
+        if self.writers is not None:
+            check_writers(self.writers)
         if not (isinstance(self.spp, int) and self.spp >= 1):
             raise ValueError(f"spp must be a positive whole number, got {self.spp!r}")
         if self.format not in FORMATS:
@@ -101,22 +113,27 @@ def frame_files(job: CaptureJob, index: int) -> list[Path]:
     """Every file frame `index` of `job` writes: the frame is complete on disk when all exist."""
     out = []
     for eye in job.eye_names:
-        out.append(file_name(job, index, eye, "color" if job.view == "color" else job.view, "png"))
+        out.append(color_file(job, index, eye))
         out += [aux_file(job, index, eye, name) for name in job.render_aux]
         if job.cameras:
             out.append(file_name(job, index, eye, "camera", "json"))
     return out
 
 
-def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) -> None:
-    """Write one frame's files, appending each to `written` as soon as it is whole. A sequence's
-    frame loses its record first: until write_record, the frame on disk is not finished."""
+def write_frame(job: CaptureJob, index: int, frame: Frame, record: str | None = None) -> list[Path]:
+    """Write one frame's files, each atomically, and with `record` (a JobFolder's digest) then its
+    record; the files written. A sequence's frame loses its record first: until write_record, the
+    frame on disk is not finished. Runs on a writer thread (app/writers.py)."""
+    written = []
     if len(job.poses) > 1:
         record_file(job, index).unlink(missing_ok=True)
     rig = job.frame_rig(index) if job.cameras else None
     for eye, img in frame.eyes.items():
-        p = file_name(job, index, eye, "color" if job.view == "color" else job.view, "png")
-        write_png(p, img.color)
+        p = color_file(job, index, eye)
+        if p.suffix == ".npy":
+            write_npy(p, img.color)
+        else:
+            write_png(p, img.color, job.png_compression)
         written.append(p)
         for name, arr in img.aux.items():
             p = aux_file(job, index, eye, name)
@@ -129,6 +146,9 @@ def write_frame(job: CaptureJob, index: int, frame: Frame, written: list[Path]) 
             p = file_name(job, index, eye, "camera", "json")
             atomic_write_bytes(p, camera_json(rig.eye(eye)))
             written.append(p)
+    if record is not None:
+        write_record(job, index, record)
+    return written
 
 
 # ------------------------------------------------------------------ one job per folder; resuming a job
@@ -521,8 +541,12 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True, on_f
 def render_frames(renderer: Renderer, job: CaptureJob, indices: list[int], progress: bool = False, on_frame=None,
                   record: str | None = None, skipped: int = 0) -> dict:
     """Render frames `indices` of `job` into its folder (which the caller holds: JobFolder) and
-    return the summary; `on_frame(index)` is called after each frame's files are written. With
-    `record` (a JobFolder's digest), each finished frame gets its record."""
+    return the summary; `on_frame(index)` is called, in order, once each frame's files are
+    written. With `record` (a JobFolder's digest), each finished frame gets its record.
+
+    The GPU renders frame i+1 while frame i is read back (Renderer.render_sequence) and frames
+    before it are encoded and written on job.writers threads (FrameWriter: at most its limit of
+    frames in memory); one writer writes each frame here, in turn (the serial path)."""
     files, timings, unavailable, ran = [], [], set(), {}
     rigs = [job.frame_rig(i) for i in indices]
     if rigs:  # what the frames' plan refuses (Renderer.plan) is one line before any work, no progress bar
@@ -533,36 +557,53 @@ def render_frames(renderer: Renderer, job: CaptureJob, indices: list[int], progr
 
         # with --spp the bar counts samples: one frame of many samples is long work too
         bar = tqdm(total=len(indices) * job.spp, unit="sample" if job.spp > 1 else "frame", desc="capture")
-    done = 0
-    try:
-        with interrupts_between_frames() as check_interrupt:
-            # Frames come back pipelined: frame i is written while frame i+1 renders.
-            for i, frame in zip(indices, renderer.render_sequence(rigs, eyes=job.eyes, view=job.view,
-                                                                  aux=job.render_aux, spp=job.spp,
-                                                                  progress=bar.update if bar else None)):
-                check_interrupt()
-                write_frame(job, i, frame, files)
-                if record is not None:
-                    write_record(job, i, record)
-                done += 1
-                timings.append(frame.timings)
-                unavailable.update(frame.timings_unavailable)
-                ran.update(dict.fromkeys(frame.passes))
-                if on_frame is not None:
-                    on_frame(i)
-                check_interrupt()
-    except KeyboardInterrupt:
-        # Every file is written atomically, so what is there is whole: say what was kept.
-        raise CaptureInterrupted(f"interrupted after {done} of {len(indices)} frame(s); "
-                                 f"the {len(files)} file(s) written are kept in {job.out_dir}/") from None
-    finally:
-        if bar is not None:
-            bar.close()
+    threads = max(1, min(job.writers or default_writers(), len(indices)))  # no pool for a still
+    clock = PipelineTimes(renderer.reader, meaningful=not renderer.gl.is_software)
+    written = 0
+
+    def finished(frames) -> None:
+        nonlocal written
+        for i, frame_files_written in frames:
+            files.extend(frame_files_written)
+            written += 1
+            if on_frame is not None:
+                on_frame(i)
+
+    with FrameWriter(threads) as writer:
+        try:
+            with interrupts_between_frames() as check_interrupt:
+                frames = renderer.render_sequence(rigs, eyes=job.eyes, view=job.view, aux=job.render_aux,
+                                                  spp=job.spp, progress=bar.update if bar else None)
+                for i in indices:
+                    with clock.rendering():
+                        frame = next(frames)
+                    check_interrupt()
+                    timings.append(frame.timings)
+                    unavailable.update(frame.timings_unavailable)
+                    ran.update(dict.fromkeys(frame.passes))
+                    with clock.writing():
+                        finished(writer.submit(i, partial(write_frame, job, i, frame, record)))
+                    del frame  # the writer holds it until it is written: the queue bounds the memory
+                    clock.frame_done(frame_gpu_ms=sum(timings[-1].values()))
+                    if bar is not None:
+                        bar.set_postfix_str(clock.describe(), refresh=False)
+                    check_interrupt()
+                with clock.writing():
+                    finished(writer.finish())
+        except KeyboardInterrupt:
+            # Every file is written atomically, so what is there is whole: say what was kept.
+            finished(writer.settle())
+            raise CaptureInterrupted(f"interrupted after {written} of {len(indices)} frame(s); "
+                                     f"the {len(files)} file(s) written are kept in {job.out_dir}/") from None
+        finally:
+            if bar is not None:
+                bar.close()
     return summarize(job, renderer.gl.info()["renderer"], not renderer.gl.is_software, files, timings, ran,
                      unavailable, written=len(indices), skipped=skipped,
                      denoise=list(renderer.plan().denoise) if renderer.settings.denoise else [],
                      stereo=renderer.settings.stereo,
-                     stereo_counts=renderer.stereo_counts())  # the last frame's reused pixels or holes
+                     stereo_counts=renderer.stereo_counts(),  # the last frame's reused pixels or holes
+                     pipeline=clock.summary(writer, job.png_compression))
 
 
 def summarize(job: CaptureJob, gl: str, meaningful: bool, files, timings, ran, unavailable, **counts) -> dict:

@@ -14,6 +14,12 @@ def file_name(job, index: int, eye: str, kind: str, ext: str) -> Path:
     return job.out_dir / f"{job.prefix}{frame}_{eye}{suffix}.{ext}"
 
 
+def color_file(job, index: int, eye: str) -> Path:
+    """Where an eye's colour (or debug view) image goes: PNG, or NPY with format npy (raw uint8 RGB)."""
+    kind = "color" if job.view == "color" else job.view
+    return file_name(job, index, eye, kind, "npy" if job.format == "npy" else "png")
+
+
 def aux_file(job, index: int, eye: str, name: str) -> Path:
     """Where aux channel `name` of an eye goes: NPY, or EXR for float channels with format exr
     (integer IDs stay exact in NPY); the HDR colour of an EXR job is the colour's EXR twin."""

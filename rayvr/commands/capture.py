@@ -1,4 +1,4 @@
-"""`rayvr capture`: render headless to PNG/NPY or EXR."""
+"""`rayvr capture`: render headless to PNG/NPY or EXR (docs/capture.md: the pipeline and its flags)."""
 from __future__ import annotations
 
 import os
@@ -26,6 +26,7 @@ def add_parser(sub) -> None:
     from ..gl.gpu_layout import VIEWS
     from ..util.output import EXR_EXTRA, FORMATS
     from ..frame.readback import AUX_CHANNELS
+    from ..app.writers import DEFAULT_PNG_COMPRESSION, MAX_DEFAULT_WRITERS, PNG_COMPRESSION_LEVELS
 
     c = sub.add_parser("capture", help="render headless to PNG/NPY or EXR (default: the built-in scene, both eyes)")
     c.add_argument("scene", nargs="?", help="glTF/GLB, OBJ or PLY file (default: built-in room)")
@@ -38,7 +39,16 @@ def add_parser(sub) -> None:
     c.add_argument("--aux", help=f"extra channels as .npy, comma-separated: {','.join(AUX_CHANNELS)}")
     c.add_argument("--format", choices=FORMATS, default="png",
                    help=f"exr: also the linear HDR colour as PREFIX_EYE.exr beside the PNG, and the float aux "
-                        f"channels as .exr instead of .npy (integer ones stay .npy); needs {EXR_EXTRA}")
+                        f"channels as .exr instead of .npy (integer ones stay .npy); needs {EXR_EXTRA}. npy: the "
+                        f"colour as raw uint8 RGB .npy instead of PNG (no encoding: as fast as the disk allows)")
+    c.add_argument("--png-compression", type=shared.count(PNG_COMPRESSION_LEVELS[0], PNG_COMPRESSION_LEVELS[-1]),
+                   default=DEFAULT_PNG_COMPRESSION, metavar="0..9",
+                   help=f"zlib level of the PNGs: 0 stores (largest, fastest), 9 compresses hardest (slowest); "
+                        f"every level is lossless (default {DEFAULT_PNG_COMPRESSION}: about as small as 6, "
+                        f"several times faster)")
+    c.add_argument("--writers", type=shared.count(1, 256), metavar="N",
+                   help=f"threads that encode and write frames while the GPU renders the next ones (default: "
+                        f"one per core, at most {MAX_DEFAULT_WRITERS}; 1: each frame written in turn)")
     seq = c.add_mutually_exclusive_group()
     seq.add_argument("--frames", type=shared.FRAMES, help="N frames of a turntable orbit")
     seq.add_argument("--path", help="camera path file (JSON) to replay")
@@ -122,6 +132,9 @@ def cmd_capture(args) -> int:
         require("flip_evaluator", "--budget-ms")  # it predicts image error with FLIP, before any work
     if not args.workers and (args.address or args.chunk or args.connect_timeout is not None):
         raise ValueError("--address, --connect-timeout and --chunk go with --workers N")
+    if args.format == "npy" and args.views:
+        raise ValueError("--views writes a transforms.json for NeRF / 3D Gaussian splatting tools, which read "
+                         "images: use --format png or exr with --views")
     if args.workers:
         from ..app.cluster import require_ray
 
@@ -164,7 +177,8 @@ def cmd_capture(args) -> int:
                 print(describe_pick(pick))
         poses, overrides = capture_poses(args, rig, r.scene)
         job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
-                         rig_overrides=overrides, cameras=bool(args.views))
+                         rig_overrides=overrides, cameras=bool(args.views), png_compression=args.png_compression,
+                         writers=args.writers)
         # --temporal carries each frame into the next: only a whole run in order gives the same frames
         with JobFolder(job, job_identity(job, **inputs), resume=not settings.temporal,  # held to the end
                        overwrite=args.overwrite) as folder:
@@ -192,7 +206,8 @@ def capture_on_workers(args, aux, settings, inputs, given) -> int:
     rig = shared.rig_from_args(args, scene, shared.camera_from_args(args, settings, given))
     poses, overrides = capture_poses(args, rig, scene)
     job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
-                     rig_overrides=overrides, cameras=bool(args.views))
+                     rig_overrides=overrides, cameras=bool(args.views), png_compression=args.png_compression,
+                     writers=args.writers)  # each worker writes its frames through its own pool
     spec = WorkerSpec(args.scene, args.materials, settings, args.backend)
     with JobFolder(job, job_identity(job, **inputs), overwrite=args.overwrite) as folder, \
             Cluster(args.workers, spec, args.address, shared.connect_timeout(args)) as cluster:

@@ -7,6 +7,7 @@ G-buffer's exact linear view depth, 4 bytes a pixel) by default, other channels 
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +43,7 @@ class Reader:
     def __init__(self, gl):
         self.gl = gl
         self._pool: dict = {}
+        self.finish_s = 0.0  # time spent mapping and cutting frames, for the capture's progress bar
 
     def _buffer(self, key, nbytes):
         buf = self._pool.get(key)
@@ -94,6 +96,13 @@ class Reader:
 
     def finish(self, pending: Pending):
         """Map the buffers and cut them into per-eye numpy images (rows top-down)."""
+        start = time.perf_counter()
+        try:
+            return self._finish(pending)
+        finally:
+            self.finish_s += time.perf_counter() - start
+
+    def _finish(self, pending: Pending):
         fc = pending.fc
         w, h = fc.gbuffer.size
         data = {}

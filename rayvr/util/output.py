@@ -150,22 +150,28 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     _atomic_write(Path(path), fill)
 
 
-def write_png(path: str | Path, image: np.ndarray) -> None:
-    """uint8 HxW, HxWx3 or HxWx4 (rows top-down) -> PNG."""
+def write_png(path: str | Path, image: np.ndarray, compression: int | None = None) -> None:
+    """uint8 HxW, HxWx3 or HxWx4 (rows top-down) -> PNG at zlib level `compression` (0..9; None:
+    Pillow's default, 6)."""
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(image)).save(buf, format="PNG")
+    level = {} if compression is None else {"compress_level": compression}
+    Image.fromarray(np.ascontiguousarray(image)).save(buf, format="PNG", **level)
     atomic_write_bytes(path, buf.getvalue())
 
 
 def write_npy(path: str | Path, array: np.ndarray) -> None:
-    buf = io.BytesIO()
-    np.save(buf, np.ascontiguousarray(array))
-    atomic_write_bytes(path, buf.getvalue())
+    """The array as .npy, written straight into the file (no copy in memory first)."""
+    def fill(fd, tmp):
+        with os.fdopen(fd, "wb") as fh:
+            np.save(fh, np.ascontiguousarray(array))
+
+    _atomic_write(Path(path), fill)
 
 
-FORMATS = ("png", "exr")  # capture: png = colour PNG + aux NPY; exr = also HDR colour EXR, float aux as EXR
+# capture: png = colour PNG + aux NPY; exr = also HDR colour EXR, float aux as EXR; npy = colour and aux as NPY
+FORMATS = ("png", "exr", "npy")
 EXR_EXTRA = "pip install 'rayvr[exr]'"  # the optional extra that brings the OpenEXR package
 
 

@@ -1,0 +1,105 @@
+"""PNG encoders for a capture's colour images, measured on real rayvr frames (issue 24).
+
+    python encoders.py OUT.json IMAGE.png [IMAGE.png ...]
+
+For each image: each encoder at each compression level, one at a time (seconds per image, bytes);
+then Pillow on a pool of N threads against N processes (images per second). Encoders whose package
+is missing are left out of the table (imagecodecs, opencv-python-headless: not rayvr dependencies).
+Every encoding is decoded again and compared with the source pixels: a lossy result fails the run.
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import platform
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+LEVELS = (0, 1, 2, 3, 6, 9)
+REPEAT = 3  # the best of REPEAT timings: the host is shared
+
+
+def pillow(a, level):
+    buf = io.BytesIO()
+    Image.fromarray(a).save(buf, format="PNG", compress_level=level)
+    return buf.getvalue()
+
+
+def encoders() -> dict:
+    found = {"pillow": pillow}
+    try:
+        import imagecodecs
+
+        found["imagecodecs.png"] = lambda a, level: imagecodecs.png_encode(a, level=level)
+        found["imagecodecs.spng"] = lambda a, level: imagecodecs.spng_encode(a, level=level)
+    except ImportError:
+        pass
+    try:
+        import cv2
+
+        found["opencv"] = lambda a, level: cv2.imencode(".png", a[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, level])[1].tobytes()
+    except ImportError:
+        pass
+    return found
+
+
+def best_time(fn, *args):
+    times = []
+    for _ in range(REPEAT):
+        t = time.perf_counter()
+        out = fn(*args)
+        times.append(time.perf_counter() - t)
+    return min(times), out
+
+
+def _pillow_level1(a):
+    return len(pillow(a, 1))
+
+
+def pool_rate(kind: str, workers: int, images: list, count: int, level: int) -> float:
+    """Images per second encoding `count` images with Pillow at `level` on `workers` threads or processes."""
+    pool_type = ThreadPoolExecutor if kind == "threads" else ProcessPoolExecutor
+    work = [images[i % len(images)] for i in range(count)]
+    with pool_type(workers) as pool:
+        list(pool.map(pillow, work[:workers], [level] * workers))  # start the workers first
+        t = time.perf_counter()
+        list(pool.map(pillow, work, [level] * count))
+        return count / (time.perf_counter() - t)
+
+
+def main(out: str, paths: list[str]) -> None:
+    images = {Path(p).name: np.asarray(Image.open(p).convert("RGB")) for p in paths}
+    table = []
+    for name, a in images.items():
+        for enc, fn in encoders().items():
+            for level in LEVELS:
+                seconds, data = best_time(fn, a, level)
+                same = np.array_equal(np.asarray(Image.open(io.BytesIO(data)).convert("RGB")), a)
+                assert same, f"{enc} level {level} is not lossless on {name}"
+                table.append({"image": name, "encoder": enc, "level": level, "seconds": seconds,
+                              "bytes": len(data), "raw_bytes": a.nbytes})
+                print(f"{name:24s} {enc:18s} {level}  {seconds * 1000:8.1f} ms  {len(data) / 2**20:7.2f} MiB", flush=True)
+    pools = []
+    cores = os.cpu_count() or 1
+    for level in (1, 6):
+        for workers in sorted({1, 2, cores}):
+            for kind in ("threads", "processes"):
+                rate = pool_rate(kind, workers, list(images.values()), 6 * workers, level)
+                pools.append({"kind": kind, "workers": workers, "level": level, "images_per_s": rate})
+                print(f"pillow level {level} {kind:9s} x{workers}: {rate:6.2f} images/s", flush=True)
+    Path(out).write_text(json.dumps({
+        "machine": {"host": platform.node(), "cpu_count": cores, "processor": platform.processor() or platform.machine(),
+                    "note": "shared with other jobs: timings are the best of %d" % REPEAT},
+        "images": {n: list(a.shape) for n, a in images.items()}, "encode": table, "pools": pools,
+        "versions": {m: getattr(sys.modules.get(m), "__version__", None) for m in ("PIL", "imagecodecs", "cv2", "numpy")},
+    }, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2:])

@@ -1,0 +1,189 @@
+"""Encoding and writing a capture's frames on a pool of threads while the GPU renders the next ones.
+
+The PNG encoder (Pillow's zlib), np.save and the file writes release the GIL, so threads encode
+frames side by side without copying them to other processes (measured against processes and other
+encoders: docs/capture.md). The queue is bounded: rendering waits while `limit` frames are read back
+and not yet written, so a 10,000-frame path holds as much memory as a short one. Frames finish in the
+order they were handed in; the first one that fails (an unwritable folder, a full disk) is raised
+where the capture loop waits, and the frames queued behind it are not written.
+
+One writer (`--writers 1`) writes each frame in the capture's own thread as it comes back: the
+serial path, which the pooled one is tested against byte for byte.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from collections import deque
+from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
+
+MAX_DEFAULT_WRITERS = 16  # past this a capture is bound by the GPU or the disk, not the encoders
+QUEUED_PER_POOL = 2  # frames waiting beyond one per thread: a thread never idles between two frames
+PNG_COMPRESSION_LEVELS = range(10)  # zlib's levels: 0 stores, 9 compresses hardest
+# zlib level 1: on rendered frames about 4 times the speed of Pillow's own default (6) for files
+# about 10 % larger (bench/results/llvmpipe/2026-12-02-capture/encoders.json)
+DEFAULT_PNG_COMPRESSION = 1
+
+
+def default_writers() -> int:
+    """Writer threads by default: one per core this process may run on, at most MAX_DEFAULT_WRITERS."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # no affinity on this platform
+        cores = os.cpu_count() or 1
+    return max(1, min(MAX_DEFAULT_WRITERS, cores))
+
+
+def check_png_compression(level) -> int:
+    """`level` if it is one of zlib's levels 0..9, else ValueError saying what is allowed."""
+    if isinstance(level, bool) or not isinstance(level, int) or level not in PNG_COMPRESSION_LEVELS:
+        raise ValueError(f"PNG compression must be a whole number from {PNG_COMPRESSION_LEVELS[0]} to "
+                         f"{PNG_COMPRESSION_LEVELS[-1]}, got {level!r}")
+    return level
+
+
+def check_writers(count) -> int:
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise ValueError(f"writers must be a positive whole number, got {count!r}")
+    return count
+
+
+class FrameWriter:
+    """Runs frame writes (`submit(task)`, task() -> its result) on `threads` threads, at most
+    `limit` at once (queued or running); with one thread, in the caller's thread at once.
+    `submit` and `finish` return the (index, result) of the frames written meanwhile, in order.
+    Use as a context manager: leaving it waits for the writes started (every file is written
+    atomically, so what they leave is whole) and drops those queued behind them."""
+
+    def __init__(self, threads: int, limit: int | None = None):
+        self.threads = check_writers(threads)
+        self.limit = limit if limit is not None else threads + QUEUED_PER_POOL
+        if self.limit < 1:
+            raise ValueError(f"a writer queue holds at least one frame, got {self.limit}")
+        self._pool = ThreadPoolExecutor(threads, thread_name_prefix="rayvr-writer") if threads > 1 else None
+        self._pending: deque[tuple[int, Future]] = deque()
+        self.wait_s = 0.0  # time the capture waited for a free place in the queue, or for the last frames
+        self.peak = 0  # the most frames in flight at once
+
+    def submit(self, index: int, task) -> list:
+        """Hand frame `index`'s write over; returns once fewer than `limit` frames are in flight."""
+        if self._pool is None:
+            self.peak = 1
+            return [(index, task())]
+        self._pending.append((index, self._pool.submit(task)))
+        self.peak = max(self.peak, len(self._pending))
+        done = self._collect(block=False)
+        while len(self._pending) >= self.limit:  # room for the next frame before it is read back
+            done += self._collect(block=True, most=1)
+        return done
+
+    def finish(self) -> list:
+        """Wait for every frame handed over; their (index, result)s."""
+        return self._collect(block=True)
+
+    def _collect(self, block: bool, most: int | None = None) -> list:
+        done = []
+        while self._pending and (most is None or len(done) < most):
+            index, future = self._pending[0]
+            if not (block or future.done()):
+                break
+            start = time.perf_counter()
+            try:
+                result = future.result()  # a failed write raises here, in the capture's thread
+            finally:
+                self.wait_s += time.perf_counter() - start
+            self._pending.popleft()
+            done.append((index, result))
+        return done
+
+    def settle(self) -> list:
+        """After an interrupt: drop the queued frames, wait for those being written; the (index,
+        result)s of the frames that were written (errors behind the interrupt are not raised)."""
+        for _, future in self._pending:
+            future.cancel()
+        done = []
+        for index, future in self._pending:
+            if not future.cancelled() and future.exception() is None:
+                done.append((index, future.result()))
+        self._pending.clear()
+        return done
+
+    def in_flight(self) -> int:
+        return len(self._pending)
+
+    def __enter__(self) -> "FrameWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Let the writes already running end; drop the queued ones (their frames are not written)."""
+        if self._pool is None:
+            return
+        for _, future in self._pending:
+            future.cancel()
+        self._pool.shutdown(wait=True, cancel_futures=True)
+        for _, future in self._pending:  # an error of a frame behind the one being raised is not news
+            if not future.cancelled():
+                try:
+                    future.exception()
+                except CancelledError:
+                    pass
+        self._pending.clear()
+
+
+class PipelineTimes:
+    """Where a capture's time goes, per frame: the GPU (its timer queries, where they mean
+    something), rendering (recording the frame and waiting for the GPU), the read-back (mapping the
+    pixel buffers, `reader.finish_s`) and waiting for the writers (or writing, with one)."""
+
+    def __init__(self, reader, meaningful: bool):
+        self.reader, self.meaningful = reader, meaningful
+        self.frames, self.gpu_ms, self.render_s, self.write_s = 0, 0.0, 0.0, 0.0
+        self._readback_start = self._readback()
+        self._start = time.perf_counter()
+
+    def _readback(self) -> float:
+        return getattr(self.reader, "finish_s", 0.0)
+
+    @contextlib.contextmanager
+    def rendering(self):
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.render_s += time.perf_counter() - start
+
+    @contextlib.contextmanager
+    def writing(self):
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.write_s += time.perf_counter() - start
+
+    def frame_done(self, frame_gpu_ms: float) -> None:
+        self.frames += 1
+        self.gpu_ms += frame_gpu_ms
+
+    def per_frame_ms(self) -> dict:
+        n = max(1, self.frames)
+        readback = self._readback() - self._readback_start
+        return {"gpu": self.gpu_ms / n if self.meaningful else None,
+                "render": 1000 * (self.render_s - readback) / n,  # recording, and waiting for the GPU
+                "readback": 1000 * readback / n, "write_wait": 1000 * self.write_s / n}
+
+    def describe(self) -> str:
+        """The progress bar's note, e.g. "GPU 4.1, render 6, read-back 3, write wait 1 ms/frame"."""
+        ms = self.per_frame_ms()
+        gpu = f"GPU {ms['gpu']:.1f}" if ms["gpu"] is not None else "GPU n/a"
+        return f"{gpu}, render {ms['render']:.0f}, read-back {ms['readback']:.0f}, " \
+               f"write wait {ms['write_wait']:.0f} ms/frame"
+
+    def summary(self, writer: FrameWriter, png_compression: int) -> dict:
+        wall = time.perf_counter() - self._start
+        return {"writers": writer.threads, "queue_limit": writer.limit, "peak_in_flight": writer.peak,
+                "png_compression": png_compression, "frames": self.frames, "wall_s": wall,
+                "frames_per_s": self.frames / wall if wall > 0 else None, "ms_per_frame": self.per_frame_ms()}
