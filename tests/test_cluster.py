@@ -281,18 +281,30 @@ def reference(gl, tmp_path_factory):
     return root, poses, frames_on_disk(root / "single")
 
 
-def test_workers_give_the_same_bytes_as_one_process(local_ray, reference, capsys):
-    root, _, single = reference
+def test_workers_give_the_same_bytes_as_one_process(gl, local_ray, reference, capsys):
+    """The workers write through the capture's pipeline: its writer threads and PNG level are
+    theirs too, byte for byte what one process writing each frame in turn writes at that level."""
+    from rayvr.app.capture import run_capture
+    from rayvr.renderer import Renderer
+
+    root, poses, single = reference
     assert len(single) == 32
+    with Renderer(gl=gl) as r:
+        run_capture(r, path_job(gl, root / "serial9", poses, png_compression=9, writers=1), progress=False)
+    serial = frames_on_disk(root / "serial9")
+    assert serial != single  # level 9 is not the default's bytes: the workers must have been told
     out = root / "workers"
     w, h = SIZE
     # the reference's config: the CLI would give the built-in room its own (default_room.toml)
     assert main(["capture", "--path", str(root / "path.json"), "--size", f"{w}x{h}", "--out", str(out),
-                 "--materials", "raster.toml", "--workers", "2", "--chunk", "3"]) == 0
+                 "--materials", "raster.toml", "--workers", "2", "--chunk", "3", "--png-compression", "9",
+                 "--writers", "3"]) == 0
     assert "frames: 16 written, 0 skipped, 0 retried, 0 failed" in capsys.readouterr().out
-    assert frames_on_disk(out) == single  # byte for byte, every frame, both eyes
+    assert frames_on_disk(out) == serial  # byte for byte, every frame, both eyes
     summary = json.loads((out / "frame_timings.json").read_text())
     assert summary["workers"] == 2 and summary["missing_frames"] == [] and len(summary["gpu_ms_per_frame"]) == 16
+    pipeline = summary["pipeline"]
+    assert (pipeline["writers"], pipeline["png_compression"], pipeline["frames"]) == (3, 9, 16)
 
 
 @pytest.fixture(scope="module")

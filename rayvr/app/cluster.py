@@ -7,8 +7,9 @@ variants), at most two in flight per worker; a worker that dies is restarted by 
 goes back into the queue for whichever worker is free next, with the frames already on disk left
 out. On a machine without GPUs the workers are CPU processes, each with its own llvmpipe context.
 
-Workers write frames straight into the output folder (every file atomically, as a single-process
-capture does), so on several hosts the folder must be shared storage mounted at the same path.
+Workers write frames straight into the output folder through the single-process capture's
+pipeline (app/writers.py: a bounded pool of writer threads in each worker, every file atomically),
+so on several hosts the folder must be shared storage mounted at the same path.
 """
 from __future__ import annotations
 
@@ -265,10 +266,11 @@ class Cluster:
         except self.ray.exceptions.RayTaskError as exc:  # the worker's own exception, without Ray's wrapping
             raise (exc.cause if isinstance(getattr(exc, "cause", None), Exception) else ClusterError(str(exc).splitlines()[0])) from None
 
-    def run(self, tasks: list, submit, size=lambda t: 1, retry=lambda t: t, bar=None):
+    def run(self, tasks: list, submit, size=lambda t: 1, retry=lambda t: t, bar=None, on_result=None):
         """Run every task on the workers: `submit(actor, task)` returns an ObjectRef. A task whose
         worker died goes back into the queue as `retry(task)` (None: nothing left to do), at most
-        MAX_ATTEMPTS runs. Returns (results by task index, units retried, indices of failed tasks)."""
+        MAX_ATTEMPTS runs; `on_result(result)` is called as each task's result arrives. Returns
+        (results by task index, units retried, indices of failed tasks)."""
         queue = deque((i, t, 1) for i, t in enumerate(tasks))
         load = {k: 0 for k in range(len(self.actors))}
         deaths = {k: 0 for k in load}
@@ -315,6 +317,8 @@ class Cluster:
                 retried += size(again)
                 queue.appendleft((i, again, attempt + 1))
                 continue
+            if on_result is not None:
+                on_result(results[i])
             if bar is not None:
                 bar.update(size(t))
         return results, retried, failed
@@ -351,6 +355,7 @@ def run_capture_distributed(cluster: Cluster, job, identity: dict | None = None,
     plus the counts of frames written, skipped (already on disk), retried and failed. This process
     holds the output folder (a capture.JobFolder, or the caller's `folder`) while the workers write."""
     from .capture import JobFolder, frame_files, frame_problem, summarize
+    from .writers import describe_ms, merge_pipelines
 
     if folder is None:
         with JobFolder(job, identity, resume) as folder:
@@ -371,11 +376,18 @@ def run_capture_distributed(cluster: Cluster, job, identity: dict | None = None,
         from tqdm import tqdm
 
         bar = tqdm(total=len(todo), unit="frame", desc=f"capture ({len(cluster.actors)} workers)")
+    arrived = []
+
+    def on_result(part):  # where the workers' time goes, on the bar
+        arrived.append(part.get("pipeline"))
+        if bar is not None and merge_pipelines(arrived):
+            bar.set_postfix_str(describe_ms(merge_pipelines(arrived)["ms_per_frame"]), refresh=False)
+
     try:
         results, retried, failed = cluster.run(
             chunks(todo, len(cluster.actors), chunk),
             lambda actor, c: actor.capture.remote(job_ref, c, crash_file, digest), size=len,
-            retry=lambda c: [i for i in c if not complete(i)] or None, bar=bar)
+            retry=lambda c: [i for i in c if not complete(i)] or None, bar=bar, on_result=on_result)
     finally:
         if bar is not None:
             bar.close()
@@ -391,7 +403,8 @@ def run_capture_distributed(cluster: Cluster, job, identity: dict | None = None,
                         skipped=len(done), retried=retried, failed=len(missing), workers=len(cluster.actors),
                         denoise=parts[0]["denoise"] if parts else [],
                         stereo=parts[0]["stereo"] if parts else None,
-                        stereo_counts=parts[-1]["stereo_counts"] if parts else {})
+                        stereo_counts=parts[-1]["stereo_counts"] if parts else {},
+                        pipeline=merge_pipelines([p.get("pipeline") for p in parts]))
     summary["missing_frames"] = missing
     return summary
 

@@ -177,13 +177,34 @@ class PipelineTimes:
 
     def describe(self) -> str:
         """The progress bar's note, e.g. "GPU 4.1, render 6, read-back 3, write wait 1 ms/frame"."""
-        ms = self.per_frame_ms()
-        gpu = f"GPU {ms['gpu']:.1f}" if ms["gpu"] is not None else "GPU n/a"
-        return f"{gpu}, render {ms['render']:.0f}, read-back {ms['readback']:.0f}, " \
-               f"write wait {ms['write_wait']:.0f} ms/frame"
+        return describe_ms(self.per_frame_ms())
 
     def summary(self, writer: FrameWriter, png_compression: int) -> dict:
         wall = time.perf_counter() - self._start
         return {"writers": writer.threads, "queue_limit": writer.limit, "peak_in_flight": writer.peak,
                 "png_compression": png_compression, "frames": self.frames, "wall_s": wall,
                 "frames_per_s": self.frames / wall if wall > 0 else None, "ms_per_frame": self.per_frame_ms()}
+
+
+def merge_pipelines(parts: list[dict]) -> dict:
+    """The pipeline summary of a capture run in parts (Ray workers' tasks): frames summed, each
+    per-frame time the mean over all frames, the writers and queue of one part (every worker
+    writes with the same)."""
+    parts = [p for p in parts if p and p.get("frames")]
+    if not parts:
+        return {}
+    frames = sum(p["frames"] for p in parts)
+
+    def mean(key):
+        values = [(p["ms_per_frame"][key], p["frames"]) for p in parts if p["ms_per_frame"][key] is not None]
+        return sum(v * n for v, n in values) / sum(n for _, n in values) if values else None
+
+    return {"writers": parts[0]["writers"], "queue_limit": parts[0]["queue_limit"],
+            "peak_in_flight": max(p["peak_in_flight"] for p in parts), "png_compression": parts[0]["png_compression"],
+            "frames": frames, "tasks": len(parts), "ms_per_frame": {k: mean(k) for k in parts[0]["ms_per_frame"]}}
+
+
+def describe_ms(ms: dict) -> str:
+    """A progress bar's note from per-frame milliseconds (PipelineTimes.per_frame_ms)."""
+    gpu = f"GPU {ms['gpu']:.1f}" if ms.get("gpu") is not None else "GPU n/a"
+    return f"{gpu}, render {ms['render']:.0f}, read-back {ms['readback']:.0f}, write wait {ms['write_wait']:.0f} ms/frame"
