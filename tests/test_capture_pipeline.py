@@ -6,6 +6,7 @@ resumes to whole frames."""
 import errno
 import hashlib
 import json
+import re
 import resource
 import signal
 import subprocess
@@ -169,6 +170,12 @@ def test_the_writer_keeps_frames_in_order_and_raises_the_first_failure():
             writer.submit(1, task(1, 0.0, fail=True))
             writer.submit(2, task(2, 0.0, fail=True))
             writer.finish()
+
+
+def test_the_progress_bar_says_where_the_time_goes(tmp_path, capsys):
+    assert main(["capture", "--frames", "3", "--size", SIZE, "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    assert re.search(r"3/3 \[[^]]*frame/s, GPU (n/a|[\d.]+), render \d+, read-back \d+, write wait \d+ ms/frame\]", err), err
 
 
 # ------------------------------------------------------------------ PNG compression

@@ -16,7 +16,7 @@ import contextlib
 import os
 import time
 from collections import deque
-from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 
 MAX_DEFAULT_WRITERS = 16  # past this a capture is bound by the GPU or the disk, not the encoders
 QUEUED_PER_POOL = 2  # frames waiting beyond one per thread: a thread never idles between two frames
@@ -50,11 +50,11 @@ def check_writers(count) -> int:
 
 
 class FrameWriter:
-    """Runs frame writes (`submit(task)`, task() -> its result) on `threads` threads, at most
-    `limit` at once (queued or running); with one thread, in the caller's thread at once.
-    `submit` and `finish` return the (index, result) of the frames written meanwhile, in order.
-    Use as a context manager: leaving it waits for the writes started (every file is written
-    atomically, so what they leave is whole) and drops those queued behind them."""
+    """Runs frame writes (`submit(index, task)`, task() -> its result) on `threads` threads, at
+    most `limit` at once (queued or running); with one thread, in the caller's thread at once.
+    `submit` and `finish` return the (index, result)s of the frames written meanwhile, in the
+    order they were handed in. Use as a context manager: leaving it waits for the writes started
+    (every file is written atomically, so what they leave is whole) and drops those queued."""
 
     def __init__(self, threads: int, limit: int | None = None):
         self.threads = check_writers(threads)
@@ -63,54 +63,51 @@ class FrameWriter:
             raise ValueError(f"a writer queue holds at least one frame, got {self.limit}")
         self._pool = ThreadPoolExecutor(threads, thread_name_prefix="rayvr-writer") if threads > 1 else None
         self._pending: deque[tuple[int, Future]] = deque()
-        self.wait_s = 0.0  # time the capture waited for a free place in the queue, or for the last frames
+        self._written: list = []  # (index, result)s collected and not yet returned
         self.peak = 0  # the most frames in flight at once
 
     def submit(self, index: int, task) -> list:
-        """Hand frame `index`'s write over; returns once fewer than `limit` frames are in flight."""
+        """Hand frame `index`'s write over; returns once fewer than `limit` frames are in flight,
+        so that the next frame is read back only when there is room for it."""
         if self._pool is None:
             self.peak = 1
-            return [(index, task())]
+            self._written.append((index, task()))
+            return self._take()
         self._pending.append((index, self._pool.submit(task)))
         self.peak = max(self.peak, len(self._pending))
-        done = self._collect(block=False)
-        while len(self._pending) >= self.limit:  # room for the next frame before it is read back
-            done += self._collect(block=True, most=1)
-        return done
+        while self._pending and (self._pending[0][1].done() or len(self._pending) >= self.limit):
+            self._collect_oldest()
+        return self._take()
 
     def finish(self) -> list:
-        """Wait for every frame handed over; their (index, result)s."""
-        return self._collect(block=True)
-
-    def _collect(self, block: bool, most: int | None = None) -> list:
-        done = []
-        while self._pending and (most is None or len(done) < most):
-            index, future = self._pending[0]
-            if not (block or future.done()):
-                break
-            start = time.perf_counter()
-            try:
-                result = future.result()  # a failed write raises here, in the capture's thread
-            finally:
-                self.wait_s += time.perf_counter() - start
-            self._pending.popleft()
-            done.append((index, result))
-        return done
+        """Wait for every frame handed over."""
+        while self._pending:
+            self._collect_oldest()
+        return self._take()
 
     def settle(self) -> list:
-        """After an interrupt: drop the queued frames, wait for those being written; the (index,
-        result)s of the frames that were written (errors behind the interrupt are not raised)."""
+        """After an interrupt: drop the queued frames and wait for those being written; the frames
+        that were written (a failure among them is not raised: the interrupt is the news)."""
         for _, future in self._pending:
             future.cancel()
-        done = []
         for index, future in self._pending:
             if not future.cancelled() and future.exception() is None:
-                done.append((index, future.result()))
+                self._written.append((index, future.result()))
         self._pending.clear()
-        return done
+        return self._take()
 
     def in_flight(self) -> int:
         return len(self._pending)
+
+    def _collect_oldest(self) -> None:
+        index, future = self._pending[0]
+        result = future.result()  # a failed write raises here, in the capture's thread
+        self._pending.popleft()
+        self._written.append((index, result))
+
+    def _take(self) -> list:
+        taken, self._written = self._written, []
+        return taken
 
     def __enter__(self) -> "FrameWriter":
         return self
@@ -120,17 +117,8 @@ class FrameWriter:
 
     def close(self) -> None:
         """Let the writes already running end; drop the queued ones (their frames are not written)."""
-        if self._pool is None:
-            return
-        for _, future in self._pending:
-            future.cancel()
-        self._pool.shutdown(wait=True, cancel_futures=True)
-        for _, future in self._pending:  # an error of a frame behind the one being raised is not news
-            if not future.cancelled():
-                try:
-                    future.exception()
-                except CancelledError:
-                    pass
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
         self._pending.clear()
 
 
