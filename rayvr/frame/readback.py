@@ -2,7 +2,9 @@
 
 `start()` queues the copies GPU-side (glGetTexImage into a PBO returns at once) and `finish()`
 maps them; `Renderer.render_sequence` records frame N+1 before finishing frame N, so transfers
-overlap rendering. Only what is asked for travels: colour (packed to RGB by GL) and depth (the
+overlap rendering. `finish()` first waits on a fence behind the copies, through ctypes, which lets
+go of the GIL while the GPU works: mapping a buffer the GPU still writes blocks inside moderngl
+with the GIL held, and the capture's writer threads (app/writers.py) would stop with it. Only what is asked for travels: colour (packed to RGB by GL) and depth (the
 G-buffer's exact linear view depth, 4 bytes a pixel) by default, other channels on request.
 """
 from __future__ import annotations
@@ -35,6 +37,7 @@ class Pending:
     fc: object
     buffers: dict  # channel -> (moderngl.Buffer, dtype, components, layers)
     aux: tuple
+    copied: object = None  # a gl.context.Fence behind the copies into the buffers
 
 
 class Reader:
@@ -92,12 +95,15 @@ class Reader:
             buf = self._buffer((parity, name), nbytes)
             tex.read_into(buf, alignment=1)
             buffers[name] = (buf, dtype, comps, layers)
-        return Pending(fc, buffers, tuple(aux))
+        return Pending(fc, buffers, tuple(aux), self.gl.fence())
 
     def finish(self, pending: Pending):
         """Map the buffers and cut them into per-eye numpy images (rows top-down)."""
         start = time.perf_counter()
         try:
+            if pending.copied is not None:
+                pending.copied.wait()  # without the GIL: see the module's note
+                pending.copied = None
             return self._finish(pending)
         finally:
             self.finish_s += time.perf_counter() - start
