@@ -3,7 +3,10 @@
     python encoders.py OUT.json IMAGE.png [IMAGE.png ...]
 
 For each image: each encoder at each compression level, one at a time (seconds per image, bytes);
-then Pillow on a pool of N threads against N processes (images per second, the best of REPEAT). Encoders whose package
+then Pillow on a pool of N threads against N processes (images per second, the best of REPEAT
+rounds, threads and processes taking turns so that the host's other load falls on both alike); and
+the share of one-thread encoding time in which a pure-Python thread ticking beside it (1 ms sleeps)
+was kept from running for over STARVED_S: the most the encoder holds the GIL. Encoders whose package
 is missing are left out of the table (imagecodecs, opencv-python-headless: not rayvr dependencies).
 Every encoding is decoded again and compared with the source pixels: a lossy result fails the run.
 """
@@ -14,6 +17,7 @@ import json
 import os
 import platform
 import sys
+import threading
 import time
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
@@ -23,6 +27,7 @@ from PIL import Image
 
 LEVELS = (0, 1, 2, 3, 6, 9)
 REPEAT = 3  # the best of REPEAT timings: the host is shared
+STARVED_S = 0.005
 
 
 def pillow(a, level):
@@ -58,18 +63,35 @@ def best_time(fn, *args):
     return min(times), out
 
 
-def pool_rate(kind: str, workers: int, images: list, count: int, level: int) -> float:
-    """Images per second encoding `count` images with Pillow at `level` on `workers` threads or processes."""
-    pool_type = ThreadPoolExecutor if kind == "threads" else ProcessPoolExecutor
+def pool_rate(pool, workers: int, images: list, count: int, level: int) -> float:
+    """Images per second encoding `count` images with Pillow at `level` on a started pool."""
     work = [images[i % len(images)] for i in range(count)]
-    with pool_type(workers) as pool:
-        list(pool.map(pillow, work[:workers], [level] * workers))  # start the workers first
-        best = 0.0
-        for _ in range(REPEAT):
-            t = time.perf_counter()
-            list(pool.map(pillow, work, [level] * count))
-            best = max(best, count / (time.perf_counter() - t))
-        return best
+    t = time.perf_counter()
+    list(pool.map(pillow, work, [level] * count))
+    return count / (time.perf_counter() - t)
+
+
+def gil_held_share(image, level: int, count: int = 6) -> float:
+    stop, starved = threading.Event(), [0.0]
+
+    def tick():
+        last = time.perf_counter()
+        while not stop.is_set():
+            time.sleep(0.001)
+            now = time.perf_counter()
+            if now - last > STARVED_S:
+                starved[0] += now - last
+            last = now
+
+    ticker = threading.Thread(target=tick)
+    ticker.start()
+    t = time.perf_counter()
+    for _ in range(count):
+        pillow(image, level)
+    wall = time.perf_counter() - t
+    stop.set()
+    ticker.join()
+    return starved[0] / wall
 
 
 def main(out: str, paths: list[str]) -> None:
@@ -88,14 +110,28 @@ def main(out: str, paths: list[str]) -> None:
     cores = os.cpu_count() or 1
     for level in (1, 6):
         for workers in sorted({1, 2, cores}):
-            for kind in ("threads", "processes"):
-                rate = pool_rate(kind, workers, list(images.values()), 6 * workers, level)
-                pools.append({"kind": kind, "workers": workers, "level": level, "images_per_s": rate})
+            best = {"threads": 0.0, "processes": 0.0}
+            with ThreadPoolExecutor(workers) as threads, ProcessPoolExecutor(workers) as processes:
+                started = {"threads": threads, "processes": processes}
+                for pool in started.values():
+                    list(pool.map(pillow, list(images.values())[:1] * workers, [level] * workers))  # started
+                for _ in range(REPEAT):
+                    for kind, pool in started.items():
+                        best[kind] = max(best[kind], pool_rate(pool, workers, list(images.values()), 4 * workers, level))
+            for kind, rate in best.items():
+                pools.append({"kind": kind, "workers": workers, "level": level, "images_per_s": rate,
+                              "load_average": os.getloadavg()})  # the host's other work, while measured
                 print(f"pillow level {level} {kind:9s} x{workers}: {rate:6.2f} images/s", flush=True)
+    gil = []
+    for name, a in images.items():
+        for level in (1, 6):
+            share = gil_held_share(a, level)
+            gil.append({"image": name, "level": level, "starved_share": share})
+            print(f"GIL: {name} level {level}: a Python thread starved {100 * share:.1f} % of the time", flush=True)
     Path(out).write_text(json.dumps({
         "machine": {"host": platform.node(), "cpu_count": cores, "processor": platform.processor() or platform.machine(),
                     "note": "shared with other jobs: timings are the best of %d" % REPEAT},
-        "images": {n: list(a.shape) for n, a in images.items()}, "encode": table, "pools": pools,
+        "images": {n: list(a.shape) for n, a in images.items()}, "encode": table, "pools": pools, "gil": gil,
         "versions": {m: getattr(sys.modules.get(m), "__version__", None) for m in ("PIL", "imagecodecs", "cv2", "numpy")},
     }, indent=1) + "\n")
 
