@@ -2,10 +2,12 @@
 
 `start()` queues the copies GPU-side (glGetTexImage into a PBO returns at once) and `finish()`
 maps them; `Renderer.render_sequence` records frame N+1 before finishing frame N, so transfers
-overlap rendering. `finish()` first waits on a fence behind the copies, through ctypes, which lets
-go of the GIL while the GPU works: mapping a buffer the GPU still writes blocks inside moderngl
-with the GIL held, and the capture's writer threads (app/writers.py) would stop with it. Only what is asked for travels: colour (packed to RGB by GL) and depth (the
+overlap rendering. Only what is asked for travels: colour (packed to RGB by GL) and depth (the
 G-buffer's exact linear view depth, 4 bytes a pixel) by default, other channels on request.
+
+`finish()` first waits on a fence behind the copies, through ctypes, which lets go of the GIL
+while the GPU works: mapping a buffer the GPU still writes blocks inside moderngl with the GIL
+held, and the capture's writer threads (app/writers.py) would stop with it.
 """
 from __future__ import annotations
 
