@@ -209,3 +209,22 @@ def test_a_full_disk_mid_sequence_keeps_the_whole_frames_and_resumes(tmp_path, c
                                                      "frame_0000_right.png", "frame_0001_left.png", "frame_job.json"]
     monkeypatch.undo()  # space again
     assert capture(out) == 0 and counts(out) == (2, 1)
+
+
+def test_a_shipped_config_is_known_by_name_and_content_not_by_where_the_checkout_lies(tmp_path):
+    """The built-in room's default config (and any config rayvr ships) enters a capture job's
+    identity by name and content: a capture resumes in another clone of the same rayvr. A user's
+    own file keeps its path, size and mtime."""
+    import hashlib
+    import shutil
+
+    from rayvr.commands.capture import file_identity
+    from rayvr.scene.loader import ASSETS_DIR
+
+    shipped = ASSETS_DIR / "default_room.toml"
+    assert file_identity(shipped) == {"shipped": "default_room.toml",
+                                      "sha256": hashlib.sha256(shipped.read_bytes()).hexdigest()}
+    own = tmp_path / "default_room.toml"
+    shutil.copy(shipped, own)
+    ident = file_identity(own)
+    assert ident["path"] == str(own.resolve()) and {"bytes", "mtime_ns"} <= set(ident)

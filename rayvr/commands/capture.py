@@ -80,14 +80,23 @@ def add_parser(sub) -> None:
 
 
 def file_identity(path) -> dict | None:
-    """A file's identity for resuming a capture: its path, size and modification time."""
+    """A file's identity for resuming a capture: its path, size and modification time; a file rayvr
+    ships (rayvr/assets/, e.g. the built-in room's default config) by its name and content, so that
+    a capture of another checkout or clone of the same rayvr resumes."""
+    import hashlib
+
+    from ..scene.loader import ASSETS_DIR
+
     if path is None:
         return None
     try:
-        st = Path(path).stat()
+        resolved = Path(path).resolve()
+        st = resolved.stat()
+        if resolved.parent == ASSETS_DIR:
+            return {"shipped": resolved.name, "sha256": hashlib.sha256(resolved.read_bytes()).hexdigest()}
     except OSError:  # the loader says what is wrong with it
         return {"path": str(path)}
-    return {"path": str(Path(path).resolve()), "bytes": st.st_size, "mtime_ns": st.st_mtime_ns}
+    return {"path": str(resolved), "bytes": st.st_size, "mtime_ns": st.st_mtime_ns}
 
 
 def capture_poses(args, rig, scene):
