@@ -7,9 +7,11 @@ changes).
 Per scene, head pose (the bench view and `poses` random heads of rayvr/bench/head_poses.py) and K
 in PICKS (0: every light):
   - `ms`: GPU ms of the frame, both eyes (median over `repeat` frames after the warm-up);
-  - `mse`: the mean squared error of one frame's linear HDR colour against the converged frame of
-    every light (the mean of `reference_frames` frames, seeds of their own), over `frames` frames
-    of other seeds (K = 0's is the noise of the scene's area lights alone);
+  - `mse`: the mean squared error of one frame's displayed colour (tonemapped, 0..1: a light next
+    to a surface makes a hot spot whose linear value swamps every other pixel's error) against the
+    converged frame of every light (the mean of `reference_frames` frames, seeds of their own),
+    over `frames` frames of other seeds (K = 0's is the noise of the area lights and of the
+    sample positions within each pixel alone);
   - `equal_time_mse`: mse x ms / K = 0's ms: the error of as many accumulated frames as the frame of
     every light takes to render (an accumulated frame's MSE falls as 1 / frames). Below K = 0's
     mse: at equal time the picks make the better image.
@@ -48,10 +50,11 @@ def add_lights(scene, name: str, count: int, seed: int = 1) -> None:
                                   source="bench lights"))
 
 
-def hdr(r, rig, seed: int) -> np.ndarray:
+def displayed(r, rig, seed: int) -> np.ndarray:
+    """Both eyes' displayed colour (0..1) of the frame of `seed`."""
     r.settings = replace(r.settings, seed=int(seed))
-    f = r.render(rig, aux=("hdr",))
-    return np.stack([f.left.aux["hdr"][..., :3], f.right.aux["hdr"][..., :3]]).astype(np.float64)
+    f = r.render(rig)
+    return np.stack([f.left.color[..., :3], f.right.color[..., :3]]).astype(np.float64) / 255.0
 
 
 def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), poses: int = 2, repeat: int = 10,
@@ -69,13 +72,13 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), poses: i
                 for where, pose in heads:
                     rig.pose = pose
                     r.settings = replace(r.settings, light_picks=0)
-                    reference = np.mean([hdr(r, rig, REFERENCE_SEED + i) for i in range(reference_frames)], axis=0)
+                    reference = np.mean([displayed(r, rig, REFERENCE_SEED + i) for i in range(reference_frames)], axis=0)
                     base_ms = None
                     for k in picks:
                         r.settings = replace(r.settings, light_picks=k, seed=0)
                         _, passes, ms = time_frame(r, rig, repeat, 3)
                         base_ms = ms if k == 0 else base_ms
-                        mse = float(np.mean([np.mean((hdr(r, rig, i) - reference) ** 2) for i in range(frames)]))
+                        mse = float(np.mean([np.mean((displayed(r, rig, i) - reference) ** 2) for i in range(frames)]))
                         row = {"scene": name, "pose": where, "light_picks": k, "lights": len(scene.lights),
                                "scene_lights": own, "ms": ms, "rt_shadows_ms": passes.get("rt_shadows"), "mse": mse,
                                "equal_time_mse": mse * ms / base_ms if base_ms else None}
