@@ -14,7 +14,7 @@ from rayvr.accel.cwbvh import (EMPTY, INTERNAL, LEAF, LEAF_TRIANGLES, NODE_COST,
                                build_cwbvh, octant_slots, ray_octants, trace_cwbvh_reference, unpack)
 from rayvr.accel.gpu import MISS, GpuBvh, RayTracer
 from rayvr.accel.sah import _half_area
-from test_traversal_gpu import cube, rays_at, soup
+from test_traversal_gpu import cube, cube_edge_rays, rays_at, soup
 
 
 def room_rays(n, seed):
@@ -206,25 +206,10 @@ def test_gpu_cwbvh_returns_bvh2_hits_bit_for_bit(gl, case, spatial):
 
 def test_gpu_cwbvh_axis_rays_edges_degenerate_rays_and_ties(gl):
     v, f = cube()
-    grid = np.array([-1.5, -1.0, -0.5, 0.0, 0.3, 1.0, 1.5], np.float32)
-    a, b = [x.ravel() for x in np.meshgrid(grid, grid)]
-    o, d = [], []
-    for axis in range(3):
-        for sign in (1.0, -1.0):
-            oo = np.zeros((len(a), 3), np.float32)
-            oo[:, axis] = -5.0 * sign
-            oo[:, (axis + 1) % 3], oo[:, (axis + 2) % 3] = a, b
-            dd = np.zeros_like(oo)
-            dd[:, axis] = sign
-            o.append(oo)
-            d.append(dd)
-    o.append(np.array([[-5, 1, 0], [-5, 1.0001, 0], [0, 0, 0], [0, 0, 0]], np.float32))
-    d.append(np.array([[1, 0, 0], [1, 0, 0], [0, 0, 0], [np.nan, 0, 1]], np.float32))
-    o, d = np.concatenate(o), np.concatenate(d)
+    o, d, inside = cube_edge_rays()
     out = traces(gl, build_bvh(v, f, max_leaf_size=1), o, d, np.float32(100.0))
     assert_bitwise_bvh2(out)
     h = out["cwbvh"][0]
-    inside = np.concatenate([(np.abs(a) <= 1) & (np.abs(b) <= 1)] * 6)
     assert (h.prim[:len(inside)][inside] != MISS).all() and np.allclose(h.t[:len(inside)][inside], 4.0)
     assert h.prim[-4] != MISS and (h.prim[-3:] == MISS).all()
     # two triangles sharing an edge the rays go down onto: the lower ID, whichever is met first

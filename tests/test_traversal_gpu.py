@@ -153,6 +153,28 @@ def cube():
     return np.asarray(m.vertices, np.float32), np.asarray(m.faces)
 
 
+def cube_edge_rays():
+    """Rays along each axis, both ways, at cube()'s faces, edges and corners and past them, then a
+    ray grazing an edge, one just off it, a zero direction and a NaN one: (origins, directions,
+    which of the axis rays, the first ones, meet the cube)."""
+    grid = np.array([-1.5, -1.0, -0.5, 0.0, 0.3, 1.0, 1.5], np.float32)
+    a, b = [x.ravel() for x in np.meshgrid(grid, grid)]
+    o, d = [], []
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            oo = np.zeros((len(a), 3), np.float32)
+            oo[:, axis] = -5.0 * sign
+            oo[:, (axis + 1) % 3], oo[:, (axis + 2) % 3] = a, b
+            dd = np.zeros_like(oo)
+            dd[:, axis] = sign
+            o.append(oo)
+            d.append(dd)
+    o.append(np.array([[-5, 1, 0], [-5, 1.0001, 0], [0, 0, 0], [0, 0, 0]], np.float32))
+    d.append(np.array([[1, 0, 0], [1, 0, 0], [0, 0, 0], [np.nan, 0, 1]], np.float32))
+    o, d = np.concatenate(o), np.concatenate(d)
+    return o, d, np.concatenate([(np.abs(a) <= 1) & (np.abs(b) <= 1)] * 6)
+
+
 def test_axis_parallel_rays_hit_faces_edges_and_corners(gl):
     v, f = cube()
     rt = tracer(gl, v, f)

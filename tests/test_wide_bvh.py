@@ -8,7 +8,7 @@ import pytest
 from rayvr.accel.bvh import build_bvh, trace_reference, widen
 from rayvr.accel.gpu import MISS, GpuBvh, RayTracer
 from rayvr.accel.wide import build_wide, collapse, trace_wide_reference, unpack
-from test_traversal_gpu import agreement, cube, embree_closest, embree_scene, load_mesh, rays_at, soup
+from test_traversal_gpu import agreement, cube, cube_edge_rays, embree_closest, embree_scene, load_mesh, rays_at, soup
 
 
 def test_collapse_keeps_every_leaf_once_and_fills_nodes():
@@ -108,26 +108,11 @@ def test_gpu_layouts_match_binary_on_soup(gl):
 
 def test_gpu_layouts_axis_rays_edges_and_degenerate(gl):
     v, f = cube()
-    grid = np.array([-1.5, -1.0, -0.5, 0.0, 0.3, 1.0, 1.5], np.float32)
-    a, b = [x.ravel() for x in np.meshgrid(grid, grid)]
-    o, d = [], []
-    for axis in range(3):
-        for sign in (1.0, -1.0):
-            oo = np.zeros((len(a), 3), np.float32)
-            oo[:, axis] = -5.0 * sign
-            oo[:, (axis + 1) % 3], oo[:, (axis + 2) % 3] = a, b
-            dd = np.zeros_like(oo)
-            dd[:, axis] = sign
-            o.append(oo)
-            d.append(dd)
-    o.append(np.array([[-5, 1, 0], [-5, 1.0001, 0], [0, 0, 0], [0, 0, 0]], np.float32))
-    d.append(np.array([[1, 0, 0], [1, 0, 0], [0, 0, 0], [np.nan, 0, 1]], np.float32))
-    o, d = np.concatenate(o), np.concatenate(d)
+    o, d, inside = cube_edge_rays()
     bvh = build_bvh(v, f, max_leaf_size=1)
     out = gpu_traces(gl, bvh, o, d, tmax=np.float32(100.0))
     assert_same_as_binary(out)
     h = out["bvh8", True][0]
-    inside = np.concatenate([(np.abs(a) <= 1) & (np.abs(b) <= 1)] * 6)
     assert (h.prim[:len(inside)][inside] != MISS).all() and np.allclose(h.t[:len(inside)][inside], 4.0)
     assert h.prim[-4] != MISS and (h.prim[-3:] == MISS).all()
 
