@@ -95,7 +95,7 @@ TRAVERSAL = declare_option(Option(
     "traversal", tuple, DEFAULT_TRAVERSAL, "BVH node layout of the traced rays: one for all (bvh2, bvh4, bvh8, cwbvh) or per "
     "ray kind, e.g. primary=bvh8,shadow=bvh4,reflect=bvh2; kinds not named keep the default (the fastest on the "
     "H200; bvh2 is the reference)", scope="plan", plan_field="traversal", metavar="LAYOUTS", convert=traversal_value,
-    commands=("capture", "preview")))
+    commands=("capture", "preview", "bench")))
 
 
 def layout_defines(base_binding: int = DEFAULT_BINDING, layout: str = "bvh2", ordered: bool = True) -> dict:
