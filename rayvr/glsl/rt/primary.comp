@@ -8,14 +8,14 @@
 // PRIMARY_MODE 0: one ray per sample, sub-ray `subsample` of CAMERA_SUBSAMPLES (1x: the central
 //   ray; SSAA: the frame round's sub-ray, weight 1 / CAMERA_SUBSAMPLES).
 // PRIMARY_MODE 1 (MSAA, trace): all CAMERA_SUBSAMPLES sub-rays, one invocation each (a workgroup
-//   is a block of MSAA_BLOCK_W x MSAA_BLOCK_H pixels times their sub-rays); then one invocation per
-//   pixel merges its sub-rays' hits from shared memory: the distinct triangles (the background
-//   counts as one) with their coverage masks go to msaa_hits, most covered first, at most
-//   MSAA_SLOTS; the largest count of any pixel to msaa_count (at most one atomic per workgroup).
-//   frame/passes/primary_rays.py msaa_lists is the numpy twin of the merge. (On the H200 this runs at the
-//   speed of the first version, one invocation per pixel looping over its sub-rays, 1.8 ms at 4x in
-//   the room view, 3.5 % faster at 16x; that version's ~80 ms frames came from msaa_count, see
-//   primary_rays.py.)
+//   is a block of MSAA_BLOCK_W x MSAA_BLOCK_H pixels times their sub-rays); then the pixel's sub-rays
+//   merge their hits from shared memory, each invocation its own (msaa_merge): the distinct
+//   triangles (the background counts as one) with their coverage masks go to msaa_hits, most
+//   covered first, at most MSAA_SLOTS; the largest count of any pixel to msaa_count (at most one
+//   atomic per workgroup). frame/passes/primary_rays.py msaa_lists is the numpy twin of the merge.
+//   (On the H200 the merge by one invocation per pixel was 30 % of the 16x trace: room 8.25 -> 5.76
+//   ms with every lane merging, bench/results/h200/2026-12-02/msaa_merge; the ~80 ms frames of an
+//   earlier version came from msaa_count, see primary_rays.py.)
 // PRIMARY_MODE 2 (MSAA, select): slot msaa_count - 1 - `msaa_round` of each pixel's list (slot 0
 //   for msaa_round -1) becomes its visibility, shaded at the sub-ray of its mask nearest the mask's
 //   mean_offset, weighted by its coverage. The slot comes from the GPU's count: the CPU records
