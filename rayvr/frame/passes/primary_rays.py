@@ -10,8 +10,8 @@ sub-rays, keeps the distinct triangles with their coverage masks, and counts on 
 rounds the channel needs, the most any pixel has; each round then shades one triangle per
 pixel). The MSAA trace casts one sub-ray per invocation (a workgroup: a block of pixels times
 their sub-rays) and merges each pixel's hits in shared memory, every sub-ray's invocation taking
-part; `msaa_lists` is the numpy twin of that merge. Each round also writes every pixel's weight in the frame's colour (`sample_weight`),
-which `sample_accumulate` applies.
+part; `msaa_lists` is the numpy twin of that merge. Each round also writes every pixel's weight in
+the frame's colour (`sample_weight`), which `sample_accumulate` applies.
 
 The CPU never waits for the count (Round.start_polled): it is copied to a readback buffer behind
 a fence, and after each round is recorded the fence is polled without waiting; until it answers,
