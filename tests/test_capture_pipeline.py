@@ -285,3 +285,15 @@ def test_an_interrupted_pooled_capture_resumes_to_whole_frames(tmp_path):
     reference = tmp_path / "reference"
     assert subprocess.run([*args[:-3], "--writers", "1", "--out", str(reference), "-q"], timeout=300).returncode == 0
     assert files(out) == files(reference)
+
+
+def test_workers_on_this_host_share_its_writer_threads(monkeypatch):
+    """Ray workers all on this host (no --address) split the host's default writers between them;
+    a count given, or workers on other hosts, keep theirs."""
+    from rayvr.app import writers
+
+    monkeypatch.setattr(writers, "default_writers", lambda: 16)
+    assert writers.writers_per_worker(None, 4, local=True) == 4
+    assert writers.writers_per_worker(None, 32, local=True) == 1
+    assert writers.writers_per_worker(3, 4, local=True) == 3
+    assert writers.writers_per_worker(None, 4, local=False) is None

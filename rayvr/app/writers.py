@@ -36,6 +36,15 @@ def default_writers() -> int:
     return max(1, min(MAX_DEFAULT_WRITERS, cores))
 
 
+def writers_per_worker(writers: int | None, workers: int, local: bool) -> int | None:
+    """Each Ray worker's writer threads: as asked, or when not asked and every worker runs on this
+    host (no --address), this host's default shared out among them (one per core each would make
+    workers x cores threads); None, a worker elsewhere, takes its own host's default."""
+    if writers is not None or not local:
+        return writers
+    return max(1, default_writers() // max(1, workers))
+
+
 def check_png_compression(level) -> int:
     """`level` if it is one of zlib's levels 0..9, else ValueError saying what is allowed."""
     if isinstance(level, bool) or not isinstance(level, int) or level not in PNG_COMPRESSION_LEVELS:

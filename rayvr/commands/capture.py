@@ -208,6 +208,7 @@ def capture_on_workers(args, aux, settings, inputs, given) -> int:
     from ..scene import loader as scene_mod
     from ..app.capture import CaptureJob, JobFolder, job_identity, write_summary
     from ..app.cluster import Cluster, WorkerSpec, run_capture_distributed
+    from ..app.writers import writers_per_worker
     from ..scene.materials import load_config
 
     scene = scene_mod.load(args.scene)  # for the rig and the poses; each worker loads its own
@@ -216,7 +217,8 @@ def capture_on_workers(args, aux, settings, inputs, given) -> int:
     poses, overrides = capture_poses(args, rig, scene)
     job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
                      rig_overrides=overrides, cameras=bool(args.views), png_compression=args.png_compression,
-                     writers=args.writers)  # each worker writes its frames through its own pool
+                     writers=writers_per_worker(args.writers, args.workers, local=args.address is None))
+    # each worker writes its frames through its own pool
     spec = WorkerSpec(args.scene, args.materials, settings, args.backend)
     with JobFolder(job, job_identity(job, **inputs), overwrite=args.overwrite) as folder, \
             Cluster(args.workers, spec, args.address, shared.connect_timeout(args)) as cluster:
