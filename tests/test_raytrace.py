@@ -684,3 +684,10 @@ def test_bench_glossy_rays_sample_ggx_visible_normals():
     assert ((m * v).sum(1) >= -1e-9).all() and (m[:, 2] >= 0).all()
     # and leaning towards the viewer: the visible normals' mean tilts towards +x
     assert m[:, 0].mean() > 0.05
+
+
+def test_bench_rays_times_the_kinds_asked_for(tmp_path):
+    result = quick_bench("rays", tmp_path, "--configs", "primary,diffuse", "--layouts", "bvh2", "--no-tiles")
+    assert {r["rays_kind"] for r in result["rows"]} == {"primary", "diffuse"}
+    run = run_rayvr("bench", "rays", "--quick", "--configs", "glossy", "--out", tmp_path / "x")
+    assert run.returncode == 2 and "--configs must be among primary, shadow" in run.stderr

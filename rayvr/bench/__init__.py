@@ -54,7 +54,8 @@ def _rays(args, out, camera_from_args):
 
     rays.run(out, size=(64, 48) if args.quick else args.size, scenes=_scenes(args),
              repeat=2 if args.quick else share(args.repeat, 2), warmup=1 if args.quick else 3, backend=args.backend,
-             layouts=args.layouts, tiles=not args.no_tiles, builds=args.bvh_build or ("sah",))
+             layouts=args.layouts, tiles=not args.no_tiles, builds=args.bvh_build or ("sah",),
+             kinds=checked_configs("rays", args.configs, rays.RAY_KINDS))
 
 
 def _bvh(args, out, camera_from_args):

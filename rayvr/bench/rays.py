@@ -125,6 +125,8 @@ def secondary_rays(scene, bvh, o, d, hits):
 
 GLOSSY_ROUGHNESS = (0.1, 0.3, 0.6)
 RAY_SEED = 7
+# every kind run() measures (--configs picks some; area_shadow only in a scene with a rect light)
+RAY_KINDS = ("primary", "shadow", "reflect", *(f"glossy_{r:g}" for r in GLOSSY_ROUGHNESS), "diffuse", "area_shadow")
 
 
 def _basis(n):
@@ -261,10 +263,11 @@ def time_effect_stages(renderer, rig, repeat=5) -> dict:
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, workers=None,
         backend=None, progress=True, layouts=("bvh2", "bvh4", "bvh8", "cwbvh"), tiles: bool = True,
-        builds=("sah",)) -> dict:
+        builds=("sah",), kinds=None) -> dict:
     """`layouts` and `tiles` pick the traversal variants (VARIANTS); bvh2 is always measured (the
     reference every variant is compared with). `builds` (bvh.BUILDS): each variant runs on a BVH of
-    each build; the first build's bvh2 is the reference (rays, agreement, speedups, Embree)."""
+    each build; the first build's bvh2 is the reference (rays, agreement, speedups, Embree).
+    `kinds`: the ray kinds to time (RAY_KINDS; None: all)."""
     layouts = tuple(dict.fromkeys(("bvh2",) + tuple(layouts)))
     builds = tuple(dict.fromkeys(builds))
     workers = workers or os.cpu_count() or 1
@@ -285,6 +288,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
             o, d = primary_rays(rig, scene.origin, tiled=True)
             hits = rt.trace(o, d)
             rays = {"primary": (o, d, np.float32(3e38), "closest"), **secondary_rays(scene, bvh, o, d, hits)}
+            rays = {k: v for k, v in rays.items() if kinds is None or k in kinds}
             base = {b: {"scene": name, "triangles": scene.triangle_count, "bvh_build": b,
                         "references": x.reference_count, "build_s": x.build_seconds, "sah_cost": x.sah_cost(),
                         "gpu_nodes": x.gpu_node_count, "max_depth": x.max_depth} for b, x in bvhs.items()}
