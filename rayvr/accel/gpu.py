@@ -128,19 +128,14 @@ class GpuBvh:
             raise ValueError(f"BVH depth {bvh.max_depth} exceeds the GPU traversal stack ({STACK_SIZE}); "
                              f"build with max_depth <= {STACK_SIZE}")
         self.wide: WideBvh | CwBvh | None = None
-        if layout == COMPRESSED_LAYOUT:
-            self.wide = build_cwbvh(bvh)
-            if self.wide.group_stack_bound > CWBVH_STACK_ENTRIES:
+        if self.width > 2:
+            compressed = layout == COMPRESSED_LAYOUT
+            self.wide = build_cwbvh(bvh) if compressed else build_wide(bvh, self.width)
+            entries = CWBVH_STACK_ENTRIES if compressed else WIDE_STACK_SIZES[self.width]
+            if self.wide.group_stack_bound > entries:
                 raise ValueError(f"{layout}: a traversal may hold {self.wide.group_stack_bound} stack entries, "
-                                 f"more than the GPU stack ({CWBVH_STACK_ENTRIES}); use bvh2")
-            if self.limit and self.wide.nbytes > self.limit:
-                raise BufferTooLargeError("bvh_nodes", self.wide.nbytes, self.limit)
-        elif self.width > 2:
-            self.wide = build_wide(bvh, self.width)
-            if self.wide.group_stack_bound > WIDE_STACK_SIZES[self.width]:
-                raise ValueError(f"{layout}: a traversal may hold {self.wide.group_stack_bound} stack entries, "
-                                 f"more than the GPU stack ({WIDE_STACK_SIZES[self.width]}); use bvh2")
-            if self.wide.node_count > WIDE_MAX_NODES:
+                                 f"more than the GPU stack ({entries}); use bvh2")
+            if not compressed and self.wide.node_count > WIDE_MAX_NODES:  # cwbvh's stack holds whole indices
                 raise ValueError(f"{layout}: {self.wide.node_count} nodes, more than the traversal stack "
                                  f"addresses ({WIDE_MAX_NODES}); use bvh2")
             if self.limit and self.wide.nbytes > self.limit:

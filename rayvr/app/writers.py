@@ -147,20 +147,18 @@ class PipelineTimes:
         return getattr(self.reader, "finish_s", 0.0)
 
     @contextlib.contextmanager
-    def rendering(self):
+    def _timed(self, total: str):
         start = time.perf_counter()
         try:
             yield
         finally:
-            self.render_s += time.perf_counter() - start
+            setattr(self, total, getattr(self, total) + time.perf_counter() - start)
 
-    @contextlib.contextmanager
+    def rendering(self):
+        return self._timed("render_s")
+
     def writing(self):
-        start = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.write_s += time.perf_counter() - start
+        return self._timed("write_s")
 
     def frame_done(self, frame_gpu_ms: float) -> None:
         self.frames += 1

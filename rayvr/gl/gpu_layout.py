@@ -65,7 +65,8 @@ SSBO = {
     "photon_kdtree": 45, "photon_lights": 46, "photon_queries": 47, "photon_found": 48,
     "photon_query_counts": 49,
     "reuse_map": 50, "warp_counts": 51,  # stereo modes: frame/passes/reuse.py, frame/passes/warp.py (glsl/stereo/)
-    "msaa_hits": 30, "msaa_count": 31, "tile_tris": 32,  # tile_tris: frame/passes/primary_rays.py tile lists  # frame/passes/primary_rays.py: distinct triangles per pixel (MSAA for rays)
+    # frame/passes/primary_rays.py: distinct triangles per pixel (MSAA for rays), the tile triangle lists
+    "msaa_hits": 30, "msaa_count": 31, "tile_tris": 32,
 }
 # Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
 IMAGE = {"hdr": 0, "ldr": 1,
