@@ -6,8 +6,10 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -83,6 +85,23 @@ def run_rayvr(*args, timeout=300):
     """`python -m rayvr ARGS` in a child process (the CLI as a user runs it), output captured."""
     return subprocess.run([sys.executable, "-m", "rayvr", *map(str, args)], capture_output=True, text=True,
                           timeout=timeout)
+
+
+def interrupt_rayvr(args, started, what: str, poll_s: float = 0.01, timeout: float = 120):
+    """`python -m rayvr ARGS` in a child process, Ctrl-C'd (SIGINT) once `started()` is true:
+    (exit status, stdout, stderr). `what` names what never happened when it fails to start."""
+    proc = subprocess.Popen([sys.executable, "-m", "rayvr", *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + timeout
+        while not started():
+            assert proc.poll() is None and time.monotonic() < deadline, what
+            time.sleep(poll_s)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=timeout)
+    finally:
+        proc.kill()
+    return proc.returncode, out, err
 
 
 def quick_bench(bench: str, out, *args, timeout=300) -> dict:

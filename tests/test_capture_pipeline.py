@@ -9,7 +9,6 @@ import hashlib
 import json
 import re
 import resource
-import signal
 import subprocess
 import sys
 import threading
@@ -20,7 +19,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from conftest import fail_writes
+from conftest import fail_writes, interrupt_rayvr, run_rayvr
 from rayvr.cli import main
 
 SIZE = "32x24"
@@ -261,29 +260,21 @@ def test_a_real_write_error_on_a_writer_thread_is_one_line_and_leaves_no_folder(
 
 def test_an_interrupted_pooled_capture_resumes_to_whole_frames(tmp_path):
     out, frames = tmp_path / "o", 400
-    args = [sys.executable, "-m", "rayvr", "capture", "--frames", str(frames), "--size", "24x16", "--writers", "3",
-            "--materials", "raster.toml", "--out", str(out), "-q"]  # raster: the quickest frames
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 120
-        while not (out.is_dir() and len(list(out.glob("frame_*_record.json"))) >= 5):
-            assert proc.poll() is None and time.monotonic() < deadline, "the capture wrote no frame"
-            time.sleep(0.01)
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=120)
-    finally:
-        proc.kill()
-    assert proc.returncode == 130, err
+    args = ["capture", "--frames", frames, "--size", "24x16", "--writers", "3", "--materials", "raster.toml",
+            "--out", out, "-q"]  # raster: the quickest frames
+    code, _, err = interrupt_rayvr(args, lambda: out.is_dir() and len(list(out.glob("frame_*_record.json"))) >= 5,
+                                   "the capture wrote no frame")
+    assert code == 130, err
     done = verified(out)
     assert 5 <= len(done) < frames and temporary_files(out) == []
     # what it says it kept is what is on disk
     assert one_line(err) == (f"rayvr capture: interrupted after {len(done)} of {frames} frame(s); the "
                              f"{2 * len(done)} file(s) written are kept in {out}/\n")
-    again = subprocess.run(args, capture_output=True, text=True, timeout=300)
+    again = run_rayvr(*args)
     assert again.returncode == 0, again.stderr
     assert (summary(out)["written"], summary(out)["skipped"]) == (frames - len(done), len(done))
     reference = tmp_path / "reference"
-    assert subprocess.run([*args[:-3], "--writers", "1", "--out", str(reference), "-q"], timeout=300).returncode == 0
+    assert run_rayvr(*args[:-3], "--writers", "1", "--out", reference, "-q").returncode == 0
     assert files(out) == files(reference)
 
 

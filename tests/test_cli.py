@@ -1,6 +1,5 @@
 import json
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -9,7 +8,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from conftest import run_rayvr
+from conftest import interrupt_rayvr, run_rayvr
 from rayvr.frame.cameras.rig import orbit, save_path
 
 
@@ -143,18 +142,10 @@ def test_unwritable_output_fails_before_rendering_and_loses_nothing(tmp_path):
 
 def test_ctrl_c_during_a_sequence_is_one_line_exit_130_and_keeps_whole_files(tmp_path):
     out = tmp_path / "o"
-    proc = subprocess.Popen([sys.executable, "-m", "rayvr", "capture", "--frames", "500", "--size", "320x240",
-                             "--out", str(out), "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 120
-        while not (out.is_dir() and any(p.suffix == ".png" for p in out.iterdir())):
-            assert proc.poll() is None and time.monotonic() < deadline, "no frame file appeared"
-            time.sleep(0.02)
-        proc.send_signal(signal.SIGINT)
-        stdout, stderr = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
-    assert proc.returncode == 130, stderr
+    code, stdout, stderr = interrupt_rayvr(["capture", "--frames", "500", "--size", "320x240", "--out", out, "-q"],
+                                           lambda: out.is_dir() and any(p.suffix == ".png" for p in out.iterdir()),
+                                           "no frame file appeared", poll_s=0.02)
+    assert code == 130, stderr
     assert len(stderr.splitlines()) == 1 and "Traceback" not in stderr, stderr
     assert (out / "frame_job.json").exists()  # written before the first frame: a rerun resumes
     records = sorted(out.glob("frame_*_record.json"))  # each written after its frame's files
