@@ -1,5 +1,5 @@
 """Golden frames: render a fixed set of `rayvr capture` runs and record the SHA-256 of every file
-they write, so that a refactor can show it renders bit-identically (issue 21).
+they write (a PNG's decoded pixels), so that a refactor can show it renders bit-identically (issue 21).
 
     python tools/golden.py record golden.json      # on the commit before the change
     python tools/golden.py compare golden.json     # after it: exit 1 and the differing runs
@@ -21,6 +21,8 @@ import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+
+import numpy as np
 
 SIZE = "48x36"
 EFFECTS = ("raster", "shadows", "ssr", "reflections", "glossy", "path", "photon")
@@ -81,8 +83,20 @@ def capture(name: str, args: list[str], work: Path) -> dict:
     run = subprocess.run(cmd, capture_output=True, text=True)
     if run.returncode:
         return {"error": (run.stderr.strip().splitlines() or ["exit %d" % run.returncode])[-1]}
-    return {p.relative_to(out).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(out.rglob("*")) if p.is_file() and p.name != "frame_timings.json"}
+    return {p.relative_to(out).as_posix(): content_hash(p) for p in sorted(out.rglob("*"))
+            if p.is_file() and p.name != "frame_timings.json" and not p.name.endswith("_record.json")}
+
+
+def content_hash(path: Path) -> str:
+    """A PNG's decoded pixels (so that the encoder may change), any other file's bytes. Frame
+    records hold their files' checksums, so they are left out: their PNGs are compared instead."""
+    if path.suffix != ".png":
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    from PIL import Image
+
+    with Image.open(path) as im:
+        pixels = np.asarray(im)
+    return hashlib.sha256(repr((im.mode, pixels.shape)).encode() + pixels.tobytes()).hexdigest()
 
 
 def record(jobs: int) -> dict:

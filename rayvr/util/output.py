@@ -4,13 +4,14 @@ file is created with mode 0666 and the kernel applies the umask (and any default
 get the permissions a plain open() would give them (tempfile.mkstemp's are always 0600)."""
 from __future__ import annotations
 
-import io
 import os
 import secrets
 import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from .png import encode_png
 
 
 class OutputError(OSError):
@@ -152,13 +153,15 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
 
 def write_png(path: str | Path, image: np.ndarray, compression: int | None = None) -> None:
     """uint8 HxW, HxWx3 or HxWx4 (rows top-down) -> PNG at zlib level `compression` (0..9; None:
-    Pillow's default, 6)."""
-    from PIL import Image
+    6), encoded without holding the GIL for long (util/png.py)."""
+    pieces = encode_png(image, compression)
 
-    buf = io.BytesIO()
-    level = {} if compression is None else {"compress_level": compression}
-    Image.fromarray(np.ascontiguousarray(image)).save(buf, format="PNG", **level)
-    atomic_write_bytes(path, buf.getvalue())
+    def fill(fd, tmp):
+        with os.fdopen(fd, "wb") as fh:
+            for piece in pieces:
+                fh.write(piece)
+
+    _atomic_write(Path(path), fill)
 
 
 def write_npy(path: str | Path, array: np.ndarray) -> None:
