@@ -54,7 +54,7 @@ class CaptureJob:
     rig_overrides: list | None = None  # per frame: StereoRig fields that differ (a view's intrinsics)
     cameras: bool = False  # also write each eye's camera (intrinsics, camera-to-world) as JSON
     # How the files are written, not what they show (so not part of job_identity: a rerun with
-    # other values resumes the same job): zlib level of the PNGs, writer threads (None: writers.default_writers()).
+    # other values resumes the same job): zlib level of the PNGs, writer threads (None: one per core).
     png_compression: int = DEFAULT_PNG_COMPRESSION
     writers: int | None = None
 

@@ -19,10 +19,6 @@ from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 
 MAX_DEFAULT_WRITERS = 16  # past this a capture is bound by the GPU or the disk, not the encoders
-# writer threads per core by default: the render thread and the GL driver's own threads need the
-# rest. On the H200 host's 16 cores the room at 2x1440x1600 captured 6.5 frames/s with 16 writers,
-# 15.9 with 8 and 11.5 with 4 (bench/results/h200/2026-12-02/capture_writers/)
-WRITERS_PER_CORE = 0.5
 QUEUED_PER_POOL = 2  # frames waiting beyond one per thread: a thread never idles between two frames
 PNG_COMPRESSION_LEVELS = range(10)  # zlib's levels: 0 stores, 9 compresses hardest
 # zlib level 1: on a shaded frame 3.4 times the speed of Pillow's own default (6) for a file no
@@ -32,19 +28,18 @@ DEFAULT_PNG_COMPRESSION = 1
 
 
 def default_writers() -> int:
-    """Writer threads by default: half the cores this process may run on, at least two (a pool
-    encodes while the capture renders; one core: one writer), at most MAX_DEFAULT_WRITERS."""
+    """Writer threads by default: one per core this process may run on, at most MAX_DEFAULT_WRITERS."""
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # no affinity on this platform
         cores = os.cpu_count() or 1
-    return max(min(2, cores), min(MAX_DEFAULT_WRITERS, int(cores * WRITERS_PER_CORE)))
+    return max(1, min(MAX_DEFAULT_WRITERS, cores))
 
 
 def writers_per_worker(writers: int | None, workers: int, local: bool) -> int | None:
     """Each Ray worker's writer threads: as asked, or when not asked and every worker runs on this
     host (no --address), this host's default shared out among them (one per core each would make
-    workers x cores / 2 threads); None, a worker elsewhere, takes its own host's default."""
+    workers x cores threads); None, a worker elsewhere, takes its own host's default."""
     if writers is not None or not local:
         return writers
     return max(1, default_writers() // max(1, workers))

@@ -48,7 +48,7 @@ def add_parser(sub) -> None:
                         f"files as small on shaded frames, up to 1.8x larger on flat ones)")
     c.add_argument("--writers", type=shared.count(1, 256), metavar="N",
                    help=f"threads that encode and write frames while the GPU renders the next ones (default: "
-                        f"half the cores, at least 2, at most {MAX_DEFAULT_WRITERS}; 1: each frame written in turn)")
+                        f"one per core, at most {MAX_DEFAULT_WRITERS}; 1: each frame written in turn)")
     seq = c.add_mutually_exclusive_group()
     seq.add_argument("--frames", type=shared.FRAMES, help="N frames of a turntable orbit")
     seq.add_argument("--path", help="camera path file (JSON) to replay")
