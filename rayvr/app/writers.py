@@ -1,8 +1,8 @@
 """Encoding and writing a capture's frames on a pool of threads while the GPU renders the next ones.
 
-The PNG encoder (Pillow's zlib), np.save and the file writes release the GIL, so threads encode
-frames side by side without copying them to other processes (measured against processes and other
-encoders: docs/capture.md). The queue is bounded: rendering waits while `limit` frames are read back
+The PNG encoder (util/png.py: one zlib call), np.save and the file writes release the GIL, so
+threads encode frames side by side without copying them to other processes and leave the render
+thread the GIL (measured against processes and other encoders: docs/capture.md). The queue is bounded: rendering waits while `limit` frames are read back
 and not yet written, so a 10,000-frame path holds as much memory as a short one. Frames finish in the
 order they were handed in; the first one that fails (an unwritable folder, a full disk) is raised
 where the capture loop waits, and the frames queued behind it are not written.
