@@ -139,9 +139,11 @@ def _tradeoff(args, out, camera_from_args):
 
 
 def _budget(args, out, camera_from_args):
+    from ..quality.frame_knobs import budget_ms_of, parse_grid
     from . import tradeoff
 
-    tradeoff.run_budget(out, budgets=tuple(args.budget_ms or tradeoff.BUDGETS_MS), quick=args.quick,
+    budgets = args.budget_ms or [budget_ms_of(hz) for hz in args.budget_hz or ()] or tradeoff.BUDGETS_MS
+    tradeoff.run_budget(out, budgets=tuple(budgets), quick=args.quick, grid=parse_grid(args.frame_knobs),
                         **_sweep_arguments(args))
 
 
@@ -151,7 +153,7 @@ def _vr(args, out, camera_from_args):
     from . import vr
 
     quick = vr.QUICK if args.quick else {}
-    budgets = args.budget_ms or (vr.BUDGET_MS,)
+    budgets = args.budget_ms or [1000.0 / hz for hz in args.budget_hz or ()] or (vr.BUDGET_MS,)
     if len(budgets) != 1:
         raise ValueError(f"bench vr --budget-ms takes one budget (its budget config), got {len(budgets)}")
     configs = args.configs or quick.get("configs", vr.MATERIAL_CONFIGS)

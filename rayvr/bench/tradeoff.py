@@ -190,39 +190,120 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     return result
 
 
-BUDGETS_MS = (4.0, 8.0)  # bench budget's frame budgets unless --budget-ms gives others
+BUDGETS_MS = (1000.0 / 90, 1000.0 / 120)  # bench budget's frame budgets unless --budget-ms gives others: 90, 120 Hz
 
 
 def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
                ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False, workers=None,
-               address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S) -> dict:
-    """For each budget: the chosen effect per material, its predicted and measured ms and error.
-    `workers`: the per-effect measurements spread over Ray workers; each pick is confirmed here."""
-    from ..quality.budget import choose_under_budget, per_material_options
-    from ..util.output import write_png
-    from .report import device_meta, write_report
+               address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, grid=None) -> dict:
+    """For each scene and budget: the pick (frame-wide knobs of `grid` and the effect per
+    material), its predicted and measured ms and error, the best render of the measured grid that
+    fits (every point of `grid` with every material on one rung) and the pick's FLIP above it
+    (the optimality gap; negative: the pick beats every render of the grid). Each pick is also
+    written as the config that reproduces it. `workers`: the per-rung measurements spread over
+    Ray workers; each pick is confirmed here."""
+    from ..quality.budget import pick_toml
+    from ..quality.frame_budget import choose_frame_under_budget, grid_best, measure_candidates
+    from ..quality.frame_knobs import DEFAULT_KNOBS
+    from ..util.output import atomic_write_bytes, write_png
+    from .report import device_meta, markdown, write_report
 
-    rows, skipped = [], {}
+    grid = grid or [DEFAULT_KNOBS]
+    rows, grid_rows, skipped = [], [], {}
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
             with RendererPool(gl) as pool:
                 ref = measure(gl, scene, rig, reference, repeat, pool=pool)
-                options = per_material_options(gl, scene, rig, ref, base, ppd, repeat=repeat, progress=progress,
-                                               pool=pool, measure_all=_measurer(cluster, name, rig, repeat))
-                picks = [choose_under_budget(gl, scene, rig, b, base, ref, ppd, repeat, progress, pool, options)
-                         for b in budgets]
+                candidates = measure_candidates(gl, scene, rig, ref, base, ppd, grid, repeat=repeat, progress=progress,
+                                                pool=pool, measure_all=_measurer(cluster, name, rig, repeat))
+                picks = [choose_frame_under_budget(gl, scene, rig, b, base, ref, ppd, candidates, repeat, progress,
+                                                   pool) for b in budgets]
+            grid_rows += [{"scene": name, "knobs": c.knobs.label, "effect": e, "gpu_ms": ms, "flip": flip}
+                          for c in candidates for e, (ms, flip) in c.rungs.items()]
             for b, pick in zip(budgets, picks):
+                best = grid_best(candidates, b)
                 rows.append({"scene": name, "reference_ms": ref.gpu_ms,
-                             **{k: v for k, v in pick.items() if k not in ("config", "image")}})
-                write_png(f"{out_dir}/budget_{name}_{b:g}ms.png", pick["image"])
+                             **{k: v for k, v in pick.items() if k not in ("config", "image", "knobs")},
+                             "knobs": pick["knobs"].label, "grid_points": len(grid), "grid_best": best,
+                             "optimality_gap": None if best is None else pick["measured_flip"] - best["flip"]})
+                stem = f"{out_dir}/budget_{name}_{b:.4g}ms"
+                write_png(f"{stem}.png", pick["image"])
+                atomic_write_bytes(f"{stem}.toml", pick_toml(scene, pick, pick["config"], size).encode())
         meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
-                "ppd": ppd, "skipped": skipped, "workers": workers or 0,
-                "model": "per material: extra GPU ms of each effect over all-raster and mean FLIP over its "
-                         "pixels vs the reference; total error = sum importance x coverage x error; exact "
-                         "multiple-choice knapsack (rayvr.quality.budget)"}
+                "ppd": ppd, "skipped": skipped, "workers": workers or 0, "grid": [k.label for k in grid],
+                "model": "per point of the frame-knob grid, per material: extra GPU ms of each effect over all-raster "
+                         "and mean FLIP over its pixels vs the reference, measured with that point's knobs; total "
+                         "error = sum importance x coverage x error; exact multiple-choice knapsack per point, the "
+                         "best point taken (rayvr.quality.frame_budget)"}
     result = {"meta": meta, "rows": rows}
-    write_report(out_dir, "budget", result)
+    write_report(out_dir, "budget", result, md=budget_headline(rows, meta) + "\n" + markdown("budget", result))
+    write_report(out_dir, "budget_grid", {"meta": meta, "rows": grid_rows})
+    plot_budget(rows, grid_rows, out_dir)
     return result
+
+
+def budget_headline(rows: list[dict], meta: dict) -> str:
+    """The answer first: per scene and budget, the best mean FLIP the pick reaches, within the
+    budget or not on the measured frame, and how far it is from the grid's best render."""
+    def num(v, fmt):
+        return "-" if v is None else format(v, fmt)
+
+    lines = [f"# The best image within each budget ({meta.get('gl_renderer', '?')}, "
+             f"2x{meta['per_eye_size'][0]}x{meta['per_eye_size'][1]})", "",
+             "| scene | budget | mean FLIP | measured ms | within | frame knobs | grid's best FLIP within | gap |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        best = r.get("grid_best") or {}
+        lines.append(f"| {r['scene']} | {r['budget_ms']:.4g} ms ({1000 / r['budget_ms']:.0f} Hz) | "
+                     f"{r['measured_flip']:.4f} | {r['measured_ms']:.2f} | {'yes' if r['within_budget'] else 'NO'} | "
+                     f"{r['knobs']} | {num(best.get('flip'), '.4f')} | {num(r.get('optimality_gap'), '+.4f')} |")
+    lines += ["", "gap: the pick's mean FLIP minus the best render of the measured grid (every point of the "
+              "frame-knob grid with every material on one rung) that fits the budget; negative: the pick is better.",
+              ""]
+    return "\n".join(lines)
+
+
+def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir) -> list:
+    """One picture per scene: the grid's renders as GPU ms vs mean FLIP with their Pareto front,
+    each budget as a vertical line and its pick as a star. Needs matplotlib."""
+    from pathlib import Path
+
+    try:
+        import matplotlib
+    except ImportError:
+        return []
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .report import pareto_front
+
+    written = []
+    for scene in dict.fromkeys(r["scene"] for r in grid_rows):
+        mine = [r for r in grid_rows if r["scene"] == scene]
+        fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
+        for knobs in dict.fromkeys(r["knobs"] for r in mine):
+            pts = [(r["gpu_ms"], r["flip"]) for r in mine if r["knobs"] == knobs]
+            ax.scatter(*zip(*pts), s=18, alpha=0.8, label=knobs)
+        front = [mine[i] for i in pareto_front([(r["gpu_ms"], r["flip"]) for r in mine])]
+        ax.step([r["gpu_ms"] for r in front], [r["flip"] for r in front], where="post", color="k", lw=1,
+                label="Pareto front of the grid")
+        for r in (r for r in rows if r["scene"] == scene):
+            ax.axvline(r["budget_ms"], color="grey", lw=0.8, ls="--")
+            ax.scatter([r["measured_ms"]], [r["measured_flip"]], marker="*", s=160, color="crimson", zorder=5)
+            ax.annotate(f"pick at {r['budget_ms']:.3g} ms", (r["measured_ms"], r["measured_flip"]), fontsize=7,
+                        xytext=(4, 4), textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_xlabel("GPU ms per stereo frame (timer queries)")
+        ax.set_ylabel("mean FLIP vs the converged reference")
+        ax.set_title(f"{scene}: the budget's picks (stars) against every render of its grid", fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=6, ncol=2)
+        fig.tight_layout()
+        path = Path(out_dir) / f"budget_{scene}.png"
+        fig.savefig(path)
+        plt.close(fig)
+        written.append(path)
+    return written
 
 
 def plot_tradeoff(rows: list[dict], out_dir) -> list:

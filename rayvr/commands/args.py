@@ -15,6 +15,7 @@ from ..gl.limits import MAX_DISTANCE  # --near, --far, --convergence, --ipd (the
 # a value outside them renders nothing useful and is refused before any work.
 MAX_FRAMES = 1_000_000
 MAX_BUDGET_MS = 1e6
+MAX_BUDGET_HZ = 1e4
 MAX_SPP = 1 << 20
 
 
@@ -77,7 +78,46 @@ IPD = number(0, MAX_DISTANCE, lo_open=False)
 DISTANCE = number(0, MAX_DISTANCE)
 FRAMES = count(1, MAX_FRAMES)
 BUDGET_MS = number(0, MAX_BUDGET_MS)
+BUDGET_HZ = number(0, MAX_BUDGET_HZ)
 SPP = count(1, MAX_SPP)
+
+
+def add_budget_arguments(p: argparse.ArgumentParser, help_ms: str, frame_knobs: bool = True) -> None:
+    """--budget-ms or --budget-hz, and --frame-knobs (read by budget_grid)."""
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--budget-ms", type=BUDGET_MS, help=help_ms)
+    g.add_argument("--budget-hz", type=BUDGET_HZ, metavar="HZ",
+                   help="the budget as a display rate: 90 is 11.1 ms a frame, 120 is 8.33 ms")
+    if not frame_knobs:
+        return
+    p.add_argument("--frame-knobs", metavar="GRID",
+                   help="with a budget: choose frame-wide knobs too, among every combination of the values given, "
+                        "e.g. \"stereo=dual,reuse;spp=1,4;denoise=off,on;msaa=1,4\" (docs/budget.md)")
+
+
+def budget_grid(args, given: dict, frame_knobs: tuple[str, ...]) -> list | None:
+    """Turns --budget-hz into args.budget_ms; the --frame-knobs grid (quality/frame_knobs.py), or
+    None without it. A knob the grid chooses may not also be set by a flag or the config."""
+    from ..quality.frame_knobs import budget_ms_of, parse_grid
+
+    if getattr(args, "budget_hz", None) is not None:
+        args.budget_ms = budget_ms_of(args.budget_hz)
+    text = getattr(args, "frame_knobs", None)
+    if text is None:
+        return None
+    if args.budget_ms is None:
+        raise ValueError("--frame-knobs goes with --budget-ms or --budget-hz")
+    grid = parse_grid(text)
+    for part in text.split(";"):
+        knob = part.partition("=")[0].strip().lower()
+        if not knob:
+            continue
+        if knob not in frame_knobs:
+            raise ValueError(f"--frame-knobs: {knob} is not a knob this command chooses (it takes "
+                             f"{', '.join(frame_knobs)})")
+        if knob in given or (knob == "spp" and getattr(args, "spp", 1) != 1):
+            raise ValueError(f"--frame-knobs chooses {knob}: leave out --{knob} (and the config's [render] {knob})")
+    return grid
 
 
 def add_pose_arguments(g) -> None:

@@ -74,9 +74,9 @@ def _budgets(text: str) -> list[float]:
     try:
         values = [float(x) for x in text.split(",")]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated milliseconds, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
     if not values or not all(np.isfinite(values)) or min(values) <= 0:
-        raise argparse.ArgumentTypeError(f"budgets must be positive milliseconds, got {text!r}")
+        raise argparse.ArgumentTypeError(f"budgets must be positive numbers, got {text!r}")
     return values
 
 
@@ -86,9 +86,16 @@ def add_parser(sub) -> None:
 
     b = sub.add_parser("bench", help="GPU benchmarks (run on a real GPU)")
     b.add_argument("area", choices=tuple(AREAS), help=areas_help())
-    b.add_argument("--budget-ms", type=_budgets,
-                   help="budget: the frame budgets, comma-separated (default 4,8); vr: the one budget of its budget "
-                        "config (default 11.1)")
+    budget = b.add_mutually_exclusive_group()
+    budget.add_argument("--budget-ms", type=_budgets,
+                        help="budget: the frame budgets, comma-separated (default: 90 and 120 Hz, 11.1 and 8.33 ms); "
+                             "vr: the one budget of its budget config (default 11.1)")
+    budget.add_argument("--budget-hz", type=_budgets, metavar="HZ",
+                        help="the budgets as display rates, comma-separated (90 is 11.1 ms, 120 is 8.33 ms)")
+    b.add_argument("--frame-knobs", metavar="GRID",
+                   help="budget: the frame-wide knobs the pick chooses too, every combination of the values given, "
+                        "e.g. \"stereo=dual,reuse;spp=1,4;denoise=off,on;msaa=1,4;scale=0.75,1\" (default: none; "
+                        "docs/budget.md)")
     b.add_argument("--out", default=DEFAULT_OUT, help=f"folder for JSON/markdown results (default ./{DEFAULT_OUT}: "
                    "the repository's committed bench/results/ is only written when named)")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")

@@ -70,8 +70,9 @@ def add_parser(sub) -> None:
     c.add_argument("--chunk", type=shared.count(1, shared.MAX_FRAMES), help="with --workers: frames per task "
                    "(default: about 4 tasks per worker, at most 32 frames)")
     c.add_argument("--timings", action="store_true", help="print GPU ms per pass")
-    c.add_argument("--budget-ms", type=shared.BUDGET_MS, help="pick effects per material to fit this GPU frame time "
-                   "(measured on this device against a reference; overrides --materials' effects)")
+    shared.add_budget_arguments(c, "pick effects per material to fit this GPU frame time (measured on this device "
+                                   "against a reference; overrides --materials' effects); the pick is printed as a "
+                                   "config to save")
     c.add_argument("--backend", choices=("egl", "osmesa"), help="headless GL backend (default: egl, then osmesa)")
     c.add_argument("-q", "--quiet", action="store_true")
     shared.add_rig_arguments(c)
@@ -137,6 +138,7 @@ def cmd_capture(args) -> int:
     config = load_config(args.materials)  # its [render] table, under the flags
     given = shared.render_values(args, COMMAND, config)
     settings = RenderSettings(**given)  # --temporal implies accumulate, --denoise-iterations --denoise
+    grid = shared.budget_grid(args, given, frame_knobs=("stereo", "spp", "denoise", "msaa"))
     if args.budget_ms is not None:
         require("flip_evaluator", "--budget-ms")  # it predicts image error with FLIP, before any work
     if not args.workers and (args.address or args.chunk or args.connect_timeout is not None):
@@ -177,13 +179,19 @@ def cmd_capture(args) -> int:
         rig = shared.rig_from_args(args, r.scene, shared.camera_from_args(args, settings, given))
         pick = None
         if args.budget_ms is not None:
-            from ..quality.budget import auto_config, describe_pick
+            from ..quality.budget import auto_config, describe_pick, pick_toml
 
-            config, pick = auto_config(r, rig, args.budget_ms, progress=not args.quiet)
+            config, pick = auto_config(r, rig, args.budget_ms, progress=not args.quiet, grid=grid)
             r.set_materials(config)
+            if grid:  # the frame-wide knobs it picked: render options and samples per pixel
+                settings = r.settings = RenderSettings(**{**given, **pick["knobs"].render_table()})
+                args.spp = pick["knobs"].spp
+                inputs["settings"] = settings.to_dict()
             inputs["budget"] = pick["assignment"]  # what it picked is what the frames show
             if not args.quiet:
                 print(describe_pick(pick))
+                print(pick_toml(r.scene, pick, config, rig.size), end="")
+            pick = {**pick, "knobs": pick["knobs"].label} if grid else pick
         poses, overrides = capture_poses(args, rig, r.scene)
         job = CaptureJob(rig, poses, args.eye, args.view, aux, Path(args.out), args.prefix, args.format, args.spp,
                          rig_overrides=overrides, cameras=bool(args.views), png_compression=args.png_compression,

@@ -23,8 +23,8 @@ def add_parser(sub) -> None:
     v.add_argument("--out", default="shots", help="screenshot folder (default ./shots)")
     v.add_argument("--record", default="camera_path.json", help="camera path file P writes")
     v.add_argument("--frames", type=shared.FRAMES, help="close after N frames (smoke tests)")
-    v.add_argument("--budget-ms", type=shared.BUDGET_MS,
-                   help="pick effects per material to fit this GPU frame time at start")
+    shared.add_budget_arguments(v, "pick effects per material to fit this GPU frame time at start",
+                                frame_knobs=False)
     shared.add_render_arguments(v, COMMAND)  # --stereo: the second eye at start (B cycles); --denoise (N), ...
     v.set_defaults(func=cmd_preview)
 
@@ -52,6 +52,7 @@ def cmd_preview(args) -> int:
     from ..app.preview import Preview
 
     settings, given = preview_settings(args)
+    shared.budget_grid(args, given, ())  # --budget-hz: the budget in ms
     rig_options = shared.rig_keywords(args, shared.camera_from_args(args, settings, given))
     look_at = (args.pose[:3], args.pose[3:]) if args.pose else None
     with Preview(args.scene, args.materials, size=args.size, vsync=not args.no_vsync, stereo=args.mode,

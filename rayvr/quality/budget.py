@@ -44,8 +44,8 @@ import numpy as np
 
 from . import metrics
 from ..frame.effects import implemented_effects
-from .measure import (BENCH_QUALITY, RendererPool, Variant, config_for_assignment, local_measurer, measure,
-                      reference_variant)
+from .measure import (BENCH_QUALITY, COMPARE_SETTINGS, RendererPool, Variant, config_for_assignment, local_measurer,
+                      measure, reference_variant)
 from .reference_images import reference_config
 
 # Slack for floating-point sums when comparing against the budget (1 ns in ms units).
@@ -248,7 +248,8 @@ def _result(mats, choice, budget_ms, base_ms, costs, errs, feasible) -> BudgetRe
 # --------------------------------------------------------- measured options, then solved
 
 def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
-                         effects=None, repeat=10, min_coverage=1e-4, progress=True, pool=None, measure_all=None):
+                         effects=None, repeat=10, min_coverage=1e-4, progress=True, pool=None, measure_all=None,
+                         knobs=None):
     """Per material and effect: extra GPU ms over all-`raster` and the error left on its pixels.
 
     One render per effect (the whole scene on that rung) instead of one per material and
@@ -258,64 +259,81 @@ def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
     approximations: reflections also show other materials, and dispatch overheads are shared;
     the chosen assignment is therefore rendered and measured for real afterwards.
     Materials covering < min_coverage of the image stay `raster`. `measure_all`: how the
-    per-effect renders are measured (measure.local_measurer by default; cluster.sweep_measurer: Ray workers)."""
+    per-effect renders are measured (measure.local_measurer by default; cluster.sweep_measurer: Ray workers).
+    `knobs`: the frame-wide knobs every render has (quality/frame_knobs.py; None: the comparison's own)."""
+    rungs = measure_rungs(gl, scene, rig, reference_image, base, ppd, effects, repeat, progress, pool, measure_all, knobs)
+    return options_from_rungs(scene, reference_image, base, rungs, min_coverage)
+
+
+def measure_rungs(gl, scene, rig, reference_image, base, ppd: float, effects=None, repeat=10, progress=True,
+                  pool=None, measure_all=None, knobs=None) -> dict:
+    """{effect: (GPU ms, FLIP map against the reference)} of the whole scene on each rung."""
     effects = list(effects or implemented_effects())
+    names = scene.material_names()
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name}" + (f" {knobs.label}" if knobs else ""))
+    measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
+    configs = [config_for_assignment(base, scene, {n: e for n in names}) for e in effects]
+    whole_scene = [knobs.variant("budget", e, c, COMPARE_SETTINGS) if knobs else Variant("budget", e, c)
+                   for e, c in zip(effects, configs)]
+    rungs = {}
+    try:
+        for e, m in zip(effects, measure_all(whole_scene, bar)):
+            rungs[e] = (m.gpu_ms, metrics.flip_map(reference_image.image, m.image, ppd=ppd))
+    finally:
+        if bar is not None:
+            bar.close()
+    return rungs
+
+
+def options_from_rungs(scene, reference_image, base, rungs: dict, min_coverage=1e-4):
+    """(the all-`raster` frame's ms, per-material options) from measure_rungs' renders."""
+    if "raster" not in rungs:
+        raise ValueError("the budget model needs 'raster' among the effects (it is the cost baseline)")
     names = scene.material_names()
     ids = reference_image.material
     coverage = np.bincount(np.where(ids < len(names), ids, len(names)).ravel(),
                            minlength=len(names) + 1)[:len(names)] / ids.size
     importance = [a.importance for a in base.assign(names, warn=False)]
     covered = [i for i in range(len(names)) if coverage[i] >= min_coverage]
-    flip_maps, extra_ms, raster_ms = {}, {}, None
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name}")
-    measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
-    whole_scene = [Variant("budget", e, config_for_assignment(base, scene, {n: e for n in names})) for e in effects]
-    try:
-        for e, m in zip(effects, measure_all(whole_scene, bar)):
-            flip_maps[e] = metrics.flip_map(reference_image.image, m.image, ppd=ppd)
-            extra_ms[e] = m.gpu_ms
-            if e == "raster":
-                raster_ms = m.gpu_ms
-    finally:
-        if bar is not None:
-            bar.close()
-    if raster_ms is None:
-        raise ValueError("the budget model needs 'raster' among the effects (it is the cost baseline)")
+    raster_ms = rungs["raster"][0]
     share = coverage / max(coverage[covered].sum(), 1e-12)
     options = []
     for i in covered:
         mask = ids == i
-        opts = [Option(e, max(extra_ms[e] - raster_ms, 0.0) * share[i], float(flip_maps[e][mask].mean()))
-                for e in effects]
+        opts = [Option(e, max(ms - raster_ms, 0.0) * share[i], float(flip[mask].mean())) for e, (ms, flip) in rungs.items()]
         options.append(MaterialOptions(names[i], opts, importance=importance[i], coverage=float(coverage[i])))
     return raster_ms, options
 
 
 BUDGET_TOLERANCE = 1.02  # measured frames within 2 % of the budget count as within (timer noise)
+BUDGET_SLACK = 0.85  # a pick measured below this share of its budget is solved again with its costs scaled down
+MIN_COST_SCALE = 0.25  # the most one round scales an effect's estimated cost down
 BUDGET_ROUNDS = 4
 
 
 def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
-                        ppd: float, repeat=10, progress=True, pool=None, options=None) -> dict:
+                        ppd: float, repeat=10, progress=True, pool=None, options=None, knobs=None) -> dict:
     """Pick effects per material for `budget_ms`, render the pick and measure it.
 
     The per-material costs are estimates (a traced effect also has fixed costs, classify and
-    dispatch, that come with its first material); when the measured frame overshoots, the chosen
-    options' costs are scaled by measured/predicted and the choice is solved again, at most
-    BUDGET_ROUNDS times. If no round fits, the best measured pick that did fit is returned, else
+    dispatch, that come with its first material); when the measured frame overshoots, or fits
+    with more than (1 - BUDGET_SLACK) of the budget left while it cost less than predicted, the
+    chosen options' costs are scaled by measured/predicted and the choice is solved again, at most
+    BUDGET_ROUNDS times; the best measured pick that fits is kept. If no round fits, the best measured pick that did fit is returned, else
     the cheapest assignment. `options`: (base_ms, per-material options) measured already, to
-    solve several budgets from one measurement."""
+    solve several budgets from one measurement. `knobs`: the frame-wide knobs the pick renders with."""
     base_ms, options = options or per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
-                                                       progress=progress, pool=pool)
+                                                       progress=progress, pool=pool, knobs=knobs)
 
     def attempt(opts, budget):
         result = solve_budget(opts, budget, base_ms=base_ms)
         cfg = config_for_assignment(base, scene, result.assignment)
-        chosen = measure(gl, scene, rig, Variant("budget", budget_ms, cfg), repeat, pool=pool)
+        variant = knobs.variant("budget", budget_ms, cfg, COMPARE_SETTINGS) if knobs else Variant("budget", budget_ms, cfg)
+        chosen = measure(gl, scene, rig, variant, repeat, pool=pool)
         return {"budget_ms": budget_ms, "predicted_ms": result.total_ms, "measured_ms": chosen.gpu_ms,
                 "within_budget": chosen.gpu_ms <= budget_ms * BUDGET_TOLERANCE, "feasible": result.feasible,
                 "predicted_error": result.error, "measured_flip": metrics.flip(reference_image.image, chosen.image, ppd=ppd),
@@ -330,12 +348,15 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
         pick = attempt(adjusted, budget_ms)
         tried.append(pick)
         predicted_extra, measured_extra = pick["predicted_ms"] - base_ms, pick["measured_ms"] - base_ms
-        if pick["within_budget"] or not pick["feasible"] or predicted_extra <= 0:
+        if not pick["feasible"] or predicted_extra <= 0:
             break
         factor = measured_extra / predicted_extra
+        if pick["within_budget"] and (pick["measured_ms"] >= budget_ms * BUDGET_SLACK or factor >= 1.0):
+            break  # fits, and uses the budget (or its estimates were not high)
+        # over: the chosen effects cost more than estimated; under: less, so the slack buys more
         for name, effect in pick["assignment"].items():
             if effect != "raster":
-                scale[(name, effect)] = scale.get((name, effect), 1.0) * max(factor, 1.0)
+                scale[(name, effect)] = scale.get((name, effect), 1.0) * max(factor, MIN_COST_SCALE)
     fitting = [p for p in tried if p["within_budget"]]
     if fitting:
         best = min(fitting, key=lambda p: p["measured_flip"])
@@ -348,10 +369,14 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
 
 
 def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repeat: int = 5,
-                progress: bool = True):
+                progress: bool = True, grid=None):
     """`--budget-ms` for capture and preview: effects per material of `renderer.scene` that keep the
     frame within `budget_ms` on this device with the least error, starting from the renderer's
-    current config. Returns the config and the summary (predicted and measured ms and FLIP)."""
+    current config. With `grid` (a list of quality/frame_knobs.FrameKnobs) the frame-wide knobs
+    are chosen too (quality/frame_budget.py): the summary's "knobs" and the config's [render]
+    table hold them. Returns the config and the summary (predicted and measured ms and FLIP)."""
+    from dataclasses import replace as replaced
+
     ppd = metrics.DEFAULT_PPD if ppd is None else ppd
 
     gl, scene = renderer.gl, renderer.scene
@@ -359,7 +384,15 @@ def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repea
         reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
     with RendererPool(gl) as pool:
         ref = measure(gl, scene, rig, reference, repeat=1, warmup=1, pool=pool)
-        pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)
+        if grid:
+            from .frame_budget import choose_frame_under_budget, measure_candidates
+
+            candidates = measure_candidates(gl, scene, rig, ref, renderer.config, ppd, grid, repeat, progress, pool)
+            pick = choose_frame_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, candidates, repeat,
+                                             progress, pool)
+            pick["config"] = replaced(pick["config"], render=pick["knobs"].render_table())
+        else:
+            pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)
     summary = {k: v for k, v in pick.items() if k not in ("config", "image")}
     return pick["config"], summary
 
@@ -367,10 +400,30 @@ def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repea
 def describe_pick(summary: dict) -> str:
     """A few lines for the terminal or the HUD."""
     state = ("within" if summary["within_budget"] else "OVER") + ("" if summary["feasible"] else " (cheapest assignment)")
-    lines = [f"budget {summary['budget_ms']:g} ms: {state}; predicted {summary['predicted_ms']:.2f} ms, "
+    lines = [f"budget {summary['budget_ms']:.4g} ms: {state}; predicted {summary['predicted_ms']:.2f} ms, "
              f"measured {summary['measured_ms']:.2f} ms, mean FLIP {summary['measured_flip']:.4f}"]
+    if summary.get("knobs") is not None:
+        lines.append(f"  frame: {summary['knobs'].label}")
     by_effect: dict = {}
     for name, effect in summary["assignment"].items():
         by_effect.setdefault(effect, []).append(name)
     lines += [f"  {e:12s} {', '.join(sorted(n))}" for e, n in sorted(by_effect.items())]
     return "\n".join(lines)
+
+
+def pick_toml(scene, summary: dict, config, size=None) -> str:
+    """The pick as a config file the user can save and pass as --materials: every material's
+    effect and parameters, the frame-wide knobs as its [render] table, and in its header the
+    capture flags a config cannot hold (--spp, a scaled --size) and what the pick measured."""
+    from ..scene.config_toml import config_toml
+
+    names = scene.material_names()
+    knobs = summary.get("knobs")
+    comments = [f"rayvr budget pick for {scene.name}: {summary['budget_ms']:.4g} ms budget, "
+                f"{'within' if summary['within_budget'] else 'OVER'} it: measured {summary['measured_ms']:.2f} ms, "
+                f"mean FLIP {summary['measured_flip']:.4f} against the converged reference"]
+    flags = knobs.capture_flags(size) if knobs is not None else ""
+    if flags:
+        comments.append(f"capture with: {flags}")
+    return config_toml(names, config.assign(names, warn=False), render=dict(config.render), denoise=config.denoise,
+                       comments=tuple(comments))

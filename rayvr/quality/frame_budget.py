@@ -1,0 +1,106 @@
+"""The budget over the whole frame: per-material effects and the frame-wide knobs together
+(`--budget-ms` / `--budget-hz` with `--frame-knobs`, `rayvr bench budget`).
+
+Model
+-----
+For every point F of the knob grid (quality/frame_knobs.py) the per-material table is measured
+with F (budget.per_material_options: one render per rung of the ladder, all with F), so F's
+interaction with every effect is measured, not assumed: `reuse` changes what each traced effect
+costs, the denoiser's cost follows the effects it filters, a lower scale raises every error.
+F's best assignment is budget.solve_budget on F's table; the frame's pick is the F whose best
+has the least error. That is exact for the model: every F is solved exactly and compared.
+
+The pick is then rendered and measured (budget.choose_under_budget, which corrects its cost
+estimates a few rounds); when its F does not fit on the measured frame, the next-best F is
+tried. A pick that fits no budget is reported `within_budget: False`, never silently.
+
+`grid_best` is the exhaustive search of the measured grid itself: every F with every material on
+one rung, the renders the tables came from; the pick's measured FLIP against the best of those
+that fit is the solver's optimality gap as `rayvr bench budget` reports it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .budget import BUDGET_TOLERANCE, BudgetResult, MaterialOptions, choose_under_budget, measure_rungs, \
+    options_from_rungs, solve_budget
+from .frame_knobs import FrameKnobs
+
+FRAME_TRIES = 3  # points of the grid rendered, best predicted first, before a pick is reported over budget
+
+
+@dataclass
+class FrameCandidate:
+    """One point of the knob grid with what was measured under it."""
+
+    knobs: FrameKnobs
+    base_ms: float  # the all-raster frame with these knobs
+    materials: list[MaterialOptions]
+    rungs: dict  # {effect: (GPU ms, mean FLIP)} of the whole scene on that rung, with these knobs
+
+
+@dataclass
+class FramePick:
+    knobs: FrameKnobs
+    result: BudgetResult
+
+    @property
+    def feasible(self) -> bool:
+        return self.result.feasible
+
+
+def solve_frame_budget(candidates: list[FrameCandidate], budget_ms: float) -> FramePick:
+    """The knobs and per-material effects of least predicted error within `budget_ms`; when no
+    point fits, the cheapest frame of any point, infeasible."""
+    return ranked_picks(candidates, budget_ms)[0]
+
+
+def ranked_picks(candidates: list[FrameCandidate], budget_ms: float) -> list[FramePick]:
+    """Every point's exact best for `budget_ms`, the feasible ones first by predicted error
+    (then cost), then the infeasible ones cheapest first."""
+    if not candidates:
+        raise ValueError("the frame budget needs at least one point of the knob grid")
+    picks = [FramePick(c.knobs, solve_budget(c.materials, budget_ms, base_ms=c.base_ms)) for c in candidates]
+    return sorted(picks, key=lambda p: (not p.feasible, p.result.error if p.feasible else 0.0, p.result.total_ms))
+
+
+def measure_candidates(gl, scene, rig, reference_image, base, ppd: float, grid: list[FrameKnobs], repeat=10,
+                       progress=True, pool=None, measure_all=None) -> list[FrameCandidate]:
+    """The per-material tables of every point of `grid`."""
+    out = []
+    for knobs in grid:
+        rungs = measure_rungs(gl, scene, rig, reference_image, base, ppd, repeat=repeat, progress=progress,
+                              pool=pool, measure_all=measure_all, knobs=knobs)
+        base_ms, materials = options_from_rungs(scene, reference_image, base, rungs)
+        out.append(FrameCandidate(knobs, base_ms, materials,
+                                  {e: (ms, float(flip.mean())) for e, (ms, flip) in rungs.items()}))
+    return out
+
+
+def grid_best(candidates: list[FrameCandidate], budget_ms: float) -> dict | None:
+    """The best measured render of the grid (a point, every material on one rung) within
+    `budget_ms` (timer tolerance as the pick's), or None when none fits."""
+    fitting = [(flip, ms, c.knobs, e) for c in candidates for e, (ms, flip) in c.rungs.items()
+               if ms <= budget_ms * BUDGET_TOLERANCE]
+    if not fitting:
+        return None
+    flip, ms, knobs, effect = min(fitting, key=lambda t: (t[0], t[1]))
+    return {"flip": flip, "gpu_ms": ms, "knobs": knobs.label, "effect": effect}
+
+
+def choose_frame_under_budget(gl, scene, rig, budget_ms: float, base, reference_image, ppd: float,
+                              candidates: list[FrameCandidate], repeat=10, progress=True, pool=None) -> dict:
+    """Render the best points' picks (at most FRAME_TRIES) until one fits `budget_ms` on the
+    measured frame; the pick with its knobs, or the best tried, `within_budget` False."""
+    tried = []
+    for pick in ranked_picks(candidates, budget_ms)[:FRAME_TRIES]:
+        c = next(c for c in candidates if c.knobs == pick.knobs)
+        got = choose_under_budget(gl, scene, rig, budget_ms, base, reference_image, ppd, repeat, progress, pool,
+                                  options=(c.base_ms, c.materials), knobs=c.knobs)
+        got = {**got, "knobs": c.knobs}
+        tried.append(got)
+        if got["within_budget"]:
+            break
+    fitting = [t for t in tried if t["within_budget"]]
+    best = min(fitting, key=lambda t: t["measured_flip"]) if fitting else min(tried, key=lambda t: t["measured_ms"])
+    return {**best, "points_tried": len(tried)}

@@ -1,0 +1,122 @@
+"""The frame-wide knobs a budget pick chooses beside the per-material effects: the stereo mode,
+samples per pixel, the denoiser, the MSAA count and the resolution scale. One `FrameKnobs` is one
+value of each; a grid (`--frame-knobs "stereo=dual,reuse;spp=1,4;denoise=off,on"`) is every
+combination of the values given, each knob left out at its default.
+
+A knob changes what every material's effect costs and how much error it leaves (`reuse` shades
+the right eye from the left's, a lower scale raises every error, the denoiser's cost follows the
+pixels it filters), so nothing is assumed about how knobs and effects combine: the budget
+measures each material's table under each point of the grid (quality/frame_budget.py).
+"""
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, fields, replace
+
+from ..frame.stereo import STEREO
+from ..frame.cameras.sampling import MSAA
+
+MAX_SPP = 64  # a budget pick accumulates at most this many samples an image
+SCALES = (0.5, 1.0)  # a resolution scale lies in [0.5, 1]: below half the upscaled image is a blur
+ON_OFF = {"on": True, "off": False, "true": True, "false": False, "1": True, "0": False}
+
+
+@dataclass(frozen=True)
+class FrameKnobs:
+    stereo: str = "dual"
+    spp: int = 1
+    denoise: bool = False
+    msaa: int = 1
+    scale: float = 1.0
+
+    @property
+    def label(self) -> str:
+        return " ".join(f"{f.name}={_text(getattr(self, f.name))}" for f in fields(self))
+
+    def render_table(self) -> dict:
+        """The knobs that are render options, as a config's [render] table holds them."""
+        return {"stereo": self.stereo, "denoise": self.denoise, "msaa": self.msaa}
+
+    def settings(self, base):
+        """`base` RenderSettings with these knobs' render options."""
+        return replace(base, **self.render_table())
+
+    def variant(self, knob: str, value, config, base_settings):
+        """A measured variant (quality/measure.py) rendered with these knobs."""
+        from .measure import Variant
+
+        return Variant(knob, value, config, self.settings(base_settings), scale=self.scale, spp=self.spp)
+
+    def capture_flags(self, size: tuple[int, int] | None = None) -> str:
+        """The capture flags the config's [render] table cannot hold: samples per pixel, and the
+        scaled per-eye size (the frame was measured rendered at it and shown upscaled)."""
+        out = [f"--spp {self.spp}"] if self.spp > 1 else []
+        if self.scale != 1.0 and size is not None:
+            out.append(f"--size {max(1, round(size[0] * self.scale))}x{max(1, round(size[1] * self.scale))}")
+        return " ".join(out)
+
+
+DEFAULT_KNOBS = FrameKnobs()
+
+
+def _text(v) -> str:
+    return ("on" if v else "off") if isinstance(v, bool) else f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _one(name: str, text: str):
+    """One knob value from its text; ValueError naming the knob and what it takes."""
+    t = text.strip().lower()
+    if name == "stereo":
+        if t not in STEREO.choices:
+            raise ValueError(f"frame knob stereo: {text!r} is not one of {', '.join(STEREO.choices)}")
+        return t
+    if name == "denoise":
+        if t not in ON_OFF:
+            raise ValueError(f"frame knob denoise: {text!r} is not on or off")
+        return ON_OFF[t]
+    if name in ("spp", "msaa"):
+        try:
+            v = int(t)
+        except ValueError:
+            v = None
+        allowed = MSAA.choices if name == "msaa" else range(1, MAX_SPP + 1)
+        if v is None or v not in allowed:
+            what = ", ".join(map(str, MSAA.choices)) if name == "msaa" else f"a whole number from 1 to {MAX_SPP}"
+            raise ValueError(f"frame knob {name}: {text!r} is not {what}")
+        return v
+    try:
+        v = float(t)
+    except ValueError:
+        v = math.nan
+    if not SCALES[0] <= v <= SCALES[1]:
+        raise ValueError(f"frame knob scale: {text!r} is not a number from {SCALES[0]:g} to {SCALES[1]:g}")
+    return v
+
+
+def parse_grid(text: str | None) -> list[FrameKnobs]:
+    """`"stereo=dual,reuse;spp=1,4"` -> every combination (knobs not named at their default);
+    None or "" -> [DEFAULT_KNOBS]. ValueError with one line naming what is wrong."""
+    names = [f.name for f in fields(FrameKnobs)]
+    values: dict = {}
+    for part in (text or "").split(";"):
+        if not part.strip():
+            continue
+        name, eq, rest = part.partition("=")
+        name = name.strip().lower()
+        if not eq or name not in names:
+            raise ValueError(f"frame knobs: {part.strip()!r} is not KNOB=VALUE[,VALUE...] with a knob of "
+                             f"{', '.join(names)}")
+        if name in values:
+            raise ValueError(f"frame knobs: {name} is given twice")
+        got = [_one(name, v) for v in rest.split(",") if v.strip()]
+        if not got:
+            raise ValueError(f"frame knobs: {name} has no values")
+        values[name] = list(dict.fromkeys(got))
+    axes = [values.get(n, [getattr(DEFAULT_KNOBS, n)]) for n in names]
+    return [FrameKnobs(**dict(zip(names, combo))) for combo in itertools.product(*axes)]
+
+
+def budget_ms_of(hz: float) -> float:
+    """A display rate's frame time: 90 Hz -> 11.1 ms."""
+    return 1000.0 / hz
