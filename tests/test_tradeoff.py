@@ -32,7 +32,7 @@ def test_sweep_rows_are_the_metrics_of_the_rendered_images(gl, room):
     ref = T.Variant("reference", "ref", reference_config(scene, quick=True))
     raster = T.Variant("effect", "raster", parse_config({"default": "raster"}))
     rows, measured = T.run_sweep(gl, scene, rig, ref, [raster], metrics.DEFAULT_PPD, repeat=1, progress=False)
-    (row,) = rows
+    floor, row = rows
 
     def render(variant):
         with Renderer(scene, variant.config, gl=gl, settings=variant.settings) as r:
@@ -46,6 +46,15 @@ def test_sweep_rows_are_the_metrics_of_the_rendered_images(gl, room):
     assert mse > 0  # the reference traces what raster does not
     assert row["psnr"] == pytest.approx(10 * np.log10(1 / mse), rel=1e-9)
     assert 0.01 < row["flip"] < 1 and row["ssim"] < 1
+    # the first row: the reference against itself drawn with the noise floor's seed
+    from dataclasses import replace
+
+    from rayvr.quality.measure import NOISE_FLOOR_SEED
+
+    again = render(replace(ref, settings=replace(ref.settings, seed=NOISE_FLOOR_SEED)))
+    floor_mse = ((ref_image.astype(np.float64) - again.astype(np.float64)) ** 2).mean() / 255.0 ** 2
+    assert floor["knob"] == "noise floor" and floor_mse > 0
+    assert floor["psnr"] == pytest.approx(10 * np.log10(1 / floor_mse), rel=1e-9)
 
 
 def test_noise_knobs_are_variants_drawing_other_samples_than_the_reference():
@@ -53,11 +62,12 @@ def test_noise_knobs_are_variants_drawing_other_samples_than_the_reference():
     renders them; tests/test_accumulate.py shows more samples converge)."""
     base = load_config("rayvr/assets/default_room.toml")
     vs = T.noise_variants(base, quick=True)
-    assert [v.label for v in vs] == ["denoise.iterations=0", "denoise.iterations=4", "spp=4", "spp+denoise=4"]
+    assert [v.label for v in vs] == ["denoise.iterations=0", "denoise.iterations=4", "spp=4", "spp+denoise=4",
+                                     "temporal=13"]  # temporal: measure()'s 3 warm-up frames and 10 timed ones
     assert all(v.settings.seed != T.COMPARE_SETTINGS.seed for v in vs)
     assert vs[1].settings.denoise and vs[1].settings.denoise_iterations == 4 and not vs[0].settings.denoise
-    assert [v.spp for v in vs] == [1, 1, 4, 4] and vs[3].settings.denoise
-    assert len(T.noise_variants(base)) == 10
+    assert [v.spp for v in vs] == [1, 1, 4, 4, 1] and vs[3].settings.denoise and vs[4].settings.temporal
+    assert len(T.noise_variants(base)) == 11
     # A scene whose config samples nothing gets its noise knobs on a sampled rung.
     scene = load()
     assert T.noisy_base(scene, base) is base
@@ -121,14 +131,33 @@ def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
     result = quick_bench(area, tmp_path, timeout=900)
     assert result["rows"] and result["meta"]["gl_renderer"]
     assert (tmp_path / f"{area}.md").exists()
+    rows = result["rows"]
+    assert {r["view"] for r in rows} == {"fixed", "pose 0"}  # --quick: the fixed view and one head pose
     if area == "tradeoff":
+        assert {r["knob"] for r in rows} >= {"effect", "resolution_scale", "denoise.iterations", "spp", "spp+denoise",
+                                             "temporal", "stereo", "msaa", "camera", "traversal", "bvh_build",
+                                             "noise floor"}
+        for view in ("fixed", "pose 0"):
+            mine = [r for r in rows if r["view"] == view]
+            (floor,) = [r for r in mine if r["knob"] == "noise floor"]
+            assert floor["flip"] > 0  # another seed's reference: noise, never the same image
+            # layouts and builds change speed only: their images are the base config's at full size
+            (full,) = [r for r in mine if r["label"] == "resolution_scale=1.0"]
+            for r in mine:
+                if r["knob"] in ("traversal", "bvh_build"):
+                    assert r["flip"] == pytest.approx(full["flip"], abs=1e-9), r["label"]
         pytest.importorskip("matplotlib")
-        assert list(tmp_path.glob("*.png"))
-        assert {r["knob"] for r in result["rows"]} >= {"effect", "resolution_scale", "denoise.iterations", "spp",
-                                                       "spp+denoise"}
+        assert {p.name for p in tmp_path.glob("*.png")} >= {"tradeoff_default.png", "tradeoff_default_pose0.png"}
     else:
-        for row in result["rows"]:
+        for row in rows:
             assert row["assignment"] and (row["measured_ms"] > 0)
+            assert row["knobs"] and row["grid_points"] == 1
+            assert (tmp_path / f"budget_default{'' if row['view'] == 'fixed' else '_pose0'}_"
+                    f"{row['budget_ms']:.4g}ms.toml").exists()
+            best = row["grid_best"]
+            if best is not None:  # the gap is the pick's FLIP above the grid's best that fits
+                assert row["optimality_gap"] == pytest.approx(row["measured_flip"] - best["flip"])
+        assert "| default | fixed | 11.11 ms (90 Hz) |" in (tmp_path / "budget.md").read_text()
 
 
 @needs_flip
@@ -158,3 +187,7 @@ def test_reference_and_variants_draw_different_samples():
     assert ref.settings.seed != COMPARE_SETTINGS.seed
     assert dataclasses.replace(ref.settings, seed=COMPARE_SETTINGS.seed) == COMPARE_SETTINGS
     assert ref.settings.seed not in {v.settings.seed for v in variants(scene, base, quick=True)}
+    from rayvr.quality.measure import NOISE_FLOOR_SEED
+
+    assert NOISE_FLOOR_SEED != ref.settings.seed  # the noise floor is the reference with other samples
+    assert NOISE_FLOOR_SEED not in {v.settings.seed for v in variants(scene, base, quick=True)}

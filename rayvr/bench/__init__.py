@@ -135,7 +135,7 @@ def _sweep_arguments(args) -> dict:
 def _tradeoff(args, out, camera_from_args):
     from . import tradeoff
 
-    tradeoff.run(out, quick=args.quick, **_sweep_arguments(args))
+    tradeoff.run(out, quick=args.quick, **_sweep_arguments(args), **_views(args))
 
 
 def _budget(args, out, camera_from_args):
@@ -144,7 +144,15 @@ def _budget(args, out, camera_from_args):
 
     budgets = args.budget_ms or [budget_ms_of(hz) for hz in args.budget_hz or ()] or tradeoff.BUDGETS_MS
     tradeoff.run_budget(out, budgets=tuple(budgets), quick=args.quick, grid=parse_grid(args.frame_knobs),
-                        **_sweep_arguments(args))
+                        **_sweep_arguments(args), **_views(args))
+
+
+def _views(args) -> dict:
+    """tradeoff and budget: the random head poses beside the fixed view (--poses; one with --quick)."""
+    from .tradeoff import SWEEP_POSES
+
+    return {"poses": args.poses if args.poses is not None else (1 if args.quick else SWEEP_POSES),
+            "pose_seed": args.pose_seed}
 
 
 def _vr(args, out, camera_from_args):

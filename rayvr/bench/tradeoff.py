@@ -21,8 +21,8 @@ from ..quality import metrics
 from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 from ..frame.effects import traced_effects
 from ..scene.materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
-from ..quality.measure import (BENCH_QUALITY, COMPARE_SETTINGS, Measured, RendererPool, Variant, local_measurer, measure,
-                       reference_variant)
+from ..quality.measure import (BENCH_QUALITY, COMPARE_SETTINGS, NOISE_FLOOR_SEED, WARMUP_FRAMES, Measured, RendererPool,
+                               Variant, local_measurer, measure, reference_variant)
 
 
 def material_mask(scene, material_map: np.ndarray, names) -> np.ndarray | None:
@@ -43,7 +43,7 @@ def error_row(ref: Measured, test: Measured, scene, variant: Variant, ppd: float
 # ------------------------------------------------------------------------------- the knobs
 
 
-def variants(scene, base: MaterialConfig, quick: bool = False) -> list[Variant]:
+def variants(scene, base: MaterialConfig, quick: bool = False, repeat: int = 10) -> list[Variant]:
     """Every knob rayvr has today, each swept along its range (effects not implemented yet are
     left out; they appear here as they land)."""
     out: list[Variant] = []
@@ -62,7 +62,22 @@ def variants(scene, base: MaterialConfig, quick: bool = False) -> list[Variant]:
                                    touches=touched))
     for s in ([0.5, 1.0] if quick else [0.5, 0.75, 1.0]):
         out.append(Variant("resolution_scale", s, base, scale=s))
-    return out + noise_variants(noisy_base(scene, base), quick)
+    return out + frame_variants(base, quick) + noise_variants(noisy_base(scene, base), quick, repeat)
+
+
+LAYOUTS = ("bvh2", "bvh4", "bvh8", "cwbvh")  # every ray kind through one layout: the speed of each (images equal)
+
+
+def frame_variants(base: MaterialConfig, quick: bool = False) -> list[Variant]:
+    """The frame-wide knobs: the stereo mode, MSAA, the foveated camera model, and the BVH layout
+    and build (speed only: every layout and build returns the same hits, so the same image)."""
+    out = [Variant("stereo", m, base, replace(COMPARE_SETTINGS, stereo=m)) for m in ("warp", "reuse")]
+    out += [Variant("msaa", n, base, replace(COMPARE_SETTINGS, msaa=n)) for n in ((4,) if quick else (4, 16))]
+    out.append(Variant("camera", "foveated", base, camera="foveated"))
+    out += [Variant("traversal", layout, base, replace(COMPARE_SETTINGS, traversal=(layout,) * 3))
+            for layout in (LAYOUTS[:2] if quick else LAYOUTS)]
+    out.append(Variant("bvh_build", "sbvh", base, replace(COMPARE_SETTINGS, bvh_build="sbvh")))
+    return out
 
 
 NOISE_SEED = 1  # the noise knobs draw other samples than the other variants (and the reference: REFERENCE_SEED)
@@ -78,9 +93,10 @@ def noisy_base(scene, base: MaterialConfig) -> MaterialConfig:
     return config_with(base, default=sampled[-1], materials={n: sampled[-1] for n in base.by_name})
 
 
-def noise_variants(base: MaterialConfig, quick: bool = False) -> list[Variant]:
-    """The denoiser (off, then 1..5 à-trous iterations) at one sample a pixel, and accumulated
-    samples per pixel with and without it (the speed of a still view's convergence)."""
+def noise_variants(base: MaterialConfig, quick: bool = False, repeat: int = 10) -> list[Variant]:
+    """The denoiser (off, then 1..5 à-trous iterations) at one sample a pixel, accumulated samples
+    per pixel with and without it (the speed of a still view's convergence), and temporal
+    accumulation on a still view (its image holds every frame measure() renders, one frame's cost)."""
     plain = replace(COMPARE_SETTINGS, seed=NOISE_SEED)
     out = [Variant("denoise.iterations", k, base,
                    replace(plain, denoise=k > 0, denoise_iterations=max(k, 1)))
@@ -88,16 +104,23 @@ def noise_variants(base: MaterialConfig, quick: bool = False) -> list[Variant]:
     for spp in ((4,) if quick else (4, 16)):  # (1 sample: the denoise.iterations rows 0 and 4)
         out.append(Variant("spp", spp, base, plain, spp=spp))
         out.append(Variant("spp+denoise", spp, base, replace(plain, denoise=True), spp=spp))
+    out.append(Variant("temporal", WARMUP_FRAMES + repeat, base, replace(plain, temporal=True)))
     return out
 
 
 def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd: float, repeat=10,
               progress=True, with_flip=True, pool: RendererPool | None = None,
               measure_all=None) -> tuple[list[dict], Measured]:
-    """The reference measured here, the variants through `measure_all` (default: here too)."""
+    """The reference measured here, the variants through `measure_all` (default: here too). The
+    first row is the noise floor: the reference rendered again with other samples
+    (NOISE_FLOOR_SEED), the error two converged images differ by, below which no variant's means anything."""
     ref = measure(gl, scene, rig, reference, repeat, pool=pool)
+    again = replace(reference, knob="noise floor", value="reference, another seed",
+                    settings=replace(reference.settings, seed=NOISE_FLOOR_SEED))
+    floor = measure(gl, scene, rig, again, repeat, pool=pool)
+    rows = [{"scene": scene.name, "knob": again.knob, "value": again.value, "label": again.label,
+             "gpu_ms": floor.gpu_ms, **error_row(ref, floor, scene, again, ppd, with_flip), "reference_ms": ref.gpu_ms}]
     measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
-    rows = []
     bar = None
     if progress:
         from tqdm import tqdm
@@ -164,24 +187,51 @@ def _bench_gl(out_dir, backend):
         gl.release()
 
 
+def views_of(name: str, scene, rig, poses: int, pose_seed: int) -> list[tuple[str, object]]:
+    """("fixed", the bench view) and ("pose I", a rig at seeded random head pose I inside the
+    scene: bench vr's poses) for I < poses."""
+    from ..frame.cameras.rig import StereoRig
+    from .head_poses import draw_poses
+
+    heads = draw_poses(scene, name, poses, pose_seed) if poses else []
+    return [("fixed", rig)] + [(f"pose {h.index}", StereoRig(h.pose, ipd=rig.ipd, fov_y=rig.fov_y, near=rig.near,
+                                                             size=rig.size)) for h in heads]
+
+
+def _views_of_setups(scenes, size, base_config, skipped, quick, poses, pose_seed):
+    """_setups' (name, scene, rig, base, reference) for each view of each scene, with the view's name."""
+    for name, scene, fixed, base, reference in _setups(scenes, size, base_config, skipped, quick):
+        for view, rig in views_of(name, scene, fixed, poses, pose_seed):
+            yield name, scene, rig, base, reference, view
+
+
+def view_suffix(view: str) -> str:
+    """A file name's part for a view: "" for the fixed view, "_pose3" for pose 3."""
+    return "" if view == "fixed" else "_" + view.replace(" ", "")
+
+
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
         base_config=None, backend=None, progress=True, workers=None, address=None,
-        connect_timeout=DEFAULT_CONNECT_TIMEOUT_S) -> dict:
-    """Sweep every knob on each scene against its reference; write tradeoff.json/.md and plots.
+        connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=None) -> dict:
+    """Sweep every knob on each scene, from its fixed view and from `poses` random head poses,
+    each against the reference of the same view; write tradeoff.json/.md and one plot per view.
     `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here."""
+    from .head_poses import POSE_SEED
     from .report import device_meta, write_report
 
+    pose_seed = POSE_SEED if pose_seed is None else pose_seed
     rows, skipped = [], {}
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
-        for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
+        for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
+                                                                         poses, pose_seed):
             with RendererPool(gl) as pool:
-                r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick), ppd, repeat, progress,
-                                 with_flip=True, pool=pool, measure_all=_measurer(cluster, name, rig, repeat))
+                r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick, repeat), ppd, repeat,
+                                 progress, with_flip=True, pool=pool, measure_all=_measurer(cluster, name, rig, repeat))
             for row in r:
-                row["scene"] = name
+                row["scene"], row["view"] = name, view
             rows += r
         meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
-                "ppd": ppd, "skipped": skipped, "workers": workers or 0,
+                "ppd": ppd, "skipped": skipped, "workers": workers or 0, "poses": poses, "pose_seed": pose_seed,
                 "error": "vs the scene's reference (rayvr.quality.reference_images); "
                 "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
     result = {"meta": meta, "rows": rows}
@@ -190,12 +240,13 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     return result
 
 
+SWEEP_POSES = 2  # tradeoff and budget: random head poses beside the fixed view unless --poses says
 BUDGETS_MS = (1000.0 / 90, 1000.0 / 120)  # bench budget's frame budgets unless --budget-ms gives others: 90, 120 Hz
 
 
 def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
                ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False, workers=None,
-               address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, grid=None) -> dict:
+               address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, grid=None, poses=0, pose_seed=None) -> dict:
     """For each scene and budget: the pick (frame-wide knobs of `grid` and the effect per
     material), its predicted and measured ms and error, the best render of the measured grid that
     fits (every point of `grid` with every material on one rung) and the pick's FLIP above it
@@ -208,29 +259,34 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     from ..util.output import atomic_write_bytes, write_png
     from .report import device_meta, markdown, write_report
 
+    from .head_poses import POSE_SEED
+
+    pose_seed = POSE_SEED if pose_seed is None else pose_seed
     grid = grid or [DEFAULT_KNOBS]
     rows, grid_rows, skipped = [], [], {}
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
-        for name, scene, rig, base, reference in _setups(scenes, size, base_config, skipped, quick):
+        for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
+                                                                         poses, pose_seed):
             with RendererPool(gl) as pool:
                 ref = measure(gl, scene, rig, reference, repeat, pool=pool)
                 candidates = measure_candidates(gl, scene, rig, ref, base, ppd, grid, repeat=repeat, progress=progress,
                                                 pool=pool, measure_all=_measurer(cluster, name, rig, repeat))
                 picks = [choose_frame_under_budget(gl, scene, rig, b, base, ref, ppd, candidates, repeat, progress,
                                                    pool) for b in budgets]
-            grid_rows += [{"scene": name, "knobs": c.knobs.label, "effect": e, "gpu_ms": ms, "flip": flip}
+            grid_rows += [{"scene": name, "view": view, "knobs": c.knobs.label, "effect": e, "gpu_ms": ms, "flip": flip}
                           for c in candidates for e, (ms, flip) in c.rungs.items()]
             for b, pick in zip(budgets, picks):
                 best = grid_best(candidates, b)
-                rows.append({"scene": name, "reference_ms": ref.gpu_ms,
+                rows.append({"scene": name, "view": view, "reference_ms": ref.gpu_ms,
                              **{k: v for k, v in pick.items() if k not in ("config", "image", "knobs")},
                              "knobs": pick["knobs"].label, "grid_points": len(grid), "grid_best": best,
                              "optimality_gap": None if best is None else pick["measured_flip"] - best["flip"]})
-                stem = f"{out_dir}/budget_{name}_{b:.4g}ms"
+                stem = f"{out_dir}/budget_{name}{view_suffix(view)}_{b:.4g}ms"
                 write_png(f"{stem}.png", pick["image"])
                 atomic_write_bytes(f"{stem}.toml", pick_toml(scene, pick, pick["config"], size).encode())
         meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
                 "ppd": ppd, "skipped": skipped, "workers": workers or 0, "grid": [k.label for k in grid],
+                "poses": poses, "pose_seed": pose_seed,
                 "model": "per point of the frame-knob grid, per material: extra GPU ms of each effect over all-raster "
                          "and mean FLIP over its pixels vs the reference, measured with that point's knobs; total "
                          "error = sum importance x coverage x error; exact multiple-choice knapsack per point, the "
@@ -250,11 +306,11 @@ def budget_headline(rows: list[dict], meta: dict) -> str:
 
     lines = [f"# The best image within each budget ({meta.get('gl_renderer', '?')}, "
              f"2x{meta['per_eye_size'][0]}x{meta['per_eye_size'][1]})", "",
-             "| scene | budget | mean FLIP | measured ms | within | frame knobs | grid's best FLIP within | gap |",
-             "|---|---|---|---|---|---|---|---|"]
+             "| scene | view | budget | mean FLIP | measured ms | within | frame knobs | grid's best FLIP within | gap |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         best = r.get("grid_best") or {}
-        lines.append(f"| {r['scene']} | {r['budget_ms']:.4g} ms ({1000 / r['budget_ms']:.0f} Hz) | "
+        lines.append(f"| {r['scene']} | {r['view']} | {r['budget_ms']:.4g} ms ({1000 / r['budget_ms']:.0f} Hz) | "
                      f"{r['measured_flip']:.4f} | {r['measured_ms']:.2f} | {'yes' if r['within_budget'] else 'NO'} | "
                      f"{r['knobs']} | {num(best.get('flip'), '.4f')} | {num(r.get('optimality_gap'), '+.4f')} |")
     lines += ["", "gap: the pick's mean FLIP minus the best render of the measured grid (every point of the "
@@ -278,8 +334,8 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir) -> list:
     from .report import pareto_front
 
     written = []
-    for scene in dict.fromkeys(r["scene"] for r in grid_rows):
-        mine = [r for r in grid_rows if r["scene"] == scene]
+    for scene, view in dict.fromkeys((r["scene"], r["view"]) for r in grid_rows):
+        mine = [r for r in grid_rows if (r["scene"], r["view"]) == (scene, view)]
         fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
         for knobs in dict.fromkeys(r["knobs"] for r in mine):
             pts = [(r["gpu_ms"], r["flip"]) for r in mine if r["knobs"] == knobs]
@@ -287,7 +343,7 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir) -> list:
         front = [mine[i] for i in pareto_front([(r["gpu_ms"], r["flip"]) for r in mine])]
         ax.step([r["gpu_ms"] for r in front], [r["flip"] for r in front], where="post", color="k", lw=1,
                 label="Pareto front of the grid")
-        for r in (r for r in rows if r["scene"] == scene):
+        for r in (r for r in rows if (r["scene"], r["view"]) == (scene, view)):
             ax.axvline(r["budget_ms"], color="grey", lw=0.8, ls="--")
             ax.scatter([r["measured_ms"]], [r["measured_flip"]], marker="*", s=160, color="crimson", zorder=5)
             ax.annotate(f"pick at {r['budget_ms']:.3g} ms", (r["measured_ms"], r["measured_flip"]), fontsize=7,
@@ -295,11 +351,11 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir) -> list:
         ax.set_xscale("log")
         ax.set_xlabel("GPU ms per stereo frame (timer queries)")
         ax.set_ylabel("mean FLIP vs the converged reference")
-        ax.set_title(f"{scene}: the budget's picks (stars) against every render of its grid", fontsize=10)
+        ax.set_title(f"{scene}, {view} view: the budget's picks (stars) against every render of its grid", fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6, ncol=2)
         fig.tight_layout()
-        path = Path(out_dir) / f"budget_{scene}.png"
+        path = Path(out_dir) / f"budget_{scene}{view_suffix(view)}.png"
         fig.savefig(path)
         plt.close(fig)
         written.append(path)
@@ -307,8 +363,9 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir) -> list:
 
 
 def plot_tradeoff(rows: list[dict], out_dir) -> list:
-    """One picture per scene: every variant as GPU ms vs mean FLIP, coloured by knob, with the
-    Pareto front over all of them (the settings worth choosing). Needs matplotlib."""
+    """One picture per scene and view: every variant as GPU ms vs mean FLIP, coloured by knob, the
+    Pareto front over all of them (the settings worth choosing) and the noise floor (the reference
+    against itself with other samples) as a dashed line. Needs matplotlib."""
     from pathlib import Path
 
     try:
@@ -321,8 +378,13 @@ def plot_tradeoff(rows: list[dict], out_dir) -> list:
     from .report import pareto_front
 
     written = []
-    for scene in dict.fromkeys(r["scene"] for r in rows):
-        mine = [r for r in rows if r["scene"] == scene and isinstance(r.get("flip"), (int, float))]
+    for scene, view in dict.fromkeys((r["scene"], r.get("view", "fixed")) for r in rows):
+        here = [r for r in rows if r["scene"] == scene and r.get("view", "fixed") == view
+                and isinstance(r.get("flip"), (int, float))]
+        floor = [r["flip"] for r in here if r["knob"] == "noise floor"]
+        mine = [r for r in here if r["knob"] != "noise floor"]
+        if not mine:
+            continue
         fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
         for knob in dict.fromkeys(r["knob"] for r in mine):
             pts = [(r["gpu_ms"], r["flip"]) for r in mine if r["knob"] == knob]
@@ -332,14 +394,16 @@ def plot_tradeoff(rows: list[dict], out_dir) -> list:
                 label="Pareto front")
         for r in front:
             ax.annotate(r["label"], (r["gpu_ms"], r["flip"]), fontsize=6, xytext=(3, 3), textcoords="offset points")
+        if floor:
+            ax.axhline(floor[0], color="grey", ls="--", lw=1, label=f"noise floor (reference vs reference) {floor[0]:.4f}")
         ax.set_xscale("log")
         ax.set_xlabel("GPU ms per stereo frame (timer queries)")
-        ax.set_ylabel("mean FLIP vs reference (lower is better)")
-        ax.set_title(f"{scene}: speed vs accuracy, every knob", fontsize=10)
+        ax.set_ylabel("mean FLIP vs the converged reference (lower is better)")
+        ax.set_title(f"{scene}, {view} view: speed vs accuracy, every knob", fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, ncol=2)
         fig.tight_layout()
-        path = Path(out_dir) / f"tradeoff_{scene}.png"
+        path = Path(out_dir) / f"tradeoff_{scene}{view_suffix(view)}.png"
         fig.savefig(path)
         plt.close(fig)
         written.append(path)

@@ -135,9 +135,11 @@ def add_parser(sub) -> None:
     b.add_argument("--cameras", type=_names,
                    help="vr: the camera models, comma-separated among primary's --configs names (default "
                         "raster_gbuffer,pinhole,distorted_chromatic,foveated,wide_210x130,dof_0.5m)")
-    b.add_argument("--poses", type=_count(1, MAX_POSES), help="vr: random head poses per scene (default 8; --quick 2); lights: (default 2; --quick 1)")
+    b.add_argument("--poses", type=_count(0, MAX_POSES), help="vr: random head poses per scene (default 8; --quick 2); "
+                   "lights: (default 2; --quick 1); tradeoff, budget: the head poses measured beside the fixed view "
+                   "(default 2; --quick 1; 0: the fixed view only)")
     b.add_argument("--pose-seed", type=_count(0, MAX_SEED), default=POSE_SEED,
-                   help=f"vr: the seed the head poses are drawn from (default {POSE_SEED})")
+                   help=f"vr, tradeoff, budget: the seed the head poses are drawn from (default {POSE_SEED})")
     add_camera_model_arguments(b)
     settings_mod.add_arguments(b, COMMAND)
     b.set_defaults(func=cmd_bench)

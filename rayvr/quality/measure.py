@@ -25,6 +25,8 @@ def _compare_settings():
 # The reference draws other random numbers than the variants it judges: with a shared seed a
 # variant at a sample count shares the reference's noise and scores better than it should.
 REFERENCE_SEED = 0x5EED0001
+NOISE_FLOOR_SEED = REFERENCE_SEED + 1  # the reference again with other samples: the error floor of every plot
+WARMUP_FRAMES = 3  # frames measure() renders before it times any
 
 
 def reference_variant(config: MaterialConfig) -> "Variant":
@@ -47,6 +49,7 @@ class Variant:
     scale: float = 1.0  # render at scale x size, compare upscaled to full size
     touches: tuple = ()  # material names this variant changes (the error mask); () = whole image
     spp: int = 1  # samples accumulated per image (its cost: spp x the GPU ms of one sample)
+    camera: str | None = None  # the rig's camera model instead of its own (a registered name)
 
     @property
     def label(self) -> str:
@@ -60,7 +63,7 @@ COMPARE_SETTINGS = _compare_settings()
 class Measured:
     gpu_ms: float
     image: np.ndarray  # uint8 HxWx3, both eyes side by side, full size
-    material: np.ndarray  # uint32 HxW material index per pixel (same layout)
+    material: np.ndarray | None  # uint32 HxW material index per pixel (same layout); None: --stereo warp
 
 
 def config_for_assignment(base: MaterialConfig, scene, effects: dict) -> MaterialConfig:
@@ -104,7 +107,7 @@ class RendererPool:
         self.release()
 
 
-def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmup: int = 3,
+def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmup: int = WARMUP_FRAMES,
             pool: RendererPool | None = None) -> Measured:
     w, h = rig.size
     small = (max(1, round(w * variant.scale)), max(1, round(h * variant.scale)))
@@ -113,10 +116,14 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
     r = pool.get(scene, variant.settings, variant.config)
     try:
         sized = rig.with_size(small)
+        if variant.camera is not None:
+            sized = replace(sized, camera=variant.camera)
         r.warm_up(sized)
         rigs = [sized] * (warmup + repeat)
         totals, last = [], None
-        for i, frame in enumerate(r.render_sequence(rigs, aux=("material",), spp=variant.spp)):
+        # warp synthesizes the right eye's colour alone: its material map is the reference's to give
+        aux = () if variant.settings.stereo == "warp" else ("material",)
+        for i, frame in enumerate(r.render_sequence(rigs, aux=aux, spp=variant.spp)):
             if i >= warmup:  # an image of spp samples costs spp frames (their last one timed)
                 totals.append(sum(frame.timings.values()) * variant.spp)
             last = frame
@@ -124,12 +131,14 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         if own:
             pool.release()
     image = np.hstack([last.left.color, last.right.color])
-    material = np.hstack([last.left.aux["material"], last.right.aux["material"]])
+    material = np.hstack([last.left.aux["material"], last.right.aux["material"]]) if aux else None
     if small != (w, h):
         from PIL import Image
 
         image = np.asarray(Image.fromarray(image).resize((2 * w, h), Image.BILINEAR))
-        material = np.asarray(Image.fromarray(material.astype(np.int32)).resize((2 * w, h), Image.NEAREST)).astype(np.uint32)
+        if material is not None:
+            material = np.asarray(Image.fromarray(material.astype(np.int32)).resize((2 * w, h), Image.NEAREST)
+                                  ).astype(np.uint32)
     return Measured(float(np.median(totals)), image, material)
 
 
