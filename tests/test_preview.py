@@ -777,3 +777,56 @@ def test_the_hud_covers_a_small_share_of_a_small_window(worker):
     share, help_fits = worker(_window_hud_share, (640, 360))
     assert share < 0.25, share  # at 14 px it covered about half of it
     assert help_fits
+
+
+def _budget_mode():
+    """The preview in budget mode with the measuring stubbed (it is tested in test_frame_budget.py):
+    how often it picks, and what its HUD says."""
+    import glfw
+
+    from rayvr.app import budget_keeper
+    from rayvr.quality import budget
+    from rayvr.scene.materials import MaterialConfig
+
+    calls = []
+
+    def fake(renderer, rig, budget_ms, **kw):
+        calls.append(budget_ms)
+        return MaterialConfig(default="shadows"), {"budget_ms": budget_ms, "within_budget": True, "feasible": True,
+                                                   "predicted_ms": 9.0, "measured_ms": 9.5, "measured_flip": 0.04,
+                                                   "assignment": {"floor": "shadows"}}
+
+    budget.auto_config = fake
+    budget_keeper.SETTLE_S = 0.0
+    p = _preview(size=(64, 24), hud=True)
+    try:
+        out = {}
+        _press(p, glfw.KEY_K)
+        p.frame()
+        out["without"] = (len(calls), p.message)
+        p.apply_budget(1000 / 90)
+        p.frame()
+        p.frame()  # the view has not changed: no pick
+        out["start"] = (len(calls), [t for t, _ in p.hud_lines(p.last_layout, (64, 24))])
+        _press(p, glfw.KEY_K)
+        p.frame()
+        out["key"] = len(calls)
+        p.camera.move(0.0, 0.0, 1.0, 0.5 * p.renderer.scene.extent / p.camera.speed)  # half the scene away
+        p.frame()
+        p.frame()
+        out["moved"] = len(calls)
+        out["default"] = p.renderer.config.default
+        return out
+    finally:
+        p.close()
+
+
+def test_budget_mode_picks_at_start_on_k_and_when_the_view_changes(worker):
+    out = worker(_budget_mode)
+    assert out["without"][0] == 0 and "budget mode" in out["without"][1]
+    count, hud = out["start"]
+    assert count == 1
+    assert "budget 11.11 ms (90 Hz): within, measured 9.50 ms" in " ".join(hud), hud  # (lines wrap at spaces)
+    assert out["key"] == 2
+    assert out["moved"] == 3  # moved and settled (SETTLE_S 0 here): one pick, not one per frame
+    assert out["default"] == "shadows"  # the pick renders

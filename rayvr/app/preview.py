@@ -70,6 +70,7 @@ KEYS = (
     ("P", "record a camera path on / off (saved on stop; rayvr capture --path)"),
     ("F12", "screenshot: the files rayvr capture writes, plus the window"),
     ("L", "reload the material config now"),
+    ("K", "budget mode: pick effects for this view now (it does when the view has changed)"),
     ("F2", "HUD on / off"),
     ("H, F1", "this help"),
     ("Esc", "quit"),
@@ -288,6 +289,8 @@ class Controls:
             self.actions.append("screenshot")
         elif name == "L":
             self.actions.append("reload")
+        elif name == "K":
+            self.actions.append("repick")
         elif name == "F2":
             s.hud = not s.hud
         elif name in ("H", "F1"):
@@ -447,6 +450,7 @@ class Preview:
         self.recorded: list[Pose] | None = None
         self._record_clock = 0.0
         self.picked = None  # (material index, effect id) under the cursor
+        self.budget_keeper = None  # budget mode (--budget-ms): picks effects again as the view changes
         self.timings: dict = {}  # pass -> smoothed GPU ms
         self.frame_ms = 0.0
         self.frames = 0
@@ -538,12 +542,17 @@ class Preview:
     def apply_budget(self, budget_ms: float) -> str:
         """`--budget-ms`: measure this scene on this device from the current view, pick effects per
         material that fit the budget, and render with them (the config file's params stay the
-        base). Returns the summary the HUD and terminal show."""
+        base); from then on pick again when the view has changed and settled (app/budget_keeper.py).
+        Returns the summary the HUD and terminal show."""
         from ..quality.budget import auto_config, describe_pick
+        from .budget_keeper import BudgetKeeper
 
+        if self.budget_keeper is None or self.budget_keeper.budget_ms != budget_ms:
+            self.budget_keeper = BudgetKeeper(budget_ms, self.renderer.scene.extent)
         fb = self.glfw.get_framebuffer_size(self.window)
         rig = self.camera.rig(layout_for(self.state.stereo, fb, self.state.res_scale).eye_size)
         config, summary = auto_config(self.renderer, rig, budget_ms, progress=False)
+        self.budget_keeper.picked(self.camera.pose, summary)
         self.file_config = config
         self._apply_materials()
         text = describe_pick(summary)
@@ -582,6 +591,11 @@ class Preview:
             self.glfw.swap_interval(1 if self.state.vsync else 0)
         elif action == "reload":
             self.poll_config(force=True)
+        elif action == "repick":
+            if self.budget_keeper is None:
+                self.say("K picks effects again in budget mode (start with --budget-ms or --budget-hz)")
+            else:
+                self.apply_budget(self.budget_keeper.budget_ms)
         elif action == "quadtree":
             self.cycle_quadtree_thresholds()
         elif action == "record":
@@ -638,6 +652,8 @@ class Preview:
         for a in actions:
             if a != "screenshot":
                 self._do(a)
+        if self.budget_keeper is not None and "repick" not in actions and self.budget_keeper.due(self.camera.pose, now):
+            self.apply_budget(self.budget_keeper.budget_ms)  # the view changed and settled: a pick for it
         if self.state.override != self._applied_override:
             self._apply_materials()
         fb = self.glfw.get_framebuffer_size(self.window)
@@ -779,6 +795,8 @@ class Preview:
             lines.append((f"effect override: {s.override} on every material   (O: next; off: back to {src})", yellow))
         else:
             lines.append((f"effects from config: {src}", white))
+        if self.budget_keeper is not None:
+            lines.append((self.budget_keeper.hud_text(), yellow))
         if self.config_error:
             lines.append(("config error, keeping the last good config:", red))
             lines.append((self.config_error, red))
