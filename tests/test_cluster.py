@@ -373,6 +373,8 @@ def test_sweep_variants_measured_on_workers_match_this_process(gl, cluster):
         assert len({m.image.tobytes() for m in here}) > 1  # the variants differ
         rows, _ = run_sweep(gl, scene, rig, Variant("reference", "reference", load_config(None)), chosen, 13.3,
                             repeat=1, progress=False, with_flip=False, pool=pool, measure_all=remote)
+    floor, *rows = rows  # first the noise floor, measured here (the reference drawn with another seed)
+    assert floor["knob"] == "noise floor"
     assert [r["label"] for r in rows] == [v.label for v in chosen] and all(r["psnr"] > 0 for r in rows)
 
 

@@ -175,7 +175,7 @@ def test_cli_refuses_knobs_without_a_budget_or_twice_set(tmp_path):
 @needs_flip
 def test_reference_never_shares_a_variants_seed(gl, monkeypatch):
     """Every render a frame-wide budget pick measures: the reference's seed is its own."""
-    from rayvr.quality import budget, measure
+    from rayvr.quality import budget, frame_budget, measure
     from rayvr.renderer import Renderer
 
     seeds = []
@@ -185,7 +185,7 @@ def test_reference_never_shares_a_variants_seed(gl, monkeypatch):
         seeds.append((variant.knob, variant.settings.seed))
         return real(gl_, scene, rig, variant, *a, **k)
 
-    for module in (measure, budget):
+    for module in (measure, budget, frame_budget):
         monkeypatch.setattr(module, "measure", spy)
     monkeypatch.setattr(measure, "local_measurer", lambda gl_, scene, rig, repeat, pool=None: lambda vs, bar=None: (
         spy(gl_, scene, rig, v, repeat, pool=pool) for v in vs))
@@ -194,7 +194,7 @@ def test_reference_never_shares_a_variants_seed(gl, monkeypatch):
 
     with Renderer(None, gl=gl) as r:
         rig = StereoRig.for_scene(r.scene, size=(16, 12))
-        budget.auto_config(r, rig, 50.0, repeat=1, progress=False, grid=parse_grid("stereo=dual,reuse"))
+        frame_budget.auto_config(r, rig, 50.0, repeat=1, progress=False, grid=parse_grid("stereo=dual,reuse"))
     reference = [s for knob, s in seeds if knob == "reference"]
     variants = [s for knob, s in seeds if knob != "reference"]
     assert len(reference) == 1 and variants

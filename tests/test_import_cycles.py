@@ -41,6 +41,7 @@ LAYERS = (
     ("rayvr.scene.materials", "rayvr.scene.defaults", "rayvr.scene.gpu_scene", "rayvr.reference.denoise", "rayvr.reference.shading",
      "rayvr.renderer", "rayvr.frame.readback", "rayvr.app.views", "rayvr.app.capture_files", "rayvr.app.capture",
      "rayvr.quality.metrics", "rayvr.quality.reference_images", "rayvr.quality.measure", "rayvr.quality.budget",
+     "rayvr.quality.frame_knobs", "rayvr.quality.frame_budget", "rayvr.scene.config_toml",
      "rayvr.app.cluster", "rayvr.app.preview", "rayvr.app.hud", "rayvr.settings"),
     (BENCH,),
     ("rayvr.cli", "rayvr.commands", "rayvr.__main__", "rayvr"),

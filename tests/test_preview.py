@@ -785,7 +785,7 @@ def _budget_mode():
     import glfw
 
     from rayvr.app import budget_keeper
-    from rayvr.quality import budget
+    from rayvr.quality import frame_budget
     from rayvr.scene.materials import MaterialConfig
 
     calls = []
@@ -796,7 +796,7 @@ def _budget_mode():
                                                    "predicted_ms": 9.0, "measured_ms": 9.5, "measured_flip": 0.04,
                                                    "assignment": {"floor": "shadows"}}
 
-    budget.auto_config = fake
+    frame_budget.auto_config = fake
     budget_keeper.SETTLE_S = 0.0
     p = _preview(size=(64, 24), hud=True)
     try:

@@ -544,7 +544,8 @@ class Preview:
         material that fit the budget, and render with them (the config file's params stay the
         base); from then on pick again when the view has changed and settled (app/budget_keeper.py).
         Returns the summary the HUD and terminal show."""
-        from ..quality.budget import auto_config, describe_pick
+        from ..quality.budget import describe_pick
+        from ..quality.frame_budget import auto_config
         from .budget_keeper import BudgetKeeper
 
         if self.budget_keeper is None or self.budget_keeper.budget_ms != budget_ms:

@@ -171,7 +171,7 @@ def _vr(args, out, camera_from_args):
     fields = {k: v for k, v in settings_mod.given_by_args(args, "bench").items() if k != "msaa"}
     variants = {",".join(f"{k}={v}" for k, v in fields.items()): fields} if fields else None
     vr.run(out, size=quick.get("size", args.size), scenes=_scenes(args),
-           poses=args.poses or quick.get("poses", vr.POSES), pose_seed=args.pose_seed,
+           poses=args.poses if args.poses is not None else quick.get("poses", vr.POSES), pose_seed=args.pose_seed,
            cameras=args.cameras or quick.get("cameras", vr.CAMERAS),
            counts=args.counts or ((args.msaa,) if args.msaa else quick.get("counts", vr.COUNTS)), configs=configs,
            variants=variants, budget_ms=budgets[0], repeat=2 if args.quick else share(args.repeat, 5),
@@ -182,7 +182,7 @@ def _lights(args, out, camera_from_args):
     from . import lights
 
     lights.run(out, size=(32, 24) if args.quick else args.size, scenes=_scenes(args),
-               poses=1 if args.quick else (args.poses or 2), repeat=2 if args.quick else share(args.repeat, 5),
+               poses=1 if args.quick else (2 if args.poses is None else args.poses), repeat=2 if args.quick else share(args.repeat, 5),
                frames=2 if args.quick else 4, reference_frames=2 if args.quick else 8, backend=args.backend)
 
 

@@ -93,7 +93,7 @@ def pose_bounds(scene, name: str) -> dict:
 def draw_poses(scene, name: str, count: int, seed: int) -> list[HeadPose]:
     """`count` head poses inside scene `name`'s region (pose_bounds), from `seed`."""
     if count < 1:
-        raise ValueError(f"bench vr needs at least one head pose, got {count}")
+        raise ValueError(f"--poses: a bench over random head poses needs at least one, got {count}")
     bounds = pose_bounds(scene, name)
     rng = np.random.default_rng([seed, zlib.crc32(name.encode())])
     out = []

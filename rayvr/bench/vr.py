@@ -103,7 +103,8 @@ def materials_config(gl, config: str, name: str, scene, rig, budget_ms: float, p
         if name != "default":
             return None, "the room's config (default_room.toml) is the room's only"
         return load_config(shipped_config(name)), {"file": "rayvr/assets/default_room.toml"}
-    from ..quality.budget import auto_config, describe_pick
+    from ..quality.budget import describe_pick
+    from ..quality.frame_budget import auto_config
 
     base = shipped_config(name)
     with Renderer(scene, load_config(base), gl=gl) as r:

@@ -179,7 +179,8 @@ def cmd_capture(args) -> int:
         rig = shared.rig_from_args(args, r.scene, shared.camera_from_args(args, settings, given))
         pick = None
         if args.budget_ms is not None:
-            from ..quality.budget import auto_config, describe_pick, pick_toml
+            from ..quality.budget import describe_pick, pick_toml
+            from ..quality.frame_budget import auto_config
 
             config, pick = auto_config(r, rig, args.budget_ms, progress=not args.quiet, grid=grid)
             r.set_materials(config)

@@ -44,9 +44,7 @@ import numpy as np
 
 from . import metrics
 from ..frame.effects import implemented_effects
-from .measure import (BENCH_QUALITY, COMPARE_SETTINGS, RendererPool, Variant, config_for_assignment, local_measurer,
-                      measure, reference_variant)
-from .reference_images import reference_config
+from .measure import COMPARE_SETTINGS, Variant, config_for_assignment, local_measurer, measure
 
 # Slack for floating-point sums when comparing against the budget (1 ns in ms units).
 COST_EPS_MS = 1e-6
@@ -366,35 +364,6 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
     else:
         best = tried[-1]
     return {**best, "rounds": len(tried)}
-
-
-def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repeat: int = 5,
-                progress: bool = True, grid=None):
-    """`--budget-ms` for capture and preview: effects per material of `renderer.scene` that keep the
-    frame within `budget_ms` on this device with the least error, starting from the renderer's
-    current config. With `grid` (a list of quality/frame_knobs.FrameKnobs) the frame-wide knobs
-    are chosen too (quality/frame_budget.py): the summary's "knobs" and the config's [render]
-    table hold them. Returns the config and the summary (predicted and measured ms and FLIP)."""
-    from dataclasses import replace as replaced
-
-    ppd = metrics.DEFAULT_PPD if ppd is None else ppd
-
-    gl, scene = renderer.gl, renderer.scene
-    reference = reference_variant(
-        reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
-    with RendererPool(gl) as pool:
-        ref = measure(gl, scene, rig, reference, repeat=1, warmup=1, pool=pool)
-        if grid:
-            from .frame_budget import choose_frame_under_budget, measure_candidates
-
-            candidates = measure_candidates(gl, scene, rig, ref, renderer.config, ppd, grid, repeat, progress, pool)
-            pick = choose_frame_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, candidates, repeat,
-                                             progress, pool)
-            pick["config"] = replaced(pick["config"], render=pick["knobs"].render_table())
-        else:
-            pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)
-    summary = {k: v for k, v in pick.items() if k not in ("config", "image")}
-    return pick["config"], summary
 
 
 def describe_pick(summary: dict) -> str:

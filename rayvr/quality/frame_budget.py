@@ -22,8 +22,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from . import metrics
 from .budget import BUDGET_TOLERANCE, BudgetResult, MaterialOptions, choose_under_budget, measure_rungs, \
     options_from_rungs, solve_budget
+from .measure import BENCH_QUALITY, RendererPool, measure, reference_variant
+from .reference_images import reference_config
 from .frame_knobs import FrameKnobs
 
 FRAME_TRIES = 3  # points of the grid rendered, best predicted first, before a pick is reported over budget
@@ -104,3 +107,30 @@ def choose_frame_under_budget(gl, scene, rig, budget_ms: float, base, reference_
     fitting = [t for t in tried if t["within_budget"]]
     best = min(fitting, key=lambda t: t["measured_flip"]) if fitting else min(tried, key=lambda t: t["measured_ms"])
     return {**best, "points_tried": len(tried)}
+
+
+def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repeat: int = 5,
+                progress: bool = True, grid=None):
+    """`--budget-ms` for capture and preview: effects per material of `renderer.scene` that keep the
+    frame within `budget_ms` on this device with the least error, starting from the renderer's
+    current config. With `grid` (a list of quality/frame_knobs.FrameKnobs) the frame-wide knobs
+    are chosen too: the summary's "knobs" and the config's [render]
+    table hold them. Returns the config and the summary (predicted and measured ms and FLIP)."""
+    from dataclasses import replace as replaced
+
+    ppd = metrics.DEFAULT_PPD if ppd is None else ppd
+
+    gl, scene = renderer.gl, renderer.scene
+    reference = reference_variant(
+        reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
+    with RendererPool(gl) as pool:
+        ref = measure(gl, scene, rig, reference, repeat=1, warmup=1, pool=pool)
+        if grid:
+            candidates = measure_candidates(gl, scene, rig, ref, renderer.config, ppd, grid, repeat, progress, pool)
+            pick = choose_frame_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, candidates, repeat,
+                                             progress, pool)
+            pick["config"] = replaced(pick["config"], render=pick["knobs"].render_table())
+        else:
+            pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)
+    summary = {k: v for k, v in pick.items() if k not in ("config", "image")}
+    return pick["config"], summary
