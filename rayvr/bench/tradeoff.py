@@ -348,18 +348,23 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir) -> list:
             ax.scatter([r["measured_ms"]], [r["measured_flip"]], marker="*", s=160, color="crimson", zorder=5)
             ax.annotate(f"pick at {r['budget_ms']:.3g} ms", (r["measured_ms"], r["measured_flip"]), fontsize=7,
                         xytext=(4, 4), textcoords="offset points")
-        ax.set_xscale("log")
-        ax.set_xlabel("GPU ms per stereo frame (timer queries)")
-        ax.set_ylabel("mean FLIP vs the converged reference")
-        ax.set_title(f"{scene}, {view} view: the budget's picks (stars) against every render of its grid", fontsize=10)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=6, ncol=2)
-        fig.tight_layout()
-        path = Path(out_dir) / f"budget_{scene}{view_suffix(view)}.png"
-        fig.savefig(path)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save_speed_error(plt, fig, ax, f"{scene}, {view} view: the budget's picks (stars) against "
+                                         f"every render of its grid", Path(out_dir) / f"budget_{scene}{view_suffix(view)}.png"))
     return written
+
+
+def _save_speed_error(plt, fig, ax, title: str, path):
+    """A GPU-ms-against-FLIP picture's axes, title and legend, written to `path` (returned)."""
+    ax.set_xscale("log")
+    ax.set_xlabel("GPU ms per stereo frame (timer queries)")
+    ax.set_ylabel("mean FLIP vs the converged reference (lower is better)")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
 
 
 def plot_tradeoff(rows: list[dict], out_dir) -> list:
@@ -396,15 +401,6 @@ def plot_tradeoff(rows: list[dict], out_dir) -> list:
             ax.annotate(r["label"], (r["gpu_ms"], r["flip"]), fontsize=6, xytext=(3, 3), textcoords="offset points")
         if floor:
             ax.axhline(floor[0], color="grey", ls="--", lw=1, label=f"noise floor (reference vs reference) {floor[0]:.4f}")
-        ax.set_xscale("log")
-        ax.set_xlabel("GPU ms per stereo frame (timer queries)")
-        ax.set_ylabel("mean FLIP vs the converged reference (lower is better)")
-        ax.set_title(f"{scene}, {view} view: speed vs accuracy, every knob", fontsize=10)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, ncol=2)
-        fig.tight_layout()
-        path = Path(out_dir) / f"tradeoff_{scene}{view_suffix(view)}.png"
-        fig.savefig(path)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save_speed_error(plt, fig, ax, f"{scene}, {view} view: speed vs accuracy, every knob",
+                                         Path(out_dir) / f"tradeoff_{scene}{view_suffix(view)}.png"))
     return written
