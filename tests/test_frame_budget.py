@@ -83,12 +83,14 @@ def test_nothing_fits_gives_the_cheapest_frame_marked_infeasible():
 
 def test_a_pick_over_its_budget_on_the_measured_frame_is_reported_not_hidden(monkeypatch):
     """Every point tried measures over the budget: the result says so, after FRAME_TRIES points."""
+    from rayvr.scene.materials import MaterialConfig
+
     calls = []
 
     def over(gl, scene, rig, budget_ms, base, ref, ppd, repeat, progress, pool, options, knobs):
         calls.append(knobs)
         return {"budget_ms": budget_ms, "measured_ms": budget_ms * 1.5 + len(calls), "within_budget": False,
-                "feasible": True, "measured_flip": 0.1, "assignment": {}}
+                "feasible": True, "measured_flip": 0.1, "assignment": {}, "config": MaterialConfig()}
 
     monkeypatch.setattr(fb, "choose_under_budget", over)
     grid = parse_grid("stereo=dual,warp,reuse;denoise=off,on")
@@ -97,6 +99,7 @@ def test_a_pick_over_its_budget_on_the_measured_frame_is_reported_not_hidden(mon
     assert got["within_budget"] is False and got["points_tried"] == fb.FRAME_TRIES == len(calls)
     assert calls[0] == grid[0]  # the cheapest (all raster ties on error): the best predicted first
     assert got["measured_ms"] == min(4.0 * 1.5 + n for n in range(1, fb.FRAME_TRIES + 1))
+    assert got["config"].render == got["knobs"].render_table()  # the config to save carries the knobs
 
 
 def test_grid_best_is_the_least_error_render_that_fits():

@@ -152,8 +152,9 @@ def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
         for row in rows:
             assert row["assignment"] and (row["measured_ms"] > 0)
             assert row["knobs"] and row["grid_points"] == 1
-            assert (tmp_path / f"budget_default{'' if row['view'] == 'fixed' else '_pose0'}_"
-                    f"{row['budget_ms']:.4g}ms.toml").exists()
+            saved = (tmp_path / f"budget_default{'' if row['view'] == 'fixed' else '_pose0'}_"
+                     f"{row['budget_ms']:.4g}ms.toml").read_text()
+            assert '[render]\nstereo = "dual"' in saved  # the pick's frame-wide knobs, to save and reuse
             best = row["grid_best"]
             if best is not None:  # the gap is the pick's FLIP above the grid's best that fits
                 assert row["optimality_gap"] == pytest.approx(row["measured_flip"] - best["flip"])

@@ -20,7 +20,7 @@ that fit is the solver's optimality gap as `rayvr bench budget` reports it.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from . import metrics
 from .budget import BUDGET_TOLERANCE, BudgetResult, MaterialOptions, choose_under_budget, measure_rungs, \
@@ -94,13 +94,14 @@ def grid_best(candidates: list[FrameCandidate], budget_ms: float) -> dict | None
 def choose_frame_under_budget(gl, scene, rig, budget_ms: float, base, reference_image, ppd: float,
                               candidates: list[FrameCandidate], repeat=10, progress=True, pool=None) -> dict:
     """Render the best points' picks (at most FRAME_TRIES) until one fits `budget_ms` on the
-    measured frame; the pick with its knobs, or the best tried, `within_budget` False."""
+    measured frame; the pick with its knobs (its config's [render] table holds them too), or the
+    best tried, `within_budget` False."""
     tried = []
     for pick in ranked_picks(candidates, budget_ms)[:FRAME_TRIES]:
         c = next(c for c in candidates if c.knobs == pick.knobs)
         got = choose_under_budget(gl, scene, rig, budget_ms, base, reference_image, ppd, repeat, progress, pool,
                                   options=(c.base_ms, c.materials), knobs=c.knobs)
-        got = {**got, "knobs": c.knobs}
+        got = {**got, "knobs": c.knobs, "config": replace(got["config"], render=c.knobs.render_table())}
         tried.append(got)
         if got["within_budget"]:
             break
@@ -114,10 +115,7 @@ def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repea
     """`--budget-ms` for capture and preview: effects per material of `renderer.scene` that keep the
     frame within `budget_ms` on this device with the least error, starting from the renderer's
     current config. With `grid` (a list of quality/frame_knobs.FrameKnobs) the frame-wide knobs
-    are chosen too: the summary's "knobs" and the config's [render]
-    table hold them. Returns the config and the summary (predicted and measured ms and FLIP)."""
-    from dataclasses import replace as replaced
-
+    are chosen too: the summary's "knobs" and the config's [render] table hold them. Returns the config and the summary (predicted and measured ms and FLIP)."""
     ppd = metrics.DEFAULT_PPD if ppd is None else ppd
 
     gl, scene = renderer.gl, renderer.scene
@@ -129,7 +127,6 @@ def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repea
             candidates = measure_candidates(gl, scene, rig, ref, renderer.config, ppd, grid, repeat, progress, pool)
             pick = choose_frame_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, candidates, repeat,
                                              progress, pool)
-            pick["config"] = replaced(pick["config"], render=pick["knobs"].render_table())
         else:
             pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)
     summary = {k: v for k, v in pick.items() if k not in ("config", "image")}
