@@ -115,6 +115,9 @@ def test_grid_parsing():
     assert FrameKnobs("reuse", 4, True, 1, 0.75) in grid
     assert parse_grid(None) == parse_grid("") == [DEFAULT_KNOBS]
     assert parse_grid("stereo=dual,dual") == [DEFAULT_KNOBS]
+    # knobs the grid leaves out keep the command's own values
+    assert parse_grid("stereo=dual,reuse", FrameKnobs(msaa=4, denoise=True)) == [
+        FrameKnobs("dual", 1, True, 4, 1.0), FrameKnobs("reuse", 1, True, 4, 1.0)]
     for bad, says in [("stereo=mono", "stereo"), ("fps=90", "KNOB=VALUE"), ("spp=0", "spp"), ("msaa=3", "msaa"),
                       ("scale=0.1", "scale"), ("denoise=yes please", "denoise"), ("spp=1;spp=2", "twice"),
                       ("scale=", "no values"), ("stereo", "KNOB=VALUE")]:
@@ -202,3 +205,19 @@ def test_reference_never_shares_a_variants_seed(gl, monkeypatch):
     variants = [s for knob, s in seeds if knob != "reference"]
     assert len(reference) == 1 and variants
     assert reference[0] not in variants
+
+
+def test_points_the_renderer_refuses_are_left_out_with_the_reason(monkeypatch):
+    def rungs(gl, scene, rig, ref, base, ppd, repeat, progress, pool, measure_all, knobs):
+        if knobs.stereo == "reuse" and knobs.msaa > 1:
+            raise ValueError("stereo mode 'reuse' reprojects one sample per pixel")
+        return {"raster": (1.0 + knobs.msaa, np.zeros(4))}
+
+    monkeypatch.setattr(fb, "measure_rungs", rungs)
+    monkeypatch.setattr(fb, "options_from_rungs", lambda scene, ref, base, r: (r["raster"][0], []))
+    got, refused = fb.measure_candidates(None, None, None, None, None, 60.0, parse_grid("stereo=dual,reuse;msaa=1,4"))
+    assert [c.knobs for c in got] == [FrameKnobs("dual"), FrameKnobs("dual", msaa=4), FrameKnobs("reuse")]
+    assert list(refused) == [FrameKnobs("reuse", msaa=4).label] and "one sample per pixel" in refused[
+        FrameKnobs("reuse", msaa=4).label]
+    with pytest.raises(ValueError, match="no point of the frame-knob grid renders here: stereo=reuse"):
+        fb.measure_candidates(None, None, None, None, None, 60.0, parse_grid("stereo=reuse;msaa=4,8"))

@@ -269,8 +269,10 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                                                                          poses, pose_seed):
             with RendererPool(gl) as pool:
                 ref = measure(gl, scene, rig, reference, repeat, pool=pool)
-                candidates = measure_candidates(gl, scene, rig, ref, base, ppd, grid, repeat=repeat, progress=progress,
-                                                pool=pool, measure_all=_measurer(cluster, name, rig, repeat))
+                candidates, refused = measure_candidates(gl, scene, rig, ref, base, ppd, grid, repeat=repeat,
+                                                         progress=progress, pool=pool,
+                                                         measure_all=_measurer(cluster, name, rig, repeat))
+                skipped.update({f"{name} {view}: {k}": why for k, why in refused.items()})
                 picks = [choose_frame_under_budget(gl, scene, rig, b, base, ref, ppd, candidates, repeat, progress,
                                                    pool) for b in budgets]
             grid_rows += [{"scene": name, "view": view, "knobs": c.knobs.label, "effect": e, "gpu_ms": ms, "flip": flip}

@@ -97,8 +97,9 @@ def add_budget_arguments(p: argparse.ArgumentParser, help_ms: str, frame_knobs: 
 
 def budget_grid(args, given: dict, frame_knobs: tuple[str, ...]) -> list | None:
     """Turns --budget-hz into args.budget_ms; the --frame-knobs grid (quality/frame_knobs.py), or
-    None without it. A knob the grid chooses may not also be set by a flag or the config."""
-    from ..quality.frame_knobs import budget_ms_of, parse_grid
+    None without it. A knob the grid chooses may not also be set by a flag or the config; the
+    knobs it leaves out keep what the flags and the config give."""
+    from ..quality.frame_knobs import DEFAULT_KNOBS, FrameKnobs, budget_ms_of, parse_grid
 
     if getattr(args, "budget_hz", None) is not None:
         args.budget_ms = budget_ms_of(args.budget_hz)
@@ -107,7 +108,10 @@ def budget_grid(args, given: dict, frame_knobs: tuple[str, ...]) -> list | None:
         return None
     if args.budget_ms is None:
         raise ValueError("--frame-knobs goes with --budget-ms or --budget-hz")
-    grid = parse_grid(text)
+    d = DEFAULT_KNOBS
+    base = FrameKnobs(stereo=given.get("stereo", d.stereo), spp=getattr(args, "spp", d.spp),
+                      denoise=given.get("denoise", d.denoise), msaa=given.get("msaa", d.msaa))
+    grid = parse_grid(text, base)
     for part in text.split(";"):
         knob = part.partition("=")[0].strip().lower()
         if not knob:

@@ -373,6 +373,8 @@ def describe_pick(summary: dict) -> str:
              f"measured {summary['measured_ms']:.2f} ms, mean FLIP {summary['measured_flip']:.4f}"]
     if summary.get("knobs") is not None:
         lines.append(f"  frame: {summary['knobs'].label}")
+    for label, why in summary.get("points_refused", {}).items():
+        lines.append(f"  left out {label}: {why}")
     by_effect: dict = {}
     for name, effect in summary["assignment"].items():
         by_effect.setdefault(effect, []).append(name)

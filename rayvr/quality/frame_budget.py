@@ -68,16 +68,24 @@ def ranked_picks(candidates: list[FrameCandidate], budget_ms: float) -> list[Fra
 
 
 def measure_candidates(gl, scene, rig, reference_image, base, ppd: float, grid: list[FrameKnobs], repeat=10,
-                       progress=True, pool=None, measure_all=None) -> list[FrameCandidate]:
-    """The per-material tables of every point of `grid`."""
-    out = []
+                       progress=True, pool=None, measure_all=None) -> tuple[list[FrameCandidate], dict]:
+    """The per-material tables of every point of `grid`, and {point's label: why} for the points
+    the renderer refuses (e.g. `reuse` with MSAA): left out. ValueError when it refuses them all."""
+    out, refused = [], {}
     for knobs in grid:
-        rungs = measure_rungs(gl, scene, rig, reference_image, base, ppd, repeat=repeat, progress=progress,
-                              pool=pool, measure_all=measure_all, knobs=knobs)
+        try:
+            rungs = measure_rungs(gl, scene, rig, reference_image, base, ppd, repeat=repeat, progress=progress,
+                                  pool=pool, measure_all=measure_all, knobs=knobs)
+        except ValueError as exc:  # a combination the frame plan refuses, before any work
+            refused[knobs.label] = str(exc)
+            continue
         base_ms, materials = options_from_rungs(scene, reference_image, base, rungs)
         out.append(FrameCandidate(knobs, base_ms, materials,
                                   {e: (ms, float(flip.mean())) for e, (ms, flip) in rungs.items()}))
-    return out
+    if not out:
+        label, why = next(iter(refused.items()))
+        raise ValueError(f"no point of the frame-knob grid renders here: {label}: {why}")
+    return out, refused
 
 
 def grid_best(candidates: list[FrameCandidate], budget_ms: float) -> dict | None:
@@ -124,9 +132,11 @@ def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repea
     with RendererPool(gl) as pool:
         ref = measure(gl, scene, rig, reference, repeat=1, warmup=1, pool=pool)
         if grid:
-            candidates = measure_candidates(gl, scene, rig, ref, renderer.config, ppd, grid, repeat, progress, pool)
+            candidates, refused = measure_candidates(gl, scene, rig, ref, renderer.config, ppd, grid, repeat,
+                                                     progress, pool)
             pick = choose_frame_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, candidates, repeat,
                                              progress, pool)
+            pick["points_refused"] = refused
         else:
             pick = choose_under_budget(gl, scene, rig, budget_ms, renderer.config, ref, ppd, repeat, progress, pool)
     summary = {k: v for k, v in pick.items() if k not in ("config", "image")}

@@ -94,9 +94,9 @@ def _one(name: str, text: str):
     return v
 
 
-def parse_grid(text: str | None) -> list[FrameKnobs]:
-    """`"stereo=dual,reuse;spp=1,4"` -> every combination (knobs not named at their default);
-    None or "" -> [DEFAULT_KNOBS]. ValueError with one line naming what is wrong."""
+def parse_grid(text: str | None, base: FrameKnobs = DEFAULT_KNOBS) -> list[FrameKnobs]:
+    """`"stereo=dual,reuse;spp=1,4"` -> every combination (knobs not named as in `base`: the
+    command's own settings); None or "" -> [base]. ValueError with one line naming what is wrong."""
     names = [f.name for f in fields(FrameKnobs)]
     values: dict = {}
     for part in (text or "").split(";"):
@@ -113,7 +113,7 @@ def parse_grid(text: str | None) -> list[FrameKnobs]:
         if not got:
             raise ValueError(f"frame knobs: {name} has no values")
         values[name] = list(dict.fromkeys(got))
-    axes = [values.get(n, [getattr(DEFAULT_KNOBS, n)]) for n in names]
+    axes = [values.get(n, [getattr(base, n)]) for n in names]
     return [FrameKnobs(**dict(zip(names, combo))) for combo in itertools.product(*axes)]
 
 
