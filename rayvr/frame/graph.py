@@ -529,7 +529,7 @@ class PassTimer:
 class EyeImage:
     name: str
     color: np.ndarray  # (H, W, 3) uint8 sRGB, rows top-down
-    depth: np.ndarray | None  # (H, W) float32 linear view depth, 0 = background; None: not read back
+    depth: np.ndarray  # (H, W) float32 linear view depth, 0 = background
     aux: dict = field(default_factory=dict)  # extra channels asked for (readback.AUX_CHANNELS)
 
     def __iter__(self):  # color, depth = frame.left
