@@ -116,3 +116,18 @@ def test_plots_skipped_without_matplotlib(tmp_path, monkeypatch):
     with pytest.warns(UserWarning, match=r"rayvr\[bench\]"):
         paths = write_report(tmp_path, "r", _result(), plots=[{"x": "ms", "y": "flip"}])
     assert paths["plots"] == [] and paths["json"].exists() and paths["md"].exists()
+
+
+def test_results_name_the_commit_that_made_them(monkeypatch):
+    from rayvr.bench import report
+
+    monkeypatch.setenv("RAYVR_COMMIT", "abc1234")
+    meta = report.device_meta({"GL_RENDERER": "NVIDIA H200"})
+    assert meta["commit"] == "abc1234"
+    assert report.provenance(meta) == f"NVIDIA H200, {meta['date'][:10]}, commit abc1234"
+    monkeypatch.delenv("RAYVR_COMMIT")
+    import subprocess
+
+    here = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                          cwd=report.__file__.rsplit("/", 1)[0])
+    assert report.source_commit() == (here.stdout.strip() if here.returncode == 0 else None)

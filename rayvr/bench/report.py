@@ -57,8 +57,30 @@ def device_meta(gl_info: dict | None = None) -> dict:
         "rayvr": _version("rayvr"),
         "flip_evaluator": _version("flip-evaluator"),
         "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "commit": source_commit(),
     })
     return meta
+
+
+def source_commit() -> str | None:
+    """The commit of the rayvr source that ran: $RAYVR_COMMIT (a copy of the tree without its git
+    folder, as the GPU machine gets, says it so), else git's answer for the package's folder."""
+    if os.environ.get("RAYVR_COMMIT"):
+        return os.environ["RAYVR_COMMIT"]
+    import subprocess
+
+    try:
+        run = subprocess.run(["git", "-C", os.path.dirname(os.path.abspath(__file__)), "rev-parse", "--short", "HEAD"],
+                             capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return (run.stdout.strip() or None) if run.returncode == 0 else None
+
+
+def provenance(meta: dict) -> str:
+    """One line for a figure: device, date and commit of the run it shows."""
+    return (f"{meta.get('gl_renderer', '?')}, {str(meta.get('date', '?'))[:10]}, "
+            f"commit {meta.get('commit') or 'unknown'}")
 
 
 # -------------------------------------------------------------------------------------------

@@ -236,7 +236,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
                 "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "tradeoff", result)
-    plot_tradeoff(rows, out_dir)
+    plot_tradeoff(rows, out_dir, meta)
     return result
 
 
@@ -296,7 +296,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "budget", result, md=budget_headline(rows, meta) + "\n" + markdown("budget", result))
     write_report(out_dir, "budget_grid", {"meta": meta, "rows": grid_rows})
-    plot_budget(rows, grid_rows, out_dir)
+    plot_budget(rows, grid_rows, out_dir, meta)
     return result
 
 
@@ -321,7 +321,7 @@ def budget_headline(rows: list[dict], meta: dict) -> str:
     return "\n".join(lines)
 
 
-def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir) -> list:
+def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir, meta: dict | None = None) -> list:
     """One picture per scene: the grid's renders as GPU ms vs mean FLIP with their Pareto front,
     each budget as a vertical line and its pick as a star. Needs matplotlib."""
     from pathlib import Path
@@ -351,16 +351,20 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir) -> list:
             ax.annotate(f"pick at {r['budget_ms']:.3g} ms", (r["measured_ms"], r["measured_flip"]), fontsize=7,
                         xytext=(4, 4), textcoords="offset points")
         written.append(_save_speed_error(plt, fig, ax, f"{scene}, {view} view: the budget's picks (stars) against "
-                                         f"every render of its grid", Path(out_dir) / f"budget_{scene}{view_suffix(view)}.png"))
+                                         f"every render of its grid", Path(out_dir) / f"budget_{scene}{view_suffix(view)}.png",
+                                         meta))
     return written
 
 
-def _save_speed_error(plt, fig, ax, title: str, path):
-    """A GPU-ms-against-FLIP picture's axes, title and legend, written to `path` (returned)."""
+def _save_speed_error(plt, fig, ax, title: str, path, meta: dict | None = None):
+    """A GPU-ms-against-FLIP picture's axes, title (with the run's device, date and commit) and
+    legend, written to `path` (returned)."""
+    from .report import provenance
+
     ax.set_xscale("log")
     ax.set_xlabel("GPU ms per stereo frame (timer queries)")
     ax.set_ylabel("mean FLIP vs the converged reference (lower is better)")
-    ax.set_title(title, fontsize=10)
+    ax.set_title(title + (f"\n{provenance(meta)}" if meta else ""), fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=6, ncol=2)
     fig.tight_layout()
@@ -369,7 +373,7 @@ def _save_speed_error(plt, fig, ax, title: str, path):
     return path
 
 
-def plot_tradeoff(rows: list[dict], out_dir) -> list:
+def plot_tradeoff(rows: list[dict], out_dir, meta: dict | None = None) -> list:
     """One picture per scene and view: every variant as GPU ms vs mean FLIP, coloured by knob, the
     Pareto front over all of them (the settings worth choosing) and the noise floor (the reference
     against itself with other samples) as a dashed line. Needs matplotlib."""
@@ -404,5 +408,5 @@ def plot_tradeoff(rows: list[dict], out_dir) -> list:
         if floor:
             ax.axhline(floor[0], color="grey", ls="--", lw=1, label=f"noise floor (reference vs reference) {floor[0]:.4f}")
         written.append(_save_speed_error(plt, fig, ax, f"{scene}, {view} view: speed vs accuracy, every knob",
-                                         Path(out_dir) / f"tradeoff_{scene}{view_suffix(view)}.png"))
+                                         Path(out_dir) / f"tradeoff_{scene}{view_suffix(view)}.png", meta))
     return written
