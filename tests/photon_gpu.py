@@ -13,8 +13,8 @@ from rayvr.gl import shaders
 from rayvr.accel.photon_map import PHOTON_WORDS, GridShape
 from rayvr.frame.effects.photon.cells import CellKeys, set_grid_uniforms
 from rayvr.frame.effects.photon.kdtree import kdtree_records
-from rayvr.frame.effects.photon.scan import scan_words
-from rayvr.frame.effects.photon.sort import RadixSort, table_words
+from rayvr.frame.passes.prefix_scan import scan_words
+from rayvr.frame.passes.radix_sort import RadixSort, table_words
 from rayvr.gl.glsl_constants import declare
 from rayvr.gl.gpu_layout import SSBO
 

@@ -132,7 +132,7 @@ def test_shared_constants_reach_the_header_exactly():
     from rayvr.accel import gpu, quadtree
     from rayvr.bench.tracers import dda, hiz
     from rayvr.frame.cameras import CAMERA_MODELS
-    from rayvr.frame.effects.photon import scan as photon_scan
+    from rayvr.frame.passes import prefix_scan as photon_scan
     from rayvr.frame.passes import reuse, warp
 
     header = {m.group(1): m.group(2) for m in re.finditer(r"(?m)^#define (\w+) (.*)$", gpu_layout.glsl_header())}

@@ -54,7 +54,7 @@ def test_gpu_cells_counts_and_scan_equal_numpy(built):
 
 
 def test_gpu_scan_levels_equal_numpy(gl):
-    from rayvr.frame.effects.photon.scan import Scan, scan_words
+    from rayvr.frame.passes.prefix_scan import Scan, scan_words
 
     rng = np.random.default_rng(3)
     ctx = gl.ctx
@@ -148,8 +148,8 @@ def test_oct_normals_round_trip():
 def test_gpu_sort_in_rows_of_work_groups(gl, monkeypatch):
     """More work groups than one dispatch row holds (65535 on real GPUs; 7 here): rows of groups,
     the spare groups of the last row idle, the result still numpy's stable sort."""
-    from rayvr.frame.effects.photon import scan as photon_scan
-    from rayvr.frame.effects.photon.sort import RadixSort, table_words
+    from rayvr.frame.passes import prefix_scan as photon_scan
+    from rayvr.frame.passes.radix_sort import RadixSort, table_words
 
     monkeypatch.setattr(photon_scan, "MAX_GROUPS", 7)
     rng = np.random.default_rng(4)

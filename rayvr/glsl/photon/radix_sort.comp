@@ -1,13 +1,13 @@
 #version 430
-// Stable LSD radix sort of (key, slot) pairs by key, 8 bits a round (frame/effects/photon/sort.py).
+// Stable LSD radix sort of (key, slot) pairs by key, 8 bits a round (frame/passes/radix_sort.py).
 //   SORT_STAGE 0  histogram: each group of SORT_GROUP pairs counts its digits; the count of digit
 //                 d in group g goes to table[d * groups + g] (digit-major, so that the exclusive
 //                 scan of the table, glsl/photon/scan.comp, is every pair's first destination)
 //   SORT_STAGE 1  scatter: a pair goes to table[d * groups + g] + the number of pairs before it in
 //                 its group with the same digit (stable, deterministic): the digit counts of the
 //                 earlier chunks of 32 pairs (shared-memory histograms) plus a count within its chunk
-//   SORT_STAGE 2  permute: photon_map[i] = photons[slot of the i-th sorted pair]
-#include "../layout.glsl"  // SORT_GROUP, SORT_RADIX: rayvr/frame/effects/photon/sort.py
+//   SORT_STAGE 2  permute (the photon map only): photon_map[i] = photons[slot of the i-th sorted pair]
+#include "../layout.glsl"  // SORT_GROUP, SORT_RADIX: rayvr/frame/passes/radix_sort.py
 #ifndef SORT_STAGE
 #define SORT_STAGE 0
 #endif

@@ -1,11 +1,11 @@
 #version 430
 // Exclusive prefix sum in place over scan_data[scan_base .. scan_base + item_count) (frame/passes/
-// photon_scan.py runs it level by level: counts -> start indices, and the radix sort's digit
+// prefix_scan.py runs it level by level: counts -> start indices, and the radix sort's digit
 // table). SCAN_STAGE 0: each group scans a block of SCAN_BLOCK words (SCAN_ITEMS per invocation,
 // then a Hillis-Steele scan of the invocation totals in shared memory) and writes the block's
 // total to scan_data[sums_base + block]; the host scans those totals the same way, one level up.
 // SCAN_STAGE 1: adds each block's scanned total to its words.
-#include "../layout.glsl"  // SCAN_GROUP, SCAN_ITEMS, SCAN_BLOCK: rayvr/frame/effects/photon/scan.py
+#include "../layout.glsl"  // SCAN_GROUP, SCAN_ITEMS, SCAN_BLOCK: rayvr/frame/passes/prefix_scan.py
 layout(local_size_x = SCAN_GROUP) in;
 
 layout(std430, binding = SSBO_PHOTON_SCAN) restrict buffer ScanData { uint scan_data[]; };

@@ -11,7 +11,7 @@ from ....gl import shaders
 from ...graph import Buffer, FramePlan, read, write
 from ....gl.glsl_constants import declare
 from ....gl.gpu_layout import SSBO
-from .scan import dispatch_shape, scan_words
+from ...passes.prefix_scan import dispatch_shape, scan_words
 from .setup import PhotonPass, photon_setup
 
 CELLS_GROUP = declare("PHOTON_CELLS_GROUP", 256)  # photons a cells.comp group keys

@@ -13,7 +13,7 @@ from ....accel.gpu import DEFAULT_BINDING, layout_defines
 from ...graph import Buffer, FramePlan, read, write
 from ....gl.glsl_constants import declare
 from ....gl.gpu_layout import SSBO, UNIT
-from .scan import dispatch_shape
+from ...passes.prefix_scan import dispatch_shape
 from .setup import PhotonPass, photon_setup
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
