@@ -17,10 +17,11 @@ from .accel import bvh, gpu
 from .frame.cameras import sampling
 from .scene import light_selection
 from .options import TABLE, Option, OptionError
-from .frame.passes import accumulate, denoise, dof, primary_rays, quadtree, second_layer, shade, tonemap, visibility
+from .frame.passes import accumulate, denoise, dof, persistent_threads, primary_rays, quadtree, ray_order, second_layer, shade, \
+    tonemap, visibility
 
 OWNERS = (tonemap, shade, visibility, primary_rays, accumulation, accumulate, denoise, second_layer, stereo, quadtree,
-          gpu, bvh, dof, sampling, light_selection)
+          gpu, bvh, dof, sampling, light_selection, ray_order, persistent_threads)
 RANK = {m.__name__: i for i, m in enumerate(OWNERS)}
 _ordered: list = [None, {}]  # (the declarations, all_options()' answer to them)
 

@@ -63,6 +63,8 @@ class FramePlan:
     tile_lists: int = 0  # with tile culling: the bound of each tile's triangle list, 0 none (primary_rays.py)
     share_channels: bool = False  # red and blue take green's shading where they hit its triangle (primary_rays.py)
     light_picks: int = 0  # lights the traced effects draw per surface by power, 0 every light (scene/light_selection.py)
+    ray_order: str = "none"  # the wavefront's rays sorted before each trace kernel: "none" | "morton" (passes/ray_order.py)
+    persistent: bool = False  # the wavefront's trace kernels as persistent threads (passes/persistent_threads.py)
     # MSAA rounds leave a pixel with nothing in their slot as it is where exact (frame/passes/primary_rays.py
     # skips_empty_slots); False shades it as background of weight 0, the reference tests compare with
     skip_empty_slots: bool = True

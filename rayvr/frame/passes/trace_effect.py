@@ -4,6 +4,9 @@ from Effect.shader, e.g. glsl/effects/glossy.glsl) write rays into buffers, lean
 (rt/wave_trace.comp) trace them. Per batch of the effect's pixel list:
     prep; pixel event (+ shadow rays); then per bounce: closest hits, hit event (+ shadow rays);
     finish (fused into the last shadow kernel when a pixel has one path).
+Each trace kernel (closest hits, shadow rays) may take its rays sorted by direction and origin
+(--ray-order morton: frame/passes/ray_order.py) and as persistent threads (--persistent:
+frame/passes/persistent_threads.py); either leaves every ray's result, and the image, as it was.
 The shadow rays of an event may be split into chunks and the pixel list into batches so that no
 buffer exceeds the device's storage-block limit. The pass composes its pixels of `hdr` over what
 `shade` wrote."""
@@ -19,7 +22,9 @@ from ...gl.gpu_layout import IMAGE, SSBO, UNIT
 from ...scene.light_selection import shadow_rays_per_surface
 from .classify import bind_lists
 from .compute import camera_defines, set_eye_uniforms
+from .persistent_threads import persistent_groups
 from .quadtree import set_tree_uniforms
+from .ray_order import ORDER_PATHS, ORDER_SHADOWS, RayOrder, pair_bytes, sort_table_bytes
 from .second_layer import bind_second_layer
 
 # The material parameters the wavefront reads by name, from an effect that declares them in `params`
@@ -33,6 +38,9 @@ PATH_BYTES, SLOT_BYTES = 80, 48
 # Largest wavefront buffer: the device's storage-block limit or this (Sizing.wave_buffer_bytes, from
 # Renderer(wave_buffer_bytes=...), gives another: tests split the waves with a small one).
 WAVE_BUFFER_BYTES = 1 << 30
+# The lean kernels that trace rays (rt/wave_trace.comp stages 1 and 2): ordered and fetched as the
+# plan says; the others run one invocation per item.
+TRACE_KERNELS = ("closest", "shadow", "shadow_finish")
 
 
 def wave_plan(pixel_capacity: int, paths_per_pixel: int, slots: int, limit: int,
@@ -107,6 +115,12 @@ class WaveShape:
         """The chunks a hit event's shadow rays fall in (the last one ends the path)."""
         return chunk_ranges(self.hit_slots, self.hit_chunk)
 
+    @property
+    def trace_kernels(self) -> int:
+        """Trace kernels a batch runs: one per pixel-event chunk, then per bounce a closest-hit
+        kernel and one per hit-event chunk (persistent threads: a ray counter each)."""
+        return len(self.chunks) + self.bounces * (1 + len(self.hit_chunks))
+
 
 class TraceEffectPass(Pass):
     timed_kernels = True
@@ -123,6 +137,18 @@ class TraceEffectPass(Pass):
                                                  "48 B per shadow ray of a batch's chunk")),
             "args": (f"{key}.args", Buffer(lambda s: 32, "2 indirect dispatches")),
         }
+        # --ray-order morton: the (key, ray) pairs, their ping-pong copy, the sort's digit table
+        self.order_buffers = {
+            "pairs": (f"{key}.order", Buffer(lambda s: pair_bytes(WaveShape(effect, s).capacity),
+                                             "8 B per path of a batch: (key, ray)")),
+            "alt": (f"{key}.order_alt", Buffer(lambda s: pair_bytes(WaveShape(effect, s).capacity),
+                                               "8 B per path of a batch (ping-pong)")),
+            "table": (f"{key}.order_table", Buffer(lambda s: sort_table_bytes(WaveShape(effect, s).capacity),
+                                                   "256 digit counts per 256 paths (+ scan totals)")),
+        }
+        # --persistent: one ray counter per trace kernel of a batch
+        self.fetch_buffer = (f"{key}.fetch", Buffer(lambda s: 4 * WaveShape(effect, s).trace_kernels,
+                                                    "4 B per trace kernel of a batch"))
 
     def why(self, plan: FramePlan) -> str | None:
         if plan.view != "color" or self.effect.name not in plan.effects:
@@ -134,13 +160,19 @@ class TraceEffectPass(Pass):
         screen = [read("quadtree")] if self.effect.uses_quadtree else []
         if self.effect.uses_quadtree and plan.depth_layers > 1:
             screen.append(read("layer2_triangle"))
+        extra = list(self.order_buffers.values()) if plan.ray_order != "none" else []
+        extra += [self.fetch_buffer] if plan.persistent else []
         return [read("gbuffer"), read("bvh"), read("rt_lists"), read("rt_list_args"), compose("hdr")] + screen + \
-            [write(name, t) for name, t in self.buffers.values()]
+            [write(name, t) for name, t in list(self.buffers.values()) + extra]
 
     def setup(self, gl, plan: FramePlan) -> None:
         d = {**GpuBvh.defines(DEFAULT_BINDING), **self.effect.param_defines(), "EFFECT": self.effect.id, **self.effect.shader_defines,
              "RT_SLOT": self.slot, "EFFECT_PATHS": self.effect.shader, **camera_defines(plan)}
         self.shade_defines = d  # a subclass may compile variants of the shading kernels
+        self.ray_order = RayOrder(gl.ctx, d) if plan.ray_order != "none" else None
+        self.persistent = plan.persistent
+        # how the trace kernels take their rays (rt/wave_fetch.glsl); prep zeroes the fetch counters
+        fetch = {"WAVE_RAY_ORDER": int(self.ray_order is not None), "WAVE_PERSISTENT": int(self.persistent)}
         trace, shade = "rt/wave_trace.comp", "rt/wave_shade.comp"
         # The tracing kernels take the plan's layout for their ray kind; the shading kernels only
         # read triangles (the same buffer in every layout) and stay on the binary defines.
@@ -148,12 +180,12 @@ class TraceEffectPass(Pass):
         self.layouts = {"closest": reflect, "shadow": shadow, "shadow_finish": shadow}
         ds, dr = ({**d, **layout_defines(DEFAULT_BINDING, x)} for x in (shadow, reflect))
         self.programs = {
-            "prep": shaders.compute(gl.ctx, trace, {**d, "WAVE_STAGE": 0}),
+            "prep": shaders.compute(gl.ctx, trace, {**d, **fetch, "WAVE_STAGE": 0}),
             # screen-space effects (ssr) find closest hits in the quadtree first (SSR_TRACE)
-            "closest": shaders.compute(gl.ctx, trace, {**dr, "WAVE_STAGE": 1, "QT_DEPTH_LAYERS": plan.depth_layers,
+            "closest": shaders.compute(gl.ctx, trace, {**dr, **fetch, "WAVE_STAGE": 1, "QT_DEPTH_LAYERS": plan.depth_layers,
                                                        "SSR_TRACE": int(self.effect.uses_quadtree)}),
-            "shadow": shaders.compute(gl.ctx, trace, {**ds, "WAVE_STAGE": 2}),
-            "shadow_finish": shaders.compute(gl.ctx, trace, {**ds, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
+            "shadow": shaders.compute(gl.ctx, trace, {**ds, **fetch, "WAVE_STAGE": 2}),
+            "shadow_finish": shaders.compute(gl.ctx, trace, {**ds, **fetch, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
             "pixel": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 3}),
             "finish": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 5}),
         }
@@ -166,7 +198,7 @@ class TraceEffectPass(Pass):
         common = {"ambient": tuple(fc.settings.ambient), "background": tuple(fc.settings.background),
                   "frame_seed": int(fc.settings.seed), "rt_capacity": n_pixels,
                   "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel,
-                  "light_picks": fc.plan.light_picks}
+                  "light_picks": fc.plan.light_picks, "wave_fetch_slots": shape.trace_kernels}
         users = [(a.rule, a.params) for a in fc.gpu_scene.assignments if a.effect == self.effect.name]
         for p in self.programs.values():
             set_eye_uniforms(p, fc)
@@ -183,23 +215,45 @@ class TraceEffectPass(Pass):
             fc.resource(name).bind_to_storage_buffer(SSBO[f"wave_{part}"])
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
         self.bind_extra(fc)
+        if self.persistent:
+            fc.resource(self.fetch_buffer[0]).bind_to_storage_buffer(SSBO["wave_fetch"])
         wave_args = fc.resource(self.buffers["args"][0])
         if self.effect.uses_quadtree:
             fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
             set_tree_uniforms(self.programs["closest"], fc.gbuffer.size, fc.gbuffer.layers)
             bind_second_layer(fc)
         barrier = fc.gl.ctx.memory_barrier
+        fetch_slot = iter(())  # the next trace kernel's ray counter (persistent threads), per batch
+
+        def order(name, items):  # the sorted (key, ray) pairs the trace kernel `name` reads
+            pairs, alt, table = (fc.resource(n) for n, _ in self.order_buffers.values())
+            rays = ORDER_PATHS if name == "closest" else ORDER_SHADOWS
+            capacity = shape.capacity if items else shape.batch
+
+            def go():
+                self.ray_order.keys(self.ray_order.programs[rays], fc.sizing.scene.vertices, pairs, capacity,
+                                    wave_items=items)
+                self.ray_order.sort(pairs, alt, table, capacity)
+                self.bind_extra(fc)  # the sort binds the photon passes' slots (rt_photon reads the map there)
+            fc.stage("order", go)
 
         def run(name, items=1, **uniforms):
             p = self.programs[name]
+            tracing = name in TRACE_KERNELS
+            if tracing and self.persistent:
+                uniforms["wave_fetch_slot"] = next(fetch_slot)
             for k, v in uniforms.items():
                 if k in p:
                     p[k].value = v
+            if tracing and self.ray_order is not None:
+                order(name, items)
 
             def go():
                 fc.accel.layout(self.layouts.get(name, "bvh2")).bind(DEFAULT_BINDING)
                 if name == "prep":
                     p.run(1, 1, 1)
+                elif tracing and self.persistent:
+                    p.run(persistent_groups(shape.capacity if items else shape.batch))
                 else:
                     p.run_indirect(wave_args, offset=16 * items)
                 barrier(moderngl.ALL_BARRIER_BITS)
@@ -211,6 +265,7 @@ class TraceEffectPass(Pass):
                 if "wave_batch_base" in p:
                     p["wave_batch_base"].value = base
             run("prep")
+            fetch_slot = iter(range(shape.trace_kernels))
             for ci, (first, count) in enumerate(chunks):
                 last = ci == len(chunks) - 1
                 run("pixel", 0, wave_slot_first=first, wave_slot_count=count, wave_slot_stride=shape.batch)
@@ -234,3 +289,5 @@ class TraceEffectPass(Pass):
     def release(self) -> None:
         for p in self.programs.values():
             p.release()
+        if self.ray_order is not None:
+            self.ray_order.release()

@@ -3,8 +3,8 @@
 // dispatch over its list only, both eyes at once. Layout mirrors rayvr/frame/passes/classify.py.
 #ifndef RAYVR_RT_PIXEL_LIST_GLSL
 #define RAYVR_RT_PIXEL_LIST_GLSL
-#include "../layout.glsl"  // RT_SLOTS, RT_SLOT_TABLE: one list per traced effect of the registry
-#define RT_LOCAL_SIZE 64          // invocations per work group of the effect passes
+#include "../layout.glsl"  // RT_SLOTS, RT_SLOT_TABLE: one list per traced effect of the registry;
+                           // RT_LOCAL_SIZE: rayvr/frame/passes/classify.py
 #define RT_MAX_GROUPS_X 65535u    // GL's minimum max work group count per dimension
 
 // Per list: dispatch size (x, y, z) for glDispatchComputeIndirect, then the pixel count. After

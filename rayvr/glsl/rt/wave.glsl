@@ -33,6 +33,18 @@ layout(std430, binding = SSBO_WAVE_PATHS) restrict buffer WavePaths { WavePath w
 layout(std430, binding = SSBO_WAVE_SHADOWS) restrict buffer WaveShadows { ShadowSlot wave_shadows[]; };
 // [0]: dispatch over the batch's pixels, [1]: over its paths; w = item count.
 layout(std430, binding = SSBO_WAVE_ARGS) restrict buffer WaveArgs { uvec4 wave_args[2]; };
+#ifndef WAVE_PERSISTENT
+#define WAVE_PERSISTENT 0
+#endif
+#ifndef WAVE_RAY_ORDER
+#define WAVE_RAY_ORDER 0
+#endif
+#if WAVE_PERSISTENT
+// One ray counter per trace kernel of a batch (rt/wave_fetch.glsl), zeroed by the prep kernel.
+layout(std430, binding = SSBO_WAVE_FETCH) restrict buffer WaveFetch { uint wave_fetch_counters[]; };
+uniform uint wave_fetch_slot;   // this trace kernel's counter
+uniform uint wave_fetch_slots;  // the batch's trace kernels (prep zeroes their counters)
+#endif
 
 uniform uint wave_capacity;         // paths the buffers hold
 uniform uint wave_slot_stride;      // items per row of the shadow slots (this event's capacity)

@@ -6,6 +6,8 @@
 //   WAVE_STAGE 2  shadow: each item's stored shadow rays, any hit; unoccluded contributions are
 //                 added to its radiance; with WAVE_FINISH the pixel's colour is written as well
 //                 (one path per pixel, last event)
+// Stages 1 and 2 take their rays through rt/wave_fetch.glsl: one per invocation, or fetched by
+// persistent threads (WAVE_PERSISTENT), in the sorted order (WAVE_RAY_ORDER) or the paths' own.
 #ifndef WAVE_STAGE
 #define WAVE_STAGE 1
 #endif
@@ -26,10 +28,14 @@ void main() {
     uint n = total > wave_batch_base ? min(total - wave_batch_base, wave_capacity / wave_paths_per_pixel) : 0u;
     wave_args[0] = dispatch_of(n);
     wave_args[1] = dispatch_of(n * wave_paths_per_pixel);
+#if WAVE_PERSISTENT
+    for (uint s = 0u; s < wave_fetch_slots; ++s) wave_fetch_counters[s] = 0u;
+#endif
 }
 #else
 layout(local_size_x = RT_LOCAL_SIZE) in;
 #include "../accel/bvh.glsl"
+#include "wave_fetch.glsl"
 #if WAVE_STAGE == 1
 #ifndef SSR_TRACE
 #define SSR_TRACE 0
@@ -81,9 +87,7 @@ bool screen_space_hit(uint p, vec3 o, vec3 d, out uint tri, out vec2 uv, out uin
     return true;
 }
 #endif
-void main() {
-    uint p = wave_index();
-    if (p >= wave_args[1].w) return;
+void trace_path(uint p) {
     vec4 o = wave_paths[p].origin;
     vec4 d = wave_paths[p].direction;
     if (d.w < 0.0) {
@@ -106,14 +110,15 @@ void main() {
     trace_closest(Ray(o.xyz, o.w, d.xyz, d.w), h);
     wave_paths[p].hit = uvec4(h.slot, h.prim, floatBitsToUint(h.uv.x), floatBitsToUint(h.uv.y));
 }
+void main() {
+    WAVE_FOR_EACH_RAY(k, wave_args[1].w) trace_path(wave_ray(k));
+}
 #else
 #ifdef WAVE_FINISH
 layout(rgba16f, binding = IMAGE_HDR) uniform writeonly image2DArray hdr_out;
 #endif
 uniform uint wave_items;  // 0: the batch's pixels, 1: its paths (wave_args index)
-void main() {
-    uint q = wave_index();
-    if (q >= wave_args[wave_items].w) return;
+void trace_shadows(uint q) {
     uint n = floatBitsToUint(wave_paths[q].throughput.w);
     vec3 sum = vec3(0.0);
     for (uint k = 0u; k < n; ++k) {
@@ -129,6 +134,9 @@ void main() {
     if (n > 0u)
         wave_paths[q].radiance.rgb += sum;
 #endif
+}
+void main() {
+    WAVE_FOR_EACH_RAY(k, wave_args[wave_items].w) trace_shadows(wave_ray(k));
 }
 #endif
 #endif

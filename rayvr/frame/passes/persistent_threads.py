@@ -1,0 +1,27 @@
+"""Persistent threads for the wavefront's trace kernels (issue 23; Aila and Laine 2009, "Understanding
+the efficiency of ray traversal on GPUs"): in place of one invocation per ray, a fixed number of work
+groups, about what the GPU holds resident at once, and each invocation fetches its next ray from an
+atomic counter of the kernel whenever it is done with one, until the batch's rays are all taken
+(glsl/rt/wave_fetch.glsl). Incoherent rays take very different times; with fetching, a SIMD group
+whose rays ended early takes new ones instead of the GPU waiting on a new group being launched.
+Each ray's result goes to its own slot as before: the images are exactly those of one ray per
+invocation; the speed is to be measured on the GPU (`rayvr bench ... --persistent off,on`)."""
+from __future__ import annotations
+
+from ...options import Option, declare
+from .classify import RT_LOCAL_SIZE
+
+PERSISTENT = declare(Option(
+    "persistent", bool, False, "trace the wavefront's rays with persistent threads that fetch rays from an atomic "
+    "counter (Aila and Laine 2009) instead of one invocation per ray (the same images; speed to be measured)",
+    scope="plan", plan_field="persistent", commands=("capture", "preview", "info", "bench")))
+
+# Work groups (of RT_LOCAL_SIZE, 64 invocations) a persistent trace kernel launches: an H200's 132
+# SMs hold 16 such groups each at half occupancy (32 of 64 warps), 2112 in all. A guess until measured.
+PERSISTENT_GROUPS = 2048
+
+
+def persistent_groups(capacity: int) -> int:
+    """Work groups of a persistent trace kernel over at most `capacity` rays: no more than
+    one ray per invocation would keep busy."""
+    return max(1, min(PERSISTENT_GROUPS, -(-capacity // RT_LOCAL_SIZE)))
