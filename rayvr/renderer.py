@@ -169,7 +169,7 @@ class Renderer:
                          share_channels=primary == "rays" and primary_rays.shares_channels(
                              st, camera, samples, self.effects_in_use(), culled, view),
                          channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots,
-                         light_picks=st.light_picks, ray_order=st.ray_order, persistent=st.persistent)
+                         light_picks=st.light_picks, ray_order=st.ray_order, persistent=st.persistent == "on")
 
     def set_stereo(self, mode: str) -> None:
         """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/frame/stereo.py)."""

@@ -108,7 +108,8 @@ def test_a_toy_option_declared_from_a_test_appears_everywhere_then_goes(tmp_path
     ("denoise_iterations", "9", 9), ("seed", "4294967296", 2**32), ("dof_samples", "0", 0),
     ("dof_diameter", "-2", -2.0), ("dof_focus", "0", 0.0), ("quadtree_adapt", "-1", -1.0),
     ("tonemapper", "filmic", "filmic"), ("msaa", "3", 3), ("warp_layers", "3", 3), ("stereo", "mono", "mono"),
-    ("bvh_build", "kd", "kd"), ("traversal", "shadow=bvh3", "shadow=bvh3")])
+    ("bvh_build", "kd", "kd"), ("traversal", "shadow=bvh3", "shadow=bvh3"),
+    ("ray_order", "zigzag", "zigzag"), ("persistent", "yes", "yes")])
 def test_a_bad_value_is_the_same_error_from_the_cli_the_toml_and_render_settings(tmp_path, capsys, name, text, value):
     said = settings_error(**{name: value})
     flag = settings_mod.all_options()[name].cli_flag

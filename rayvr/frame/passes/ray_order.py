@@ -27,7 +27,7 @@ RAY_ORDER = declare_option(Option(
     "ray_order", str, "none", "the order the wavefront traces its rays in: none (as shaded) or morton (sorted by "
     "direction octant and origin cell before each trace kernel; the same images, speed to be measured)",
     scope="plan", plan_field="ray_order", choices=RAY_ORDERS, label="ray order",
-    commands=("capture", "preview", "info", "bench")))
+    commands=("capture", "preview", "info")))
 
 ORDER_AXIS_BITS = declare("ORDER_AXIS_BITS", 7)  # Morton bits per coordinate: 128^3 origin cells
 OCTANT_BITS = 3
