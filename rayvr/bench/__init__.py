@@ -49,13 +49,23 @@ def _gbuffer(args, out, camera_from_args):
                 repeat=3 if args.quick else args.repeat, warmup=1 if args.quick else 5, backend=args.backend)
 
 
+def wavefront_variants(args) -> dict | None:
+    """{name: RenderSettings fields}: every pair of the --ray-order and --persistent values given
+    (bench rays, vr: grid axes); None when neither is."""
+    orders, modes = getattr(args, "ray_orders", None), getattr(args, "persistent_modes", None)
+    if orders is None and modes is None:
+        return None
+    return {f"ray_order={o},persistent={m}": {"ray_order": o, "persistent": m}
+            for o in orders or ("none",) for m in modes or ("off",)}
+
+
 def _rays(args, out, camera_from_args):
     from . import rays
 
     rays.run(out, size=(64, 48) if args.quick else args.size, scenes=_scenes(args),
              repeat=2 if args.quick else share(args.repeat, 2), warmup=1 if args.quick else 3, backend=args.backend,
              layouts=args.layouts, tiles=not args.no_tiles, builds=args.bvh_build or ("sah",),
-             kinds=checked_configs("rays", args.configs, rays.RAY_KINDS))
+             kinds=checked_configs("rays", args.configs, rays.RAY_KINDS), wavefront=wavefront_variants(args))
 
 
 def _bvh(args, out, camera_from_args):
@@ -170,6 +180,10 @@ def _vr(args, out, camera_from_args):
     # the render flags given (--tile-culling, --tile-lists, --ssaa) are one variant of every row; --msaa: the counts
     fields = {k: v for k, v in settings_mod.given_by_args(args, "bench").items() if k != "msaa"}
     variants = {",".join(f"{k}={v}" for k, v in fields.items()): fields} if fields else None
+    wave = wavefront_variants(args)  # --ray-order, --persistent: a variant per pair, with those flags
+    if wave is not None:
+        given = ",".join(f"{k}={v}" for k, v in fields.items())
+        variants = {",".join(filter(None, (given, name))): {**fields, **w} for name, w in wave.items()}
     vr.run(out, size=quick.get("size", args.size), scenes=_scenes(args),
            poses=args.poses if args.poses is not None else quick.get("poses", vr.POSES), pose_seed=args.pose_seed,
            cameras=args.cameras or quick.get("cameras", vr.CAMERAS),

@@ -73,6 +73,20 @@ def hybrid_config(name: str):
                         f"bench:{name}")
 
 
+# The wavefront frames timed per wavefront variant (--ray-order, --persistent): the hybrid frame, and
+# with variants asked for, every material glossy or path traced (incoherent bounce and shadow rays).
+INCOHERENT_FRAMES = {"glossy": {"effect": "glossy", "samples": 4, "bounces": 1},
+                     "path": {"effect": "path", "bounces": 2}}
+
+
+def frame_configs(name: str, incoherent: bool) -> dict:
+    out = {"hybrid": hybrid_config(name)}
+    if incoherent:
+        out.update({k: parse_config({"default": "raster", "materials": {"*": v}}, f"bench:{name}:{k}")
+                    for k, v in INCOHERENT_FRAMES.items()})
+    return out
+
+
 # (variant, layout, ordered closest hits, tile frustum culling)
 VARIANTS = (("bvh2", "bvh2", True, False), ("bvh2+tiles", "bvh2", True, True),
             ("bvh4", "bvh4", True, False), ("bvh4-unordered", "bvh4", False, False),
@@ -263,11 +277,14 @@ def time_effect_stages(renderer, rig, repeat=5) -> dict:
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, workers=None,
         backend=None, progress=True, layouts=("bvh2", "bvh4", "bvh8", "cwbvh"), tiles: bool = True,
-        builds=("sah",), kinds=None) -> dict:
+        builds=("sah",), kinds=None, wavefront=None) -> dict:
     """`layouts` and `tiles` pick the traversal variants (VARIANTS); bvh2 is always measured (the
     reference every variant is compared with). `builds` (bvh.BUILDS): each variant runs on a BVH of
     each build; the first build's bvh2 is the reference (rays, agreement, speedups, Embree).
-    `kinds`: the ray kinds to time (RAY_KINDS; None: all)."""
+    `kinds`: the ray kinds to time (RAY_KINDS; None: all). `wavefront`: {name: RenderSettings
+    fields} (--ray-order, --persistent): each wavefront frame is timed with each; given, the
+    incoherent frames (INCOHERENT_FRAMES) are timed too. The batch ray kinds above are traced by
+    accel/gpu.py RayTracer, not the wavefront: these options do not reach them."""
     layouts = tuple(dict.fromkeys(("bvh2",) + tuple(layouts)))
     builds = tuple(dict.fromkeys(builds))
     workers = workers or os.cpu_count() or 1
@@ -359,21 +376,26 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, war
                 _WORK.clear()
                 for g in gpus.values():
                     g.release()
-            for b in builds:   # the hybrid frame on each build's BVH
-                r = Renderer(scene, hybrid_config(name), gl=gl, settings=RenderSettings(bvh_build=b))
+            wave_variants = wavefront or {"default": {}}
+            frame_grid = [(b, frame, cfg, v) for b in builds for frame, cfg in frame_configs(name, bool(wavefront)).items()
+                          for v in wave_variants]
+            for b, frame, cfg, variant in frame_grid:   # the wavefront frames on each build's BVH
+                r = Renderer(scene, cfg, gl=gl, settings=RenderSettings(bvh_build=b, **wave_variants[variant]))
                 try:
                     names, med, total = time_frame(r, rig, repeat, warmup)
                     stages = time_effect_stages(r, rig)
                     counts = r.pixel_counts()
                     pixels = 2 * size[0] * size[1]
-                    frames.append({"scene": name, "bvh_build": b, "size": f"2x{size[0]}x{size[1]}", "passes": names,
+                    frames.append({"scene": name, "bvh_build": b, "frame": frame, "wavefront": variant,
+                                   "size": f"2x{size[0]}x{size[1]}", "passes": names,
                                    "pass_ms": {k: med[k] for k in names if k in med}, "total_ms": total,
-                                   "mirror_pixel_fraction": counts["reflections"] / pixels,
-                                   "shadow_pixel_fraction": counts["shadows"] / pixels,
+                                   "mirror_pixel_fraction": counts.get("reflections", 0) / pixels,
+                                   "shadow_pixel_fraction": counts.get("shadows", 0) / pixels,
                                    "effect_kernel_ms": stages,
-                                   "config": {"default": "shadows", "reflections": list(MIRRORS.get(name, ()))}})
+                                   "config": {"default": "shadows", "reflections": list(MIRRORS.get(name, ()))}
+                                   if frame == "hybrid" else {"*": INCOHERENT_FRAMES[frame]}})
                     if progress:
-                        print(f"  {name:8s} hybrid frame ({b}) {total:.3f} ms: "
+                        print(f"  {name:8s} {frame} frame ({b}, {variant}) {total:.3f} ms: "
                               + ", ".join(f"{k} {v:.3f}" for k, v in frames[-1]["pass_ms"].items()))
                         print(f"  {name:8s} effect kernels: " + ", ".join(f"{k} {v:.3f}" for k, v in stages.items()))
                 finally:

@@ -50,6 +50,16 @@ def _layouts(text: str) -> tuple[str, ...]:
     return _among(text, "BVH layouts", BVH_LAYOUTS)
 
 
+def _ray_orders(text: str) -> tuple[str, ...]:
+    from ..frame.passes.ray_order import RAY_ORDERS
+    return _among(text, "ray orders", RAY_ORDERS, unique=True)
+
+
+def _persistent_modes(text: str) -> tuple[str, ...]:
+    from ..frame.passes.persistent_threads import PERSISTENT_MODES
+    return _among(text, "persistent modes", PERSISTENT_MODES, unique=True)
+
+
 def _names(text: str) -> tuple[str, ...]:
     names = _split(text)
     if not names:
@@ -110,6 +120,12 @@ def add_parser(sub) -> None:
     b.add_argument("--bvh-build", type=_builds, metavar="BUILDS",
                    help="rays, primary: BVH builds to measure, comma-separated among sah,sbvh (default sah; the "
                         "first is the reference); bvh: the builds to compare (default sah,sbvh)")
+    b.add_argument("--ray-order", dest="ray_orders", type=_ray_orders, metavar="ORDERS",
+                   help="rays, vr: the wavefront ray orders to time, comma-separated among none,morton (a grid axis; "
+                        "default none; rays: given, also the glossy and path frames)")
+    b.add_argument("--persistent", dest="persistent_modes", type=_persistent_modes, metavar="MODES",
+                   help="rays, vr: the wavefront trace kernels' modes to time, comma-separated among off,on (a grid "
+                        "axis; default off; rays: given, also the glossy and path frames)")
     b.add_argument("--no-tiles", action="store_true", help="rays, primary: leave out the tile frustum culling variant")
     b.add_argument("--workers", type=_worker_counts, help="tradeoff/budget: spread the variants over N Ray workers; "
                    "workers: the worker counts to time (default 1,2); needs pip install 'rayvr[cluster]'")
