@@ -105,9 +105,9 @@ def test_shadow_items_are_keyed_by_their_first_shadow_ray(gl):
     assert np.array_equal(order[:, 1], np.argsort(expected, kind="stable"))
 
 
-def render_room(gl, effect, order="none", persistent="off"):
+def render_room(gl, effect, order="none", persistent="off", **renderer):
     settings = RenderSettings(ray_order=order, persistent=persistent)
-    with Renderer(None, parse_config({"default": effect}, "t"), gl=gl, settings=settings) as r:
+    with Renderer(None, parse_config({"default": effect}, "t"), gl=gl, settings=settings, **renderer) as r:
         rig = camera_rig(r, "pinhole", size=(24, 16))
         frame = r.render(rig, aux=("hdr",))
         hits = np.frombuffer(r.resource(f"rt_wave.{effect}.paths").read(), WAVE_PATH)["hit"].copy()
@@ -127,4 +127,15 @@ def test_reordered_and_persistent_wavefronts_give_the_default_frames_exactly(gl,
         for (hdr, color), (ref_hdr, ref_color) in zip(eyes, reference):
             assert np.array_equal(hdr, ref_hdr), (order, persistent)
             assert np.array_equal(color, ref_color), (order, persistent)
+
+
+def test_batches_and_shadow_chunks_reorder_and_fetch_exactly_too(gl):
+    """A small wave-buffer limit splits the pixel list into batches and the shadow rays into chunks:
+    each trace kernel of each batch sorts its own rays and has its own ray counter."""
+    limit = 16 * 1024
+    reference, ref_hits = render_room(gl, "glossy", wave_buffer_bytes=limit)
+    eyes, hits = render_room(gl, "glossy", "morton", "on", wave_buffer_bytes=limit)
+    assert np.array_equal(hits, ref_hits)
+    for (hdr, color), (ref_hdr, ref_color) in zip(eyes, reference):
+        assert np.array_equal(hdr, ref_hdr) and np.array_equal(color, ref_color)
 

@@ -5,6 +5,9 @@
 //   ORDER_RAYS 1  the paths' rays (WAVE_STAGE 1 of rt/wave_trace.comp): an ended path has none
 //   ORDER_RAYS 2  the items of a shadow kernel (WAVE_STAGE 2), each by its first shadow ray of
 //                 the chunk (it traces all of them in one invocation); none where it has none
+#ifndef RT_SLOT
+#define RT_SLOT 0  // the pass passes its list (wave.glsl's wave_pixel, unused here)
+#endif
 #include "wave.glsl"
 #include "ray_order.glsl"
 layout(local_size_x = ORDER_GROUP) in;
