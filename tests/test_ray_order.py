@@ -39,7 +39,8 @@ def test_order_bounds_cut_the_scene_into_cells_and_a_flat_axis_into_one():
 
 
 def gpu_order(gl, rays: int, paths: np.ndarray, shadows: np.ndarray, count: int, capacity: int, items: int = 1):
-    """The (key, ray) pairs ray_order.comp writes for `paths` / `shadows` and their sorted order."""
+    """The (key, ray) pairs ray_order.comp writes for the first `count` of `paths` / `shadows` and
+    their sorted order (the count on the GPU, in wave_args[items]; 1 for paths)."""
     ctx = gl.ctx
     order = ray_order.RayOrder(ctx, {"RT_SLOT": 0})
     args = np.zeros((2, 4), np.uint32)
@@ -49,12 +50,13 @@ def gpu_order(gl, rays: int, paths: np.ndarray, shadows: np.ndarray, count: int,
             "wave_args": ctx.buffer(args.tobytes())}
     for name, b in bufs.items():
         b.bind_to_storage_buffer(SSBO[name])
-    pairs, alt = (ctx.buffer(bytes(ray_order.pair_bytes(capacity))) for _ in range(2))
+    untouched = np.full((capacity, 2), 0xABCDEF01, np.uint32)  # what entries past the count keep
+    pairs, alt = (ctx.buffer(untouched.tobytes()) for _ in range(2))
     table = ctx.buffer(bytes(ray_order.sort_table_bytes(capacity)))
     vertices = np.array([[-1, -2, -3], [3, 2, 1]], np.float32)
     order.keys(order.programs[rays], vertices, pairs, capacity, wave_items=items)
     keys = np.frombuffer(pairs.read(), np.uint32).reshape(-1, 2).copy()
-    out = order.sort(pairs, alt, table, capacity)
+    out = order.sort(pairs, alt, table, capacity, bufs["wave_args"], items)
     sorted_pairs = np.frombuffer(out.read(), np.uint32).reshape(-1, 2).copy()
     for b in (*bufs.values(), pairs, alt, table):
         b.release()
@@ -73,20 +75,21 @@ def test_the_gpu_keys_are_numpys_and_the_order_a_stable_permutation_by_key(gl, m
     from rayvr.frame.passes import prefix_scan
     monkeypatch.setattr(prefix_scan, "MAX_GROUPS", 5)  # 12 groups of the key kernel and the sort: rows of 5
     rng = np.random.default_rng(23)
-    capacity, count = 3000, 2600  # entries past the batch's count get no ray
+    capacity, count = 3000, 2600  # the batch's paths: the first `count` of the buffers' `capacity`
     paths = np.zeros(capacity, WAVE_PATH)
     o, d = random_rays(rng, capacity)
     paths["origin"][:, :3], paths["direction"][:, :3] = o, d
     paths["direction"][:, 3] = np.where(rng.random(capacity) < 0.2, -1.0, 10.0)  # tmax < 0: the path ended
     keys, order, (lo, scale) = gpu_order(gl, ray_order.ORDER_PATHS, paths, np.zeros(1, SHADOW_SLOT), count, capacity)
-    expected = ray_order.order_keys(o, d, lo, scale)
-    none = (np.arange(capacity) >= count) | (paths["direction"][:, 3] < 0)
-    expected[none] = ray_order.ORDER_KEY_NONE
-    assert np.array_equal(keys[:, 0], expected) and np.array_equal(keys[:, 1], np.arange(capacity))
-    assert len(set(expected[~none].tolist())) > 100  # the keys really spread the rays
-    assert np.array_equal(order[:, 1], np.argsort(expected, kind="stable"))
-    assert np.all(np.diff(order[:, 0].astype(np.int64)) >= 0)
-    assert sorted(order[:count, 1].tolist()) == list(range(count))  # the batch's rays come first
+    expected = ray_order.order_keys(o[:count], d[:count], lo, scale)
+    ended = paths["direction"][:count, 3] < 0
+    expected[ended] = ray_order.ORDER_KEY_NONE
+    assert np.array_equal(keys[:count, 0], expected) and np.array_equal(keys[:count, 1], np.arange(count))
+    assert len(set(expected[~ended].tolist())) > 100  # the keys really spread the rays
+    assert np.array_equal(order[:count, 1], np.argsort(expected, kind="stable"))  # a permutation of the batch
+    assert np.all(np.diff(order[:count, 0].astype(np.int64)) >= 0)
+    assert np.all(keys[count:] == 0xABCDEF01)  # past the count: neither keyed nor sorted
+    assert np.all(order[count:] == 0xABCDEF01)
 
 
 def test_shadow_items_are_keyed_by_their_first_shadow_ray(gl):
@@ -99,10 +102,10 @@ def test_shadow_items_are_keyed_by_their_first_shadow_ray(gl):
     o, d = random_rays(rng, 2 * capacity)
     shadows["origin"][:, :3], shadows["direction"][:, :3] = o, d
     keys, order, (lo, scale) = gpu_order(gl, ray_order.ORDER_SHADOWS, paths, shadows, count, capacity, items=0)
-    expected = ray_order.order_keys(o[:capacity], d[:capacity], lo, scale)
-    expected[(np.arange(capacity) >= count) | (n_rays == 0)] = ray_order.ORDER_KEY_NONE
-    assert np.array_equal(keys[:, 0], expected)
-    assert np.array_equal(order[:, 1], np.argsort(expected, kind="stable"))
+    expected = ray_order.order_keys(o[:count], d[:count], lo, scale)
+    expected[n_rays[:count] == 0] = ray_order.ORDER_KEY_NONE
+    assert np.array_equal(keys[:count, 0], expected)
+    assert np.array_equal(order[:count, 1], np.argsort(expected, kind="stable"))
 
 
 def render_room(gl, effect, order="none", persistent="off", **renderer):

@@ -54,6 +54,7 @@ SSBO = {
     "rt_lists": 10, "rt_list_args": 11,  # frame/passes/classify.py
     "wave_paths": 12, "wave_shadows": 13, "wave_args": 14,  # frame/passes/trace_effect.py
     "wave_order": 17, "wave_fetch": 18,  # its ray order (frame/passes/ray_order.py), persistent threads' counters
+    "sort_count": 19,  # frame/passes/radix_sort.py: a pair count the GPU wrote (SORT_COUNTED)
     "dda_rays": 15, "dda_results": 16,  # bench/tracers/dda.py DdaTracer (glsl/ssrt/dda_batch.comp)
     "quadtree_nodes": 20, "quadtree_rays": 21, "quadtree_results": 22,  # frame/passes/quadtree.py, glsl/ssrt/quadtree*.glsl
     "hiz_levels": 23, "hiz_rays": 24, "hiz_results": 25,  # bench/tracers/hiz.py HizTracer, glsl/ssrt/hiz*.glsl

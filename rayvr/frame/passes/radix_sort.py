@@ -28,17 +28,26 @@ def table_words(n: int) -> int:
 
 
 class RadixSort:
-    def __init__(self, ctx):
-        self.ctx = ctx
-        self.programs = [shaders.compute(ctx, "photon/radix_sort.comp", {"SORT_STAGE": s}) for s in (0, 1, 2)]
-        self.scan = Scan(ctx)
+    """`counted`: the sort takes its pair count from a buffer the GPU wrote (sort(count=...))."""
 
-    def sort(self, keys, alt, table, n: int, bits: int):
-        """Sort n (key, slot) pairs by their low `bits` key bits; returns the buffer holding them."""
+    def __init__(self, ctx, counted: bool = False):
+        self.ctx = ctx
+        self.programs = [shaders.compute(ctx, "photon/radix_sort.comp", {"SORT_STAGE": s, "SORT_COUNTED": int(counted)})
+                         for s in (0, 1, 2)]
+        self.scan = Scan(ctx)
+        self.counted = counted
+
+    def sort(self, keys, alt, table, n: int, bits: int, count=None):
+        """Sort n (key, slot) pairs by their low `bits` key bits; returns the buffer holding them.
+        A counted sort's `count`: (buffer, k), the pairs are the first buffer.uvec4[k].w (<= n)."""
+        if self.counted != (count is not None):
+            raise ValueError("a counted sort takes its count (buffer, slot), no other sort does")
         shape = sort_groups(n)
         groups = shape[0] * shape[1]
         src, dst = keys, alt
         barrier = self.ctx.memory_barrier
+        if count is not None:
+            count[0].bind_to_storage_buffer(SSBO["sort_count"])
         for shift in range(0, bits, 8):
             for stage in (0, 1):
                 src.bind_to_storage_buffer(SSBO["photon_keys"])
@@ -46,6 +55,8 @@ class RadixSort:
                 table.bind_to_storage_buffer(SSBO["photon_scan"])
                 prog = self.programs[stage]
                 prog["item_count"].value, prog["digit_shift"].value = n, shift
+                if count is not None:
+                    prog["sort_count_slot"].value = count[1]
                 prog.run(*shape)
                 barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
                 if stage == 0:

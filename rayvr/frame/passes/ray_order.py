@@ -32,8 +32,8 @@ RAY_ORDER = declare_option(Option(
 ORDER_AXIS_BITS = declare("ORDER_AXIS_BITS", 7)  # Morton bits per coordinate: 128^3 origin cells
 OCTANT_BITS = 3
 ORDER_KEY_BITS = 3 * ORDER_AXIS_BITS + OCTANT_BITS  # 24: three rounds of the 8-bit radix sort
-# The key of an entry with no ray (a path that has ended, an item with no shadow ray this chunk, a
-# slot past the batch's count): the largest, so the stable sort puts them last in index order.
+# The key of an entry with nothing to trace (a path that has ended, an item with no shadow ray this
+# chunk): the largest, so the stable sort puts them last, in index order.
 ORDER_KEY_NONE = declare("ORDER_KEY_NONE", (1 << ORDER_KEY_BITS) - 1, uint=True)
 ORDER_GROUP = declare("ORDER_GROUP", 256)  # invocations of a glsl/rt/ray_order.comp group
 # ray_order.comp's ORDER_RAYS: the rays a key is made of
@@ -89,7 +89,7 @@ class RayOrder:
         self.ctx = ctx
         self.programs = {rays: shaders.compute(ctx, "rt/ray_order.comp", {**defines, "ORDER_RAYS": rays})
                          for rays in (ORDER_PATHS, ORDER_SHADOWS)}
-        self.sorter = RadixSort(ctx)
+        self.sorter = RadixSort(ctx, counted=True)  # over the batch's rays: a count on the GPU
         self._bounds = (None, None)  # (the vertices they were taken of, (lo, scale))
 
     def bounds(self, vertices) -> tuple:
@@ -98,7 +98,8 @@ class RayOrder:
         return self._bounds[1]
 
     def keys(self, program, vertices, pairs, capacity: int, **uniforms) -> None:
-        """(key, ray) for entries [0, capacity) of `pairs`, from the rays now in the wave buffers."""
+        """(key, ray) for the batch's rays (or items) now in the wave buffers, their count the w of
+        wave_args[1] (or [wave_items]), at most `capacity`: the first entries of `pairs`."""
         lo, scale = self.bounds(vertices)
         program["order_lo"].value, program["order_scale"].value = tuple(map(float, lo)), tuple(map(float, scale))
         program["order_capacity"].value = capacity
@@ -109,9 +110,10 @@ class RayOrder:
         program.run(*dispatch_shape(capacity, ORDER_GROUP))
         self.ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
 
-    def sort(self, pairs, alt, table, capacity: int):
-        """The pairs sorted by key (stable); returns the buffer that holds them, bound as wave_order."""
-        out = self.sorter.sort(pairs, alt, table, capacity, ORDER_KEY_BITS)
+    def sort(self, pairs, alt, table, capacity: int, wave_args, items: int):
+        """The batch's pairs sorted by key (stable), their count the w of wave_args[items]; returns
+        the buffer that holds them, bound as wave_order."""
+        out = self.sorter.sort(pairs, alt, table, capacity, ORDER_KEY_BITS, count=(wave_args, items))
         out.bind_to_storage_buffer(SSBO["wave_order"])
         return out
 

@@ -233,7 +233,7 @@ class TraceEffectPass(Pass):
             def go():
                 self.ray_order.keys(self.ray_order.programs[rays], fc.sizing.scene.vertices, pairs, capacity,
                                     wave_items=items)
-                self.ray_order.sort(pairs, alt, table, capacity)
+                self.ray_order.sort(pairs, alt, table, capacity, wave_args, items)
                 self.bind_extra(fc)  # the sort binds the photon passes' slots (rt_photon reads the map there)
             fc.stage("order", go)
 

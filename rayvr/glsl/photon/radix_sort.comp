@@ -7,9 +7,15 @@
 //                 its group with the same digit (stable, deterministic): the digit counts of the
 //                 earlier chunks of 32 pairs (shared-memory histograms) plus a count within its chunk
 //   SORT_STAGE 2  permute (the photon map only): photon_map[i] = photons[slot of the i-th sorted pair]
+// SORT_COUNTED 1: the pairs are the first sort_count[sort_count_slot].w (at most item_count, which
+// sizes the dispatch), a count the GPU wrote (the wavefront's rays: frame/passes/ray_order.py);
+// the pairs past it are neither read nor written.
 #include "../layout.glsl"  // SORT_GROUP, SORT_RADIX: rayvr/frame/passes/radix_sort.py
 #ifndef SORT_STAGE
 #define SORT_STAGE 0
+#endif
+#ifndef SORT_COUNTED
+#define SORT_COUNTED 0
 #endif
 layout(local_size_x = SORT_GROUP) in;
 #include "photon.glsl"
@@ -22,6 +28,10 @@ layout(std430, binding = SSBO_PHOTON_MAP) writeonly restrict buffer PhotonMap { 
 
 uniform uint item_count;
 uniform uint digit_shift;
+#if SORT_COUNTED
+layout(std430, binding = SSBO_SORT_COUNT) readonly restrict buffer SortCount { uvec4 sort_count[]; };
+uniform uint sort_count_slot;
+#endif
 
 #define SORT_CHUNK 32
 shared uint digits[SORT_GROUP];
@@ -34,11 +44,16 @@ void main() {
     uint groups = gl_NumWorkGroups.x * gl_NumWorkGroups.y;
     uint t = gl_LocalInvocationID.x;
     uint i = g * uint(SORT_GROUP) + t;
-#if SORT_STAGE == 2
-    if (i < item_count) photon_map[i] = photons[keys_in[i].y];
+#if SORT_COUNTED
+    uint pairs = min(item_count, sort_count[sort_count_slot].w);
 #else
-    uvec2 kv = i < item_count ? keys_in[i] : uvec2(0u);
-    uint d = i < item_count ? (kv.x >> digit_shift) & (SORT_RADIX - 1u) : SORT_RADIX;
+    uint pairs = item_count;
+#endif
+#if SORT_STAGE == 2
+    if (i < pairs) photon_map[i] = photons[keys_in[i].y];
+#else
+    uvec2 kv = i < pairs ? keys_in[i] : uvec2(0u);
+    uint d = i < pairs ? (kv.x >> digit_shift) & (SORT_RADIX - 1u) : SORT_RADIX;
 #if SORT_STAGE == 0
     digits[t] = 0u;
     barrier();
