@@ -142,3 +142,22 @@ def test_batches_and_shadow_chunks_reorder_and_fetch_exactly_too(gl):
     for (hdr, color), (ref_hdr, ref_color) in zip(eyes, reference):
         assert np.array_equal(hdr, ref_hdr) and np.array_equal(color, ref_color)
 
+
+
+def test_bench_takes_the_options_as_grid_axes_and_refuses_a_bad_value_in_one_line(capsys):
+    from rayvr.bench import wavefront_variants
+    from rayvr.cli import build_parser
+
+    def variants(*argv):
+        return wavefront_variants(build_parser().parse_args(["bench", "vr", *argv]))
+    assert variants() is None  # neither asked for: the benches run as before
+    assert variants("--ray-order", "none,morton", "--persistent", "on") == {
+        "ray_order=none,persistent=on": {"ray_order": "none", "persistent": "on"},
+        "ray_order=morton,persistent=on": {"ray_order": "morton", "persistent": "on"}}
+    assert list(variants("--persistent", "off,on")) == ["ray_order=none,persistent=off", "ray_order=none,persistent=on"]
+    for flag, text, what in (("--ray-order", "none,hilbert", "ray orders must be among none, morton"),
+                             ("--persistent", "yes", "persistent modes must be among off, on")):
+        with pytest.raises(SystemExit) as exc:
+            build_parser().parse_args(["bench", "rays", flag, text])
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert exc.value.code == 2 and len(lines) == 1 and what in lines[0], lines

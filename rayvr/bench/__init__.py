@@ -123,7 +123,7 @@ def _gi(args, out, camera_from_args):
     gi.run(out, size=(32, 24) if args.quick else args.size, scenes=_scenes(args),
            repeat=1 if args.quick else share(args.repeat, 5), warmup=1 if args.quick else 3, quick=args.quick,
            parts=checked_configs("gi", args.configs, gi.PARTS) or gi.PARTS, reference_spp=args.reference_spp,
-           reference_photons=args.reference_photons, backend=args.backend)
+           reference_photons=args.reference_photons, backend=args.backend, wavefront=wavefront_variants(args))
 
 
 def _stereo(args, out, camera_from_args):

@@ -37,7 +37,7 @@ from ..gl.context import create_context
 from ..scene.materials import parse_config
 from ..renderer import Renderer, RenderSettings
 from . import photon, stereo
-from .rays import time_frame
+from .rays import time_effect_stages, time_frame
 from .report import _plot, device_meta, write_report
 from .scenes import bench_scenes
 from ..quality.measure import REFERENCE_SEED
@@ -149,6 +149,23 @@ def path_part(gl, name, scene, rig, quick, repeat, warmup, reference_spp, progre
                        "accumulated_flip": metrics.flip(ref, accumulated)}
 
 
+def wavefront_part(gl, name, scene, rig, variants, quick, repeat, warmup, progress):
+    """Rows of the path (1 spp) and photon (the issue's 512^2 at 0.05, grid; quick: photon.QUICK) frames timed with each
+    wavefront variant ({name: RenderSettings fields}: --ray-order, --persistent): frame and
+    wavefront-kernel GPU ms; the images are the same in every variant (tests/test_ray_order.py)."""
+    from tqdm import tqdm
+
+    paths, radius = photon.QUICK[0] if quick else (PHOTON_PATHS, PHOTON_RADIUS)
+    frames = {"path": path_config(name, 1), "photon": photon.config(name, paths, radius, "grid")}
+    grid = [(f, v) for f in frames for v in variants]
+    for frame, variant in tqdm(grid, desc=f"wavefront {name}", unit="frame", disable=not progress):
+        with Renderer(scene, frames[frame], gl=gl, settings=RenderSettings(seed=VARIANT_SEED, **variants[variant])) as r:
+            names, med, total = time_frame(r, rig, repeat, warmup)
+            yield {"part": "wavefront", "scene": name, "size": f"2x{rig.size[0]}x{rig.size[1]}", "frame": frame,
+                   "variant": variant, **variants[variant], "frame_ms": total,
+                   "pass_ms": {k: med[k] for k in names if k in med}, "effect_kernel_ms": time_effect_stages(r, rig)}
+
+
 # ------------------------------------------------------------------------------------ the run
 
 def check_parts(parts) -> tuple:
@@ -175,9 +192,10 @@ def kept_rows(path: Path, meta: dict, measured: set) -> tuple[list, dict]:
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, warmup=3, quick=False, parts=PARTS,
-        reference_spp=None, reference_photons=None, backend=None, progress=True, gl=None) -> dict:
+        reference_spp=None, reference_photons=None, backend=None, progress=True, gl=None, wavefront=None) -> dict:
     """Measure `parts` on `scenes` into `out_dir` (gi.json, gi.md, plots); `gl`: a context to use
-    (default: a new one from `backend`, released at the end)."""
+    (default: a new one from `backend`, released at the end). `wavefront`: {name: RenderSettings
+    fields} (--ray-order, --persistent): the path and photon frames timed with each, too."""
     parts = check_parts(parts)
     reference_spp = reference_spp or (QUICK_REFERENCE_SPP if quick else REFERENCE_SPP)
     reference_photons = reference_photons or (photon.QUICK_REFERENCE_PHOTONS if quick else photon.REFERENCE_PHOTONS)
@@ -235,6 +253,10 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, war
                     write()
                 meta["seconds"][f"{part}/{name}"] = time.perf_counter() - t0
                 write(plots=True)
+            if wavefront:
+                for row in wavefront_part(gl, name, scene, rig, wavefront, quick, repeat, warmup, progress):
+                    rows.append(row)
+                    write()
         write(plots=True)
     finally:
         if own:
@@ -347,6 +369,16 @@ def markdown(result: dict, plot_note: str | None = None) -> str:
             lines.append(f"| {r['scene']} | {r['spp']} | {'on' if r['denoise'] else 'off'} | {r['frame_ms']:.2f} | "
                          f"{_f(r.get('rt_path_ms'))} | {_f(extra)} | {r['flip']:.4f} | {r['accumulated_ms']:.2f} | "
                          f"{r['accumulated_flip']:.4f} |")
+        lines.append("")
+    wf = [r for r in rows if r.get("part") == "wavefront"]
+    if wf:
+        lines += ["## Wavefront ray order and persistent threads (the same images in every variant)", "",
+                  "| scene | frame | variant | frame ms | wavefront ms | of it: order ms |", "|---|---|---|---|---|---|"]
+        for r in wf:
+            k = r["effect_kernel_ms"]
+            lines.append(f"| {r['scene']} | {r['frame']} | {r['variant']} | {r['frame_ms']:.2f} | "
+                         f"{sum(v for n, v in k.items() if n.startswith('rt_')):.2f} | "
+                         f"{sum(v for n, v in k.items() if n.endswith('.order')):.2f} |")
         lines.append("")
     if plot_note:
         lines += ["## Plots", "", plot_note, ""]

@@ -121,11 +121,13 @@ def add_parser(sub) -> None:
                    help="rays, primary: BVH builds to measure, comma-separated among sah,sbvh (default sah; the "
                         "first is the reference); bvh: the builds to compare (default sah,sbvh)")
     b.add_argument("--ray-order", dest="ray_orders", type=_ray_orders, metavar="ORDERS",
-                   help="rays, vr: the wavefront ray orders to time, comma-separated among none,morton (a grid axis; "
-                        "default none; rays: given, also the glossy and path frames)")
+                   help="rays, vr, gi: the wavefront ray orders to time, comma-separated among none,morton (a grid "
+                        "axis; default none; rays: given, also the glossy and path frames; gi: the path and photon "
+                        "frames)")
     b.add_argument("--persistent", dest="persistent_modes", type=_persistent_modes, metavar="MODES",
-                   help="rays, vr: the wavefront trace kernels' modes to time, comma-separated among off,on (a grid "
-                        "axis; default off; rays: given, also the glossy and path frames)")
+                   help="rays, vr, gi: the wavefront trace kernels' modes to time, comma-separated among off,on (a "
+                        "grid axis; default off; rays: given, also the glossy and path frames; gi: the path and "
+                        "photon frames)")
     b.add_argument("--no-tiles", action="store_true", help="rays, primary: leave out the tile frustum culling variant")
     b.add_argument("--workers", type=_worker_counts, help="tradeoff/budget: spread the variants over N Ray workers; "
                    "workers: the worker counts to time (default 1,2); needs pip install 'rayvr[cluster]'")
