@@ -113,7 +113,13 @@ def render_room(gl, effect, order="none", persistent="off", **renderer):
     with Renderer(None, parse_config({"default": effect}, "t"), gl=gl, settings=settings, **renderer) as r:
         rig = camera_rig(r, "pinhole", size=(24, 16))
         frame = r.render(rig, aux=("hdr",))
-        hits = np.frombuffer(r.resource(f"rt_wave.{effect}.paths").read(), WAVE_PATH)["hit"].copy()
+        # the last batch's paths: the first wave_args[1].w entries (the rest of the buffer is whatever
+        # memory it was given: never written, never read). A path's slot follows its pixel's place in
+        # the classify pass's list, which atomics fill in whatever order the GPU's threads run (on
+        # llvmpipe under load, another order each run), so the hits are compared as a set of rows.
+        paths = np.frombuffer(r.resource(f"rt_wave.{effect}.args").read(), np.uint32).reshape(2, 4)[1, 3]
+        hits = np.frombuffer(r.resource(f"rt_wave.{effect}.paths").read(), WAVE_PATH)["hit"][:paths]
+        hits = hits[np.lexsort(hits.T[::-1])].copy()
         assert r.plan().ray_order == order and r.plan().persistent == (persistent == "on")
         return [(e.aux["hdr"].copy(), e.color.copy()) for e in (frame.left, frame.right)], hits
 
