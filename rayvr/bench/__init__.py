@@ -145,7 +145,7 @@ def _sweep_arguments(args) -> dict:
 def _tradeoff(args, out, camera_from_args):
     from . import tradeoff
 
-    tradeoff.run(out, quick=args.quick, **_sweep_arguments(args), **_views(args))
+    tradeoff.run(out, quick=args.quick, **_sweep_arguments(args), **_views(args, quick_poses=0))
 
 
 def _budget(args, out, camera_from_args):
@@ -157,11 +157,12 @@ def _budget(args, out, camera_from_args):
                         **_sweep_arguments(args), **_views(args))
 
 
-def _views(args) -> dict:
-    """tradeoff and budget: the random head poses beside the fixed view (--poses; one with --quick)."""
+def _views(args, quick_poses: int = 1) -> dict:
+    """tradeoff and budget: the random head poses beside the fixed view (--poses; with --quick
+    `quick_poses`: CI's budget run takes one, its tradeoff run none, to stay short)."""
     from .tradeoff import SWEEP_POSES
 
-    return {"poses": args.poses if args.poses is not None else (1 if args.quick else SWEEP_POSES),
+    return {"poses": args.poses if args.poses is not None else (quick_poses if args.quick else SWEEP_POSES),
             "pose_seed": args.pose_seed}
 
 
