@@ -168,11 +168,12 @@ def _views(args, quick_poses: int = 1) -> dict:
 
 def _vr(args, out, camera_from_args):
     from .. import settings as settings_mod
+    from ..quality.frame_knobs import budget_ms_of
     from ..util.extras import require
     from . import vr
 
     quick = vr.QUICK if args.quick else {}
-    budgets = args.budget_ms or [1000.0 / hz for hz in args.budget_hz or ()] or (vr.BUDGET_MS,)
+    budgets = args.budget_ms or [budget_ms_of(hz) for hz in args.budget_hz or ()] or (vr.BUDGET_MS,)
     if len(budgets) != 1:
         raise ValueError(f"bench vr --budget-ms takes one budget (its budget config), got {len(budgets)}")
     configs = args.configs or quick.get("configs", vr.MATERIAL_CONFIGS)
@@ -180,10 +181,10 @@ def _vr(args, out, camera_from_args):
         require("flip_evaluator", "bench vr --configs budget")  # the pick predicts image error with FLIP
     # the render flags given (--tile-culling, --tile-lists, --ssaa) are one variant of every row; --msaa: the counts
     fields = {k: v for k, v in settings_mod.given_by_args(args, "bench").items() if k != "msaa"}
-    variants = {",".join(f"{k}={v}" for k, v in fields.items()): fields} if fields else None
+    given = ",".join(f"{k}={v}" for k, v in fields.items())
+    variants = {given: fields} if fields else None
     wave = wavefront_variants(args)  # --ray-order, --persistent: a variant per pair, with those flags
     if wave is not None:
-        given = ",".join(f"{k}={v}" for k, v in fields.items())
         variants = {",".join(filter(None, (given, name))): {**fields, **w} for name, w in wave.items()}
     vr.run(out, size=quick.get("size", args.size), scenes=_scenes(args),
            poses=args.poses if args.poses is not None else quick.get("poses", vr.POSES), pose_seed=args.pose_seed,

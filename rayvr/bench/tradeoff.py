@@ -21,6 +21,7 @@ from ..quality import metrics
 from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 from ..frame.effects import traced_effects
 from ..scene.materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
+from .head_poses import POSE_SEED, draw_poses
 from ..quality.measure import (BENCH_QUALITY, COMPARE_SETTINGS, NOISE_FLOOR_SEED, WARMUP_FRAMES, Measured, RendererPool,
                                Variant, local_measurer, measure, reference_variant)
 
@@ -190,12 +191,8 @@ def _bench_gl(out_dir, backend):
 def views_of(name: str, scene, rig, poses: int, pose_seed: int) -> list[tuple[str, object]]:
     """("fixed", the bench view) and ("pose I", a rig at seeded random head pose I inside the
     scene: bench vr's poses) for I < poses."""
-    from ..frame.cameras.rig import StereoRig
-    from .head_poses import draw_poses
-
     heads = draw_poses(scene, name, poses, pose_seed) if poses else []
-    return [("fixed", rig)] + [(f"pose {h.index}", StereoRig(h.pose, ipd=rig.ipd, fov_y=rig.fov_y, near=rig.near,
-                                                             size=rig.size)) for h in heads]
+    return [("fixed", rig)] + [(f"pose {h.index}", replace(rig, pose=h.pose)) for h in heads]
 
 
 def _views_of_setups(scenes, size, base_config, skipped, quick, poses, pose_seed):
@@ -212,14 +209,12 @@ def view_suffix(view: str) -> str:
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
         base_config=None, backend=None, progress=True, workers=None, address=None,
-        connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=None) -> dict:
+        connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=POSE_SEED) -> dict:
     """Sweep every knob on each scene, from its fixed view and from `poses` random head poses,
     each against the reference of the same view; write tradeoff.json/.md and one plot per view.
     `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here."""
-    from .head_poses import POSE_SEED
     from .report import device_meta, write_report
 
-    pose_seed = POSE_SEED if pose_seed is None else pose_seed
     rows, skipped = [], {}
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
@@ -246,7 +241,7 @@ BUDGETS_MS = (1000.0 / 90, 1000.0 / 120)  # bench budget's frame budgets unless 
 
 def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
                ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False, workers=None,
-               address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, grid=None, poses=0, pose_seed=None) -> dict:
+               address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, grid=None, poses=0, pose_seed=POSE_SEED) -> dict:
     """For each scene and budget: the pick (frame-wide knobs of `grid` and the effect per
     material), its predicted and measured ms and error, the best render of the measured grid that
     fits (every point of `grid` with every material on one rung) and the pick's FLIP above it
@@ -259,9 +254,6 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     from ..util.output import atomic_write_bytes, write_png
     from .report import device_meta, markdown, write_report
 
-    from .head_poses import POSE_SEED
-
-    pose_seed = POSE_SEED if pose_seed is None else pose_seed
     grid = grid or [DEFAULT_KNOBS]
     rows, grid_rows, skipped = [], [], {}
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
@@ -322,18 +314,15 @@ def budget_headline(rows: list[dict], meta: dict) -> str:
 
 
 def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir, meta: dict | None = None) -> list:
-    """One picture per scene: the grid's renders as GPU ms vs mean FLIP with their Pareto front,
+    """One picture per scene and view: the grid's renders as GPU ms vs mean FLIP with their Pareto front,
     each budget as a vertical line and its pick as a star. Needs matplotlib."""
     from pathlib import Path
 
-    try:
-        import matplotlib
-    except ImportError:
-        return []
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from .report import pareto_front
+
+    plt = _pyplot()
+    if plt is None:
+        return []
 
     written = []
     for scene, view in dict.fromkeys((r["scene"], r["view"]) for r in grid_rows):
@@ -354,6 +343,18 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir, meta: dict | N
                                          f"every render of its grid", Path(out_dir) / f"budget_{scene}{view_suffix(view)}.png",
                                          meta))
     return written
+
+
+def _pyplot():
+    """matplotlib's pyplot without a display, or None without matplotlib (the plots are skipped)."""
+    try:
+        import matplotlib
+    except ImportError:
+        return None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
 def _save_speed_error(plt, fig, ax, title: str, path, meta: dict | None = None):
@@ -379,14 +380,11 @@ def plot_tradeoff(rows: list[dict], out_dir, meta: dict | None = None) -> list:
     against itself with other samples) as a dashed line. Needs matplotlib."""
     from pathlib import Path
 
-    try:
-        import matplotlib
-    except ImportError:
-        return []
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from .report import pareto_front
+
+    plt = _pyplot()
+    if plt is None:
+        return []
 
     written = []
     for scene, view in dict.fromkeys((r["scene"], r.get("view", "fixed")) for r in rows):

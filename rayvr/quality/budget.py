@@ -44,7 +44,8 @@ import numpy as np
 
 from . import metrics
 from ..frame.effects import implemented_effects
-from .measure import COMPARE_SETTINGS, Variant, config_for_assignment, local_measurer, measure
+from .frame_knobs import DEFAULT_KNOBS
+from .measure import COMPARE_SETTINGS, config_for_assignment, local_measurer, measure
 
 # Slack for floating-point sums when comparing against the budget (1 ns in ms units).
 COST_EPS_MS = 1e-6
@@ -258,7 +259,7 @@ def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
     the chosen assignment is therefore rendered and measured for real afterwards.
     Materials covering < min_coverage of the image stay `raster`. `measure_all`: how the
     per-effect renders are measured (measure.local_measurer by default; cluster.sweep_measurer: Ray workers).
-    `knobs`: the frame-wide knobs every render has (quality/frame_knobs.py; None: the comparison's own)."""
+    `knobs`: the frame-wide knobs every render has (quality/frame_knobs.py; None: the defaults)."""
     rungs = measure_rungs(gl, scene, rig, reference_image, base, ppd, effects, repeat, progress, pool, measure_all, knobs)
     return options_from_rungs(scene, reference_image, base, rungs, min_coverage)
 
@@ -275,8 +276,7 @@ def measure_rungs(gl, scene, rig, reference_image, base, ppd: float, effects=Non
         bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name}" + (f" {knobs.label}" if knobs else ""))
     measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
     configs = [config_for_assignment(base, scene, {n: e for n in names}) for e in effects]
-    whole_scene = [knobs.variant("budget", e, c, COMPARE_SETTINGS) if knobs else Variant("budget", e, c)
-                   for e, c in zip(effects, configs)]
+    whole_scene = [(knobs or DEFAULT_KNOBS).variant("budget", e, c, COMPARE_SETTINGS) for e, c in zip(effects, configs)]
     rungs = {}
     try:
         for e, m in zip(effects, measure_all(whole_scene, bar)):
@@ -321,8 +321,8 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
     dispatch, that come with its first material); when the measured frame overshoots, or fits
     with more than (1 - BUDGET_SLACK) of the budget left while it cost less than predicted, the
     chosen options' costs are scaled by measured/predicted and the choice is solved again, at most
-    BUDGET_ROUNDS times; the best measured pick that fits is kept. If no round fits, the best measured pick that did fit is returned, else
-    the cheapest assignment. `options`: (base_ms, per-material options) measured already, to
+    BUDGET_ROUNDS times. The best measured pick that fits is returned; if no round fits, the
+    cheapest assignment. `options`: (base_ms, per-material options) measured already, to
     solve several budgets from one measurement. `knobs`: the frame-wide knobs the pick renders with."""
     base_ms, options = options or per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
                                                        progress=progress, pool=pool, knobs=knobs)
@@ -330,8 +330,8 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
     def attempt(opts, budget):
         result = solve_budget(opts, budget, base_ms=base_ms)
         cfg = config_for_assignment(base, scene, result.assignment)
-        variant = knobs.variant("budget", budget_ms, cfg, COMPARE_SETTINGS) if knobs else Variant("budget", budget_ms, cfg)
-        chosen = measure(gl, scene, rig, variant, repeat, pool=pool)
+        chosen = measure(gl, scene, rig, (knobs or DEFAULT_KNOBS).variant("budget", budget_ms, cfg, COMPARE_SETTINGS),
+                         repeat, pool=pool)
         return {"budget_ms": budget_ms, "predicted_ms": result.total_ms, "measured_ms": chosen.gpu_ms,
                 "within_budget": chosen.gpu_ms <= budget_ms * BUDGET_TOLERANCE, "feasible": result.feasible,
                 "predicted_error": result.error, "measured_flip": metrics.flip(reference_image.image, chosen.image, ppd=ppd),

@@ -143,10 +143,12 @@ def _write_error(path: Path, exc: OSError) -> OutputError:
     return error
 
 
-def atomic_write_bytes(path: str | Path, data: bytes) -> None:
+def atomic_write_bytes(path: str | Path, data: bytes | list) -> None:
+    """`data` (bytes, or a list of byte strings written one after another) as the file `path`."""
     def fill(fd, tmp):
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+            for piece in [data] if isinstance(data, (bytes, bytearray, memoryview)) else data:
+                fh.write(piece)
 
     _atomic_write(Path(path), fill)
 
@@ -154,14 +156,7 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
 def write_png(path: str | Path, image: np.ndarray, compression: int | None = None) -> None:
     """uint8 HxW, HxWx3 or HxWx4 (rows top-down) -> PNG at zlib level `compression` (0..9; None:
     6), encoded without holding the GIL for long (util/png.py)."""
-    pieces = encode_png(image, compression)
-
-    def fill(fd, tmp):
-        with os.fdopen(fd, "wb") as fh:
-            for piece in pieces:
-                fh.write(piece)
-
-    _atomic_write(Path(path), fill)
+    atomic_write_bytes(path, encode_png(image, compression))
 
 
 def write_npy(path: str | Path, array: np.ndarray) -> None:
