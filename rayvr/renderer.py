@@ -263,10 +263,12 @@ class Renderer:
         called as samples are recorded."""
         return next(self.render_sequence([rig], eyes, view, aux, spp, progress))
 
-    def render_sequence(self, rigs, eyes: str = "both", view: str = "color", aux=(), spp: int = 1, progress=None):
+    def render_sequence(self, rigs, eyes: str = "both", view: str = "color", aux=(), spp: int = 1, progress=None,
+                        depth: bool = True):
         """Yield one Frame per rig (each the mean of `spp` samples). Frame N is read back while
         frame N+1 renders (pixel buffers and timer queries are double-buffered), so sequences run
-        at GPU speed; a frame's timings are those of its last sample."""
+        at GPU speed; a frame's timings are those of its last sample. `depth=False`: the eyes'
+        `depth` is None (not read back, unless an aux channel needs it)."""
         if not (isinstance(spp, int) and spp >= 1):
             raise ValueError(f"spp must be a positive integer, got {spp!r}")
         unknown = [a for a in aux if a not in AUX_CHANNELS]
@@ -287,7 +289,7 @@ class Renderer:
                 if pending is not None:
                     yield self._finish(pending)
                     pending = None
-                yield self._render_tiles(rig, tiles, eyes, view, aux, spp, progress)
+                yield self._render_tiles(rig, tiles, eyes, view, aux, spp, progress)  # (with depth)
                 continue
             queued: list = []
             for k in range(spp - 1):  # no readback until the last sample
@@ -300,7 +302,7 @@ class Renderer:
             fc = self.record(rig, eyes, view, sample=spp - 1 if spp > 1 else None)
             if progress is not None:
                 progress(1)
-            started = self.reader.start(fc, tuple(aux), parity=i % 2)
+            started = self.reader.start(fc, tuple(aux), parity=i % 2, depth=depth)
             if pending is not None:
                 yield self._finish(pending)
             pending = started

@@ -79,3 +79,24 @@ def test_a_timer_longer_than_the_wall_time_since_recording_is_garbage():
     timer = PassTimer(raw=None, queries={(0, "visibility"): Query(3_164_585_536_000), (0, "shade"): Query(2_000_000)})
     started = time.perf_counter() - 0.5  # recorded half a second ago
     assert timer.read_ms(["visibility", "shade"], slot=0, since=started) == {"shade": 2.0}
+
+
+def test_a_sequence_without_depth_reads_colour_alone_and_the_same(gl):
+    """depth=False (what a capture without depth asks): the colour of the frames that read depth,
+    no depth, and the depth buffer left out of the read-back (4 of its 7 bytes a pixel)."""
+    scene = load()
+    with Renderer(scene, gl=gl) as r:
+        rigs = [StereoRig.for_scene(scene, size=(32, 24))] * 2
+        with_depth = list(r.render_sequence(rigs))
+        started = []
+        real = r.reader.start
+        r.reader.start = lambda fc, aux, parity, depth=True: started.append(r.reader.channels_for(fc, aux, depth)) or \
+            real(fc, aux, parity, depth)
+        without = list(r.render_sequence(rigs, depth=False))
+        asked = list(r.render_sequence(rigs[:1], aux=("normal",), depth=False))  # an aux channel needs the hit mask
+    assert started[:2] == [["ldr"], ["ldr"]] and "linear_depth" in started[2]
+    for a, b in zip(with_depth, without):
+        for eye in ("left", "right"):
+            assert np.array_equal(a[eye].color, b[eye].color) and b[eye].depth is None
+            assert a[eye].depth is not None
+    assert asked[0].left.depth is not None and "normal" in asked[0].left.aux

@@ -572,7 +572,7 @@ def render_frames(renderer: Renderer, job: CaptureJob, indices: list[int], progr
     with FrameWriter(threads) as writer:
         try:
             with interrupts_between_frames() as check_interrupt:
-                frames = renderer.render_sequence(rigs, eyes=job.eyes, view=job.view, aux=job.render_aux,
+                frames = renderer.render_sequence(rigs, eyes=job.eyes, view=job.view, aux=job.render_aux, depth=False,
                                                   spp=job.spp, progress=bar.update if bar else None)
                 for i in indices:
                     with clock.rendering():

@@ -531,7 +531,7 @@ class PassTimer:
 class EyeImage:
     name: str
     color: np.ndarray  # (H, W, 3) uint8 sRGB, rows top-down
-    depth: np.ndarray  # (H, W) float32 linear view depth, 0 = background
+    depth: np.ndarray | None  # (H, W) float32 linear view depth, 0 = background; None: not read back
     aux: dict = field(default_factory=dict)  # extra channels asked for (readback.AUX_CHANNELS)
 
     def __iter__(self):  # color, depth = frame.left

@@ -3,7 +3,8 @@
 `start()` queues the copies GPU-side (glGetTexImage into a PBO returns at once) and `finish()`
 maps them; `Renderer.render_sequence` records frame N+1 before finishing frame N, so transfers
 overlap rendering. Only what is asked for travels: colour (packed to RGB by GL) and depth (the
-G-buffer's exact linear view depth, 4 bytes a pixel) by default, other channels on request.
+G-buffer's exact linear view depth, 4 bytes a pixel) by default, other channels on request; a
+capture that writes no depth leaves it out (`depth=False`), which more than halves the bytes.
 
 `finish()` first waits on a fence behind the copies, through ctypes, which lets go of the GIL
 while the GPU works: mapping a buffer the GPU still writes blocks inside moderngl with the GIL
@@ -58,16 +59,17 @@ class Reader:
             buf = self._pool[key] = self.gl.ctx.buffer(reserve=nbytes)
         return buf
 
-    def channels_for(self, fc, aux) -> list[str]:
-        need = ["ldr", "linear_depth"] + [_SOURCE[a] for a in aux if a in _SOURCE]
+    def channels_for(self, fc, aux, depth: bool = True) -> list[str]:
+        """Colour; the linear depth when asked for or when an aux channel needs it (its hit mask)."""
+        need = ["ldr"] + (["linear_depth"] if depth or aux else []) + [_SOURCE[a] for a in aux if a in _SOURCE]
         return list(dict.fromkeys(need))
 
-    def start(self, fc, aux, parity: int) -> Pending:
+    def start(self, fc, aux, parity: int, depth: bool = True) -> Pending:
         gb, raw = fc.gbuffer, self.gl.raw
         w, h = gb.size
         warped = fc.plan.stereo == "warp"  # the eyes come from the warp pass, the G-buffer is the central view
         buffers = {}
-        for name in self.channels_for(fc, aux):
+        for name in self.channels_for(fc, aux, depth):
             layers = len(fc.out_eyes) if warped and name in ("ldr", "linear_depth") else gb.layers
             if name in ("zbuffer", "ldr"):
                 # Read by GL itself: the depth array moderngl does not know, and colour packed to
@@ -123,8 +125,8 @@ class Reader:
         out = {}
         for layer, eye in enumerate(fc.out_eyes):
             color = data["ldr"][layer]
-            depth = data["linear_depth"][layer, ..., 0]
-            hit = depth > 0
+            depth = data["linear_depth"][layer, ..., 0] if "linear_depth" in data else None
+            hit = depth > 0 if depth is not None else None
             extra = {name: self._aux(name, data, layer, hit, depth, fc.scene.origin) for name in pending.aux}
             out[eye.name] = EyeImage(eye.name, color, depth, extra)
         return out
