@@ -64,9 +64,6 @@ vec3 oct_decode(vec2 e) {
 
 struct Guide { float depth; vec3 normal; vec3 albedo; uint effect; };
 
-Guide unpack_guide(uvec4 g) {
-    return Guide(uintBitsToFloat(g.x), oct_decode(unpackSnorm2x16(g.y)), unpackUnorm4x8(g.z).rgb, g.w);
-}
 
 #if DENOISE_STAGE != 0
 #if DENOISE_STAGE == 1
@@ -79,7 +76,9 @@ Guide unpack_guide(uvec4 g) {
 #define SIDE (TILE + 2 * APRON)
 #define OUTSIDE 0xFFFFFFFFu  // the effect of a tap outside the image: equal to no centre's
 
-shared uvec4 tile_guide[SIDE * SIDE];
+// The tile's guides, decoded once per lattice point rather than once per tap that reads it
+shared vec4 tile_shape[SIDE * SIDE];   // xyz normal, w view depth
+shared uvec2 tile_look[SIDE * SIDE];   // x base colour (unorm 4x8), y effect (OUTSIDE beyond the image)
 shared vec4 tile_value[SIDE * SIDE];
 shared uint tile_any;
 
@@ -116,7 +115,9 @@ bool load_tile(ivec3 origin, int step) {
     for (uint k = gl_LocalInvocationIndex; k < uint(SIDE * SIDE); k += uint(TILE * TILE)) {
         ivec3 q = origin + ivec3((ivec2(int(k) % SIDE, int(k) / SIDE) - APRON) * step, 0);
         bool inside = all(greaterThanEqual(q.xy, ivec2(0))) && all(lessThan(q.xy, size));
-        tile_guide[k] = inside ? imageLoad(guide_in, q) : uvec4(0u, 0u, 0u, OUTSIDE);
+        uvec4 raw = inside ? imageLoad(guide_in, q) : uvec4(0u, 0u, 0u, OUTSIDE);
+        tile_shape[k] = vec4(oct_decode(unpackSnorm2x16(raw.y)), uintBitsToFloat(raw.x));
+        tile_look[k] = raw.zw;
         tile_value[k] = inside ? stage_value(q) : vec4(0.0);
     }
     barrier();
@@ -129,11 +130,15 @@ int tile_index(int dx, int dy) {
     return t.y * SIDE + t.x;
 }
 
+Guide tile_guide(int k) {
+    return Guide(tile_shape[k].w, tile_shape[k].xyz, unpackUnorm4x8(tile_look[k].x).rgb, tile_look[k].y);
+}
+
 // The guide (dx, dy) lattice steps away, and whether it exists and shows the centre's effect.
 bool tap(int dx, int dy, uint effect, out Guide g) {
-    uvec4 raw = tile_guide[tile_index(dx, dy)];
-    g = unpack_guide(raw);
-    return raw.w == effect;
+    int k = tile_index(dx, dy);
+    g = tile_guide(k);
+    return tile_look[k].y == effect;
 }
 
 struct Centre { Guide g; vec2 grad; float lum; float sigma_l; };
@@ -154,14 +159,20 @@ vec2 depth_gradient(Guide c) {
 }
 #endif
 
-// Edge-stops (SVGF's depth, normal; an albedo term): a tap's weight against the centre.
-float geometry_weight(Centre c, Guide q, ivec2 offset) {
-    float wz = exp(-abs(c.g.depth - q.depth) /
-                   (sigma_depth * abs(dot(c.grad, vec2(offset))) + 1e-3 * c.g.depth + 1e-12));
-    float wn = pow(max(0.0, dot(c.g.normal, q.normal)), sigma_normal);
+#define LOG2_E 1.4426950408889634
+#define NO_WEIGHT -1e30  // a log2 weight whose exp2 is 0
+
+// Edge-stops (SVGF's depth, normal; an albedo term): the log2 of a tap's weight against the
+// centre, exp(-z) * cos^sigma_normal * exp(-a), so that the caller takes one exp2 of the sum with
+// its luminance term instead of one transcendental per term (the numpy reference multiplies them).
+float geometry_log2_weight(Centre c, Guide q, ivec2 offset) {
+    float cos_n = dot(c.g.normal, q.normal);
+    if (cos_n <= 0.0) return NO_WEIGHT;  // pow(0, sigma_normal): log2 is undefined there
+    float tz = abs(c.g.depth - q.depth) /
+               (sigma_depth * abs(dot(c.grad, vec2(offset))) + 1e-3 * c.g.depth + 1e-12);
     vec3 da = c.g.albedo - q.albedo;
-    float wa = exp(-dot(da, da) / (sigma_albedo * sigma_albedo));
-    return wz * wn * wa;
+    float ta = dot(da, da) / (sigma_albedo * sigma_albedo);
+    return sigma_normal * log2(cos_n) - (tz + ta) * LOG2_E;
 }
 #endif
 
@@ -183,9 +194,8 @@ void main() {
     if (!load_tile(origin, step)) return;
     ivec3 p = origin + ivec3(ivec2(gl_LocalInvocationID.xy) * step, 0);
     Centre c;
-    uvec4 raw = tile_guide[tile_index(0, 0)];
-    if (!denoised(raw.w)) return;  // outside the image (OUTSIDE) or not denoised
-    c.g = unpack_guide(raw);
+    c.g = tile_guide(tile_index(0, 0));
+    if (!denoised(c.g.effect)) return;  // outside the image (OUTSIDE) or not denoised
     Guide q;
 #if DENOISE_STAGE == 1
     c.grad = depth_gradient(c.g);
@@ -202,7 +212,7 @@ void main() {
         for (int dy = -3; dy <= 3; dy++) {
             for (int dx = -3; dx <= 3; dx++) {
                 if (!tap(dx, dy, c.g.effect, q)) continue;
-                float w = (dx == 0 && dy == 0) ? 1.0 : geometry_weight(c, q, ivec2(dx, dy));
+                float w = (dx == 0 && dy == 0) ? 1.0 : exp2(geometry_log2_weight(c, q, ivec2(dx, dy)));
                 float l = luminance(tile_value[tile_index(dx, dy)].rgb);
                 sw += w; s1 += w * l; s2 += w * l * l;
             }
@@ -217,7 +227,7 @@ void main() {
     float vs = 0.0, vw = 0.0;
     for (int dy = -1; dy <= 1; dy++) {
         for (int dx = -1; dx <= 1; dx++) {
-            if (tile_guide[tile_index(dx, dy)].w != c.g.effect) continue;
+            if (tile_look[tile_index(dx, dy)].y != c.g.effect) continue;
             float k = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
             vs += k * tile_value[tile_index(dx, dy)].a; vw += k;
         }
@@ -228,6 +238,7 @@ void main() {
     c.grad = imageLoad(gradient_image, p).xy;
     c.lum = luminance(centre_value.rgb);
     c.sigma_l = sigma_luminance * sqrt(max(imageLoad(variance_image, p).x, 0.0)) + 1e-10;
+    float log2_per_luminance = LOG2_E / c.sigma_l;
     float w0 = B3[0] * B3[0];
     float sum_w = w0;
     vec3 sum_c = w0 * centre_value.rgb;
@@ -237,8 +248,8 @@ void main() {
             if (dx == 0 && dy == 0) continue;
             if (!tap(dx, dy, c.g.effect, q)) continue;
             vec4 v = tile_value[tile_index(dx, dy)];
-            float wl = exp(-abs(c.lum - luminance(v.rgb)) / c.sigma_l);
-            float w = B3[abs(dx)] * B3[abs(dy)] * geometry_weight(c, q, ivec2(dx, dy) * step) * wl;
+            float log2_w = geometry_log2_weight(c, q, ivec2(dx, dy) * step) - abs(c.lum - luminance(v.rgb)) * log2_per_luminance;
+            float w = B3[abs(dx)] * B3[abs(dy)] * exp2(log2_w);
             sum_w += w; sum_c += w * v.rgb; sum_v += w * w * v.a;
         }
     }
