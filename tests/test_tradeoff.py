@@ -21,40 +21,63 @@ def room():
 
 @needs_flip
 def test_sweep_rows_are_the_metrics_of_the_rendered_images(gl, room):
-    """run_sweep's reference image and its row for a cheaper variant against an independent
-    expectation: each image rendered again by a Renderer of its own (one frame, no pool, no
-    warm-up; the sampled effects are seeded from the settings, so the images are the same) and the
-    row's PSNR computed here in numpy from those images."""
+    """run_sweep's reference image and its rows against an independent expectation: the
+    reference's two halves rendered again by Renderers of their own (one frame each, no pool, no
+    warm-up; the sampled effects are seeded from the settings, so the images are the same), the
+    reference the mean of their radiance through the display transform, and the rows' PSNR
+    computed here in numpy from those images."""
     scene, rig = room
+    from dataclasses import replace
+
+    from rayvr.quality.measure import NOISE_FLOOR_SEED
     from rayvr.quality.reference_images import reference_config
+    from rayvr.quality.tonemap import to_ldr
     from rayvr.renderer import Renderer
 
     ref = T.Variant("reference", "ref", reference_config(scene, quick=True))
     raster = T.Variant("effect", "raster", parse_config({"default": "raster"}))
-    rows, measured = T.run_sweep(gl, scene, rig, ref, [raster], metrics.DEFAULT_PPD, repeat=1, progress=False)
+    rows, measured = T.run_sweep(gl, scene, rig, ref, [raster], metrics.DEFAULT_PPD, repeat=1, progress=False,
+                                 per_frame=64)
     floor, row = rows
 
     def render(variant):
         with Renderer(scene, variant.config, gl=gl, settings=variant.settings) as r:
-            frame = r.render(rig)
-        return np.hstack([frame.left.color, frame.right.color])
+            frame = r.render(rig, aux=("hdr",))
+        return (np.hstack([frame.left.color, frame.right.color]),
+                np.hstack([frame.left.aux["hdr"], frame.right.aux["hdr"]]).astype(np.float32))
 
-    ref_image, raster_image = render(ref), render(raster)
-    assert measured.image.shape == (24, 64, 3)
-    assert np.array_equal(measured.image, ref_image)
-    mse = ((ref_image.astype(np.float64) - raster_image.astype(np.float64)) ** 2).mean() / 255.0 ** 2
-    assert mse > 0  # the reference traces what raster does not
-    assert row["psnr"] == pytest.approx(10 * np.log10(1 / mse), rel=1e-9)
+    def psnr(a, b):
+        return 10 * np.log10(255.0 ** 2 / ((a.astype(np.float64) - b.astype(np.float64)) ** 2).mean())
+
+    (half_a, hdr_a), (half_b, hdr_b) = render(ref), render(replace(ref, settings=replace(ref.settings,
+                                                                                          seed=NOISE_FLOOR_SEED)))
+    raster_image, _ = render(raster)
+    want = to_ldr((hdr_a + hdr_b) * 0.5, ref.settings.tonemapper, ref.settings.exposure)
+    assert measured.samples == 128 and measured.measured.image.shape == (24, 64, 3)
+    assert np.array_equal(measured.measured.image, want)
+    assert not np.array_equal(half_a, half_b)  # the halves draw other samples
+    assert row["psnr"] == pytest.approx(psnr(want, raster_image), rel=1e-9)  # the reference traces what raster does not
     assert 0.01 < row["flip"] < 1 and row["ssim"] < 1
-    # the first row: the reference against itself drawn with the noise floor's seed
-    from dataclasses import replace
+    # the first row: the reference's halves against each other
+    assert floor["knob"] == "noise floor" and floor["reference_spp"] == 128
+    assert floor["psnr"] == pytest.approx(psnr(half_a, half_b), rel=1e-9)
 
-    from rayvr.quality.measure import NOISE_FLOOR_SEED
 
-    again = render(replace(ref, settings=replace(ref.settings, seed=NOISE_FLOOR_SEED)))
-    floor_mse = ((ref_image.astype(np.float64) - again.astype(np.float64)) ** 2).mean() / 255.0 ** 2
-    assert floor["knob"] == "noise floor" and floor_mse > 0
-    assert floor["psnr"] == pytest.approx(10 * np.log10(1 / floor_mse), rel=1e-9)
+@needs_flip
+def test_the_noise_floor_falls_as_the_reference_takes_more_samples(gl, room):
+    """measure_reference's floor (its halves' FLIP) with 4 frames a half is below the floor with
+    1 frame a half: the reference converges, and the floor says by how much."""
+    scene, rig = room
+    from rayvr.quality.measure import measure_reference
+    from rayvr.quality.reference_images import reference_config
+
+    ref = T.Variant("reference", "ref", reference_config(scene, quick=True))
+    floors = []
+    for samples in (128, 512):
+        got = measure_reference(gl, scene, rig, ref, samples, 64)
+        assert got.samples == samples
+        floors.append(metrics.compare(*(h.image for h in got.halves), metrics=("flip",))["flip"])
+    assert floors[1] < 0.8 * floors[0], floors
 
 
 def test_noise_knobs_are_variants_drawing_other_samples_than_the_reference():
@@ -102,7 +125,9 @@ def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
     from rayvr.quality.reference_images import reference_config
 
     base = load_config(None)
-    ref = T.measure(gl, scene, rig, T.Variant("reference", "ref", reference_config(scene, quick=True)), repeat=1)
+    from rayvr.quality.measure import measure
+
+    ref = measure(gl, scene, rig, T.Variant("reference", "ref", reference_config(scene, quick=True)), repeat=1)
     from rayvr.quality.budget import per_material_options, solve_budget
 
     base_ms, options = per_material_options(gl, scene, rig, ref, base, metrics.DEFAULT_PPD, repeat=1,

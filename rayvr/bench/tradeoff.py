@@ -22,8 +22,9 @@ from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 from ..frame.effects import traced_effects
 from ..scene.materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
 from .head_poses import POSE_SEED, draw_poses
-from ..quality.measure import (BENCH_QUALITY, COMPARE_SETTINGS, NOISE_FLOOR_SEED, WARMUP_FRAMES, Measured, RendererPool,
-                               Variant, local_measurer, measure, reference_variant)
+from ..quality.measure import (BENCH_QUALITY, COMPARE_SETTINGS, QUICK_REFERENCE_SPP, REFERENCE_SPP, WARMUP_FRAMES,
+                               Measured, Reference, RendererPool, Variant, local_measurer, measure_reference,
+                               reference_per_frame, reference_variant)
 
 
 def material_mask(scene, material_map: np.ndarray, names) -> np.ndarray | None:
@@ -111,16 +112,18 @@ def noise_variants(base: MaterialConfig, quick: bool = False, repeat: int = 10) 
 
 def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd: float, repeat=10,
               progress=True, with_flip=True, pool: RendererPool | None = None,
-              measure_all=None) -> tuple[list[dict], Measured]:
-    """The reference measured here, the variants through `measure_all` (default: here too). The
-    first row is the noise floor: the reference rendered again with other samples
-    (NOISE_FLOOR_SEED), the error two converged images differ by, below which no variant's means anything."""
-    ref = measure(gl, scene, rig, reference, repeat, pool=pool)
-    again = replace(reference, knob="noise floor", value="reference, another seed",
-                    settings=replace(reference.settings, seed=NOISE_FLOOR_SEED))
-    floor = measure(gl, scene, rig, again, repeat, pool=pool)
-    rows = [{"scene": scene.name, "knob": again.knob, "value": again.value, "label": again.label,
-             "gpu_ms": floor.gpu_ms, **error_row(ref, floor, scene, again, ppd, with_flip), "reference_ms": ref.gpu_ms}]
+              measure_all=None, reference_spp: int | None = None,
+              per_frame: int = BENCH_QUALITY["path_samples"]) -> tuple[list[dict], Reference]:
+    """The reference measured here (measure_reference: `reference_spp` samples a pixel, default
+    one frame a half, of `per_frame` samples each), the variants through `measure_all` (default:
+    here too). The first row is the noise floor: the reference's two halves against each other
+    (the second drawn with NOISE_FLOOR_SEED), below which no variant's error means anything."""
+    ref = measure_reference(gl, scene, rig, reference, reference_spp or 2 * per_frame, per_frame, pool)
+    floor = replace(reference, knob="noise floor", value=f"reference halves, {ref.samples // 2} spp each")
+    rows = [{"scene": scene.name, "knob": floor.knob, "value": floor.value, "label": floor.label,
+             "gpu_ms": ref.halves[1].gpu_ms, **error_row(*ref.halves, scene, floor, ppd, with_flip),
+             "reference_ms": ref.gpu_ms, "reference_spp": ref.samples}]
+    ref_image = ref.measured
     measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
     bar = None
     if progress:
@@ -130,7 +133,7 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
     try:
         for v, m in zip(variants_, measure_all(variants_, bar)):
             rows.append({"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label,
-                         "gpu_ms": m.gpu_ms, **error_row(ref, m, scene, v, ppd, with_flip),
+                         "gpu_ms": m.gpu_ms, **error_row(ref_image, m, scene, v, ppd, with_flip),
                          "reference_ms": ref.gpu_ms})
     finally:
         if bar is not None:
@@ -209,24 +212,28 @@ def view_suffix(view: str) -> str:
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
         base_config=None, backend=None, progress=True, workers=None, address=None,
-        connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=POSE_SEED) -> dict:
+        connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=POSE_SEED, reference_spp=None) -> dict:
     """Sweep every knob on each scene, from its fixed view and from `poses` random head poses,
-    each against the reference of the same view; write tradeoff.json/.md and one plot per view.
+    each against the reference of the same view (`reference_spp` samples a pixel; default
+    REFERENCE_SPP, --quick QUICK_REFERENCE_SPP); write tradeoff.json/.md and one plot per view.
     `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here."""
     from .report import device_meta, write_report
 
     rows, skipped = [], {}
+    reference_spp = reference_spp or (QUICK_REFERENCE_SPP if quick else REFERENCE_SPP)
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
                                                                          poses, pose_seed):
             with RendererPool(gl) as pool:
                 r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick, repeat), ppd, repeat,
-                                 progress, with_flip=True, pool=pool, measure_all=_measurer(cluster, name, rig, repeat))
+                                 progress, with_flip=True, pool=pool, measure_all=_measurer(cluster, name, rig, repeat),
+                                 reference_spp=reference_spp, per_frame=reference_per_frame(quick))
             for row in r:
                 row["scene"], row["view"] = name, view
             rows += r
         meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
                 "ppd": ppd, "skipped": skipped, "workers": workers or 0, "poses": poses, "pose_seed": pose_seed,
+                "reference_spp": reference_spp,
                 "error": "vs the scene's reference (rayvr.quality.reference_images); "
                 "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
     result = {"meta": meta, "rows": rows}
@@ -241,13 +248,15 @@ BUDGETS_MS = (1000.0 / 90, 1000.0 / 120)  # bench budget's frame budgets unless 
 
 def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
                ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False, workers=None,
-               address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, grid=None, poses=0, pose_seed=POSE_SEED) -> dict:
+               address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, grid=None, poses=0, pose_seed=POSE_SEED,
+               reference_spp=None) -> dict:
     """For each scene and budget: the pick (frame-wide knobs of `grid` and the effect per
     material), its predicted and measured ms and error, the best render of the measured grid that
     fits (every point of `grid` with every material on one rung) and the pick's FLIP above it
     (the optimality gap; negative: the pick beats every render of the grid). Each pick is also
     written as the config that reproduces it. `workers`: the per-rung measurements spread over
-    Ray workers; each pick is confirmed here."""
+    Ray workers; each pick is confirmed here. Each view's reference is run()'s (`reference_spp`),
+    and its noise floor is in every row: errors below it are noise."""
     from ..quality.budget import pick_toml
     from ..quality.frame_budget import choose_frame_under_budget, grid_best, measure_candidates
     from ..quality.frame_knobs import DEFAULT_KNOBS
@@ -256,11 +265,15 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
 
     grid = grid or [DEFAULT_KNOBS]
     rows, grid_rows, skipped = [], [], {}
+    reference_spp = reference_spp or (QUICK_REFERENCE_SPP if quick else REFERENCE_SPP)
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
                                                                          poses, pose_seed):
             with RendererPool(gl) as pool:
-                ref = measure(gl, scene, rig, reference, repeat, pool=pool)
+                converged = measure_reference(gl, scene, rig, reference, reference_spp, reference_per_frame(quick),
+                                              pool)
+                floor = float(metrics.flip_map(*(h.image for h in converged.halves), ppd=ppd).mean())
+                ref = converged.measured
                 candidates, refused = measure_candidates(gl, scene, rig, ref, base, ppd, grid, repeat=repeat,
                                                          progress=progress, pool=pool,
                                                          measure_all=_measurer(cluster, name, rig, repeat))
@@ -272,6 +285,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
             for b, pick in zip(budgets, picks):
                 best = grid_best(candidates, b)
                 rows.append({"scene": name, "view": view, "reference_ms": ref.gpu_ms,
+                             "reference_spp": converged.samples, "noise_floor": floor,
                              **{k: v for k, v in pick.items() if k not in ("config", "image", "knobs")},
                              "knobs": pick["knobs"].label, "grid_points": len(grid), "grid_best": best,
                              "optimality_gap": None if best is None else pick["measured_flip"] - best["flip"]})
@@ -280,7 +294,9 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                 atomic_write_bytes(f"{stem}.toml", pick_toml(scene, pick, pick["config"], size).encode())
         meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
                 "ppd": ppd, "skipped": skipped, "workers": workers or 0, "grid": [k.label for k in grid],
-                "poses": poses, "pose_seed": pose_seed,
+                "poses": poses, "pose_seed": pose_seed, "reference_spp": reference_spp,
+                "noise_floor": "mean FLIP of the reference's two halves (each half its samples, its own seed) "
+                               "against each other: an upper bound of the reference's own error",
                 "model": "per point of the frame-knob grid, per material: extra GPU ms of each effect over all-raster "
                          "and mean FLIP over its pixels vs the reference, measured with that point's knobs; total "
                          "error = sum importance x coverage x error; exact multiple-choice knapsack per point, the "
@@ -300,16 +316,19 @@ def budget_headline(rows: list[dict], meta: dict) -> str:
 
     lines = [f"# The best image within each budget ({meta.get('gl_renderer', '?')}, "
              f"2x{meta['per_eye_size'][0]}x{meta['per_eye_size'][1]})", "",
-             "| scene | view | budget | mean FLIP | measured ms | within | frame knobs | grid's best FLIP within | gap |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| scene | view | budget | mean FLIP | measured ms | within | frame knobs | grid's best FLIP within | gap "
+             "| noise floor |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         best = r.get("grid_best") or {}
         lines.append(f"| {r['scene']} | {r['view']} | {r['budget_ms']:.4g} ms ({1000 / r['budget_ms']:.0f} Hz) | "
                      f"{r['measured_flip']:.4f} | {r['measured_ms']:.2f} | {'yes' if r['within_budget'] else 'NO'} | "
-                     f"{r['knobs']} | {num(best.get('flip'), '.4f')} | {num(r.get('optimality_gap'), '+.4f')} |")
+                     f"{r['knobs']} | {num(best.get('flip'), '.4f')} | {num(r.get('optimality_gap'), '+.4f')} | "
+                     f"{num(r.get('noise_floor'), '.4f')} |")
     lines += ["", "gap: the pick's mean FLIP minus the best render of the measured grid (every point of the "
               "frame-knob grid with every material on one rung) that fits the budget; negative: the pick is better.",
-              ""]
+              f"noise floor: the reference's two halves against each other ({meta.get('reference_spp', '?')} samples "
+              "a pixel in all): an error or a gap this small is the reference's noise, not the pick's.", ""]
     return "\n".join(lines)
 
 
@@ -334,7 +353,11 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir, meta: dict | N
         front = [mine[i] for i in pareto_front([(r["gpu_ms"], r["flip"]) for r in mine])]
         ax.step([r["gpu_ms"] for r in front], [r["flip"] for r in front], where="post", color="k", lw=1,
                 label="Pareto front of the grid")
-        for r in (r for r in rows if (r["scene"], r["view"]) == (scene, view)):
+        picks = [r for r in rows if (r["scene"], r["view"]) == (scene, view)]
+        if picks and picks[0].get("noise_floor") is not None:
+            ax.axhline(picks[0]["noise_floor"], color="grey", ls=":", lw=1,
+                       label=f"noise floor (reference halves) {picks[0]['noise_floor']:.4f}")
+        for r in picks:
             ax.axvline(r["budget_ms"], color="grey", lw=0.8, ls="--")
             ax.scatter([r["measured_ms"]], [r["measured_flip"]], marker="*", s=160, color="crimson", zorder=5)
             ax.annotate(f"pick at {r['budget_ms']:.3g} ms", (r["measured_ms"], r["measured_flip"]), fontsize=7,
@@ -404,7 +427,7 @@ def plot_tradeoff(rows: list[dict], out_dir, meta: dict | None = None) -> list:
         for r in front:
             ax.annotate(r["label"], (r["gpu_ms"], r["flip"]), fontsize=6, xytext=(3, 3), textcoords="offset points")
         if floor:
-            ax.axhline(floor[0], color="grey", ls="--", lw=1, label=f"noise floor (reference vs reference) {floor[0]:.4f}")
+            ax.axhline(floor[0], color="grey", ls="--", lw=1, label=f"noise floor (reference halves) {floor[0]:.4f}")
         written.append(_save_speed_error(plt, fig, ax, f"{scene}, {view} view: speed vs accuracy, every knob",
                                          Path(out_dir) / f"tradeoff_{scene}{view_suffix(view)}.png", meta))
     return written

@@ -144,7 +144,9 @@ def add_parser(sub) -> None:
                         "configs (default shadows,room,budget); rays: the ray kinds (default all: primary, shadow, "
                         "reflect, glossy_0.1, glossy_0.3, glossy_0.6, diffuse, area_shadow)")
     b.add_argument("--reference-spp", type=_count(16, 1 << 16),
-                   help="gi: samples per pixel of the path reference (default 1024; --quick 64)")
+                   help="gi: samples per pixel of the path reference (default 1024; --quick 64); tradeoff, budget: "
+                        "of the reference every variant is judged against, in two halves with their own seeds whose "
+                        "FLIP is the noise floor (default 2048; --quick 128)")
     b.add_argument("--reference-photons", type=_count(256, 1 << 22),
                    help="gi: photon paths of the photon tables' reference (default 4194304; --quick 32768)")
     b.add_argument("--counts", type=_sample_counts,

@@ -25,7 +25,12 @@ from dataclasses import dataclass, replace
 from . import metrics
 from .budget import BUDGET_TOLERANCE, BudgetResult, MaterialOptions, choose_under_budget, measure_rungs, \
     options_from_rungs, solve_budget
-from .measure import BENCH_QUALITY, RendererPool, measure, reference_variant
+from .measure import (BENCH_QUALITY, QUICK_REFERENCE_SPP, RendererPool, measure_reference, reference_per_frame,
+                      reference_variant)
+
+# --budget-ms in capture and preview: the user waits for the reference, so it has fewer samples than
+# the bench's (REFERENCE_SPP); its noise inflates every candidate's error alike, more or less.
+AUTO_REFERENCE_SPP = 256
 from .reference_images import reference_config
 from .frame_knobs import FrameKnobs
 
@@ -127,10 +132,11 @@ def auto_config(renderer, rig, budget_ms: float, ppd: float | None = None, repea
     ppd = metrics.DEFAULT_PPD if ppd is None else ppd
 
     gl, scene = renderer.gl, renderer.scene
-    reference = reference_variant(
-        reference_config(scene, quick=gl.is_software, quality=None if gl.is_software else BENCH_QUALITY))
+    quick = gl.is_software
+    reference = reference_variant(reference_config(scene, quick=quick, quality=None if quick else BENCH_QUALITY))
     with RendererPool(gl) as pool:
-        ref = measure(gl, scene, rig, reference, repeat=1, warmup=1, pool=pool)
+        ref = measure_reference(gl, scene, rig, reference, QUICK_REFERENCE_SPP if quick else AUTO_REFERENCE_SPP,
+                                reference_per_frame(quick), pool).measured
         if grid:
             candidates, refused = measure_candidates(gl, scene, rig, ref, renderer.config, ppd, grid, repeat,
                                                      progress, pool)

@@ -38,6 +38,18 @@ def reference_variant(config: MaterialConfig) -> "Variant":
 # area samples per hit would take minutes a frame there; this converges to within the FLIP
 # differences the knobs make (64 glossy directions or paths, 16 light samples, 4 bounces).
 BENCH_QUALITY = {"bounces": 4, "samples": 64, "area_samples": 16, "path_samples": 64}
+# ... per frame; the reference accumulates still frames to this many samples a pixel (bench tradeoff
+# and budget, --reference-spp). At 64 in one frame the room's reference differed from itself with
+# another seed by FLIP 0.23 (caustic paths NEE cannot sample): more than any knob's difference.
+REFERENCE_SPP = 2048
+QUICK_REFERENCE_SPP = 128
+
+
+def reference_per_frame(quick: bool) -> int:
+    """Samples a pixel one frame of the bench reference draws (its paths and glossy directions)."""
+    from .reference_images import QUICK_QUALITY
+
+    return (QUICK_QUALITY if quick else BENCH_QUALITY)["path_samples"]
 
 
 @dataclass
@@ -64,6 +76,7 @@ class Measured:
     gpu_ms: float
     image: np.ndarray  # uint8 HxWx3, both eyes side by side, full size
     material: np.ndarray | None  # uint32 HxW material index per pixel (same layout); None: --stereo warp
+    hdr: np.ndarray | None = None  # HxWx4 linear radiance (same layout) when measure() was asked for it
 
 
 def config_for_assignment(base: MaterialConfig, scene, effects: dict) -> MaterialConfig:
@@ -108,7 +121,7 @@ class RendererPool:
 
 
 def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmup: int = WARMUP_FRAMES,
-            pool: RendererPool | None = None) -> Measured:
+            pool: RendererPool | None = None, hdr: bool = False) -> Measured:
     w, h = rig.size
     small = (max(1, round(w * variant.scale)), max(1, round(h * variant.scale)))
     own = pool is None
@@ -123,6 +136,10 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         totals, last = [], None
         # warp synthesizes the right eye's colour alone: its material map is the reference's to give
         aux = () if variant.settings.stereo == "warp" else ("material",)
+        if hdr:
+            if small != (w, h):
+                raise ValueError("measure(hdr=True) needs the variant at full size (scale 1)")
+            aux += ("hdr",)
         for i, frame in enumerate(r.render_sequence(rigs, aux=aux, spp=variant.spp)):
             if i >= warmup:  # an image of spp samples costs spp frames (their last one timed)
                 totals.append(sum(frame.timings.values()) * variant.spp)
@@ -131,7 +148,8 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         if own:
             pool.release()
     image = np.hstack([last.left.color, last.right.color])
-    material = np.hstack([last.left.aux["material"], last.right.aux["material"]]) if aux else None
+    material = np.hstack([last.left.aux["material"], last.right.aux["material"]]) if "material" in aux else None
+    radiance = np.hstack([last.left.aux["hdr"], last.right.aux["hdr"]]) if hdr else None
     if small != (w, h):
         from PIL import Image
 
@@ -139,7 +157,38 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         if material is not None:
             material = np.asarray(Image.fromarray(material.astype(np.int32)).resize((2 * w, h), Image.NEAREST)
                                   ).astype(np.uint32)
-    return Measured(float(np.median(totals)), image, material)
+    return Measured(float(np.median(totals)), image, material, radiance)
+
+
+@dataclass
+class Reference:
+    """The converged image every variant is judged against, and its own noise."""
+    measured: Measured  # image: the two halves' mean radiance through the display transform
+    halves: tuple[Measured, Measured]  # each half the samples, with its own seed
+    samples: int  # samples per pixel of `measured` (both halves)
+
+    @property
+    def gpu_ms(self) -> float:  # the reference's whole cost (both halves)
+        return self.halves[0].gpu_ms + self.halves[1].gpu_ms
+
+
+def measure_reference(gl, scene, rig: StereoRig, reference: Variant, samples: int, samples_per_frame: int,
+                      pool: RendererPool | None = None) -> Reference:
+    """`reference` accumulated to about `samples` per pixel, as two halves of still frames: one with
+    its seed, one with NOISE_FLOOR_SEED. Its image is the halves' mean radiance, tonemapped here
+    as the GPU would (quality/tonemap.py); the halves' FLIP against each other is the noise floor:
+    an upper bound of the reference's own error, since each half has half its samples.
+    `samples_per_frame`: what one frame of `reference` draws (its config's sample counts)."""
+    from .tonemap import to_ldr
+
+    frames = max(1, round(samples / (2 * samples_per_frame)))
+    one = replace(reference, spp=frames)
+    other = replace(one, settings=replace(one.settings, seed=NOISE_FLOOR_SEED))
+    a, b = (measure(gl, scene, rig, v, repeat=1, warmup=0, pool=pool, hdr=True) for v in (one, other))
+    s = reference.settings
+    mean = (a.hdr.astype(np.float32) + b.hdr.astype(np.float32)) * 0.5
+    return Reference(Measured(a.gpu_ms + b.gpu_ms, to_ldr(mean, s.tonemapper, s.exposure), a.material, mean),
+                     (a, b), 2 * frames * samples_per_frame)
 
 
 def local_measurer(gl, scene, rig: StereoRig, repeat: int, pool: RendererPool | None = None):
