@@ -102,6 +102,45 @@ def test_a_pick_over_its_budget_on_the_measured_frame_is_reported_not_hidden(mon
     assert got["config"].render == got["knobs"].render_table()  # the config to save carries the knobs
 
 
+def test_a_grid_render_that_measured_better_than_the_solved_pick_is_the_answer(monkeypatch):
+    """The solver's per-material pick measures FLIP 0.3; the grid's render with every material on
+    `glossy` under REUSE fits at 0.15: the answer is that render, measured again, and the solver's
+    own figure is kept beside it. Where the grid's best is worse, the solver's pick stays."""
+    from rayvr.scene.materials import MaterialConfig
+
+    class Scene:
+        def material_names(self):
+            return ["a", "b"]
+
+    def solved(gl, scene, rig, budget_ms, base, ref, ppd, repeat, progress, pool, options, knobs):
+        return {"budget_ms": budget_ms, "measured_ms": 5.0, "within_budget": True, "feasible": True,
+                "measured_flip": 0.3, "predicted_ms": 5.0, "assignment": {"a": "shadows"}, "config": MaterialConfig()}
+
+    rendered = []
+
+    def render(gl, scene, rig, budget_ms, base, ref, ppd, assignment, repeat, pool, knobs):
+        rendered.append((assignment, knobs))
+        return {"budget_ms": budget_ms, "measured_ms": 5.1, "within_budget": True, "measured_flip": 0.15,
+                "assignment": assignment, "config": MaterialConfig(), "image": None}
+
+    monkeypatch.setattr(fb, "choose_under_budget", solved)
+    monkeypatch.setattr(fb, "measure_assignment", render)
+
+    def points(reuse_glossy_flip):
+        opts = [MaterialOptions("a", [Option("raster", 0.0, 0.5), Option("shadows", 3.0, 0.3)])]
+        return [fb.FrameCandidate(DUAL, 1.0, opts, {"raster": (1.0, 0.5), "glossy": (9.0, 0.1)}),
+                fb.FrameCandidate(REUSE, 1.0, opts, {"raster": (0.8, 0.52), "glossy": (5.0, reuse_glossy_flip)})]
+
+    got = fb.choose_frame_under_budget(None, Scene(), None, 6.0, None, None, 60.0, points(0.15))
+    assert rendered == [({"a": "glossy", "b": "glossy"}, REUSE)]  # DUAL's better glossy does not fit 6 ms
+    assert got["from_grid"] and got["knobs"] == REUSE and got["assignment"] == {"a": "glossy", "b": "glossy"}
+    assert got["measured_flip"] == 0.15 and got["solver_flip"] == 0.3
+    assert got["config"].render == REUSE.render_table()
+    rendered.clear()
+    got = fb.choose_frame_under_budget(None, Scene(), None, 6.0, None, None, 60.0, points(0.35))
+    assert not rendered and not got["from_grid"] and got["measured_flip"] == got["solver_flip"] == 0.3
+
+
 def test_grid_best_is_the_least_error_render_that_fits():
     a = fb.FrameCandidate(DUAL, 1.0, [], {"raster": (1.0, 0.5), "glossy": (9.0, 0.1)})
     b = fb.FrameCandidate(REUSE, 1.0, [], {"raster": (0.8, 0.52), "glossy": (5.0, 0.15)})

@@ -313,6 +313,18 @@ MIN_COST_SCALE = 0.25  # the most one round scales an effect's estimated cost do
 BUDGET_ROUNDS = 4
 
 
+def measure_assignment(gl, scene, rig, budget_ms: float, base, reference_image, ppd: float, assignment: dict,
+                       repeat=10, pool=None, knobs=None) -> dict:
+    """Render {material: effect} (the others `raster`) with `knobs` and measure it against `budget_ms`."""
+    cfg = config_for_assignment(base, scene, assignment)
+    chosen = measure(gl, scene, rig, (knobs or DEFAULT_KNOBS).variant("budget", budget_ms, cfg, COMPARE_SETTINGS),
+                     repeat, pool=pool)
+    return {"budget_ms": budget_ms, "measured_ms": chosen.gpu_ms,
+            "within_budget": chosen.gpu_ms <= budget_ms * BUDGET_TOLERANCE,
+            "measured_flip": metrics.flip(reference_image.image, chosen.image, ppd=ppd),
+            "assignment": assignment, "config": cfg, "image": chosen.image}
+
+
 def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
                         ppd: float, repeat=10, progress=True, pool=None, options=None, knobs=None) -> dict:
     """Pick effects per material for `budget_ms`, render the pick and measure it.
@@ -329,13 +341,9 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
 
     def attempt(opts, budget):
         result = solve_budget(opts, budget, base_ms=base_ms)
-        cfg = config_for_assignment(base, scene, result.assignment)
-        chosen = measure(gl, scene, rig, (knobs or DEFAULT_KNOBS).variant("budget", budget_ms, cfg, COMPARE_SETTINGS),
-                         repeat, pool=pool)
-        return {"budget_ms": budget_ms, "predicted_ms": result.total_ms, "measured_ms": chosen.gpu_ms,
-                "within_budget": chosen.gpu_ms <= budget_ms * BUDGET_TOLERANCE, "feasible": result.feasible,
-                "predicted_error": result.error, "measured_flip": metrics.flip(reference_image.image, chosen.image, ppd=ppd),
-                "assignment": result.assignment, "config": cfg, "image": chosen.image}
+        return {**measure_assignment(gl, scene, rig, budget_ms, base, reference_image, ppd, result.assignment, repeat,
+                                     pool, knobs),
+                "predicted_ms": result.total_ms, "feasible": result.feasible, "predicted_error": result.error}
 
     scale: dict = {}
     tried = []
