@@ -18,6 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..quality import metrics
+from ..quality.metric_pool import judge
 from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 from ..frame.effects import traced_effects
 from ..scene.materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
@@ -34,12 +35,17 @@ def material_mask(scene, material_map: np.ndarray, names) -> np.ndarray | None:
     return np.isin(material_map, index)
 
 
-def error_row(ref: Measured, test: Measured, scene, variant: Variant, ppd: float, with_flip: bool = True) -> dict:
+def error_row(ref: Measured, test: Measured, scene, variant: Variant, ppd: float, with_flip: bool = True,
+              later: bool = False):
+    """The row's metrics of `test` against `ref` (over the pixels `variant` touches too); `later`:
+    a Future of them, computed in a worker process (quality/metric_pool.py)."""
     mask = material_mask(scene, ref.material, variant.touches)
     if mask is not None and not mask.any():
         mask = None
     which = ("flip", "psnr", "ssim") if with_flip else ("psnr", "ssim")
-    return metrics.compare(ref.image, test.image, mask=mask, ppd=ppd, metrics=which)
+    if not later:
+        return metrics.compare(ref.image, test.image, mask=mask, ppd=ppd, metrics=which)
+    return judge(metrics.compare, ref.image, test.image, mask, ppd, which)
 
 
 # ------------------------------------------------------------------------------- the knobs
@@ -131,10 +137,11 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
 
         bar = tqdm(total=len(variants_), unit="variant", desc=f"tradeoff {scene.name}")
     try:
-        for v, m in zip(variants_, measure_all(variants_, bar)):
-            rows.append({"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label,
-                         "gpu_ms": m.gpu_ms, **error_row(ref_image, m, scene, v, ppd, with_flip),
-                         "reference_ms": ref.gpu_ms})
+        # each image judged in another process while the next one renders
+        pending = [(v, m.gpu_ms, error_row(ref_image, m, scene, v, ppd, with_flip, later=True))
+                   for v, m in zip(variants_, measure_all(variants_, bar))]
+        rows += [{"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label, "gpu_ms": ms,
+                  **errors.result(), "reference_ms": ref.gpu_ms} for v, ms, errors in pending]
     finally:
         if bar is not None:
             bar.close()

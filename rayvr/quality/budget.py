@@ -46,6 +46,7 @@ from . import metrics
 from ..frame.effects import implemented_effects
 from .frame_knobs import DEFAULT_KNOBS
 from .measure import COMPARE_SETTINGS, config_for_assignment, local_measurer, measure
+from .metric_pool import judge
 
 # Slack for floating-point sums when comparing against the budget (1 ns in ms units).
 COST_EPS_MS = 1e-6
@@ -277,14 +278,14 @@ def measure_rungs(gl, scene, rig, reference_image, base, ppd: float, effects=Non
     measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
     configs = [config_for_assignment(base, scene, {n: e for n in names}) for e in effects]
     whole_scene = [(knobs or DEFAULT_KNOBS).variant("budget", e, c, COMPARE_SETTINGS) for e, c in zip(effects, configs)]
-    rungs = {}
     try:
-        for e, m in zip(effects, measure_all(whole_scene, bar)):
-            rungs[e] = (m.gpu_ms, metrics.flip_map(reference_image.image, m.image, ppd=ppd))
+        # each rung's FLIP map made in another process while the next one renders
+        pending = [(e, m.gpu_ms, judge(metrics.flip_map, reference_image.image, m.image, ppd))
+                   for e, m in zip(effects, measure_all(whole_scene, bar))]
+        return {e: (ms, flip.result()) for e, ms, flip in pending}
     finally:
         if bar is not None:
             bar.close()
-    return rungs
 
 
 def options_from_rungs(scene, reference_image, base, rungs: dict, min_coverage=1e-4):
