@@ -31,6 +31,7 @@ SHADER_LOCAL = {
     "SORT_CHUNK": "radix_sort.comp's shared-memory histogram chunk",
     "DISOCCLUSION_DEPTH": "accumulate.comp's history test", "APRON": "denoise.comp's taps per stage",
     "OUTSIDE": "denoise.comp: the effect of a tap outside the image",
+    "LOG2_E": "math (denoise.comp's weights as one exp2)", "NO_WEIGHT": "denoise.comp: log2 of a zero weight",
     "RT_MAX_GROUPS_X": "GL's minimum of the most work groups in x",
     "WAVE_IDLE": "wave.glsl: a path without a ray this bounce", "RT_SLOT": "wave_shade.comp's list",
     "FILLED": "sample_resolve.comp: the weight of a filled point",

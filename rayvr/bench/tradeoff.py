@@ -305,7 +305,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                 "ppd": ppd, "skipped": skipped, "workers": workers or 0, "grid": [k.label for k in grid],
                 "poses": poses, "pose_seed": pose_seed, "reference_spp": reference_spp,
                 "noise_floor": "mean FLIP of the reference's two halves (each half its samples, its own seed) "
-                               "against each other: an upper bound of the reference's own error",
+                               "against each other: conservative, each half has half the reference's samples",
                 "model": "per point of the frame-knob grid, per material: extra GPU ms of each effect over all-raster "
                          "and mean FLIP over its pixels vs the reference, measured with that point's knobs; total "
                          "error = sum importance x coverage x error; exact multiple-choice knapsack per point, the "

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..frame.cameras.rig import StereoRig
 from ..scene.materials import MaterialConfig
-from .reference_images import reference_settings
+from .reference_images import QUICK_QUALITY, reference_settings
 from ..renderer import Renderer, RenderSettings
 
 
@@ -38,7 +38,7 @@ def reference_variant(config: MaterialConfig) -> "Variant":
 # area samples per hit would take minutes a frame there; this converges to within the FLIP
 # differences the knobs make (64 glossy directions or paths, 16 light samples, 4 bounces).
 BENCH_QUALITY = {"bounces": 4, "samples": 64, "area_samples": 16, "path_samples": 64}
-# ... per frame; the reference accumulates still frames to this many samples a pixel (bench tradeoff
+# BENCH_QUALITY's samples are one frame's; the reference accumulates still frames to this many samples a pixel (bench tradeoff
 # and budget, --reference-spp). At 64 in one frame the room's reference differed from itself with
 # another seed by FLIP 0.23 (caustic paths NEE cannot sample): more than any knob's difference.
 REFERENCE_SPP = 2048
@@ -47,8 +47,6 @@ QUICK_REFERENCE_SPP = 128
 
 def reference_per_frame(quick: bool) -> int:
     """Samples a pixel one frame of the bench reference draws (its paths and glossy directions)."""
-    from .reference_images import QUICK_QUALITY
-
     return (QUICK_QUALITY if quick else BENCH_QUALITY)["path_samples"]
 
 
@@ -121,7 +119,9 @@ class RendererPool:
 
 
 def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmup: int = WARMUP_FRAMES,
-            pool: RendererPool | None = None, hdr: bool = False) -> Measured:
+            pool: RendererPool | None = None, hdr: bool = False, settle: bool = True) -> Measured:
+    """`variant` rendered `warmup` + `repeat` times on `rig` (after the GPU's clocks settle unless
+    `settle` is False); its median GPU ms, the last image (its linear radiance too with `hdr`)."""
     w, h = rig.size
     small = (max(1, round(w * variant.scale)), max(1, round(h * variant.scale)))
     own = pool is None
@@ -131,7 +131,8 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         sized = rig.with_size(small)
         if variant.camera is not None:
             sized = replace(sized, camera=variant.camera)
-        r.warm_up(sized)
+        if settle:
+            r.warm_up(sized)
         rigs = [sized] * (warmup + repeat)
         totals, last = [], None
         # warp synthesizes the right eye's colour alone: its material map is the reference's to give
@@ -176,15 +177,16 @@ def measure_reference(gl, scene, rig: StereoRig, reference: Variant, samples: in
                       pool: RendererPool | None = None) -> Reference:
     """`reference` accumulated to about `samples` per pixel, as two halves of still frames: one with
     its seed, one with NOISE_FLOOR_SEED. Its image is the halves' mean radiance, tonemapped here
-    as the GPU would (quality/tonemap.py); the halves' FLIP against each other is the noise floor:
-    an upper bound of the reference's own error, since each half has half its samples.
+    as the GPU would (quality/tonemap.py); the halves' FLIP against each other is the noise floor,
+    a conservative one: each half has half the reference's samples.
     `samples_per_frame`: what one frame of `reference` draws (its config's sample counts)."""
     from .tonemap import to_ldr
 
     frames = max(1, round(samples / (2 * samples_per_frame)))
     one = replace(reference, spp=frames)
     other = replace(one, settings=replace(one.settings, seed=NOISE_FLOOR_SEED))
-    a, b = (measure(gl, scene, rig, v, repeat=1, warmup=0, pool=pool, hdr=True) for v in (one, other))
+    # no settling: the reference's time is reported, never judged, and a warm-up of its frames costs seconds
+    a, b = (measure(gl, scene, rig, v, repeat=1, warmup=0, pool=pool, hdr=True, settle=False) for v in (one, other))
     s = reference.settings
     mean = (a.hdr.astype(np.float32) + b.hdr.astype(np.float32)) * 0.5
     return Reference(Measured(a.gpu_ms + b.gpu_ms, to_ldr(mean, s.tonemapper, s.exposure), a.material, mean),
