@@ -238,11 +238,11 @@ class Renderer:
         return pixel_counts(self._last.resource("rt_list_args"))
 
     def warm_up(self, rig: StereoRig, eyes: str = "both", view: str = "color", seconds: float | None = None,
-                min_frames: int = 1) -> dict:  # timing.settle's record
+                min_frames: int = 1, max_seconds: float = 10.0) -> dict:  # timing.settle's record
         """Render without reading pixels back until the frame's GPU time settles (timing.settle:
         the median of the last 5 frames within 3 % of the 5 before, after at least `seconds`,
-        default 0.3 s): timings taken straight after a pause or a build measure the clock
-        governor, not rayvr. A software rasterizer has no clocks to ramp: `min_frames` only."""
+        default 0.3 s; giving up after `max_seconds`): timings taken straight after a pause or a build
+        measure the clock governor, not rayvr. A software rasterizer has no clocks to ramp: `min_frames` only."""
         def frame_ms() -> float:
             fc = self.record(rig, eyes, view)
             return sum(self.read_ms(fc).values())  # waits for the GPU
@@ -253,7 +253,7 @@ class Renderer:
             return {"runs": min_frames, "settled": False}
         for _ in range(min_frames):
             frame_ms()
-        return settle(frame_ms, min_seconds=0.3 if seconds is None else seconds)
+        return settle(frame_ms, min_seconds=0.3 if seconds is None else seconds, max_seconds=max_seconds)
 
     def render(self, rig: StereoRig, eyes: str = "both", view: str = "color", aux=(), spp: int = 1,
                progress=None) -> Frame:

@@ -138,10 +138,12 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
         bar = tqdm(total=len(variants_), unit="variant", desc=f"tradeoff {scene.name}")
     try:
         # each image judged in another process while the next one renders
-        pending = [(v, m.gpu_ms, error_row(ref_image, m, scene, v, ppd, with_flip, later=True))
+        pending = [(v, m.gpu_ms, m.seconds, error_row(ref_image, m, scene, v, ppd, with_flip, later=True))
                    for v, m in zip(variants_, measure_all(variants_, bar))]
+        # *_s: where a sweep's wall time goes (renderer set-up with its shader compiles, settle, render)
         rows += [{"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label, "gpu_ms": ms,
-                  **errors.result(), "reference_ms": ref.gpu_ms} for v, ms, errors in pending]
+                  **errors.result(), "reference_ms": ref.gpu_ms, **{f"{k}_s": t for k, t in seconds.items()}}
+                 for v, ms, seconds, errors in pending]
     finally:
         if bar is not None:
             bar.close()

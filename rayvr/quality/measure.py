@@ -5,6 +5,7 @@ budget (`--budget-ms`, rayvr/quality/budget.py) runs on this, and so do the benc
 (rayvr/bench/tradeoff.py); both judge a variant against the reference (rayvr/quality/reference_images.py)."""
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -27,6 +28,10 @@ def _compare_settings():
 REFERENCE_SEED = 0x5EED0001
 NOISE_FLOOR_SEED = REFERENCE_SEED + 1  # the reference again with other samples: the error floor of every plot
 WARMUP_FRAMES = 3  # frames measure() renders before it times any
+# measure()'s clock settle gives up after this (the renderer's default is 10 s): in a sweep the GPU
+# has just rendered the previous variant, so its clocks are up, and frames whose times jitter by
+# more than the settle's 3 % would otherwise hold every variant for the whole 10 s.
+MEASURE_SETTLE_MAX_S = 2.0
 
 
 def reference_variant(config: MaterialConfig) -> "Variant":
@@ -75,6 +80,7 @@ class Measured:
     image: np.ndarray  # uint8 HxWx3, both eyes side by side, full size
     material: np.ndarray | None  # uint32 HxW material index per pixel (same layout); None: --stereo warp
     hdr: np.ndarray | None = None  # HxWx4 linear radiance (same layout) when measure() was asked for it
+    seconds: dict = field(default_factory=dict)  # wall time of its phases: renderer (set up), settle, render
 
 
 def config_for_assignment(base: MaterialConfig, scene, effects: dict) -> MaterialConfig:
@@ -126,13 +132,22 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
     small = (max(1, round(w * variant.scale)), max(1, round(h * variant.scale)))
     own = pool is None
     pool = pool or RendererPool(gl)
+    clock = [time.perf_counter()]
+    seconds = {}
+
+    def lap(name):
+        clock.append(time.perf_counter())
+        seconds[name] = clock[-1] - clock[-2]
+
     r = pool.get(scene, variant.settings, variant.config)
+    lap("renderer")
     try:
         sized = rig.with_size(small)
         if variant.camera is not None:
             sized = replace(sized, camera=variant.camera)
         if settle:
-            r.warm_up(sized)
+            r.warm_up(sized, max_seconds=MEASURE_SETTLE_MAX_S)
+        lap("settle")
         rigs = [sized] * (warmup + repeat)
         totals, last = [], None
         # warp synthesizes the right eye's colour alone: its material map is the reference's to give
@@ -145,6 +160,7 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
             if i >= warmup:  # an image of spp samples costs spp frames (their last one timed)
                 totals.append(sum(frame.timings.values()) * variant.spp)
             last = frame
+        lap("render")
     finally:
         if own:
             pool.release()
@@ -158,7 +174,7 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         if material is not None:
             material = np.asarray(Image.fromarray(material.astype(np.int32)).resize((2 * w, h), Image.NEAREST)
                                   ).astype(np.uint32)
-    return Measured(float(np.median(totals)), image, material, radiance)
+    return Measured(float(np.median(totals)), image, material, radiance, seconds)
 
 
 @dataclass
