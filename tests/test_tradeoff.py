@@ -218,3 +218,23 @@ def test_reference_and_variants_draw_different_samples():
 
     assert NOISE_FLOOR_SEED != ref.settings.seed  # the noise floor is the reference with other samples
     assert NOISE_FLOOR_SEED not in {v.settings.seed for v in variants(scene, base, quick=True)}
+
+
+def test_a_sweep_cut_short_keeps_the_views_it_finished(tmp_path, monkeypatch):
+    """bench tradeoff writes its rows after every view: a run stopped during the second view (a
+    device call's time limit) leaves the first view's rows, marked partial."""
+    calls = []
+
+    def sweep(gl, scene, rig, *a, **k):
+        calls.append(rig)
+        if len(calls) == 2:
+            raise KeyboardInterrupt  # the run stopped here
+        return [{"scene": scene.name, "knob": "effect", "value": "raster", "label": "effect=raster", "gpu_ms": 1.0,
+                 "flip": 0.5}], None
+
+    monkeypatch.setattr(T, "run_sweep", sweep)
+    with pytest.raises(KeyboardInterrupt):
+        T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=1, progress=False)
+    got = json.loads((tmp_path / "tradeoff.json").read_text())
+    assert got["meta"]["partial"] is True
+    assert [(r["view"], r["label"]) for r in got["rows"]] == [("fixed", "effect=raster")]

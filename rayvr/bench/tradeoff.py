@@ -231,6 +231,11 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     rows, skipped = [], {}
     reference_spp = reference_spp or (QUICK_REFERENCE_SPP if quick else REFERENCE_SPP)
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
+        meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
+                "ppd": ppd, "skipped": skipped, "workers": workers or 0, "poses": poses, "pose_seed": pose_seed,
+                "reference_spp": reference_spp,
+                "error": "vs the scene's reference (rayvr.quality.reference_images); "
+                "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
                                                                          poses, pose_seed):
             with RendererPool(gl) as pool:
@@ -240,11 +245,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
             for row in r:
                 row["scene"], row["view"] = name, view
             rows += r
-        meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
-                "ppd": ppd, "skipped": skipped, "workers": workers or 0, "poses": poses, "pose_seed": pose_seed,
-                "reference_spp": reference_spp,
-                "error": "vs the scene's reference (rayvr.quality.reference_images); "
-                "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
+            write_report(out_dir, "tradeoff", {"meta": {**meta, "partial": True}, "rows": rows})  # a cut run keeps its views
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "tradeoff", result)
     plot_tradeoff(rows, out_dir, meta)
@@ -276,6 +277,15 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     rows, grid_rows, skipped = [], [], {}
     reference_spp = reference_spp or (QUICK_REFERENCE_SPP if quick else REFERENCE_SPP)
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
+        meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
+                "ppd": ppd, "skipped": skipped, "workers": workers or 0, "grid": [k.label for k in grid],
+                "poses": poses, "pose_seed": pose_seed, "reference_spp": reference_spp,
+                "noise_floor": "mean FLIP of the reference's two halves (each half its samples, its own seed) "
+                               "against each other: conservative, each half has half the reference's samples",
+                "model": "per point of the frame-knob grid, per material: extra GPU ms of each effect over all-raster "
+                         "and mean FLIP over its pixels vs the reference, measured with that point's knobs; total "
+                         "error = sum importance x coverage x error; exact multiple-choice knapsack per point, the "
+                         "best point taken (rayvr.quality.frame_budget)"}
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
                                                                          poses, pose_seed):
             with RendererPool(gl) as pool:
@@ -303,15 +313,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                 stem = f"{out_dir}/budget_{name}{view_suffix(view)}_{b:.4g}ms"
                 write_png(f"{stem}.png", pick["image"])
                 atomic_write_bytes(f"{stem}.toml", pick_toml(scene, pick, pick["config"], size).encode())
-        meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
-                "ppd": ppd, "skipped": skipped, "workers": workers or 0, "grid": [k.label for k in grid],
-                "poses": poses, "pose_seed": pose_seed, "reference_spp": reference_spp,
-                "noise_floor": "mean FLIP of the reference's two halves (each half its samples, its own seed) "
-                               "against each other: conservative, each half has half the reference's samples",
-                "model": "per point of the frame-knob grid, per material: extra GPU ms of each effect over all-raster "
-                         "and mean FLIP over its pixels vs the reference, measured with that point's knobs; total "
-                         "error = sum importance x coverage x error; exact multiple-choice knapsack per point, the "
-                         "best point taken (rayvr.quality.frame_budget)"}
+            write_report(out_dir, "budget", {"meta": {**meta, "partial": True}, "rows": rows})  # a cut run keeps its views
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "budget", result, md=budget_headline(rows, meta) + "\n" + markdown("budget", result))
     write_report(out_dir, "budget_grid", {"meta": meta, "rows": grid_rows})
