@@ -31,6 +31,7 @@ from .scene.gpu_scene import GpuScene
 from .frame.passes import primary_rays
 from .frame.passes.core import core_passes
 from .frame.passes.classify import pixel_counts
+from .frame.passes.quadtree import screen_space_refusal
 from .frame.passes.second_layer import depth_layers
 from .frame.passes.visibility import pick_layer_mode
 from .frame.readback import AUX_CHANNELS, Reader
@@ -152,6 +153,9 @@ class Renderer:
             hint = (f"its {camera.lens_parameter} parameter" if camera.lens_parameter
                     else "the pinhole camera and --stereo dual")
             raise ValueError(f"depth of field (--dof-diameter) blurs each eye's own pinhole frame, and {why}: use {hint}")
+        refusal = screen_space_refusal(self.effects_in_use(), camera.name)
+        if refusal:
+            raise ValueError(refusal)
         accumulates = color and (accumulate or st.accumulate or bool(denoise))
         problem = temporal_problem(camera) if accumulates and st.temporal else None
         if problem:

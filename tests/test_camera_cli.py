@@ -117,3 +117,17 @@ def test_bench_primary_bad_subset_is_one_clear_line(tmp_path, args, words):
     lines = run.stderr.splitlines()
     assert run.returncode == 2 and len(lines) == 1 and all(w in lines[0] for w in words), run.stderr
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("model", ["foveated", "wide"])
+def test_screen_space_tracing_through_a_camera_that_is_not_a_pinhole_is_one_clear_line(tmp_path, model):
+    """ssr marches the pinhole's depth buffer; the other models have none (the quadtree pass is
+    left out for them). It used to end in a GraphError traceback."""
+    config = tmp_path / "ssr.toml"
+    config.write_text('default = "ssr"\n')
+    run = rayvr("capture", "--out", str(tmp_path / "o"), "--size", "8x8", "--camera-model", model,
+                "--materials", str(config))
+    lines = run.stderr.splitlines()
+    assert run.returncode == 2 and len(lines) == 1 and "Traceback" not in run.stderr, run.stderr
+    assert f"screen-space tracing (ssr) marches the pinhole's depth buffer, and the {model} camera" in lines[0]
+    assert not (tmp_path / "o").exists()

@@ -159,10 +159,13 @@ def test_grid_parsing():
         FrameKnobs("dual", 1, True, 4, 1.0), FrameKnobs("reuse", 1, True, 4, 1.0)]
     for bad, says in [("stereo=mono", "stereo"), ("fps=90", "KNOB=VALUE"), ("spp=0", "spp"), ("msaa=3", "msaa"),
                       ("scale=0.1", "scale"), ("denoise=yes please", "denoise"), ("spp=1;spp=2", "twice"),
-                      ("scale=", "no values"), ("stereo", "KNOB=VALUE")]:
+                      ("scale=", "no values"), ("stereo", "KNOB=VALUE"), ("temporal=sometimes", "temporal"),
+                      ("camera=distorted", "the pinhole reference can judge")]:
         with pytest.raises(ValueError, match=says):
             parse_grid(bad)
     assert budget_ms_of(90) == pytest.approx(11.111, abs=1e-3) and budget_ms_of(120) == pytest.approx(8.333, abs=1e-3)
+    assert parse_grid("temporal=off,on;camera=pinhole,foveated") == [
+        FrameKnobs(temporal=t, camera=c) for t in (False, True) for c in ("pinhole", "foveated")]
 
 
 def test_knobs_become_render_options_and_capture_flags():
@@ -175,7 +178,11 @@ def test_knobs_become_render_options_and_capture_flags():
     assert k.capture_flags((1440, 1600)) == "--spp 4 --size 1080x1200"
     assert DEFAULT_KNOBS.capture_flags((1440, 1600)) == ""
     v = k.variant("budget", "glossy", None, COMPARE_SETTINGS)
-    assert (v.spp, v.scale, v.settings.stereo) == (4, 0.75, "reuse")
+    assert (v.spp, v.scale, v.settings.stereo, v.camera) == (4, 0.75, "reuse", None)  # None: the rig's camera
+    f = FrameKnobs(temporal=True, camera="foveated")
+    v = f.variant("budget", "glossy", None, COMPARE_SETTINGS)
+    assert v.settings.temporal and v.camera == "foveated" and f.render_table()["temporal"] is True
+    assert f.capture_flags((1440, 1600)) == "--camera-model foveated"
 
 
 def test_saved_pick_loads_back_as_the_same_config(tmp_path):
@@ -189,16 +196,17 @@ def test_saved_pick_loads_back_as_the_same_config(tmp_path):
             return ["floor", 'odd "name" [1]', "gold"]
 
     picked = MaterialConfig(default="raster", by_id={0: ("glossy", {"samples": 2}), 2: ("reflections", {})},
-                            importance_of={"ids.2": 3.0}, render={"stereo": "reuse", "denoise": True, "msaa": 4})
+                            importance_of={"ids.2": 3.0},
+                            render={"stereo": "reuse", "denoise": True, "msaa": 4, "temporal": True})
     summary = {"budget_ms": 11.1, "within_budget": True, "measured_ms": 10.2, "measured_flip": 0.05,
-               "knobs": FrameKnobs("reuse", 8, True, 4, 1.0)}
+               "knobs": FrameKnobs("reuse", 8, True, 4, 1.0, temporal=True, camera="foveated")}
     text = pick_toml(Scene(), summary, picked, (640, 480))
-    assert "# capture with: --spp 8" in text
+    assert "# capture with: --spp 8 --camera-model foveated" in text
     path = tmp_path / "pick.toml"
     path.write_text(text)
     back = load_config(path)
     names = Scene().material_names()
-    assert back.render == {"stereo": "reuse", "denoise": True, "msaa": 4}
+    assert back.render == {"stereo": "reuse", "denoise": True, "msaa": 4, "temporal": True}
     for a, b in zip(picked.assign(names, warn=False), back.assign(names, warn=False)):
         assert (a.effect, a.params, a.importance) == (b.effect, b.params, b.importance)
 
@@ -260,3 +268,35 @@ def test_points_the_renderer_refuses_are_left_out_with_the_reason(monkeypatch):
         FrameKnobs("reuse", msaa=4).label]
     with pytest.raises(ValueError, match="no point of the frame-knob grid renders here: stereo=reuse"):
         fb.measure_candidates(None, None, None, None, None, 60.0, parse_grid("stereo=reuse;msaa=4,8"))
+
+
+def test_a_rung_the_knobs_camera_cannot_render_is_left_out(monkeypatch):
+    """Under camera=foveated the budget measures every rung but ssr (screen-space tracing needs the
+    pinhole's depth buffer); under the pinhole, every rung."""
+    from rayvr.frame.effects import implemented_effects
+    from rayvr.quality import budget
+    from rayvr.scene.materials import MaterialConfig
+
+    class Scene:
+        name = "test"
+
+        def material_names(self):
+            return ["a"]
+
+    class Rig:
+        camera = "pinhole"
+
+    class Image:
+        image = np.zeros((2, 4, 3), np.uint8)
+
+    def measure_all(variants, bar=None):
+        for v in variants:
+            yield type("M", (), {"gpu_ms": 1.0, "image": Image.image})()
+
+    monkeypatch.setattr(budget, "judge", lambda fn, *a: type("F", (), {"result": lambda self: 0.0})())
+    seen = {}
+    for knobs in (FrameKnobs(camera="foveated"), DEFAULT_KNOBS):
+        seen[knobs.camera] = list(budget.measure_rungs(None, Scene(), Rig(), Image, MaterialConfig(), 60.0,
+                                                       progress=False, measure_all=measure_all, knobs=knobs))
+    assert "ssr" in implemented_effects() and seen["pinhole"] == list(implemented_effects())
+    assert seen["foveated"] == [e for e in implemented_effects() if e != "ssr"]

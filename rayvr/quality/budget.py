@@ -47,6 +47,7 @@ from ..frame.effects import implemented_effects
 from .frame_knobs import DEFAULT_KNOBS
 from .measure import COMPARE_SETTINGS, config_for_assignment, local_measurer, measure
 from .metric_pool import judge
+from ..frame.passes.quadtree import screen_space_refusal
 
 # Slack for floating-point sums when comparing against the budget (1 ns in ms units).
 COST_EPS_MS = 1e-6
@@ -267,17 +268,21 @@ def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
 
 def measure_rungs(gl, scene, rig, reference_image, base, ppd: float, effects=None, repeat=10, progress=True,
                   pool=None, measure_all=None, knobs=None) -> dict:
-    """{effect: (GPU ms, FLIP map against the reference)} of the whole scene on each rung."""
-    effects = list(effects or implemented_effects())
+    """{effect: (GPU ms, FLIP map against the reference)} of the whole scene on each rung; a rung
+    the camera cannot render (screen-space tracing through a camera that is not a pinhole) is
+    left out, so no material takes it under these knobs."""
+    knobs = knobs or DEFAULT_KNOBS
+    camera = knobs.camera if knobs.camera != DEFAULT_KNOBS.camera else getattr(rig.camera, "name", rig.camera)
+    effects = [e for e in effects or implemented_effects() if not screen_space_refusal([e], camera)]
     names = scene.material_names()
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name}" + (f" {knobs.label}" if knobs else ""))
+        bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name} {knobs.label}")
     measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
     configs = [config_for_assignment(base, scene, {n: e for n in names}) for e in effects]
-    whole_scene = [(knobs or DEFAULT_KNOBS).variant("budget", e, c, COMPARE_SETTINGS) for e, c in zip(effects, configs)]
+    whole_scene = [knobs.variant("budget", e, c, COMPARE_SETTINGS) for e, c in zip(effects, configs)]
     try:
         # each rung's FLIP map made in another process while the next one renders
         pending = [(e, m.gpu_ms, judge(metrics.flip_map, reference_image.image, m.image, ppd))

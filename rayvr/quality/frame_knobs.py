@@ -1,5 +1,6 @@
 """The frame-wide knobs a budget pick chooses beside the per-material effects: the stereo mode,
-samples per pixel, the denoiser, the MSAA count and the resolution scale. One `FrameKnobs` is one
+samples per pixel, the denoiser, the MSAA count, the resolution scale, temporal accumulation and
+the camera model (pinhole or foveated). One `FrameKnobs` is one
 value of each; a grid (`--frame-knobs "stereo=dual,reuse;spp=1,4;denoise=off,on"`) is every
 combination of the values given, each knob left out at its default.
 
@@ -15,11 +16,15 @@ import math
 from dataclasses import dataclass, fields, replace
 
 from ..frame.stereo import STEREO
+from ..frame.cameras import DEFAULT_CAMERA_MODEL as DEFAULT_CAMERA
 from ..frame.cameras.sampling import MSAA
 
 MAX_SPP = 64  # a budget pick accumulates at most this many samples an image
 SCALES = (0.5, 1.0)  # a resolution scale lies in [0.5, 1]: below half the upscaled image is a blur
 ON_OFF = {"on": True, "off": False, "true": True, "false": False, "1": True, "0": False}
+# Camera models a pick may take: those whose image is the pinhole's, so the pinhole reference
+# judges them (foveated samples the pinhole's image sparsely; a distorted or wide image is another).
+CAMERAS = ("pinhole", "foveated")
 
 
 @dataclass(frozen=True)
@@ -29,6 +34,8 @@ class FrameKnobs:
     denoise: bool = False
     msaa: int = 1
     scale: float = 1.0
+    temporal: bool = False  # on a still view its image holds every frame measured: an optimist's figure
+    camera: str = "pinhole"
 
     @property
     def label(self) -> str:
@@ -36,7 +43,8 @@ class FrameKnobs:
 
     def render_table(self) -> dict:
         """The knobs that are render options, as a config's [render] table holds them."""
-        return {"stereo": self.stereo, "denoise": self.denoise, "msaa": self.msaa}
+        out = {"stereo": self.stereo, "denoise": self.denoise, "msaa": self.msaa}
+        return {**out, "temporal": True} if self.temporal else out
 
     def settings(self, base):
         """`base` RenderSettings with these knobs' render options."""
@@ -46,12 +54,15 @@ class FrameKnobs:
         """A measured variant (quality/measure.py) rendered with these knobs."""
         from .measure import Variant
 
-        return Variant(knob, value, config, self.settings(base_settings), scale=self.scale, spp=self.spp)
+        return Variant(knob, value, config, self.settings(base_settings), scale=self.scale, spp=self.spp,
+                       camera=None if self.camera == DEFAULT_CAMERA else self.camera)
 
     def capture_flags(self, size: tuple[int, int] | None = None) -> str:
-        """The capture flags the config's [render] table cannot hold: samples per pixel, and the
-        scaled per-eye size (the frame was measured rendered at it and shown upscaled)."""
+        """The capture flags the config's [render] table cannot hold: samples per pixel, the camera
+        model, and the scaled per-eye size (the frame was measured rendered at it and shown upscaled)."""
         out = [f"--spp {self.spp}"] if self.spp > 1 else []
+        if self.camera != DEFAULT_CAMERA:
+            out.append(f"--camera-model {self.camera}")
         if self.scale != 1.0 and size is not None:
             out.append(f"--size {max(1, round(size[0] * self.scale))}x{max(1, round(size[1] * self.scale))}")
         return " ".join(out)
@@ -71,10 +82,15 @@ def _one(name: str, text: str):
         if t not in STEREO.choices:
             raise ValueError(f"frame knob stereo: {text!r} is not one of {', '.join(STEREO.choices)}")
         return t
-    if name == "denoise":
+    if name in ("denoise", "temporal"):
         if t not in ON_OFF:
-            raise ValueError(f"frame knob denoise: {text!r} is not on or off")
+            raise ValueError(f"frame knob {name}: {text!r} is not on or off")
         return ON_OFF[t]
+    if name == "camera":
+        if t not in CAMERAS:
+            raise ValueError(f"frame knob camera: {text!r} is not one of {', '.join(CAMERAS)} (the models the "
+                             f"pinhole reference can judge)")
+        return t
     if name in ("spp", "msaa"):
         try:
             v = int(t)

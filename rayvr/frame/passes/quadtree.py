@@ -44,6 +44,18 @@ def uses_quadtree(effect: str) -> bool:
     return getattr(EFFECTS.get(effect), "uses_quadtree", False)
 
 
+def screen_space_refusal(effects, camera_name: str) -> str | None:
+    """Why `effects` cannot render through the camera model `camera_name`, or None: screen-space
+    tracing marches a planar projection's depth, which only the pinhole's G-buffer has (the
+    quadtree pass is left out for the other models)."""
+    users = sorted(e for e in effects if uses_quadtree(e))
+    if not users or CAMERA_MODELS[camera_name].rasterizable:
+        return None
+    return (f"screen-space tracing ({', '.join(users)}) marches the pinhole's depth buffer, and the {camera_name} "
+            f"camera is not a pinhole: give those materials `reflections` or `glossy` (traced in the BVH), or use the "
+            f"pinhole camera")
+
+
 def set_tree_uniforms(program, size, eyes: int) -> None:
     """qt_level, qt_top, qt_layer_nodes, qt_eyes of glsl/ssrt/quadtree.glsl for `eyes` eye images
     of `size` (tree layer = depth layer x eyes + eye)."""
