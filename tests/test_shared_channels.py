@@ -68,7 +68,9 @@ def test_only_frames_it_serves_share(room):
     assert not shares(tile_culling=True)                # the entries bound one channel set's rays
     with Renderer(None, MaterialConfig(default="ssr"), gl=room.gl) as r:   # reads neighbours' G-buffer
         r.settings = RenderSettings(primary="rays")
-        assert not r.plan(camera=CHROMATIC).share_channels
+        # ... through the pinhole's quadtree, which a distorted camera has none of: refused outright
+        with pytest.raises(ValueError, match="screen-space tracing .ssr. marches the pinhole's depth buffer"):
+            r.plan(camera=CHROMATIC)
 
 
 def test_the_flags_turn_it_off_and_on():
