@@ -238,3 +238,11 @@ def test_a_sweep_cut_short_keeps_the_views_it_finished(tmp_path, monkeypatch):
     got = json.loads((tmp_path / "tradeoff.json").read_text())
     assert got["meta"]["partial"] is True
     assert [(r["view"], r["label"]) for r in got["rows"]] == [("fixed", "effect=raster")]
+
+
+def test_the_foveated_variant_is_left_out_where_the_config_traces_in_screen_space():
+    """ssr marches the pinhole's depth buffer, which the foveated camera has none of: a sweep of
+    an ssr config has no camera variant (instead of a run that stops at it)."""
+    scene = load()
+    assert [v.label for v in T.variants(scene, load_config(None), quick=True) if v.camera] == ["camera=foveated"]
+    assert not [v for v in T.variants(scene, parse_config({"default": "ssr"}), quick=True) if v.camera]

@@ -21,6 +21,7 @@ from ..quality import metrics
 from ..quality.metric_pool import judge
 from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 from ..frame.effects import traced_effects
+from ..frame.passes.quadtree import screen_space_refusal
 from ..scene.materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
 from .head_poses import POSE_SEED, draw_poses
 from ..quality.measure import (BENCH_QUALITY, COMPARE_SETTINGS, QUICK_REFERENCE_SPP, REFERENCE_SPP, WARMUP_FRAMES,
@@ -70,7 +71,10 @@ def variants(scene, base: MaterialConfig, quick: bool = False, repeat: int = 10)
                                    touches=touched))
     for s in ([0.5, 1.0] if quick else [0.5, 0.75, 1.0]):
         out.append(Variant("resolution_scale", s, base, scale=s))
-    return out + frame_variants(base, quick) + noise_variants(noisy_base(scene, base), quick, repeat)
+    out += frame_variants(base, quick) + noise_variants(noisy_base(scene, base), quick, repeat)
+    names = scene.material_names()  # a camera that is not a pinhole cannot take screen-space tracing
+    return [v for v in out if v.camera is None or not screen_space_refusal(
+        {a.effect for a in v.config.assign(names, warn=False)}, v.camera)]
 
 
 LAYOUTS = ("bvh2", "bvh4", "bvh8", "cwbvh")  # every ray kind through one layout: the speed of each (images equal)
