@@ -164,6 +164,11 @@ def test_grid_parsing():
         with pytest.raises(ValueError, match=says):
             parse_grid(bad)
     assert budget_ms_of(90) == pytest.approx(11.111, abs=1e-3) and budget_ms_of(120) == pytest.approx(8.333, abs=1e-3)
+    # the denoiser's iterations: a point each where it is on, one point where it is off
+    assert parse_grid("denoise=off,on;iterations=2,4") == [FrameKnobs(), FrameKnobs(denoise=True, iterations=2),
+                                                           FrameKnobs(denoise=True, iterations=4)]
+    with pytest.raises(ValueError, match="iterations: '9' is not a whole number from 1 to 6"):
+        parse_grid("iterations=9")
     assert parse_grid("temporal=off,on;camera=pinhole,foveated") == [
         FrameKnobs(temporal=t, camera=c) for t in (False, True) for c in ("pinhole", "foveated")]
 
@@ -179,6 +184,9 @@ def test_knobs_become_render_options_and_capture_flags():
     assert DEFAULT_KNOBS.capture_flags((1440, 1600)) == ""
     v = k.variant("budget", "glossy", None, COMPARE_SETTINGS)
     assert (v.spp, v.scale, v.settings.stereo, v.camera) == (4, 0.75, "reuse", None)  # None: the rig's camera
+    s2 = FrameKnobs(denoise=True, iterations=2).settings(COMPARE_SETTINGS)
+    assert s2.denoise and s2.denoise_iterations == 2
+    assert "denoise_iterations" not in FrameKnobs(denoise=True).render_table()  # the default stays implicit
     f = FrameKnobs(temporal=True, camera="foveated")
     v = f.variant("budget", "glossy", None, COMPARE_SETTINGS)
     assert v.settings.temporal and v.camera == "foveated" and f.render_table()["temporal"] is True

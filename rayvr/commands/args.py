@@ -111,7 +111,8 @@ def budget_grid(args, given: dict, frame_knobs: tuple[str, ...]) -> list | None:
     d = DEFAULT_KNOBS
     base = FrameKnobs(stereo=given.get("stereo", d.stereo), spp=getattr(args, "spp", d.spp),
                       denoise=given.get("denoise", d.denoise), msaa=given.get("msaa", d.msaa),
-                      temporal=given.get("temporal", d.temporal))
+                      temporal=given.get("temporal", d.temporal),
+                      iterations=given.get("denoise_iterations", d.iterations))
     grid = parse_grid(text, base)
     for part in text.split(";"):
         knob = part.partition("=")[0].strip().lower()

@@ -105,7 +105,8 @@ def add_parser(sub) -> None:
     b.add_argument("--frame-knobs", metavar="GRID",
                    help="budget: the frame-wide knobs the pick chooses too, every combination of the values given, "
                         "e.g. \"stereo=dual,reuse;spp=1,4;denoise=off,on;msaa=1,4;scale=0.75,1\"; also "
-                        "temporal=off,on and camera=pinhole,foveated (default: none; docs/budget.md)")
+                        "temporal=off,on, camera=pinhole,foveated and iterations=1..6 (the denoiser's; default: none; "
+                        "docs/budget.md)")
     b.add_argument("--out", default=DEFAULT_OUT, help=f"folder for JSON/markdown results (default ./{DEFAULT_OUT}: "
                    "the repository's committed bench/results/ is only written when named)")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")

@@ -1,6 +1,6 @@
 """The frame-wide knobs a budget pick chooses beside the per-material effects: the stereo mode,
 samples per pixel, the denoiser, the MSAA count, the resolution scale, temporal accumulation and
-the camera model (pinhole or foveated). One `FrameKnobs` is one
+the camera model (pinhole or foveated) and the denoiser's iterations. One `FrameKnobs` is one
 value of each; a grid (`--frame-knobs "stereo=dual,reuse;spp=1,4;denoise=off,on"`) is every
 combination of the values given, each knob left out at its default.
 
@@ -18,6 +18,7 @@ from dataclasses import dataclass, fields, replace
 from ..frame.stereo import STEREO
 from ..frame.cameras import DEFAULT_CAMERA_MODEL as DEFAULT_CAMERA
 from ..frame.cameras.sampling import MSAA
+from ..frame.passes.denoise import DENOISE_ITERATIONS
 
 MAX_SPP = 64  # a budget pick accumulates at most this many samples an image
 SCALES = (0.5, 1.0)  # a resolution scale lies in [0.5, 1]: below half the upscaled image is a blur
@@ -36,6 +37,7 @@ class FrameKnobs:
     scale: float = 1.0
     temporal: bool = False  # on a still view its image holds every frame measured: an optimist's figure
     camera: str = "pinhole"
+    iterations: int = DENOISE_ITERATIONS.default  # the denoiser's a-trous iterations (with denoise on)
 
     @property
     def label(self) -> str:
@@ -44,6 +46,8 @@ class FrameKnobs:
     def render_table(self) -> dict:
         """The knobs that are render options, as a config's [render] table holds them."""
         out = {"stereo": self.stereo, "denoise": self.denoise, "msaa": self.msaa}
+        if self.denoise and self.iterations != DENOISE_ITERATIONS.default:
+            out["denoise_iterations"] = self.iterations
         return {**out, "temporal": True} if self.temporal else out
 
     def settings(self, base):
@@ -91,14 +95,15 @@ def _one(name: str, text: str):
             raise ValueError(f"frame knob camera: {text!r} is not one of {', '.join(CAMERAS)} (the models the "
                              f"pinhole reference can judge)")
         return t
-    if name in ("spp", "msaa"):
+    if name in ("spp", "msaa", "iterations"):
         try:
             v = int(t)
         except ValueError:
             v = None
-        allowed = MSAA.choices if name == "msaa" else range(1, MAX_SPP + 1)
+        low, high = (1, MAX_SPP) if name == "spp" else DENOISE_ITERATIONS.bounds
+        allowed = MSAA.choices if name == "msaa" else range(low, high + 1)
         if v is None or v not in allowed:
-            what = ", ".join(map(str, MSAA.choices)) if name == "msaa" else f"a whole number from 1 to {MAX_SPP}"
+            what = ", ".join(map(str, MSAA.choices)) if name == "msaa" else f"a whole number from {low} to {high}"
             raise ValueError(f"frame knob {name}: {text!r} is not {what}")
         return v
     try:
@@ -130,7 +135,9 @@ def parse_grid(text: str | None, base: FrameKnobs = DEFAULT_KNOBS) -> list[Frame
             raise ValueError(f"frame knobs: {name} has no values")
         values[name] = list(dict.fromkeys(got))
     axes = [values.get(n, [getattr(base, n)]) for n in names]
-    return [FrameKnobs(**dict(zip(names, combo))) for combo in itertools.product(*axes)]
+    points = (FrameKnobs(**dict(zip(names, combo))) for combo in itertools.product(*axes))
+    # without the denoiser its iterations change nothing: one point, not one per count
+    return list(dict.fromkeys(k if k.denoise else replace(k, iterations=DEFAULT_KNOBS.iterations) for k in points))
 
 
 def budget_ms_of(hz: float) -> float:
