@@ -263,7 +263,7 @@ def test_reference_never_shares_a_variants_seed(gl, monkeypatch):
 
 
 def test_points_the_renderer_refuses_are_left_out_with_the_reason(monkeypatch):
-    def rungs(gl, scene, rig, ref, base, ppd, repeat, progress, pool, measure_all, knobs):
+    def rungs(gl, scene, rig, ref, base, ppd, effects, repeat, progress, pool, measure_all, knobs):
         if knobs.stereo == "reuse" and knobs.msaa > 1:
             raise ValueError("stereo mode 'reuse' reprojects one sample per pixel")
         return {"raster": (1.0 + knobs.msaa, np.zeros(4))}

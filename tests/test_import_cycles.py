@@ -42,6 +42,7 @@ LAYERS = (
      "rayvr.renderer", "rayvr.frame.readback", "rayvr.app.views", "rayvr.app.capture_files", "rayvr.app.capture",
      "rayvr.quality.metrics", "rayvr.quality.reference_images", "rayvr.quality.measure", "rayvr.quality.budget",
      "rayvr.quality.frame_knobs", "rayvr.quality.frame_budget", "rayvr.quality.tonemap", "rayvr.quality.metric_pool",
+     "rayvr.quality.rungs",
      "rayvr.scene.config_toml",
      "rayvr.app.cluster", "rayvr.app.preview", "rayvr.app.hud", "rayvr.settings"),
     (BENCH,),

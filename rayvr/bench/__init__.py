@@ -150,11 +150,12 @@ def _tradeoff(args, out, camera_from_args):
 
 def _budget(args, out, camera_from_args):
     from ..quality.frame_knobs import budget_ms_of, parse_grid
+    from ..quality.rungs import budget_rungs
     from . import tradeoff
 
     budgets = args.budget_ms or [budget_ms_of(hz) for hz in args.budget_hz or ()] or tradeoff.BUDGETS_MS
     tradeoff.run_budget(out, budgets=tuple(budgets), quick=args.quick, grid=parse_grid(args.frame_knobs),
-                        **_sweep_arguments(args), **_views(args))
+                        rungs=budget_rungs(args.rung_params), **_sweep_arguments(args), **_views(args))
 
 
 def _views(args, quick_poses: int = 1) -> dict:

@@ -263,14 +263,15 @@ BUDGETS_MS = (1000.0 / 90, 1000.0 / 120)  # bench budget's frame budgets unless 
 def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
                ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False, workers=None,
                address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, grid=None, poses=0, pose_seed=POSE_SEED,
-               reference_spp=None) -> dict:
+               reference_spp=None, rungs=None) -> dict:
     """For each scene and budget: the pick (frame-wide knobs of `grid` and the effect per
     material), its predicted and measured ms and error, the best render of the measured grid that
     fits (every point of `grid` with every material on one rung) and the pick's FLIP above it
     (the optimality gap; negative: the pick beats every render of the grid). Each pick is also
     written as the config that reproduces it. `workers`: the per-rung measurements spread over
     Ray workers; each pick is confirmed here. Each view's reference is run()'s (`reference_spp`),
-    and its noise floor is in every row: errors below it are noise."""
+    and its noise floor is in every row: errors below it are noise. `rungs`: the rung keys a
+    material chooses from (quality/rungs.py; default the ladder's effects)."""
     from ..quality.budget import pick_toml
     from ..quality.frame_budget import choose_frame_under_budget, grid_best, measure_candidates
     from ..quality.frame_knobs import DEFAULT_KNOBS
@@ -284,6 +285,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
         meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
                 "ppd": ppd, "skipped": skipped, "workers": workers or 0, "grid": [k.label for k in grid],
                 "poses": poses, "pose_seed": pose_seed, "reference_spp": reference_spp,
+                "rungs": list(rungs) if rungs else "the ladder's effects",
                 "noise_floor": "mean FLIP of the reference's two halves (each half its samples, its own seed) "
                                "against each other: conservative, each half has half the reference's samples",
                 "model": "per point of the frame-knob grid, per material: extra GPU ms of each effect over all-raster "
@@ -299,7 +301,8 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                 ref = converged.measured
                 candidates, refused = measure_candidates(gl, scene, rig, ref, base, ppd, grid, repeat=repeat,
                                                          progress=progress, pool=pool,
-                                                         measure_all=_measurer(cluster, name, rig, repeat))
+                                                         measure_all=_measurer(cluster, name, rig, repeat),
+                                                         rungs=rungs)
                 skipped.update({f"{name} {view}: {k}": why for k, why in refused.items()})
                 picks = [choose_frame_under_budget(gl, scene, rig, b, base, ref, ppd, candidates, repeat, progress,
                                                    pool) for b in budgets]

@@ -107,6 +107,10 @@ def add_parser(sub) -> None:
                         "e.g. \"stereo=dual,reuse;spp=1,4;denoise=off,on;msaa=1,4;scale=0.75,1\"; also "
                         "temporal=off,on, camera=pinhole,foveated and iterations=1..6 (the denoiser's; default: none; "
                         "docs/budget.md)")
+    b.add_argument("--rung-params", metavar="SETTINGS",
+                   help="budget: per-material settings a material may take beside each effect's own, e.g. "
+                        "\"glossy.samples=1,4;path.samples=1,4\" (each a rung: one more render per point of the "
+                        "grid; default: none; docs/budget.md)")
     b.add_argument("--out", default=DEFAULT_OUT, help=f"folder for JSON/markdown results (default ./{DEFAULT_OUT}: "
                    "the repository's committed bench/results/ is only written when named)")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")

@@ -48,6 +48,7 @@ from .frame_knobs import DEFAULT_KNOBS
 from .measure import COMPARE_SETTINGS, config_for_assignment, local_measurer, measure
 from .metric_pool import judge
 from ..frame.passes.quadtree import screen_space_refusal
+from .rungs import parse_rung
 
 # Slack for floating-point sums when comparing against the budget (1 ns in ms units).
 COST_EPS_MS = 1e-6
@@ -268,12 +269,13 @@ def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
 
 def measure_rungs(gl, scene, rig, reference_image, base, ppd: float, effects=None, repeat=10, progress=True,
                   pool=None, measure_all=None, knobs=None) -> dict:
-    """{effect: (GPU ms, FLIP map against the reference)} of the whole scene on each rung; a rung
-    the camera cannot render (screen-space tracing through a camera that is not a pinhole) is
-    left out, so no material takes it under these knobs."""
+    """{rung: (GPU ms, FLIP map against the reference)} of the whole scene on each rung (`effects`:
+    rung keys, quality/rungs.py; default every effect of the ladder); a rung the camera cannot
+    render (screen-space tracing through a camera that is not a pinhole) is left out, so no
+    material takes it under these knobs."""
     knobs = knobs or DEFAULT_KNOBS
     camera = knobs.camera if knobs.camera != DEFAULT_KNOBS.camera else getattr(rig.camera, "name", rig.camera)
-    effects = [e for e in effects or implemented_effects() if not screen_space_refusal([e], camera)]
+    effects = [e for e in effects or implemented_effects() if not screen_space_refusal([parse_rung(e)[0]], camera)]
     names = scene.material_names()
     bar = None
     if progress:

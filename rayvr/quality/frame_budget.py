@@ -75,20 +75,21 @@ def ranked_picks(candidates: list[FrameCandidate], budget_ms: float) -> list[Fra
 
 
 def measure_candidates(gl, scene, rig, reference_image, base, ppd: float, grid: list[FrameKnobs], repeat=10,
-                       progress=True, pool=None, measure_all=None) -> tuple[list[FrameCandidate], dict]:
-    """The per-material tables of every point of `grid`, and {point's label: why} for the points
-    the renderer refuses (e.g. `reuse` with MSAA): left out. ValueError when it refuses them all."""
+                       progress=True, pool=None, measure_all=None, rungs=None) -> tuple[list[FrameCandidate], dict]:
+    """The per-material tables of every point of `grid` over `rungs` (keys, quality/rungs.py;
+    default the ladder's effects), and {point's label: why} for the points the renderer refuses
+    (e.g. `reuse` with MSAA): left out. ValueError when it refuses them all."""
     out, refused = [], {}
     for knobs in grid:
         try:
-            rungs = measure_rungs(gl, scene, rig, reference_image, base, ppd, repeat=repeat, progress=progress,
-                                  pool=pool, measure_all=measure_all, knobs=knobs)
+            measured = measure_rungs(gl, scene, rig, reference_image, base, ppd, effects=rungs, repeat=repeat,
+                                     progress=progress, pool=pool, measure_all=measure_all, knobs=knobs)
         except ValueError as exc:  # a combination the frame plan refuses, before any work
             refused[knobs.label] = str(exc)
             continue
-        base_ms, materials = options_from_rungs(scene, reference_image, base, rungs)
+        base_ms, materials = options_from_rungs(scene, reference_image, base, measured)
         out.append(FrameCandidate(knobs, base_ms, materials,
-                                  {e: (ms, float(flip.mean())) for e, (ms, flip) in rungs.items()}))
+                                  {e: (ms, float(flip.mean())) for e, (ms, flip) in measured.items()}))
     if not out:
         label, why = next(iter(refused.items()))
         raise ValueError(f"no point of the frame-knob grid renders here: {label}: {why}")

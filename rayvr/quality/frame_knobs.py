@@ -41,7 +41,8 @@ class FrameKnobs:
 
     @property
     def label(self) -> str:
-        return " ".join(f"{f.name}={_text(getattr(self, f.name))}" for f in fields(self))
+        return " ".join(f"{f.name}={_text(getattr(self, f.name))}" for f in fields(self)
+                        if f.name != "iterations" or self.denoise)  # iterations mean nothing without it
 
     def render_table(self) -> dict:
         """The knobs that are render options, as a config's [render] table holds them."""

@@ -85,13 +85,15 @@ class Measured:
 
 def config_for_assignment(base: MaterialConfig, scene, effects: dict) -> MaterialConfig:
     """A config giving each material (by index, so glob characters in names cannot misfire) the
-    effect in `effects` (default `raster`), keeping the base config's parameters for it when the
-    effect is the one the base gives it."""
+    rung in `effects` (default `raster`): its effect, with the base config's parameters for it when
+    the effect is the one the base gives it, and the rung's own setting on top (quality/rungs.py)."""
+    from .rungs import parse_rung
+
     names = scene.material_names()
     by_id = {}
     for i, (name, a) in enumerate(zip(names, base.assign(names, warn=False))):
-        e = effects.get(name, "raster")
-        by_id[i] = (e, a.params if a.effect == e else base.effect_params(e))
+        e, setting = parse_rung(effects.get(name, "raster"))
+        by_id[i] = (e, {**(a.params if a.effect == e else base.effect_params(e)), **setting})
     return MaterialConfig(default="raster", params={k: dict(v) for k, v in base.params.items()}, by_id=by_id,
                           source=f"{base.source} (assignment)")
 
