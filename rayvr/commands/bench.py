@@ -151,7 +151,7 @@ def add_parser(sub) -> None:
     b.add_argument("--reference-spp", type=_count(16, 1 << 16),
                    help="gi: samples per pixel of the path reference (default 1024; --quick 64); tradeoff, budget: "
                         "of the reference every variant is judged against, in two halves with their own seeds whose "
-                        "FLIP is the noise floor (default 2048; --quick 128)")
+                        "FLIP is the noise floor, rounded to whole frames of 64 samples a half (default 2048; --quick 128)")
     b.add_argument("--reference-photons", type=_count(256, 1 << 22),
                    help="gi: photon paths of the photon tables' reference (default 4194304; --quick 32768)")
     b.add_argument("--counts", type=_sample_counts,
