@@ -246,3 +246,15 @@ def test_the_foveated_variant_is_left_out_where_the_config_traces_in_screen_spac
     scene = load()
     assert [v.label for v in T.variants(scene, load_config(None), quick=True) if v.camera] == ["camera=foveated"]
     assert not [v for v in T.variants(scene, parse_config({"default": "ssr"}), quick=True) if v.camera]
+
+
+def test_the_budget_headline_names_the_floor_the_solvers_gap_and_a_grid_answer():
+    """The headline's row for a pick that was the grid's render: its FLIP, the solver's own gap
+    beside the answer's, and the view's noise floor, with the sample count in the footnote."""
+    row = {"scene": "room", "view": "fixed", "budget_ms": 1000 / 90, "measured_flip": 0.21, "measured_ms": 10.5,
+           "within_budget": True, "knobs": "stereo=reuse", "from_grid": True,
+           "grid_best": {"flip": 0.21}, "optimality_gap": 0.0, "solver_gap": 0.034, "noise_floor": 0.0712}
+    text = T.budget_headline([row], {"gl_renderer": "GPU", "per_eye_size": [1440, 1600], "reference_spp": 2048})
+    line = next(l for l in text.splitlines() if l.startswith("| room"))
+    assert line.split(" | ")[6:] == ["stereo=reuse (the grid render)", "0.2100", "+0.0000", "+0.0340", "0.0712 |"]
+    assert "| 0.2100 | 10.50 | yes |" in line and "(2048 samples a pixel in all)" in text
