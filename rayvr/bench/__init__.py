@@ -149,13 +149,20 @@ def _tradeoff(args, out, camera_from_args):
 
 
 def _budget(args, out, camera_from_args):
-    from ..quality.frame_knobs import budget_ms_of, parse_grid
+    from ..quality.frame_knobs import parse_grid
     from ..quality.rungs import budget_rungs
     from . import tradeoff
 
-    budgets = args.budget_ms or [budget_ms_of(hz) for hz in args.budget_hz or ()] or tradeoff.BUDGETS_MS
+    budgets = _budgets(args) or tradeoff.BUDGETS_MS
     tradeoff.run_budget(out, budgets=tuple(budgets), quick=args.quick, grid=parse_grid(args.frame_knobs),
                         rungs=budget_rungs(args.rung_params), **_sweep_arguments(args), **_views(args))
+
+
+def _budgets(args) -> list:
+    """--budget-ms, or --budget-hz as frame times; [] without either."""
+    from ..quality.frame_knobs import budget_ms_of
+
+    return args.budget_ms or [budget_ms_of(hz) for hz in args.budget_hz or ()]
 
 
 def _views(args, quick_poses: int = 1) -> dict:
@@ -169,12 +176,11 @@ def _views(args, quick_poses: int = 1) -> dict:
 
 def _vr(args, out, camera_from_args):
     from .. import settings as settings_mod
-    from ..quality.frame_knobs import budget_ms_of
     from ..util.extras import require
     from . import vr
 
     quick = vr.QUICK if args.quick else {}
-    budgets = args.budget_ms or [budget_ms_of(hz) for hz in args.budget_hz or ()] or (vr.BUDGET_MS,)
+    budgets = _budgets(args) or (vr.BUDGET_MS,)
     if len(budgets) != 1:
         raise ValueError(f"bench vr --budget-ms takes one budget (its budget config), got {len(budgets)}")
     configs = args.configs or quick.get("configs", vr.MATERIAL_CONFIGS)

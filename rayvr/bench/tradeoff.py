@@ -21,12 +21,11 @@ from ..quality import metrics
 from ..quality.metric_pool import judge
 from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 from ..frame.effects import traced_effects
-from ..frame.passes.quadtree import screen_space_refusal
 from ..scene.materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
 from .head_poses import POSE_SEED, draw_poses
 from ..quality.measure import (BENCH_QUALITY, COMPARE_SETTINGS, QUICK_REFERENCE_SPP, REFERENCE_SPP, WARMUP_FRAMES,
-                               Measured, Reference, RendererPool, Variant, local_measurer, measure_reference,
-                               reference_per_frame, reference_variant)
+                               Measured, Reference, RendererPool, Variant, camera_refusal, local_measurer,
+                               measure_reference, reference_per_frame, reference_variant)
 
 
 def material_mask(scene, material_map: np.ndarray, names) -> np.ndarray | None:
@@ -36,16 +35,13 @@ def material_mask(scene, material_map: np.ndarray, names) -> np.ndarray | None:
     return np.isin(material_map, index)
 
 
-def error_row(ref: Measured, test: Measured, scene, variant: Variant, ppd: float, with_flip: bool = True,
-              later: bool = False):
-    """The row's metrics of `test` against `ref` (over the pixels `variant` touches too); `later`:
-    a Future of them, computed in a worker process (quality/metric_pool.py)."""
+def error_row(ref: Measured, test: Measured, scene, variant: Variant, ppd: float, with_flip: bool = True):
+    """A Future of the row's metrics of `test` against `ref` (over the pixels `variant` touches
+    too), computed in a worker process where there is one (quality/metric_pool.py)."""
     mask = material_mask(scene, ref.material, variant.touches)
     if mask is not None and not mask.any():
         mask = None
     which = ("flip", "psnr", "ssim") if with_flip else ("psnr", "ssim")
-    if not later:
-        return metrics.compare(ref.image, test.image, mask=mask, ppd=ppd, metrics=which)
     return judge(metrics.compare, ref.image, test.image, mask, ppd, which)
 
 
@@ -73,8 +69,7 @@ def variants(scene, base: MaterialConfig, quick: bool = False, repeat: int = 10)
         out.append(Variant("resolution_scale", s, base, scale=s))
     out += frame_variants(base, quick) + noise_variants(noisy_base(scene, base), quick, repeat)
     names = scene.material_names()  # a camera that is not a pinhole cannot take screen-space tracing
-    return [v for v in out if v.camera is None or not screen_space_refusal(
-        {a.effect for a in v.config.assign(names, warn=False)}, v.camera)]
+    return [v for v in out if not camera_refusal(v, names)]
 
 
 LAYOUTS = ("bvh2", "bvh4", "bvh8", "cwbvh")  # every ray kind through one layout: the speed of each (images equal)
@@ -131,8 +126,8 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
     ref = measure_reference(gl, scene, rig, reference, reference_spp or 2 * per_frame, per_frame, pool)
     floor = replace(reference, knob="noise floor", value=f"reference halves, {ref.samples // 2} spp each")
     rows = [{"scene": scene.name, "knob": floor.knob, "value": floor.value, "label": floor.label,
-             "gpu_ms": ref.halves[1].gpu_ms, **error_row(*ref.halves, scene, floor, ppd, with_flip),
-             "reference_ms": ref.gpu_ms, "reference_spp": ref.samples}]
+             "gpu_ms": ref.halves[1].gpu_ms, **error_row(*ref.halves, scene, floor, ppd, with_flip).result(),
+             "reference_ms": ref.measured.gpu_ms, "reference_spp": ref.samples}]
     ref_image = ref.measured
     measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
     bar = None
@@ -142,11 +137,11 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
         bar = tqdm(total=len(variants_), unit="variant", desc=f"tradeoff {scene.name}")
     try:
         # each image judged in another process while the next one renders
-        pending = [(v, m.gpu_ms, m.seconds, error_row(ref_image, m, scene, v, ppd, with_flip, later=True))
+        pending = [(v, m.gpu_ms, m.seconds, error_row(ref_image, m, scene, v, ppd, with_flip))
                    for v, m in zip(variants_, measure_all(variants_, bar))]
         # *_s: where a sweep's wall time goes (renderer set-up with its shader compiles, settle, render)
         rows += [{"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label, "gpu_ms": ms,
-                  **errors.result(), "reference_ms": ref.gpu_ms, **{f"{k}_s": t for k, t in seconds.items()}}
+                  **errors.result(), "reference_ms": ref_image.gpu_ms, **{f"{k}_s": t for k, t in seconds.items()}}
                  for v, ms, seconds, errors in pending]
     finally:
         if bar is not None:
@@ -297,7 +292,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
             with RendererPool(gl) as pool:
                 converged = measure_reference(gl, scene, rig, reference, reference_spp, reference_per_frame(quick),
                                               pool)
-                floor = float(metrics.flip_map(*(h.image for h in converged.halves), ppd=ppd).mean())
+                floor = metrics.flip(*(h.image for h in converged.halves), ppd=ppd)
                 ref = converged.measured
                 candidates, refused = measure_candidates(gl, scene, rig, ref, base, ppd, grid, repeat=repeat,
                                                          progress=progress, pool=pool,
@@ -422,8 +417,8 @@ def _save_speed_error(plt, fig, ax, title: str, path, meta: dict | None = None):
 
 def plot_tradeoff(rows: list[dict], out_dir, meta: dict | None = None) -> list:
     """One picture per scene and view: every variant as GPU ms vs mean FLIP, coloured by knob, the
-    Pareto front over all of them (the settings worth choosing) and the noise floor (the reference
-    against itself with other samples) as a dashed line. Needs matplotlib."""
+    Pareto front over all of them (the settings worth choosing) and the noise floor (the
+    reference's two halves against each other) as a dashed line. Needs matplotlib."""
     from pathlib import Path
 
     from .report import pareto_front

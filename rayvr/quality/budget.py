@@ -45,10 +45,8 @@ import numpy as np
 from . import metrics
 from ..frame.effects import implemented_effects
 from .frame_knobs import DEFAULT_KNOBS
-from .measure import COMPARE_SETTINGS, config_for_assignment, local_measurer, measure
+from .measure import COMPARE_SETTINGS, camera_refusal, config_for_assignment, local_measurer, measure
 from .metric_pool import judge
-from ..frame.passes.quadtree import screen_space_refusal
-from .rungs import parse_rung
 
 # Slack for floating-point sums when comparing against the budget (1 ns in ms units).
 COST_EPS_MS = 1e-6
@@ -274,21 +272,20 @@ def measure_rungs(gl, scene, rig, reference_image, base, ppd: float, effects=Non
     render (screen-space tracing through a camera that is not a pinhole) is left out, so no
     material takes it under these knobs."""
     knobs = knobs or DEFAULT_KNOBS
-    camera = knobs.camera if knobs.camera != DEFAULT_KNOBS.camera else getattr(rig.camera, "name", rig.camera)
-    effects = [e for e in effects or implemented_effects() if not screen_space_refusal([parse_rung(e)[0]], camera)]
     names = scene.material_names()
+    renders = [(e, knobs.variant("budget", e, config_for_assignment(base, scene, {n: e for n in names}),
+                                 COMPARE_SETTINGS)) for e in effects or implemented_effects()]
+    renders = [(e, v) for e, v in renders if not camera_refusal(v, names, rig)]
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(effects), unit="effect", desc=f"budget {scene.name} {knobs.label}")
+        bar = tqdm(total=len(renders), unit="effect", desc=f"budget {scene.name} {knobs.label}")
     measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
-    configs = [config_for_assignment(base, scene, {n: e for n in names}) for e in effects]
-    whole_scene = [knobs.variant("budget", e, c, COMPARE_SETTINGS) for e, c in zip(effects, configs)]
     try:
         # each rung's FLIP map made in another process while the next one renders
         pending = [(e, m.gpu_ms, judge(metrics.flip_map, reference_image.image, m.image, ppd))
-                   for e, m in zip(effects, measure_all(whole_scene, bar))]
+                   for (e, _), m in zip(renders, measure_all([v for _, v in renders], bar))]
         return {e: (ms, flip.result()) for e, ms, flip in pending}
     finally:
         if bar is not None:

@@ -1,6 +1,6 @@
 """The frame-wide knobs a budget pick chooses beside the per-material effects: the stereo mode,
-samples per pixel, the denoiser, the MSAA count, the resolution scale, temporal accumulation and
-the camera model (pinhole or foveated) and the denoiser's iterations. One `FrameKnobs` is one
+samples per pixel, the denoiser and its iterations, the MSAA count, the resolution scale,
+temporal accumulation and the camera model (pinhole or foveated). One `FrameKnobs` is one
 value of each; a grid (`--frame-knobs "stereo=dual,reuse;spp=1,4;denoise=off,on"`) is every
 combination of the values given, each knob left out at its default.
 
@@ -25,7 +25,7 @@ SCALES = (0.5, 1.0)  # a resolution scale lies in [0.5, 1]: below half the upsca
 ON_OFF = {"on": True, "off": False, "true": True, "false": False, "1": True, "0": False}
 # Camera models a pick may take: those whose image is the pinhole's, so the pinhole reference
 # judges them (foveated samples the pinhole's image sparsely; a distorted or wide image is another).
-CAMERAS = ("pinhole", "foveated")
+CAMERAS = (DEFAULT_CAMERA, "foveated")
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class FrameKnobs:
     msaa: int = 1
     scale: float = 1.0
     temporal: bool = False  # on a still view its image holds every frame measured: an optimist's figure
-    camera: str = "pinhole"
+    camera: str = DEFAULT_CAMERA
     iterations: int = DENOISE_ITERATIONS.default  # the denoiser's a-trous iterations (with denoise on)
 
     @property

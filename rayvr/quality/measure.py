@@ -10,9 +10,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..frame.cameras import DEFAULT_CAMERA_MODEL
 from ..frame.cameras.rig import StereoRig
 from ..scene.materials import MaterialConfig
 from .reference_images import QUICK_QUALITY, reference_settings
+from .rungs import parse_rung
+from ..frame.passes.quadtree import screen_space_refusal
 from ..renderer import Renderer, RenderSettings
 
 
@@ -87,8 +90,6 @@ def config_for_assignment(base: MaterialConfig, scene, effects: dict) -> Materia
     """A config giving each material (by index, so glob characters in names cannot misfire) the
     rung in `effects` (default `raster`): its effect, with the base config's parameters for it when
     the effect is the one the base gives it, and the rung's own setting on top (quality/rungs.py)."""
-    from .rungs import parse_rung
-
     names = scene.material_names()
     by_id = {}
     for i, (name, a) in enumerate(zip(names, base.assign(names, warn=False))):
@@ -179,16 +180,20 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
     return Measured(float(np.median(totals)), image, material, radiance, seconds)
 
 
+def camera_refusal(variant: Variant, names, rig: StereoRig | None = None) -> str | None:
+    """Why `variant`'s camera (its own, else the rig's, else the pinhole) cannot render its config's
+    effects on the materials `names`, or None (screen-space tracing needs the pinhole's depth:
+    renderer.plan refuses it)."""
+    camera = variant.camera or (getattr(rig.camera, "name", rig.camera) if rig is not None else DEFAULT_CAMERA_MODEL)
+    return screen_space_refusal({a.effect for a in variant.config.assign(names, warn=False)}, camera)
+
+
 @dataclass
 class Reference:
     """The converged image every variant is judged against, and its own noise."""
     measured: Measured  # image: the two halves' mean radiance through the display transform
     halves: tuple[Measured, Measured]  # each half the samples, with its own seed
-    samples: int  # samples per pixel of `measured` (both halves)
-
-    @property
-    def gpu_ms(self) -> float:  # the reference's whole cost (both halves)
-        return self.halves[0].gpu_ms + self.halves[1].gpu_ms
+    samples: int  # samples per pixel of `measured` (both halves); its gpu_ms: both halves' cost
 
 
 def measure_reference(gl, scene, rig: StereoRig, reference: Variant, samples: int, samples_per_frame: int,
