@@ -128,11 +128,14 @@ def render_room(gl, effect, order="none", persistent="off", **renderer):
 def test_reordered_and_persistent_wavefronts_give_the_default_frames_exactly(gl, effect):
     reference, ref_hits = render_room(gl, effect)
     assert any(np.any(hdr[..., :3] > 0) for hdr, _ in reference)
-    if effect != "shadows":  # its wavefront traces no closest hits
+    # photon and shadows trace no closest hits: their paths' hit fields are never written and hold
+    # whatever memory the buffer was given (on NVIDIA, the last renderer's), so only frames compare
+    traces_hits = effect in ("glossy", "path")
+    if traces_hits:
         assert np.any((ref_hits[:, 0] != 0xFFFFFFFE) & (ref_hits[:, 0] != 0xFFFFFFFF))  # real hits to compare
     for order, persistent in VARIANTS:
         eyes, hits = render_room(gl, effect, order, persistent)
-        assert np.array_equal(hits, ref_hits), (order, persistent)
+        assert not traces_hits or np.array_equal(hits, ref_hits), (order, persistent)
         for (hdr, color), (ref_hdr, ref_color) in zip(eyes, reference):
             assert np.array_equal(hdr, ref_hdr), (order, persistent)
             assert np.array_equal(color, ref_color), (order, persistent)
