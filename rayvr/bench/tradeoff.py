@@ -124,11 +124,11 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
     here too). The first row is the noise floor: the reference's two halves against each other
     (the second drawn with NOISE_FLOOR_SEED), below which no variant's error means anything."""
     ref = measure_reference(gl, scene, rig, reference, reference_spp or 2 * per_frame, per_frame, pool)
+    ref_image = ref.measured
     floor = replace(reference, knob="noise floor", value=f"reference halves, {ref.samples // 2} spp each")
     rows = [{"scene": scene.name, "knob": floor.knob, "value": floor.value, "label": floor.label,
              "gpu_ms": ref.halves[1].gpu_ms, **error_row(*ref.halves, scene, floor, ppd, with_flip).result(),
-             "reference_ms": ref.measured.gpu_ms, "reference_spp": ref.samples}]
-    ref_image = ref.measured
+             "reference_ms": ref_image.gpu_ms, "reference_spp": ref.samples}]
     measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
     bar = None
     if progress:
