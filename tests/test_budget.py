@@ -128,3 +128,99 @@ def test_validation():
         solve_budget([{"name": "a", "options": [("x", 1, 1)], "coverage": -0.1}], 5)
     with pytest.raises(TypeError, match="option"):
         solve_budget([{"name": "a", "options": ["x"]}], 5)
+
+
+# ------------------------------------------------------------ fixed-cost groups (whole-frame passes)
+
+def _brute_force_fixed(mats, budget, base, groups):
+    """Every assignment, charged each group once when any material takes one of its effects."""
+    best = None
+    for choice in itertools.product(*(range(len(m["options"])) for m in mats)):
+        used = {m["options"][i][0] for m, i in zip(mats, choice)}
+        cost = base + sum(m["options"][i][1] for m, i in zip(mats, choice)) + sum(
+            g.cost_ms for g in groups if g.effects & used)
+        if cost > budget + COST_EPS_MS:
+            continue
+        err = sum(m["importance"] * m["coverage"] * m["options"][i][2] for m, i in zip(mats, choice))
+        if best is None or err < best[0]:
+            best = (err, cost, choice)
+    return best
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_fixed_cost_groups_match_brute_force(seed):
+    from rayvr.quality.budget import FixedCost
+
+    rng = np.random.default_rng(1000 + seed)
+    n, k = rng.integers(1, 5), rng.integers(2, 5)
+    effects = [f"e{j}" for j in range(k)]
+    mats = [{"name": f"m{i}", "importance": 1.0, "coverage": rng.uniform(0.05, 0.4),
+             "options": [(e, rng.uniform(0, 0.5) * (j > 0), rng.uniform(0, 1) / (1 + j)) for j, e in enumerate(effects)]}
+            for i in range(n)]
+    # e0 stays free of groups (it is `raster`); the others share 1-3 groups, one effect in two
+    groups = [FixedCost(f"g{g}", float(rng.uniform(0.1, 1.5)),
+                        frozenset(rng.choice(effects[1:], size=rng.integers(1, k), replace=False)))
+              for g in range(rng.integers(1, 4))]
+    base = rng.uniform(0, 0.5)
+    budget = base + rng.uniform(0, 0.5 * n + 1.5)
+    r = solve_budget(mats, budget, base, fixed=groups)
+    bf = _brute_force_fixed(mats, budget, base, groups)
+    if bf is None:
+        assert not r.feasible
+        return
+    assert r.feasible and r.total_ms <= budget + COST_EPS_MS
+    assert r.error == pytest.approx(bf[0], abs=1e-12)
+    used = set(r.assignment.values())
+    charged = [g for g in groups if g.effects & used]
+    assert sorted(r.fixed) == sorted(g.name for g in charged)
+    assert r.total_ms == pytest.approx(base + sum(x["cost_ms"] for x in r.rows()) + sum(g.cost_ms for g in charged))
+
+
+def test_a_denoised_sliver_pays_the_whole_denoiser():
+    """Path on a 10 % material costs 0.4 ms of its pixels but the denoiser's 3.5 ms as well: with
+    3.55 ms over the base no denoised effect fits (without the group the solver would predict
+    path and shadows at 0.6 ms); with 4.2 ms path and shadows share the one denoiser."""
+    from rayvr.quality.budget import FixedCost
+
+    mats = [MaterialOptions("small", [Option("raster", 0.0, 0.6), Option("shadows", 0.1, 0.55), Option("path", 0.4, 0.1)],
+                            coverage=0.1),
+            MaterialOptions("big", [Option("raster", 0.0, 0.6), Option("shadows", 0.2, 0.5), Option("path", 20.0, 0.1)],
+                            coverage=0.9)]
+    denoiser = FixedCost("denoise", 3.5, frozenset({"shadows", "path"}))
+    plain = solve_budget(mats, 2.0 + 3.55, base_ms=2.0)
+    assert plain.assignment == {"small": "path", "big": "shadows"} and plain.total_ms == pytest.approx(2.6)
+    r = solve_budget(mats, 2.0 + 3.55, base_ms=2.0, fixed=[denoiser])
+    assert r.assignment == {"small": "raster", "big": "raster"} and r.fixed_ms == 0.0
+    r = solve_budget(mats, 2.0 + 4.2, base_ms=2.0, fixed=[denoiser])
+    assert r.assignment == {"small": "path", "big": "shadows"} and r.fixed == ("denoise",)
+    assert r.total_ms == pytest.approx(2.0 + 0.4 + 0.2 + 3.5)
+
+
+def test_fixed_costs_come_from_the_passes_a_rung_adds_over_raster():
+    """Made-up pass timers: `denoise` (shadows and photon 3.5 ms, path 3.4 ms), `quadtree` (ssr) and
+    the photon map's passes are groups;
+    rt_* passes and the shrinking `shade` stay per pixel; each whole-scene render is predicted
+    exactly from the base, its groups and its per-pixel part."""
+    from rayvr.quality.budget import fixed_costs
+
+    flip = np.zeros(4)
+    rungs = {"raster": (3.0, flip, {"gbuffer": 1.0, "shade": 2.0}),
+             "shadows": (7.0, flip, {"gbuffer": 1.0, "shade": 1.5, "classify": 0.02, "rt_shadows": 1.0, "denoise": 3.5}),
+             "path": (14.4, flip, {"gbuffer": 1.0, "shade": 1.0, "rt_path": 9.0, "denoise": 3.4}),
+             "ssr": (5.0, flip, {"gbuffer": 1.08, "shade": 1.5, "quadtree": 0.8, "rt_ssr": 1.62}),
+             "photon": (7.4, flip, {"gbuffer": 1.0, "shade": 1.9, "photon_trace": 0.5, "photon_sort": 0.3,
+                                    "rt_photon": 0.2, "denoise": 3.5})}
+    groups, per_pixel = fixed_costs(rungs)
+    by_name = {g.name: g for g in groups}
+    # classify's 0.02 ms is under FIXED_COST_MIN_MS, the gbuffer's 8 % growth under FIXED_COST_NOISE
+    assert set(by_name) == {"denoise", "quadtree", "photon_sort+photon_trace"}  # one group: the same rungs run them
+    assert by_name["denoise"].effects == {"shadows", "path", "photon"} and by_name["denoise"].cost_ms == pytest.approx(3.5)
+    assert by_name["photon_sort+photon_trace"].cost_ms == pytest.approx(0.8)
+    assert by_name["quadtree"].effects == {"ssr"} and by_name["quadtree"].cost_ms == pytest.approx(0.8)
+    assert per_pixel["raster"] == 0.0
+    for e, (ms, _, _) in rungs.items():
+        charged = sum(g.cost_ms for g in groups if e in g.effects)
+        assert rungs["raster"][0] + charged + per_pixel[e] == pytest.approx(ms), e
+    # without pass timers (a measurer that has none) everything is per pixel, as before
+    groups, per_pixel = fixed_costs({e: r[:2] for e, r in rungs.items()})
+    assert groups == [] and per_pixel["path"] == pytest.approx(11.4)

@@ -269,7 +269,7 @@ def test_points_the_renderer_refuses_are_left_out_with_the_reason(monkeypatch):
         return {"raster": (1.0 + knobs.msaa, np.zeros(4))}
 
     monkeypatch.setattr(fb, "measure_rungs", rungs)
-    monkeypatch.setattr(fb, "options_from_rungs", lambda scene, ref, base, r: (r["raster"][0], []))
+    monkeypatch.setattr(fb, "options_from_rungs", lambda scene, ref, base, r: (r["raster"][0], [], []))
     got, refused = fb.measure_candidates(None, None, None, None, None, 60.0, parse_grid("stereo=dual,reuse;msaa=1,4"))
     assert [c.knobs for c in got] == [FrameKnobs("dual"), FrameKnobs("dual", msaa=4), FrameKnobs("reuse")]
     assert list(refused) == [FrameKnobs("reuse", msaa=4).label] and "one sample per pixel" in refused[
@@ -299,7 +299,7 @@ def test_a_rung_the_knobs_camera_cannot_render_is_left_out(monkeypatch):
 
     def measure_all(variants, bar=None):
         for v in variants:
-            yield type("M", (), {"gpu_ms": 1.0, "image": Image.image})()
+            yield type("M", (), {"gpu_ms": 1.0, "image": Image.image, "passes": {}})()
 
     monkeypatch.setattr(budget, "judge", lambda fn, *a: type("F", (), {"result": lambda self: 0.0})())
     seen = {}

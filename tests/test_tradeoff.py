@@ -130,8 +130,8 @@ def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
     ref = measure(gl, scene, rig, T.Variant("reference", "ref", reference_config(scene, quick=True)), repeat=1)
     from rayvr.quality.budget import per_material_options, solve_budget
 
-    base_ms, options = per_material_options(gl, scene, rig, ref, base, metrics.DEFAULT_PPD, repeat=1,
-                                            progress=False)
+    base_ms, options, fixed = per_material_options(gl, scene, rig, ref, base, metrics.DEFAULT_PPD, repeat=1,
+                                                   progress=False)
     assert base_ms > 0 and options
     for o in options:
         assert {x.effect for x in o.options} >= {"raster", "shadows"}
@@ -141,12 +141,13 @@ def test_budget_choice_respects_a_generous_and_a_tight_budget(gl, room):
     # A budget of the base frame leaves nothing for traced effects: wherever every traced option was
     # measured to cost something, raster must be chosen (under timer noise on a loaded machine a
     # traced option can read 0 ms, and then it legitimately fits).
-    tight = solve_budget(options, budget_ms=base_ms, base_ms=base_ms)
+    tight = solve_budget(options, budget_ms=base_ms, base_ms=base_ms, fixed=fixed)
     assert tight.feasible and tight.total_ms <= base_ms + 1e-9
+    gated = {e for g in fixed if g.cost_ms > 0 for e in g.effects}
     for o in options:
-        if all(x.cost_ms > 0 for x in o.options if x.effect != "raster"):
+        if all(x.cost_ms > 0 or x.effect in gated for x in o.options if x.effect != "raster"):
             assert tight.assignment[o.name] == "raster", o.name
-    generous = solve_budget(options, budget_ms=1e9, base_ms=base_ms)
+    generous = solve_budget(options, budget_ms=1e9, base_ms=base_ms, fixed=fixed)
     assert generous.error <= tight.error
 
 

@@ -274,7 +274,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     from .report import device_meta, markdown, write_report
 
     grid = grid or [DEFAULT_KNOBS]
-    rows, grid_rows, skipped = [], [], {}
+    rows, grid_rows, fixed_rows, skipped = [], [], [], {}
     reference_spp = reference_spp or (QUICK_REFERENCE_SPP if quick else REFERENCE_SPP)
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
@@ -284,9 +284,10 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                 "noise_floor": "mean FLIP of the reference's two halves (each half its samples, its own seed) "
                                "against each other: conservative, each half has half the reference's samples",
                 "model": "per point of the frame-knob grid, per material: extra GPU ms of each effect over all-raster "
-                         "and mean FLIP over its pixels vs the reference, measured with that point's knobs; total "
-                         "error = sum importance x coverage x error; exact multiple-choice knapsack per point, the "
-                         "best point taken (rayvr.quality.frame_budget)"}
+                         "and mean FLIP over its pixels vs the reference, measured with that point's knobs; the "
+                         "whole-frame passes (denoise, quadtree, photon map, ...) paid once per frame as fixed-cost "
+                         "groups (budget_fixed.json); total error = sum importance x coverage x error; exact "
+                         "multiple-choice knapsack per point, the best point taken (rayvr.quality.frame_budget)"}
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
                                                                          poses, pose_seed):
             with RendererPool(gl) as pool:
@@ -303,6 +304,8 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                                                    pool) for b in budgets]
             grid_rows += [{"scene": name, "view": view, "knobs": c.knobs.label, "effect": e, "gpu_ms": ms, "flip": flip}
                           for c in candidates for e, (ms, flip) in c.rungs.items()]
+            fixed_rows += [{"scene": name, "view": view, "knobs": c.knobs.label, "pass": g.name, "cost_ms": g.cost_ms,
+                            "effects": sorted(g.effects)} for c in candidates for g in c.fixed]
             for b, pick in zip(budgets, picks):
                 best = grid_best(candidates, b)
                 rows.append({"scene": name, "view": view, "reference_ms": ref.gpu_ms,
@@ -319,6 +322,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "budget", result, md=budget_headline(rows, meta) + "\n" + markdown("budget", result))
     write_report(out_dir, "budget_grid", {"meta": meta, "rows": grid_rows})
+    write_report(out_dir, "budget_fixed", {"meta": meta, "rows": fixed_rows})
     plot_budget(rows, grid_rows, out_dir, meta)
     return result
 

@@ -20,12 +20,25 @@ how distance enters. Leave coverage at 1 if your errors are already whole-image 
 ``importance`` (default 1) is the user's weight from the scene config.
 
 We pick one option per material minimising ``total_error`` subject to ``total_ms <= budget_ms``:
-a multiple-choice knapsack. Costs are assumed additive (passes of different materials do not
-overlap or share work), which is the approximation the measured per-material costs make.
+a multiple-choice knapsack. Per-pixel costs are additive (a traced pass runs over a compacted list
+of its materials' pixels). Some passes are not per pixel: the denoiser filters the whole image
+once any material takes an effect it filters, the screen-space quadtree is built once for every
+`ssr` material, `classify` lists the traced pixels once. Those are ``FixedCost`` groups: the
+frame pays a group's ``cost_ms`` once when any material takes one of its effects::
+
+    total_ms = base_ms + sum_g [g used] * fixed_g + sum_m cost_ms[m, o_m]
+
+Without them a frame that puts two small materials on `path` is predicted to cost two slivers of
+the whole-scene `path` render and measures a whole denoiser more (Sponza at 2x1440x1600 on the
+H200: 3.5 ms of an 11.1 ms budget).
 
 Solver
 ------
-Exact, on the real (not rounded) costs: dynamic programming over materials that keeps, after each
+Exact, on the real (not rounded) costs. With fixed-cost groups, every subset T of the groups is
+solved as a plain knapsack over the options whose groups lie in T, with T's fixed costs taken from
+the budget; the least error over all T is the optimum (an assignment using groups U is solved
+exactly under T = U and charged too much under any larger T). The plain knapsack is dynamic
+programming over materials that keeps, after each
 material, only the Pareto-optimal partial assignments (no other partial one is both cheaper and
 lower-error) and drops those that cannot fit even with the cheapest options for the remaining
 materials. The optimum is an extension of a Pareto-optimal prefix, so nothing optimal is lost.
@@ -37,6 +50,7 @@ returned with ``feasible=False`` instead of raising.
 """
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -59,6 +73,15 @@ class Option:
     effect: str
     cost_ms: float
     error: float
+
+
+@dataclass(frozen=True)
+class FixedCost:
+    """A pass the frame runs once when any material takes one of `effects`, whatever its pixels."""
+
+    name: str  # the pass (e.g. "denoise")
+    cost_ms: float
+    effects: frozenset
 
 
 @dataclass
@@ -92,6 +115,8 @@ class BudgetResult:
     choice: list[int]
     assignment: dict[str, str]
     materials: list[MaterialOptions] = field(repr=False)
+    fixed_ms: float = 0.0  # the fixed-cost groups' part of total_ms
+    fixed: tuple = ()  # their names
 
     def rows(self) -> list[dict]:
         """One row per material (for `report.write_report`)."""
@@ -116,6 +141,8 @@ class BudgetResult:
             "total_ms": self.total_ms,
             "error": self.error,
             "feasible": self.feasible,
+            "fixed_ms": self.fixed_ms,
+            "fixed": list(self.fixed),
         }
 
 
@@ -182,16 +209,46 @@ def _pareto(cost: np.ndarray, err: np.ndarray) -> np.ndarray:
     return order[e < best_before]
 
 
-def solve_budget(materials, budget_ms: float, base_ms: float = 0.0) -> BudgetResult:
+def solve_budget(materials, budget_ms: float, base_ms: float = 0.0, fixed=()) -> BudgetResult:
     """Choose one option per material minimising weighted error with total ms <= budget_ms.
 
-    See the module docstring for the model. Exact; ``feasible=False`` (with the cheapest
-    assignment) when even that exceeds the budget.
+    See the module docstring for the model; `fixed`: FixedCost groups. Exact; ``feasible=False``
+    (with the cheapest assignment) when even that exceeds the budget.
     """
     mats = as_materials(materials)
     budget_ms = _finite(budget_ms, "budget_ms", nonneg=False)
     base_ms = _finite(base_ms, "base_ms")
+    groups = [g for g in fixed if _finite(g.cost_ms, f"fixed cost {g.name!r}") > 0]
+    best = None
+    for k in range(len(groups) + 1):
+        for charged in itertools.combinations(groups, k):
+            banned = set().union(*(g.effects for g in groups if g not in charged))
+            kept = [[i for i, o in enumerate(m.options) if o.effect not in banned] for m in mats]
+            if not all(kept):
+                continue  # a material with only charged-elsewhere effects: no assignment under this subset
+            sub = [MaterialOptions(m.name, [m.options[i] for i in idx], m.importance, m.coverage)
+                   for m, idx in zip(mats, kept)]
+            fixed_ms = sum(g.cost_ms for g in charged)
+            r = _solve_plain(sub, budget_ms, base_ms + fixed_ms)
+            r = BudgetResult(budget_ms, base_ms, r.total_ms, r.error, r.feasible,
+                             [idx[i] for idx, i in zip(kept, r.choice)], r.assignment, mats,
+                             fixed_ms, tuple(g.name for g in charged))
+            if best is None or _better(r, best):
+                best = r
+    if best is None:
+        raise ValueError("no assignment avoids every fixed-cost group: give each material an option outside them")
+    return best
 
+
+def _better(a: BudgetResult, b: BudgetResult) -> bool:
+    """Feasible before infeasible; then less error (feasible) or less cost (infeasible)."""
+    if a.feasible != b.feasible:
+        return a.feasible
+    return (a.error, a.total_ms) < (b.error, b.total_ms) if a.feasible else (a.total_ms, a.error) < (b.total_ms, b.error)
+
+
+def _solve_plain(mats: list[MaterialOptions], budget_ms: float, base_ms: float) -> BudgetResult:
+    """The knapsack without fixed costs (the module docstring's dynamic programming)."""
     costs = [np.array([o.cost_ms for o in m.options]) for m in mats]
     errs = [m.weight * np.array([o.error for o in m.options]) for m in mats]
 
@@ -267,7 +324,7 @@ def per_material_options(gl, scene, rig, reference_image, base, ppd: float,
 
 def measure_rungs(gl, scene, rig, reference_image, base, ppd: float, effects=None, repeat=10, progress=True,
                   pool=None, measure_all=None, knobs=None) -> dict:
-    """{rung: (GPU ms, FLIP map against the reference)} of the whole scene on each rung (`effects`:
+    """{rung: (GPU ms, FLIP map against the reference, {pass: GPU ms})} of the whole scene on each rung (`effects`:
     rung keys, quality/rungs.py; default every effect of the ladder); a rung the camera cannot
     render (screen-space tracing through a camera that is not a pinhole) is left out, so no
     material takes it under these knobs."""
@@ -284,16 +341,54 @@ def measure_rungs(gl, scene, rig, reference_image, base, ppd: float, effects=Non
     measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
     try:
         # each rung's FLIP map made in another process while the next one renders
-        pending = [(e, m.gpu_ms, judge(metrics.flip_map, reference_image.image, m.image, ppd))
+        pending = [(e, m.gpu_ms, judge(metrics.flip_map, reference_image.image, m.image, ppd), m.passes)
                    for (e, _), m in zip(renders, measure_all([v for _, v in renders], bar))]
-        return {e: (ms, flip.result()) for e, ms, flip in pending}
+        return {e: (ms, flip.result(), passes) for e, ms, flip, passes in pending}
     finally:
         if bar is not None:
             bar.close()
 
 
+# A pass grows into a fixed cost by more than this over the all-raster frame, plus FIXED_COST_NOISE
+# of its own time there (a pass both run, e.g. tonemap, jitters with its length): less is timer noise.
+FIXED_COST_MIN_MS = 0.05
+FIXED_COST_NOISE = 0.1
+
+
+def fixed_costs(rungs: dict) -> tuple[list[FixedCost], dict]:
+    """The fixed-cost groups in measure_rungs' renders and each rung's extra ms left per pixel.
+
+    A traced effect's own passes (`rt_*`) run over its pixels' list: per pixel. Every other pass
+    that a rung's render adds or grows over the all-raster render (denoise, quadtree, classify,
+    second_layer, ...) runs over the whole frame once: a group of the rungs that grow it, at the
+    most any of them grew it. A pass that shrinks (shade, which skips traced pixels) stays per pixel."""
+    raster = rungs["raster"][2] if len(rungs["raster"]) > 2 else {}
+    grown: dict = {}
+    per_pixel = {}
+    for e, (ms, _, *passes) in rungs.items():
+        extra = max(ms - rungs["raster"][0], 0.0)
+        for p, t in (passes[0] if passes else {}).items():
+            delta = t - raster.get(p, 0.0)
+            if e != "raster" and not p.startswith("rt_") and delta > FIXED_COST_MIN_MS + FIXED_COST_NOISE * raster.get(p, 0.0):
+                grown.setdefault(p, {})[e] = delta
+                extra -= delta
+        per_pixel[e] = max(extra, 0.0)
+    # a rung charged a pass's max pays for the rest of it out of its own per-pixel share
+    for p, by in grown.items():
+        for e, delta in by.items():
+            per_pixel[e] = max(per_pixel[e] - (max(by.values()) - delta), 0.0)
+    # passes the same rungs run are one group (photon's map: trace, sort, scan, cells), so the
+    # solver's subsets of groups stay few
+    merged: dict = {}
+    for p, by in sorted(grown.items()):
+        names, cost = merged.get(frozenset(by), ((), 0.0))
+        merged[frozenset(by)] = (names + (p,), cost + max(by.values()))
+    return [FixedCost("+".join(names), cost, effects) for effects, (names, cost) in merged.items()], per_pixel
+
+
 def options_from_rungs(scene, reference_image, base, rungs: dict, min_coverage=1e-4):
-    """(the all-`raster` frame's ms, per-material options) from measure_rungs' renders."""
+    """(the all-`raster` frame's ms, per-material options, fixed-cost groups) from measure_rungs'
+    renders: a rung's per-pixel extra ms shared out over materials by their pixels."""
     if "raster" not in rungs:
         raise ValueError("the budget model needs 'raster' among the effects (it is the cost baseline)")
     names = scene.material_names()
@@ -302,14 +397,14 @@ def options_from_rungs(scene, reference_image, base, rungs: dict, min_coverage=1
                            minlength=len(names) + 1)[:len(names)] / ids.size
     importance = [a.importance for a in base.assign(names, warn=False)]
     covered = [i for i in range(len(names)) if coverage[i] >= min_coverage]
-    raster_ms = rungs["raster"][0]
+    fixed, per_pixel = fixed_costs(rungs)
     share = coverage / max(coverage[covered].sum(), 1e-12)
     options = []
     for i in covered:
         mask = ids == i
-        opts = [Option(e, max(ms - raster_ms, 0.0) * share[i], float(flip[mask].mean())) for e, (ms, flip) in rungs.items()]
+        opts = [Option(e, per_pixel[e] * share[i], float(r[1][mask].mean())) for e, r in rungs.items()]
         options.append(MaterialOptions(names[i], opts, importance=importance[i], coverage=float(coverage[i])))
-    return raster_ms, options
+    return rungs["raster"][0], options, fixed
 
 
 BUDGET_TOLERANCE = 1.02  # measured frames within 2 % of the budget count as within (timer noise)
@@ -334,21 +429,24 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
                         ppd: float, repeat=10, progress=True, pool=None, options=None, knobs=None) -> dict:
     """Pick effects per material for `budget_ms`, render the pick and measure it.
 
-    The per-material costs are estimates (a traced effect also has fixed costs, classify and
-    dispatch, that come with its first material); when the measured frame overshoots, or fits
+    The per-material costs are estimates (the whole-frame passes are fixed-cost groups, but a
+    traced effect's own dispatches also cost something with its first material); when the
+    measured frame overshoots, or fits
     with more than (1 - BUDGET_SLACK) of the budget left while it cost less than predicted, the
     chosen options' costs are scaled by measured/predicted and the choice is solved again, at most
     BUDGET_ROUNDS times. The best measured pick that fits is returned; if no round fits, the
-    cheapest assignment. `options`: (base_ms, per-material options) measured already, to
-    solve several budgets from one measurement. `knobs`: the frame-wide knobs the pick renders with."""
-    base_ms, options = options or per_material_options(gl, scene, rig, reference_image, base, ppd, repeat=repeat,
-                                                       progress=progress, pool=pool, knobs=knobs)
+    cheapest assignment. `options`: (base_ms, per-material options, fixed-cost groups) measured
+    already, to solve several budgets from one measurement. `knobs`: the frame-wide knobs the pick
+    renders with."""
+    base_ms, options, fixed = options or per_material_options(gl, scene, rig, reference_image, base, ppd,
+                                                              repeat=repeat, progress=progress, pool=pool, knobs=knobs)
 
     def attempt(opts, budget):
-        result = solve_budget(opts, budget, base_ms=base_ms)
+        result = solve_budget(opts, budget, base_ms=base_ms, fixed=fixed)
         return {**measure_assignment(gl, scene, rig, budget_ms, base, reference_image, ppd, result.assignment, repeat,
                                      pool, knobs),
-                "predicted_ms": result.total_ms, "feasible": result.feasible, "predicted_error": result.error}
+                "predicted_ms": result.total_ms, "predicted_fixed_ms": result.fixed_ms, "feasible": result.feasible,
+                "predicted_error": result.error}
 
     scale: dict = {}
     tried = []
@@ -358,7 +456,9 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
                      for x in o.options], importance=o.importance, coverage=o.coverage) for o in options]
         pick = attempt(adjusted, budget_ms)
         tried.append(pick)
-        predicted_extra, measured_extra = pick["predicted_ms"] - base_ms, pick["measured_ms"] - base_ms
+        # the per-pixel part is what the rounds correct; the fixed groups were measured whole
+        predicted_extra = pick["predicted_ms"] - base_ms - pick["predicted_fixed_ms"]
+        measured_extra = pick["measured_ms"] - base_ms - pick["predicted_fixed_ms"]
         if not pick["feasible"] or predicted_extra <= 0:
             break
         factor = measured_extra / predicted_extra

@@ -7,6 +7,8 @@ For every point F of the knob grid (quality/frame_knobs.py) the per-material tab
 with F (budget.per_material_options: one render per rung of the ladder, all with F), so F's
 interaction with every effect is measured, not assumed: `reuse` changes what each traced effect
 costs, the denoiser's cost follows the effects it filters, a lower scale raises every error.
+F's whole-frame passes (the denoiser, the quadtree) are its fixed-cost groups, paid once when any
+material takes an effect that runs them (budget.fixed_costs, from the renders' pass timers).
 F's best assignment is budget.solve_budget on F's table; the frame's pick is the F whose best
 has the least error. That is exact for the model: every F is solved exactly and compared.
 
@@ -22,10 +24,10 @@ pick's own FLIP stays in `solver_flip`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 from . import metrics
-from .budget import BUDGET_TOLERANCE, BudgetResult, MaterialOptions, choose_under_budget, measure_assignment, \
+from .budget import BUDGET_TOLERANCE, BudgetResult, FixedCost, MaterialOptions, choose_under_budget, measure_assignment, \
     measure_rungs, options_from_rungs, solve_budget
 from .measure import (BENCH_QUALITY, QUICK_REFERENCE_SPP, RendererPool, measure_reference, reference_per_frame,
                       reference_variant)
@@ -47,6 +49,7 @@ class FrameCandidate:
     base_ms: float  # the all-raster frame with these knobs
     materials: list[MaterialOptions]
     rungs: dict  # {effect: (GPU ms, mean FLIP)} of the whole scene on that rung, with these knobs
+    fixed: list[FixedCost] = field(default_factory=list)  # its whole-frame passes (budget.fixed_costs)
 
 
 @dataclass
@@ -70,7 +73,8 @@ def ranked_picks(candidates: list[FrameCandidate], budget_ms: float) -> list[Fra
     (then cost), then the infeasible ones cheapest first."""
     if not candidates:
         raise ValueError("the frame budget needs at least one point of the knob grid")
-    picks = [FramePick(c.knobs, solve_budget(c.materials, budget_ms, base_ms=c.base_ms)) for c in candidates]
+    picks = [FramePick(c.knobs, solve_budget(c.materials, budget_ms, base_ms=c.base_ms, fixed=c.fixed))
+             for c in candidates]
     return sorted(picks, key=lambda p: (not p.feasible, p.result.error if p.feasible else 0.0, p.result.total_ms))
 
 
@@ -87,9 +91,9 @@ def measure_candidates(gl, scene, rig, reference_image, base, ppd: float, grid: 
         except ValueError as exc:  # a combination the frame plan refuses, before any work
             refused[knobs.label] = str(exc)
             continue
-        base_ms, materials = options_from_rungs(scene, reference_image, base, measured)
+        base_ms, materials, fixed = options_from_rungs(scene, reference_image, base, measured)
         out.append(FrameCandidate(knobs, base_ms, materials,
-                                  {e: (ms, float(flip.mean())) for e, (ms, flip) in measured.items()}))
+                                  {e: (r[0], float(r[1].mean())) for e, r in measured.items()}, fixed))
     if not out:
         label, why = next(iter(refused.items()))
         raise ValueError(f"no point of the frame-knob grid renders here: {label}: {why}")
@@ -116,14 +120,17 @@ def choose_frame_under_budget(gl, scene, rig, budget_ms: float, base, reference_
     for pick in ranked_picks(candidates, budget_ms)[:FRAME_TRIES]:
         c = next(c for c in candidates if c.knobs == pick.knobs)
         got = choose_under_budget(gl, scene, rig, budget_ms, base, reference_image, ppd, repeat, progress, pool,
-                                  options=(c.base_ms, c.materials), knobs=c.knobs)
+                                  options=(c.base_ms, c.materials, c.fixed), knobs=c.knobs)
         got = {**got, "knobs": c.knobs, "config": replace(got["config"], render=c.knobs.render_table())}
         tried.append(got)
         if got["within_budget"]:
             break
     fitting = [t for t in tried if t["within_budget"]]
     best = min(fitting, key=lambda t: t["measured_flip"]) if fitting else min(tried, key=lambda t: t["measured_ms"])
-    solved = {"solver_flip": best["measured_flip"] if fitting else None, "points_tried": len(tried)}
+    solved = {"solver_flip": best["measured_flip"] if fitting else None, "points_tried": len(tried),
+              # the solved pick as measured, kept when a grid render replaces it: what the model got wrong
+              "solver_pick": {k: best.get(k) for k in ("predicted_ms", "predicted_fixed_ms", "predicted_error",
+                                                      "measured_ms", "measured_flip", "within_budget", "rounds")}}
     # The grid's own renders (a point, the whole scene on one rung) are measured already: one that
     # fits with less error than every solved pick is the better answer (the model's per-material
     # split of costs and errors is an estimate). Rendered again for its image and a fresh time.

@@ -84,6 +84,7 @@ class Measured:
     material: np.ndarray | None  # uint32 HxW material index per pixel (same layout); None: --stereo warp
     hdr: np.ndarray | None = None  # HxWx4 linear radiance (same layout) when measure() was asked for it
     seconds: dict = field(default_factory=dict)  # wall time of its phases: renderer (set up), settle, render
+    passes: dict = field(default_factory=dict)  # pass name -> median GPU ms (x spp, as gpu_ms), the budget's cost model
 
 
 def config_for_assignment(base: MaterialConfig, scene, effects: dict) -> MaterialConfig:
@@ -152,7 +153,7 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
             r.warm_up(sized, max_seconds=MEASURE_SETTLE_MAX_S)
         lap("settle")
         rigs = [sized] * (warmup + repeat)
-        totals, last = [], None
+        totals, per_pass, last = [], [], None
         # warp synthesizes the right eye's colour alone: its material map is the reference's to give
         aux = () if variant.settings.stereo == "warp" else ("material",)
         if hdr:
@@ -162,6 +163,7 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         for i, frame in enumerate(r.render_sequence(rigs, aux=aux, spp=variant.spp)):
             if i >= warmup:  # an image of spp samples costs spp frames (their last one timed)
                 totals.append(sum(frame.timings.values()) * variant.spp)
+                per_pass.append(frame.timings)
             last = frame
         lap("render")
     finally:
@@ -177,7 +179,8 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         if material is not None:
             material = np.asarray(Image.fromarray(material.astype(np.int32)).resize((2 * w, h), Image.NEAREST)
                                   ).astype(np.uint32)
-    return Measured(float(np.median(totals)), image, material, radiance, seconds)
+    passes = {p: float(np.median([t.get(p, 0.0) for t in per_pass])) * variant.spp for p in per_pass[-1]}
+    return Measured(float(np.median(totals)), image, material, radiance, seconds, passes)
 
 
 def camera_refusal(variant: Variant, names, rig: StereoRig | None = None) -> str | None:
