@@ -143,13 +143,16 @@ def test_reordered_and_persistent_wavefronts_give_the_default_frames_exactly(gl,
 
 def test_batches_and_shadow_chunks_reorder_and_fetch_exactly_too(gl):
     """A small wave-buffer limit splits the pixel list into batches and the shadow rays into chunks:
-    each trace kernel of each batch sorts its own rays and has its own ray counter."""
+    each trace kernel of each batch sorts its own rays and has its own ray counter. The frames hold
+    every batch's paths and must be equal; the buffer holds only the last batch's, whose pixels are
+    whichever the classify pass's atomics put last (on the H200, other pixels each render), so of
+    its hits only the count compares."""
     limit = 16 * 1024
     reference, ref_hits = render_room(gl, "glossy", wave_buffer_bytes=limit)
     eyes, hits = render_room(gl, "glossy", "morton", "on", wave_buffer_bytes=limit)
-    assert np.array_equal(hits, ref_hits)
     for (hdr, color), (ref_hdr, ref_color) in zip(eyes, reference):
         assert np.array_equal(hdr, ref_hdr) and np.array_equal(color, ref_color)
+    assert 0 < len(hits) == len(ref_hits) < 24 * 16  # batched: the last batch is not the whole list
 
 
 
