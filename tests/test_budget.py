@@ -224,3 +224,28 @@ def test_fixed_costs_come_from_the_passes_a_rung_adds_over_raster():
     # without pass timers (a measurer that has none) everything is per pixel, as before
     groups, per_pixel = fixed_costs({e: r[:2] for e, r in rungs.items()})
     assert groups == [] and per_pixel["path"] == pytest.approx(11.4)
+
+
+def test_a_pick_whose_every_estimate_is_low_ends_within_budget_not_on_the_cheapest(monkeypatch):
+    """Every material's `path` truly costs twice its estimate. Scaling the chosen materials'
+    estimates moves the pick onto others as underestimated; lowering the solver's budget by the
+    overshoot ends on a measured pick within budget that still traces, not on the all-raster frame."""
+    from rayvr.quality import budget
+
+    true_ms = {f"m{i}": 2.0 for i in range(8)}
+    options = [MaterialOptions(m, [Option("raster", 0.0, 0.5), Option("path", 1.0, 0.1)], coverage=0.125)
+               for m in true_ms]
+    renders = []
+
+    def render(gl, scene, rig, budget_ms, base, ref, ppd, assignment, repeat, pool, knobs):
+        ms = 1.0 + sum(true_ms[m] for m, e in assignment.items() if e == "path")
+        renders.append(ms)
+        flip = sum(0.125 * (0.1 if e == "path" else 0.5) for e in assignment.values())
+        return {"budget_ms": budget_ms, "measured_ms": ms, "within_budget": ms <= budget_ms * budget.BUDGET_TOLERANCE,
+                "measured_flip": flip, "assignment": assignment, "config": None, "image": None}
+
+    monkeypatch.setattr(budget, "measure_assignment", render)
+    got = budget.choose_under_budget(None, None, None, 6.0, None, None, 60.0, options=(1.0, options, []))
+    assert got["within_budget"] and got["measured_ms"] <= 6.0
+    assert list(got["assignment"].values()).count("path") == 2  # the most that truly fits 5 ms
+    assert got["rounds"] <= budget.BUDGET_ROUNDS and len(renders) == got["rounds"]

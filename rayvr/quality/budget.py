@@ -410,7 +410,7 @@ def options_from_rungs(scene, reference_image, base, rungs: dict, min_coverage=1
 BUDGET_TOLERANCE = 1.02  # measured frames within 2 % of the budget count as within (timer noise)
 BUDGET_SLACK = 0.85  # a pick measured below this share of its budget is solved again with its costs scaled down
 MIN_COST_SCALE = 0.25  # the most one round scales an effect's estimated cost down
-BUDGET_ROUNDS = 4
+BUDGET_ROUNDS = 6
 
 
 def measure_assignment(gl, scene, rig, budget_ms: float, base, reference_image, ppd: float, assignment: dict,
@@ -434,15 +434,16 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
     measured frame overshoots, or fits
     with more than (1 - BUDGET_SLACK) of the budget left while it cost less than predicted, the
     chosen options' costs are scaled by measured/predicted and the choice is solved again, at most
-    BUDGET_ROUNDS times. The best measured pick that fits is returned; if no round fits, the
+    BUDGET_ROUNDS times; from the second pick over budget on, the solver's budget is also lowered
+    by the measured overshoot (scaling one material's estimate leaves the others' as low). The best measured pick that fits is returned; if no round fits, the
     cheapest assignment. `options`: (base_ms, per-material options, fixed-cost groups) measured
     already, to solve several budgets from one measurement. `knobs`: the frame-wide knobs the pick
     renders with."""
     base_ms, options, fixed = options or per_material_options(gl, scene, rig, reference_image, base, ppd,
                                                               repeat=repeat, progress=progress, pool=pool, knobs=knobs)
 
-    def attempt(opts, budget):
-        result = solve_budget(opts, budget, base_ms=base_ms, fixed=fixed)
+    def attempt(opts, budget, result=None):
+        result = result or solve_budget(opts, budget, base_ms=base_ms, fixed=fixed)
         return {**measure_assignment(gl, scene, rig, budget_ms, base, reference_image, ppd, result.assignment, repeat,
                                      pool, knobs),
                 "predicted_ms": result.total_ms, "predicted_fixed_ms": result.fixed_ms, "feasible": result.feasible,
@@ -450,11 +451,15 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
 
     scale: dict = {}
     tried = []
+    target = budget_ms  # the solver's budget: lowered by overshoots once scaling alone has not fit
     for _ in range(BUDGET_ROUNDS):
         adjusted = [MaterialOptions(
             o.name, [Option(x.effect, x.cost_ms * scale.get((o.name, x.effect), 1.0), x.error)
                      for x in o.options], importance=o.importance, coverage=o.coverage) for o in options]
-        pick = attempt(adjusted, budget_ms)
+        solved = solve_budget(adjusted, target, base_ms=base_ms, fixed=fixed)
+        if any(p["assignment"] == solved.assignment for p in tried):
+            break  # measured already: the corrections have settled
+        pick = attempt(adjusted, target, solved)
         tried.append(pick)
         # the per-pixel part is what the rounds correct; the fixed groups were measured whole
         predicted_extra = pick["predicted_ms"] - base_ms - pick["predicted_fixed_ms"]
@@ -462,8 +467,16 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
         if not pick["feasible"] or predicted_extra <= 0:
             break
         factor = measured_extra / predicted_extra
-        if pick["within_budget"] and (pick["measured_ms"] >= budget_ms * BUDGET_SLACK or factor >= 1.0):
+        slack = budget_ms * BUDGET_SLACK - pick["measured_ms"]
+        if pick["within_budget"] and (slack <= 0 or (factor >= 1.0 and target >= budget_ms)):
             break  # fits, and uses the budget (or its estimates were not high)
+        if not pick["within_budget"] and len(tried) > 1:
+            # scaled, and over again: the solver moves to options whose estimates are as low (a
+            # path on another material); keep the measured overshoot out of its budget too
+            target = max(target - (pick["measured_ms"] - budget_ms), base_ms)
+        elif pick["within_budget"] and factor >= 1.0:
+            target = min(target + slack, budget_ms)  # fits below a lowered budget: give the slack back
+            continue
         # over: the chosen effects cost more than estimated; under: less, so the slack buys more
         for name, effect in pick["assignment"].items():
             if effect != "raster":
