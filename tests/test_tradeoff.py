@@ -259,3 +259,11 @@ def test_the_budget_headline_names_the_floor_the_solvers_gap_and_a_grid_answer()
     line = next(l for l in text.splitlines() if l.startswith("| room"))
     assert line.split(" | ")[6:] == ["stereo=reuse (the grid render)", "0.2100", "+0.0000", "+0.0340", "0.0712 |"]
     assert "| 0.2100 | 10.50 | yes |" in line and "(2048 samples a pixel in all)" in text
+
+
+def test_the_budget_plot_legend_names_only_the_knobs_that_differ():
+    from rayvr.bench.tradeoff import grid_labels
+
+    labels = ["stereo=dual spp=1 denoise=off msaa=1", "stereo=reuse spp=1 denoise=on msaa=1 iterations=4"]
+    assert grid_labels(labels) == ["stereo=dual denoise=off", "stereo=reuse denoise=on iterations=4"]
+    assert grid_labels(["stereo=dual"]) == ["stereo=dual"]  # one point: its label, not nothing

@@ -369,9 +369,10 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir, meta: dict | N
     for scene, view in dict.fromkeys((r["scene"], r["view"]) for r in grid_rows):
         mine = [r for r in grid_rows if (r["scene"], r["view"]) == (scene, view)]
         fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
-        for knobs in dict.fromkeys(r["knobs"] for r in mine):
+        points = list(dict.fromkeys(r["knobs"] for r in mine))
+        for knobs, label in zip(points, grid_labels(points)):
             pts = [(r["gpu_ms"], r["flip"]) for r in mine if r["knobs"] == knobs]
-            ax.scatter(*zip(*pts), s=18, alpha=0.8, label=knobs)
+            ax.scatter(*zip(*pts), s=18, alpha=0.8, label=label)
         front = [mine[i] for i in pareto_front([(r["gpu_ms"], r["flip"]) for r in mine])]
         ax.step([r["gpu_ms"] for r in front], [r["flip"] for r in front], where="post", color="k", lw=1,
                 label="Pareto front of the grid")
@@ -388,6 +389,14 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir, meta: dict | N
                                          f"every render of its grid", Path(out_dir) / f"budget_{scene}{view_suffix(view)}.png",
                                          meta))
     return written
+
+
+def grid_labels(labels: list[str]) -> list[str]:
+    """The grid points' labels without the knob=value words every one of them has (a legend of
+    what differs, not eight copies of `msaa=1 scale=1 temporal=off camera=pinhole`)."""
+    words = [label.split() for label in labels]
+    common = set.intersection(*(set(w) for w in words)) if words else set()
+    return [" ".join(x for x in w if x not in common) or label for w, label in zip(words, labels)]
 
 
 def _pyplot():
