@@ -50,8 +50,12 @@ void main() {
         photons[base + uint(j)] = Photon(vec4(0.0), vec4(0.0));
     uint rng = pcg_hash(i ^ pcg_hash(photon_seed ^ 0x5bd1e995u));
     float u = rng_next(rng);
+    // the first light whose running sum exceeds u. Not `while (l < n - 1 && u >= sum[l]) ++l`: llvmpipe
+    // (Mesa 22.3) ran that so that the first light's paths read no power, and only a two-light test
+    // (tests/test_photon_levels.py) showed it
     int l = 0;
-    while (l < lights.length() - 1 && u >= photon_lights[l].w) ++l;
+    for (int k = 0; k < lights.length() - 1; ++k)
+        if (u >= photon_lights[k].w) l = k + 1;
     Light li = lights[l];
     vec3 power = photon_lights[l].rgb;
     int kind = int(li.position_kind.w);
