@@ -27,20 +27,25 @@ LIGHT_PICKS = declare(Option("light_picks", int, 0, "traced effects light each s
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709: the power a light's colour carries
 
 
-def light_power(light, scene_radius: float) -> float:
-    """The light's emitted power in luminance units: a point light's intensity over the sphere
-    (4 pi I), a rect light's radiance over its area and hemisphere (pi L A, twice when two-sided),
-    a directional light's irradiance over the scene's cross-section (E pi r^2, r the radius of the
-    scene's bounding sphere: all of its light that can reach the scene)."""
-    lum = float(np.dot(np.asarray(light.color, np.float64) * light.intensity, LUMINANCE))
+def light_flux(light, scene_radius: float) -> np.ndarray:
+    """The light's emitted power (rgb flux): a point light's intensity over the sphere (4 pi I), a
+    rect light's radiance over its area and hemisphere (pi L A, twice when two-sided), a
+    directional light's irradiance over the scene's cross-section (E pi r^2, r the radius of the
+    scene's bounding sphere: all of its light that can reach the scene). The photon map emits by it too."""
+    rad = np.asarray(light.color, np.float64) * light.intensity
     if light.kind == "point":
-        return 4.0 * math.pi * lum
+        return 4.0 * math.pi * rad
     if light.kind == "rect":
         area = 4.0 * float(np.linalg.norm(np.cross(light.u, light.v)))
-        return math.pi * lum * area * (2.0 if light.two_sided else 1.0)
+        return math.pi * rad * area * (2.0 if light.two_sided else 1.0)
     if light.kind == "directional":
-        return lum * math.pi * scene_radius ** 2
+        return rad * math.pi * scene_radius ** 2
     raise ValueError(f"unknown light kind {light.kind!r}")
+
+
+def light_power(light, scene_radius: float) -> float:
+    """light_flux in luminance units."""
+    return float(np.dot(light_flux(light, scene_radius), LUMINANCE))
 
 
 def pick_table(lights, scene_radius: float) -> tuple[np.ndarray, np.ndarray]:

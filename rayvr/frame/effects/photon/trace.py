@@ -14,9 +14,9 @@ from ...graph import Buffer, FramePlan, read, write
 from ....gl.glsl_constants import declare
 from ....gl.gpu_layout import SSBO, UNIT
 from ...passes.prefix_scan import dispatch_shape
+from ....scene.light_selection import LUMINANCE, light_flux
 from .setup import PhotonPass, photon_setup
 
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 TRACE_GROUP = declare("PHOTON_TRACE_GROUP", 64)  # photon paths a trace.comp group traces
 # Mirror/glossy reflections one photon path may take on top of its diffuse bounces: a bound for
 # facing mirrors (white metal reflects all), beyond the caustics a scene shows.
@@ -24,18 +24,8 @@ MAX_REFLECTIONS = 16
 
 
 def light_power(scene, sphere_radius: float) -> np.ndarray:
-    """(L, 3) emitted power (flux) per light: point 4 pi I; rect pi L A per emitting side (Lambertian);
-    directional E pi R^2 over the disc that covers the scene's bounding sphere (radius R)."""
-    out = np.zeros((len(scene.lights), 3))
-    for i, l in enumerate(scene.lights):
-        rad = np.asarray(l.color, np.float64) * l.intensity
-        if l.kind == "point":
-            out[i] = 4 * np.pi * rad
-        elif l.kind == "rect":
-            out[i] = np.pi * rad * 4 * np.linalg.norm(np.cross(l.u, l.v)) * (2 if l.two_sided else 1)
-        elif l.kind == "directional":
-            out[i] = rad * np.pi * sphere_radius ** 2
-    return out
+    """(L, 3) emitted power (flux) per light (scene/light_selection.light_flux)."""
+    return np.array([light_flux(l, sphere_radius) for l in scene.lights], np.float64).reshape(-1, 3)
 
 
 def light_table(scene, paths: int, sphere_radius: float) -> np.ndarray:
