@@ -38,12 +38,11 @@ Exact, on the real (not rounded) costs. With fixed-cost groups, every subset T o
 solved as a plain knapsack over the options whose groups lie in T, with T's fixed costs taken from
 the budget; the least error over all T is the optimum (an assignment using groups U is solved
 exactly under T = U and charged too much under any larger T). The plain knapsack is dynamic
-programming over materials that keeps, after each
-material, only the Pareto-optimal partial assignments (no other partial one is both cheaper and
-lower-error) and drops those that cannot fit even with the cheapest options for the remaining
-materials. The optimum is an extension of a Pareto-optimal prefix, so nothing optimal is lost.
-The fronts stay small in practice (hundreds to a few thousand points for 50 materials x 7 effects),
-and each step is a handful of numpy sorts.
+programming over materials that keeps, after each material, only the Pareto-optimal partial
+assignments (no other partial one is both cheaper and lower-error) and drops those that cannot
+fit even with the cheapest options for the remaining materials. The optimum is an extension of
+a Pareto-optimal prefix, so nothing optimal is lost. The fronts stay small in practice (hundreds
+to a few thousand points for 50 materials x 7 effects), and each step is a handful of numpy sorts.
 
 If even the cheapest assignment exceeds the budget, the cheapest one (ties broken by error) is
 returned with ``feasible=False`` instead of raising.
@@ -369,7 +368,8 @@ def fixed_costs(rungs: dict) -> tuple[list[FixedCost], dict]:
         extra = max(ms - rungs["raster"][0], 0.0)
         for p, t in (passes[0] if passes else {}).items():
             delta = t - raster.get(p, 0.0)
-            if e != "raster" and not p.startswith("rt_") and delta > FIXED_COST_MIN_MS + FIXED_COST_NOISE * raster.get(p, 0.0):
+            noise = FIXED_COST_MIN_MS + FIXED_COST_NOISE * raster.get(p, 0.0)
+            if e != "raster" and not p.startswith("rt_") and delta > noise:
                 grown.setdefault(p, {})[e] = delta
                 extra -= delta
         per_pixel[e] = max(extra, 0.0)
@@ -430,15 +430,15 @@ def choose_under_budget(gl, scene, rig, budget_ms: float, base, reference_image,
     """Pick effects per material for `budget_ms`, render the pick and measure it.
 
     The per-material costs are estimates (the whole-frame passes are fixed-cost groups, but a
-    traced effect's own dispatches also cost something with its first material); when the
-    measured frame overshoots, or fits
-    with more than (1 - BUDGET_SLACK) of the budget left while it cost less than predicted, the
-    chosen options' costs are scaled by measured/predicted and the choice is solved again, at most
-    BUDGET_ROUNDS times; from the second pick over budget on, the solver's budget is also lowered
-    by the measured overshoot (scaling one material's estimate leaves the others' as low). The best measured pick that fits is returned; if no round fits, the
-    cheapest assignment. `options`: (base_ms, per-material options, fixed-cost groups) measured
-    already, to solve several budgets from one measurement. `knobs`: the frame-wide knobs the pick
-    renders with."""
+    traced effect's own dispatches also cost something with its first material). When the
+    measured frame overshoots, or fits with more than (1 - BUDGET_SLACK) of the budget left while
+    it cost less than predicted, the chosen options' costs are scaled by measured/predicted and the
+    choice is solved again, at most BUDGET_ROUNDS times. From the second pick over budget on, the
+    solver's budget is also lowered by the measured overshoot (scaling one material's estimate
+    leaves the others' as low); a pick that then fits with slack gives the slack back. The best
+    measured pick that fits is returned; if no round fits, the cheapest assignment.
+    `options`: (base_ms, per-material options, fixed-cost groups) measured already, to solve
+    several budgets from one measurement. `knobs`: the frame-wide knobs the pick renders with."""
     base_ms, options, fixed = options or per_material_options(gl, scene, rig, reference_image, base, ppd,
                                                               repeat=repeat, progress=progress, pool=pool, knobs=knobs)
 
