@@ -13,6 +13,7 @@ program, whatever the number of `#include`s naming it.
 """
 from __future__ import annotations
 
+import functools
 import os
 import re
 from dataclasses import dataclass, field
@@ -58,22 +59,36 @@ def display_name(name: str) -> str:
 GENERATED = {"layout.glsl": gpu_layout.glsl_header}
 
 
-def _read(name: str, root: Path) -> str:
-    """A file under `root`, else under rayvr/glsl/ (so shaders outside rayvr, such as an effect
-    plugin's, can include rayvr's common code), else a generated source."""
+def _read(name: str, root: Path) -> list[str]:
+    """The lines of a file under `root`, else under rayvr/glsl/ (so shaders outside rayvr, such as
+    an effect plugin's, can include rayvr's common code), else of a generated source."""
     if name in GENERATED:
-        return GENERATED[name]()
+        return GENERATED[name]().splitlines()
     path = _find(name, root)
     if path is None:
         raise ShaderError(f"shader file not found: {(root / name).resolve()}")
-    return path.read_text()
+    return _lines(path, path.stat().st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=1024)
+def _lines(path: Path, mtime_ns: int) -> list[str]:
+    """A file's lines, read once per version of it (a renderer builds hundreds of programs from a
+    few dozen files; an edited file has another mtime and is read again). Callers never modify them."""
+    return path.read_text().splitlines()
+
+
+_FOUND: dict = {}  # (name, root) -> the file found (a missing file is looked for again)
 
 
 def _find(name: str, root: Path) -> Path | None:
     """The file `name` names: under `root`, else under rayvr/glsl/; an absolute name is itself."""
+    found = _FOUND.get((name, root))
+    if found is not None and found.is_file():
+        return found
     for base in dict.fromkeys((root, GLSL_DIR)):
         path = (base / name).resolve()
         if path.is_file():
+            _FOUND[(name, root)] = path
             return path
     return None
 
@@ -89,13 +104,13 @@ def load_source(name: str, defines: dict | None = None, root: Path = GLSL_DIR) -
         files.append(file)
         if not is_top:
             out.append(f"#line 1 {idx}")
-        lines = _read(file, root).splitlines()
+        lines = _read(file, root)
         # Defines go right after #version, so that #if blocks around #extension lines see them.
-        version = [n for n, line in enumerate(lines, 1) if _VERSION.match(line)]
-        header_end = version[0] if (is_top and version) else -1
+        version = [n for n, line in enumerate(lines, 1) if _VERSION.match(line)] if is_top else []
+        header_end = version[0] if version else -1
         for lineno, line in enumerate(lines, start=1):
-            m = _INCLUDE.match(line) or _INCLUDE_DEFINE.match(line)
-            where = f"{display_name(file)}:{lineno}"
+            m = "include" in line and (_INCLUDE.match(line) or _INCLUDE_DEFINE.match(line))
+            where = m and f"{display_name(file)}:{lineno}"  # for an error's message
             if m and m.re is _INCLUDE_DEFINE:
                 named, fallback = m.group(1), m.group(2)
                 if named in (defines or {}):

@@ -31,6 +31,7 @@ def _compare_settings():
 REFERENCE_SEED = 0x5EED0001
 NOISE_FLOOR_SEED = REFERENCE_SEED + 1  # the reference again with other samples: the error floor of every plot
 WARMUP_FRAMES = 3  # frames measure() renders before it times any
+SOFTWARE_WARMUP_FRAMES = 1  # the same on a software rasterizer (llvmpipe), which has no clocks to ramp
 # measure()'s clock settle gives up after this (the renderer's default is 10 s): in a sweep the GPU
 # has just rendered the previous variant, so its clocks are up, and frames whose times jitter by
 # more than the settle's 3 % would otherwise hold every variant for the whole 10 s.
@@ -152,6 +153,8 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         if settle:
             r.warm_up(sized, max_seconds=MEASURE_SETTLE_MAX_S)
         lap("settle")
+        if r.gl.is_software:  # no clocks to bring up: one frame for first-use work (compiles, uploads)
+            warmup = min(warmup, SOFTWARE_WARMUP_FRAMES)
         rigs = [sized] * (warmup + repeat)
         totals, per_pass, last = [], [], None
         # warp synthesizes the right eye's colour alone: its material map is the reference's to give
