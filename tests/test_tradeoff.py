@@ -267,3 +267,34 @@ def test_the_budget_plot_legend_names_only_the_knobs_that_differ():
     labels = ["stereo=dual spp=1 denoise=off msaa=1", "stereo=reuse spp=1 denoise=on msaa=1 iterations=4"]
     assert grid_labels(labels) == ["stereo=dual denoise=off", "stereo=reuse denoise=on iterations=4"]
     assert grid_labels(["stereo=dual"]) == ["stereo=dual"]  # one point: its label, not nothing
+
+
+@pytest.mark.parametrize("settled_ms, spp, temporal, frames", [(1.0, 1, False, 3 + 10), (80.0, 1, False, 2),
+                                                              (20.0, 4, False, 2), (80.0, 1, True, 3 + 10)])
+def test_an_image_slower_than_the_bound_is_timed_over_fewer_frames(gl, room, monkeypatch, settled_ms, spp, temporal,
+                                                                   frames):
+    """On a GPU (the settle's record says how long a frame took) an image costing more than
+    SLOW_IMAGE_MS (one 80 ms frame, or four of 20 ms) is timed over SLOW_IMAGE_REPEAT images with no
+    warm-up; a fast one, and a temporal one (its image holds every frame), over warm-up + repeat."""
+    from dataclasses import replace
+
+    from rayvr.gl.context import GLContext
+    from rayvr.quality import measure as M
+    from rayvr.renderer import Renderer
+
+    scene, rig = room
+    assert M.SLOW_IMAGE_REPEAT == 2 and M.WARMUP_FRAMES == 3 and M.SLOW_IMAGE_MS < 80.0 < 4 * M.SLOW_IMAGE_MS
+    monkeypatch.setattr(GLContext, "is_software", property(lambda self: False))  # as on the H200
+    monkeypatch.setattr(Renderer, "warm_up", lambda self, *a, **k: {"runs": 10, "settled": True, "last": settled_ms})
+    rendered = []
+    sequence = Renderer.render_sequence
+
+    def counted(self, rigs, *a, **k):
+        rendered.append(len(rigs))
+        return sequence(self, rigs, *a, **k)
+
+    monkeypatch.setattr(Renderer, "render_sequence", counted)
+    settings = replace(M.COMPARE_SETTINGS, temporal=temporal)
+    M.measure(gl, scene, rig, M.Variant("effect", "raster", parse_config({"default": "raster"}), settings, spp=spp),
+              repeat=10)
+    assert rendered == [frames]
