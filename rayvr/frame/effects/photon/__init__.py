@@ -46,10 +46,11 @@ class PhotonEffect(Effect):
     traced = True
     shader = "effects/photon.glsl"  # its part of the wavefront pixel event (rt/wave_shade.comp)
     # `rayvr bench tradeoff`: the paper's photon counts (128^2 .. 512^2) and radii (0.02 .. 0.2 scene
-    # units, as the paper's), and the heap; --quick renders one of each.
+    # units, as the paper's), the heap, and the stored bounces; --quick renders one of each.
     sweep = {"photons": ((16384, 65536, 262144), (16384,)),
              "radius": ((0.02, 0.05, 0.1, 0.2), (0.1,)),
-             "estimator": ((0, 1), (1,))}
+             "estimator": ((0, 1), (1,)),
+             "bounces": ((2, 3, 4, 6), (2,))}
     # Not the reference for any class: a density estimate is biased (blurred by its radius); the
     # converged reference for indirect light is path tracing. `rayvr bench photon` judges it
     # against a many-photon map with another seed instead.
