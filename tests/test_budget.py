@@ -26,10 +26,13 @@ def _random_materials(rng, n, k, ladder=True, cheap_first=False):
     return mats
 
 
-def _brute_force(mats, budget, base):
+def _brute_force(mats, budget, base, groups=()):
+    """Every assignment; each fixed-cost group charged once where any material takes one of its effects."""
     best = None
     for choice in itertools.product(*(range(len(m["options"])) for m in mats)):
-        cost = base + sum(m["options"][i][1] for m, i in zip(mats, choice))
+        used = {m["options"][i][0] for m, i in zip(mats, choice)}
+        cost = base + sum(m["options"][i][1] for m, i in zip(mats, choice)) + sum(
+            g.cost_ms for g in groups if g.effects & used)
         if cost > budget + COST_EPS_MS:
             continue
         err = sum(m["importance"] * m["coverage"] * m["options"][i][2] for m, i in zip(mats, choice))
@@ -132,21 +135,6 @@ def test_validation():
 
 # ------------------------------------------------------------ fixed-cost groups (whole-frame passes)
 
-def _brute_force_fixed(mats, budget, base, groups):
-    """Every assignment, charged each group once when any material takes one of its effects."""
-    best = None
-    for choice in itertools.product(*(range(len(m["options"])) for m in mats)):
-        used = {m["options"][i][0] for m, i in zip(mats, choice)}
-        cost = base + sum(m["options"][i][1] for m, i in zip(mats, choice)) + sum(
-            g.cost_ms for g in groups if g.effects & used)
-        if cost > budget + COST_EPS_MS:
-            continue
-        err = sum(m["importance"] * m["coverage"] * m["options"][i][2] for m, i in zip(mats, choice))
-        if best is None or err < best[0]:
-            best = (err, cost, choice)
-    return best
-
-
 @pytest.mark.parametrize("seed", range(40))
 def test_fixed_cost_groups_match_brute_force(seed):
     from rayvr.quality.budget import FixedCost
@@ -164,7 +152,7 @@ def test_fixed_cost_groups_match_brute_force(seed):
     base = rng.uniform(0, 0.5)
     budget = base + rng.uniform(0, 0.5 * n + 1.5)
     r = solve_budget(mats, budget, base, fixed=groups)
-    bf = _brute_force_fixed(mats, budget, base, groups)
+    bf = _brute_force(mats, budget, base, groups)
     if bf is None:
         assert not r.feasible
         return
