@@ -27,8 +27,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 from . import metrics
-from .budget import BUDGET_TOLERANCE, BudgetResult, FixedCost, MaterialOptions, choose_under_budget, measure_assignment, \
-    measure_rungs, options_from_rungs, solve_budget
+from .budget import BUDGET_TOLERANCE, BudgetResult, FixedCost, MaterialOptions, choose_under_budget, \
+    measure_assignment, measure_rungs, options_from_rungs, solve_budget
 from .measure import (BENCH_QUALITY, QUICK_REFERENCE_SPP, RendererPool, measure_reference, reference_per_frame,
                       reference_variant)
 from .reference_images import reference_config
