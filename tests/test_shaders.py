@@ -86,3 +86,12 @@ def test_include_named_by_a_define_with_a_fallback_and_an_absolute_path(tmp_path
     with pytest.raises(ShaderError) as e:
         load_source("main.comp", {"PART": str(missing)}, root=root)
     assert str(e.value) == f"glsl/main.comp:2: #include PART (PART = {missing}): shader file not found: {missing}"
+
+
+def test_an_edited_file_is_read_again(tmp_path):
+    """Sources are cached per file version (shaders._lines): a file written again with other text,
+    even within the filesystem's timestamp tick, gives the new text."""
+    write(tmp_path, "e.comp", "#version 430\n// one\n")
+    assert "// one" in load_source("e.comp", root=tmp_path).text
+    write(tmp_path, "e.comp", "#version 430\n// second\n")
+    assert "// second" in load_source("e.comp", root=tmp_path).text

@@ -67,13 +67,15 @@ def _read(name: str, root: Path) -> list[str]:
     path = _find(name, root)
     if path is None:
         raise ShaderError(f"shader file not found: {(root / name).resolve()}")
-    return _lines(path, path.stat().st_mtime_ns)
+    stat = path.stat()
+    return _lines(path, stat.st_mtime_ns, stat.st_size)
 
 
 @functools.lru_cache(maxsize=1024)
-def _lines(path: Path, mtime_ns: int) -> list[str]:
+def _lines(path: Path, mtime_ns: int, size: int) -> list[str]:
     """A file's lines, read once per version of it (a renderer builds hundreds of programs from a
-    few dozen files; an edited file has another mtime and is read again). Callers never modify them."""
+    few dozen files; an edited file has another mtime or size and is read again). Callers never
+    modify them."""
     return path.read_text().splitlines()
 
 
