@@ -89,8 +89,8 @@ def test_include_named_by_a_define_with_a_fallback_and_an_absolute_path(tmp_path
 
 
 def test_an_edited_file_is_read_again(tmp_path):
-    """Sources are cached per file version (shaders._lines): a file written again with other text,
-    even within the filesystem's timestamp tick, gives the new text."""
+    """Sources are cached per file version (shaders._lines: mtime and size): a file written again
+    with text of another length, even within the filesystem's timestamp tick, gives the new text."""
     write(tmp_path, "e.comp", "#version 430\n// one\n")
     assert "// one" in load_source("e.comp", root=tmp_path).text
     write(tmp_path, "e.comp", "#version 430\n// second\n")
