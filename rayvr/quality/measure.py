@@ -155,9 +155,10 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         sized = rig.with_size(small)
         if variant.camera is not None:
             sized = replace(sized, camera=variant.camera)
-        settled = r.warm_up(sized, max_seconds=MEASURE_SETTLE_MAX_S) if settle else {}
+        software = r.gl.is_software  # no clocks to bring up: no settle, one frame for first-use work
+        settled = r.warm_up(sized, max_seconds=MEASURE_SETTLE_MAX_S) if settle and not software else {}
         lap("settle")
-        if r.gl.is_software:  # no clocks to bring up: one frame for first-use work (compiles, uploads)
+        if software:
             warmup = min(warmup, SOFTWARE_WARMUP_FRAMES)
         elif settled.get("last", 0.0) * variant.spp > SLOW_IMAGE_MS and not variant.settings.temporal:
             # the settle ran frames of it at speed already, and a timer's jitter is nothing beside
