@@ -137,7 +137,7 @@ def _sweep_arguments(args) -> dict:
     from .scenes import shipped_config
 
     return dict(size=(32, 24) if args.quick else args.size, scenes=_scenes(args),
-                repeat=2 if args.quick else share(args.repeat, 5), base_config=shipped_config,
+                repeat=1 if args.quick else share(args.repeat, 5), base_config=shipped_config,
                 backend=args.backend, workers=args.workers, address=args.address,
                 connect_timeout=_connect_timeout(args), reference_spp=args.reference_spp)
 
