@@ -156,14 +156,15 @@ def test_msaa_frames_run_one_shading_round_per_distinct_triangle(gl, room):
 
 @pytest.mark.parametrize("n", [4, 32])
 def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n):
-    """The MSAA trace (one invocation per sub-ray, merged per pixel in shared memory; a 30x22 image
-    leaves partial pixel blocks) against passes/primary_rays.msaa_lists over numpy traces of the
-    model's own sub-rays: the same distinct triangles, coverage masks, counts and order; the
-    representative sub-ray is one nearest its mask's mean offset, its distance that sub-ray's."""
+    """The MSAA trace (one invocation per sub-ray, merged per pixel in shared memory; a 30x22 or
+    18x14 image leaves partial pixel blocks) against passes/primary_rays.msaa_lists over numpy
+    traces of the model's own sub-rays: the same distinct triangles, coverage masks, counts and
+    order; the representative sub-ray is one nearest its mask's mean offset, its distance that
+    sub-ray's. 32 sub-rays at the smaller size: numpy traces each of them."""
     from rayvr.frame.cameras.sampling import subsamples
     from rayvr.frame.passes.primary_rays import msaa_lists
 
-    w, h, slots = 30, 22, min(n, 8)
+    (w, h), slots = (30, 22) if n < 32 else (18, 14), min(n, 8)
     rig = StereoRig(ROOM_POSE, ipd=0.064, fov_y=90, size=(w, h), near=1e-3)
     with Renderer(room, gl=gl, settings=RenderSettings(msaa=n)) as r:
         r.record(rig)
