@@ -373,16 +373,17 @@ def fixed_costs(rungs: dict) -> tuple[list[FixedCost], dict]:
                 grown.setdefault(p, {})[e] = delta
                 extra -= delta
         per_pixel[e] = max(extra, 0.0)
+    charged = {p: max(by.values()) for p, by in grown.items()}  # a pass costs the most any rung grew it
     # a rung charged a pass's max pays for the rest of it out of its own per-pixel share
     for p, by in grown.items():
         for e, delta in by.items():
-            per_pixel[e] = max(per_pixel[e] - (max(by.values()) - delta), 0.0)
+            per_pixel[e] = max(per_pixel[e] - (charged[p] - delta), 0.0)
     # passes the same rungs run are one group (photon's map: trace, sort, scan, cells), so the
     # solver's subsets of groups stay few
     merged: dict = {}
     for p, by in sorted(grown.items()):
         names, cost = merged.get(frozenset(by), ((), 0.0))
-        merged[frozenset(by)] = (names + (p,), cost + max(by.values()))
+        merged[frozenset(by)] = (names + (p,), cost + charged[p])
     return [FixedCost("+".join(names), cost, effects) for effects, (names, cost) in merged.items()], per_pixel
 
 
