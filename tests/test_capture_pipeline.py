@@ -104,10 +104,11 @@ def test_npy_colour_with_views_is_one_line(tmp_path, capsys):
 
 @pytest.mark.parametrize("writers", [1, 3])
 def test_a_slow_writer_holds_no_more_frames_than_the_queue_bound(gl, tmp_path, monkeypatch, writers):
-    """100 tiny frames through a writer slowed down to 15 ms a PNG: the frames alive at once (each
-    counted from the renderer handing it over until it is freed) never pass the bound, and the
-    queue does fill up to it: rendering waited for the writers. (At 3 ms a PNG, three writers once
-    kept up with the renderer on a loaded 2-core llvmpipe host and the queue never filled.)"""
+    """100 tiny frames through writers held back until the queue is full: the frames alive at once
+    (each counted from the renderer handing it over until it is freed) never pass the bound, and
+    the queue does fill up to it: rendering waited for the writers. The writers wait for that (a
+    gate, not a sleep: three writers slowed to 3 ms, then to 15 ms a PNG, still kept up with the
+    renderer on a loaded 2-core CI host, and the queue never filled)."""
     from rayvr.app import capture as capture_mod
     from rayvr.app.capture import CaptureJob, poses_for, run_capture
     from rayvr.app.writers import QUEUED_PER_POOL
@@ -115,6 +116,8 @@ def test_a_slow_writer_holds_no_more_frames_than_the_queue_bound(gl, tmp_path, m
     from rayvr.renderer import Renderer
 
     live, most, lock = [0], [0], threading.Lock()
+    bound = 1 if writers == 1 else writers + QUEUED_PER_POOL
+    full = threading.Event()  # set once `bound` frames are alive: the writers may go on
 
     def freed():
         with lock:
@@ -124,6 +127,8 @@ def test_a_slow_writer_holds_no_more_frames_than_the_queue_bound(gl, tmp_path, m
         with lock:
             live[0] += 1
             most[0] = max(most[0], live[0])
+            if most[0] >= bound:
+                full.set()
         weakref.finalize(frame, freed)
         return frame
 
@@ -133,7 +138,7 @@ def test_a_slow_writer_holds_no_more_frames_than_the_queue_bound(gl, tmp_path, m
         yield from map(track, real_sequence(self, *args, **kw))  # holds no frame itself
 
     def slow_png(*args, **kw):
-        time.sleep(0.015)
+        full.wait(timeout=60)  # the queue fills while the first frames' writers wait here
         return real_png(*args, **kw)
 
     monkeypatch.setattr(Renderer, "render_sequence", counted_sequence)
@@ -142,8 +147,7 @@ def test_a_slow_writer_holds_no_more_frames_than_the_queue_bound(gl, tmp_path, m
         rig = StereoRig.for_scene(r.scene, size=(8, 8))
         job = CaptureJob(rig, poses_for(rig, r.scene, frames=100), out_dir=tmp_path / "o", writers=writers)
         result = run_capture(r, job, progress=False)
-    bound = 1 if writers == 1 else writers + QUEUED_PER_POOL
-    assert most[0] == bound and live[0] == 0
+    assert full.is_set() and most[0] == bound and live[0] == 0
     assert result["written"] == 100 and len(result["files"]) == 200
     assert result["pipeline"]["peak_in_flight"] == bound and result["pipeline"]["queue_limit"] >= bound
     assert result["pipeline"]["ms_per_frame"]["write_wait"] > 0
