@@ -39,11 +39,13 @@ per-ray traversal (tests/test_tile_culling_frame.py). The entries are child pair
 layout, so with tile culling primary rays walk `bvh2`, whatever `traversal` names for them. Tiles
 whose rays spread beyond ~84 deg (wide cameras at low resolution) fall back to the root's children.
 
-Tile triangle lists (FramePlan.tile_lists, `--tile-lists N`, off unless asked: slower than the
-entries on the H200, bench/results/h200/2026-12-02/lists): after the cull a `lists` stage
-(glsl/accel/tile_tris.comp) lists each tile's frustum triangles nearest first; the cast/trace then
-tests a workgroup's rays against its tile's list from workgroup memory (glsl/rt/tile_list_cast.glsl),
-and a second program casts the tiles whose list overflowed per ray from their entries. Exact.
+Tile triangle lists (FramePlan.tile_lists, `--tile-lists N`; HVVR's tile beams and sample testing):
+after the cull a `lists` stage (glsl/accel/tile_tris.comp) lists each tile's frustum triangles
+nearest first; the cast/trace then runs glsl/rt/tile_samples.comp, a workgroup a tile (or a band of
+its rows, `sample_group`) and an invocation a pixel with all its sub-rays, which sets each listed
+triangle up once in workgroup memory as 2D edge functions in the tile's frame and tests the pixel's
+sub-rays against them, the candidates with the exact test; primary.comp (TILE_LIST_OVERFLOW) casts
+the tiles whose list overflowed per ray from their entries. Exact.
 
 Shared channel shading (FramePlan.share_channels, `share_channel_shading`, shares_channels): with a
 chromatic camera at one sub-ray per sample, the frame's first round first casts green's rays into
@@ -63,7 +65,7 @@ from ...accel.frustum import tile_grid
 from ...accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effect_registry import EFFECTS
 from ..graph import SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
-from ...gl.gpu_layout import IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_RAYS, channel
+from ...gl.gpu_layout import IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_PIXELS, TILE_RAYS, channel
 from ...options import Option, declare
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 
@@ -142,6 +144,21 @@ def shares_channels(settings, camera, samples: int, effects, culled: bool, view:
     G-buffer in a round (the quadtree's: a skipped pixel's G-buffer is an earlier round's)."""
     return (settings.share_channel_shading and camera.channels == 3 and samples == 1 and not culled
             and view == "color" and not any(EFFECTS[e].uses_quadtree for e in effects if e in EFFECTS))
+
+
+# tile_samples.comp's workgroup memory: each pixel's sub-rays' hits (8 bytes a sub-ray) and the load of
+# triangles (56 bytes each, one an invocation), kept under 24 KiB of the 32 KiB the smallest GL 4.3
+# driver measured here gives (llvmpipe; NVIDIA: 48 KiB)
+SAMPLE_SHARED_BYTES = 24 * 1024
+
+
+def sample_group(rays: int) -> int:
+    """Pixels of a tile_samples.comp workgroup whose pixels cast `rays` sub-rays each: the whole tile
+    (TILE_RAYS), or the largest band of its rows (a power of two) whose state fits SAMPLE_SHARED_BYTES."""
+    group = TILE_RAYS
+    while group > TILE_PIXELS[0] and group * (8 * rays + 56) > SAMPLE_SHARED_BYTES:
+        group //= 2
+    return group
 
 
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
@@ -286,17 +303,18 @@ class PrimaryRaysPass(Pass):
                 "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
                 "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples,
                 "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles, **lists,
-                "TILE_LIST_PART": 1 if plan.tile_lists else 0, "SHARE_CHANNELS": int(plan.share_channels)}
+                "TILE_LIST_OVERFLOW": int(bool(plan.tile_lists)), "SHARE_CHANNELS": int(plan.share_channels)}
         self.msaa = uses_msaa(plan)
         self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
                          for mode in ((1, 2) if self.msaa else (0,))}
         # With tile lists the cast (mode 0) or trace (mode 1) is two programs, each skipping the other's
-        # tiles: from the lists, and per ray from the entries where a list overflowed. One program with
-        # both paths held the BVH walk's registers in the list path too (H200, room, 16x: 13.7 ms, 10.7
-        # without the walk).
-        self.overflow = ([shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": 1 if self.msaa else 0,
-                                                                       "TILE_LIST_PART": 2})]
-                         if plan.tile_lists else [])  # the second cast/trace program, or none
+        # tiles: the tiles with a list (tile_samples.comp), and per ray from the entries where a list
+        # overflowed (primary.comp). One program with both paths held the BVH walk's registers in the
+        # list path too (H200, room, 16x: 13.7 ms, 10.7 without the walk).
+        self.group = sample_group(plan.samples if self.msaa else 1)
+        self.samples = (shaders.compute(gl.ctx, "rt/tile_samples.comp",
+                                        {**base, "SAMPLE_MODE": int(self.msaa), "SAMPLE_GROUP": self.group})
+                        if plan.tile_lists else None)
         self.cull = (shaders.compute(gl.ctx, "accel/tile_cull.comp", {**layout_defines(DEFAULT_BINDING, "bvh2"),
                                                                      **camera_defines(plan), **tiles, "TILE_CAMERA": 1})
                      if plan.tile_culling else None)
@@ -313,7 +331,7 @@ class PrimaryRaysPass(Pass):
 
     def execute(self, fc) -> None:
         rnd = fc.round
-        for program in [*self.programs.values(), *self.overflow]:
+        for program in [*self.programs.values(), *self.sample_tests()]:
             set_eye_uniforms(program, fc)
         fc.accel.layout(self.layout).bind(DEFAULT_BINDING)
         gb = fc.gbuffer
@@ -328,10 +346,9 @@ class PrimaryRaysPass(Pass):
                 rnd.start(fc.plan.samples)
             if fc.plan.share_channels:
                 self.share_channels(fc)
-            casts = [self.programs[0], *self.overflow]
-            for program in casts:
+            for program in [self.programs[0], *self.sample_tests()]:
                 program["subsample"].value = rnd.slot
-            fc.stage("cast", lambda: [dispatch_per_pixel(fc, program) for program in casts])
+            fc.stage("cast", lambda: (self.dispatch_sample_tests(fc), dispatch_per_pixel(fc, self.programs[0])))
             return
         fc.resource("msaa_hits").bind_to_storage_buffer(SSBO["msaa_hits"])
         count = fc.resource("msaa_count")
@@ -402,13 +419,23 @@ class PrimaryRaysPass(Pass):
                                        fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)))
 
     def dispatch_trace(self, fc) -> None:
-        """One workgroup per block of pixels (msaa_block), one invocation per sub-ray."""
+        """The tiles with a list: tile_samples.comp; the others (all, without lists): one workgroup
+        per block of pixels (msaa_block), one invocation per sub-ray."""
         (w, h), (bw, bh) = fc.sizing.size, self.block
-        for program in [self.programs[1], *self.overflow]:
-            program.run(-(-w // bw), -(-h // bh), fc.sizing.layers)
+        self.dispatch_sample_tests(fc)
+        self.programs[1].run(-(-w // bw), -(-h // bh), fc.sizing.layers)
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
+    def sample_tests(self) -> list:
+        return [self.samples] if self.samples is not None else []
+
+    def dispatch_sample_tests(self, fc) -> None:
+        """With tile lists: tile_samples.comp, one workgroup per band of `self.group` pixels of a tile."""
+        if self.samples is not None:
+            nx, ny = tile_grid(*fc.sizing.size)
+            self.samples.run(nx, ny * (TILE_RAYS // self.group), fc.sizing.layers)
+
     def release(self) -> None:
-        for p in [*self.programs.values(), *self.overflow, *self.count_io, *self.fences.values(),
+        for p in [*self.programs.values(), *self.sample_tests(), *self.count_io, *self.fences.values(),
                   *([self.cull] if self.cull else []), *([self.lists] if self.lists else [])]:
             p.release()

@@ -45,18 +45,8 @@ layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) i
 #include "../common/camera.glsl"
 #include "../common/round_skip.glsl"
 #include "primary_ray.glsl"
-
-layout(rgba32f, binding = GB_IMAGE_POSITION) uniform writeonly image2DArray img_position;
-layout(r32ui, binding = GB_IMAGE_TRIANGLE) uniform writeonly uimage2DArray img_triangle;
-#if SAMPLED
-layout(r32f, binding = IMAGE_SAMPLE_WEIGHT) uniform writeonly image2DArray img_weight;
-#endif
-#if PRIMARY_MODE != 0
-// Per pixel MSAA_SLOTS entries, slot-major (HIT below): (triangle, coverage mask, representative sub-ray | count << 8 |
-// covered sub-rays << 16 (entry 0 only), hit distance bits).
-layout(std430, binding = SSBO_MSAA_HITS) buffer MsaaHits { uvec4 msaa_hits[]; };
-layout(std430, binding = SSBO_MSAA_COUNT) buffer MsaaCount { uint msaa_count; };
-#endif
+#define MSAA_OUT (PRIMARY_MODE != 0)
+#include "primary_out.glsl"
 #if PRIMARY_MODE == 1
 // The workgroup's largest count: at most one global atomic per workgroup, not one per pixel.
 shared uint group_count;
@@ -81,52 +71,27 @@ uniform int share_mode;
 #endif
 uniform int msaa_round;  // PRIMARY_MODE 2
 
-#if PRIMARY_MODE == 1
-#define PRIMARY_GROUP MSAA_GROUP
-#else
-#define PRIMARY_GROUP (PIXEL_TILE * PIXEL_TILE)
+// TILE_LIST_OVERFLOW 1 (with tile lists, frame/passes/primary_rays.py): cast only the tiles whose
+// list overflowed, per ray from their entries (rt/tile_samples.comp casts the others from their lists).
+#ifndef TILE_LIST_OVERFLOW
+#define TILE_LIST_OVERFLOW 0
 #endif
-// TILE_LIST_PART (with tile lists, frame/passes/primary_rays.py): 1 casts the tiles that have a
-// list, from it; 2 the tiles whose list overflowed, per ray from their entries; 0: no lists.
-#ifndef TILE_LIST_PART
-#define TILE_LIST_PART 0
-#endif
-#if TILE_LIST_PART != 0
+#if TILE_LIST_OVERFLOW
 layout(std430, binding = TILE_TRIS_BINDING) readonly restrict buffer TileTris { uvec2 tile_tris[]; };
-#endif
-#if TILE_LIST_PART == 1 && PRIMARY_MODE != 2
-#include "tile_list_cast.glsl"
 #endif
 
 // Closest hit h of the camera ray (o, d) of pixel p where `valid` (h as it was elsewhere): from the
 // BVH root, or with tile culling (TILE_ENTRIES_BINDING, frame/passes/primary_rays.py) from the entry
-// list of the pixel's tile, which tile_cull.comp made for every sub-ray of the tile's pixels, or with
-// tile lists (TILE_LIST_PART 1) against the tile's triangle list (tile_list_cast.glsl): the same
-// hit, less work. Called by every invocation of the group (the tile list path shares workgroup memory).
+// list of the pixel's tile, which tile_cull.comp made for every sub-ray of the tile's pixels: the
+// same hit, less work.
 void cast_primary(ivec3 p, ivec2 size, bool valid, vec3 o, vec3 d, inout Hit h) {
     Ray r = primary_ray(p.z, o, d);
-#if TILE_LIST_PART == 1 && PRIMARY_MODE != 2
-    cast_tile_list(r, primary_tile(p, size), valid, h);
-#elif defined(TILE_ENTRIES_BINDING)
+#if defined(TILE_ENTRIES_BINDING)
     if (valid) trace_closest_in_tile(r, primary_tile(p, size), h);
 #else
     if (valid) trace_closest(r, h);
 #endif
 }
-
-void store(ivec3 p, uint tri, uint sub, float t, float weight) {
-    imageStore(img_triangle, p, uvec4(tri));
-    imageStore(img_position, p, vec4(uintBitsToFloat(sub), 0.0, 0.0, t));
-#if SAMPLED
-    imageStore(img_weight, p, vec4(weight));
-#endif
-}
-
-#if PRIMARY_MODE != 0
-// Slot-major entries (slot k of every pixel, then slot k + 1): neighbouring invocations write and
-// read neighbouring entries.
-#define HIT(k) msaa_hits[index + uint(k) * pixels]
-#endif
 #if PRIMARY_MODE == 1
 shared uint sub_mask[MSAA_GROUP];                           // each sub-ray's triangle's coverage mask
 shared uint pixel_first[MSAA_BLOCK_W * MSAA_BLOCK_H];       // the first sub-ray on each distinct triangle
@@ -203,9 +168,9 @@ void main() {
     ivec3 extent = imageSize(img_triangle);
     ivec2 size = extent.xy;
     bool inside = all(lessThan(p.xy, size));
-#if TILE_LIST_PART != 0 && PRIMARY_MODE != 2
-    // The group's pixels lie in one tile: the whole group leaves the tiles of the other part.
-    if ((tile_tris[primary_tile(p, size) * uint(TILE_TRIS + 1)].x == TILE_OVERFLOW) != (TILE_LIST_PART == 2))
+#if TILE_LIST_OVERFLOW && PRIMARY_MODE != 2
+    // The group's pixels lie in one tile: the whole group leaves a tile with a list to tile_samples.comp.
+    if (tile_tris[primary_tile(p, size) * uint(TILE_TRIS + 1)].x != TILE_OVERFLOW)
         return;
 #endif
 #if PRIMARY_MODE != 0
@@ -233,7 +198,7 @@ void main() {
     vec2 pixel = vec2(p.xy) + 0.5;
     float weight = 1.0 / float(CAMERA_SUBSAMPLES);
 #if SHARE_CHANNELS
-    if (share_mode == 3) {   // green's hits, cast by the probe (no tile lists here: no shared memory to fill)
+    if (share_mode == 3) {   // green's hits, cast by the probe
         if (!inside) return;
         uvec2 green = imageLoad(img_probe, p).xy;
         bool sampled = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
@@ -246,7 +211,7 @@ void main() {
     h.prim = BVH_MISS;
     h.t = 0.0;
     bool valid = inside && camera_subray(p.z, pixel, vec2(size), uint(subsample), o, d);
-    cast_primary(p, size, valid, o, d, h);   // every invocation: the tile list path shares memory
+    cast_primary(p, size, valid, o, d, h);
     if (!inside) return;
     bool sample_here = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
 #if SHARE_CHANNELS
