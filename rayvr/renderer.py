@@ -140,6 +140,9 @@ class Renderer:
         if st.tile_lists and primary == "rays" and not culled:
             raise ValueError("tile triangle lists (--tile-lists) start from the tile culling's entry lists: "
                              "leave out --no-tile-culling (tile_culling=False)")
+        if st.block_culling and primary == "rays" and not culled:
+            raise ValueError("block culling (--block-culling) hands its entries to the tile culling: "
+                             "leave out --no-tile-culling (tile_culling=False)")
         denoise = tuple(sorted(self.denoised_effects())) if color and st.denoise else ()
         stereo = stereo_mod.effective_mode(self.settings.stereo, layers, camera)
         if stereo != "dual" and samples > 1:  # their passes read one G-buffer, not a frame of rounds
@@ -170,6 +173,7 @@ class Renderer:
                          dof=color and st.dof_diameter > 0,
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
                          tile_culling=culled, tile_lists=primary_rays.tile_list_bound(st, camera.name) if culled else 0,
+                         block_culling=culled and primary_rays.culls_blocks(st, camera.name),
                          share_channels=primary == "rays" and primary_rays.shares_channels(
                              st, camera, samples, self.effects_in_use(), culled, view),
                          channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots,

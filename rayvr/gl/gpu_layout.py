@@ -60,6 +60,9 @@ SSBO = {
     "hiz_levels": 23, "hiz_rays": 24, "hiz_results": 25,  # bench/tracers/hiz.py HizTracer, glsl/ssrt/hiz*.glsl
     "refit_vertices": 26, "refit_index": 27,  # accel/refit.py GpuRefit (glsl/accel/refit.comp)
     "tile_entries": 28, "tile_planes": 29,  # tile frustum culling (accel/gpu.py RayTracer, glsl/accel/tile_cull.comp)
+    # block culling (frame/passes/primary_rays.py, glsl/accel/block_cull.comp): the tiles' origin boxes
+    # and slopes, the blocks' entry lists and planes
+    "tile_boxes": 33, "block_entries": 34, "block_planes": 35,
     # the photon map (frame/effects/photon/, glsl/photon/): traced photons, (cell, slot) keys and their
     # ping-pong copy, the scanned words (cell counts -> start indices; the sort's digit table),
     # photons sorted by cell, the kd-tree's array, the lights' emission table; test/bench queries
@@ -109,6 +112,7 @@ COMPRESSED_LAYOUT = "cwbvh"
 TILE_RAYS = 128
 TILE_ENTRIES = 32
 TILE_PIXELS = (16, 8)  # a frame tile's pixel block (w, h): TILE_RAYS samples (primary_rays --tile-culling)
+BLOCK_TILES = (8, 8)  # a block of frame tiles (w, h): HVVR's block beams (primary_rays --block-culling)
 VERTEX_FLOATS = 8  # position xyz, normal xyz, uv (gpu_scene.interleaved_vertices)
 # Least widening of a BVH box side (accel/bvh.py widen, the GPU refit): with the traversal's safe
 # inverse of a zero direction component (1 / 1e-20) it exceeds any distance in a scene.
@@ -155,6 +159,8 @@ def glsl_header() -> str:
             f"#define SSRT_RAY_GROUP {SSRT_RAY_GROUP}",
             f"#define DEFAULT_TILE_RAYS {TILE_RAYS}", f"#define DEFAULT_TILE_ENTRIES {TILE_ENTRIES}",
             f"#define TILE_W {TILE_PIXELS[0]}", f"#define TILE_H {TILE_PIXELS[1]}",
+            f"#define BLOCK_TILES_X {BLOCK_TILES[0]}", f"#define BLOCK_TILES_Y {BLOCK_TILES[1]}",
+            f"#define BLOCK_TILES {BLOCK_TILES[0] * BLOCK_TILES[1]}",  # a literal: local_size_x (GLSL 4.30)
             f"#define BVH_FACE_SLACK {BVH_FACE_SLACK!r}"]
     out += [f"#define BACKGROUND_EFFECT {BACKGROUND_EFFECT}u", f"#define MAX_EFFECT_ID {MAX_EFFECT_ID}",
             f"#define MATERIAL_PARAM_WORDS {PARAM_WORDS}"]

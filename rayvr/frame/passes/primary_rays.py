@@ -65,7 +65,7 @@ from ...accel.frustum import tile_grid
 from ...accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effect_registry import EFFECTS
 from ..graph import SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
-from ...gl.gpu_layout import IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_PIXELS, TILE_RAYS, channel
+from ...gl.gpu_layout import BLOCK_TILES, IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_PIXELS, TILE_RAYS, channel
 from ...options import Option, declare
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 
@@ -82,6 +82,12 @@ TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visi
                               commands=("capture", "preview", "info", "bench")))
 
 
+BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary visibility with tile culling first "
+                               "cuts the BVH per block of 8x8 tiles (HVVR's block beams: a frustum over the tiles' "
+                               "frusta), and each tile's cut starts from its block's entries instead of the root "
+                               "(the same hits, exact); auto: off until it measures faster on the H200",
+                               scope="plan", plan_field="block_culling", auto=True,
+                               implies=(("tile_culling", True),), commands=("capture", "preview", "info", "bench")))
 TILE_LIST_BOUNDS = (16, 32, 64, 128, 256, 512, 1024)  # triangles a tile's list may hold (a power of two: its sort)
 TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibility tests each 16x8-pixel tile's rays "
                             "against the tile's own list of at most N triangles (those of its frustum, nearest "
@@ -124,9 +130,16 @@ def culls_tiles(settings, camera: str = "pinhole") -> bool:
 
     if settings.tile_culling is not None:
         return settings.tile_culling
-    if settings.tile_lists:  # the lists start from the cull's entries
+    if settings.tile_lists or settings.block_culling:  # the lists and the blocks feed the cull's entries
         return True
     return settings.msaa > 1 and CAMERA_MODELS[camera].culls_tiles_by_default
+
+
+def culls_blocks(settings, camera: str = "pinhole") -> bool:
+    """Whether tile-culled ray-cast primaries of a `camera` model (its name) start each tile's cut
+    from its block's entries (block_culling). Auto (None) is off: blocks have not been timed on the
+    H200 yet (the tile cut from the root is what bench/results/h200 measured)."""
+    return bool(settings.block_culling)
 
 
 def tile_list_bound(settings, camera: str = "pinhole") -> int:
@@ -224,6 +237,17 @@ def frame_tiles(sizing) -> int:
     return nx * ny * sizing.layers
 
 
+def block_grid(width: int, height: int) -> tuple[int, int]:
+    """Blocks (across, down) of BLOCK_TILES tiles of a width x height image (edge blocks partial)."""
+    nx, ny = tile_grid(width, height)
+    return -(-nx // BLOCK_TILES[0]), -(-ny // BLOCK_TILES[1])
+
+
+def frame_blocks(sizing) -> int:
+    bx, by = block_grid(*sizing.size)
+    return bx * by * sizing.layers
+
+
 def msaa_slots(plan: FramePlan) -> int:
     return min(plan.samples, MAX_SLOTS)
 
@@ -269,6 +293,7 @@ class PrimaryRaysPass(Pass):
             return None
         sub = f", {plan.samples} sub-rays per sample ({plan.shading})" if plan.samples > 1 else ""
         tiles = ", tile frustum culling (bvh2)" if plan.tile_culling else ""
+        tiles += ", from 8x8-tile block beams" if plan.block_culling else ""
         tiles += f", tile triangle lists of {plan.tile_lists}" if plan.tile_lists else ""
         return f"primary visibility = rays ({plan.camera} camera{sub}{tiles})"
 
@@ -285,6 +310,11 @@ class PrimaryRaysPass(Pass):
             out += [write("tile_entries", Buffer(lambda s: frame_tiles(s) * (TILE_ENTRIES + 1) * 4,
                                                  f"{TILE_ENTRIES + 1} words per {TILE_RAYS}-pixel tile")),
                     write("tile_planes", Buffer(lambda s: frame_tiles(s) * 80, "5 planes per tile"))]
+        if plan.block_culling:
+            out += [write("tile_boxes", Buffer(lambda s: frame_tiles(s) * 48, "3 vec4 per tile")),
+                    write("block_entries", Buffer(lambda s: frame_blocks(s) * (TILE_ENTRIES + 1) * 4,
+                                                  f"{TILE_ENTRIES + 1} words per block of tiles")),
+                    write("block_planes", Buffer(lambda s: frame_blocks(s) * 80, "5 planes per block"))]
         if plan.share_channels:
             out += [write("channel_probe", CHANNEL_PROBE), write("channel_match", CHANNEL_MATCH)]
         if plan.tile_lists:
@@ -315,9 +345,19 @@ class PrimaryRaysPass(Pass):
         self.samples = (shaders.compute(gl.ctx, "rt/tile_samples.comp",
                                         {**base, "SAMPLE_MODE": int(self.msaa), "SAMPLE_GROUP": self.group})
                         if plan.tile_lists else None)
-        self.cull = (shaders.compute(gl.ctx, "accel/tile_cull.comp", {**layout_defines(DEFAULT_BINDING, "bvh2"),
-                                                                     **camera_defines(plan), **tiles, "TILE_CAMERA": 1})
-                     if plan.tile_culling else None)
+        # The cull's kernels: tile frusta and cuts from the root in one (tile_cull.comp's TILE_STAGE 0), or
+        # with block culling the tile frusta (stage 1), the blocks' cuts (block_cull.comp), the tiles'
+        # cuts from their blocks' entries (stage 2).
+        cull = {**layout_defines(DEFAULT_BINDING, "bvh2"), **camera_defines(plan), **tiles, "TILE_CAMERA": 1}
+        blocks = {"TILE_BOXES_BINDING": SSBO["tile_boxes"], "BLOCK_ENTRIES_BINDING": SSBO["block_entries"],
+                  "BLOCK_PLANES_BINDING": SSBO["block_planes"]}
+        self.cull = {}
+        if plan.tile_culling and plan.block_culling:
+            self.cull = {"beams": shaders.compute(gl.ctx, "accel/tile_cull.comp", {**cull, **blocks, "TILE_STAGE": 1}),
+                         "blocks": shaders.compute(gl.ctx, "accel/block_cull.comp", {**cull, **blocks}),
+                         "cull": shaders.compute(gl.ctx, "accel/tile_cull.comp", {**cull, **blocks, "TILE_STAGE": 2})}
+        elif plan.tile_culling:
+            self.cull = {"cull": shaders.compute(gl.ctx, "accel/tile_cull.comp", cull)}
         self.lists = (shaders.compute(gl.ctx, "accel/tile_tris.comp", {**layout_defines(DEFAULT_BINDING, "bvh2"),
                                                                       **tiles, **lists})
                       if plan.tile_lists else None)
@@ -339,7 +379,7 @@ class PrimaryRaysPass(Pass):
             gb.textures[name].bind_to_image(channel(name).image, read=False, write=True)
         if "sample_weight" in fc.resources:
             fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=False, write=True)
-        if self.cull is not None:
+        if self.cull:
             self.cull_tiles(fc)
         if not self.msaa:
             if rnd.first:  # SSAA: one round per sub-ray; 1x: one
@@ -407,13 +447,24 @@ class PrimaryRaysPass(Pass):
         fc.resource("tile_planes").bind_to_storage_buffer(SSBO["tile_planes"])
         if self.lists is not None:
             fc.resource("tile_tris").bind_to_storage_buffer(SSBO["tile_tris"])
+        if "blocks" in self.cull:
+            for name in ("tile_boxes", "block_entries", "block_planes"):
+                fc.resource(name).bind_to_storage_buffer(SSBO[name])
         if not fc.round.first:
             return
-        set_eye_uniforms(self.cull, fc)
-        self.cull["image_size"].value = tuple(fc.sizing.size)
         nx, ny = tile_grid(*fc.sizing.size)
-        fc.stage("cull", lambda: (self.cull.run(nx, ny, fc.sizing.layers),
-                                  fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)))
+        layers, barrier = fc.sizing.layers, lambda: fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+        if "beams" in self.cull:   # HVVR's block beams: tile frusta, the blocks' cuts, then the tiles'
+            beams, blocks = self.cull["beams"], self.cull["blocks"]
+            set_eye_uniforms(beams, fc)
+            beams["image_size"].value = tuple(fc.sizing.size)
+            blocks["tile_count"].value = (nx, ny)
+            fc.stage("beams", lambda: (beams.run(nx, ny, layers), barrier()))
+            fc.stage("blocks", lambda: (blocks.run(*block_grid(*fc.sizing.size), layers), barrier()))
+        else:
+            set_eye_uniforms(self.cull["cull"], fc)
+            self.cull["cull"]["image_size"].value = tuple(fc.sizing.size)
+        fc.stage("cull", lambda: (self.cull["cull"].run(nx, ny, layers), barrier()))
         if self.lists is not None:  # each tile's triangles, from its entries (HVVR's tile beams)
             fc.stage("lists", lambda: (self.lists.run(nx, ny, fc.sizing.layers),
                                        fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)))
@@ -437,5 +488,5 @@ class PrimaryRaysPass(Pass):
 
     def release(self) -> None:
         for p in [*self.programs.values(), *self.sample_tests(), *self.count_io, *self.fences.values(),
-                  *([self.cull] if self.cull else []), *([self.lists] if self.lists else [])]:
+                  *self.cull.values(), *([self.lists] if self.lists else [])]:
             p.release()

@@ -22,6 +22,16 @@
 // over a half-space or more (min d.c <= TILE_MIN_COS) is not culled: its list is the root's children.
 // Words per tile: [count, entry 0 .. entry TILE_ENTRIES-1]; count 0 for a tile with no valid ray.
 // Entries are listed front to back along c (TILE_SORT; 0: tree order, for measuring the difference).
+// The cut itself: tile_cut.glsl.
+//
+// TILE_STAGE (HVVR's block beams, frame/passes/primary_rays.py block culling):
+//   0  the frustum, then the cut from the BVH root (one kernel; ray buffers, and frames without blocks);
+//   1  the frustum only (camera tiles): tile_planes, and tile_boxes for the block's beam (3 vec4 a
+//      tile: the origins' box with w = the largest tmax |d|, its top, the widened slopes (min su,
+//      max su, min sv, max sv) about c in the frame u, v below); accel/block_cull.comp follows;
+//   2  the cut only, a workgroup of TILE_ENTRIES invocations: the tile's planes from tile_planes, its
+//      start list the entries of its block (block_cull.comp's cut, BLOCK_ENTRIES_BINDING) whose boxes
+//      meet the tile's frustum instead of the root's children.
 #include "../layout.glsl"
 #ifndef TILE_RAYS
 #define TILE_RAYS DEFAULT_TILE_RAYS
@@ -34,16 +44,37 @@
 #ifndef RAYS_BINDING
 #define RAYS_BINDING 10
 #endif
+#ifndef TILE_STAGE
+#define TILE_STAGE 0
+#endif
+#ifndef TILE_BOXES_BINDING
+#define TILE_BOXES_BINDING SSBO_TILE_BOXES
+#define BLOCK_ENTRIES_BINDING SSBO_BLOCK_ENTRIES
+#endif
+#if TILE_STAGE == 2
+layout(local_size_x = TILE_ENTRIES) in;
+#else
 layout(local_size_x = TILE_RAYS) in;
+#endif
 
 #define TILE_CULL_WRITER 1   // declares tile_entries writable itself
 #include "bvh.glsl"
 #include "tile_frustum.glsl"
+#define CUT_ENTRIES TILE_ENTRIES
+#include "tile_cut.glsl"
 
 // TILE_MIN_COS: layout.glsl (rayvr/accel/frustum.py MIN_COS)
 
 layout(std430, binding = TILE_ENTRIES_BINDING) writeonly restrict buffer Entries { uint tile_entries[]; };
+#if TILE_STAGE == 2
+layout(std430, binding = TILE_PLANES_BINDING) readonly restrict buffer Planes { vec4 tile_planes[]; };
+layout(std430, binding = BLOCK_ENTRIES_BINDING) readonly restrict buffer BlockEntries { uint block_entries[]; };
+#else
 layout(std430, binding = TILE_PLANES_BINDING) writeonly restrict buffer Planes { vec4 tile_planes[]; };  // 5 a tile (tests)
+#endif
+#if TILE_STAGE == 1
+layout(std430, binding = TILE_BOXES_BINDING) writeonly restrict buffer Boxes { vec4 tile_boxes[]; };  // 3 a tile
+#endif
 
 #ifdef TILE_CAMERA
 #include "../common/camera.glsl"
@@ -78,15 +109,64 @@ bool tile_ray(uint lid, uint k, out Ray r) {
 }
 #endif
 
+#if TILE_STAGE == 1 && !defined(TILE_CAMERA)
+#error tile_cull.comp's TILE_STAGE 1 writes the boxes of camera tiles (TILE_CAMERA)
+#endif
 #if TILE_ENTRIES > TILE_RAYS
 #error tile_cull.comp tests a list's entries one an invocation: TILE_ENTRIES must be <= TILE_RAYS
 #endif
+
+#if TILE_STAGE == 2
+// The cut only (block culling): the tile's planes as stage 1 wrote them, the start list its block's
+// entries that meet them (the root's children where the tile was not culled).
+void main() {
+    uint lid = gl_LocalInvocationID.x;
+    uint tile = gl_WorkGroupID.x + gl_NumWorkGroups.x * (gl_WorkGroupID.y + gl_NumWorkGroups.y * gl_WorkGroupID.z);
+    uint base = tile * uint(TILE_ENTRIES + 1);
+    vec4 planes[5];
+    for (int k = 0; k < 5; ++k)
+        planes[k] = tile_planes[5u * tile + uint(k)];
+    if (planes[4] == vec4(0.0)) {    // no valid ray (the same for the whole group)
+        if (lid == 0u)
+            tile_entries[base] = 0u;
+        return;
+    }
+    bool fallback = planes[4] == vec4(0.0, 0.0, 0.0, 1.0);
+    // The tile's block (BLOCK_TILES_X x BLOCK_TILES_Y tiles) and its list (block_cull.comp).
+    uvec3 t = gl_WorkGroupID;
+    uvec2 blocks = (gl_NumWorkGroups.xy + uvec2(BLOCK_TILES_X, BLOCK_TILES_Y) - 1u) / uvec2(BLOCK_TILES_X, BLOCK_TILES_Y);
+    uint block = t.x / uint(BLOCK_TILES_X) + blocks.x * (t.y / uint(BLOCK_TILES_Y) + blocks.y * t.z);
+    uint bbase = block * uint(TILE_ENTRIES + 1), bn = block_entries[bbase];
+    bool meets = false;
+    if (lid < bn && !fallback) {
+        vec3 lo, hi;
+        cut_entry_box(block_entries[bbase + 1u + lid], lo, hi);
+        meets = frustum_overlaps(planes, lo, hi);
+    }
+    cut_children[lid] = uvec2(meets ? 1u : 0u, 0u);
+    barrier();
+    if (lid == 0u) {
+        if (fallback || bn == 0u) {   // a tile not culled, or (never for a tile with a ray) an empty block
+            cut_start_at_root(planes, fallback);
+        } else {
+            int count = 0;
+            for (uint k = 0u; k < bn; ++k)
+                if (cut_children[k].x != 0u)
+                    cut[0][count++] = block_entries[bbase + 1u + k];
+            cut_count = count;
+            cut_opened = true;
+        }
+    }
+    barrier();
+    int cur = beam_cut(lid, planes, planes[4].xyz);
+    int count = cut_count;
+    if (lid == 0u)
+        tile_entries[base] = uint(count);
+    if (lid < uint(count))
+        tile_entries[base + 1u + lid] = cut[cur][lid];
+}
+#else
 shared vec4 red[TILE_RAYS];
-shared uint cut[2][TILE_ENTRIES];     // the list, and the next sweep's
-shared uvec2 cut_children[TILE_ENTRIES];  // per entry: which children meet the frustum (4: a leaf), child node
-shared float cut_key[TILE_ENTRIES];   // per entry: its box's nearest c.x (TILE_SORT)
-shared int cut_count;
-shared bool cut_opened;
 
 // red[0] = op over the group of every invocation's x (op: 0 sum, 1 min, 2 max).
 #define REDUCE(x, op) { \
@@ -144,7 +224,7 @@ void main() {
         float su = dot(dn, u) / dc, sv = dot(dn, v) / dc;
         float far = dot(c, r.origin) + r.tmax * dot(c, r.direction);
         lo_acc = min(lo_acc, vec4(dc, su, -su, sv));
-        hi_acc = max(hi_acc, vec4(sv, far, dot(abs(r.origin), vec3(1.0)), 0.0));
+        hi_acc = max(hi_acc, vec4(sv, far, dot(abs(r.origin), vec3(1.0)), r.tmax * length(r.direction)));
     }
     REDUCE(lo_acc, 1)
     vec4 mins = red[0];
@@ -182,102 +262,29 @@ void main() {
     planes[4] = vec4(c, maxs.y + TILE_SLACK * (abs(maxs.y) + maxs.z));
     if (lid < 5u)
         tile_planes[5u * tile + lid] = sum.w == 0.0 ? vec4(0.0) : (fallback ? vec4(0.0, 0.0, 0.0, 1.0) : planes[lid]);
+#if TILE_STAGE == 1
+    // the block's beam reads the origins' box, how far the rays reach, and the widened slopes
+    if (lid == 0u) {
+        tile_boxes[3u * tile] = vec4(box_lo, maxs.w);
+        tile_boxes[3u * tile + 1u] = vec4(box_hi, 0.0);
+        tile_boxes[3u * tile + 2u] = vec4(mins.y - TILE_SLACK * (1.0 + abs(mins.y)), -mins.z + TILE_SLACK * (1.0 + abs(mins.z)),
+                                          mins.w - TILE_SLACK * (1.0 + abs(mins.w)), maxs.x + TILE_SLACK * (1.0 + abs(maxs.x)));
+    }
+#else
     if (sum.w == 0.0) {              // no valid ray: nothing to trace (the same for the whole group)
         if (lid == 0u)
             tile_entries[base] = 0u;
         return;
     }
-    // The cut: start at the root's children, then sweep the list left to right opening internal
-    // entries into their children that meet the frustum while the list has room; stop when a sweep
-    // opens nothing. Each sweep tests every entry's children at once (invocation k: entry k; their
-    // node fetches overlap), then invocation 0 builds the next list from those answers.
-    // Left-to-right order is kept, so entries stay in tree order (sorted below).
-    if (lid == 0u) {
-        int count = 0;
-        for (int side = 0; side < 2; ++side) {
-            vec3 lo, hi;
-            bvh2_child_box(bvh_nodes[0], bvh_nodes[1], bvh_nodes[2], side, lo, hi);
-            if (fallback || frustum_overlaps(planes, lo, hi))
-                cut[0][count++] = uint(side);
-        }
-        cut_count = count;
-        cut_opened = !fallback;
-    }
+    if (lid == 0u)
+        cut_start_at_root(planes, fallback);
     barrier();
-    int cur = 0;
-    while (cut_opened) {             // dynamically uniform: shared, read after a barrier
-        int count = cut_count;
-        if (lid < uint(count)) {
-            uint e = cut[cur][lid];
-            ivec4 m = floatBitsToInt(bvh_nodes[4 * int(e >> 1u) + 3]);
-            bool left = (e & 1u) == 0u;
-            int index = left ? m.x : m.y, cnt = left ? m.z : m.w;
-            uint bits = 4u;          // a leaf: kept as it is
-            if (cnt == 0) {
-                bits = 0u;
-                vec4 n0 = bvh_nodes[4 * index], n1 = bvh_nodes[4 * index + 1], n2 = bvh_nodes[4 * index + 2];
-                for (int cs = 0; cs < 2; ++cs) {
-                    vec3 lo, hi;
-                    bvh2_child_box(n0, n1, n2, cs, lo, hi);
-                    bits |= frustum_overlaps(planes, lo, hi) ? 1u << uint(cs) : 0u;
-                }
-            }
-            cut_children[lid] = uvec2(bits, uint(index));
-        }
-        barrier();
-        if (lid == 0u) {
-            bool opened = false;
-            int out_n = 0;
-            for (int k = 0; k < count; ++k) {
-                uvec2 ch = cut_children[k];
-                // room: this entry's slot plus one more, and one slot for each entry still to copy
-                if (ch.x == 4u || out_n + 2 + (count - k - 1) > TILE_ENTRIES) {
-                    cut[1 - cur][out_n++] = cut[cur][k];
-                    continue;
-                }
-                opened = true;
-                for (uint cs = 0u; cs < 2u; ++cs)
-                    if ((ch.x & (1u << cs)) != 0u)
-                        cut[1 - cur][out_n++] = (ch.y << 1u) | cs;
-            }
-            cut_count = out_n;
-            cut_opened = opened;
-        }
-        barrier();
-        cur = 1 - cur;
-    }
+    int cur = beam_cut(lid, planes, c);
     int count = cut_count;
-#if TILE_SORT
-    // Front to back: by the entry box's nearest point along the central direction, min over the box
-    // of c.x (keys at once, then a stable insertion sort; equal keys keep tree order). A ray then
-    // meets near entries first, its h.t shrinks early and farther entries fail their slab test, or
-    // end its walk (bvh2.glsl bvh_traverse_entries). The hits cannot change: the leaf test's tie
-    // rule (bvh.glsl bvh_test_triangle) makes them independent of the order.
-    if (lid < uint(count)) {
-        uint e = cut[cur][lid];
-        int parent = int(e >> 1u);
-        vec3 lo, hi;
-        bvh2_child_box(bvh_nodes[4 * parent], bvh_nodes[4 * parent + 1], bvh_nodes[4 * parent + 2], int(e & 1u), lo, hi);
-        cut_key[lid] = dot(c, 0.5 * (lo + hi)) - dot(abs(c), 0.5 * (hi - lo));
-    }
-    barrier();
-    if (lid == 0u) {
-        for (int k = 1; k < count; ++k) {
-            uint e = cut[cur][k];
-            float kk = cut_key[k];
-            int j = k;
-            for (; j > 0 && cut_key[j - 1] > kk; --j) {
-                cut_key[j] = cut_key[j - 1];
-                cut[cur][j] = cut[cur][j - 1];
-            }
-            cut_key[j] = kk;
-            cut[cur][j] = e;
-        }
-    }
-    barrier();
-#endif
     if (lid == 0u)
         tile_entries[base] = uint(count);
     if (lid < uint(count))
         tile_entries[base + 1u + lid] = cut[cur][lid];
+#endif
 }
+#endif

@@ -33,6 +33,16 @@
 // Tiles whose list overflowed (TILE_OVERFLOW) or that were not culled are left to rt/primary.comp with
 // TILE_LIST_OVERFLOW 1, per ray from their entries.
 #include "../layout.glsl"
+#ifndef TILE_TRIS                 // the pass sets them (frame/passes/primary_rays.py)
+#define TILE_TRIS DEFAULT_TILE_TRIS
+#define TILE_TRIS_BINDING SSBO_TILE_TRIS
+#endif
+#ifndef TILE_ENTRIES_BINDING
+#define TILE_RAYS DEFAULT_TILE_RAYS
+#define TILE_ENTRIES DEFAULT_TILE_ENTRIES
+#define TILE_ENTRIES_BINDING SSBO_TILE_ENTRIES
+#define TILE_PLANES_BINDING SSBO_TILE_PLANES
+#endif
 #ifndef SAMPLE_MODE
 #define SAMPLE_MODE 0
 #endif
