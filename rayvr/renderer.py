@@ -175,7 +175,7 @@ class Renderer:
                          tile_culling=culled, tile_lists=primary_rays.tile_list_bound(st, camera.name) if culled else 0,
                          block_culling=culled and primary_rays.culls_blocks(st, camera.name),
                          share_channels=primary == "rays" and primary_rays.shares_channels(
-                             st, camera, samples, self.effects_in_use(), culled, view),
+                             st, camera, samples, self.effects_in_use(), view),
                          channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots,
                          light_picks=st.light_picks, ray_order=st.ray_order, persistent=st.persistent == "on")
 

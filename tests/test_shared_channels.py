@@ -57,6 +57,41 @@ def test_shared_shading_costs_little_image_error(room):
     assert 0.0 < error < 0.02, error   # at this size a channel's offset is a large part of a pixel
 
 
+@pytest.mark.parametrize("culling", [dict(tile_culling=True), dict(tile_lists=64), dict(block_culling=True, tile_lists=64)],
+                         ids=["entries", "lists", "blocks and lists"])
+def test_tile_culled_shared_frames_equal_the_per_ray_shared_frame(room, culling):
+    """With tile culling the frame's one cull bounds all three channel sets' rays, which the probe,
+    red's and blue's casts start from (their entries, or the lists through tile_samples.comp): the
+    same frame and the same channel matches as per-ray traversal from the root."""
+    shared, match = frame(room, CHROMATIC, tile_culling=False)
+    culled, culled_match = frame(room, CHROMATIC, **culling)
+    assert room.plan(camera=CHROMATIC).tile_culling and room.plan(camera=CHROMATIC).share_channels
+    assert 0.9 < (match & 1).astype(bool).mean() < 1.0
+    assert np.array_equal(match, culled_match) and np.array_equal(shared, culled)
+
+
+def test_the_shared_cull_bounds_every_channel_sets_rays(room):
+    """The frame's one cull (CULL_CHANNELS 3): every channel set's ray lies inside the planes the GPU
+    wrote for its tile (one set's planes would leave the others' rays at the tiles' edges out)."""
+    from test_tile_culling_frame import gl_tile_rays
+
+    from rayvr.accel.frustum import tile_grid
+
+    frame(room, CHROMATIC, tile_culling=True)
+    rig = StereoRig.for_scene(room.scene, size=SIZE, camera=CHROMATIC)
+    nx, ny = tile_grid(*SIZE)
+    planes = np.frombuffer(room.resource("tile_planes").read(), np.float32)[:2 * nx * ny * 20].reshape(-1, 5, 4)
+    outside = 0.0
+    for eye in range(2):
+        for channel in range(3):
+            for t, (o, d) in gl_tile_rays(room, rig, eye, channel, 1).items():
+                pl = planes[eye * nx * ny + t].astype(np.float64)
+                p = o + 3.0 * d
+                side = p @ pl[:4, :3].T - pl[:4, 3] - 1e-5 * (1 + np.abs(p).sum(1, keepdims=True))
+                outside = max(outside, side.max())
+    assert outside <= 0.0, outside
+
+
 def test_only_frames_it_serves_share(room):
     def shares(camera=CHROMATIC, **settings):
         room.settings = RenderSettings(primary="rays", **settings)
@@ -65,7 +100,7 @@ def test_only_frames_it_serves_share(room):
     assert shares() and not shares(share_channel_shading=False)
     assert not shares(camera=Pinhole())                 # one channel set
     assert not shares(msaa=4)                           # MSAA rounds are per slot (not shared yet)
-    assert not shares(tile_culling=True)                # the entries bound one channel set's rays
+    assert shares(tile_culling=True) and shares(tile_lists=64)   # the one cull bounds every set's rays
     with Renderer(None, MaterialConfig(default="ssr"), gl=room.gl) as r:   # reads neighbours' G-buffer
         r.settings = RenderSettings(primary="rays")
         # ... through the pinhole's quadtree, which a distorted camera has none of: refused outright

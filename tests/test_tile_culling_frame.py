@@ -28,7 +28,7 @@ CASES = {
 
 def render(r, rig, samples, culled):
     """(triangle IDs of both eyes, colour of both eyes, the frame's tile lists or None)."""
-    # share_channel_shading off: tile culling turns it off (tests/test_shared_channels.py), the reference must not differ by it
+    # share_channel_shading off: every channel set culled and cast on its own (tests/test_shared_channels.py has it on)
     r.settings = RenderSettings(primary="rays", msaa=samples, tile_culling=culled, share_channel_shading=False)
     f = r.render(rig, aux=("triangle",))
     lists = None

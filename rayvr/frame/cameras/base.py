@@ -33,7 +33,8 @@ generated header (layout.glsl), which every program compiled afterwards sees.
 
 Per-colour-channel sample sets (HMD chromatic pre-correction, HVVR's split-colour samples):
 `channels` C > 1 makes the frame cast its primary rays once per channel (`rays(eye, channel=c)`,
-GLSL uniform camera_channel) and take channel c of each set's colour (frame/passes/sample_accumulate.py).
+GLSL camera_sample_channel(), which a model's GLSL reads: the uniform camera_channel, or the set a
+kernel making several sets' rays names) and take channel c of each set's colour (frame/passes/sample_accumulate.py).
 """
 from __future__ import annotations
 

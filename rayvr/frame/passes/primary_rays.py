@@ -150,12 +150,12 @@ def tile_list_bound(settings, camera: str = "pinhole") -> int:
     return 0
 
 
-def shares_channels(settings, camera, samples: int, effects, culled: bool, view: str) -> bool:
+def shares_channels(settings, camera, samples: int, effects, view: str) -> bool:
     """Whether a frame's red and blue rounds take green's shading where they hit its triangle: a
-    camera of three channel sets, one sub-ray per sample, the colour view, no tile culling (its
-    entries bound one channel set's rays, not green's too), and no effect that reads other pixels'
-    G-buffer in a round (the quadtree's: a skipped pixel's G-buffer is an earlier round's)."""
-    return (settings.share_channel_shading and camera.channels == 3 and samples == 1 and not culled
+    camera of three channel sets, one sub-ray per sample, the colour view, and no effect that reads
+    other pixels' G-buffer in a round (the quadtree's: a skipped pixel's G-buffer is an earlier
+    round's). With tile culling the frame's one cull bounds all three sets' rays (CULL_CHANNELS)."""
+    return (settings.share_channel_shading and camera.channels == 3 and samples == 1
             and view == "color" and not any(EFFECTS[e].uses_quadtree for e in effects if e in EFFECTS))
 
 
@@ -348,7 +348,9 @@ class PrimaryRaysPass(Pass):
         # The cull's kernels: tile frusta and cuts from the root in one (tile_cull.comp's TILE_STAGE 0), or
         # with block culling the tile frusta (stage 1), the blocks' cuts (block_cull.comp), the tiles'
         # cuts from their blocks' entries (stage 2).
-        cull = {**layout_defines(DEFAULT_BINDING, "bvh2"), **camera_defines(plan), **tiles, "TILE_CAMERA": 1}
+        # With shared channel shading the cull bounds every channel set's rays: all three casts read it.
+        cull = {**layout_defines(DEFAULT_BINDING, "bvh2"), **camera_defines(plan), **tiles, "TILE_CAMERA": 1,
+                "CULL_CHANNELS": plan.channels if plan.share_channels else 1}
         blocks = {"TILE_BOXES_BINDING": SSBO["tile_boxes"], "BLOCK_ENTRIES_BINDING": SSBO["block_entries"],
                   "BLOCK_PLANES_BINDING": SSBO["block_planes"]}
         self.cull = {}
@@ -411,16 +413,20 @@ class PrimaryRaysPass(Pass):
         channel_probe; the red and blue rounds then compare (share_mode 2, glsl/rt/primary.comp);
         green's, last, takes its visibility from the probe (share_mode 3) and sample_accumulate
         gives its colour to the channels that matched."""
-        program, rnd = self.programs[0], fc.round
+        rnd, casts = fc.round, [self.programs[0], *self.sample_tests()]
         fc.resource("channel_probe").bind_to_image(IMAGE["channel_probe"], read=True, write=True)
         fc.resource("channel_match").bind_to_image(IMAGE["channel_match"], read=True, write=True)
+
+        def modes(channel: int, mode: int) -> None:
+            for program in casts:
+                program["camera_channel"].value = channel
+                program["share_mode"].value = mode
         if rnd.index == 0:
-            program["camera_channel"].value = SHARED_CHANNEL
-            program["share_mode"].value = 1
-            program["subsample"].value = 0
-            fc.stage("probe", lambda: dispatch_per_pixel(fc, program))
-            program["camera_channel"].value = rnd.channel
-        program["share_mode"].value = 3 if rnd.channel == SHARED_CHANNEL else 2
+            modes(SHARED_CHANNEL, 1)
+            for program in casts:
+                program["subsample"].value = 0
+            fc.stage("probe", lambda: (self.dispatch_sample_tests(fc), dispatch_per_pixel(fc, self.programs[0])))
+        modes(rnd.channel, 3 if rnd.channel == SHARED_CHANNEL else 2)
 
     def count_reader(self, fc, channel: int):
         """Round.start_polled's count(wait) for the channel set's count just copied to the readback."""
@@ -450,8 +456,8 @@ class PrimaryRaysPass(Pass):
         if "blocks" in self.cull:
             for name in ("tile_boxes", "block_entries", "block_planes"):
                 fc.resource(name).bind_to_storage_buffer(SSBO[name])
-        if not fc.round.first:
-            return
+        if not fc.round.first or (fc.plan.share_channels and fc.round.index > 0):
+            return   # one cull per channel set, or one for all of them (shared channel shading)
         nx, ny = tile_grid(*fc.sizing.size)
         layers, barrier = fc.sizing.layers, lambda: fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
         if "beams" in self.cull:   # HVVR's block beams: tile frusta, the blocks' cuts, then the tiles'

@@ -16,7 +16,7 @@ vec3 distorted_table(vec2 pixel, out bool valid) {
     for (int k = 0; k < 4; k++) {
         ivec2 c = ivec2(k & 1, k >> 1);
         ivec2 q = clamp(ivec2(p0) + c, ivec2(0), n - 1);
-        vec4 s = texelFetch(camera_sample_table, ivec3(q, camera_channel), 0);
+        vec4 s = texelFetch(camera_sample_table, ivec3(q, camera_sample_channel()), 0);
         float w = (c.x == 1 ? a.x : 1.0 - a.x) * (c.y == 1 ? a.y : 1.0 - a.y) * s.w;
         v += w * s.xyz;
         total += w;
@@ -34,7 +34,7 @@ bool camera_ray_at(int eye, vec2 pixel, vec2 size, vec2 lens, out vec3 origin, o
     } else {
         vec4 t = eye_tangents[eye];
         vec2 q = mix(t.xz, t.yw, pixel / size) - camera_lens_center[eye];
-        vec3 k = camera_lens_k[camera_channel];
+        vec3 k = camera_lens_k[camera_sample_channel()];
         float r2 = dot(q, q);
         v = vec3(camera_lens_center[eye] + q * (1.0 + r2 * (k.x + r2 * (k.y + r2 * k.z))), -1.0);
     }
@@ -44,5 +44,5 @@ bool camera_ray_at(int eye, vec2 pixel, vec2 size, vec2 lens, out vec3 origin, o
 
 float camera_footprint(int eye, vec2 pixel, vec2 size) {
     if (camera_use_table == 0) return 1.0;
-    return texelFetch(camera_sample_table, ivec3(ivec2(pixel), camera_channel), 0).w;
+    return texelFetch(camera_sample_table, ivec3(ivec2(pixel), camera_sample_channel()), 0).w;
 }

@@ -12,6 +12,11 @@ uniform mat3 eye_rotation[2];  // camera-to-world; columns right, up, back
 uniform vec4 eye_tangents[2];  // frustum tangents: left, right, bottom, top
 uniform vec2 eye_depth;        // near, far (0: infinite far plane)
 uniform int camera_channel;    // the colour channel set this frame round samples (CameraModel.channels)
+// A kernel that makes several channel sets' rays (the tile cull of a frame with shared channel
+// shading, frame/passes/primary_rays.py) names the set it makes now here; -1: camera_channel.
+int camera_channel_override = -1;
+// The colour channel set whose rays camera_ray_at makes: what a model with channels reads.
+int camera_sample_channel() { return camera_channel_override >= 0 ? camera_channel_override : camera_channel; }
 
 // One id per registered model, CAMERA_<NAME> = 1, 2, ... (layout.glsl: register_camera_model
 // declares them), so a shader may still ask which model it is built for.

@@ -55,20 +55,7 @@ shared float sub_t[MSAA_GROUP];    //   pixel-major: the block's pixel j has ent
 shared vec2 sub_offset[CAMERA_SUBSAMPLES];  // camera_subpixel(i), computed once per workgroup
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
-// SHARE_CHANNELS (PRIMARY_MODE 0, frame/passes/primary_rays.py shares_channels): share_mode 1 casts
-// the green channel into channel_probe (its triangle and distance: the frame's first round); 2, in
-// the red and blue rounds, leaves the pixels whose ray hits green's triangle to green (weight
-// ROUND_SKIPPED, no visibility written: common/round_skip.glsl) and marks them in channel_match
-// (bit = channel), whose colour sample_accumulate then takes from green's round; 3, green's round,
-// writes the probe's hits as its visibility instead of casting the same rays again.
-#ifndef SHARE_CHANNELS
-#define SHARE_CHANNELS 0
-#endif
-#if SHARE_CHANNELS
-layout(rg32ui, binding = IMAGE_CHANNEL_PROBE) uniform uimage2DArray img_probe;
-layout(r32ui, binding = IMAGE_CHANNEL_MATCH) uniform uimage2DArray img_match;
-uniform int share_mode;
-#endif
+// SHARE_CHANNELS (PRIMARY_MODE 0): rt/primary_out.glsl store_cast.
 uniform int msaa_round;  // PRIMARY_MODE 2
 
 // TILE_LIST_OVERFLOW 1 (with tile lists, frame/passes/primary_rays.py): cast only the tiles whose
@@ -169,8 +156,14 @@ void main() {
     ivec2 size = extent.xy;
     bool inside = all(lessThan(p.xy, size));
 #if TILE_LIST_OVERFLOW && PRIMARY_MODE != 2
-    // The group's pixels lie in one tile: the whole group leaves a tile with a list to tile_samples.comp.
-    if (tile_tris[primary_tile(p, size) * uint(TILE_TRIS + 1)].x != TILE_OVERFLOW)
+    // The group's pixels lie in one tile: the whole group leaves a tile with a list to tile_samples.comp
+    // (but for green's round with shared channel shading, which casts nothing: every tile is this one's).
+#if SHARE_CHANNELS
+    bool casts_nothing = share_mode == 3;
+#else
+    bool casts_nothing = false;
+#endif
+    if (tile_tris[primary_tile(p, size) * uint(TILE_TRIS + 1)].x != TILE_OVERFLOW && !casts_nothing)
         return;
 #endif
 #if PRIMARY_MODE != 0
@@ -213,25 +206,7 @@ void main() {
     bool valid = inside && camera_subray(p.z, pixel, vec2(size), uint(subsample), o, d);
     cast_primary(p, size, valid, o, d, h);
     if (!inside) return;
-    bool sample_here = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
-#if SHARE_CHANNELS
-    if (share_mode == 1) {
-        imageStore(img_probe, p, uvec4(h.prim, floatBitsToUint(h.t), 0u, 0u));
-        return;
-    }
-    if (share_mode == 2) {
-        // the same triangle (or both background) as green's ray: green's shading serves this channel
-        bool same = sample_here && imageLoad(img_probe, p).x == h.prim;
-        uint bits = camera_channel == 0 ? 0u : imageLoad(img_match, p).x;   // red's round is the first
-        imageStore(img_match, p, uvec4(bits | (same ? 1u << uint(camera_channel) : 0u)));
-        if (same) {
-            imageStore(img_weight, p, vec4(ROUND_SKIPPED));
-            return;
-        }
-    }
-#endif
-    // A pixel without a sample (foveated) weighs nothing: the resolve fills it for display.
-    store(p, h.prim, uint(subsample), h.t, sample_here ? weight : 0.0);
+    store_cast(p, camera_footprint(p.z, pixel, vec2(size)) > 0.0, h.prim, h.t, uint(subsample));
 #else
     if (!inside) return;
     int slot = msaa_round < 0 ? 0 : int(max(msaa_count, 1u)) - 1 - msaa_round;

@@ -171,6 +171,10 @@ void main() {
     uint n = tile_tris[head].x;
     if (n == TILE_OVERFLOW)
         return;   // the whole group: rt/primary.comp's TILE_LIST_OVERFLOW casts it
+#if SHARE_CHANNELS
+    if (share_mode == 3)
+        return;   // green's round with shared channel shading casts nothing: rt/primary.comp writes the probe's hits
+#endif
     bool inside = all(lessThan(p.xy, size));
     vec2 pixel = vec2(p.xy) + 0.5;
     vec3 c = tile_planes[5u * tile + 4u].xyz;
@@ -307,8 +311,7 @@ void main() {
 #if SAMPLE_MODE == 0
     if (!inside)
         return;
-    bool sample_here = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
-    store(p, sub_tri[SUB(0)], uint(subsample), sub_t[SUB(0)], sample_here ? 1.0 / float(CAMERA_SUBSAMPLES) : 0.0);
+    store_cast(p, camera_footprint(p.z, pixel, vec2(size)) > 0.0, sub_tri[SUB(0)], sub_t[SUB(0)], uint(subsample));
 #else
     uint count = 0u;
     if (inside)
