@@ -58,7 +58,7 @@ def _md_cells(md: str) -> dict:
         if line.startswith("## "):
             scene = line[3:].strip()
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if scene and line.startswith("|") and len(cells) == 12 and cells[4].isdigit():
+        if scene and line.startswith("|") and len(cells) == 13 and cells[4].isdigit():
             key = (scene, cells[0], cells[1], cells[2], int(cells[4]))
             out[key] = (float(cells[6]), float(cells[7]), float(cells[8]), int(cells[9]))
     return out
@@ -185,6 +185,38 @@ def test_variants_name_their_rows_and_reach_the_settings(tmp_path, gl):
     culled = {r["variant"]: r["tile_culling"] for r in result["rows"]}
     assert culled == {"default": True, "per_ray": False}
     assert json.loads((tmp_path / "vr.json").read_text())["meta"]["variants"]["per_ray"] == {"tile_culling": False}
+
+
+def test_the_variants_flag_parses_named_options_and_refuses_bad_ones():
+    """--variants "NAME:option=value,...;...": values parsed and checked by their render options,
+    each variant on top of the render flags given; a bad spec is one line naming the variant."""
+    import argparse
+
+    from rayvr.cli import build_parser
+    from rayvr.commands.bench import _variants
+
+    got = _variants("entries:; lists:tile_lists=256 ;blocks:block_culling=on,tile_lists=64")
+    assert got == {"entries": {}, "lists": {"tile_lists": 256}, "blocks": {"block_culling": True, "tile_lists": 64}}
+    for bad, words in (("lists:tile_lists=100", "lists"), ("x:no_such=1", "render option"),
+                       ("a:;a:", "its own name"), ("blocks:block_culling=maybe", "on or off"), (";", "at least one")):
+        with pytest.raises(argparse.ArgumentTypeError, match=words):
+            _variants(bad)
+    args = build_parser().parse_args(["bench", "vr", "--variants", "plain:;lists:tile_lists=64", "--msaa", "4"])
+    assert args.variants == {"plain": {}, "lists": {"tile_lists": 64}}
+
+
+def test_rows_carry_the_primary_visibility_stages(tmp_path, gl):
+    """Each ray-cast row times the primary_rays kernels one by one: the tile-list variant's stages
+    are the cull, the lists and the trace; the raster row has none."""
+    from rayvr.bench import vr
+
+    result = vr.run(tmp_path, size=(16, 12), scenes=("default",), poses=1, cameras=("raster_gbuffer", "pinhole"),
+                    counts=(1, 4), configs=("shadows",), variants={"lists": {"tile_lists": 64}}, repeat=1, warmup=1,
+                    progress=False, gl=gl)
+    stages = {(r["camera"], r["msaa"]): set(r["primary_stages"]) for r in result["rows"]}
+    assert stages[("raster_gbuffer", 1)] == set()
+    assert {"cull", "lists", "trace", "select"} <= stages[("pinhole", 4)] and "cast" in stages[("pinhole", 1)]
+    assert "primary_rays stages" in (tmp_path / "vr.md").read_text()
 
 
 def test_rows_of_scenes_and_configs_not_measured_stay(tmp_path, gl):

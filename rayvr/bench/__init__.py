@@ -193,6 +193,10 @@ def _vr(args, out, camera_from_args):
     wave = wavefront_variants(args)  # --ray-order, --persistent: a variant per pair, with those flags
     if wave is not None:
         variants = {",".join(filter(None, (given, name))): {**fields, **w} for name, w in wave.items()}
+    named = getattr(args, "variants", None)  # --variants: each on top of the above (or of the flags)
+    if named:
+        base = variants or {given: fields}
+        variants = {",".join(filter(None, (b, name))): {**bf, **v} for b, bf in base.items() for name, v in named.items()}
     vr.run(out, size=quick.get("size", args.size), scenes=_scenes(args),
            poses=args.poses if args.poses is not None else quick.get("poses", vr.POSES), pose_seed=args.pose_seed,
            cameras=args.cameras or quick.get("cameras", vr.CAMERAS),

@@ -115,11 +115,27 @@ def materials_config(gl, config: str, name: str, scene, rig, budget_ms: float, p
                     "picked_on": "the bench view (pinhole, default render settings)", **pick}
 
 
+STAGE_FRAMES = 3  # frames timed kernel by kernel for the primary visibility's stages
+
+
+def primary_stages(r: Renderer, rig: StereoRig) -> dict:
+    """Median GPU ms of each kernel of the primary_rays pass ("cull", "lists", "trace", ...), summed
+    over a frame's rounds, over STAGE_FRAMES frames timed kernel by kernel (GL timer queries)."""
+    ms: dict = {}
+    for _ in range(STAGE_FRAMES):
+        fc = r.record(rig, "both", "color", profile=True)
+        for name, v in r.read_ms(fc).items():
+            if name.startswith("primary_rays."):
+                ms.setdefault(name.split(".", 1)[1], []).append(v)
+    return {k: float(np.median(v)) for k, v in ms.items()}
+
+
 def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: float) -> dict:
     names, med, total = time_frame(r, rig, repeat, warmup, warmup_s)
     passes = {k: med[k] for k in names if k in med}
     visibility = passes.get("visibility", 0.0) + passes.get("primary_rays", 0.0) + passes.get("gbuffer", 0.0)
-    return {"frame_ms": total, "visibility_ms": visibility, "passes": passes}
+    stages = primary_stages(r, rig) if "primary_rays" in passes else {}
+    return {"frame_ms": total, "visibility_ms": visibility, "passes": passes, "primary_stages": stages}
 
 
 def kept_rows(path: Path, meta: dict, measured: set) -> tuple[list, dict]:
@@ -147,12 +163,14 @@ def spread(rows) -> list[dict]:
         frame = [g["frame_ms"] for g in group]
         worst = group[int(np.argmax(frame))]
         passes = {k: float(np.median([g["passes"].get(k, 0.0) for g in group])) for k in group[0]["passes"]}
+        stages = {k: float(np.median([g.get("primary_stages", {}).get(k, 0.0) for g in group]))
+                  for k in group[0].get("primary_stages", {})}
         out.append({"scene": scene, "config": config, "variant": variant, "camera": camera, "msaa": msaa,
                     "primary": group[0]["primary"], "poses": len(group), "median_ms": float(np.median(frame)),
                     "worst_ms": max(frame), "best_ms": min(frame), "worst_pose": worst["pose"]["index"],
                     "visibility_median_ms": float(np.median([g["visibility_ms"] for g in group])),
                     "visibility_worst_ms": max(g["visibility_ms"] for g in group),
-                    "passes": dict(sorted(passes.items(), key=lambda kv: -kv[1]))})
+                    "passes": dict(sorted(passes.items(), key=lambda kv: -kv[1])), "primary_stages": stages})
     return out
 
 
@@ -244,13 +262,15 @@ def markdown(result: dict) -> str:
                       f"{pick['base']}: measured {pick['measured_ms']:.2f} ms there ({fit}); "
                       + "; ".join(f"{e}: {', '.join(sorted(m))}" for e, m in sorted(by_effect.items())) + ".", ""]
         lines += ["| config | variant | camera | primary | MSAA | poses | median ms | worst ms | best ms | worst pose "
-                  "| visibility median / worst ms | top passes (median ms) |", "|" + "---|" * 12]
+                  "| visibility median / worst ms | top passes (median ms) | primary_rays stages (median ms) |",
+                  "|" + "---|" * 13]
         for s in (s for s in summary if s["scene"] == scene):
             top = ", ".join(f"{k} {v:.3f}" for k, v in list(s["passes"].items())[:TOP_PASSES])
+            stages = ", ".join(f"{k} {v:.3f}" for k, v in s.get("primary_stages", {}).items()) or "-"
             lines.append(f"| {s['config']} | {s['variant']} | {s['camera']} | {s['primary']} | {s['msaa']} | "
                          f"{s['poses']} | {s['median_ms']:.3f} | {s['worst_ms']:.3f} | {s['best_ms']:.3f} | "
                          f"{s['worst_pose']} | {s['visibility_median_ms']:.3f} / {s['visibility_worst_ms']:.3f} | "
-                         f"{top} |")
+                         f"{top} | {stages} |")
         lines.append("")
         judged = [t for t in targets(rows, meta["per_eye_size"]) if t["scene"] == scene]
         if judged:

@@ -50,6 +50,41 @@ def _layouts(text: str) -> tuple[str, ...]:
     return _among(text, "BVH layouts", BVH_LAYOUTS)
 
 
+BOOL_WORDS = {"true": True, "on": True, "yes": True, "1": True, "false": False, "off": False, "no": False, "0": False}
+
+
+def _variants(text: str) -> dict:
+    """bench vr --variants "NAME:option=value,option=value;NAME2:..." -> {name: {field: value}}, each
+    value parsed and checked by its render option (an empty list of options: the settings as given)."""
+    known, out = settings_mod.all_options(), {}
+    for part in filter(None, (p.strip() for p in text.split(";"))):
+        name, sep, fields = part.partition(":")
+        name = name.strip()
+        if not sep or not name or name in out:
+            raise argparse.ArgumentTypeError(f"--variants: each variant is NAME:option=value,... with its own "
+                                             f"name, got {part!r}")
+        out[name] = {}
+        for item in filter(None, (f.strip() for f in fields.split(","))):
+            key, eq, value = item.partition("=")
+            option = known.get(key.strip().replace("-", "_"))
+            if not eq or option is None:
+                raise argparse.ArgumentTypeError(f"--variants {name}: {item!r} is not option=value with a render "
+                                                 f"option (rayvr options lists them)")
+            value = value.strip()
+            try:
+                if option.type is bool:
+                    if value.lower() not in BOOL_WORDS:
+                        raise ValueError(f"{option.name} is on or off, got {value!r}")
+                    out[name][option.name] = BOOL_WORDS[value.lower()]
+                else:
+                    out[name][option.name] = option.from_text(value)
+            except ValueError as exc:
+                raise argparse.ArgumentTypeError(f"--variants {name}: {exc}") from None
+    if not out:
+        raise argparse.ArgumentTypeError("--variants names at least one variant")
+    return out
+
+
 def _ray_orders(text: str) -> tuple[str, ...]:
     from ..frame.passes.ray_order import RAY_ORDERS
     return _among(text, "ray orders", RAY_ORDERS, unique=True)
@@ -134,6 +169,10 @@ def add_parser(sub) -> None:
                         "grid axis; default off; rays: given, also the glossy and path frames; gi: the path and "
                         "photon frames)")
     b.add_argument("--no-tiles", action="store_true", help="rays, primary: leave out the tile frustum culling variant")
+    b.add_argument("--variants", type=_variants, metavar="SPEC",
+                   help='vr: named render-option variants, a grid axis: "NAME:option=value,...;NAME2:...", e.g. '
+                        '"entries:;lists:tile_lists=256;blocks:block_culling=on,tile_lists=256" (each on top of '
+                        'the render flags given)')
     b.add_argument("--workers", type=_worker_counts, help="tradeoff/budget: spread the variants over N Ray workers; "
                    "workers: the worker counts to time (default 1,2); needs pip install 'rayvr[cluster]'")
     b.add_argument("--address", help="with --workers: an existing Ray cluster, 'auto' or HOST:PORT")
