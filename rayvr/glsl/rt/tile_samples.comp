@@ -18,8 +18,10 @@
 //     edge function E(su, sv) = e.c + su e.u + sv e.v, of the sign of e.d. A sub-ray is a candidate of a
 //     triangle only where all three are >= minus the rounding bound (EDGE_SLACK times the edge's
 //     vertex distances, times |d| / d.c), HVVR's 2D edge test;
-//   - the pixel first: the same three functions over the box of its sub-rays' (su, sv) reject the
-//     triangle for all of them at once (HVVR's per-tile classification, per pixel);
+//   - a pixel's sub-ray points are one affine map of their footprint offsets, widened by how far any
+//     lies off it (below): two multiply-adds an edge and sub-ray, no per-sub-ray registers;
+//   - the pixel first: the same three functions over the box of its footprint reject the triangle
+//     for all its sub-rays at once (HVVR's per-tile classification, per pixel);
 //   - depth: lists are sorted by a lower bound of c.x over each triangle; a pixel stops once that
 //     passes c.x of every sub-ray's points up to its closest hit (c.d <= 1 for unit d: c.o + t), the
 //     group stops loading once every pixel has, and a sub-ray skips the exact test likewise.
@@ -73,6 +75,7 @@ layout(local_size_x = SAMPLE_GROUP) in;
 layout(std430, binding = TILE_TRIS_BINDING) readonly restrict buffer TileTris { uvec2 tile_tris[]; };
 
 shared vec4 list_edge[3][SAMPLE_GROUP];   // the load's edge functions (E at (0, 0), dE/dsu, dE/dsv, slack)
+shared vec2 sub_offset[PIXEL_RAYS];       // each sub-ray's footprint offset (camera_subpixel)
 shared uint list_slot[SAMPLE_GROUP];
 shared float list_key[SAMPLE_GROUP];
 shared uint list_more[2];                 // some pixel still needs the next load (by parity)
@@ -129,13 +132,13 @@ uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
             rank += uint(po > pop || (po == pop && o < s));
         }
         vec2 mean_offset = vec2(0.0);
-        for (uint m = masks[s]; m != 0u; m &= m - 1u) mean_offset += camera_subpixel(uint(findLSB(m)));
+        for (uint m = masks[s]; m != 0u; m &= m - 1u) mean_offset += sub_offset[findLSB(m)];
         mean_offset /= float(pop);
         uint best = 0u;
         float best_d = 1e30;
         for (uint m = masks[s]; m != 0u; m &= m - 1u) {
             uint i = uint(findLSB(m));
-            vec2 e = camera_subpixel(i) - mean_offset;
+            vec2 e = sub_offset[i] - mean_offset;
             if (dot(e, e) < best_d) { best = i; best_d = dot(e, e); }
         }
         uint meta = best | (rank == 0u ? (n << 8) | (covered << 16) : 0u);
@@ -181,26 +184,38 @@ void main() {
     vec3 u = normalize(abs(c.x) < 0.6 ? cross(c, vec3(1.0, 0.0, 0.0)) : cross(c, vec3(0.0, 1.0, 0.0)));
     vec3 v = cross(c, u);
 
-    // Each sub-ray: its start (a miss at tmax where it traces; nothing at t 0 where the sample makes
-    // no ray) and its point (su, sv) in the tile's frame; the pixel: the box of those points, whether
-    // any sub-ray traces, its origin.
+    // The pixel's sub-ray points (su, sv) as an affine map of their footprint offsets o (camera_subpixel,
+    // in units of the footprint's step): q(o) = q_mid + J o, with J from the central ray and the rays
+    // one step right and up (the same for every sub-ray: no per-sub-ray registers), and `bend`, the
+    // farthest any sub-ray's own point lies from its affine one (0 up to rounding for the planar
+    // models, the lens curvature inside a pixel for the distorted one), which the edge tests add to
+    // their slack times the edge function's gradient. Each sub-ray also gets its start here (a miss at
+    // tmax where it traces; nothing at t 0 where the sample makes no ray).
     // co: the largest c.o of the pixel's origins (several with a lens), which the reaches use.
-    vec2 q[PIXEL_RAYS];
-    vec2 q_lo = vec2(3.0e38), q_hi = vec2(-3.0e38);
+    float step_size = max(camera_footprint(p.z, pixel, vec2(size)), 1.0);
+    vec3 o0, dm, dx, dy;
+    camera_ray_at(p.z, pixel, vec2(size), vec2(0.0), o0, dm);
+    camera_ray_at(p.z, pixel + vec2(step_size, 0.0), vec2(size), vec2(0.0), o0, dx);
+    camera_ray_at(p.z, pixel + vec2(0.0, step_size), vec2(size), vec2(0.0), o0, dy);
+    vec2 q_mid = vec2(dot(dm, u), dot(dm, v)) / dot(dm, c);
+    mat2 J = mat2(vec2(dot(dx, u), dot(dx, v)) / dot(dx, c) - q_mid, vec2(dot(dy, u), dot(dy, v)) / dot(dy, c) - q_mid);
+    if (lid < uint(PIXEL_RAYS))
+        sub_offset[lid] = camera_subpixel(pixel_subray(lid));
+    barrier();
     uint traced = 0u;   // bit k: sub-ray k traces
     vec3 origin = vec3(0.0);
     bool one_origin = true;   // every sub-ray of the pixel from `origin`
-    float co = -3.0e38, t_far = 0.0;
+    float co = -3.0e38, t_far = 0.0, bend = 0.0, q_far = 0.0;
     for (int k = 0; k < PIXEL_RAYS; ++k) {
         vec3 o, d;
         bool valid = inside && camera_subray(p.z, pixel, vec2(size), pixel_subray(uint(k)), o, d);
         Ray r = primary_ray(p.z, o, d);
         sub_tri[SUB(k)] = BVH_MISS;
         sub_t[SUB(k)] = valid ? r.tmax : 0.0;
-        q[k] = vec2(dot(d, u), dot(d, v)) / dot(d, c);
         if (valid && bvh_ray_valid(r)) {
-            q_lo = min(q_lo, q[k]);
-            q_hi = max(q_hi, q[k]);
+            vec2 q = vec2(dot(d, u), dot(d, v)) / dot(d, c);
+            bend = max(bend, length(q - (q_mid + J * sub_offset[k])));
+            q_far = max(q_far, dot(q, q));
             one_origin = one_origin && (traced == 0u || all(equal(o, origin)));
             traced |= 1u << uint(k);
             origin = o;
@@ -208,11 +223,13 @@ void main() {
             t_far = max(t_far, r.tmax);
         }
     }
+    bend = bend * 1.001 + 1e-30;   // (its own rounding)
     bool live = traced != 0u;
     float reach = pixel_reach(co, t_far);
-    vec2 q_mid = 0.5 * (q_lo + q_hi), q_half = 0.5 * (q_hi - q_lo);
     // |d| / d.c for every sub-ray of the pixel, at most: the edge slack's scale in the tile's frame
-    float stretch = sqrt(1.0 + dot(max(abs(q_lo), abs(q_hi)), max(abs(q_lo), abs(q_hi))));
+    float stretch = sqrt(1.0 + q_far) * 1.001;
+    // the box of the offsets: the footprint's [-1/2, 1/2]^2 (camera_subpixel)
+    vec2 o_half = vec2(0.5);
 
     // One origin for the whole group? (the edge functions' condition)
     if (lid == 0u) {
@@ -262,19 +279,21 @@ void main() {
                 float key = list_key[i];
                 if (key > reach)
                     break;   // sorted: every later triangle lies beyond too
+                // Each edge function as one of the footprint offset o: a + g.o (g = J^T grad E), with
+                // its slack: the rounding bound, and the gradient times the bend.
                 vec4 e0 = list_edge[0][i], e1 = list_edge[1][i], e2 = list_edge[2][i];
-                e0.x += e0.w * stretch;
-                e1.x += e1.w * stretch;
-                e2.x += e2.w * stretch;
-                // the pixel: the largest value of each edge function over the box of its sub-rays
-                float best = min(min(e0.x + dot(e0.yz, q_mid) + dot(abs(e0.yz), q_half),
-                                     e1.x + dot(e1.yz, q_mid) + dot(abs(e1.yz), q_half)),
-                                 e2.x + dot(e2.yz, q_mid) + dot(abs(e2.yz), q_half));
+                vec3 a = vec3(e0.x + dot(e0.yz, q_mid) + e0.w * stretch + (abs(e0.y) + abs(e0.z)) * bend,
+                              e1.x + dot(e1.yz, q_mid) + e1.w * stretch + (abs(e1.y) + abs(e1.z)) * bend,
+                              e2.x + dot(e2.yz, q_mid) + e2.w * stretch + (abs(e2.y) + abs(e2.z)) * bend);
+                vec2 g0 = e0.yz * J, g1 = e1.yz * J, g2 = e2.yz * J;
+                // the pixel: the largest value of each edge function over the box of its offsets
+                float best = min(min(a.x + dot(abs(g0), o_half), a.y + dot(abs(g1), o_half)), a.z + dot(abs(g2), o_half));
                 if (best < 0.0)
                     continue;   // (a NaN passes: the exact test decides)
                 uint candidates = 0u;   // (the sub-rays that trace, below)
                 for (int k = 0; k < PIXEL_RAYS; ++k) {
-                    float inside_e = min(min(e0.x + dot(e0.yz, q[k]), e1.x + dot(e1.yz, q[k])), e2.x + dot(e2.yz, q[k]));
+                    vec2 ok = sub_offset[k];
+                    float inside_e = min(min(a.x + dot(g0, ok), a.y + dot(g1, ok)), a.z + dot(g2, ok));
                     candidates |= inside_e < 0.0 ? 0u : 1u << uint(k);
                 }
                 uint slot = list_slot[i];
