@@ -10,6 +10,8 @@ import pytest
 
 from conftest import quick_bench, run_rayvr
 
+from rayvr.renderer import Renderer, RenderSettings
+
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
@@ -276,3 +278,74 @@ def test_a_variant_may_not_set_what_the_grid_sets(tmp_path):
     with pytest.raises(ValueError, match="variant .x.: unknown render option.s. no_such_option"):
         vr.run(tmp_path, variants={"x": {"no_such_option": 1}})
     assert not (tmp_path / "vr.json").exists()
+
+
+def _choice_row(variant, fields, model, msaa, pose, ms, **plan):
+    return {"primary": "rays", "variant": variant, "variant_fields": fields, "camera_model": model, "msaa": msaa,
+            "scene": "sponza", "config": "shadows", "pose": {"index": pose}, "camera": model, "frame_ms": ms,
+            **{"tile_culling": True, "tile_lists": 0, "block_culling": False, **plan}}
+
+
+def test_the_fastest_variant_is_chosen_on_its_worst_pose_among_primary_knobs_only():
+    from rayvr.bench.vr import primary_choices
+
+    rows = [_choice_row("entries", {}, "pinhole", 16, 0, 10.0), _choice_row("entries", {}, "pinhole", 16, 1, 14.0),
+            _choice_row("lists", {"tile_lists": 256}, "pinhole", 16, 0, 12.0, tile_lists=256),
+            _choice_row("lists", {"tile_lists": 256}, "pinhole", 16, 1, 12.5, tile_lists=256),
+            # not a primary-visibility knob: never a choice, however fast
+            _choice_row("cheap", {"ray_order": "morton"}, "pinhole", 16, 0, 1.0),
+            _choice_row("cheap", {"ray_order": "morton"}, "pinhole", 16, 1, 1.0),
+            # measured on pose 0 only: judged on the cells every variant has
+            _choice_row("entries", {}, "dof", 4, 0, 5.0, tile_culling=False),
+            _choice_row("blocks", {"block_culling": True}, "dof", 4, 0, 4.0, block_culling=True),
+            _choice_row("blocks", {"block_culling": True}, "dof", 4, 1, 99.0, block_culling=True)]
+    chosen = primary_choices(rows)
+    assert chosen["pinhole"][16]["variant"] == "lists"   # 12.5 worst against 14.0
+    assert chosen["pinhole"][16]["knobs"] == {"tile_culling": True, "tile_lists": 256, "block_culling": False}
+    assert chosen["pinhole"][16]["worst_ms"] == {"entries": 14.0, "lists": 12.5}
+    assert chosen["dof"][4]["variant"] == "blocks" and chosen["dof"][4]["worst_ms"]["blocks"] == 4.0
+
+
+def test_the_renderer_takes_the_measured_choices(tmp_path, monkeypatch, gl):
+    """A choices file (what bench vr writes from its variants) sets the knobs the settings leave to
+    the renderer; explicit settings still win; a file breaking the knobs' rules is refused."""
+    from rayvr.bench.vr import choices_file, primary_choices
+    from rayvr.frame.passes import primary_rays
+
+    rows = [_choice_row("lists", {"tile_lists": 64, "block_culling": True}, "pinhole", 16, 0, 3.0, tile_lists=64,
+                        block_culling=True)]
+    meta = {"date": "today", "poses": 1, "pose_seed": 22, "per_eye_size": [8, 8], "gl_renderer": "GPU",
+            "gl_version": "4.3"}
+    data = choices_file(primary_choices(rows), meta, tmp_path)
+    assert data["choices"]["foveated"] == json.loads(primary_rays.MEASURED_CHOICES.read_text())["choices"]["foveated"]
+    del data["choices"]["pinhole"]["32"]   # a count not measured: the one below it rules
+    path = tmp_path / "primary_visibility.json"
+    path.write_text(json.dumps(data))
+    monkeypatch.setattr(primary_rays, "MEASURED_CHOICES", path)
+    try:
+        with Renderer(None, gl=gl) as r:
+            r.settings = RenderSettings(msaa=16)
+            plan = r.plan()
+            assert plan.tile_culling and plan.tile_lists == 64 and plan.block_culling
+            r.settings = RenderSettings(msaa=32)   # the largest count measured at or below
+            assert r.plan().tile_lists == 64
+            r.settings = RenderSettings(msaa=16, tile_lists=0, block_culling=False)
+            assert r.plan().tile_lists == 0 and not r.plan().block_culling
+        data["choices"]["pinhole"]["4"] = {"tile_culling": False, "tile_lists": 64, "block_culling": False}
+        path = tmp_path / "broken.json"
+        path.write_text(json.dumps(data))
+        with pytest.raises(ValueError, match="only with tile culling"):
+            primary_rays.measured_choices(path)
+    finally:
+        primary_rays._read_choices.cache_clear()
+
+
+def test_the_shipped_choices_cover_every_built_in_model_and_count():
+    from rayvr.frame.cameras import CAMERA_MODELS
+    from rayvr.frame.cameras.sampling import SAMPLE_COUNTS
+    from rayvr.frame.passes.primary_rays import measured_choices
+
+    table = measured_choices()
+    assert set(table) == set(CAMERA_MODELS) and all(set(c) == set(SAMPLE_COUNTS) for c in table.values())
+    for model, counts in table.items():   # where a model declines culling, its measured choice does too
+        assert all(not k["tile_culling"] for k in counts.values()) or CAMERA_MODELS[model].culls_tiles_by_default

@@ -39,6 +39,8 @@ from ..frame.cameras.rig import StereoRig
 from ..gl.context import create_context
 from ..renderer import Renderer, RenderSettings
 from ..scene.materials import load_config
+from ..frame.passes.primary_rays import MEASURED_CHOICES, PRIMARY_KNOBS
+from ..util.output import atomic_write_bytes
 from .head_poses import EYE_HEIGHT_M, MAX_PITCH_DEG, POSE_SEED, draw_poses, pose_bounds, region
 from .primary import CONFIGS as CAMERA_CONFIGS
 from .rays import MIRRORS, hybrid_config, time_frame
@@ -59,6 +61,7 @@ QUICK = {"size": (32, 24), "poses": 2, "cameras": ("raster_gbuffer", "pinhole", 
          "counts": (1, 4), "configs": ("shadows", "room")}
 # earlier rows are kept only when these meta entries match
 SAME_RUN = ("gl_renderer", "gl_version", "per_eye_size", "quick", "poses", "pose_seed")
+CHOICES_FILE = "primary_visibility.json"  # with several variants: the renderer's measured choices, renewed
 
 
 def checked_variants(variants) -> dict:
@@ -174,6 +177,46 @@ def spread(rows) -> list[dict]:
     return out
 
 
+def primary_choices(rows) -> dict:
+    """Per camera model and MSAA count, which variant casts primary rays fastest: among the ray-cast
+    rows of the variants that set only primary-visibility knobs (primary_rays.PRIMARY_KNOBS), measured
+    on the same (scene, config, pose, camera) cells, the one whose worst frame over them is least.
+    {model: {msaa: {"variant", "knobs" (the plan's), "worst_ms" {variant: ms}}}}."""
+    cells: dict = {}
+    for r in rows:
+        if r["primary"] != "rays" or any(k not in PRIMARY_KNOBS for k in r.get("variant_fields", {})):
+            continue
+        key = (r["camera_model"], r["msaa"])
+        cell = (r["scene"], r["config"], r["pose"]["index"], r["camera"])
+        cells.setdefault(key, {}).setdefault(r["variant"], {})[cell] = r
+    out: dict = {}
+    for (model, msaa), by_variant in sorted(cells.items()):
+        common = set.intersection(*(set(v) for v in by_variant.values()))
+        if not common:
+            continue
+        worst = {name: max(v[c]["frame_ms"] for c in common) for name, v in by_variant.items()}
+        best = min(worst, key=worst.get)
+        plan = by_variant[best][next(iter(common))]
+        out.setdefault(model, {})[msaa] = {"variant": best, "worst_ms": worst,
+                                           "knobs": {k: plan.get(k) for k in PRIMARY_KNOBS}}
+    return out
+
+
+def choices_file(chosen: dict, meta: dict, out: Path) -> dict:
+    """The successor of the renderer's measured choices file (primary_rays.MEASURED_CHOICES): the
+    models and counts this run measured replaced by its choices, the rest kept."""
+    shipped = json.loads(MEASURED_CHOICES.read_text())
+    merged = {m: dict(counts) for m, counts in shipped["choices"].items()}
+    for model, counts in chosen.items():
+        for msaa, c in counts.items():
+            merged.setdefault(model, {})[str(msaa)] = c["knobs"]
+    run = (f"{out} ({meta.get('date')}, {meta['poses']} poses a scene, seed {meta['pose_seed']}, "
+           f"{'x'.join(map(str, meta['per_eye_size']))} an eye): " +
+           ", ".join(f"{m} {','.join(str(n) for n in counts)}x" for m, counts in chosen.items()))
+    return {**shipped, "measured": [run] + [m for m in shipped.get("measured", []) if m != run],
+            "device": f"{meta.get('gl_renderer')}, {meta.get('gl_version')}", "choices": merged}
+
+
 # Issue 22's targets for the headset's frame, judged on the worst pose: (name, what, camera, msaa,
 # kind, bound) where kind "ms" bounds the primary_rays pass, "grays" is a least rate of its 1x rays
 # (GRays/s), and "ratio:<camera>:<msaa>" bounds the frame against that cell's frame on the same pose
@@ -281,6 +324,20 @@ def markdown(result: dict) -> str:
                 lines.append(f"| {t['what']} | {t['variant']} | {t['worst']:.3f}{unit} | {t['worst_pose']}, "
                              f"{t['worst_config']} | {'yes' if t['met'] else 'NO'} |")
             lines.append("")
+    chosen = meta.get("primary_choices") or {}
+    if len({r["variant"] for r in rows}) > 1 and chosen:
+        lines += ["## Primary visibility: the fastest variant per camera model and MSAA count", "",
+                  f"The worst frame over every scene, config and pose measured; "
+                  + (f"{CHOICES_FILE} holds the choices (copy it to rayvr/assets/ for the renderer to take them)."
+                     if meta.get("timings_meaningful", True) else
+                     f"a software rasterizer's timings say nothing: no {CHOICES_FILE} written."), "",
+                  "| camera model | MSAA | chosen | its knobs | worst frame ms per variant |", "|---|---|---|---|---|"]
+        for model, counts in chosen.items():
+            for msaa, c in counts.items():
+                knobs = ", ".join(f"{k}={v}" for k, v in c["knobs"].items())
+                per = ", ".join(f"{v} {ms:.3f}" for v, ms in sorted(c["worst_ms"].items(), key=lambda kv: kv[1]))
+                lines.append(f"| {model} | {msaa} | {c['variant']} | {knobs} | {per} |")
+        lines.append("")
     return "\n".join(lines) + "\n"
 
 
@@ -320,8 +377,14 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
         def write() -> None:
             meta["seconds"] = time.perf_counter() - t_start
             meta["targets"] = targets(kept + rows, size)  # (write_report keeps meta and rows)
+            chosen = primary_choices(kept + rows)
+            meta["primary_choices"] = chosen
             result = {"meta": meta, "rows": kept + rows}
             write_report(out, "vr", result, md=markdown(result))
+            # a choice among variants, timed on a GPU (a software rasterizer's timings say nothing)
+            if len({r["variant"] for r in kept + rows}) > 1 and chosen and meta["timings_meaningful"]:
+                text = json.dumps(choices_file(chosen, meta, out), indent=1) + "\n"
+                atomic_write_bytes(out / CHOICES_FILE, text.encode())
 
         for name, scene, view in bench_scenes(scenes, size, skipped):
             heads = draw_poses(scene, name, poses, pose_seed)
@@ -342,14 +405,15 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
                     model, fov, primary = CAMERA_CONFIGS[camera]
                     r.set_materials(mats[config])
                     r.settings = RenderSettings(primary=primary, msaa=msaa, **variants[variant])
-                    culled = r.plan(camera=model).tile_culling
+                    plan = r.plan(camera=model)
                     for head in heads:
                         rig = StereoRig(head.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=size,
                                         camera=model)
                         timed = frame_row(r, rig, repeat, warmup, WARMUP_S if head.index == 0 else 0.0)
                         rows.append({"scene": name, "pose": head.to_dict(), "config": config, "variant": variant,
                                      "camera": camera, "camera_model": model.name, "primary": primary, "msaa": msaa,
-                                     "tile_culling": culled, **timed})
+                                     "variant_fields": variants[variant], "tile_culling": plan.tile_culling,
+                                     "tile_lists": plan.tile_lists, "block_culling": plan.block_culling, **timed})
                         bar.update(1)
                     cell = [x["frame_ms"] for x in rows[-len(heads):]]
                     bar.write(f"  {name:8s} {config:8s} {variant:10s} {camera:20s} {msaa:2d}x frame median "

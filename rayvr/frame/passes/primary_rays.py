@@ -56,6 +56,10 @@ writes the probe's hits instead of casting its rays a second time.
 """
 from __future__ import annotations
 
+import functools
+import json
+from pathlib import Path
+
 import moderngl
 import numpy as np
 
@@ -85,7 +89,8 @@ TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visi
 BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary visibility with tile culling first "
                                "cuts the BVH per block of 8x8 tiles (HVVR's block beams: a frustum over the tiles' "
                                "frusta), and each tile's cut starts from its block's entries instead of the root "
-                               "(the same hits, exact); auto: off until it measures faster on the H200",
+                               "(the same hits, exact); auto: where it measured faster on the H200 "
+                               "(rayvr/assets/primary_visibility.json; not yet timed: off)",
                                scope="plan", plan_field="block_culling", auto=True,
                                implies=(("tile_culling", True),), commands=("capture", "preview", "info", "bench")))
 TILE_LIST_BOUNDS = (16, 32, 64, 128, 256, 512, 1024)  # triangles a tile's list may hold (a power of two: its sort)
@@ -121,33 +126,73 @@ def primary_visibility(settings, camera) -> str:
     return settings.primary if camera.rasterizable and settings.msaa == 1 else "rays"
 
 
+# How the renderer casts primary rays where the settings leave it to it (tile_culling, tile_lists,
+# block_culling None): per camera model and sub-rays per sample, the variant that measured fastest
+# (the asset names its runs; `rayvr bench vr --variants` writes its successor, primary_visibility.json).
+MEASURED_CHOICES = Path(__file__).resolve().parents[2] / "assets" / "primary_visibility.json"
+PRIMARY_KNOBS = ("tile_culling", "tile_lists", "block_culling")
+
+
+def measured_choices(path: Path | None = None) -> dict:
+    """{camera model: {sub-rays per sample: {knob: value}}} of the measured choices file (default
+    MEASURED_CHOICES), read once."""
+    return _read_choices(Path(path or MEASURED_CHOICES))
+
+
+@functools.lru_cache(maxsize=None)
+def _read_choices(path: Path) -> dict:
+    data = json.loads(Path(path).read_text())
+    out = {model: {int(n): dict(knobs) for n, knobs in counts.items()} for model, counts in data["choices"].items()}
+    for model, counts in out.items():
+        for n, knobs in counts.items():
+            if set(knobs) != set(PRIMARY_KNOBS) or ((knobs["tile_lists"] or knobs["block_culling"])
+                                                     and not knobs["tile_culling"]):
+                raise ValueError(f"{path}: {model} at {n}x must set {', '.join(PRIMARY_KNOBS)}, and tile lists "
+                                 f"and block culling only with tile culling, got {knobs}")
+    return out
+
+
+def measured_choice(camera: str, samples: int) -> dict | None:
+    """The measured choice of PRIMARY_KNOBS for a `camera` model (its name) at `samples` sub-rays per
+    sample (that of the largest count measured at or below it), or None for a model never measured
+    (a plugin's: CameraModel.culls_tiles_by_default decides)."""
+    counts = measured_choices().get(camera, {})
+    below = [n for n in counts if n <= samples]
+    return counts[max(below)] if below else None
+
+
 def culls_tiles(settings, camera: str = "pinhole") -> bool:
     """Whether ray-cast primaries of a `camera` model (its name) are tile-culled: tile_culling, or
-    when None, where it measured faster on the H200 (bench/results/h200/2026-11-30/primary/
-    after_rounds_tiles_packets, tile_culling_table5): with several sub-rays per sample (one cull
-    serves them all), for the models that declare it (CameraModel.culls_tiles_by_default)."""
+    when None, the measured choice (measured_choice; on the H200 culling won with several sub-rays
+    per sample, where one cull serves them all, but not for the foveated and thin-lens models), for
+    a model never measured with several sub-rays where it declares it (CameraModel.culls_tiles_by_default)."""
     from ..cameras import CAMERA_MODELS
 
     if settings.tile_culling is not None:
         return settings.tile_culling
     if settings.tile_lists or settings.block_culling:  # the lists and the blocks feed the cull's entries
         return True
+    choice = measured_choice(camera, settings.msaa)
+    if choice is not None:
+        return bool(choice["tile_culling"])
     return settings.msaa > 1 and CAMERA_MODELS[camera].culls_tiles_by_default
 
 
 def culls_blocks(settings, camera: str = "pinhole") -> bool:
     """Whether tile-culled ray-cast primaries of a `camera` model (its name) start each tile's cut
-    from its block's entries (block_culling). Auto (None) is off: blocks have not been timed on the
-    H200 yet (the tile cut from the root is what bench/results/h200 measured)."""
-    return bool(settings.block_culling)
+    from its block's entries: block_culling, or when None, the measured choice (off where never timed)."""
+    if settings.block_culling is not None:
+        return settings.block_culling
+    return bool((measured_choice(camera, settings.msaa) or {}).get("block_culling", False))
 
 
 def tile_list_bound(settings, camera: str = "pinhole") -> int:
     """The triangles a tile's list holds at most for ray-cast primaries of a `camera` model (its
-    name) when they are tile-culled; 0: no lists, per-ray traversal from the tile's entries."""
+    name) when they are tile-culled: tile_lists, or when None, the measured choice; 0: no lists,
+    per-ray traversal from the tile's entries."""
     if settings.tile_lists is not None:
         return settings.tile_lists
-    return 0
+    return int((measured_choice(camera, settings.msaa) or {}).get("tile_lists", 0))
 
 
 def shares_channels(settings, camera, samples: int, effects, view: str) -> bool:
