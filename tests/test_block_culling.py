@@ -8,26 +8,18 @@ import numpy as np
 import pytest
 from conftest import camera_rig
 from test_tile_culling_frame import gl_tile_rays
+from test_tile_lists import CASES as LIST_CASES
 
 from rayvr.accel.frustum import tile_grid
-from rayvr.frame.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
+from rayvr.frame.cameras import Pinhole, ThinLens, Wide
 from rayvr.frame.passes.primary_rays import block_grid
 from rayvr.gl.gpu_layout import BLOCK_TILES, NO_HIT, TILE_ENTRIES
 from rayvr.renderer import RenderSettings
 
 SIZE = (160, 24)   # 10 x 3 tiles an eye: two blocks across, the second partial
 
-# name -> (camera model, sub-rays per sample, vertical fov or None)
-CASES = {
-    "pinhole 1x": (Pinhole(), 1, None),
-    "pinhole 16x msaa": (Pinhole(), 16, None),
-    "distorted chromatic 4x": (Distorted(), 4, None),
-    "foveated": (Foveated(), 1, None),
-    "wide 210x130": (Wide(fov_x=210.0), 1, 130.0),
-    "dof 4x at 0.5": (ThinLens(aperture=0.08, focus=0.5), 4, None),
-    "dof 4x at 1.5": (ThinLens(aperture=0.08, focus=1.5), 4, None),
-    "dof 4x at 6": (ThinLens(aperture=0.08, focus=6.0), 4, None),
-}
+# name -> (camera model, sub-rays per sample, vertical fov or None): the tile lists' cases but 32x
+CASES = {name: case for name, case in LIST_CASES.items() if name != "pinhole 32x msaa"}
 
 
 def render(r, rig, samples, **kw):

@@ -27,6 +27,7 @@ SHADER_LOCAL = {
     "TILE_CULL_WRITER": "a switch of tile_cull.comp", "TILE_SUBRAYS": "tile_cull.comp: sub-rays per sample",
     "TILE_MEAN_RAYS": "tile_cull.comp: rays averaged per sample",
     "PIXEL_RAYS": "tile_samples.comp: the sub-rays an invocation tests (1 outside the MSAA trace)",
+    "RAY_BLOCKS": "tile_samples.comp: blocks of sub-rays with a map each (1 outside the MSAA trace)",
     "SECOND_LAYER_SKIPS": "second_layer.comp's bound on skipped hits", "est_k": "a local of estimate.glsl",
     "KD_STACK": "the kd-tree walk's stack (> the depth of any tree rayvr builds)",
     "SORT_CHUNK": "radix_sort.comp's shared-memory histogram chunk",

@@ -54,17 +54,18 @@ def assert_same(a, b):
             np.testing.assert_array_equal(a[eye].aux[name], b[eye].aux[name], err_msg=f"{eye} {name}")
 
 
-@pytest.mark.parametrize("case", ["raster", "traced", "chromatic"])
+@pytest.mark.parametrize("case", ["raster", "traced", "chromatic", "shared chromatic"])
 def test_msaa_frames_do_not_depend_on_when_the_round_count_is_known(gl, room, count_poll, case):
     """"traced": the room's own materials (mirror reflections, glossy, shadows: classify drops the
     skipped pixels from the effects' lists); "chromatic": three colour channel sets, each with its
-    own count. The reference is the old schedule: count read after the first round (waiting), empty
-    slots shaded as background."""
+    own count; "shared chromatic": the three sets cast together as sub-rays, one count. The reference
+    is the old schedule: count read after the first round (waiting), empty slots shaded as background."""
     materials = "rayvr/assets/default_room.toml" if case == "traced" else None
-    camera = Distorted(coefficients=((0.1, 0.0, 0.0), (0.2, 0.0, 0.0), (0.3, 0.0, 0.0))) if case == "chromatic" else None
+    chromatic = case.endswith("chromatic")
+    camera = Distorted(coefficients=((0.1, 0.0, 0.0), (0.2, 0.0, 0.0), (0.3, 0.0, 0.0))) if chromatic else None
+    settings = RenderSettings(msaa=8, share_channel_shading=case == "shared chromatic")
     (ref, ref_rounds, _), (late, late_rounds, late_w), (skip, skip_rounds, skip_w) = frames(
-        gl, room, count_poll, RenderSettings(msaa=8), [("wait", False), ("never", True), ("wait", True)], camera,
-        materials)
+        gl, room, count_poll, settings, [("wait", False), ("never", True), ("wait", True)], camera, materials)
     slots = primary_rays.msaa_slots(FramePlan(frozenset(), samples=8))
     assert len(ref_rounds) == (3 if case == "chromatic" else 1)
     for recorded, needed in ref_rounds:

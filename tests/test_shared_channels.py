@@ -1,14 +1,16 @@
 """Shared channel shading (RenderSettings.share_channel_shading, frame/passes/primary_rays.py
-shares_channels): a chromatic camera's red and blue rays that hit the triangle of the pixel's green
-ray take green's shading; where they hit another, they are shaded on their own. Checked against
-the frame that shades every channel (the reference) and against a camera that casts green's rays
-for all three channels."""
+shares_channels): a chromatic camera's three colour channel sets cast together as sub-rays of each
+sample, a pixel shaded once per distinct triangle they hit, at the first set's ray on it (green's
+first), every channel taking its own share. Checked against a numpy composite of frames that cast
+one set's rays for all three, against the frame that shades every set apart, and across culling."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from rayvr.frame.cameras import Distorted, Pinhole
+from rayvr.frame.graph import SHARED_CHANNEL
+from rayvr.frame.passes import primary_rays
 from rayvr.frame.cameras.rig import StereoRig
 from rayvr.renderer import Renderer, RenderSettings
 from rayvr.scene.materials import MaterialConfig
@@ -24,27 +26,88 @@ def room(gl):
 
 
 def frame(r, camera, share=True, **settings):
-    """(8-bit colour of both eyes, the channel_match bits of both eyes (rows top-down) or None)."""
+    """(8-bit colour of both eyes, triangle IDs of both eyes)."""
     r.settings = RenderSettings(primary="rays", share_channel_shading=share, **settings)
-    f = r.render(StereoRig.for_scene(r.scene, size=SIZE, camera=camera))
-    match = None
-    if r.plan(camera=camera).share_channels:
-        w, h = SIZE
-        match = np.frombuffer(r.resource("channel_match").read(), np.uint32).reshape(2, h, w)[:, ::-1]
-    return np.stack([f.left.color, f.right.color]).astype(int), match
+    f = r.render(StereoRig.for_scene(r.scene, size=SIZE, camera=camera), aux=("triangle",))
+    return np.stack([f.left.color, f.right.color]).astype(int), np.stack([f.left.aux["triangle"], f.right.aux["triangle"]])
 
 
-def test_channels_that_hit_greens_triangle_take_its_shading(room):
-    shared, match = frame(room, CHROMATIC)
+# The order of the colour channel sets' sub-rays (glsl/common/camera.glsl): green's block, then blue's, red's.
+BLOCKS = [(b + SHARED_CHANNEL) % 3 for b in range(3)]
+
+
+def expected_shared(room, camera):
+    """The shared frame from frames that cast one channel set's rays for all three (each channel c's
+    triangles and its shading at c's rays): a pixel's distinct triangles are shaded once, each at
+    the ray of the first set (in BLOCKS order) that hits it, and channel c takes the shading of its
+    own triangle."""
+    per_set = {c: frame(room, Distorted(coefficients=camera.coefficients[c]), share=False) for c in range(3)}
+    colour = np.zeros_like(per_set[0][0])
+    for c in range(3):
+        rep = np.full(per_set[c][1].shape, -1)
+        for b in reversed(BLOCKS):   # the first set in block order that hits c's triangle wins
+            rep = np.where(per_set[b][1] == per_set[c][1], b, rep)
+        for b in range(3):
+            colour[..., c] = np.where(rep == b, per_set[b][0][..., c], colour[..., c])
+    return colour, per_set
+
+
+def test_each_distinct_triangle_of_a_pixel_is_shaded_once_for_the_channels_on_it(room):
+    """One sub-ray per colour channel set, cast together: every channel shows the shading of the
+    triangle its own ray hits, made at the first set's ray that hits it (green's where green's does):
+    a numpy composite of three single-set frames; channels that hit other triangles than green's
+    keep their own shading, as the frame that shades every set apart has it."""
+    shared, tri = frame(room, CHROMATIC)
+    assert room.plan(camera=CHROMATIC).share_channels
+    expected, per_set = expected_shared(room, CHROMATIC)
+    assert np.array_equal(shared, expected)
     apart, _ = frame(room, CHROMATIC, share=False)
-    greens, _ = frame(room, Distorted(coefficients=CHROMATIC.coefficients[1]))  # green's rays for every channel
-    assert np.array_equal(shared[..., 1], apart[..., 1])   # green's round is unchanged
-    for k in (0, 2):
-        same = (match >> k & 1).astype(bool)
-        assert 0.9 < same.mean() < 1.0, (k, same.mean())   # most channels share; the edges do not
-        assert np.array_equal(shared[..., k][~same], apart[..., k][~same])  # shaded apart: the reference's
-        assert np.array_equal(shared[..., k][same], greens[..., k][same])   # shared: green's shading
+    for c in (0, 2):
+        own = per_set[c][1] != per_set[SHARED_CHANNEL][1]   # hits another triangle than green's ray
+        assert 0.0 < own.mean() < 0.1, (c, own.mean())        # most channels share; the edges do not
+        first = own & ((per_set[c][1] != per_set[BLOCKS[1]][1]) | (BLOCKS[1] == c))   # no earlier set on it
+        assert np.array_equal(shared[..., c][first], apart[..., c][first])
+    assert np.array_equal(tri, per_set[SHARED_CHANNEL][1]) or (tri != per_set[SHARED_CHANNEL][1]).mean() < 0.1
     assert not np.array_equal(shared, apart)   # the approximation shows somewhere
+
+
+def test_shared_msaa_lists_merge_every_sets_sub_rays(room):
+    """4x MSAA with the three sets cast together (12 sub-rays a pixel, green's block first): the
+    trace's lists against passes/primary_rays.msaa_lists over numpy traces of each set's own sub-rays,
+    with each set's covered count in the meta; one round sequence for the frame, not three."""
+    from rayvr.accel.bvh import build_bvh, trace_reference
+    from rayvr.frame.cameras.sampling import subsamples
+
+    n, (w, h) = 4, (30, 22)
+    rig = StereoRig.for_scene(room.scene, size=(w, h), camera=CHROMATIC)
+    room.settings = RenderSettings(primary="rays", msaa=n)
+    fc = room.record(rig)
+    room.gl.ctx.finish()
+    plan = room.plan(camera=CHROMATIC)
+    assert plan.share_channels and primary_rays.subrays(plan) == 3 * n and len(fc.channel_rounds) == 1
+    slots = primary_rays.msaa_slots(plan)
+    got = np.frombuffer(room.resource("msaa_hits").read(), np.uint32).reshape(slots, 2, h, w, 4)
+    scene = room.scene
+    bvh = build_bvh(scene.vertices, scene.indices)
+    offsets = np.tile(subsamples(n)[0], (3, 1))
+    agree = []
+    for e, eye in enumerate(rig.eyes()):
+        tris, ts = [], []
+        for b in BLOCKS:
+            for i in range(n):   # numpy's traversal of set b's sub-ray i, GL rows (bottom-up) as the GPU's
+                rays = CHROMATIC.rays(eye, b, (i, n))
+                prim, t, _, _ = trace_reference(bvh, (rays.origins - scene.origin).reshape(-1, 3),
+                                                rays.directions.reshape(-1, 3), tmin=rig.near)
+                tris.append(np.asarray(prim, np.uint32).reshape(h, w)[::-1])
+                ts.append(np.asarray(t, np.float32).reshape(h, w)[::-1])
+        ref = primary_rays.msaa_lists(np.stack(tris, -1), np.stack(ts, -1), offsets, slots, channel_blocks=3)
+        mine = got[:, e]
+        count = (mine[0, ..., 2] >> 8) & 255
+        used = np.arange(slots)[:, None, None] < count[None]
+        agree.append((((mine[..., :2] == ref[..., :2]).all(-1) | ~used).all(0)
+                      & (mine[0, ..., 2] >> 8 == ref[0, ..., 2] >> 8)))   # count and each set's covered
+        assert count.max() >= 2
+    assert np.mean(agree) >= 0.97, np.mean(agree)   # sub-rays grazing an edge may go either way
 
 
 def test_shared_shading_costs_little_image_error(room):
@@ -60,14 +123,13 @@ def test_shared_shading_costs_little_image_error(room):
 @pytest.mark.parametrize("culling", [dict(tile_culling=True), dict(tile_lists=64), dict(block_culling=True, tile_lists=64)],
                          ids=["entries", "lists", "blocks and lists"])
 def test_tile_culled_shared_frames_equal_the_per_ray_shared_frame(room, culling):
-    """With tile culling the frame's one cull bounds all three channel sets' rays, which the probe,
-    red's and blue's casts start from (their entries, or the lists through tile_samples.comp): the
-    same frame and the same channel matches as per-ray traversal from the root."""
-    shared, match = frame(room, CHROMATIC, tile_culling=False)
-    culled, culled_match = frame(room, CHROMATIC, **culling)
+    """With tile culling the frame's one cull bounds all three channel sets' sub-rays, which the trace
+    starts from (their entries, or the lists through tile_samples.comp): the frame per-ray traversal
+    from the root gives."""
+    shared, tri = frame(room, CHROMATIC, tile_culling=False)
+    culled, culled_tri = frame(room, CHROMATIC, **culling)
     assert room.plan(camera=CHROMATIC).tile_culling and room.plan(camera=CHROMATIC).share_channels
-    assert 0.9 < (match & 1).astype(bool).mean() < 1.0
-    assert np.array_equal(match, culled_match) and np.array_equal(shared, culled)
+    assert np.array_equal(tri, culled_tri) and np.array_equal(shared, culled)
 
 
 def test_the_shared_cull_bounds_every_channel_sets_rays(room):
@@ -99,7 +161,8 @@ def test_only_frames_it_serves_share(room):
 
     assert shares() and not shares(share_channel_shading=False)
     assert not shares(camera=Pinhole())                 # one channel set
-    assert not shares(msaa=4)                           # MSAA rounds are per slot (not shared yet)
+    assert shares(msaa=4) and shares(msaa=8)            # 3 x 8 sub-rays fit a coverage mask ...
+    assert not shares(msaa=16) and not shares(msaa=4, ssaa=True)   # ... 3 x 16 do not; SSAA shades every sub-ray
     assert shares(tile_culling=True) and shares(tile_lists=64)   # the one cull bounds every set's rays
     with Renderer(None, MaterialConfig(default="ssr"), gl=room.gl) as r:   # reads neighbours' G-buffer
         r.settings = RenderSettings(primary="rays")

@@ -327,7 +327,7 @@ def markdown(result: dict) -> str:
     chosen = meta.get("primary_choices") or {}
     if len({r["variant"] for r in rows}) > 1 and chosen:
         lines += ["## Primary visibility: the fastest variant per camera model and MSAA count", "",
-                  f"The worst frame over every scene, config and pose measured; "
+                  "The worst frame over every scene, config and pose measured; "
                   + (f"{CHOICES_FILE} holds the choices (copy it to rayvr/assets/ for the renderer to take them)."
                      if meta.get("timings_meaningful", True) else
                      f"a software rasterizer's timings say nothing: no {CHOICES_FILE} written."), "",

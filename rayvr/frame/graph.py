@@ -610,14 +610,17 @@ class Round:
 
 
 # Green, cast last of three colour channel sets: the G-buffer the frame keeps (depth, aux) is the
-# middle wavelength's, and with shared channel shading its round shades for the channels that hit
-# its triangles (frame/passes/primary_rays.py shares_channels).
+# middle wavelength's; with shared channel shading (frame/passes/primary_rays.py shares_channels) its
+# block of sub-rays comes first, so a triangle all sets hit is shaded at green's ray.
 SHARED_CHANNEL = declare("SHARED_CHANNEL", 1)
 
 
-def channel_order(channels: int) -> list:
-    """Colour channel sets in the order a frame casts them: green (SHARED_CHANNEL) last."""
-    return [0, 2, SHARED_CHANNEL] if channels == 3 else list(range(channels))
+def channel_order(plan: FramePlan) -> list:
+    """Colour channel sets in the order a frame casts them: green (SHARED_CHANNEL) last; with shared
+    channel shading one round sequence for all three, whose passes see green's set."""
+    if plan.share_channels:
+        return [SHARED_CHANNEL]
+    return [0, 2, SHARED_CHANNEL] if plan.channels == 3 else list(range(plan.channels))
 
 
 @dataclass
@@ -722,7 +725,7 @@ class FrameGraph:
         rounds = graph.rounds
         if rounds:  # a sampled frame: what sample_accumulate depends on runs once per round
             index = 0
-            for ch in channel_order(graph.plan.channels):
+            for ch in channel_order(graph.plan):
                 fc.round = Round(ch, index=index, active=True)
                 while True:
                     for p in graph.passes:

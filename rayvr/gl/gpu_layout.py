@@ -86,9 +86,9 @@ IMAGE = {"hdr": 0, "ldr": 1,
          # frame/passes/sample_accumulate.py, sample_resolve.py; sample_weight beside the G-buffer
          # images (0..6) primary_rays writes with it
          "sample_sum": 2, "frame_hdr": 3, "sample_fill": 4, "sample_weight": 7,
-         # shared channel shading (frame/passes/primary_rays.py shares_channels): green's triangle, and
-         # which channels hit it; beside primary_rays' images (0, 5, 7) and sample_accumulate's (0, 2, 7)
-         "channel_probe": 2, "channel_match": 1}
+         # shared channel shading (frame/passes/primary_rays.py shares_channels): each colour channel's
+         # weight of the round's surface; beside primary_rays' images (0, 5, 7) and sample_accumulate's (0, 2, 7)
+         "channel_weight": 1}
 # Texture units beside the G-buffer channels' (0..7).
 UNIT = {"base_color_textures": 9, "layer2": 10, "layer2_triangle": 11, "peel_triangle": 12,
         "camera_samples": 13}  # camera_samples: frame/cameras/distorted.py sample files

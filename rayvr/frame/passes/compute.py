@@ -21,7 +21,9 @@ def camera_defines(plan) -> dict:
     (CameraModel.defines: its id, its GLSL file, its capabilities) and its sub-rays per sample."""
     from ..cameras import CAMERA_MODELS
 
-    return {**CAMERA_MODELS[plan.camera].defines(), "CAMERA_SUBSAMPLES": plan.samples}
+    # with shared channel shading the three colour channel sets are sub-rays too (CHANNEL_SAMPLES)
+    return {**CAMERA_MODELS[plan.camera].defines(), "CAMERA_SUBSAMPLES": plan.samples,
+            "CHANNEL_SAMPLES": 3 if plan.share_channels else 1}
 
 
 def set_eye_uniforms(program, fc) -> None:

@@ -47,12 +47,13 @@ triangle up once in workgroup memory as 2D edge functions in the tile's frame an
 sub-rays against them, the candidates with the exact test; primary.comp (TILE_LIST_OVERFLOW) casts
 the tiles whose list overflowed per ray from their entries. Exact.
 
-Shared channel shading (FramePlan.share_channels, `share_channel_shading`, shares_channels): with a
-chromatic camera at one sub-ray per sample, the frame's first round first casts green's rays into
-`channel_probe` (a `probe` stage); red's and blue's casts give the pixels whose ray hits green's
-triangle the weight ROUND_SKIPPED (their rounds shade and trace nothing there) and mark them in
-`channel_match`, from which sample_accumulate adds green's colour to those channels; green's round
-writes the probe's hits instead of casting its rays a second time.
+Shared channel shading (FramePlan.share_channels, `share_channel_shading`, shares_channels; HVVR's
+MSAA over colour channels): a chromatic camera's three colour channel sets are cast together, as
+sub-rays of each sample (CHANNEL_SAMPLES 3 in glsl/common/camera.glsl: a block of the sample's
+sub-rays a set, green's first), through the MSAA trace: one frame round a distinct triangle of a
+pixel, as with MSAA, shaded once at the sub-ray its mask centres on, every channel taking its own
+share of it (`channel_weight`, which sample_accumulate applies). The frame culls, traces and
+rounds once for all three sets instead of once a set.
 """
 from __future__ import annotations
 
@@ -113,11 +114,11 @@ EDGE_SLACK = declare_constant("EDGE_SLACK", 1e-5)
 
 
 SHARE_CHANNELS = declare(Option("share_channel_shading", bool, True, "a chromatic camera (three colour channel "
-                                "sets) shades its red and blue rays only where they hit another triangle than "
-                                "the pixel's green ray; where they hit the same one they take green's shading "
-                                "(HVVR's shared shading: the approximation and its error are in docs/design.md); "
-                                "false: every channel shaded on its own", scope="plan", plan_field="share_channels",
-                                commands=("capture", "preview", "info", "bench")))
+                                "sets) casts its sets together as sub-rays of each sample and shades a pixel once "
+                                "per distinct triangle its sets' rays hit, each channel taking its own share "
+                                "(HVVR's shared shading: the approximation and its error are in docs/design.md; "
+                                "--msaa up to 8); false: every channel set cast and shaded on its own",
+                                scope="plan", plan_field="share_channels", commands=("capture", "preview", "info", "bench")))
 
 
 def primary_visibility(settings, camera) -> str:
@@ -195,13 +196,17 @@ def tile_list_bound(settings, camera: str = "pinhole") -> int:
     return int((measured_choice(camera, settings.msaa) or {}).get("tile_lists", 0))
 
 
+SHARED_SETS = 3  # colour channel sets cast together with shared channel shading (glsl/common/camera.glsl)
+
+
 def shares_channels(settings, camera, samples: int, effects, view: str) -> bool:
-    """Whether a frame's red and blue rounds take green's shading where they hit its triangle: a
-    camera of three channel sets, one sub-ray per sample, the colour view, and no effect that reads
-    other pixels' G-buffer in a round (the quadtree's: a skipped pixel's G-buffer is an earlier
-    round's). With tile culling the frame's one cull bounds all three sets' rays (CULL_CHANNELS)."""
-    return (settings.share_channel_shading and camera.channels == 3 and samples == 1
-            and view == "color" and not any(EFFECTS[e].uses_quadtree for e in effects if e in EFFECTS))
+    """Whether a frame casts its three colour channel sets together as sub-rays and shades once per
+    distinct triangle: a camera of three sets, MSAA (or one sub-ray) whose sub-rays for all three sets
+    fit a coverage mask (--msaa 8 at most), the colour view, and no effect that reads other pixels'
+    G-buffer in a round (the quadtree's: a skipped pixel's G-buffer is an earlier round's)."""
+    return (settings.share_channel_shading and camera.channels == SHARED_SETS and not settings.ssaa
+            and samples * SHARED_SETS <= 32 and view == "color"
+            and not any(EFFECTS[e].uses_quadtree for e in effects if e in EFFECTS))
 
 
 # tile_samples.comp's workgroup memory: each pixel's sub-rays' hits (8 bytes a sub-ray) and the load of
@@ -223,7 +228,7 @@ MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further o
 MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
 SAMPLE_WEIGHT = Texture("r32f")
 # Shared channel shading: green's hits (triangle, distance bits); the channels that hit green's triangle (bit = channel)
-CHANNEL_PROBE, CHANNEL_MATCH = Texture("rg32ui"), Texture("r32ui")
+CHANNEL_WEIGHT = Texture("rgba32f")  # shared channel shading: each channel's weight of the round's surface
 # How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without
 # waiting; "wait" reads it after the first round, waiting for the GPU; "never" does not read it
 # (every channel then records msaa_slots rounds). Frames are identical under all three (tests).
@@ -241,16 +246,28 @@ def msaa_block(samples: int) -> tuple[int, int]:
     return w, pixels // w
 
 
+def msaa_coverage(mask: int, n_sub: int, channel_blocks: int = 1) -> int:
+    """The covered count of a kept entry's coverage mask (glsl/rt/primary_out.glsl msaa_coverage): its
+    sub-rays, or with shared channel shading (channel_blocks 3: n_sub / 3 sub-rays a colour channel
+    set, green's block first) each set's, 5 bits a set (channel c at bit 5c)."""
+    if channel_blocks == 1:
+        return bin(mask).count("1")
+    per = n_sub // channel_blocks
+    return sum(bin(mask >> (b * per) & ((1 << per) - 1)).count("1") << (5 * ((b + SHARED_CHANNEL) % 3))
+               for b in range(channel_blocks))
+
+
 def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int,
-               sampled: np.ndarray | None = None) -> np.ndarray:
+               sampled: np.ndarray | None = None, channel_blocks: int = 1) -> np.ndarray:
     """Numpy twin of primary.comp's MSAA merge: per pixel, from its N sub-rays' triangles `tris`
     (..., N) (NO_HIT: background) and distances `ts`, the list msaa_hits holds, (slots, ..., 4)
     uint32 entries (triangle, coverage mask, representative sub-ray | count << 8 | covered << 16
-    (entry 0 only), distance bits), most covered first, ties in order of first sub-ray; unused
+    (entry 0 only; msaa_coverage, summed), distance bits), most covered first, ties in order of first sub-ray; unused
     entries zero here (the GPU leaves entries past a pixel's count as the buffer held them: only
     the first count are defined, and only those are read). `offsets` (N, 2): the sub-rays' footprint offsets (cameras/sampling.subsamples);
     the representative is the sub-ray nearest the mean offset of its mask (the first of equally
-    near ones). `sampled` (...): False where the pixel has no sample (an empty list)."""
+    near ones). `sampled` (...): False where the pixel has no sample (an empty list).
+    `channel_blocks` 3: the sub-rays are shared channel shading's, a block of N / 3 a colour set."""
     tris = np.asarray(tris, np.uint32)
     shape, n_sub = tris.shape[:-1], tris.shape[-1]
     flat_t, flat_d = tris.reshape(-1, n_sub), np.asarray(ts, np.float32).reshape(-1, n_sub)
@@ -271,7 +288,8 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
             bits = [i for i in range(n_sub) if masks[k] >> i & 1]
             dist = ((offsets[bits] - offsets[bits].mean(0)) ** 2).sum(1)
             best = bits[int(np.argmin(dist))]
-            meta = best | ((len(ids) << 8) | (sum(pop) << 16) if rank == 0 else 0)
+            covered = sum(msaa_coverage(m, n_sub, channel_blocks) for m in masks)
+            meta = best | ((len(ids) << 8) | (covered << 16) if rank == 0 else 0)
             out[rank, px] = (ids[k], masks[k], meta, flat_d[px, best].view(np.uint32))
     return out.reshape((slots,) + shape + (4,))
 
@@ -293,12 +311,20 @@ def frame_blocks(sizing) -> int:
     return bx * by * sizing.layers
 
 
+def subrays(plan: FramePlan) -> int:
+    """The sub-rays a sample casts (glsl/common/camera.glsl CAMERA_SUBRAYS): its footprint's, times
+    three colour channel sets cast together with shared channel shading."""
+    return plan.samples * (SHARED_SETS if plan.share_channels else 1)
+
+
 def msaa_slots(plan: FramePlan) -> int:
-    return min(plan.samples, MAX_SLOTS)
+    return min(subrays(plan), MAX_SLOTS)
 
 
 def uses_msaa(plan: FramePlan) -> bool:
-    return plan.samples > 1 and plan.shading == "msaa"
+    """Whether the frame traces every sub-ray of a sample and shades each distinct triangle once: MSAA,
+    and shared channel shading (its channel sets are sub-rays)."""
+    return (plan.samples > 1 and plan.shading == "msaa") or plan.share_channels
 
 
 def skips_empty_slots(plan: FramePlan) -> bool:
@@ -310,9 +336,8 @@ def skips_empty_slots(plan: FramePlan) -> bool:
 
 
 def skips_rounds(plan: FramePlan) -> bool:
-    """Whether a round may leave pixels alone (glsl/common/round_skip.glsl): MSAA slots a pixel has
-    not, and with shared channel shading the red and blue pixels that hit green's triangle."""
-    return uses_msaa(plan) or plan.share_channels
+    """Whether a round may leave pixels alone (glsl/common/round_skip.glsl): the MSAA slots a pixel has not."""
+    return uses_msaa(plan)
 
 
 def round_skip_reads(plan: FramePlan) -> list:
@@ -361,7 +386,7 @@ class PrimaryRaysPass(Pass):
                                                   f"{TILE_ENTRIES + 1} words per block of tiles")),
                     write("block_planes", Buffer(lambda s: frame_blocks(s) * 80, "5 planes per block"))]
         if plan.share_channels:
-            out += [write("channel_probe", CHANNEL_PROBE), write("channel_match", CHANNEL_MATCH)]
+            out.append(write("channel_weight", CHANNEL_WEIGHT))
         if plan.tile_lists:
             out.append(write("tile_tris", Buffer(lambda s, n=plan.tile_lists: frame_tiles(s) * (n + 1) * 8,
                                                  f"{plan.tile_lists + 1} x 8 bytes per tile")))
@@ -370,13 +395,13 @@ class PrimaryRaysPass(Pass):
     def setup(self, gl, plan: FramePlan) -> None:
         # the primary rays' BVH layout; tile entry lists name binary child pairs
         self.layout = "bvh2" if plan.tile_culling else plan.traversal[0]
-        self.block = msaa_block(plan.samples)
+        self.block = msaa_block(subrays(plan))
         tiles = {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": TILE_ENTRIES, "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
                  "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
         lists = {"TILE_TRIS": plan.tile_lists, "TILE_TRIS_BINDING": SSBO["tile_tris"]} if plan.tile_lists else {}
         base = {**layout_defines(DEFAULT_BINDING, self.layout), **camera_defines(plan), "SAMPLED": int(plan.sampled),
                 "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
-                "MSAA_GROUP": self.block[0] * self.block[1] * plan.samples,
+                "MSAA_GROUP": self.block[0] * self.block[1] * subrays(plan),
                 "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles, **lists,
                 "TILE_LIST_OVERFLOW": int(bool(plan.tile_lists)), "SHARE_CHANNELS": int(plan.share_channels)}
         self.msaa = uses_msaa(plan)
@@ -393,9 +418,7 @@ class PrimaryRaysPass(Pass):
         # The cull's kernels: tile frusta and cuts from the root in one (tile_cull.comp's TILE_STAGE 0), or
         # with block culling the tile frusta (stage 1), the blocks' cuts (block_cull.comp), the tiles'
         # cuts from their blocks' entries (stage 2).
-        # With shared channel shading the cull bounds every channel set's rays: all three casts read it.
-        cull = {**layout_defines(DEFAULT_BINDING, "bvh2"), **camera_defines(plan), **tiles, "TILE_CAMERA": 1,
-                "CULL_CHANNELS": plan.channels if plan.share_channels else 1}
+        cull = {**layout_defines(DEFAULT_BINDING, "bvh2"), **camera_defines(plan), **tiles, "TILE_CAMERA": 1}
         blocks = {"TILE_BOXES_BINDING": SSBO["tile_boxes"], "BLOCK_ENTRIES_BINDING": SSBO["block_entries"],
                   "BLOCK_PLANES_BINDING": SSBO["block_planes"]}
         self.cull = {}
@@ -431,8 +454,6 @@ class PrimaryRaysPass(Pass):
         if not self.msaa:
             if rnd.first:  # SSAA: one round per sub-ray; 1x: one
                 rnd.start(fc.plan.samples)
-            if fc.plan.share_channels:
-                self.share_channels(fc)
             for program in [self.programs[0], *self.sample_tests()]:
                 program["subsample"].value = rnd.slot
             fc.stage("cast", lambda: (self.dispatch_sample_tests(fc), dispatch_per_pixel(fc, self.programs[0])))
@@ -449,29 +470,11 @@ class PrimaryRaysPass(Pass):
                 rnd.start_polled(self.count_reader(fc, rnd.channel), msaa_slots(fc.plan))
             else:
                 rnd.start(1)
+        if fc.plan.share_channels:
+            fc.resource("channel_weight").bind_to_image(IMAGE["channel_weight"], read=False, write=True)
         # Slot = count - 1 - this: rounds of this channel set before this one; -1: slot 0 (no rounds).
         self.programs[2]["msaa_round"].value = rnd.ordinal if rnd.active else -1
         fc.stage("select", lambda: dispatch_per_pixel(fc, self.programs[2]))
-
-    def share_channels(self, fc) -> None:
-        """Shared channel shading: the frame's first round first casts green's rays into
-        channel_probe; the red and blue rounds then compare (share_mode 2, glsl/rt/primary.comp);
-        green's, last, takes its visibility from the probe (share_mode 3) and sample_accumulate
-        gives its colour to the channels that matched."""
-        rnd, casts = fc.round, [self.programs[0], *self.sample_tests()]
-        fc.resource("channel_probe").bind_to_image(IMAGE["channel_probe"], read=True, write=True)
-        fc.resource("channel_match").bind_to_image(IMAGE["channel_match"], read=True, write=True)
-
-        def modes(channel: int, mode: int) -> None:
-            for program in casts:
-                program["camera_channel"].value = channel
-                program["share_mode"].value = mode
-        if rnd.index == 0:
-            modes(SHARED_CHANNEL, 1)
-            for program in casts:
-                program["subsample"].value = 0
-            fc.stage("probe", lambda: (self.dispatch_sample_tests(fc), dispatch_per_pixel(fc, self.programs[0])))
-        modes(rnd.channel, 3 if rnd.channel == SHARED_CHANNEL else 2)
 
     def count_reader(self, fc, channel: int):
         """Round.start_polled's count(wait) for the channel set's count just copied to the readback."""
@@ -501,8 +504,8 @@ class PrimaryRaysPass(Pass):
         if "blocks" in self.cull:
             for name in ("tile_boxes", "block_entries", "block_planes"):
                 fc.resource(name).bind_to_storage_buffer(SSBO[name])
-        if not fc.round.first or (fc.plan.share_channels and fc.round.index > 0):
-            return   # one cull per channel set, or one for all of them (shared channel shading)
+        if not fc.round.first:
+            return   # one cull per channel set (with shared channel shading one set of all three)
         nx, ny = tile_grid(*fc.sizing.size)
         layers, barrier = fc.sizing.layers, lambda: fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
         if "beams" in self.cull:   # HVVR's block beams: tile frusta, the blocks' cuts, then the tiles'

@@ -32,7 +32,7 @@ class SampleAccumulatePass(Pass):
 
     def io(self, plan: FramePlan) -> list:
         return [read("hdr"), read("sample_weight"), write("sample_sum", SAMPLE_SUM)] + (
-            [read("channel_match")] if plan.share_channels else [])
+            [read("channel_weight")] if plan.share_channels else [])
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.program = shaders.compute(gl.ctx, "shade/sample_accumulate.comp",
@@ -41,12 +41,13 @@ class SampleAccumulatePass(Pass):
     def execute(self, fc) -> None:
         rnd = fc.round
         self.program["first"].value = int(rnd.index == 0)
-        self.program["channel"].value = rnd.channel if fc.plan.channels > 1 else -1
+        if "channel" in self.program:   # (shared channel shading weighs each channel on its own)
+            self.program["channel"].value = rnd.channel if fc.plan.channels > 1 else -1
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=True, write=False)
         fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=True, write=False)
         fc.resource("sample_sum").bind_to_image(IMAGE["sample_sum"], read=True, write=True)
         if fc.plan.share_channels:
-            fc.resource("channel_match").bind_to_image(IMAGE["channel_match"], read=True, write=False)
+            fc.resource("channel_weight").bind_to_image(IMAGE["channel_weight"], read=True, write=False)
         dispatch_per_pixel(fc, self.program)
 
     def release(self) -> None:

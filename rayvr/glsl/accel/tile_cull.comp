@@ -79,24 +79,15 @@ layout(std430, binding = TILE_BOXES_BINDING) writeonly restrict buffer Boxes { v
 #ifdef TILE_CAMERA
 #include "../common/camera.glsl"
 #include "../rt/primary_ray.glsl"
-// CULL_CHANNELS 3 (shared channel shading, frame/passes/primary_rays.py): the frustum bounds the rays of
-// all three colour channel sets (their casts all start from this cull's entries); 1: this round's set.
-#ifndef CULL_CHANNELS
-#define CULL_CHANNELS 1
-#endif
-#define TILE_SUBRAYS (CAMERA_SUBSAMPLES * CULL_CHANNELS)
+// every sub-ray of the pixel: with shared channel shading (CHANNEL_SAMPLES 3), all three colour channel sets'
+#define TILE_SUBRAYS CAMERA_SUBRAYS
 uniform ivec2 image_size;   // per eye
 
-// Sub-ray k of this invocation's pixel, as primary.comp casts it (with CULL_CHANNELS 3, sub-ray k %
-// CAMERA_SUBSAMPLES of channel set k / CAMERA_SUBSAMPLES); false: no such ray.
+// Sub-ray k of this invocation's pixel, as primary.comp casts it; false: no such ray.
 bool tile_ray(uint lid, uint k, out Ray r) {
     ivec3 p = ivec3(ivec2(gl_WorkGroupID.xy) * ivec2(TILE_W, TILE_H) + ivec2(lid % uint(TILE_W), lid / uint(TILE_W)),
                     gl_WorkGroupID.z);
     vec3 o, d;
-#if CULL_CHANNELS > 1
-    camera_channel_override = int(k / uint(CAMERA_SUBSAMPLES));
-    k %= uint(CAMERA_SUBSAMPLES);
-#endif
     bool ok = all(lessThan(p.xy, image_size)) &&
               camera_subray(p.z, vec2(p.xy) + 0.5, vec2(image_size), k, o, d);
     r = ok ? primary_ray(p.z, o, d) : Ray(vec3(0.0), 0.0, vec3(0.0), 0.0);

@@ -12,8 +12,8 @@ uniform mat3 eye_rotation[2];  // camera-to-world; columns right, up, back
 uniform vec4 eye_tangents[2];  // frustum tangents: left, right, bottom, top
 uniform vec2 eye_depth;        // near, far (0: infinite far plane)
 uniform int camera_channel;    // the colour channel set this frame round samples (CameraModel.channels)
-// A kernel that makes several channel sets' rays (the tile cull of a frame with shared channel
-// shading, frame/passes/primary_rays.py) names the set it makes now here; -1: camera_channel.
+// camera_subray of a sub-ray of another channel set (CHANNEL_SAMPLES below) names its set here while
+// it makes the ray; -1: camera_channel.
 int camera_channel_override = -1;
 // The colour channel set whose rays camera_ray_at makes: what a model with channels reads.
 int camera_sample_channel() { return camera_channel_override >= 0 ? camera_channel_override : camera_channel; }
@@ -37,11 +37,36 @@ int camera_sample_channel() { return camera_channel_override >= 0 ? camera_chann
 bool camera_ray_at(int eye, vec2 pixel, vec2 size, vec2 lens, out vec3 origin, out vec3 direction);
 float camera_footprint(int eye, vec2 pixel, vec2 size);
 
-// Sub-ray i of CAMERA_SUBSAMPLES of the sample at pixel centre `pixel` (cameras/sampling.glsl):
+// CHANNEL_SAMPLES 3 (shared channel shading, frame/passes/primary_rays.py shares_channels): a sample's
+// colour channel sets are cast together, as CAMERA_SUBRAYS = 3 x CAMERA_SUBSAMPLES sub-rays: three
+// blocks of CAMERA_SUBSAMPLES, one a set, green's (SHARED_CHANNEL) first; 1: the round's set alone.
+#ifndef CHANNEL_SAMPLES
+#define CHANNEL_SAMPLES 1
+#endif
+#define CAMERA_SUBRAYS (CAMERA_SUBSAMPLES * CHANNEL_SAMPLES)
+
+// The colour channel set of sub-ray i of CAMERA_SUBRAYS.
+int camera_subray_channel(uint i) {
+#if CHANNEL_SAMPLES > 1
+    return int((i / uint(CAMERA_SUBSAMPLES) + uint(SHARED_CHANNEL)) % 3u);
+#else
+    return camera_channel;
+#endif
+}
+
+// Sub-ray i's footprint offset (cameras/sampling.glsl): each channel set's block has the same ones.
+vec2 camera_subray_offset(uint i) { return camera_subpixel(i % uint(CAMERA_SUBSAMPLES)); }
+
+// Sub-ray i of CAMERA_SUBRAYS of the sample at pixel centre `pixel` (cameras/sampling.glsl):
 // scene-local origin, unit direction; false where the sample makes no ray.
 bool camera_subray(int eye, vec2 pixel, vec2 size, uint i, out vec3 origin, out vec3 direction) {
+#if CHANNEL_SAMPLES > 1
+    camera_channel_override = camera_subray_channel(i);
+    i %= uint(CAMERA_SUBSAMPLES);
+#endif
     float f = camera_footprint(eye, pixel, size);
     bool valid = camera_ray_at(eye, pixel + camera_subpixel(i) * max(f, 1.0), size, camera_lens(i), origin, direction);
+    camera_channel_override = -1;
     return valid && f > 0.0;
 }
 
@@ -54,11 +79,16 @@ bool camera_ray(int eye, vec2 pixel, vec2 size, out vec3 origin, out vec3 direct
 // The directions of the rays one footprint step right (+x) and up (+y) of sub-ray i, through the
 // same lens point, so from the same origin: the footprint texture LOD needs (Mitsuba's d_x, d_y).
 void camera_subray_neighbours(int eye, vec2 pixel, vec2 size, uint i, out vec3 direction_x, out vec3 direction_y) {
+#if CHANNEL_SAMPLES > 1
+    camera_channel_override = camera_subray_channel(i);
+    i %= uint(CAMERA_SUBSAMPLES);
+#endif
     float f = max(camera_footprint(eye, pixel, size), 1.0);
     vec2 at = pixel + camera_subpixel(i) * f, lens = camera_lens(i);
     vec3 o;
     camera_ray_at(eye, at + vec2(f, 0.0), size, lens, o, direction_x);
     camera_ray_at(eye, at + vec2(0.0, f), size, lens, o, direction_y);
+    camera_channel_override = -1;
 }
 
 void camera_ray_neighbours(int eye, vec2 pixel, vec2 size, out vec3 direction_x, out vec3 direction_y) {

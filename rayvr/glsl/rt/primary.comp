@@ -7,7 +7,7 @@
 //
 // PRIMARY_MODE 0: one ray per sample, sub-ray `subsample` of CAMERA_SUBSAMPLES (1x: the central
 //   ray; SSAA: the frame round's sub-ray, weight 1 / CAMERA_SUBSAMPLES).
-// PRIMARY_MODE 1 (MSAA, trace): all CAMERA_SUBSAMPLES sub-rays, one invocation each (a workgroup
+// PRIMARY_MODE 1 (MSAA, trace): all CAMERA_SUBRAYS sub-rays, one invocation each (a workgroup
 //   is a block of MSAA_BLOCK_W x MSAA_BLOCK_H pixels times their sub-rays); then the pixel's sub-rays
 //   merge their hits from shared memory, each invocation its own (msaa_merge): the distinct
 //   triangles (the background counts as one) with their coverage masks go to msaa_hits, most
@@ -19,7 +19,8 @@
 // PRIMARY_MODE 2 (MSAA, select): slot msaa_count - 1 - `msaa_round` of each pixel's list (slot 0
 //   for msaa_round -1) becomes its visibility, shaded at the sub-ray of its mask nearest the mask's
 //   mean_offset, weighted by its coverage. The slot comes from the GPU's count: the CPU records
-//   rounds before it knows the count. A pixel with nothing in the round gets weight ROUND_SKIPPED
+//   rounds before it knows the count (with CHANNEL_SAMPLES 3 the sub-rays of all three colour
+//   channel sets, each set weighted by its own coverage: channel_weight). A pixel with nothing in the round gets weight ROUND_SKIPPED
 //   and keeps its visibility (common/round_skip.glsl): in a round past the count (slot < 0: slot
 //   0, the last real one, made its G-buffer) and, with MSAA_SKIP_EMPTY, in an empty slot above 0
 //   (slot 0 always writes every pixel: an empty list gets the background, weight 0).
@@ -37,7 +38,7 @@
 #endif
 #include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 #if PRIMARY_MODE == 1
-layout(local_size_x = MSAA_GROUP) in;  // = MSAA_BLOCK_W * MSAA_BLOCK_H * CAMERA_SUBSAMPLES (a literal: GLSL 4.30)
+layout(local_size_x = MSAA_GROUP) in;  // = MSAA_BLOCK_W * MSAA_BLOCK_H * CAMERA_SUBRAYS (a literal: GLSL 4.30)
 #else
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
 #endif
@@ -52,10 +53,9 @@ layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) i
 shared uint group_count;
 shared uint sub_tri[MSAA_GROUP];   // each sub-ray's triangle (BVH_MISS: background) and distance,
 shared float sub_t[MSAA_GROUP];    //   pixel-major: the block's pixel j has entries j * N .. j * N + N - 1
-shared vec2 sub_offset[CAMERA_SUBSAMPLES];  // camera_subpixel(i), computed once per workgroup
+shared vec2 sub_offset[CAMERA_SUBRAYS];  // camera_subray_offset(i), computed once per workgroup
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
-// SHARE_CHANNELS (PRIMARY_MODE 0): rt/primary_out.glsl store_cast.
 uniform int msaa_round;  // PRIMARY_MODE 2
 
 // TILE_LIST_OVERFLOW 1 (with tile lists, frame/passes/primary_rays.py): cast only the tiles whose
@@ -93,7 +93,7 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
     // numbered in order of their first sub-ray, and only the first MSAA_SLOTS are kept (the
     // sub-rays on the others are dropped).
     uint tri = sub_tri[base + sub], mask = 0u;
-    for (uint k = 0u; k < uint(CAMERA_SUBSAMPLES); k++)
+    for (uint k = 0u; k < uint(CAMERA_SUBRAYS); k++)
         mask |= sub_tri[base + k] == tri ? 1u << k : 0u;
     bool first = uint(findLSB(mask)) == sub;
     if (sub == 0u) {
@@ -106,7 +106,7 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
     uint firsts = pixel_first[j];
     bool kept = first && uint(bitCount(firsts & ((1u << sub) - 1u))) < uint(MSAA_SLOTS);
     sub_mask[base + sub] = mask;
-    if (kept) atomicAdd(pixel_covered[j], uint(bitCount(mask)));
+    if (kept) atomicAdd(pixel_covered[j], msaa_coverage(mask));
     barrier();
     if (!inside) return 0u;
     if (!(camera_footprint(p.z, vec2(p.xy) + 0.5, vec2(size)) > 0.0)) {
@@ -146,7 +146,7 @@ void main() {
 #if PRIMARY_MODE == 1
     // Invocation -> (pixel of the workgroup's block, sub-ray): a pixel's sub-rays are neighbouring
     // invocations (one warp traces a few neighbouring pixels' sub-rays: coherent rays).
-    uint lid = gl_LocalInvocationIndex, sub = lid % uint(CAMERA_SUBSAMPLES), j = lid / uint(CAMERA_SUBSAMPLES);
+    uint lid = gl_LocalInvocationIndex, sub = lid % uint(CAMERA_SUBRAYS), j = lid / uint(CAMERA_SUBRAYS);
     ivec3 p = ivec3(ivec2(gl_WorkGroupID.xy) * ivec2(MSAA_BLOCK_W, MSAA_BLOCK_H) +
                     ivec2(j % uint(MSAA_BLOCK_W), j / uint(MSAA_BLOCK_W)), gl_WorkGroupID.z);
 #else
@@ -156,14 +156,8 @@ void main() {
     ivec2 size = extent.xy;
     bool inside = all(lessThan(p.xy, size));
 #if TILE_LIST_OVERFLOW && PRIMARY_MODE != 2
-    // The group's pixels lie in one tile: the whole group leaves a tile with a list to tile_samples.comp
-    // (but for green's round with shared channel shading, which casts nothing: every tile is this one's).
-#if SHARE_CHANNELS
-    bool casts_nothing = share_mode == 3;
-#else
-    bool casts_nothing = false;
-#endif
-    if (tile_tris[primary_tile(p, size) * uint(TILE_TRIS + 1)].x != TILE_OVERFLOW && !casts_nothing)
+    // The group's pixels lie in one tile: the whole group leaves a tile with a list to tile_samples.comp.
+    if (tile_tris[primary_tile(p, size) * uint(TILE_TRIS + 1)].x != TILE_OVERFLOW)
         return;
 #endif
 #if PRIMARY_MODE != 0
@@ -171,7 +165,7 @@ void main() {
 #endif
 #if PRIMARY_MODE == 1
     if (lid == 0u) group_count = 0u;
-    if (lid < uint(CAMERA_SUBSAMPLES)) sub_offset[lid] = camera_subpixel(lid);
+    if (lid < uint(CAMERA_SUBRAYS)) sub_offset[lid] = camera_subray_offset(lid);
     vec3 o, d;
     Hit h;
     h.prim = BVH_MISS;
@@ -181,7 +175,7 @@ void main() {
     sub_tri[lid] = h.prim;
     sub_t[lid] = h.t;
     barrier();
-    uint n = msaa_merge(p, size, index, pixels, j * uint(CAMERA_SUBSAMPLES), sub, j, inside);
+    uint n = msaa_merge(p, size, index, pixels, j * uint(CAMERA_SUBRAYS), sub, j, inside);
     if (inside && sub == 0u) atomicMax(group_count, n);
     barrier();
     // One round is the least a frame runs (primary_rays.py): only a count above 1 needs telling, and
@@ -189,16 +183,6 @@ void main() {
     if (lid == 0u && group_count > 1u && group_count > msaa_count) atomicMax(msaa_count, group_count);
 #elif PRIMARY_MODE == 0
     vec2 pixel = vec2(p.xy) + 0.5;
-    float weight = 1.0 / float(CAMERA_SUBSAMPLES);
-#if SHARE_CHANNELS
-    if (share_mode == 3) {   // green's hits, cast by the probe
-        if (!inside) return;
-        uvec2 green = imageLoad(img_probe, p).xy;
-        bool sampled = camera_footprint(p.z, pixel, vec2(size)) > 0.0;
-        store(p, green.x, uint(subsample), uintBitsToFloat(green.y), sampled ? weight : 0.0);
-        return;
-    }
-#endif
     vec3 o, d;
     Hit h;
     h.prim = BVH_MISS;
@@ -214,7 +198,7 @@ void main() {
     uint n = (head.z >> 8) & 255u, covered = head.z >> 16;
     if (slot >= 0 && uint(slot) < n) {
         uvec4 e = HIT(slot);
-        store(p, e.x, e.z & 255u, uintBitsToFloat(e.w), float(bitCount(e.y)) / float(max(covered, 1u)));
+        store(p, e.x, e.z & 255u, uintBitsToFloat(e.w), msaa_weight(p, e.y, covered));
     } else if (slot < 0 || (MSAA_SKIP_EMPTY != 0 && slot > 0)) {
         imageStore(img_weight, p, vec4(ROUND_SKIPPED));  // nothing new: the pixel keeps what it has
     } else {

@@ -20,40 +20,9 @@ void store(ivec3 p, uint tri, uint sub, float t, float weight) {
 #endif
 }
 
-// SHARE_CHANNELS (one sub-ray per sample, frame/passes/primary_rays.py shares_channels): share_mode 1
-// casts the green channel into channel_probe (its triangle and distance: the frame's first round);
-// 2, in the red and blue rounds, leaves the pixels whose ray hits green's triangle to green (weight
-// ROUND_SKIPPED, no visibility written: common/round_skip.glsl) and marks them in channel_match (bit =
-// channel), whose colour sample_accumulate then takes from green's round; 3, green's round, writes the
-// probe's hits as its visibility (rt/primary.comp) instead of casting the same rays again.
-#ifndef SHARE_CHANNELS
-#define SHARE_CHANNELS 0
-#endif
-#if SHARE_CHANNELS
-layout(rg32ui, binding = IMAGE_CHANNEL_PROBE) uniform uimage2DArray img_probe;
-layout(r32ui, binding = IMAGE_CHANNEL_MATCH) uniform uimage2DArray img_match;
-uniform int share_mode;
-#endif
-
 // What a cast of one sub-ray per sample (sub-ray `sub` of the pixel's footprint, weight 1 / sub-rays)
-// writes for pixel p (inside the image) whose ray hit triangle `tri` at t, per the share mode.
+// writes for pixel p (inside the image) whose ray hit triangle `tri` at t.
 void store_cast(ivec3 p, bool sample_here, uint tri, float t, uint sub) {
-#if SHARE_CHANNELS
-    if (share_mode == 1) {
-        imageStore(img_probe, p, uvec4(tri, floatBitsToUint(t), 0u, 0u));
-        return;
-    }
-    if (share_mode == 2) {
-        // the same triangle (or both background) as green's ray: green's shading serves this channel
-        bool same = sample_here && imageLoad(img_probe, p).x == tri;
-        uint bits = camera_channel == 0 ? 0u : imageLoad(img_match, p).x;   // red's round is the first
-        imageStore(img_match, p, uvec4(bits | (same ? 1u << uint(camera_channel) : 0u)));
-        if (same) {
-            imageStore(img_weight, p, vec4(ROUND_SKIPPED));
-            return;
-        }
-    }
-#endif
     // A pixel without a sample (foveated) weighs nothing: the resolve fills it for display.
     store(p, tri, sub, t, sample_here ? 1.0 / float(CAMERA_SUBSAMPLES) : 0.0);
 }
@@ -69,5 +38,42 @@ layout(std430, binding = SSBO_MSAA_COUNT) buffer MsaaCount { uint msaa_count; };
 // Slot-major entries (slot k of every pixel, then slot k + 1): neighbouring invocations write and
 // read neighbouring entries. `index`: the pixel's, `pixels`: of the frame.
 #define HIT(k) msaa_hits[index + uint(k) * pixels]
+
+// The covered count a kept entry of coverage mask `mask` adds to its pixel's (the meta's high bits):
+// its sub-rays, or with CHANNEL_SAMPLES 3 each colour channel set's, 5 bits a set (set c at bit 5c).
+uint msaa_coverage(uint mask) {
+#if CHANNEL_SAMPLES > 1
+    uint block = (1u << uint(CAMERA_SUBSAMPLES)) - 1u, covered = 0u;
+    for (uint b = 0u; b < 3u; ++b) {
+        uint first = b * uint(CAMERA_SUBSAMPLES);
+        covered += uint(bitCount(mask & (block << first))) << (5u * uint(camera_subray_channel(first)));
+    }
+    return covered;
+#else
+    return uint(bitCount(mask));
+#endif
+}
+
+#if CHANNEL_SAMPLES > 1
+// Each colour channel's weight of the entry (rgb; a: green's, the sample sum's weight), which
+// sample_accumulate applies to its own channel.
+layout(rgba32f, binding = IMAGE_CHANNEL_WEIGHT) uniform writeonly image2DArray img_channel_weight;
+#endif
+
+// The select's weight of pixel p's entry with coverage mask `mask` among its `covered` (msaa_coverage
+// summed): its share of the pixel's sub-rays; with CHANNEL_SAMPLES 3 each channel set's share, stored
+// in channel_weight, and the largest of them (the round skips a pixel only where all are 0).
+float msaa_weight(ivec3 p, uint mask, uint covered) {
+#if CHANNEL_SAMPLES > 1
+    uint mine = msaa_coverage(mask);
+    vec3 w;
+    for (int c = 0; c < 3; ++c)
+        w[c] = float((mine >> (5 * c)) & 31u) / float(max((covered >> (5 * c)) & 31u, 1u));
+    imageStore(img_channel_weight, p, vec4(w, w.g));
+    return max(max(w.r, w.g), w.b);
+#else
+    return float(bitCount(mask)) / float(max(covered, 1u));
+#endif
+}
 #endif
 #endif

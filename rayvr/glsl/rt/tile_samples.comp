@@ -29,7 +29,8 @@
 // goes to the exact test.
 //
 // SAMPLE_MODE 0: sub-ray `subsample` of each pixel (1x, an SSAA round), written as rt/primary.comp's
-//   PRIMARY_MODE 0 writes it; 1: all CAMERA_SUBSAMPLES sub-rays (the MSAA trace), merged into
+//   PRIMARY_MODE 0 writes it; 1: all CAMERA_SUBRAYS sub-rays (the MSAA trace; with CHANNEL_SAMPLES 3,
+//   those of all three colour channel sets, a block of sub-rays and an affine map a set), merged into
 //   msaa_hits and msaa_count as PRIMARY_MODE 1 does (frame/passes/primary_rays.py msaa_lists is the
 //   numpy twin of both merges).
 // Tiles whose list overflowed (TILE_OVERFLOW) or that were not culled are left to rt/primary.comp with
@@ -65,17 +66,20 @@ layout(local_size_x = SAMPLE_GROUP) in;
 #include "primary_out.glsl"
 
 #if SAMPLE_MODE == 1
-#define PIXEL_RAYS CAMERA_SUBSAMPLES
+#define PIXEL_RAYS CAMERA_SUBRAYS
+#define RAY_BLOCKS CHANNEL_SAMPLES   // blocks of sub-rays: one a colour channel set, each its own map
 #else
 #define PIXEL_RAYS 1
+#define RAY_BLOCKS 1
 #endif
+#define BLOCK_RAYS (PIXEL_RAYS / RAY_BLOCKS)
 #define BANDS (TILE_RAYS / SAMPLE_GROUP)   // workgroups a tile
 #define BAND_ROWS (TILE_H / BANDS)
 
 layout(std430, binding = TILE_TRIS_BINDING) readonly restrict buffer TileTris { uvec2 tile_tris[]; };
 
 shared vec4 list_edge[3][SAMPLE_GROUP];   // the load's edge functions (E at (0, 0), dE/dsu, dE/dsv, slack)
-shared vec2 sub_offset[PIXEL_RAYS];       // each sub-ray's footprint offset (camera_subpixel)
+shared vec2 sub_offset[PIXEL_RAYS];       // each sub-ray's footprint offset (camera_subray_offset)
 shared uint list_slot[SAMPLE_GROUP];
 shared float list_key[SAMPLE_GROUP];
 shared uint list_more[2];                 // some pixel still needs the next load (by parity)
@@ -108,7 +112,7 @@ uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
     }
     uint ids[MSAA_SLOTS], masks[MSAA_SLOTS];
     uint n = 0u;
-    for (uint k = 0u; k < uint(CAMERA_SUBSAMPLES); ++k) {
+    for (uint k = 0u; k < uint(PIXEL_RAYS); ++k) {
         uint tri = sub_tri[SUB(k)];
         bool known = false;
         for (uint s = 0u; s < n; ++s)
@@ -124,7 +128,7 @@ uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
     }
     uint covered = 0u;
     for (uint s = 0u; s < n; ++s)
-        covered += uint(bitCount(masks[s]));
+        covered += msaa_coverage(masks[s]);
     for (uint s = 0u; s < n; ++s) {
         uint pop = uint(bitCount(masks[s])), rank = 0u;
         for (uint o = 0u; o < n; ++o) {
@@ -174,38 +178,45 @@ void main() {
     uint n = tile_tris[head].x;
     if (n == TILE_OVERFLOW)
         return;   // the whole group: rt/primary.comp's TILE_LIST_OVERFLOW casts it
-#if SHARE_CHANNELS
-    if (share_mode == 3)
-        return;   // green's round with shared channel shading casts nothing: rt/primary.comp writes the probe's hits
-#endif
     bool inside = all(lessThan(p.xy, size));
     vec2 pixel = vec2(p.xy) + 0.5;
     vec3 c = tile_planes[5u * tile + 4u].xyz;
     vec3 u = normalize(abs(c.x) < 0.6 ? cross(c, vec3(1.0, 0.0, 0.0)) : cross(c, vec3(0.0, 1.0, 0.0)));
     vec3 v = cross(c, u);
 
-    // The pixel's sub-ray points (su, sv) as an affine map of their footprint offsets o (camera_subpixel,
-    // in units of the footprint's step): q(o) = q_mid + J o, with J from the central ray and the rays
-    // one step right and up (the same for every sub-ray: no per-sub-ray registers), and `bend`, the
-    // farthest any sub-ray's own point lies from its affine one (0 up to rounding for the planar
-    // models, the lens curvature inside a pixel for the distorted one), which the edge tests add to
-    // their slack times the edge function's gradient. Each sub-ray also gets its start here (a miss at
-    // tmax where it traces; nothing at t 0 where the sample makes no ray).
+    // The pixel's sub-ray points (su, sv) as affine maps of their footprint offsets o (camera_subray_offset,
+    // in units of the footprint's step), one a block of sub-rays (a colour channel set's): q(o) =
+    // q_mid + J o, with J from the block's central ray and its rays one step right and up (the same
+    // for every sub-ray of the block: no per-sub-ray registers), and `bend`, the farthest any
+    // sub-ray's own point lies from its affine one (0 up to rounding for the planar models, the lens
+    // curvature inside a pixel for the distorted one), which the edge tests add to their slack times
+    // the edge function's gradient. Each sub-ray also gets its start here (a miss at tmax where it
+    // traces; nothing at t 0 where the sample makes no ray).
     // co: the largest c.o of the pixel's origins (several with a lens), which the reaches use.
     float step_size = max(camera_footprint(p.z, pixel, vec2(size)), 1.0);
-    vec3 o0, dm, dx, dy;
-    camera_ray_at(p.z, pixel, vec2(size), vec2(0.0), o0, dm);
-    camera_ray_at(p.z, pixel + vec2(step_size, 0.0), vec2(size), vec2(0.0), o0, dx);
-    camera_ray_at(p.z, pixel + vec2(0.0, step_size), vec2(size), vec2(0.0), o0, dy);
-    vec2 q_mid = vec2(dot(dm, u), dot(dm, v)) / dot(dm, c);
-    mat2 J = mat2(vec2(dot(dx, u), dot(dx, v)) / dot(dx, c) - q_mid, vec2(dot(dy, u), dot(dy, v)) / dot(dy, c) - q_mid);
+    vec2 q_mid[RAY_BLOCKS];
+    mat2 J[RAY_BLOCKS];
+    float bend[RAY_BLOCKS];
+    for (int b = 0; b < RAY_BLOCKS; ++b) {
+#if RAY_BLOCKS > 1
+        camera_channel_override = camera_subray_channel(uint(b * BLOCK_RAYS));
+#endif
+        vec3 o0, dm, dx, dy;
+        camera_ray_at(p.z, pixel, vec2(size), vec2(0.0), o0, dm);
+        camera_ray_at(p.z, pixel + vec2(step_size, 0.0), vec2(size), vec2(0.0), o0, dx);
+        camera_ray_at(p.z, pixel + vec2(0.0, step_size), vec2(size), vec2(0.0), o0, dy);
+        camera_channel_override = -1;
+        q_mid[b] = vec2(dot(dm, u), dot(dm, v)) / dot(dm, c);
+        J[b] = mat2(vec2(dot(dx, u), dot(dx, v)) / dot(dx, c) - q_mid[b], vec2(dot(dy, u), dot(dy, v)) / dot(dy, c) - q_mid[b]);
+        bend[b] = 0.0;
+    }
     if (lid < uint(PIXEL_RAYS))
-        sub_offset[lid] = camera_subpixel(pixel_subray(lid));
+        sub_offset[lid] = camera_subray_offset(pixel_subray(lid));
     barrier();
     uint traced = 0u;   // bit k: sub-ray k traces
     vec3 origin = vec3(0.0);
     bool one_origin = true;   // every sub-ray of the pixel from `origin`
-    float co = -3.0e38, t_far = 0.0, bend = 0.0, q_far = 0.0;
+    float co = -3.0e38, t_far = 0.0, q_far = 0.0;
     for (int k = 0; k < PIXEL_RAYS; ++k) {
         vec3 o, d;
         bool valid = inside && camera_subray(p.z, pixel, vec2(size), pixel_subray(uint(k)), o, d);
@@ -213,8 +224,9 @@ void main() {
         sub_tri[SUB(k)] = BVH_MISS;
         sub_t[SUB(k)] = valid ? r.tmax : 0.0;
         if (valid && bvh_ray_valid(r)) {
+            int b = k / BLOCK_RAYS;
             vec2 q = vec2(dot(d, u), dot(d, v)) / dot(d, c);
-            bend = max(bend, length(q - (q_mid + J * sub_offset[k])));
+            bend[b] = max(bend[b], length(q - (q_mid[b] + J[b] * sub_offset[k])));
             q_far = max(q_far, dot(q, q));
             one_origin = one_origin && (traced == 0u || all(equal(o, origin)));
             traced |= 1u << uint(k);
@@ -223,7 +235,8 @@ void main() {
             t_far = max(t_far, r.tmax);
         }
     }
-    bend = bend * 1.001 + 1e-30;   // (its own rounding)
+    for (int b = 0; b < RAY_BLOCKS; ++b)
+        bend[b] = bend[b] * 1.001 + 1e-30;   // (its own rounding)
     bool live = traced != 0u;
     float reach = pixel_reach(co, t_far);
     // |d| / d.c for every sub-ray of the pixel, at most: the edge slack's scale in the tile's frame
@@ -279,21 +292,31 @@ void main() {
                 float key = list_key[i];
                 if (key > reach)
                     break;   // sorted: every later triangle lies beyond too
-                // Each edge function as one of the footprint offset o: a + g.o (g = J^T grad E), with
-                // its slack: the rounding bound, and the gradient times the bend.
+                // Each edge function as one of a block's footprint offset o: a + g.o (g = J^T grad E),
+                // with its slack: the rounding bound, and the gradient times the bend.
                 vec4 e0 = list_edge[0][i], e1 = list_edge[1][i], e2 = list_edge[2][i];
-                vec3 a = vec3(e0.x + dot(e0.yz, q_mid) + e0.w * stretch + (abs(e0.y) + abs(e0.z)) * bend,
-                              e1.x + dot(e1.yz, q_mid) + e1.w * stretch + (abs(e1.y) + abs(e1.z)) * bend,
-                              e2.x + dot(e2.yz, q_mid) + e2.w * stretch + (abs(e2.y) + abs(e2.z)) * bend);
-                vec2 g0 = e0.yz * J, g1 = e1.yz * J, g2 = e2.yz * J;
-                // the pixel: the largest value of each edge function over the box of its offsets
-                float best = min(min(a.x + dot(abs(g0), o_half), a.y + dot(abs(g1), o_half)), a.z + dot(abs(g2), o_half));
+                vec3 a[RAY_BLOCKS];
+                vec2 g0[RAY_BLOCKS], g1[RAY_BLOCKS], g2[RAY_BLOCKS];
+                float best = -1.0;
+                for (int b = 0; b < RAY_BLOCKS; ++b) {
+                    a[b] = vec3(e0.x + dot(e0.yz, q_mid[b]) + e0.w * stretch + (abs(e0.y) + abs(e0.z)) * bend[b],
+                                e1.x + dot(e1.yz, q_mid[b]) + e1.w * stretch + (abs(e1.y) + abs(e1.z)) * bend[b],
+                                e2.x + dot(e2.yz, q_mid[b]) + e2.w * stretch + (abs(e2.y) + abs(e2.z)) * bend[b]);
+                    g0[b] = e0.yz * J[b];
+                    g1[b] = e1.yz * J[b];
+                    g2[b] = e2.yz * J[b];
+                    // the pixel: the largest value of each edge function over the box of its offsets
+                    float block_best = min(min(a[b].x + dot(abs(g0[b]), o_half), a[b].y + dot(abs(g1[b]), o_half)),
+                                           a[b].z + dot(abs(g2[b]), o_half));
+                    best = max(best, block_best < 0.0 ? -1.0 : 1.0);   // (a NaN passes: the exact test decides)
+                }
                 if (best < 0.0)
-                    continue;   // (a NaN passes: the exact test decides)
+                    continue;
                 uint candidates = 0u;   // (the sub-rays that trace, below)
                 for (int k = 0; k < PIXEL_RAYS; ++k) {
+                    int b = k / BLOCK_RAYS;
                     vec2 ok = sub_offset[k];
-                    float inside_e = min(min(a.x + dot(g0, ok), a.y + dot(g1, ok)), a.z + dot(g2, ok));
+                    float inside_e = min(min(a[b].x + dot(g0[b], ok), a[b].y + dot(g1[b], ok)), a[b].z + dot(g2[b], ok));
                     candidates |= inside_e < 0.0 ? 0u : 1u << uint(k);
                 }
                 uint slot = list_slot[i];

@@ -14,9 +14,9 @@ layout(rgba32f, binding = IMAGE_SAMPLE_SUM) uniform image2DArray sum;
 #define SHARE_CHANNELS 0
 #endif
 #if SHARE_CHANNELS
-// Shared channel shading (frame/passes/primary_rays.py shares_channels): the channels whose ray hit
-// green's triangle (bit = channel), skipped in their own rounds; green's round adds its colour to them.
-layout(r32ui, binding = IMAGE_CHANNEL_MATCH) uniform readonly uimage2DArray match_in;
+// Shared channel shading (frame/passes/primary_rays.py shares_channels): the colour channel sets are
+// sub-rays of every round's surface; each channel takes its own weight of it (rgb), a green's.
+layout(rgba32f, binding = IMAGE_CHANNEL_WEIGHT) uniform readonly image2DArray channel_weight;
 #endif
 uniform int first;    // the frame's first round: start from zero
 uniform int channel;  // -1: all three; else this colour channel only
@@ -31,18 +31,12 @@ void main() {
     }
     vec4 acc = first != 0 ? vec4(0.0) : imageLoad(sum, p);
     vec3 c = imageLoad(hdr_in, p).rgb;
+#if SHARE_CHANNELS
+    acc += imageLoad(channel_weight, p) * vec4(c, 1.0);
+#else
     if (channel < 0) acc.rgb += w * c;
     else acc[channel] += w * c[channel];
     if (channel <= 0) acc.a += w;  // the weight of one channel set: 0 where no sample was made
-#if SHARE_CHANNELS
-    if (channel == SHARED_CHANNEL) {
-        uint matched = imageLoad(match_in, p).x;
-        for (int k = 0; k < 3; ++k) {
-            if (k == SHARED_CHANNEL || (matched & (1u << uint(k))) == 0u) continue;
-            acc[k] += w * c[k];
-            if (k == 0) acc.a += w;   // red's round, which adds the weight, left this pixel to green
-        }
-    }
 #endif
     imageStore(sum, p, acc);
 }
