@@ -120,13 +120,14 @@ def test_shared_shading_costs_little_image_error(room):
     assert 0.0 < error < 0.02, error   # at this size a channel's offset is a large part of a pixel
 
 
-@pytest.mark.parametrize("culling", [dict(tile_culling=True), dict(tile_lists=64), dict(block_culling=True, tile_lists=64)],
-                         ids=["entries", "lists", "blocks and lists"])
+@pytest.mark.parametrize("culling", [dict(tile_culling=True), dict(tile_lists=64), dict(block_culling=True, tile_lists=64),
+                                     dict(msaa=8, tile_lists=64)],
+                         ids=["entries", "lists", "blocks and lists", "8x lists"])
 def test_tile_culled_shared_frames_equal_the_per_ray_shared_frame(room, culling):
     """With tile culling the frame's one cull bounds all three channel sets' sub-rays, which the trace
-    starts from (their entries, or the lists through tile_samples.comp): the frame per-ray traversal
-    from the root gives."""
-    shared, tri = frame(room, CHROMATIC, tile_culling=False)
+    starts from (their entries, or the lists through tile_samples.comp, whose workgroup at 8x holds
+    24 sub-rays a pixel): the frame per-ray traversal from the root gives."""
+    shared, tri = frame(room, CHROMATIC, tile_culling=False, msaa=culling.get("msaa", 1))
     culled, culled_tri = frame(room, CHROMATIC, **culling)
     assert room.plan(camera=CHROMATIC).tile_culling and room.plan(camera=CHROMATIC).share_channels
     assert np.array_equal(tri, culled_tri) and np.array_equal(shared, culled)

@@ -227,7 +227,6 @@ def sample_group(rays: int) -> int:
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
 MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
 SAMPLE_WEIGHT = Texture("r32f")
-# Shared channel shading: green's hits (triangle, distance bits); the channels that hit green's triangle (bit = channel)
 CHANNEL_WEIGHT = Texture("rgba32f")  # shared channel shading: each channel's weight of the round's surface
 # How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without
 # waiting; "wait" reads it after the first round, waiting for the GPU; "never" does not read it
@@ -362,6 +361,7 @@ class PrimaryRaysPass(Pass):
         if plan.primary != "rays":
             return None
         sub = f", {plan.samples} sub-rays per sample ({plan.shading})" if plan.samples > 1 else ""
+        sub += f", its {plan.channels} colour channel sets cast together (shared shading)" if plan.share_channels else ""
         tiles = ", tile frustum culling (bvh2)" if plan.tile_culling else ""
         tiles += ", from 8x8-tile block beams" if plan.block_culling else ""
         tiles += f", tile triangle lists of {plan.tile_lists}" if plan.tile_lists else ""
@@ -403,7 +403,7 @@ class PrimaryRaysPass(Pass):
                 "MSAA_SLOTS": msaa_slots(plan), "MSAA_BLOCK_W": self.block[0], "MSAA_BLOCK_H": self.block[1],
                 "MSAA_GROUP": self.block[0] * self.block[1] * subrays(plan),
                 "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles, **lists,
-                "TILE_LIST_OVERFLOW": int(bool(plan.tile_lists)), "SHARE_CHANNELS": int(plan.share_channels)}
+                "TILE_LIST_OVERFLOW": int(bool(plan.tile_lists))}
         self.msaa = uses_msaa(plan)
         self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
                          for mode in ((1, 2) if self.msaa else (0,))}
@@ -411,7 +411,7 @@ class PrimaryRaysPass(Pass):
         # tiles: the tiles with a list (tile_samples.comp), and per ray from the entries where a list
         # overflowed (primary.comp). One program with both paths held the BVH walk's registers in the
         # list path too (H200, room, 16x: 13.7 ms, 10.7 without the walk).
-        self.group = sample_group(plan.samples if self.msaa else 1)
+        self.group = sample_group(subrays(plan) if self.msaa else 1)
         self.samples = (shaders.compute(gl.ctx, "rt/tile_samples.comp",
                                         {**base, "SAMPLE_MODE": int(self.msaa), "SAMPLE_GROUP": self.group})
                         if plan.tile_lists else None)
