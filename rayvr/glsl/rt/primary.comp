@@ -18,9 +18,10 @@
 //   earlier version came from msaa_count, see primary_rays.py.)
 // PRIMARY_MODE 2 (MSAA, select): slot msaa_count - 1 - `msaa_round` of each pixel's list (slot 0
 //   for msaa_round -1) becomes its visibility, shaded at the sub-ray of its mask nearest the mask's
-//   mean_offset, weighted by its coverage. The slot comes from the GPU's count: the CPU records
-//   rounds before it knows the count (with CHANNEL_SAMPLES 3 the sub-rays of all three colour
-//   channel sets, each set weighted by its own coverage: channel_weight). A pixel with nothing in the round gets weight ROUND_SKIPPED
+//   mean_offset, weighted by its coverage (with CHANNEL_SAMPLES 3, whose sub-rays are all three
+//   colour channel sets', each channel by its set's: channel_weight, primary_out.glsl msaa_weight).
+//   The slot comes from the GPU's count: the CPU records rounds before it knows the count. A pixel
+//   with nothing in the round gets weight ROUND_SKIPPED
 //   and keeps its visibility (common/round_skip.glsl): in a round past the count (slot < 0: slot
 //   0, the last real one, made its G-buffer) and, with MSAA_SKIP_EMPTY, in an empty slot above 0
 //   (slot 0 always writes every pixel: an empty list gets the background, weight 0).
