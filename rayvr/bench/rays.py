@@ -264,15 +264,21 @@ def time_frame(renderer, rig, repeat, warmup, warmup_s=0.3):
     return names, med, float(np.median(totals))
 
 
-def time_effect_stages(renderer, rig, repeat=5) -> dict:
-    """Median GPU ms of each kernel of the wavefront effect passes ("rt_shadows.shadow", ...)."""
+def time_stages(renderer, rig, prefix: str, repeat=5) -> dict:
+    """Median GPU ms over `repeat` frames timed kernel by kernel (GL timer queries) of each kernel of
+    the passes whose names start with `prefix` ("rt_shadows.shadow", ...), summed over a frame's rounds."""
     ms: dict = {}
     for _ in range(repeat):
         fc = renderer.record(rig, "both", "color", profile=True)
         for name, v in renderer.read_ms(fc).items():
-            if name.startswith("rt_") and "." in name:
+            if name.startswith(prefix) and "." in name:
                 ms.setdefault(name, []).append(v)
     return {k: float(np.median(v)) for k, v in ms.items()}
+
+
+def time_effect_stages(renderer, rig, repeat=5) -> dict:
+    """Median GPU ms of each kernel of the wavefront effect passes ("rt_shadows.shadow", ...)."""
+    return time_stages(renderer, rig, "rt_", repeat)
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=20, warmup=3, workers=None,

@@ -43,7 +43,7 @@ from ..frame.passes.primary_rays import MEASURED_CHOICES, PRIMARY_KNOBS
 from ..util.output import atomic_write_bytes
 from .head_poses import EYE_HEIGHT_M, MAX_PITCH_DEG, POSE_SEED, draw_poses, pose_bounds, region
 from .primary import CONFIGS as CAMERA_CONFIGS
-from .rays import MIRRORS, hybrid_config, time_frame
+from .rays import MIRRORS, hybrid_config, time_frame, time_stages
 from .report import device_meta, write_report
 from .scenes import bench_scenes, shipped_config
 
@@ -123,14 +123,8 @@ STAGE_FRAMES = 3  # frames timed kernel by kernel for the primary visibility's s
 
 def primary_stages(r: Renderer, rig: StereoRig) -> dict:
     """Median GPU ms of each kernel of the primary_rays pass ("cull", "lists", "trace", ...), summed
-    over a frame's rounds, over STAGE_FRAMES frames timed kernel by kernel (GL timer queries)."""
-    ms: dict = {}
-    for _ in range(STAGE_FRAMES):
-        fc = r.record(rig, "both", "color", profile=True)
-        for name, v in r.read_ms(fc).items():
-            if name.startswith("primary_rays."):
-                ms.setdefault(name.split(".", 1)[1], []).append(v)
-    return {k: float(np.median(v)) for k, v in ms.items()}
+    over a frame's rounds, over STAGE_FRAMES frames timed kernel by kernel (rays.time_stages)."""
+    return {k.split(".", 1)[1]: v for k, v in time_stages(r, rig, "primary_rays.", STAGE_FRAMES).items()}
 
 
 def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: float) -> dict:

@@ -23,7 +23,7 @@ def camera_defines(plan) -> dict:
 
     # with shared channel shading the three colour channel sets are sub-rays too (CHANNEL_SAMPLES)
     return {**CAMERA_MODELS[plan.camera].defines(), "CAMERA_SUBSAMPLES": plan.samples,
-            "CHANNEL_SAMPLES": 3 if plan.share_channels else 1}
+            "CHANNEL_SAMPLES": plan.channels if plan.share_channels else 1}
 
 
 def set_eye_uniforms(program, fc) -> None:

@@ -43,18 +43,8 @@ layout(std430, binding = BLOCK_ENTRIES_BINDING) writeonly restrict buffer BlockE
 layout(std430, binding = BLOCK_PLANES_BINDING) writeonly restrict buffer BlockPlanes { vec4 block_planes[]; };
 uniform uvec2 tile_count;   // tiles of a layer (across, down)
 
-shared vec4 red[BLOCK_TILES];
-// red[0] = op over the group of every invocation's x (op: 0 sum, 1 min, 2 max).
-#define REDUCE(x, op) { \
-    red[lid] = (x); \
-    barrier(); \
-    for (uint st = uint(BLOCK_TILES) / 2u; st > 0u; st >>= 1u) { \
-        if (lid < st) \
-            red[lid] = op == 0 ? red[lid] + red[lid + st] : (op == 1 ? min(red[lid], red[lid + st]) \
-                                                                     : max(red[lid], red[lid + st])); \
-        barrier(); \
-    } \
-}
+#define REDUCE_GROUP BLOCK_TILES
+#include "group_reduce.glsl"
 
 void main() {
     uint lid = gl_LocalInvocationID.x;
@@ -74,14 +64,14 @@ void main() {
     barrier();
     uint base = block * uint(TILE_ENTRIES + 1);
     vec3 C = length(sum.xyz) > 0.0 ? normalize(sum.xyz) : vec3(0.0, 0.0, 1.0);
-    vec3 U = normalize(abs(C.x) < 0.6 ? cross(C, vec3(1.0, 0.0, 0.0)) : cross(C, vec3(0.0, 1.0, 0.0)));
-    vec3 V = cross(C, U);
+    vec3 U, V;
+    beam_frame(C, U, V);
     const float big = 3.0e38;
     vec4 lo_acc = vec4(big), hi_acc = vec4(-big), o_lo = vec4(big), o_hi = vec4(-big);
     if (culled) {
         vec3 c = c4.xyz;
-        vec3 u = normalize(abs(c.x) < 0.6 ? cross(c, vec3(1.0, 0.0, 0.0)) : cross(c, vec3(0.0, 1.0, 0.0)));
-        vec3 v = cross(c, u);
+        vec3 u, v;
+        beam_frame(c, u, v);
         vec4 box_lo = tile_boxes[3u * tile], box_hi = tile_boxes[3u * tile + 1u], s = tile_boxes[3u * tile + 2u];
         for (int k = 0; k < 4; ++k) {
             vec3 d = normalize(c + ((k & 1) == 0 ? s.x : s.y) * u + ((k & 2) == 0 ? s.z : s.w) * v);
@@ -111,10 +101,8 @@ void main() {
     barrier();
     fallback = fallback || !(mins.x > TILE_MIN_COS);   // also NaN
     float slack_o = TILE_SLACK * maxs.z;
-    vec3 n[4] = vec3[4](U - (-mins.z + TILE_SLACK * (1.0 + abs(mins.z))) * C,
-                        -U + (mins.y - TILE_SLACK * (1.0 + abs(mins.y))) * C,
-                        V - (maxs.x + TILE_SLACK * (1.0 + abs(maxs.x))) * C,
-                        -V + (mins.w - TILE_SLACK * (1.0 + abs(mins.w))) * C);
+    vec3 n[4];
+    beam_side_normals(C, U, V, widened_slopes(vec4(mins.y, -mins.z, mins.w, maxs.x)), n);
     vec3 box_c = 0.5 * (box_lo + box_hi), box_e = 0.5 * (box_hi - box_lo);
     vec4 planes[5];
     for (int k = 0; k < 4; ++k)

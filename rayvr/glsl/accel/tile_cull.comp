@@ -167,19 +167,8 @@ void main() {
         tile_entries[base + 1u + lid] = cut[cur][lid];
 }
 #else
-shared vec4 red[TILE_RAYS];
-
-// red[0] = op over the group of every invocation's x (op: 0 sum, 1 min, 2 max).
-#define REDUCE(x, op) { \
-    red[lid] = (x); \
-    barrier(); \
-    for (uint st = uint(TILE_RAYS) / 2u; st > 0u; st >>= 1u) { \
-        if (lid < st) \
-            red[lid] = op == 0 ? red[lid] + red[lid + st] : (op == 1 ? min(red[lid], red[lid + st]) \
-                                                                     : max(red[lid], red[lid + st])); \
-        barrier(); \
-    } \
-}
+#define REDUCE_GROUP TILE_RAYS
+#include "group_reduce.glsl"
 
 void main() {
     uint lid = gl_LocalInvocationID.x;
@@ -206,8 +195,8 @@ void main() {
     barrier();
     uint base = tile * uint(TILE_ENTRIES + 1);
     vec3 c = length(sum.xyz) > 0.0 ? normalize(sum.xyz) : vec3(0.0, 0.0, 1.0);
-    vec3 u = normalize(abs(c.x) < 0.6 ? cross(c, vec3(1.0, 0.0, 0.0)) : cross(c, vec3(0.0, 1.0, 0.0)));
-    vec3 v = cross(c, u);
+    vec3 u, v;
+    beam_frame(c, u, v);
     const float big = 3.0e38;
     vec4 lo_acc = vec4(big), hi_acc = vec4(-big);
 #ifdef TILE_CAMERA
@@ -234,10 +223,9 @@ void main() {
     vec4 maxs = red[0];
     barrier();
     float slack_o = TILE_SLACK * maxs.z;
-    vec3 n[4] = vec3[4](u - (-mins.z + TILE_SLACK * (1.0 + abs(mins.z))) * c,
-                        -u + (mins.y - TILE_SLACK * (1.0 + abs(mins.y))) * c,
-                        v - (maxs.x + TILE_SLACK * (1.0 + abs(maxs.x))) * c,
-                        -v + (mins.w - TILE_SLACK * (1.0 + abs(mins.w))) * c);
+    vec4 slopes = widened_slopes(vec4(mins.y, -mins.z, mins.w, maxs.x));
+    vec3 n[4];
+    beam_side_normals(c, u, v, slopes, n);
 #ifdef TILE_CAMERA
     REDUCE(o_lo, 1)
     vec3 box_lo = red[0].xyz;
@@ -268,8 +256,7 @@ void main() {
     if (lid == 0u) {
         tile_boxes[3u * tile] = vec4(box_lo, maxs.w);
         tile_boxes[3u * tile + 1u] = vec4(box_hi, 0.0);
-        tile_boxes[3u * tile + 2u] = vec4(mins.y - TILE_SLACK * (1.0 + abs(mins.y)), -mins.z + TILE_SLACK * (1.0 + abs(mins.z)),
-                                          mins.w - TILE_SLACK * (1.0 + abs(mins.w)), maxs.x + TILE_SLACK * (1.0 + abs(maxs.x)));
+        tile_boxes[3u * tile + 2u] = slopes;
     }
 #else
     if (sum.w == 0.0) {              // no valid ray: nothing to trace (the same for the whole group)

@@ -5,6 +5,29 @@
 #define RAYVR_ACCEL_TILE_FRUSTUM_GLSL
 #include "../layout.glsl"  // TILE_SLACK: rayvr/accel/frustum.py SLACK
 
+// The frame (u, v) about a beam's unit central direction c in which its direction slopes are taken:
+// one definition for the tile cull that writes slopes, the block cull that reads them, and the sample
+// testing's 2D edge functions.
+void beam_frame(vec3 c, out vec3 u, out vec3 v) {
+    u = normalize(abs(c.x) < 0.6 ? cross(c, vec3(1.0, 0.0, 0.0)) : cross(c, vec3(0.0, 1.0, 0.0)));
+    v = cross(c, u);
+}
+
+// Direction slopes (min su, max su, min sv, max sv) about c, widened outwards by the rounding slack.
+vec4 widened_slopes(vec4 s) {
+    vec4 e = TILE_SLACK * (1.0 + abs(s));
+    return s + vec4(-e.x, e.y, -e.z, e.w);
+}
+
+// The normals of a beam's four side planes n.x <= w for widened slopes s about c in the frame (u, v):
+// every direction c + su u + sv v with su, sv inside s has n.d <= 0.
+void beam_side_normals(vec3 c, vec3 u, vec3 v, vec4 s, out vec3 n[4]) {
+    n[0] = u - s.y * c;
+    n[1] = -u + s.x * c;
+    n[2] = v - s.w * c;
+    n[3] = -v + s.z * c;
+}
+
 bool frustum_overlaps(vec4 planes[5], vec3 lo, vec3 hi) {
     vec3 c = 0.5 * (lo + hi), e = 0.5 * (hi - lo);   // an inverted (empty) box has e < 0: culled
     for (int k = 0; k < 5; ++k) {

@@ -48,7 +48,7 @@ float camera_footprint(int eye, vec2 pixel, vec2 size);
 // The colour channel set of sub-ray i of CAMERA_SUBRAYS.
 int camera_subray_channel(uint i) {
 #if CHANNEL_SAMPLES > 1
-    return int((i / uint(CAMERA_SUBSAMPLES) + uint(SHARED_CHANNEL)) % 3u);
+    return int((i / uint(CAMERA_SUBSAMPLES) + uint(SHARED_CHANNEL)) % uint(CHANNEL_SAMPLES));
 #else
     return camera_channel;
 #endif

@@ -44,7 +44,7 @@ layout(std430, binding = SSBO_MSAA_COUNT) buffer MsaaCount { uint msaa_count; };
 uint msaa_coverage(uint mask) {
 #if CHANNEL_SAMPLES > 1
     uint block = (1u << uint(CAMERA_SUBSAMPLES)) - 1u, covered = 0u;
-    for (uint b = 0u; b < 3u; ++b) {
+    for (uint b = 0u; b < uint(CHANNEL_SAMPLES); ++b) {
         uint first = b * uint(CAMERA_SUBSAMPLES);
         covered += uint(bitCount(mask & (block << first))) << (5u * uint(camera_subray_channel(first)));
     }

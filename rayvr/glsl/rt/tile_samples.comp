@@ -60,6 +60,7 @@
 #endif
 layout(local_size_x = SAMPLE_GROUP) in;
 #include "../accel/bvh.glsl"   // with TILE_ENTRIES_BINDING: tile_planes
+#include "../accel/tile_frustum.glsl"  // beam_frame
 #include "../common/camera.glsl"
 #include "primary_ray.glsl"
 #define MSAA_OUT (SAMPLE_MODE == 1)
@@ -181,8 +182,8 @@ void main() {
     bool inside = all(lessThan(p.xy, size));
     vec2 pixel = vec2(p.xy) + 0.5;
     vec3 c = tile_planes[5u * tile + 4u].xyz;
-    vec3 u = normalize(abs(c.x) < 0.6 ? cross(c, vec3(1.0, 0.0, 0.0)) : cross(c, vec3(0.0, 1.0, 0.0)));
-    vec3 v = cross(c, u);
+    vec3 u, v;
+    beam_frame(c, u, v);
 
     // The pixel's sub-ray points (su, sv) as affine maps of their footprint offsets o (camera_subray_offset,
     // in units of the footprint's step), one a block of sub-rays (a colour channel set's): q(o) =
