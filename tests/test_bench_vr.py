@@ -299,7 +299,13 @@ def test_the_fastest_variant_is_chosen_on_its_worst_pose_among_primary_knobs_onl
             _choice_row("entries", {}, "dof", 4, 0, 5.0, tile_culling=False),
             _choice_row("blocks", {"block_culling": True}, "dof", 4, 0, 4.0, block_culling=True),
             _choice_row("blocks", {"block_culling": True}, "dof", 4, 1, 99.0, block_culling=True)]
+    # a win inside the noise margin (CHOICE_MARGIN) leaves the variant the run listed first
+    rows = [_choice_row("perray", {"tile_culling": False}, "foveated", 16, 0, 9.25, tile_culling=False),
+             _choice_row("blocks", {"block_culling": True}, "foveated", 16, 0, 9.08, block_culling=True),
+             _choice_row("perray", {"tile_culling": False}, "wide", 16, 0, 9.40, tile_culling=False),
+             _choice_row("blocks", {"block_culling": True}, "wide", 16, 0, 9.08, block_culling=True)] + rows
     chosen = primary_choices(rows)
+    assert chosen["foveated"][16]["variant"] == "perray" and chosen["wide"][16]["variant"] == "blocks"
     assert chosen["pinhole"][16]["variant"] == "lists"   # 12.5 worst against 14.0
     assert chosen["pinhole"][16]["knobs"] == {"tile_culling": True, "tile_lists": 256, "block_culling": False}
     assert chosen["pinhole"][16]["worst_ms"] == {"entries": 14.0, "lists": 12.5}

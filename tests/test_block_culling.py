@@ -114,12 +114,17 @@ def test_a_block_of_tiles_not_culled_falls_back_to_the_root_and_stays_exact(room
     assert (blocks[:, 0] == 2).all() and (np.sort(blocks[:, 1:3], axis=1) == [0, 1]).all()
 
 
-def test_block_culling_needs_tile_culling_and_is_off_by_default(room):
+def test_block_culling_needs_tile_culling_and_follows_the_measured_choice(room):
+    from rayvr.frame.passes.primary_rays import measured_choice
+
     rig = camera_rig(room, Pinhole(), None)
     room.settings = RenderSettings(primary="rays", tile_culling=False, block_culling=True)
     with pytest.raises(ValueError, match="tile culling"):
         room.render(rig)
     assert RenderSettings(primary="rays", block_culling=True).culls_tiles()   # the blocks imply the cull
-    room.settings = RenderSettings(msaa=16)
-    assert room.plan().tile_culling and not room.plan().block_culling
+    for n in (1, 16):
+        room.settings = RenderSettings(primary="rays", msaa=n)
+        assert room.plan().block_culling == measured_choice("pinhole", n)["block_culling"]
+        room.settings = RenderSettings(primary="rays", msaa=n, block_culling=False)
+        assert room.plan().tile_culling and not room.plan().block_culling   # an explicit value wins
     room.settings = RenderSettings()

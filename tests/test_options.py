@@ -234,11 +234,15 @@ def test_plan_options_reach_their_plan_field_and_no_other_option_changes_the_pla
     config = MaterialConfig(default="shadows")  # a sampled effect: the denoiser has pixels to filter
     for o in settings_mod.all_options().values():
         context = CONTEXT.get(o.name, {})
-        plans = []
-        for settings in (RenderSettings(**context), RenderSettings(**{**context, o.name: other_value(o)})):
+        def plan(settings):
             with Renderer(None, config, gl=gl, settings=settings) as r:  # (the layer mode is picked here)
-                plans.append(r.plan(layers=2, **CAMERA_CONTEXT.get(o.name, {})))
-        base, changed = plans
+                return r.plan(layers=2, **CAMERA_CONTEXT.get(o.name, {}))
+
+        base = plan(RenderSettings(**context))
+        # an automatic switch (None: the measured choice) set against what the renderer chose
+        auto_switch = o.auto and o.type is bool and o.scope == "plan"
+        value = (not getattr(base, o.plan_field)) if auto_switch else other_value(o)
+        changed = plan(RenderSettings(**{**context, o.name: value}))
         if o.scope == "plan":
             assert o.plan_field in {f.name for f in dataclasses.fields(FramePlan)}
             assert getattr(changed, o.plan_field) != getattr(base, o.plan_field), o.name

@@ -167,3 +167,18 @@ def test_tile_lists_need_tile_culling(room):
     with pytest.raises(ValueError, match="tile list bound"):
         RenderSettings(tile_lists=100)
     assert RenderSettings(primary="rays", tile_lists=64).culls_tiles()   # the lists imply the cull
+
+
+@pytest.mark.parametrize("samples", [1, 4, 8, 16, 32])
+@pytest.mark.parametrize("sets", [1, 3], ids=["one set", "shared channel sets"])
+def test_an_msaa_trace_block_lies_in_one_tile(samples, sets):
+    """With tile lists the MSAA trace (rt/primary.comp) casts only the tiles whose list overflowed and
+    leaves the others' workgroups whole, so no workgroup may span two tiles: its block of pixels
+    divides the 16x8 tile, for every sub-ray count a sample casts (shared channel shading at 1x casts
+    3, which once gave 4x5 blocks: frames that differed on the H200)."""
+    from rayvr.frame.passes.primary_rays import MSAA_GROUP, msaa_block
+
+    rays = samples * sets
+    w, h = msaa_block(rays)
+    assert TILE_PIXELS[0] % w == 0 and TILE_PIXELS[1] % h == 0, (rays, w, h)
+    assert w * h * rays <= max(MSAA_GROUP, rays) and 2 * w * h * rays > MSAA_GROUP or w * h == 1

@@ -184,7 +184,9 @@ def test_renderer_traversal_per_ray_kind_gives_the_reference_frame(gl, traversal
     cfg = {"default": "shadows", "materials": {"floor": {"effect": "glossy", "samples": 2},
                                                "mirror*": {"effect": "reflections", "bounces": 2}}}
     ref, ref_hdr, _ = render(gl, scene, rig, cfg, RenderSettings(primary="rays", traversal="bvh2"))
-    r = Renderer(scene, parse_config(cfg, "test"), gl=gl, settings=RenderSettings(primary="rays", traversal=traversal))
+    # per-ray primaries (tile culling walks the binary layout, whatever the traversal names)
+    r = Renderer(scene, parse_config(cfg, "test"), gl=gl,
+                 settings=RenderSettings(primary="rays", traversal=traversal, tile_culling=False))
     try:
         wide = r.render(rig, aux=("triangle", "hdr"))
         hdr = np.stack([wide.left.aux["hdr"], wide.right.aux["hdr"]])

@@ -28,7 +28,9 @@ LENS_PIXEL_FRACTION = 0.1
 class ThinLens(Pinhole):
     name = "dof"
     rasterizable = False
-    culls_tiles_by_default = False  # lens rays widen the tiles' frusta: slower in the room at every focus (H200)
+    # Lens rays widen the tiles' frusta: culled tiles were slower in the room at every focus (H200,
+    # 2026-11-30), but with block culling faster on Sponza's worst poses at every count (2026-12-03).
+    culls_tiles_by_default = True
     lens_parameter = "aperture"
     glsl = "cameras/thin_lens.glsl"
     doc = "thin-lens depth of field (aperture radius, focus distance); lens positions per sub-ray"

@@ -81,9 +81,9 @@ PRIMARY = declare(Option("primary", str, "raster", "primary visibility: the rast
                          commands=("capture", "preview", "info")))
 TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visibility culls the BVH per 16x8-pixel "
                               "tile first (a frustum over every sub-ray, lens point and channel of the tile; the same "
-                              "hits, exact) and walks the binary layout; auto: with --msaa above 1 except foveated "
-                              "and dof cameras, where it measured faster; bench primary: each rays row without and "
-                              "with it", scope="plan", plan_field="tile_culling", auto=True,
+                              "hits, exact) and walks the binary layout; auto: where it measured faster on the H200 "
+                              "(rayvr/assets/primary_visibility.json: every camera model but foveated, with block "
+                              "culling); bench primary: each rays row without and with it", scope="plan", plan_field="tile_culling", auto=True,
                               commands=("capture", "preview", "info", "bench")))
 
 
@@ -91,7 +91,7 @@ BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary vi
                                "cuts the BVH per block of 8x8 tiles (HVVR's block beams: a frustum over the tiles' "
                                "frusta), and each tile's cut starts from its block's entries instead of the root "
                                "(the same hits, exact); auto: where it measured faster on the H200 "
-                               "(rayvr/assets/primary_visibility.json; not yet timed: off)",
+                               "(rayvr/assets/primary_visibility.json: every camera model but foveated)",
                                scope="plan", plan_field="block_culling", auto=True,
                                implies=(("tile_culling", True),), commands=("capture", "preview", "info", "bench")))
 TILE_LIST_BOUNDS = (16, 32, 64, 128, 256, 512, 1024)  # triangles a tile's list may hold (a power of two: its sort)
@@ -238,9 +238,13 @@ COUNT_POLL = "fence"
 
 
 def msaa_block(samples: int) -> tuple[int, int]:
-    """Pixels (w, h) of an MSAA trace workgroup: MSAA_GROUP / samples pixels, as square as a power
-    of two allows (inside one TILE_PIXELS tile: the tile lists' cast loads one tile's list a group)."""
-    pixels = max(1, MSAA_GROUP // samples)
+    """Pixels (w, h) of an MSAA trace workgroup: the largest power of two of them whose sub-rays fit
+    MSAA_GROUP invocations, as square as it allows. A power of two on both sides, so a block lies in
+    one TILE_PIXELS tile: with tile lists the trace casts only the tiles whose list overflowed, and
+    leaves the group as a whole (a group over two tiles would leave some invocations before the
+    barriers the others reach: undefined, and wrong on the H200 with the 3 sub-rays of shared
+    channel shading at 1x, where 64 // 3 = 21 pixels made 4x5 blocks)."""
+    pixels = 1 << (max(1, MSAA_GROUP // samples).bit_length() - 1)
     w = 1 << (pixels.bit_length() // 2)
     return w, pixels // w
 
