@@ -128,3 +128,32 @@ def test_block_culling_needs_tile_culling_and_follows_the_measured_choice(room):
         room.settings = RenderSettings(primary="rays", msaa=n, block_culling=False)
         assert room.plan().tile_culling and not room.plan().block_culling   # an explicit value wins
     room.settings = RenderSettings()
+
+
+@pytest.mark.parametrize("culling", [dict(tile_culling=True, block_culling=False), dict(block_culling=True),
+                                     dict(block_culling=True, tile_lists=64)], ids=["tiles", "blocks", "blocks and lists"])
+def test_a_scene_whose_bvh_is_one_leaf_cuts_to_that_leaf_alone(gl, culling):
+    """A BVH of one leaf (a scene of up to 8 triangles) is packed as a root whose right child is an
+    empty slot: an inverted box (rayvr/accel/bvh.py EMPTY_LO > EMPTY_HI) with count 0, which reads as
+    an internal node pointing back at the root. The cuts must never keep it: its box overflowed the
+    frustum test to 'meets every frustum', so a tile that missed the leaf opened it forever (Mesa
+    stops a loop after 65535 sweeps; the H200 hung). Every tile and block list holds the leaf (entry
+    0) or nothing, and the frame is the per-ray one."""
+    from rayvr.frame.cameras.rig import Pose, StereoRig
+    from rayvr.renderer import Renderer
+    from rayvr.scene.loader import from_arrays
+
+    tri = from_arrays(np.array([[-0.2, -0.2, -3.0], [0.2, -0.2, -3.0], [0.0, 0.2, -3.0]]), np.array([[0, 1, 2]]),
+                      name="one triangle")
+    rig = StereoRig(Pose(), ipd=0.064, fov_y=60.0, size=(64, 32))
+    with Renderer(tri, gl=gl) as r:
+        ref = render(r, rig, 1, tile_culling=False)
+        got = render(r, rig, 1, **culling)
+        nx, ny = tile_grid(*rig.size)
+        tiles = words(r, "tile_entries", nx * ny * 2, TILE_ENTRIES + 1)
+        lists = [tiles] + ([words(r, "block_entries", 2, TILE_ENTRIES + 1)] if culling.get("block_culling") else [])
+    assert np.array_equal(ref[0], got[0]) and np.array_equal(ref[1], got[1]) and (ref[0] != NO_HIT).any()
+    assert (tiles[:, 0] == 0).any()   # tiles that miss the leaf have nothing to walk
+    for words_ in lists:
+        counts = words_[:, 0]
+        assert counts.max() == 1 and (words_[:, 1][counts == 1] == 0).all(), counts  # the leaf, never the empty slot

@@ -29,7 +29,13 @@ void beam_side_normals(vec3 c, vec3 u, vec3 v, vec4 s, out vec3 n[4]) {
 }
 
 bool frustum_overlaps(vec4 planes[5], vec3 lo, vec3 hi) {
-    vec3 c = 0.5 * (lo + hi), e = 0.5 * (hi - lo);   // an inverted (empty) box has e < 0: culled
+    // An inverted box is an empty child slot (a one-leaf BVH's right child, rayvr/accel/bvh.py
+    // EMPTY_LO/EMPTY_HI): it meets nothing. Its extent (+-3e38) overflows the test below to +-inf
+    // (or NaN), which passes every plane, and a cut that kept it would open it back into the root
+    // forever, as its count 0 reads as an internal node at index 0.
+    if (any(greaterThan(lo, hi)))
+        return false;
+    vec3 c = 0.5 * (lo + hi), e = 0.5 * (hi - lo);
     for (int k = 0; k < 5; ++k) {
         vec3 n = planes[k].xyz;
         float m = dot(n, c) - dot(abs(n), e);

@@ -194,7 +194,8 @@ void main() {
     // the edge function's gradient. Each sub-ray also gets its start here (a miss at tmax where it
     // traces; nothing at t 0 where the sample makes no ray).
     // co: the largest c.o of the pixel's origins (several with a lens), which the reaches use.
-    float step_size = max(camera_footprint(p.z, pixel, vec2(size)), 1.0);
+    // (pixels past the image edge of a partial tile make no ray: no footprint lookup outside the image)
+    float step_size = inside ? max(camera_footprint(p.z, pixel, vec2(size)), 1.0) : 1.0;
     vec2 q_mid[RAY_BLOCKS];
     mat2 J[RAY_BLOCKS];
     float bend[RAY_BLOCKS];
@@ -249,6 +250,7 @@ void main() {
     if (lid == 0u) {
         list_leader = 0xFFFFFFFFu;
         list_one_origin = 1u;
+        list_origin = vec3(0.0);   // read by every invocation even when no pixel of the group is live
 #if SAMPLE_MODE == 1
         group_count = 0u;
 #endif
