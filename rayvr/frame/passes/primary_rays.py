@@ -107,6 +107,11 @@ TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibilit
 DEFAULT_TILE_TRIS = declare_constant("DEFAULT_TILE_TRIS", 256)  # tile_tris.comp's bound when compiled alone (tests)
 TILE_LIST_GROUP = declare_constant("TILE_LIST_GROUP", 128)
 TILE_FRONT = declare_constant("TILE_FRONT", 256)
+# Sweeps a beam's cut (accel/tile_cut.glsl) or a tile's list walk (accel/tile_tris.comp) makes at
+# most. A tree's walk takes at most its depth (64, accel/bvh.py max_depth) plus one sweep per entry a
+# cut left for room (32): the bound never binds on a valid tree and only keeps a malformed one from
+# hanging the GPU (a cut stopped early still covers every triangle; a list walk overflows to per ray).
+BEAM_MAX_SWEEPS = declare_constant("BEAM_MAX_SWEEPS", 128)
 TILE_OVERFLOW = declare_constant("TILE_OVERFLOW", 0xFFFFFFFF, uint=True)
 # The edge filter's rounding bound (glsl/rt/tile_list_cast.glsl), relative to the edge's vertex
 # distances: the exact test's and the filter's float errors are a few ulps (~1e-7) of those.

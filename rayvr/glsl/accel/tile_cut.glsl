@@ -41,7 +41,8 @@ void cut_entry_box(uint e, out vec3 lo, out vec3 hi) {
 // (uniformly) cut[result][0 .. cut_count) holds it.
 int beam_cut(uint lid, vec4 planes[5], vec3 c) {
     int cur = 0;
-    while (cut_opened) {             // dynamically uniform: shared, read after a barrier
+    // (cut_opened: dynamically uniform, shared, read after a barrier; BEAM_MAX_SWEEPS: a guard only)
+    for (int sweep = 0; sweep < BEAM_MAX_SWEEPS && cut_opened; ++sweep) {
         int count = cut_count;
         if (lid < uint(count)) {
             uint e = cut[cur][lid];

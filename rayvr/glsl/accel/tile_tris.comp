@@ -66,10 +66,15 @@ void main() {
     barrier();
     vec3 c = planes[4].xyz;
     int cur = 0;
-    while (true) {
+    for (int sweep = 0; ; ++sweep) {
         uint n = front_n[cur];
         if (n == 0u || overflowed != 0u)   // uniform: shared, read after a barrier
             break;
+        if (sweep == BEAM_MAX_SWEEPS) {    // deeper than any valid tree (a guard): per ray instead
+            if (lid == 0u)
+                tile_tris[head] = uvec2(TILE_OVERFLOW, 0u);
+            return;
+        }
         for (uint i = lid; i < n; i += uint(TILE_LIST_GROUP)) {
             uint e = front[cur][i];
             int parent = int(e >> 1u), side = int(e & 1u);
