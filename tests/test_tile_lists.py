@@ -181,4 +181,4 @@ def test_an_msaa_trace_block_lies_in_one_tile(samples, sets):
     rays = samples * sets
     w, h = msaa_block(rays)
     assert TILE_PIXELS[0] % w == 0 and TILE_PIXELS[1] % h == 0, (rays, w, h)
-    assert w * h * rays <= max(MSAA_GROUP, rays) and 2 * w * h * rays > MSAA_GROUP or w * h == 1
+    assert w * h == 1 or (w * h * rays <= MSAA_GROUP < 2 * w * h * rays)   # the most pixels that fit

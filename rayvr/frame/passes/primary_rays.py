@@ -83,7 +83,8 @@ TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visi
                               "tile first (a frustum over every sub-ray, lens point and channel of the tile; the same "
                               "hits, exact) and walks the binary layout; auto: where it measured faster on the H200 "
                               "(rayvr/assets/primary_visibility.json: every camera model but foveated, with block "
-                              "culling); bench primary: each rays row without and with it", scope="plan", plan_field="tile_culling", auto=True,
+                              "culling); bench primary: each rays row without and with it",
+                              scope="plan", plan_field="tile_culling", auto=True,
                               commands=("capture", "preview", "info", "bench")))
 
 
