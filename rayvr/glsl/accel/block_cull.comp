@@ -100,14 +100,10 @@ void main() {
     vec3 box_hi = red[0].xyz;
     barrier();
     fallback = fallback || !(mins.x > TILE_MIN_COS);   // also NaN
-    float slack_o = TILE_SLACK * maxs.z;
     vec3 n[4];
     beam_side_normals(C, U, V, widened_slopes(vec4(mins.y, -mins.z, mins.w, maxs.x)), n);
-    vec3 box_c = 0.5 * (box_lo + box_hi), box_e = 0.5 * (box_hi - box_lo);
     vec4 planes[5];
-    for (int k = 0; k < 4; ++k)
-        planes[k] = vec4(n[k], dot(n[k], box_c) + dot(abs(n[k]), box_e) + TILE_SLACK * length(n[k]) * maxs.z + slack_o);
-    planes[4] = vec4(C, maxs.y + TILE_SLACK * (abs(maxs.y) + maxs.z));
+    beam_planes(C, n, box_offsets(n, box_lo, box_hi), maxs, planes);
     if (lid < 5u)
         block_planes[5u * block + lid] = sum.w == 0.0 ? vec4(0.0) : (fallback ? vec4(0.0, 0.0, 0.0, 1.0) : planes[lid]);
     if (sum.w == 0.0) {              // no tile with a ray (the same for the whole group)

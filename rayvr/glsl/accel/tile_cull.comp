@@ -222,7 +222,6 @@ void main() {
     REDUCE(hi_acc, 2)
     vec4 maxs = red[0];
     barrier();
-    float slack_o = TILE_SLACK * maxs.z;
     vec4 slopes = widened_slopes(vec4(mins.y, -mins.z, mins.w, maxs.x));
     vec3 n[4];
     beam_side_normals(c, u, v, slopes, n);
@@ -233,9 +232,7 @@ void main() {
     REDUCE(o_hi, 2)
     vec3 box_hi = red[0].xyz;
     sum.w = red[0].w;   // 1: the tile has a valid ray (sub-ray 0 alone may not say so: wide, foveated edges)
-    vec3 box_c = 0.5 * (box_lo + box_hi), box_e = 0.5 * (box_hi - box_lo);
-    vec4 w = vec4(dot(n[0], box_c) + dot(abs(n[0]), box_e), dot(n[1], box_c) + dot(abs(n[1]), box_e),
-                  dot(n[2], box_c) + dot(abs(n[2]), box_e), dot(n[3], box_c) + dot(abs(n[3]), box_e));
+    vec4 w = box_offsets(n, box_lo, box_hi);
 #else
     vec4 w_acc = vec4(-big);
     for (uint k = 0u; k < uint(TILE_SUBRAYS); ++k)
@@ -246,9 +243,7 @@ void main() {
 #endif
     bool fallback = !(mins.x > TILE_MIN_COS);    // also NaN
     vec4 planes[5];
-    for (int k = 0; k < 4; ++k)
-        planes[k] = vec4(n[k], w[k] + TILE_SLACK * length(n[k]) * maxs.z + slack_o);
-    planes[4] = vec4(c, maxs.y + TILE_SLACK * (abs(maxs.y) + maxs.z));
+    beam_planes(c, n, w, maxs, planes);
     if (lid < 5u)
         tile_planes[5u * tile + lid] = sum.w == 0.0 ? vec4(0.0) : (fallback ? vec4(0.0, 0.0, 0.0, 1.0) : planes[lid]);
 #if TILE_STAGE == 1

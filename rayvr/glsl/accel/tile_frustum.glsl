@@ -28,6 +28,23 @@ void beam_side_normals(vec3 c, vec3 u, vec3 v, vec4 s, out vec3 n[4]) {
     n[3] = -v + s.z * c;
 }
 
+// The side planes' offsets w (n.x <= w) over a box of ray origins: the largest n.o in the box.
+vec4 box_offsets(vec3 n[4], vec3 lo, vec3 hi) {
+    vec3 c = 0.5 * (lo + hi), e = 0.5 * (hi - lo);
+    return vec4(dot(n[0], c) + dot(abs(n[0]), e), dot(n[1], c) + dot(abs(n[1]), e),
+                dot(n[2], c) + dot(abs(n[2]), e), dot(n[3], c) + dot(abs(n[3]), e));
+}
+
+// A beam's five planes from its side normals n with their offsets w, its central direction c and
+// maxs = (-, the largest far c.x = c.o + tmax d.c, the largest |o| summed over axes, -), each offset
+// with the rounding slack.
+void beam_planes(vec3 c, vec3 n[4], vec4 w, vec4 maxs, out vec4 planes[5]) {
+    float slack_o = TILE_SLACK * maxs.z;
+    for (int k = 0; k < 4; ++k)
+        planes[k] = vec4(n[k], w[k] + TILE_SLACK * length(n[k]) * maxs.z + slack_o);
+    planes[4] = vec4(c, maxs.y + TILE_SLACK * (abs(maxs.y) + maxs.z));
+}
+
 bool frustum_overlaps(vec4 planes[5], vec3 lo, vec3 hi) {
     // An inverted box is an empty child slot (a one-leaf BVH's right child, rayvr/accel/bvh.py
     // EMPTY_LO/EMPTY_HI): it meets nothing. Its extent (+-3e38) overflows the test below to +-inf
