@@ -171,3 +171,32 @@ def test_the_frame_plan_follows_the_automatic_choice(room):
         assert not r.plan().tile_culling
     finally:
         r.settings = RenderSettings()
+
+
+@pytest.mark.parametrize("case", ["pinhole 1x", "pinhole 4x msaa"])
+def test_planar_tile_beams_hold_every_sub_ray_and_touch_the_outer_ones(room, case):
+    """A planar camera's block-culled tile frusta come from each tile's four corner rays
+    (accel/tile_beams_planar.comp) instead of a reduction over its rays: they must still hold every
+    point o + t d of every sub-ray, and be as tight as the rays allow: each side plane touched by a
+    ray of the tile (its normal's angle to the nearest ray under 1e-3), as the corner rays are rays."""
+    camera, samples, fov = CASES[case]
+    rig = camera_rig(room, camera, fov)
+    room.settings = RenderSettings(primary="rays", msaa=samples, block_culling=True)
+    room.render(rig)
+    assert {p.name: p for p in room.compiled().passes}["primary_rays"].planar
+    nx, ny = tile_grid(*SIZE)
+    planes = np.frombuffer(room.resource("tile_planes").read(), np.float32)[:nx * ny * 2 * 20].reshape(-1, 5, 4)
+    checked = 0
+    for eye in range(2):
+        for t, (o, d) in gl_tile_rays(room, rig, eye, 0, samples).items():
+            pl = planes[eye * nx * ny + t].astype(np.float64)
+            assert not np.array_equal(pl[4], [0.0, 0.0, 0.0, 1.0])   # culled
+            for s in (0.0, 0.5, 3.0, 50.0):
+                p = o + s * d
+                side = p @ pl[:4, :3].T - pl[:4, 3]
+                assert (side <= 1e-5 * (1 + np.abs(p).sum(1, keepdims=True))).all(), (case, eye, t, side.max())
+            unit = d / np.linalg.norm(d, axis=1, keepdims=True)
+            closest = (unit @ pl[:4, :3].T / np.linalg.norm(pl[:4, :3], axis=1)).max(0)
+            assert (closest > -1e-3).all(), (case, eye, t, closest)
+            checked += len(o)
+    assert checked == 2 * SIZE[0] * SIZE[1] * samples

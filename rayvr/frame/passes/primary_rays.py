@@ -309,6 +309,18 @@ def frame_tiles(sizing) -> int:
     return nx * ny * sizing.layers
 
 
+PLANAR_BEAM_GROUP = declare_constant("PLANAR_BEAM_GROUP", 64)  # tiles a workgroup of tile_beams_planar.comp
+
+
+def planar_beams(plan) -> bool:
+    """Whether a block-culled frame's tile frusta come from each tile's four corner rays
+    (glsl/accel/tile_beams_planar.comp): a planar (rasterizable) camera model, one colour channel
+    set, so every sub-ray direction is an affine map of its image position from one origin."""
+    from ..cameras import CAMERA_MODELS
+
+    return CAMERA_MODELS[plan.camera].rasterizable and not plan.share_channels
+
+
 def block_grid(width: int, height: int) -> tuple[int, int]:
     """Blocks (across, down) of BLOCK_TILES tiles of a width x height image (edge blocks partial)."""
     nx, ny = tile_grid(width, height)
@@ -432,8 +444,11 @@ class PrimaryRaysPass(Pass):
         blocks = {"TILE_BOXES_BINDING": SSBO["tile_boxes"], "BLOCK_ENTRIES_BINDING": SSBO["block_entries"],
                   "BLOCK_PLANES_BINDING": SSBO["block_planes"]}
         self.cull = {}
+        # a planar model's tile frusta from each tile's four corner rays (tile_beams_planar.comp)
+        self.planar = plan.tile_culling and plan.block_culling and planar_beams(plan)
         if plan.tile_culling and plan.block_culling:
-            self.cull = {"beams": shaders.compute(gl.ctx, "accel/tile_cull.comp", {**cull, **blocks, "TILE_STAGE": 1}),
+            beams = ("accel/tile_beams_planar.comp", {}) if self.planar else ("accel/tile_cull.comp", {"TILE_STAGE": 1})
+            self.cull = {"beams": shaders.compute(gl.ctx, beams[0], {**cull, **blocks, **beams[1]}),
                          "blocks": shaders.compute(gl.ctx, "accel/block_cull.comp", {**cull, **blocks}),
                          "cull": shaders.compute(gl.ctx, "accel/tile_cull.comp", {**cull, **blocks, "TILE_STAGE": 2})}
         elif plan.tile_culling:
@@ -523,7 +538,8 @@ class PrimaryRaysPass(Pass):
             set_eye_uniforms(beams, fc)
             beams["image_size"].value = tuple(fc.sizing.size)
             blocks["tile_count"].value = (nx, ny)
-            fc.stage("beams", lambda: (beams.run(nx, ny, layers), barrier()))
+            grid = (-(-nx * ny // PLANAR_BEAM_GROUP), 1) if self.planar else (nx, ny)
+            fc.stage("beams", lambda: (beams.run(*grid, layers), barrier()))
             fc.stage("blocks", lambda: (blocks.run(*block_grid(*fc.sizing.size), layers), barrier()))
         else:
             set_eye_uniforms(self.cull["cull"], fc)
