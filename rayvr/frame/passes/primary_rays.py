@@ -313,7 +313,7 @@ PLANAR_BEAM_GROUP = declare_constant("PLANAR_BEAM_GROUP", 64)  # tiles a workgro
 
 
 def planar_beams(plan) -> bool:
-    """Whether a block-culled frame's tile frusta come from each tile's four corner rays
+    """Whether a block-culled frame's tile frusta come from its tiles' corner pixels' sub-rays
     (glsl/accel/tile_beams_planar.comp): a planar (rasterizable) camera model, one colour channel
     set, so every sub-ray direction is an affine map of its image position from one origin."""
     from ..cameras import CAMERA_MODELS
@@ -444,7 +444,7 @@ class PrimaryRaysPass(Pass):
         blocks = {"TILE_BOXES_BINDING": SSBO["tile_boxes"], "BLOCK_ENTRIES_BINDING": SSBO["block_entries"],
                   "BLOCK_PLANES_BINDING": SSBO["block_planes"]}
         self.cull = {}
-        # a planar model's tile frusta from each tile's four corner rays (tile_beams_planar.comp)
+        # a planar model's tile frusta from the sub-rays of each tile's corner pixels (tile_beams_planar.comp)
         self.planar = plan.tile_culling and plan.block_culling and planar_beams(plan)
         if plan.tile_culling and plan.block_culling:
             beams = ("accel/tile_beams_planar.comp", {}) if self.planar else ("accel/tile_cull.comp", {"TILE_STAGE": 1})
