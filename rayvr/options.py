@@ -137,7 +137,11 @@ class Option:
         return v
 
     def from_text(self, text: str):
-        """The value of a CLI argument's text (numbers parsed, then checked)."""
+        """The value of a CLI argument's text (numbers and on/off words parsed, then checked)."""
+        if self.convert is None and self.type is bool:
+            if text.strip().lower() not in BOOL_WORDS:
+                raise OptionError(f"{self.name} is on or off, got {text!r}")
+            return BOOL_WORDS[text.strip().lower()]
         if self.convert is None and self.type in (int, float):
             try:
                 value = self.type(text)
@@ -183,6 +187,10 @@ class Option:
 
 def _interval(lo, hi, lo_open: bool) -> str:
     return f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
+
+
+# The words a switch's text may be (bench vr --variants, the budget's frame knobs).
+BOOL_WORDS = {"true": True, "on": True, "yes": True, "1": True, "false": False, "off": False, "no": False, "0": False}
 
 
 def _is_int(value) -> bool:

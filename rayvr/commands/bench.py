@@ -50,9 +50,6 @@ def _layouts(text: str) -> tuple[str, ...]:
     return _among(text, "BVH layouts", BVH_LAYOUTS)
 
 
-BOOL_WORDS = {"true": True, "on": True, "yes": True, "1": True, "false": False, "off": False, "no": False, "0": False}
-
-
 def _variants(text: str) -> dict:
     """bench vr --variants "NAME:option=value,option=value;NAME2:..." -> {name: {field: value}}, each
     value parsed and checked by its render option (an empty list of options: the settings as given)."""
@@ -70,14 +67,8 @@ def _variants(text: str) -> dict:
             if not eq or option is None:
                 raise argparse.ArgumentTypeError(f"--variants {name}: {item!r} is not option=value with a render "
                                                  f"option (rayvr options lists them)")
-            value = value.strip()
             try:
-                if option.type is bool:
-                    if value.lower() not in BOOL_WORDS:
-                        raise ValueError(f"{option.name} is on or off, got {value!r}")
-                    out[name][option.name] = BOOL_WORDS[value.lower()]
-                else:
-                    out[name][option.name] = option.from_text(value)
+                out[name][option.name] = option.from_text(value.strip())
             except ValueError as exc:
                 raise argparse.ArgumentTypeError(f"--variants {name}: {exc}") from None
     if not out:

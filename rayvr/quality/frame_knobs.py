@@ -19,10 +19,10 @@ from ..frame.stereo import STEREO
 from ..frame.cameras import DEFAULT_CAMERA_MODEL as DEFAULT_CAMERA
 from ..frame.cameras.sampling import MSAA
 from ..frame.passes.denoise import DENOISE_ITERATIONS
+from ..options import BOOL_WORDS
 
 MAX_SPP = 64  # a budget pick accumulates at most this many samples an image
 SCALES = (0.5, 1.0)  # a resolution scale lies in [0.5, 1]: below half the upscaled image is a blur
-ON_OFF = {"on": True, "off": False, "true": True, "false": False, "1": True, "0": False}
 # Camera models a pick may take: those whose image is the pinhole's, so the pinhole reference
 # judges them (foveated samples the pinhole's image sparsely; a distorted or wide image is another).
 CAMERAS = (DEFAULT_CAMERA, "foveated")
@@ -88,9 +88,9 @@ def _one(name: str, text: str):
             raise ValueError(f"frame knob stereo: {text!r} is not one of {', '.join(STEREO.choices)}")
         return t
     if name in ("denoise", "temporal"):
-        if t not in ON_OFF:
+        if t not in BOOL_WORDS:
             raise ValueError(f"frame knob {name}: {text!r} is not on or off")
-        return ON_OFF[t]
+        return BOOL_WORDS[t]
     if name == "camera":
         if t not in CAMERAS:
             raise ValueError(f"frame knob camera: {text!r} is not one of {', '.join(CAMERAS)} (the models the "
