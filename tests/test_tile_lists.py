@@ -1,5 +1,6 @@
-"""Tile triangle lists (RenderSettings.tile_lists; glsl/accel/tile_tris.comp builds them, glsl/rt/
-tile_list_cast.glsl casts against them) against per-ray traversal from the BVH root, the reference:
+"""Tile triangle lists (RenderSettings.tile_lists; glsl/accel/tile_tris.comp builds them,
+glsl/rt/tile_samples.comp tests the sub-rays against them) against per-ray traversal from the BVH
+root, the reference:
 the same triangle, distance and colour on every sub-ray of every camera model, with lists that
 overflow too; and each list checked against a numpy reading of what it must hold."""
 from __future__ import annotations

@@ -62,7 +62,7 @@ class FramePlan:
     tile_culling: bool = False  # primary rays traced from tile frustum entry lists (frame/passes/primary_rays.py)
     tile_lists: int = 0  # with tile culling: the bound of each tile's triangle list, 0 none (primary_rays.py)
     block_culling: bool = False  # with tile culling: tiles cut the BVH from their block's entries (primary_rays.py)
-    share_channels: bool = False  # red and blue take green's shading where they hit its triangle (primary_rays.py)
+    share_channels: bool = False  # the colour channel sets cast together, shaded once a distinct triangle (primary_rays.py)
     light_picks: int = 0  # lights the traced effects draw per surface by power, 0 every light (scene/light_selection.py)
     ray_order: str = "none"  # the wavefront's rays sorted before each trace kernel: "none" | "morton" (passes/ray_order.py)
     persistent: bool = False  # the wavefront's trace kernels as persistent threads (passes/persistent_threads.py)

@@ -114,7 +114,7 @@ TILE_FRONT = declare_constant("TILE_FRONT", 256)
 # hanging the GPU (a cut stopped early still covers every triangle; a list walk overflows to per ray).
 BEAM_MAX_SWEEPS = declare_constant("BEAM_MAX_SWEEPS", 128)
 TILE_OVERFLOW = declare_constant("TILE_OVERFLOW", 0xFFFFFFFF, uint=True)
-# The edge filter's rounding bound (glsl/rt/tile_list_cast.glsl), relative to the edge's vertex
+# The edge filter's rounding bound (glsl/rt/tile_samples.comp), relative to the edge's vertex
 # distances: the exact test's and the filter's float errors are a few ulps (~1e-7) of those.
 EDGE_SLACK = declare_constant("EDGE_SLACK", 1e-5)
 
@@ -170,9 +170,9 @@ def measured_choice(camera: str, samples: int) -> dict | None:
 
 def culls_tiles(settings, camera: str = "pinhole") -> bool:
     """Whether ray-cast primaries of a `camera` model (its name) are tile-culled: tile_culling, or
-    when None, the measured choice (measured_choice; on the H200 culling won with several sub-rays
-    per sample, where one cull serves them all, but not for the foveated and thin-lens models), for
-    a model never measured with several sub-rays where it declares it (CameraModel.culls_tiles_by_default)."""
+    when None, the measured choice (measured_choice; on the H200 culling with block beams won for
+    every model but the foveated one), for a model never measured with several sub-rays where it
+    declares it (CameraModel.culls_tiles_by_default)."""
     from ..cameras import CAMERA_MODELS
 
     if settings.tile_culling is not None:
@@ -445,7 +445,7 @@ class PrimaryRaysPass(Pass):
                   "BLOCK_PLANES_BINDING": SSBO["block_planes"]}
         self.cull = {}
         # a planar model's tile frusta from the sub-rays of each tile's corner pixels (tile_beams_planar.comp)
-        self.planar = plan.tile_culling and plan.block_culling and planar_beams(plan)
+        self.planar = planar_beams(plan)
         if plan.tile_culling and plan.block_culling:
             beams = ("accel/tile_beams_planar.comp", {}) if self.planar else ("accel/tile_cull.comp", {"TILE_STAGE": 1})
             self.cull = {"beams": shaders.compute(gl.ctx, beams[0], {**cull, **blocks, **beams[1]}),
