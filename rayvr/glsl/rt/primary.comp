@@ -54,7 +54,6 @@ layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) i
 shared uint group_count;
 shared uint sub_tri[MSAA_GROUP];   // each sub-ray's triangle (BVH_MISS: background) and distance,
 shared float sub_t[MSAA_GROUP];    //   pixel-major: the block's pixel j has entries j * N .. j * N + N - 1
-shared vec2 sub_offset[CAMERA_SUBRAYS];  // camera_subray_offset(i), computed once per workgroup
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
 uniform int msaa_round;  // PRIMARY_MODE 2
@@ -124,20 +123,9 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
             uint k = uint(findLSB(m)), pk = uint(bitCount(sub_mask[base + k]));
             rank += uint(pk > pop || (pk == pop && k < sub));
         }
-        // The sub-ray nearest the mean of the mask's footprint offsets: shaded for all of them
-        // (the mask's bits in increasing order; the first of equally near ones).
-        vec2 mean_offset = vec2(0.0);
-        for (uint m = mask; m != 0u; m &= m - 1u) mean_offset += sub_offset[findLSB(m)];
-        mean_offset /= float(pop);
-        int best = 0;
-        float best_d = 1e30;
-        for (uint m = mask; m != 0u; m &= m - 1u) {
-            int i = findLSB(m);
-            vec2 e = sub_offset[i] - mean_offset;
-            if (dot(e, e) < best_d) { best = i; best_d = dot(e, e); }
-        }
-        uint meta = uint(best) | (rank == 0u ? (n << 8) | (pixel_covered[j] << 16) : 0u);
-        HIT(rank) = uvec4(tri, mask, meta, floatBitsToUint(sub_t[base + uint(best)]));
+        uint best = msaa_representative(mask);
+        uint meta = best | (rank == 0u ? (n << 8) | (pixel_covered[j] << 16) : 0u);
+        HIT(rank) = uvec4(tri, mask, meta, floatBitsToUint(sub_t[base + best]));
     }
     return n;
 }

@@ -39,6 +39,26 @@ layout(std430, binding = SSBO_MSAA_COUNT) buffer MsaaCount { uint msaa_count; };
 // read neighbouring entries. `index`: the pixel's, `pixels`: of the frame.
 #define HIT(k) msaa_hits[index + uint(k) * pixels]
 
+// Each sub-ray's footprint offset (camera_subray_offset), filled once a workgroup by the includer.
+shared vec2 sub_offset[CAMERA_SUBRAYS];
+
+// The sub-ray of coverage mask `mask` nearest the mean of its sub-rays' footprint offsets, at which
+// the entry is shaded for all of them (the mask's bits in increasing order: the first of equally
+// near ones; passes/primary_rays.py msaa_lists is the numpy twin).
+uint msaa_representative(uint mask) {
+    vec2 mean_offset = vec2(0.0);
+    for (uint m = mask; m != 0u; m &= m - 1u) mean_offset += sub_offset[findLSB(m)];
+    mean_offset /= float(bitCount(mask));
+    uint best = 0u;
+    float best_d = 1e30;
+    for (uint m = mask; m != 0u; m &= m - 1u) {
+        uint i = uint(findLSB(m));
+        vec2 e = sub_offset[i] - mean_offset;
+        if (dot(e, e) < best_d) { best = i; best_d = dot(e, e); }
+    }
+    return best;
+}
+
 // The covered count a kept entry of coverage mask `mask` adds to its pixel's (the meta's high bits):
 // its sub-rays, or with CHANNEL_SAMPLES 3 each colour channel set's, 5 bits a set (set c at bit 5c).
 uint msaa_coverage(uint mask) {

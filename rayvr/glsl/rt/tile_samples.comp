@@ -80,7 +80,9 @@ layout(local_size_x = SAMPLE_GROUP) in;
 layout(std430, binding = TILE_TRIS_BINDING) readonly restrict buffer TileTris { uvec2 tile_tris[]; };
 
 shared vec4 list_edge[3][SAMPLE_GROUP];   // the load's edge functions (E at (0, 0), dE/dsu, dE/dsv, slack)
-shared vec2 sub_offset[PIXEL_RAYS];       // each sub-ray's footprint offset (camera_subray_offset)
+#if !MSAA_OUT
+shared vec2 sub_offset[PIXEL_RAYS];       // each sub-ray's footprint offset (primary_out.glsl's with MSAA)
+#endif
 shared uint list_slot[SAMPLE_GROUP];
 shared float list_key[SAMPLE_GROUP];
 shared uint list_more[2];                 // some pixel still needs the next load (by parity)
@@ -136,16 +138,7 @@ uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
             uint po = uint(bitCount(masks[o]));
             rank += uint(po > pop || (po == pop && o < s));
         }
-        vec2 mean_offset = vec2(0.0);
-        for (uint m = masks[s]; m != 0u; m &= m - 1u) mean_offset += sub_offset[findLSB(m)];
-        mean_offset /= float(pop);
-        uint best = 0u;
-        float best_d = 1e30;
-        for (uint m = masks[s]; m != 0u; m &= m - 1u) {
-            uint i = uint(findLSB(m));
-            vec2 e = sub_offset[i] - mean_offset;
-            if (dot(e, e) < best_d) { best = i; best_d = dot(e, e); }
-        }
+        uint best = msaa_representative(masks[s]);
         uint meta = best | (rank == 0u ? (n << 8) | (covered << 16) : 0u);
         HIT(rank) = uvec4(ids[s], masks[s], meta, floatBitsToUint(sub_t[SUB(best)]));
     }
