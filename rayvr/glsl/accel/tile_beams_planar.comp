@@ -62,12 +62,7 @@ void main() {
                 mean += normalize(d);
                 continue;
             }
-            vec3 dn = normalize(d);   // as tile_cull.comp's pass over its rays
-            float dc = dot(dn, c);
-            float su = dot(dn, u) / dc, sv = dot(dn, v) / dc;
-            float far = dot(c, o) + r.tmax * dot(c, d);
-            mins = min(mins, vec4(dc, su, -su, sv));
-            maxs = max(maxs, vec4(sv, far, dot(abs(o), vec3(1.0)), r.tmax * length(d)));
+            beam_add_ray(c, u, v, o, d, r.tmax, mins, maxs);   // as tile_cull.comp's pass over its rays
         }
     }
     vec4 slopes = widened_slopes(vec4(mins.y, -mins.z, mins.w, maxs.x));

@@ -209,12 +209,7 @@ void main() {
         o_lo = min(o_lo, vec4(r.origin, 0.0));
         o_hi = max(o_hi, vec4(r.origin, 1.0));
 #endif
-        vec3 dn = normalize(r.direction);
-        float dc = dot(dn, c);
-        float su = dot(dn, u) / dc, sv = dot(dn, v) / dc;
-        float far = dot(c, r.origin) + r.tmax * dot(c, r.direction);
-        lo_acc = min(lo_acc, vec4(dc, su, -su, sv));
-        hi_acc = max(hi_acc, vec4(sv, far, dot(abs(r.origin), vec3(1.0)), r.tmax * length(r.direction)));
+        beam_add_ray(c, u, v, r.origin, r.direction, r.tmax, lo_acc, hi_acc);
     }
     REDUCE(lo_acc, 1)
     vec4 mins = red[0];

@@ -28,6 +28,17 @@ void beam_side_normals(vec3 c, vec3 u, vec3 v, vec4 s, out vec3 n[4]) {
     n[3] = -v + s.z * c;
 }
 
+// Adds ray (o, d, tmax) to a beam's extremes about c in the frame (u, v), the planes' inputs:
+// mins = (least cosine of d to c, min su, -max su, min sv), maxs = (max sv, the largest far c.x =
+// c.o + tmax d.c, the largest |o| summed over axes, the largest reach tmax |d|).
+void beam_add_ray(vec3 c, vec3 u, vec3 v, vec3 o, vec3 d, float tmax, inout vec4 mins, inout vec4 maxs) {
+    vec3 dn = normalize(d);
+    float dc = dot(dn, c);
+    float su = dot(dn, u) / dc, sv = dot(dn, v) / dc;
+    mins = min(mins, vec4(dc, su, -su, sv));
+    maxs = max(maxs, vec4(sv, dot(c, o) + tmax * dot(c, d), dot(abs(o), vec3(1.0)), tmax * length(d)));
+}
+
 // The side planes' offsets w (n.x <= w) over a box of ray origins: the largest n.o in the box.
 vec4 box_offsets(vec3 n[4], vec3 lo, vec3 hi) {
     vec3 c = 0.5 * (lo + hi), e = 0.5 * (hi - lo);
