@@ -277,6 +277,21 @@ def test_preview_without_a_display_is_one_line_with_glfws_reason():
     assert lines[0].startswith("rayvr preview: error: glfw: init failed (") and "DISPLAY" in lines[0], lines[0]
 
 
+def test_preview_without_the_glfw_package_is_one_line(tmp_path):
+    """glfw missing from the Python path (a bare PYTHONPATH install, as on the GPU host) is one line
+    that names the package, not an ImportError's traceback."""
+    hide = tmp_path / "hide"
+    hide.mkdir()
+    (hide / "glfw.py").write_text("raise ImportError('No module named glfw')\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(hide), os.environ.get("PYTHONPATH", "")]))
+    run = subprocess.run([sys.executable, "-m", "rayvr", "preview", "--frames", "1"], capture_output=True, text=True,
+                         env=env, timeout=120)
+    lines = run.stderr.strip().splitlines()
+    assert run.returncode == 2 and len(lines) == 1, run.stderr
+    assert lines[0].startswith("rayvr preview: error: glfw: the Python package cannot be imported") \
+        and "pip install glfw" in lines[0], lines[0]
+
+
 @pytest.mark.parametrize("args, says", [
     (("--msaa", "4", "--primary", "raster"), "--primary raster: --msaa 4 casts sub-rays"),
     (("--camera-model", "wide", "--primary", "raster"), "--primary raster: the wide camera cannot be rasterized"),

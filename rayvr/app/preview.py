@@ -399,9 +399,7 @@ class Preview:
                  stereo_method="dual", dof=None, seed=0, settings=None):
         """`dof`: (lens diameter, focus distance, samples) of the thin-lens depth of field (frame/passes/dof.py);
         `settings`: the RenderSettings to start from (the denoiser and --temporal: the keys' state at start)."""
-        import glfw
-
-        from ..gl.context import create_window_context
+        from ..gl.context import create_window_context, import_glfw
         from ..renderer import Renderer
 
         if stereo not in STEREO_MODES:
@@ -411,7 +409,7 @@ class Preview:
         check_mode(stereo_method)
         if res_scale is not None and not (0 < res_scale <= 4):
             raise ValueError(f"resolution scale must be in (0, 4], got {res_scale}")
-        self.glfw = glfw
+        self.glfw = import_glfw()
         self.window, self.gl = create_window_context(size, title or "rayvr preview", visible, vsync)
         try:
             # Start from the built-in all-`raster` config; the file is applied below so that a bad

@@ -563,9 +563,19 @@ def create_context(backend: str | None = None, device_index: int | None = None) 
     raise ContextError("no OpenGL 4.3 core context could be made:\n" + "\n".join(failures))
 
 
+def import_glfw():
+    """The glfw module, or a ContextError saying it is missing (a core dependency a bare
+    PYTHONPATH install can lack) instead of an ImportError's traceback."""
+    try:
+        import glfw
+    except ImportError as exc:
+        raise ContextError(f"glfw: the Python package cannot be imported ({exc}); pip install glfw") from None
+    return glfw
+
+
 def create_window_context(size=(1280, 720), title="rayvr", visible=True, vsync=True):
     """A glfw window with a 4.3 core context; returns (window, GLContext)."""
-    import glfw
+    glfw = import_glfw()
 
     # GLFW's own words go into the one error line, not into a Python warning printed beside it;
     # once the window is open, later ones are logged.
