@@ -221,6 +221,20 @@ def test_rows_carry_the_primary_visibility_stages(tmp_path, gl):
     assert "primary_rays stages" in (tmp_path / "vr.md").read_text()
 
 
+def test_a_scenes_first_cell_warms_longest(tmp_path, gl, monkeypatch):
+    """The clocks after a scene's build: its first cell's first pose warms SCENE_WARMUP_S at least,
+    every other cell's first pose WARMUP_S, the other poses only until times settle."""
+    from rayvr.bench import vr
+
+    asked = []
+    real = vr.frame_row
+    monkeypatch.setattr(vr, "frame_row", lambda r, rig, repeat, warmup, warmup_s:
+                        asked.append(warmup_s) or real(r, rig, repeat, warmup, warmup_s))
+    vr.run(tmp_path, size=(16, 12), scenes=("default",), poses=2, cameras=("pinhole",), counts=(1, 4),
+           configs=("shadows",), repeat=1, warmup=1, progress=False, gl=gl)
+    assert asked == [vr.SCENE_WARMUP_S, 0.0, vr.WARMUP_S, 0.0] and vr.SCENE_WARMUP_S > vr.WARMUP_S
+
+
 def test_rows_of_scenes_and_configs_not_measured_stay(tmp_path, gl):
     """A run keeps the rows of the scenes and configs it does not measure from the folder's earlier
     run (same device, size, poses and seed), so they can run as separate commands; another seed

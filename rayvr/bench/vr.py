@@ -55,6 +55,9 @@ BUDGET_MS = 11.1  # a 90 Hz headset's frame
 VARIANTS = {"default": {}}
 GRID_FIELDS = ("primary", "msaa")  # the grid sets these per row; a variant may not
 WARMUP_S = 0.3  # the first pose of a cell warms the clocks that long at least; the next ones settle only
+# A scene's first cell warms this long at least: after the scene's build its frames settled at the
+# idle clock (the room's first 1x pose measured 3x slow on the H200, 2026-12-03 late/vr_variants_room).
+SCENE_WARMUP_S = 2.0
 TOP_PASSES = 3  # passes vr.md names per cell
 # what --quick measures (CI, llvmpipe): the room, tiny, two poses, a few cells
 QUICK = {"size": (32, 24), "poses": 2, "cameras": ("raster_gbuffer", "pinhole", "distorted_chromatic"),
@@ -365,7 +368,8 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
                 "budget_ms": budget_ms, "timings_meaningful": not gl.is_software, "skipped": skipped,
                 "what_times_include": f"median GPU ms (GL timer queries per pass, summed over a frame's rounds) "
                                       f"over {repeat} frames of both eyes, after a warm-up until frame times settle "
-                                      f"(at least {WARMUP_S} s on each cell's first pose); no readback",
+                                      f"(at least {WARMUP_S} s on each cell's first pose, {SCENE_WARMUP_S} s on a scene's "
+                                      f"first); no readback",
                 "scenes": {}, "seconds": 0.0}
         kept, kept_meta = kept_rows(out / "vr.json", meta, {(s, c) for s in scenes for c in configs})
         meta["scenes"].update(kept_meta)
@@ -400,7 +404,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
             todo = [c for c in grid if mats[c[0]] is not None]
             bar = tqdm(total=len(todo) * len(heads), desc=f"vr {name}", unit="frame", disable=not progress)
             with Renderer(scene, gl=gl) as r:
-                for config, variant, camera, msaa in todo:
+                for cell_index, (config, variant, camera, msaa) in enumerate(todo):
                     model, fov, primary = CAMERA_CONFIGS[camera]
                     r.set_materials(mats[config])
                     r.settings = RenderSettings(primary=primary, msaa=msaa, **variants[variant])
@@ -408,7 +412,8 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
                     for head in heads:
                         rig = StereoRig(head.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=size,
                                         camera=model)
-                        timed = frame_row(r, rig, repeat, warmup, WARMUP_S if head.index == 0 else 0.0)
+                        first = SCENE_WARMUP_S if cell_index == 0 else WARMUP_S
+                        timed = frame_row(r, rig, repeat, warmup, first if head.index == 0 else 0.0)
                         rows.append({"scene": name, "pose": head.to_dict(), "config": config, "variant": variant,
                                      "camera": camera, "camera_model": model.name, "primary": primary, "msaa": msaa,
                                      "variant_fields": variants[variant], "tile_culling": plan.tile_culling,
