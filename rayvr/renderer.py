@@ -218,6 +218,11 @@ class Renderer:
         """GPU ms per pass of a recorded frame (per kernel if it was profiled); waits for the GPU."""
         return self.graph.read_ms(fc)
 
+    def read_round_ms(self, fc: FrameContext) -> dict:
+        """GPU ms per pass of a recorded frame, a list with one entry each time the pass ran (once
+        per round of a sampled frame); waits for the GPU."""
+        return self.graph.read_round_ms(fc)
+
     def resource(self, name: str):
         """A GL resource of the last recorded frame by its graph name ("hdr", "rt_lists", ...)."""
         if self._last is None or name not in self._last.resources:

@@ -221,6 +221,28 @@ def test_rows_carry_the_primary_visibility_stages(tmp_path, gl):
     assert "primary_rays stages" in (tmp_path / "vr.md").read_text()
 
 
+def test_rows_time_each_round_of_a_sampled_frame(tmp_path, gl):
+    """A 4x MSAA row lists, per pass that runs each round, one time per round (the rounds the frame
+    ran: the most distinct triangles any pixel's sub-rays hit, as the trace counted them in
+    msaa_count); a 1x frame has one round and lists none."""
+    from rayvr import Renderer
+    from rayvr.bench import vr
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.renderer import RenderSettings
+
+    with Renderer(None, gl=gl) as r:
+        r.set_materials(vr.hybrid_config("default"))
+        r.settings = RenderSettings(primary="rays", msaa=4)
+        rig = StereoRig.for_scene(r.scene, size=(32, 24))
+        row = vr.frame_row(r, rig, 1, 1, 0.0)
+        rounds = int(np.frombuffer(r.resource("msaa_count").read(), np.uint32)[0])
+        r.settings = RenderSettings(primary="rays")
+        assert vr.frame_row(r, rig, 1, 1, 0.0)["round_passes"] == {}
+    assert rounds >= 2, "the room at 32x24 has pixels on two triangles"
+    assert {"primary_rays", "gbuffer", "rt_shadows", "sample_accumulate"} <= set(row["round_passes"])
+    assert all(len(ms) == rounds and min(ms) >= 0 for ms in row["round_passes"].values()), row["round_passes"]
+
+
 def test_a_scenes_first_cell_warms_longest(tmp_path, gl, monkeypatch):
     """The clocks after a scene's build: its first cell's first pose warms SCENE_WARMUP_S at least,
     every other cell's first pose WARMUP_S, the other poses only until times settle."""

@@ -131,12 +131,20 @@ def primary_stages(r: Renderer, rig: StereoRig) -> dict:
     return {k.split(".", 1)[1]: v for k, v in time_stages(r, rig, "primary_rays.", STAGE_FRAMES).items()}
 
 
+def round_passes(r: Renderer, rig: StereoRig) -> dict:
+    """GPU ms of each pass that runs once per round (MSAA, shared channel shading), round by round,
+    from one more frame: a round that shades few pixels shows what it costs regardless of them."""
+    fc = r.record(rig, "both", "color")
+    return {k: [round(v, 4) for v in ms] for k, ms in r.read_round_ms(fc).items() if len(ms) > 1}
+
+
 def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: float) -> dict:
     names, med, total = time_frame(r, rig, repeat, warmup, warmup_s)
     passes = {k: med[k] for k in names if k in med}
     visibility = passes.get("visibility", 0.0) + passes.get("primary_rays", 0.0) + passes.get("gbuffer", 0.0)
     stages = primary_stages(r, rig) if "primary_rays" in passes else {}
-    return {"frame_ms": total, "visibility_ms": visibility, "passes": passes, "primary_stages": stages}
+    return {"frame_ms": total, "visibility_ms": visibility, "passes": passes, "primary_stages": stages,
+            "round_passes": round_passes(r, rig)}
 
 
 def kept_rows(path: Path, meta: dict, measured: set) -> tuple[list, dict]:

@@ -743,6 +743,11 @@ class FrameGraph:
     def read_ms(self, fc: FrameContext) -> dict:
         """GPU ms per pass (or per kernel for a profiled frame), summed over a sampled frame's
         rounds; waits for the GPU."""
+        return {name: sum(ms) for name, ms in self.read_round_ms(fc).items()}
+
+    def read_round_ms(self, fc: FrameContext) -> dict:
+        """GPU ms per pass (or kernel) as a list, one entry each time it ran, in order: a sampled
+        frame's passes once per round (what an MSAA round costs beside the pixels it shades)."""
         if fc.profiler is not None:
             got = self.kernel_timer.read_ms(fc.stage_names, fc.timer_slot, fc.recorded_at)
             keys = [(k, k.split("#")[0]) for k in fc.stage_names]
@@ -752,7 +757,7 @@ class FrameGraph:
         out: dict = {}
         for key, name in keys:
             if key in got:
-                out[name] = out.get(name, 0.0) + got[key]
+                out.setdefault(name, []).append(got[key])
         return out
 
     def release(self) -> None:
