@@ -221,7 +221,7 @@ def test_rows_carry_the_primary_visibility_stages(tmp_path, gl):
     assert "primary_rays stages" in (tmp_path / "vr.md").read_text()
 
 
-def test_rows_time_each_round_of_a_sampled_frame(tmp_path, gl):
+def test_rows_time_each_round_of_a_sampled_frame(gl):
     """A 4x MSAA row lists, per pass that runs each round, one time per round (the rounds the frame
     ran: the most distinct triangles any pixel's sub-rays hit, as the trace counted them in
     msaa_count); a 1x frame has one round and lists none."""

@@ -54,7 +54,9 @@ POSES = 8
 BUDGET_MS = 11.1  # a 90 Hz headset's frame
 VARIANTS = {"default": {}}
 GRID_FIELDS = ("primary", "msaa")  # the grid sets these per row; a variant may not
-WARMUP_S = 1.0  # the first pose of a cell warms the clocks that long at least (0.3 s left first poses up to 3x slow); the next ones settle only
+# The first pose of a cell warms the clocks that long at least (0.3 s left first poses up to 3x
+# slow on the H200); the next ones settle only.
+WARMUP_S = 1.0
 # A scene's first cell warms this long at least: after the scene's build its frames settled at the
 # idle clock (the room's first 1x pose measured 3x slow on the H200, 2026-12-03 late/vr_variants_room).
 SCENE_WARMUP_S = 2.0
