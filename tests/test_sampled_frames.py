@@ -147,10 +147,11 @@ def test_msaa_frames_run_one_shading_round_per_distinct_triangle(gl, room):
         hits = np.moveaxis(np.frombuffer(r.resource("msaa_hits").read(), np.uint32).reshape(8, 2, 24, 32, 4), 0, 3)
     counts = (hits[..., 0, 2] >> 8) & 255
     assert rounds == counts.max() >= 2  # the room's edges: several triangles in some pixels
-    masks = hits[..., 1]
-    covered = np.array([[[sum(bin(int(m)).count("1") for m in masks[e, y, x, :counts[e, y, x]])
-                          for x in range(32)] for y in range(24)] for e in range(2)])
+    coverage = hits[..., 1]  # each entry's sub-rays
+    covered = np.array([[[int(coverage[e, y, x, :counts[e, y, x]].sum()) for x in range(32)] for y in range(24)]
+                        for e in range(2)])
     assert (covered == 8).all()  # every sub-ray of every pixel lands in one slot (8 slots for 8 rays)
+    assert (covered == hits[..., 0, 2] >> 16).all()  # the pixel's count of them, in its first entry
     assert set(timings) >= {"primary_rays", "gbuffer", "shade", "sample_accumulate", "sample_resolve", "tonemap"}
 
 
@@ -158,9 +159,9 @@ def test_msaa_frames_run_one_shading_round_per_distinct_triangle(gl, room):
 def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n):
     """The MSAA trace (one invocation per sub-ray, merged per pixel in shared memory; a 30x22 or
     18x14 image leaves partial pixel blocks) against passes/primary_rays.msaa_lists over numpy
-    traces of the model's own sub-rays: the same distinct triangles, coverage masks, counts and
-    order; the representative sub-ray is one nearest its mask's mean offset, its distance that
-    sub-ray's. 32 sub-rays at the smaller size: numpy traces each of them."""
+    traces of the model's own sub-rays: the same distinct triangles, coverages, counts and
+    order; the representative sub-ray is one nearest the mean offset of the sub-rays numpy saw on
+    its triangle, its distance that sub-ray's. 32 sub-rays at the smaller size: numpy traces each of them."""
     from rayvr.frame.cameras.sampling import subsamples
     from rayvr.frame.passes.primary_rays import msaa_lists
 
@@ -180,7 +181,8 @@ def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n):
                                             rays.directions.reshape(-1, 3), tmin=1e-4)
             tris.append(np.asarray(prim, np.uint32).reshape(h, w)[::-1])
             ts.append(np.asarray(t, np.float32).reshape(h, w)[::-1])
-        ref = msaa_lists(np.stack(tris, -1), np.stack(ts, -1), offsets, slots)
+        sub_tris = np.stack(tris, -1)
+        ref = msaa_lists(sub_tris, np.stack(ts, -1), offsets, slots)
         mine = got[:, e]
         count = (mine[0, ..., 2] >> 8) & 255
         assert count.max() >= 2 and (count >= 1).all()  # edges in view; every pixel has its list
@@ -192,8 +194,8 @@ def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n):
         assert same.mean() >= 0.97, same.mean()  # sub-rays grazing an edge may go either way
         for y, x in zip(*np.nonzero(same)):
             for k in range(count[y, x]):
-                tri, mask, meta, tbits = (int(v) for v in mine[k, y, x])
-                bits = [i for i in range(n) if mask >> i & 1]
+                tri, _, meta, tbits = (int(v) for v in mine[k, y, x])
+                bits = [i for i in range(n) if sub_tris[y, x, i] == tri]
                 dist = ((offsets[bits] - offsets[bits].mean(0)) ** 2).sum(1)
                 best = meta & 255
                 assert best in bits and dist[bits.index(best)] <= dist.min() + 1e-6

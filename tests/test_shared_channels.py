@@ -71,14 +71,16 @@ def test_each_distinct_triangle_of_a_pixel_is_shaded_once_for_the_channels_on_it
     assert not np.array_equal(shared, apart)   # the approximation shows somewhere
 
 
-def test_shared_msaa_lists_merge_every_sets_sub_rays(room):
-    """4x MSAA with the three sets cast together (12 sub-rays a pixel, green's block first): the
-    trace's lists against passes/primary_rays.msaa_lists over numpy traces of each set's own sub-rays,
-    with each set's covered count in the meta; one round sequence for the frame, not three."""
+@pytest.mark.parametrize("n", [4, 16])
+def test_shared_msaa_lists_merge_every_sets_sub_rays(room, n):
+    """MSAA with the three sets cast together (4x: 12 sub-rays a pixel, green's block first; 16x: 48,
+    masks of two words): the trace's lists against passes/primary_rays.msaa_lists over numpy traces
+    of each set's own sub-rays, with each set's covered count in the meta; one round sequence for the
+    frame, not three."""
     from rayvr.accel.bvh import build_bvh, trace_reference
     from rayvr.frame.cameras.sampling import subsamples
 
-    n, (w, h) = 4, (30, 22)
+    w, h = (30, 22) if n == 4 else (18, 14)
     rig = StereoRig.for_scene(room.scene, size=(w, h), camera=CHROMATIC)
     room.settings = RenderSettings(primary="rays", msaa=n)
     fc = room.record(rig)
@@ -121,12 +123,13 @@ def test_shared_shading_costs_little_image_error(room):
 
 
 @pytest.mark.parametrize("culling", [dict(tile_culling=True), dict(tile_lists=64), dict(block_culling=True, tile_lists=64),
-                                     dict(msaa=8, tile_lists=64)],
-                         ids=["entries", "lists", "blocks and lists", "8x lists"])
+                                     dict(msaa=8, tile_lists=64), dict(msaa=16, tile_culling=True),
+                                     dict(msaa=16, tile_lists=64)],
+                         ids=["entries", "lists", "blocks and lists", "8x lists", "16x entries", "16x lists"])
 def test_tile_culled_shared_frames_equal_the_per_ray_shared_frame(room, culling):
     """With tile culling the frame's one cull bounds all three channel sets' sub-rays, which the trace
     starts from (their entries, or the lists through tile_samples.comp, whose workgroup at 8x holds
-    24 sub-rays a pixel): the frame per-ray traversal from the root gives."""
+    24 sub-rays a pixel, at 16x 48 with two-word masks): the frame per-ray traversal from the root gives."""
     shared, tri = frame(room, CHROMATIC, tile_culling=False, msaa=culling.get("msaa", 1))
     culled, culled_tri = frame(room, CHROMATIC, **culling)
     assert room.plan(camera=CHROMATIC).tile_culling and room.plan(camera=CHROMATIC).share_channels
@@ -162,8 +165,8 @@ def test_only_frames_it_serves_share(room):
 
     assert shares() and not shares(share_channel_shading=False)
     assert not shares(camera=Pinhole())                 # one channel set
-    assert shares(msaa=4) and shares(msaa=8)            # 3 x 8 sub-rays fit a coverage mask ...
-    assert not shares(msaa=16) and not shares(msaa=4, ssaa=True)   # ... 3 x 16 do not; SSAA shades every sub-ray
+    assert shares(msaa=4) and shares(msaa=16)           # 3 x 16 sub-rays fit one MSAA trace group ...
+    assert not shares(msaa=32) and not shares(msaa=4, ssaa=True)   # ... 3 x 32 do not; SSAA shades every sub-ray
     assert shares(tile_culling=True) and shares(tile_lists=64)   # the one cull bounds every set's rays
     with Renderer(None, MaterialConfig(default="ssr"), gl=room.gl) as r:   # reads neighbours' G-buffer
         r.settings = RenderSettings(primary="rays")

@@ -6,7 +6,7 @@ hit distance for the G-buffer resolve.
 Sampled frames (FramePlan.sampled) run in rounds (frame/graph.py FrameGraph.execute): per colour
 channel set, then per sub-ray (SSAA: each round casts one sub-ray of every sample) or per slot
 of the distinct triangles the sub-rays hit (MSAA: the first round of a channel casts all N
-sub-rays, keeps the distinct triangles with their coverage masks, and counts on the GPU how many
+sub-rays, keeps the distinct triangles with their coverage, and counts on the GPU how many
 rounds the channel needs, the most any pixel has; each round then shades one triangle per
 pixel). The MSAA trace casts one sub-ray per invocation (a workgroup: a block of pixels times
 their sub-rays) and merges each pixel's hits in shared memory, every sub-ray's invocation taking
@@ -208,10 +208,11 @@ SHARED_SETS = 3  # colour channel sets cast together with shared channel shading
 def shares_channels(settings, camera, samples: int, effects, view: str) -> bool:
     """Whether a frame casts its three colour channel sets together as sub-rays and shades once per
     distinct triangle: a camera of three sets, MSAA (or one sub-ray) whose sub-rays for all three sets
-    fit a coverage mask (--msaa 8 at most), the colour view, and no effect that reads other pixels'
-    G-buffer in a round (the quadtree's: a skipped pixel's G-buffer is an earlier round's)."""
+    fit one MSAA trace workgroup (--msaa 16 at most: 48 sub-rays, a two-word coverage mask), the
+    colour view, and no effect that reads other pixels' G-buffer in a round (the quadtree's: a
+    skipped pixel's G-buffer is an earlier round's)."""
     return (settings.share_channel_shading and camera.channels == SHARED_SETS and not settings.ssaa
-            and samples * SHARED_SETS <= 32 and view == "color"
+            and samples * SHARED_SETS <= MSAA_GROUP and view == "color"
             and not any(EFFECTS[e].uses_quadtree for e in effects if e in EFFECTS))
 
 
@@ -270,7 +271,7 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
                sampled: np.ndarray | None = None, channel_blocks: int = 1) -> np.ndarray:
     """Numpy twin of primary.comp's MSAA merge: per pixel, from its N sub-rays' triangles `tris`
     (..., N) (NO_HIT: background) and distances `ts`, the list msaa_hits holds, (slots, ..., 4)
-    uint32 entries (triangle, coverage mask, representative sub-ray | count << 8 | covered << 16
+    uint32 entries (triangle, coverage (msaa_coverage of its mask), representative sub-ray | count << 8 | covered << 16
     (entry 0 only; msaa_coverage, summed), distance bits), most covered first, ties in order of first sub-ray; unused
     entries zero here (the GPU leaves entries past a pixel's count as the buffer held them: only
     the first count are defined, and only those are read). `offsets` (N, 2): the sub-rays' footprint offsets (cameras/sampling.subsamples);
@@ -299,7 +300,7 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
             best = bits[int(np.argmin(dist))]
             covered = sum(msaa_coverage(m, n_sub, channel_blocks) for m in masks)
             meta = best | ((len(ids) << 8) | (covered << 16) if rank == 0 else 0)
-            out[rank, px] = (ids[k], masks[k], meta, flat_d[px, best].view(np.uint32))
+            out[rank, px] = (ids[k], msaa_coverage(masks[k], n_sub, channel_blocks), meta, flat_d[px, best].view(np.uint32))
     return out.reshape((slots,) + shape + (4,))
 
 

@@ -80,9 +80,16 @@ void cast_primary(ivec3 p, ivec2 size, bool valid, vec3 o, vec3 d, inout Hit h) 
 #endif
 }
 #if PRIMARY_MODE == 1
-shared uint sub_mask[MSAA_GROUP];                           // each sub-ray's triangle's coverage mask
-shared uint pixel_first[MSAA_BLOCK_W * MSAA_BLOCK_H];       // the first sub-ray on each distinct triangle
-shared uint pixel_covered[MSAA_BLOCK_W * MSAA_BLOCK_H];     // sub-rays on the kept triangles
+#if CAMERA_SUBRAYS > 32
+#define MASK_WORDS 2u
+#define PIXEL_FIRSTS(j) uvec2(pixel_first[2u * (j)], pixel_first[2u * (j) + 1u])
+#else
+#define MASK_WORDS 1u
+#define PIXEL_FIRSTS(j) pixel_first[j]
+#endif
+shared SubMask sub_mask[MSAA_GROUP];                              // each sub-ray's triangle's coverage mask
+shared uint pixel_first[MSAA_BLOCK_W * MSAA_BLOCK_H * MASK_WORDS]; // the first sub-ray on each distinct triangle
+shared uint pixel_covered[MSAA_BLOCK_W * MSAA_BLOCK_H];            // sub-rays on the kept triangles
 
 // The sample at pixel p, block pixel j, whose sub-rays' hits are sub_tri/sub_t[base ..]: its
 // distinct triangles to msaa_hits; their number. Every invocation of the group calls it, each for
@@ -92,19 +99,20 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
     // The coverage mask of this sub-ray's triangle (sub-ray i is bit i); distinct triangles are
     // numbered in order of their first sub-ray, and only the first MSAA_SLOTS are kept (the
     // sub-rays on the others are dropped).
-    uint tri = sub_tri[base + sub], mask = 0u;
+    uint tri = sub_tri[base + sub];
+    SubMask mask = MASK_NONE;
     for (uint k = 0u; k < uint(CAMERA_SUBRAYS); k++)
-        mask |= sub_tri[base + k] == tri ? 1u << k : 0u;
-    bool first = uint(findLSB(mask)) == sub;
+        if (sub_tri[base + k] == tri) mask |= MASK_BIT(k);
+    bool first = mask_lsb(mask) == sub;
     if (sub == 0u) {
-        pixel_first[j] = 0u;
+        for (uint w = 0u; w < MASK_WORDS; w++) pixel_first[MASK_WORDS * j + w] = 0u;
         pixel_covered[j] = 0u;
     }
     barrier();
-    if (first) atomicOr(pixel_first[j], 1u << sub);
+    if (first) atomicOr(pixel_first[MASK_WORDS * j + sub / 32u], 1u << (sub % 32u));
     barrier();
-    uint firsts = pixel_first[j];
-    bool kept = first && uint(bitCount(firsts & ((1u << sub) - 1u))) < uint(MSAA_SLOTS);
+    SubMask firsts = PIXEL_FIRSTS(j);
+    bool kept = first && mask_count_below(firsts, sub) < uint(MSAA_SLOTS);
     sub_mask[base + sub] = mask;
     if (kept) atomicAdd(pixel_covered[j], msaa_coverage(mask));
     barrier();
@@ -114,18 +122,18 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
             HIT(0) = uvec4(BVH_MISS, 0u, 0u, 0u);  // no sample at this pixel (foveated): an empty list, filled for display
         return 0u;
     }
-    uint n = min(uint(bitCount(firsts)), uint(MSAA_SLOTS));
+    uint n = min(mask_count(firsts), uint(MSAA_SLOTS));
     if (kept) {
         // Stored most covered first (slot 0 is the pixel's main surface, the G-buffer the frame
         // keeps): the slot is the entry's rank among the kept, ties in order of first sub-ray.
-        uint pop = uint(bitCount(mask)), rank = 0u, seen = 0u;
-        for (uint m = firsts; m != 0u && seen < n; m &= m - 1u, seen++) {
-            uint k = uint(findLSB(m)), pk = uint(bitCount(sub_mask[base + k]));
+        uint pop = mask_count(mask), rank = 0u, seen = 0u;
+        for (SubMask m = firsts; !mask_empty(m) && seen < n; m = mask_drop_lsb(m), seen++) {
+            uint k = mask_lsb(m), pk = mask_count(sub_mask[base + k]);
             rank += uint(pk > pop || (pk == pop && k < sub));
         }
         uint best = msaa_representative(mask);
         uint meta = best | (rank == 0u ? (n << 8) | (pixel_covered[j] << 16) : 0u);
-        HIT(rank) = uvec4(tri, mask, meta, floatBitsToUint(sub_t[base + best]));
+        HIT(rank) = uvec4(tri, msaa_coverage(mask), meta, floatBitsToUint(sub_t[base + best]));
     }
     return n;
 }

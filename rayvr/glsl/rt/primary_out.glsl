@@ -5,6 +5,7 @@
 #ifndef RAYVR_RT_PRIMARY_OUT_GLSL
 #define RAYVR_RT_PRIMARY_OUT_GLSL
 #include "../layout.glsl"
+#include "sub_mask.glsl"
 
 layout(rgba32f, binding = GB_IMAGE_POSITION) uniform writeonly image2DArray img_position;
 layout(r32ui, binding = GB_IMAGE_TRIANGLE) uniform writeonly uimage2DArray img_triangle;
@@ -31,8 +32,8 @@ void store_cast(ivec3 p, bool sample_here, uint tri, float t, uint sub) {
 #define MSAA_OUT 0
 #endif
 #if MSAA_OUT
-// Per pixel MSAA_SLOTS entries, slot-major (HIT below): (triangle, coverage mask, representative sub-ray | count << 8 |
-// covered sub-rays << 16 (entry 0 only), hit distance bits).
+// Per pixel MSAA_SLOTS entries, slot-major (HIT below): (triangle, coverage (msaa_coverage of its
+// mask), representative sub-ray | count << 8 | covered sub-rays << 16 (entry 0 only), hit distance bits).
 layout(std430, binding = SSBO_MSAA_HITS) buffer MsaaHits { uvec4 msaa_hits[]; };
 layout(std430, binding = SSBO_MSAA_COUNT) buffer MsaaCount { uint msaa_count; };
 // Slot-major entries (slot k of every pixel, then slot k + 1): neighbouring invocations write and
@@ -45,14 +46,14 @@ shared vec2 sub_offset[CAMERA_SUBRAYS];
 // The sub-ray of coverage mask `mask` nearest the mean of its sub-rays' footprint offsets, at which
 // the entry is shaded for all of them (the mask's bits in increasing order: the first of equally
 // near ones; passes/primary_rays.py msaa_lists is the numpy twin).
-uint msaa_representative(uint mask) {
+uint msaa_representative(SubMask mask) {
     vec2 mean_offset = vec2(0.0);
-    for (uint m = mask; m != 0u; m &= m - 1u) mean_offset += sub_offset[findLSB(m)];
-    mean_offset /= float(bitCount(mask));
+    for (SubMask m = mask; !mask_empty(m); m = mask_drop_lsb(m)) mean_offset += sub_offset[mask_lsb(m)];
+    mean_offset /= float(mask_count(mask));
     uint best = 0u;
     float best_d = 1e30;
-    for (uint m = mask; m != 0u; m &= m - 1u) {
-        uint i = uint(findLSB(m));
+    for (SubMask m = mask; !mask_empty(m); m = mask_drop_lsb(m)) {
+        uint i = mask_lsb(m);
         vec2 e = sub_offset[i] - mean_offset;
         if (dot(e, e) < best_d) { best = i; best_d = dot(e, e); }
     }
@@ -61,16 +62,17 @@ uint msaa_representative(uint mask) {
 
 // The covered count a kept entry of coverage mask `mask` adds to its pixel's (the meta's high bits):
 // its sub-rays, or with CHANNEL_SAMPLES 3 each colour channel set's, 5 bits a set (set c at bit 5c).
-uint msaa_coverage(uint mask) {
+uint msaa_coverage(SubMask mask) {
 #if CHANNEL_SAMPLES > 1
-    uint block = (1u << uint(CAMERA_SUBSAMPLES)) - 1u, covered = 0u;
+    uint covered = 0u;
     for (uint b = 0u; b < uint(CHANNEL_SAMPLES); ++b) {
         uint first = b * uint(CAMERA_SUBSAMPLES);
-        covered += uint(bitCount(mask & (block << first))) << (5u * uint(camera_subray_channel(first)));
+        uint in_set = mask_count_below(mask, first + uint(CAMERA_SUBSAMPLES)) - mask_count_below(mask, first);
+        covered += in_set << (5u * uint(camera_subray_channel(first)));
     }
     return covered;
 #else
-    return uint(bitCount(mask));
+    return mask_count(mask);
 #endif
 }
 
@@ -80,19 +82,18 @@ uint msaa_coverage(uint mask) {
 layout(rgba32f, binding = IMAGE_CHANNEL_WEIGHT) uniform writeonly image2DArray img_channel_weight;
 #endif
 
-// The select's weight of pixel p's entry with coverage mask `mask` among its `covered` (msaa_coverage
-// summed): its share of the pixel's sub-rays; with CHANNEL_SAMPLES 3 each channel set's share, stored
-// in channel_weight, and the largest of them (the round skips a pixel only where all are 0).
-float msaa_weight(ivec3 p, uint mask, uint covered) {
+// The select's weight of pixel p's entry of coverage `mine` (msaa_coverage of its mask) among its
+// `covered` (those summed): its share of the pixel's sub-rays; with CHANNEL_SAMPLES 3 each channel
+// set's share, stored in channel_weight, and the largest of them (the round skips a pixel only where all are 0).
+float msaa_weight(ivec3 p, uint mine, uint covered) {
 #if CHANNEL_SAMPLES > 1
-    uint mine = msaa_coverage(mask);
     vec3 w;
     for (int c = 0; c < 3; ++c)
         w[c] = float((mine >> (5 * c)) & 31u) / float(max((covered >> (5 * c)) & 31u, 1u));
     imageStore(img_channel_weight, p, vec4(w, w.g));
     return max(max(w.r, w.g), w.b);
 #else
-    return float(bitCount(mask)) / float(max(covered, 1u));
+    return float(mine) / float(max(covered, 1u));
 #endif
 }
 #endif

@@ -103,8 +103,8 @@ uniform int subsample;  // SAMPLE_MODE 0
 // rt/primary.comp's msaa_merge makes it (frame/passes/primary_rays.py msaa_lists, its numpy twin):
 // the distinct triangles (the background counts as one) in order of their first sub-ray, the first
 // MSAA_SLOTS kept (sub-rays on the others dropped), stored most covered first (ties in order of first
-// sub-ray), each with its coverage mask and the sub-ray nearest the mask's mean footprint offset (the
-// first of equally near ones), whose distance it keeps. Returns their number.
+// sub-ray), each with its coverage and the sub-ray nearest its coverage mask's mean footprint offset
+// (the first of equally near ones), whose distance it keeps. Returns their number.
 uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
     ivec3 extent = imageSize(img_triangle);
     uint pixels = uint(extent.x * extent.y * extent.z);
@@ -113,19 +113,20 @@ uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
         HIT(0) = uvec4(BVH_MISS, 0u, 0u, 0u);  // no sample at this pixel (foveated): an empty list, filled for display
         return 0u;
     }
-    uint ids[MSAA_SLOTS], masks[MSAA_SLOTS];
+    uint ids[MSAA_SLOTS];
+    SubMask masks[MSAA_SLOTS];
     uint n = 0u;
     for (uint k = 0u; k < uint(PIXEL_RAYS); ++k) {
         uint tri = sub_tri[SUB(k)];
         bool known = false;
         for (uint s = 0u; s < n; ++s)
             if (ids[s] == tri) {
-                masks[s] |= 1u << k;
+                masks[s] |= MASK_BIT(k);
                 known = true;
             }
         if (!known && n < uint(MSAA_SLOTS)) {
             ids[n] = tri;
-            masks[n] = 1u << k;
+            masks[n] = MASK_BIT(k);
             ++n;
         }
     }
@@ -133,14 +134,14 @@ uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
     for (uint s = 0u; s < n; ++s)
         covered += msaa_coverage(masks[s]);
     for (uint s = 0u; s < n; ++s) {
-        uint pop = uint(bitCount(masks[s])), rank = 0u;
+        uint pop = mask_count(masks[s]), rank = 0u;
         for (uint o = 0u; o < n; ++o) {
-            uint po = uint(bitCount(masks[o]));
+            uint po = mask_count(masks[o]);
             rank += uint(po > pop || (po == pop && o < s));
         }
         uint best = msaa_representative(masks[s]);
         uint meta = best | (rank == 0u ? (n << 8) | (covered << 16) : 0u);
-        HIT(rank) = uvec4(ids[s], masks[s], meta, floatBitsToUint(sub_t[SUB(best)]));
+        HIT(rank) = uvec4(ids[s], msaa_coverage(masks[s]), meta, floatBitsToUint(sub_t[SUB(best)]));
     }
     return n;
 }
@@ -205,10 +206,10 @@ void main() {
         J[b] = mat2(vec2(dot(dx, u), dot(dx, v)) / dot(dx, c) - q_mid[b], vec2(dot(dy, u), dot(dy, v)) / dot(dy, c) - q_mid[b]);
         bend[b] = 0.0;
     }
-    if (lid < uint(PIXEL_RAYS))
-        sub_offset[lid] = camera_subray_offset(pixel_subray(lid));
+    for (uint k = lid; k < uint(PIXEL_RAYS); k += uint(SAMPLE_GROUP))   // (a band of 32 pixels at 48 sub-rays)
+        sub_offset[k] = camera_subray_offset(pixel_subray(k));
     barrier();
-    uint traced = 0u;   // bit k: sub-ray k traces
+    SubMask traced = MASK_NONE;   // bit k: sub-ray k traces
     vec3 origin = vec3(0.0);
     bool one_origin = true;   // every sub-ray of the pixel from `origin`
     float co = -3.0e38, t_far = 0.0, q_far = 0.0;
@@ -223,8 +224,8 @@ void main() {
             vec2 q = vec2(dot(d, u), dot(d, v)) / dot(d, c);
             bend[b] = max(bend[b], length(q - (q_mid[b] + J[b] * sub_offset[k])));
             q_far = max(q_far, dot(q, q));
-            one_origin = one_origin && (traced == 0u || all(equal(o, origin)));
-            traced |= 1u << uint(k);
+            one_origin = one_origin && (mask_empty(traced) || all(equal(o, origin)));
+            traced |= MASK_BIT(uint(k));
             origin = o;
             co = max(co, dot(c, o));
             t_far = max(t_far, r.tmax);
@@ -232,7 +233,7 @@ void main() {
     }
     for (int b = 0; b < RAY_BLOCKS; ++b)
         bend[b] = bend[b] * 1.001 + 1e-30;   // (its own rounding)
-    bool live = traced != 0u;
+    bool live = !mask_empty(traced);
     float reach = pixel_reach(co, t_far);
     // |d| / d.c for every sub-ray of the pixel, at most: the edge slack's scale in the tile's frame
     float stretch = sqrt(1.0 + q_far) * 1.001;
@@ -308,16 +309,16 @@ void main() {
                 }
                 if (best < 0.0)
                     continue;
-                uint candidates = 0u;   // (the sub-rays that trace, below)
+                SubMask candidates = MASK_NONE;   // (the sub-rays that trace, below)
                 for (int k = 0; k < PIXEL_RAYS; ++k) {
                     int b = k / BLOCK_RAYS;
                     vec2 ok = sub_offset[k];
                     float inside_e = min(min(a[b].x + dot(g0[b], ok), a[b].y + dot(g1[b], ok)), a[b].z + dot(g2[b], ok));
-                    candidates |= inside_e < 0.0 ? 0u : 1u << uint(k);
+                    if (!(inside_e < 0.0)) candidates |= MASK_BIT(uint(k));
                 }
                 uint slot = list_slot[i];
-                for (candidates &= traced; candidates != 0u; candidates &= candidates - 1u) {
-                    uint k = uint(findLSB(candidates));
+                for (candidates &= traced; !mask_empty(candidates); candidates = mask_drop_lsb(candidates)) {
+                    uint k = mask_lsb(candidates);
                     Hit h;
                     h.t = sub_t[SUB(k)];
                     h.prim = sub_tri[SUB(k)];
@@ -336,7 +337,7 @@ void main() {
             // the pixel's reach after this load: its sub-rays' closest hits so far
             t_far = 0.0;
             for (int k = 0; k < PIXEL_RAYS; ++k)
-                t_far = max(t_far, (traced & (1u << uint(k))) != 0u ? sub_t[SUB(k)] : 0.0);
+                t_far = max(t_far, mask_empty(traced & MASK_BIT(uint(k))) ? 0.0 : sub_t[SUB(k)]);
             reach = pixel_reach(co, t_far);
             if (base + uint(SAMPLE_GROUP) < n && !(uintBitsToFloat(tile_tris[head + 1u + base + uint(SAMPLE_GROUP)].y) > reach))
                 list_more[load & 1u] = 1u;
