@@ -243,6 +243,20 @@ def test_rows_time_each_round_of_a_sampled_frame(gl):
     assert all(len(ms) == rounds and min(ms) >= 0 for ms in row["round_passes"].values()), row["round_passes"]
 
 
+def test_vr_md_lists_each_round_of_the_worst_pose(quick):
+    """vr.md names, per cell that runs rounds, its worst pose's ms round by round: the passes' times
+    of each round summed (round_totals, checked by hand on a small row), and no line for 1x pinhole."""
+    from rayvr.bench.vr import round_totals
+
+    assert round_totals({"round_passes": {"a": [1.0, 2.0], "b": [3.0, 4.0, 5.0]}}) == [4.0, 6.0, 5.0]
+    assert round_totals({"round_passes": {}}) == []
+    result, md = quick
+    listed = {line.split(":")[0] for line in md.splitlines() if line.startswith("- ") and "x: " in line}
+    assert "- shadows default pinhole 4x" in listed and "- shadows default pinhole 1x" not in listed
+    row = next(r for r in result["rows"] if r["camera"] == "pinhole" and r["msaa"] == 4)
+    assert len(round_totals(row)) == len(next(iter(row["round_passes"].values()))) >= 2
+
+
 def test_a_scenes_first_cell_warms_longest(tmp_path, gl, monkeypatch):
     """The clocks after a scene's build: its first cell's first pose warms SCENE_WARMUP_S at least,
     every other cell's first pose WARMUP_S, the other poses only until times settle."""

@@ -29,6 +29,7 @@ scenes and configs can run as separate commands.
 """
 from __future__ import annotations
 
+import itertools
 import json
 import time
 from pathlib import Path
@@ -138,6 +139,18 @@ def round_passes(r: Renderer, rig: StereoRig) -> dict:
     from one more frame: a round that shades few pixels shows what it costs regardless of them."""
     fc = r.record(rig, "both", "color")
     return {k: [round(v, 4) for v in ms] for k, ms in r.read_round_ms(fc).items() if len(ms) > 1}
+
+
+def worst_row(rows, cell: dict) -> dict:
+    """The row of a spread() cell's worst pose."""
+    return next(r for r in rows if r["scene"] == cell["scene"] and r["pose"]["index"] == cell["worst_pose"]
+                and all(r[k] == cell[k] for k in ("config", "variant", "camera", "msaa")))
+
+
+def round_totals(row: dict) -> list[float]:
+    """A row's ms of each round in the order run (its round_passes summed over the passes)."""
+    per_pass = list(row.get("round_passes", {}).values())
+    return [float(sum(ms)) for ms in itertools.zip_longest(*per_pass, fillvalue=0.0)]
 
 
 def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: float) -> dict:
@@ -327,6 +340,14 @@ def markdown(result: dict) -> str:
                          f"{s['worst_pose']} | {s['visibility_median_ms']:.3f} / {s['visibility_worst_ms']:.3f} | "
                          f"{top} | {stages} |")
         lines.append("")
+        rounds = [(s, round_totals(worst_row(rows, s))) for s in summary if s["scene"] == scene]
+        if any(ms for _, ms in rounds):
+            lines += ["Rounds of the worst pose (the passes that run once a round, summed, ms, in the order run; "
+                      "a channel set's last round shades every pixel, the others only the pixels with that "
+                      "many distinct triangles):", ""]
+            lines += [f"- {s['config']} {s['variant']} {s['camera']} {s['msaa']}x: " + ", ".join(f"{v:.3f}" for v in ms)
+                      for s, ms in rounds if ms]
+            lines.append("")
         judged = [t for t in targets(rows, meta["per_eye_size"]) if t["scene"] == scene]
         if judged:
             lines += ["Issue 22's targets, on the worst pose (over the poses and configs measured):", "",
