@@ -37,7 +37,7 @@ SHADER_LOCAL = {
     "RT_MAX_GROUPS_X": "GL's minimum of the most work groups in x",
     "WAVE_IDLE": "wave.glsl: a path without a ray this bounce", "RT_SLOT": "wave_shade.comp's list",
     "FILLED": "sample_resolve.comp: the weight of a filled point",
-    "MASK_NONE": "sub_mask.glsl: the empty sub-ray mask", "MASK_WORDS": "primary.comp: words a sub-ray mask takes",
+    "MASK_NONE": "sub_mask.glsl: the empty sub-ray mask", "MASK_WORDS": "sub_mask.glsl: words a sub-ray mask takes",
 }
 
 

@@ -136,7 +136,10 @@ def primary_stages(r: Renderer, rig: StereoRig) -> dict:
 
 def round_passes(r: Renderer, rig: StereoRig) -> dict:
     """GPU ms of each pass that runs once per round (MSAA, shared channel shading), round by round,
-    from one more frame: a round that shades few pixels shows what it costs regardless of them."""
+    from one more frame: a round that shades few pixels shows what it costs regardless of them.
+    A frame without rounds (not sampled) has none: no frame is recorded for it."""
+    if not r.plan(camera=rig.camera).sampled:
+        return {}
     fc = r.record(rig, "both", "color")
     return {k: [round(v, 4) for v in ms] for k, ms in r.read_round_ms(fc).items() if len(ms) > 1}
 

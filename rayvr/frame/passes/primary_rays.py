@@ -271,8 +271,8 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
                sampled: np.ndarray | None = None, channel_blocks: int = 1) -> np.ndarray:
     """Numpy twin of primary.comp's MSAA merge: per pixel, from its N sub-rays' triangles `tris`
     (..., N) (NO_HIT: background) and distances `ts`, the list msaa_hits holds, (slots, ..., 4)
-    uint32 entries (triangle, coverage (msaa_coverage of its mask), representative sub-ray | count << 8 | covered << 16
-    (entry 0 only; msaa_coverage, summed), distance bits), most covered first, ties in order of first sub-ray; unused
+    uint32 entries (triangle, coverage (msaa_coverage of its mask), representative sub-ray | count << 8
+    | covered << 16 (entry 0 only; msaa_coverage, summed), distance bits), most covered first, ties in order of first sub-ray; unused
     entries zero here (the GPU leaves entries past a pixel's count as the buffer held them: only
     the first count are defined, and only those are read). `offsets` (N, 2): the sub-rays' footprint offsets (cameras/sampling.subsamples);
     the representative is the sub-ray nearest the mean offset of its mask (the first of equally
@@ -300,7 +300,8 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
             best = bits[int(np.argmin(dist))]
             covered = sum(msaa_coverage(m, n_sub, channel_blocks) for m in masks)
             meta = best | ((len(ids) << 8) | (covered << 16) if rank == 0 else 0)
-            out[rank, px] = (ids[k], msaa_coverage(masks[k], n_sub, channel_blocks), meta, flat_d[px, best].view(np.uint32))
+            coverage = msaa_coverage(masks[k], n_sub, channel_blocks)
+            out[rank, px] = (ids[k], coverage, meta, flat_d[px, best].view(np.uint32))
     return out.reshape((slots,) + shape + (4,))
 
 

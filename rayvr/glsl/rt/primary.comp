@@ -80,13 +80,6 @@ void cast_primary(ivec3 p, ivec2 size, bool valid, vec3 o, vec3 d, inout Hit h) 
 #endif
 }
 #if PRIMARY_MODE == 1
-#if CAMERA_SUBRAYS > 32
-#define MASK_WORDS 2u
-#define PIXEL_FIRSTS(j) uvec2(pixel_first[2u * (j)], pixel_first[2u * (j) + 1u])
-#else
-#define MASK_WORDS 1u
-#define PIXEL_FIRSTS(j) pixel_first[j]
-#endif
 shared SubMask sub_mask[MSAA_GROUP];                              // each sub-ray's triangle's coverage mask
 shared uint pixel_first[MSAA_BLOCK_W * MSAA_BLOCK_H * MASK_WORDS]; // the first sub-ray on each distinct triangle
 shared uint pixel_covered[MSAA_BLOCK_W * MSAA_BLOCK_H];            // sub-rays on the kept triangles
@@ -111,10 +104,11 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
     barrier();
     if (first) atomicOr(pixel_first[MASK_WORDS * j + sub / 32u], 1u << (sub % 32u));
     barrier();
-    SubMask firsts = PIXEL_FIRSTS(j);
+    SubMask firsts = MASK_OF_WORDS(pixel_first, MASK_WORDS * j);
     bool kept = first && mask_count_below(firsts, sub) < uint(MSAA_SLOTS);
     sub_mask[base + sub] = mask;
-    if (kept) atomicAdd(pixel_covered[j], msaa_coverage(mask));
+    uint coverage = kept ? msaa_coverage(mask) : 0u;
+    if (kept) atomicAdd(pixel_covered[j], coverage);
     barrier();
     if (!inside) return 0u;
     if (!(camera_footprint(p.z, vec2(p.xy) + 0.5, vec2(size)) > 0.0)) {
@@ -133,7 +127,7 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
         }
         uint best = msaa_representative(mask);
         uint meta = best | (rank == 0u ? (n << 8) | (pixel_covered[j] << 16) : 0u);
-        HIT(rank) = uvec4(tri, msaa_coverage(mask), meta, floatBitsToUint(sub_t[base + best]));
+        HIT(rank) = uvec4(tri, coverage, meta, floatBitsToUint(sub_t[base + best]));
     }
     return n;
 }

@@ -5,14 +5,20 @@
 #define RAYVR_RT_SUB_MASK_GLSL
 #include "../common/camera.glsl"  // CAMERA_SUBRAYS
 
+// MASK_WORDS: the words a mask takes in a uint array (bit k in word k / 32), MASK_OF_WORDS(w, i) the
+// mask whose words start at w[i].
 #if CAMERA_SUBRAYS > 32
 #define SubMask uvec2
+#define MASK_WORDS 2u
 #define MASK_NONE uvec2(0u)
 #define MASK_BIT(k) ((k) < 32u ? uvec2(1u << (k), 0u) : uvec2(0u, 1u << ((k) - 32u)))
+#define MASK_OF_WORDS(w, i) uvec2(w[i], w[(i) + 1u])
 #else
 #define SubMask uint
+#define MASK_WORDS 1u
 #define MASK_NONE 0u
 #define MASK_BIT(k) (1u << (k))
+#define MASK_OF_WORDS(w, i) w[i]
 #endif
 uint mask_count(uint m) { return uint(bitCount(m)); }
 uint mask_count(uvec2 m) { return uint(bitCount(m.x) + bitCount(m.y)); }

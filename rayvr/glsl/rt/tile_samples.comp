@@ -130,9 +130,11 @@ uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
             ++n;
         }
     }
-    uint covered = 0u;
-    for (uint s = 0u; s < n; ++s)
-        covered += msaa_coverage(masks[s]);
+    uint coverage[MSAA_SLOTS], covered = 0u;
+    for (uint s = 0u; s < n; ++s) {
+        coverage[s] = msaa_coverage(masks[s]);
+        covered += coverage[s];
+    }
     for (uint s = 0u; s < n; ++s) {
         uint pop = mask_count(masks[s]), rank = 0u;
         for (uint o = 0u; o < n; ++o) {
@@ -141,7 +143,7 @@ uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
         }
         uint best = msaa_representative(masks[s]);
         uint meta = best | (rank == 0u ? (n << 8) | (covered << 16) : 0u);
-        HIT(rank) = uvec4(ids[s], msaa_coverage(masks[s]), meta, floatBitsToUint(sub_t[SUB(best)]));
+        HIT(rank) = uvec4(ids[s], coverage[s], meta, floatBitsToUint(sub_t[SUB(best)]));
     }
     return n;
 }
