@@ -176,10 +176,11 @@ def test_an_msaa_trace_block_lies_in_one_tile(samples, sets):
     """With tile lists the MSAA trace (rt/primary.comp) casts only the tiles whose list overflowed and
     leaves the others' workgroups whole, so no workgroup may span two tiles: its block of pixels
     divides the 16x8 tile, for every sub-ray count a sample casts (shared channel shading at 1x casts
-    3, which once gave 4x5 blocks: frames that differed on the H200)."""
+    3, which once gave 4x5 blocks: frames that differed on the H200), and it keeps the pixels of one
+    set's block with shared channel sets (full warps)."""
     from rayvr.frame.passes.primary_rays import MSAA_GROUP, msaa_block
 
-    rays = samples * sets
-    w, h = msaa_block(rays)
-    assert TILE_PIXELS[0] % w == 0 and TILE_PIXELS[1] % h == 0, (rays, w, h)
-    assert w * h == 1 or (w * h * rays <= MSAA_GROUP < 2 * w * h * rays)   # the most pixels that fit
+    w, h = msaa_block(samples, sets)
+    assert TILE_PIXELS[0] % w == 0 and TILE_PIXELS[1] % h == 0, (samples, sets, w, h)
+    # the most pixels whose sub-rays of one set fit (the group holds all sets': 192 invocations shared)
+    assert w * h == 1 or (w * h * samples <= MSAA_GROUP < 2 * w * h * samples)

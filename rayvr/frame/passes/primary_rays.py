@@ -202,17 +202,18 @@ def tile_list_bound(settings, camera: str = "pinhole") -> int:
     return int((measured_choice(camera, settings.msaa) or {}).get("tile_lists", 0))
 
 
+MASK_BITS = 64  # sub-rays a coverage mask holds (glsl/rt/sub_mask.glsl: at most two words)
 SHARED_SETS = 3  # colour channel sets cast together with shared channel shading (glsl/common/camera.glsl)
 
 
 def shares_channels(settings, camera, samples: int, effects, view: str) -> bool:
     """Whether a frame casts its three colour channel sets together as sub-rays and shades once per
     distinct triangle: a camera of three sets, MSAA (or one sub-ray) whose sub-rays for all three sets
-    fit one MSAA trace workgroup (--msaa 16 at most: 48 sub-rays, a two-word coverage mask), the
+    fit a coverage mask of two words (--msaa 16 at most: 48 sub-rays), the
     colour view, and no effect that reads other pixels' G-buffer in a round (the quadtree's: a
     skipped pixel's G-buffer is an earlier round's)."""
     return (settings.share_channel_shading and camera.channels == SHARED_SETS and not settings.ssaa
-            and samples * SHARED_SETS <= MSAA_GROUP and view == "color"
+            and samples * SHARED_SETS <= MASK_BITS and view == "color"
             and not any(EFFECTS[e].uses_quadtree for e in effects if e in EFFECTS))
 
 
@@ -232,7 +233,7 @@ def sample_group(rays: int) -> int:
 
 
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
-MSAA_GROUP = 64  # invocations of an MSAA trace workgroup: a block of 64 / N pixels, N sub-rays each
+MSAA_GROUP = 64  # invocations of an MSAA trace workgroup a colour channel set: a block of 64 / N pixels, N sub-rays each
 SAMPLE_WEIGHT = Texture("r32f")
 CHANNEL_WEIGHT = Texture("rgba32f")  # shared channel shading: each channel's weight of the round's surface
 # How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without
@@ -244,13 +245,16 @@ COUNT_POLLS = ("fence", "wait", "never")
 COUNT_POLL = "fence"
 
 
-def msaa_block(samples: int) -> tuple[int, int]:
-    """Pixels (w, h) of an MSAA trace workgroup: the largest power of two of them whose sub-rays fit
-    MSAA_GROUP invocations, as square as it allows. A power of two on both sides, so a block lies in
-    one TILE_PIXELS tile: with tile lists the trace casts only the tiles whose list overflowed, and
-    leaves the group as a whole (a group over two tiles would leave some invocations before the
-    barriers the others reach: undefined, and wrong on the H200 with the 3 sub-rays of shared
-    channel shading at 1x, where 64 // 3 = 21 pixels made 4x5 blocks)."""
+def msaa_block(samples: int, sets: int = 1) -> tuple[int, int]:
+    """Pixels (w, h) of an MSAA trace workgroup: the largest power of two of them whose sub-rays of
+    one colour channel set fit MSAA_GROUP invocations, as square as it allows; a workgroup is the
+    block's sub-rays of all `sets` (shared channel shading: 3 sets, 192 invocations, full warps: 48
+    sub-rays a 1-pixel group at 16x left a quarter of the lanes idle, the trace 2x the three sets
+    cast apart, H200 Sponza bench/results/h200/2026-12-03/rounds). A power of two on both sides, so
+    a block lies in one TILE_PIXELS tile: with tile lists the trace casts only the tiles whose list
+    overflowed, and leaves the group as a whole (a group over two tiles would leave some invocations
+    before the barriers the others reach: undefined, and wrong on the H200 with the 3 sub-rays of
+    shared channel shading at 1x, where 64 // 3 = 21 pixels made 4x5 blocks)."""
     pixels = 1 << (max(1, MSAA_GROUP // samples).bit_length() - 1)
     w = 1 << (pixels.bit_length() // 2)
     return w, pixels // w
@@ -419,7 +423,7 @@ class PrimaryRaysPass(Pass):
     def setup(self, gl, plan: FramePlan) -> None:
         # the primary rays' BVH layout; tile entry lists name binary child pairs
         self.layout = "bvh2" if plan.tile_culling else plan.traversal[0]
-        self.block = msaa_block(subrays(plan))
+        self.block = msaa_block(plan.samples, subrays(plan) // plan.samples)
         tiles = {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": TILE_ENTRIES, "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
                  "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
         lists = {"TILE_TRIS": plan.tile_lists, "TILE_TRIS_BINDING": SSBO["tile_tris"]} if plan.tile_lists else {}

@@ -83,6 +83,7 @@ void cast_primary(ivec3 p, ivec2 size, bool valid, vec3 o, vec3 d, inout Hit h) 
 shared SubMask sub_mask[MSAA_GROUP];                              // each sub-ray's triangle's coverage mask
 shared uint pixel_first[MSAA_BLOCK_W * MSAA_BLOCK_H * MASK_WORDS]; // the first sub-ray on each distinct triangle
 shared uint pixel_covered[MSAA_BLOCK_W * MSAA_BLOCK_H];            // sub-rays on the kept triangles
+shared uint pixel_mixed[MSAA_BLOCK_W * MSAA_BLOCK_H];              // 1: the pixel's sub-rays hit more than one
 
 // The sample at pixel p, block pixel j, whose sub-rays' hits are sub_tri/sub_t[base ..]: its
 // distinct triangles to msaa_hits; their number. Every invocation of the group calls it, each for
@@ -93,15 +94,21 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
     // numbered in order of their first sub-ray, and only the first MSAA_SLOTS are kept (the
     // sub-rays on the others are dropped).
     uint tri = sub_tri[base + sub];
-    SubMask mask = MASK_NONE;
-    for (uint k = 0u; k < uint(CAMERA_SUBRAYS); k++)
-        if (sub_tri[base + k] == tri) mask |= MASK_BIT(k);
-    bool first = mask_lsb(mask) == sub;
     if (sub == 0u) {
         for (uint w = 0u; w < MASK_WORDS; w++) pixel_first[MASK_WORDS * j + w] = 0u;
         pixel_covered[j] = 0u;
     }
+    if (tri != sub_tri[base]) pixel_mixed[j] = 1u;  // (main zeroed it before the trace's barrier)
     barrier();
+    // Most pixels see one triangle: their mask is every sub-ray's, with no walk over the pixel's
+    // sub-rays (O(N) a lane: at 48 sub-rays a large share of the merge).
+    SubMask mask = MASK_ALL;
+    if (pixel_mixed[j] != 0u) {
+        mask = MASK_NONE;
+        for (uint k = 0u; k < uint(CAMERA_SUBRAYS); k++)
+            if (sub_tri[base + k] == tri) mask |= MASK_BIT(k);
+    }
+    bool first = mask_lsb(mask) == sub;
     if (first) atomicOr(pixel_first[MASK_WORDS * j + sub / 32u], 1u << (sub % 32u));
     barrier();
     SubMask firsts = MASK_OF_WORDS(pixel_first, MASK_WORDS * j);
@@ -156,6 +163,7 @@ void main() {
 #endif
 #if PRIMARY_MODE == 1
     if (lid == 0u) group_count = 0u;
+    if (sub == 0u) pixel_mixed[j] = 0u;
     if (lid < uint(CAMERA_SUBRAYS)) sub_offset[lid] = camera_subray_offset(lid);
     vec3 o, d;
     Hit h;

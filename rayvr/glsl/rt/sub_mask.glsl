@@ -6,19 +6,21 @@
 #include "../common/camera.glsl"  // CAMERA_SUBRAYS
 
 // MASK_WORDS: the words a mask takes in a uint array (bit k in word k / 32), MASK_OF_WORDS(w, i) the
-// mask whose words start at w[i].
+// mask whose words start at w[i], MASK_ALL every sub-ray's.
 #if CAMERA_SUBRAYS > 32
 #define SubMask uvec2
 #define MASK_WORDS 2u
 #define MASK_NONE uvec2(0u)
 #define MASK_BIT(k) ((k) < 32u ? uvec2(1u << (k), 0u) : uvec2(0u, 1u << ((k) - 32u)))
 #define MASK_OF_WORDS(w, i) uvec2(w[i], w[(i) + 1u])
+#define MASK_ALL uvec2(0xFFFFFFFFu, 0xFFFFFFFFu >> (64 - CAMERA_SUBRAYS))
 #else
 #define SubMask uint
 #define MASK_WORDS 1u
 #define MASK_NONE 0u
 #define MASK_BIT(k) (1u << (k))
 #define MASK_OF_WORDS(w, i) w[i]
+#define MASK_ALL (0xFFFFFFFFu >> (32 - CAMERA_SUBRAYS))
 #endif
 uint mask_count(uint m) { return uint(bitCount(m)); }
 uint mask_count(uvec2 m) { return uint(bitCount(m.x) + bitCount(m.y)); }
