@@ -581,6 +581,9 @@ class Round:
     ordinal: int = 0  # rounds of this channel set before this one
     count: object = None  # start_polled's count(wait) -> the channel's rounds (None: not on the GPU yet)
     known: bool = True
+    # passes/round_gate.py RoundGate: this round's frame-wide dispatch sizes, made on the GPU from the
+    # count, where the round was recorded before the count was known (None: dispatch directly)
+    gate: object = None
 
     def start(self, slots: int) -> None:
         self.slots = slots if self.active else 1
@@ -736,6 +739,7 @@ class FrameGraph:
                         break
                     fc.round = fc.round.next()
                 fc.channel_rounds.append(fc.round)
+            fc.round.gate = None  # the passes after the rounds dispatch directly
         for p in graph.passes:
             if p.name not in rounds:
                 run(p)

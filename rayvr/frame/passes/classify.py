@@ -13,6 +13,7 @@ from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import SSBO
 from .primary_rays import bind_round_skip, round_skip_defines, round_skip_reads
 from .reuse import bind_reuse, reuse_defines, reuse_reads
+from .round_gate import dispatch_frame
 
 ARGS_BYTES = 16  # per list: uvec4 (groups x, groups y, groups z, pixel count)
 
@@ -89,7 +90,7 @@ class ClassifyPass(Pass):
         w, h = fc.gbuffer.size
         self.program["rt_capacity"].value = w * h * fc.gbuffer.layers
         gx, gy = self.group
-        self.program.run((w + gx - 1) // gx, (h + gy - 1) // gy, fc.gbuffer.layers)
+        dispatch_frame(fc, self.program, ((w + gx - 1) // gx, (h + gy - 1) // gy, fc.gbuffer.layers))
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
     def release(self) -> None:

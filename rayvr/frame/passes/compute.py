@@ -5,14 +5,16 @@ import moderngl
 import numpy as np
 
 from ...gl.glsl_constants import declare
+from .round_gate import dispatch_frame
 
 TILE = declare("PIXEL_TILE", 8)  # local_size_x/y of every per-pixel compute shader
 
 
 def dispatch_per_pixel(fc, program: moderngl.ComputeShader) -> None:
-    """One invocation per pixel per layer, then make the writes visible to what follows."""
+    """One invocation per pixel per layer (none in an MSAA round past its count: round_gate.py),
+    then make the writes visible to what follows."""
     w, h = fc.sizing.size
-    program.run((w + TILE - 1) // TILE, (h + TILE - 1) // TILE, fc.sizing.layers)
+    dispatch_frame(fc, program, ((w + TILE - 1) // TILE, (h + TILE - 1) // TILE, fc.sizing.layers))
     fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
 

@@ -22,7 +22,9 @@ slots run from the last to 0 and the G-buffer the frame keeps (depth, aux channe
 pixel's most covered triangle. A round past the count (slot < 0: recorded before the count was
 known) gives every pixel the weight ROUND_SKIPPED (glsl/common/round_skip.glsl) and writes no
 visibility: the round's gbuffer resolve, shade, classify and sample_accumulate leave those pixels
-alone, so the G-buffer stays the slot-0 round's and nothing is added. The frame is bit-identical
+alone, so the G-buffer stays the slot-0 round's and nothing is added; and a round recorded before
+the count was known runs its frame-wide passes through the round gate (round_gate.py), which
+dispatches nothing where the round lies past the count. The frame is bit-identical
 however late the count is known (tests force both ends through COUNT_POLL). Empty slots above 0
 (a pixel with fewer triangles than the count, most pixels in most rounds) are skipped the same
 way where exact (`skips_empty_slots`, FramePlan.skip_empty_slots): instead of a background
@@ -73,6 +75,7 @@ from ..graph import SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Te
 from ...gl.gpu_layout import BLOCK_TILES, IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_PIXELS, TILE_RAYS, channel
 from ...options import Option, declare
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
+from .round_gate import RoundGate
 
 PRIMARY_MODES = ("raster", "rays")
 PRIMARY = declare(Option("primary", str, "raster", "primary visibility: the raster G-buffer pass, or camera rays "
@@ -469,6 +472,7 @@ class PrimaryRaysPass(Pass):
         # bench/results/h200/2026-11-30/primary/README.md). The readback holds one count per channel set.
         self.count_io = [gl.ctx.buffer(bytes(4)), gl.ctx.buffer(reserve=4 * plan.channels)] if self.msaa else []
         self.fences = {}  # channel set -> the fence after its count's copy (until read)
+        self.gate = RoundGate(gl.ctx) if self.msaa else None
 
     def execute(self, fc) -> None:
         rnd = fc.round
@@ -503,6 +507,9 @@ class PrimaryRaysPass(Pass):
                 rnd.start(1)
         if fc.plan.share_channels:
             fc.resource("channel_weight").bind_to_image(IMAGE["channel_weight"], read=False, write=True)
+        if not rnd.first and not rnd.known:  # recorded before the count was known: may lie past it
+            self.gate.open(fc, rnd.ordinal)
+            rnd.gate = self.gate
         # Slot = count - 1 - this: rounds of this channel set before this one; -1: slot 0 (no rounds).
         self.programs[2]["msaa_round"].value = rnd.ordinal if rnd.active else -1
         fc.stage("select", lambda: dispatch_per_pixel(fc, self.programs[2]))
@@ -574,5 +581,5 @@ class PrimaryRaysPass(Pass):
 
     def release(self) -> None:
         for p in [*self.programs.values(), *self.sample_tests(), *self.count_io, *self.fences.values(),
-                  *self.cull.values(), *([self.lists] if self.lists else [])]:
+                  *self.cull.values(), *([self.lists] if self.lists else []), *([self.gate] if self.gate else [])]:
             p.release()

@@ -1,0 +1,81 @@
+"""The round gate: an MSAA round recorded before the CPU knew the channel set's count of rounds
+(frame/graph.py Round.start_polled) may lie past it. Such a round used to run every pass of the
+round over the whole frame to skip every pixel: about 0.3 ms a round at 2x1440x1600 on the H200,
+most of a 16x frame's rounds in the room, where pixels see two triangles and the CPU records the
+eight the slots allow (bench/results/h200/2026-12-03/rounds). Instead, primary_rays runs the gate
+(glsl/rt/round_gate.comp, one invocation) at the start of each such round; it reads the count on the
+GPU and writes the dispatch size of each frame-wide pass of the round: its grid where the round is
+within the count, nothing where it is not. The round's per-pixel passes then dispatch indirectly
+from it (`dispatch_frame`), and the traced effects, which dispatch from classify's pixel lists,
+find those lists emptied. A round within the count runs exactly as before; the frame is
+bit-identical (tests/test_round_gate.py)."""
+from __future__ import annotations
+
+import moderngl
+
+from ...gl import shaders
+from ...gl.glsl_constants import declare
+from ...gl.gpu_layout import SSBO
+
+GATE_GRIDS = declare("GATE_GRIDS", 8)  # distinct grids of a round's frame-wide passes the gate sizes (two today)
+
+
+class RoundGate:
+    """The dispatch sizes of one round that may lie past its channel set's count, on the GPU."""
+
+    def __init__(self, ctx: moderngl.Context):
+        self.ctx = ctx
+        self.args = ctx.buffer(reserve=16 * GATE_GRIDS)
+        self.grids: list = []  # the grids asked for so far (the same every round and frame)
+        self.programs: dict = {}  # GATE_LISTS -> program
+        self.round = 0
+        self.lists = None  # the frame's rt_list_args buffer, or None (no traced effect)
+
+    def program(self, lists: bool) -> moderngl.ComputeShader:
+        if lists not in self.programs:
+            self.programs[lists] = shaders.compute(self.ctx, "rt/round_gate.comp",
+                                                   {"GATE_LISTS": int(lists)})
+        return self.programs[lists]
+
+    def open(self, fc, ordinal: int) -> None:
+        """Size the round `ordinal` of the channel set whose count the bound msaa_count holds."""
+        self.round = ordinal
+        self.lists = fc.resources.get("rt_list_args")
+        self.write()
+
+    def write(self) -> None:
+        program = self.program(self.lists is not None)
+        program["msaa_round"].value = self.round
+        program["gate_grid_count"].value = len(self.grids)
+        if self.grids:
+            program["gate_grids"].value = self.grids + [(0, 1, 1)] * (GATE_GRIDS - len(self.grids))
+        self.args.bind_to_storage_buffer(SSBO["round_gate"])
+        if self.lists is not None:
+            self.lists.bind_to_storage_buffer(SSBO["rt_list_args"])
+        program.run(1)
+        self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
+    def dispatch(self, program: moderngl.ComputeShader, grid: tuple) -> None:
+        """`program` over `grid`, if the round lies within the count. A grid not seen before (a
+        frame's first gated round) is added and the gate run again for it."""
+        grid = tuple(int(g) for g in grid)
+        if grid not in self.grids:
+            if len(self.grids) == GATE_GRIDS:
+                raise RuntimeError(f"the round gate sizes at most {GATE_GRIDS} grids a round")
+            self.grids.append(grid)
+            self.write()
+        program.run_indirect(self.args, offset=16 * self.grids.index(grid))
+
+    def release(self) -> None:
+        for p in [self.args, *self.programs.values()]:
+            p.release()
+
+
+def dispatch_frame(fc, program: moderngl.ComputeShader, grid: tuple) -> None:
+    """A frame-wide pass of a round: `program` over `grid`, through the round's gate where the
+    round may lie past its channel set's count (Round.gate), else directly."""
+    gate = fc.round.gate
+    if gate is None:
+        program.run(*grid)
+    else:
+        gate.dispatch(program, grid)
