@@ -92,3 +92,66 @@ def test_the_gate_refuses_more_grids_than_it_sizes(gl, gate):
         gate.dispatch(program, (GATE_GRIDS + 1, 1, 1))
     for b in (count_buf, program, scratch):
         b.release()
+
+
+@pytest.mark.parametrize("listed", [0, 5, 70000])
+def test_the_listed_tiles_dispatch_one_workgroup_a_tile_in_rows_gl_allows(gl, gate, listed):
+    """After a round's select (GATE_TILES): the select's count becomes the dispatch size, in rows of
+    at most 65535 workgroups (GL's least limit a dimension), and restarts for the next round."""
+    from rayvr.gl.gpu_layout import SSBO as BINDINGS
+
+    tiles = gl.ctx.buffer(np.array([9, 9, 9, 9, listed], np.uint32).tobytes())
+    gate.list_tiles(tiles)
+    gl.ctx.finish()
+    args = np.frombuffer(tiles.read(), np.uint32).tolist()
+    rows = -(-listed // 65535)
+    assert args == [min(listed, 65535), max(rows, 1), 1, listed, 0]
+    assert args[0] * args[1] >= listed   # every tile gets a workgroup (round_pixel drops the rest)
+    assert BINDINGS["round_tiles"] not in (BINDINGS["msaa_count"], BINDINGS["round_gate"])
+    tiles.release()
+
+
+@pytest.fixture(scope="module")
+def room():
+    from rayvr.scene.loader import load
+
+    return load(None)
+
+
+@pytest.mark.parametrize("case", ["traced 8x", "shared chromatic 4x", "ssr 4x"])
+def test_frames_over_listed_tiles_equal_frames_over_the_whole_frame(gl, room, count_poll, monkeypatch, case):
+    """The gbuffer resolve, shade and sample_accumulate of each MSAA round run over the tiles its select
+    listed (tiles holding a pixel the round shades), not the whole frame: the same frame, colour,
+    depth and every aux channel, also where the count is never known while recording (rounds past it
+    list nothing) and where empty slots are shaded as background (ssr: they are listed)."""
+    from rayvr import Renderer
+    from rayvr.frame.cameras import Distorted
+    from rayvr.frame.cameras.rig import Pose, StereoRig
+    from rayvr.frame.passes import round_gate
+    from rayvr.renderer import RenderSettings
+    from rayvr.scene.materials import parse_config
+
+    aux = ("hdr", "position", "normal", "albedo", "material", "triangle")
+    samples = int(case.split()[-1].rstrip("x"))
+    camera = Distorted(coefficients=((0.1, 0.0, 0.0), (0.2, 0.0, 0.0), (0.3, 0.0, 0.0))) if "chromatic" in case else None
+    materials = {"traced 8x": "rayvr/assets/default_room.toml",
+                 "ssr 4x": parse_config({"materials": {"floor": {"effect": "ssr"}}}, "<listed tiles ssr>")}.get(case)
+    # the room's ceiling corner: up to 3 triangles in a pixel, most pixels one (few tiles listed past slot 0)
+    rig = StereoRig(Pose.look_at([0.3, 1.5, 1.0], [0.3, 2.5, -1]), ipd=0.064, fov_y=60, size=(40, 24), near=1e-3,
+                    **({"camera": camera} if camera else {}))
+    settings = RenderSettings(msaa=samples, share_channel_shading="shared" in case)
+    frames = {}
+    for poll in ("wait", "never"):
+        for listed in (False, True):
+            count_poll(poll)
+            monkeypatch.setattr(round_gate, "LIST_TILES", listed)
+            with Renderer(room, materials, gl=gl, settings=settings) as r:
+                frames[poll, listed] = r.render(rig, aux=aux)
+    ref = frames["wait", False]
+    assert ref.left.color.max() > 0
+    for key, got in frames.items():
+        for eye in ("left", "right"):
+            np.testing.assert_array_equal(got[eye].color, ref[eye].color, err_msg=f"{key} {eye}")
+            np.testing.assert_array_equal(got[eye].depth, ref[eye].depth, err_msg=f"{key} {eye}")
+            for name in aux:
+                np.testing.assert_array_equal(got[eye].aux[name], ref[eye].aux[name], err_msg=f"{key} {eye} {name}")

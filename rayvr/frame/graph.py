@@ -584,6 +584,7 @@ class Round:
     # passes/round_gate.py RoundGate: this round's frame-wide dispatch sizes, made on the GPU from the
     # count, where the round was recorded before the count was known (None: dispatch directly)
     gate: object = None
+    tiles: object = None  # the round's listed tiles' dispatch buffer (round_gate.py), once its select made them
 
     def start(self, slots: int) -> None:
         self.slots = slots if self.active else 1
@@ -739,7 +740,7 @@ class FrameGraph:
                         break
                     fc.round = fc.round.next()
                 fc.channel_rounds.append(fc.round)
-            fc.round.gate = None  # the passes after the rounds dispatch directly
+            fc.round.gate = fc.round.tiles = None  # the passes after the rounds dispatch directly
         for p in graph.passes:
             if p.name not in rounds:
                 run(p)

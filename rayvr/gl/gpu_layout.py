@@ -72,7 +72,9 @@ SSBO = {
     "reuse_map": 50, "warp_counts": 51,  # stereo modes: frame/passes/reuse.py, frame/passes/warp.py (glsl/stereo/)
     # frame/passes/primary_rays.py: distinct triangles per pixel (MSAA for rays), the tile triangle lists
     "msaa_hits": 30, "msaa_count": 31, "tile_tris": 32,
-    "round_gate": 36,  # frame/passes/round_gate.py: the dispatch sizes of an MSAA round that may lie past the count
+    # frame/passes/round_gate.py: the dispatch sizes of an MSAA round that may lie past the count, and
+    # the round's tiles with a pixel to shade (glsl/common/round_skip.glsl ROUND_TILES)
+    "round_gate": 36, "round_tiles": 39,
 }
 # Image units of the frame's colour targets (the resolve's G-buffer images use GB_IMAGE_*).
 IMAGE = {"hdr": 0, "ldr": 1,

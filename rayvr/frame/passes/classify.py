@@ -12,8 +12,8 @@ from ..graph import Buffer, FramePlan, Pass, read, write
 from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import SSBO
 from .primary_rays import bind_round_skip, round_skip_defines, round_skip_reads
+from .compute import dispatch_frame
 from .reuse import bind_reuse, reuse_defines, reuse_reads
-from .round_gate import dispatch_frame
 
 ARGS_BYTES = 16  # per list: uvec4 (groups x, groups y, groups z, pixel count)
 

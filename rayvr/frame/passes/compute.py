@@ -5,17 +5,32 @@ import moderngl
 import numpy as np
 
 from ...gl.glsl_constants import declare
-from .round_gate import dispatch_frame
 
 TILE = declare("PIXEL_TILE", 8)  # local_size_x/y of every per-pixel compute shader
 
 
-def dispatch_per_pixel(fc, program: moderngl.ComputeShader) -> None:
-    """One invocation per pixel per layer (none in an MSAA round past its count: round_gate.py),
-    then make the writes visible to what follows."""
+def dispatch_per_pixel(fc, program: moderngl.ComputeShader, listed: bool = False) -> None:
+    """One invocation per pixel per layer (none in an MSAA round past its count; with `listed` only
+    the round's listed tiles': round_gate.py), then make the writes visible to what follows."""
     w, h = fc.sizing.size
-    dispatch_frame(fc, program, ((w + TILE - 1) // TILE, (h + TILE - 1) // TILE, fc.sizing.layers))
+    dispatch_frame(fc, program, ((w + TILE - 1) // TILE, (h + TILE - 1) // TILE, fc.sizing.layers), listed)
     fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
+
+def dispatch_frame(fc, program: moderngl.ComputeShader, grid: tuple, listed: bool = False) -> None:
+    """A frame-wide pass of a round: `program` over `grid`; `listed` (a program built with ROUND_TILES):
+    over the round's listed tiles only, where the select made them (Round.tiles, round_gate.py); else
+    through the round's gate where the round may lie past its channel set's count (Round.gate), else
+    directly."""
+    tiles = fc.round.tiles if listed else None
+    if "round_listed" in program:
+        program["round_listed"].value = int(tiles is not None)
+    if tiles is not None:
+        program.run_indirect(tiles)
+    elif fc.round.gate is not None:
+        fc.round.gate.dispatch(program, grid)
+    else:
+        program.run(*grid)
 
 
 def camera_defines(plan) -> dict:

@@ -20,7 +20,7 @@ class GBufferResolvePass(Pass):
     def setup(self, gl, plan: FramePlan) -> None:
         self.rays = plan.primary == "rays"  # triangle IDs from frame/passes/primary_rays.py
         self.program = shaders.compute(gl.ctx, "gbuffer/resolve.comp", {"PRIMARY_RAYS": int(self.rays),
-                                                                        **camera_defines(plan), **round_skip_defines(plan)})
+                                                                        **camera_defines(plan), **round_skip_defines(plan, listed=True)})
 
     def execute(self, fc) -> None:
         set_eye_uniforms(self.program, fc)
@@ -28,7 +28,7 @@ class GBufferResolvePass(Pass):
         fc.gpu_scene.textures.use(UNIT["base_color_textures"])
         fc.gbuffer.bind_for_writing(read_position=self.rays)  # primary rays left the hit distance in position.w
         bind_round_skip(fc)
-        dispatch_per_pixel(fc, self.program)
+        dispatch_per_pixel(fc, self.program, listed=True)
 
     def release(self) -> None:
         self.program.release()

@@ -75,7 +75,8 @@ from ..graph import SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Te
 from ...gl.gpu_layout import BLOCK_TILES, IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_PIXELS, TILE_RAYS, channel
 from ...options import Option, declare
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
-from .round_gate import RoundGate
+from . import round_gate
+from .round_gate import RoundGate, round_tile_bytes
 
 PRIMARY_MODES = ("raster", "rays")
 PRIMARY = declare(Option("primary", str, "raster", "primary visibility: the raster G-buffer pass, or camera rays "
@@ -366,22 +367,25 @@ def skips_empty_slots(plan: FramePlan) -> bool:
 
 
 def skips_rounds(plan: FramePlan) -> bool:
-    """Whether a round may leave pixels alone (glsl/common/round_skip.glsl): the MSAA slots a pixel has not."""
+    """Whether a round may leave pixels alone (glsl/common/round_skip.glsl): the MSAA slots a pixel
+    has not. Its select then lists the tiles that hold a pixel it shades (ROUND_TILES, round_gate.py)."""
     return uses_msaa(plan)
 
 
 def round_skip_reads(plan: FramePlan) -> list:
     """What a pass of the rounds reads to leave the pixels a round skips (glsl/common/round_skip.glsl)."""
-    return [read("sample_weight")] if skips_rounds(plan) else []
+    return [read("sample_weight"), read("round_tiles")] if skips_rounds(plan) else []
 
 
-def round_skip_defines(plan: FramePlan) -> dict:
-    return {"ROUND_SKIP": int(skips_rounds(plan))}
+def round_skip_defines(plan: FramePlan, listed: bool = False) -> dict:
+    """`listed`: the pass may run over the round's listed tiles (compute.py dispatch_frame)."""
+    return {"ROUND_SKIP": int(skips_rounds(plan)), "ROUND_TILES": int(listed and skips_rounds(plan))}
 
 
 def bind_round_skip(fc) -> None:
     if skips_rounds(fc.plan):
         fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=True, write=False)
+        fc.resource("round_tiles").bind_to_storage_buffer(SSBO["round_tiles"])
 
 
 class PrimaryRaysPass(Pass):
@@ -406,7 +410,8 @@ class PrimaryRaysPass(Pass):
             slots = msaa_slots(plan)
             # Slot-major: slot k of every pixel, then slot k + 1 (coalesced writes and reads).
             out += [write("msaa_hits", Buffer(lambda s, n=slots: s.pixels * n * 16, f"{slots} x 16 bytes per pixel")),
-                    write("msaa_count", Buffer(lambda s: 4, "4 bytes"))]
+                    write("msaa_count", Buffer(lambda s: 4, "4 bytes")),
+                    write("round_tiles", Buffer(round_tile_bytes, "a word per 8x8 tile", zeroed=True))]
         if plan.tile_culling:
             out += [write("tile_entries", Buffer(lambda s: frame_tiles(s) * (TILE_ENTRIES + 1) * 4,
                                                  f"{TILE_ENTRIES + 1} words per {TILE_RAYS}-pixel tile")),
@@ -436,7 +441,8 @@ class PrimaryRaysPass(Pass):
                 "MSAA_SKIP_EMPTY": int(skips_empty_slots(plan)), **tiles, **lists,
                 "TILE_LIST_OVERFLOW": int(bool(plan.tile_lists))}
         self.msaa = uses_msaa(plan)
-        self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode})
+        self.programs = {mode: shaders.compute(gl.ctx, "rt/primary.comp", {**base, "PRIMARY_MODE": mode,
+                                                                           "ROUND_TILES": int(mode == 2)})
                          for mode in ((1, 2) if self.msaa else (0,))}
         # With tile lists the cast (mode 0) or trace (mode 1) is two programs, each skipping the other's
         # tiles: the tiles with a list (tile_samples.comp), and per ray from the entries where a list
@@ -512,7 +518,10 @@ class PrimaryRaysPass(Pass):
             rnd.gate = self.gate
         # Slot = count - 1 - this: rounds of this channel set before this one; -1: slot 0 (no rounds).
         self.programs[2]["msaa_round"].value = rnd.ordinal if rnd.active else -1
-        fc.stage("select", lambda: dispatch_per_pixel(fc, self.programs[2]))
+        tiles = fc.resource("round_tiles")
+        tiles.bind_to_storage_buffer(SSBO["round_tiles"])
+        fc.stage("select", lambda: (dispatch_per_pixel(fc, self.programs[2]), self.gate.list_tiles(tiles)))
+        rnd.tiles = tiles if round_gate.LIST_TILES else None
 
     def count_reader(self, fc, channel: int):
         """Round.start_polled's count(wait) for the channel set's count just copied to the readback."""

@@ -6,9 +6,16 @@ eight the slots allow (bench/results/h200/2026-12-03/rounds). Instead, primary_r
 (glsl/rt/round_gate.comp, one invocation) at the start of each such round; it reads the count on the
 GPU and writes the dispatch size of each frame-wide pass of the round: its grid where the round is
 within the count, nothing where it is not. The round's per-pixel passes then dispatch indirectly
-from it (`dispatch_frame`), and the traced effects, which dispatch from classify's pixel lists,
-find those lists emptied. A round within the count runs exactly as before; the frame is
-bit-identical (tests/test_round_gate.py)."""
+from it (compute.py `dispatch_frame`), and the traced effects, which dispatch from classify's pixel lists,
+find those lists emptied.
+
+Round tiles: within the count, most of a round's pixels are still skipped (a pixel has fewer
+distinct triangles than the round's slot), and each per-pixel pass over the whole frame cost ~0.05
+ms to skip them. The select lists the 8x8 tiles that hold a pixel the round shades
+(glsl/common/round_skip.glsl ROUND_TILES), the gate turns the list's count into a dispatch size
+(`list_tiles`), and the gbuffer resolve, shade and sample_accumulate run one workgroup a listed tile
+(compute.py `dispatch_frame(..., listed=True)`). The frame is bit-identical (tests/test_round_gate.py,
+tests/test_msaa_rounds.py)."""
 from __future__ import annotations
 
 import moderngl
@@ -16,7 +23,12 @@ import moderngl
 from ...gl import shaders
 from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import SSBO
+from .compute import TILE
 
+# Whether a round's per-pixel passes run over its listed tiles (primary_rays sets Round.tiles). A test
+# hook, not a setting (tests/test_round_gate.py compares frames with and without): read afresh by each
+# round, no program or resource depends on it.
+LIST_TILES = True
 GATE_GRIDS = declare("GATE_GRIDS", 8)  # distinct grids of a round's frame-wide passes the gate sizes (two today)
 
 
@@ -27,15 +39,15 @@ class RoundGate:
         self.ctx = ctx
         self.args = ctx.buffer(reserve=16 * GATE_GRIDS)
         self.grids: list = []  # the grids asked for so far (the same every round and frame)
-        self.programs: dict = {}  # GATE_LISTS -> program
+        self.programs: dict = {}  # (GATE_TILES, GATE_LISTS) -> program
         self.round = 0
         self.lists = None  # the frame's rt_list_args buffer, or None (no traced effect)
 
-    def program(self, lists: bool) -> moderngl.ComputeShader:
-        if lists not in self.programs:
-            self.programs[lists] = shaders.compute(self.ctx, "rt/round_gate.comp",
-                                                   {"GATE_LISTS": int(lists)})
-        return self.programs[lists]
+    def program(self, tiles: bool, lists: bool = False) -> moderngl.ComputeShader:
+        if (tiles, lists) not in self.programs:
+            self.programs[tiles, lists] = shaders.compute(self.ctx, "rt/round_gate.comp",
+                                                          {"GATE_TILES": int(tiles), "GATE_LISTS": int(lists)})
+        return self.programs[tiles, lists]
 
     def open(self, fc, ordinal: int) -> None:
         """Size the round `ordinal` of the channel set whose count the bound msaa_count holds."""
@@ -44,7 +56,7 @@ class RoundGate:
         self.write()
 
     def write(self) -> None:
-        program = self.program(self.lists is not None)
+        program = self.program(False, self.lists is not None)
         program["msaa_round"].value = self.round
         program["gate_grid_count"].value = len(self.grids)
         if self.grids:
@@ -66,16 +78,18 @@ class RoundGate:
             self.write()
         program.run_indirect(self.args, offset=16 * self.grids.index(grid))
 
+    def list_tiles(self, tiles: moderngl.Buffer) -> None:
+        """After a round's select: the dispatch size of the passes over its listed tiles."""
+        tiles.bind_to_storage_buffer(SSBO["round_tiles"])
+        self.program(True).run(1)
+        self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
     def release(self) -> None:
         for p in [self.args, *self.programs.values()]:
             p.release()
 
 
-def dispatch_frame(fc, program: moderngl.ComputeShader, grid: tuple) -> None:
-    """A frame-wide pass of a round: `program` over `grid`, through the round's gate where the
-    round may lie past its channel set's count (Round.gate), else directly."""
-    gate = fc.round.gate
-    if gate is None:
-        program.run(*grid)
-    else:
-        gate.dispatch(program, grid)
+def round_tile_bytes(sizing) -> int:
+    """The round tiles' buffer: the dispatch size, the running count, a word a tile."""
+    w, h = sizing.size
+    return 20 + 4 * -(-w // TILE) * -(-h // TILE) * sizing.layers

@@ -7,8 +7,9 @@ from __future__ import annotations
 
 from ...gl import shaders
 from ..graph import FramePlan, Pass, Texture, read, write
-from ...gl.gpu_layout import IMAGE
+from ...gl.gpu_layout import IMAGE, SSBO
 from .compute import dispatch_per_pixel
+from .primary_rays import skips_rounds
 
 SAMPLE_SUM = Texture("rgba32f")
 
@@ -32,11 +33,11 @@ class SampleAccumulatePass(Pass):
 
     def io(self, plan: FramePlan) -> list:
         return [read("hdr"), read("sample_weight"), write("sample_sum", SAMPLE_SUM)] + (
-            [read("channel_weight")] if plan.share_channels else [])
+            [read("channel_weight")] if plan.share_channels else []) + ([read("round_tiles")] if skips_rounds(plan) else [])
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.program = shaders.compute(gl.ctx, "shade/sample_accumulate.comp",
-                                       {"SHARE_CHANNELS": int(plan.share_channels)})
+                                       {"SHARE_CHANNELS": int(plan.share_channels), "ROUND_TILES": int(skips_rounds(plan))})
 
     def execute(self, fc) -> None:
         rnd = fc.round
@@ -48,7 +49,10 @@ class SampleAccumulatePass(Pass):
         fc.resource("sample_sum").bind_to_image(IMAGE["sample_sum"], read=True, write=True)
         if fc.plan.share_channels:
             fc.resource("channel_weight").bind_to_image(IMAGE["channel_weight"], read=True, write=False)
-        dispatch_per_pixel(fc, self.program)
+        if skips_rounds(fc.plan):
+            fc.resource("round_tiles").bind_to_storage_buffer(SSBO["round_tiles"])
+        # the frame's first round starts every pixel's sum, skipped or not: the whole frame
+        dispatch_per_pixel(fc, self.program, listed=rnd.index > 0)
 
     def release(self) -> None:
         self.program.release()

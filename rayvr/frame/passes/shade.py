@@ -51,7 +51,7 @@ class ShadePass(Pass):
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.program = shaders.compute(gl.ctx, "shade/direct.comp", {**camera_defines(plan), **reuse_defines(plan),
-                                                                       **round_skip_defines(plan)})
+                                                                       **round_skip_defines(plan, listed=True)})
         # Pixels of traced effects get their colour from their own passes.
         self.traced_mask = sum(1 << EFFECTS[e].id for e in plan.effects if e in EFFECTS and EFFECTS[e].traced)
 
@@ -66,7 +66,7 @@ class ShadePass(Pass):
         bind_reuse(fc)
         bind_round_skip(fc)
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
-        dispatch_per_pixel(fc, p)
+        dispatch_per_pixel(fc, p, listed=True)
 
     def release(self) -> None:
         self.program.release()

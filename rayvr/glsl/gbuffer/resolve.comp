@@ -40,7 +40,7 @@ vec2 plane_barycentrics(vec3 o, vec3 d, vec3 v0, vec3 e1, vec3 e2, vec3 ng, out 
 }
 
 void main() {
-    ivec3 p = ivec3(gl_GlobalInvocationID);
+    ivec3 p = round_pixel();  // (an MSAA round: over its listed tiles)
     vec2 size = vec2(imageSize(img_position).xy);
     if (any(greaterThanEqual(p.xy, ivec2(size)))) return;
     if (round_skips(p)) return;  // an MSAA round's pixel with nothing new: its G-buffer stays

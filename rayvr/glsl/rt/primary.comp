@@ -57,6 +57,9 @@ shared float sub_t[MSAA_GROUP];    //   pixel-major: the block's pixel j has ent
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
 uniform int msaa_round;  // PRIMARY_MODE 2
+#if PRIMARY_MODE == 2 && ROUND_TILES
+shared uint tile_live;  // some pixel of the tile is not skipped (common/round_skip.glsl's list)
+#endif
 
 // TILE_LIST_OVERFLOW 1 (with tile lists, frame/passes/primary_rays.py): cast only the tiles whose
 // list overflowed, per ray from their entries (rt/tile_samples.comp casts the others from their lists).
@@ -191,17 +194,32 @@ void main() {
     if (!inside) return;
     store_cast(p, camera_footprint(p.z, pixel, vec2(size)) > 0.0, h.prim, h.t, uint(subsample));
 #else
-    if (!inside) return;
-    int slot = msaa_round < 0 ? 0 : int(max(msaa_count, 1u)) - 1 - msaa_round;
-    uvec4 head = slot >= 0 ? HIT(0) : uvec4(0u);  // a round past the count reads no list
-    uint n = (head.z >> 8) & 255u, covered = head.z >> 16;
-    if (slot >= 0 && uint(slot) < n) {
-        uvec4 e = HIT(slot);
-        store(p, e.x, e.z & 255u, uintBitsToFloat(e.w), msaa_weight(p, e.y, covered));
-    } else if (slot < 0 || (MSAA_SKIP_EMPTY != 0 && slot > 0)) {
-        imageStore(img_weight, p, vec4(ROUND_SKIPPED));  // nothing new: the pixel keeps what it has
-    } else {
-        store(p, BVH_MISS, 0u, 0.0, 0.0);  // nothing in this slot: shaded as background, weighs nothing
+#if ROUND_TILES
+    if (gl_LocalInvocationIndex == 0u) tile_live = 0u;
+    barrier();
+#endif
+    if (inside) {
+        int slot = msaa_round < 0 ? 0 : int(max(msaa_count, 1u)) - 1 - msaa_round;
+        uvec4 head = slot >= 0 ? HIT(0) : uvec4(0u);  // a round past the count reads no list
+        uint n = (head.z >> 8) & 255u, covered = head.z >> 16;
+        bool skipped = false;
+        if (slot >= 0 && uint(slot) < n) {
+            uvec4 e = HIT(slot);
+            store(p, e.x, e.z & 255u, uintBitsToFloat(e.w), msaa_weight(p, e.y, covered));
+        } else if (slot < 0 || (MSAA_SKIP_EMPTY != 0 && slot > 0)) {
+            imageStore(img_weight, p, vec4(ROUND_SKIPPED));  // nothing new: the pixel keeps what it has
+            skipped = true;
+        } else {
+            store(p, BVH_MISS, 0u, 0.0, 0.0);  // nothing in this slot: shaded as background, weighs nothing
+        }
+#if ROUND_TILES
+        if (!skipped) tile_live = 1u;
+#endif
     }
+#if ROUND_TILES
+    barrier();  // the workgroup is a PIXEL_TILE tile: listed once if any of its pixels is not skipped
+    if (gl_LocalInvocationIndex == 0u && tile_live != 0u)
+        round_tiles[atomicAdd(round_tile_count, 1u)] = gl_WorkGroupID.x | (gl_WorkGroupID.y << 14) | (gl_WorkGroupID.z << 28);
+#endif
 #endif
 }

@@ -16,7 +16,7 @@ uniform vec3 background;
 uniform uint traced_effects;    // bit e set: effect e's own passes shade those pixels
 
 void main() {
-    ivec3 p = ivec3(gl_GlobalInvocationID);
+    ivec3 p = round_pixel();  // (an MSAA round: over its listed tiles)
     if (any(greaterThanEqual(p.xy, imageSize(hdr_out).xy))) return;
     if (round_skips(p)) return;  // adds nothing to the frame (MSAA round)
 #ifdef STEREO_REUSE

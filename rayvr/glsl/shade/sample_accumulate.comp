@@ -6,6 +6,7 @@
 // add zero), so an MSAA round's empty pixels cost a 4-byte read.
 #include "../layout.glsl"  // PIXEL_TILE: rayvr/frame/passes/compute.py TILE
 layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) in;
+#include "../common/round_skip.glsl"  // round_pixel (ROUND_TILES; it reads the weights itself: ROUND_SKIP 0)
 
 layout(rgba16f, binding = IMAGE_HDR) uniform readonly image2DArray hdr_in;
 layout(r32f, binding = IMAGE_SAMPLE_WEIGHT) uniform readonly image2DArray weight_in;
@@ -22,7 +23,7 @@ uniform int first;    // the frame's first round: start from zero
 uniform int channel;  // -1: all three; else this colour channel only
 
 void main() {
-    ivec3 p = ivec3(gl_GlobalInvocationID);
+    ivec3 p = round_pixel();  // (an MSAA round but the frame's first: over its listed tiles)
     if (any(greaterThanEqual(p.xy, imageSize(sum).xy))) return;
     float w = imageLoad(weight_in, p).x;
     if (!(w > 0.0)) {  // adds nothing (no sample here, or skipped: common/round_skip.glsl): the sum stays
