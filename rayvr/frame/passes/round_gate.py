@@ -46,7 +46,8 @@ class RoundGate:
     def program(self, tiles: bool, lists: bool = False) -> moderngl.ComputeShader:
         if (tiles, lists) not in self.programs:
             self.programs[tiles, lists] = shaders.compute(self.ctx, "rt/round_gate.comp",
-                                                          {"GATE_TILES": int(tiles), "GATE_LISTS": int(lists)})
+                                                          {"GATE_TILES": int(tiles), "ROUND_TILES": int(tiles),
+                                                           "GATE_LISTS": int(lists)})
         return self.programs[tiles, lists]
 
     def open(self, fc, ordinal: int) -> None:

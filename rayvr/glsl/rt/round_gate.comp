@@ -18,8 +18,7 @@ layout(local_size_x = 1) in;
 #define GATE_TILES 0
 #endif
 #if GATE_TILES
-#define ROUND_TILES 1
-#include "../common/round_skip.glsl"
+#include "../common/round_skip.glsl"  // (with ROUND_TILES 1)
 #else
 #if GATE_LISTS
 #include "pixel_list.glsl"
