@@ -94,20 +94,22 @@ def test_the_gate_refuses_more_grids_than_it_sizes(gl, gate):
         b.release()
 
 
-@pytest.mark.parametrize("listed", [0, 5, 70000])
+@pytest.mark.parametrize("listed", [0, 5, 70000, 90000])
 def test_the_listed_tiles_dispatch_one_workgroup_a_tile_in_rows_gl_allows(gl, gate, listed):
     """After a round's select (GATE_TILES): the select's count becomes the dispatch size, in rows of
-    at most 65535 workgroups (GL's least limit a dimension), and restarts for the next round."""
-    from rayvr.gl.gpu_layout import SSBO as BINDINGS
-
-    tiles = gl.ctx.buffer(np.array([9, 9, 9, 9, listed], np.uint32).tobytes())
-    gate.list_tiles(tiles)
+    at most 65535 workgroups (GL's least limit a dimension), or the frame's own grid where more than
+    half its tiles are listed; the count restarts for the next round."""
+    grid = (400, 200, 2)   # 160000 tiles
+    tiles = gl.ctx.buffer(np.array([9, 9, 9, 9, listed, 9], np.uint32).tobytes())
+    gate.list_tiles(tiles, grid)
     gl.ctx.finish()
     args = np.frombuffer(tiles.read(), np.uint32).tolist()
-    rows = -(-listed // 65535)
-    assert args == [min(listed, 65535), max(rows, 1), 1, listed, 0]
-    assert args[0] * args[1] >= listed   # every tile gets a workgroup (round_pixel drops the rest)
-    assert BINDINGS["round_tiles"] not in (BINDINGS["msaa_count"], BINDINGS["round_gate"])
+    if 2 * listed > 400 * 200 * 2:
+        assert args == [*grid, listed, 0, 1]
+    else:
+        rows = -(-listed // 65535)
+        assert args == [min(listed, 65535), max(rows, 1), 1, listed, 0, 0]
+        assert args[0] * args[1] >= listed   # every tile gets a workgroup (round_pixel drops the rest)
     tiles.release()
 
 

@@ -82,7 +82,7 @@ def test_shared_msaa_lists_merge_every_sets_sub_rays(room, n):
 
     w, h = (30, 22) if n == 4 else (18, 14)
     rig = StereoRig.for_scene(room.scene, size=(w, h), camera=CHROMATIC)
-    room.settings = RenderSettings(primary="rays", msaa=n)
+    room.settings = RenderSettings(primary="rays", msaa=n, share_channel_shading=True)   # (16x: not by default)
     fc = room.record(rig)
     room.gl.ctx.finish()
     plan = room.plan(camera=CHROMATIC)
@@ -165,8 +165,10 @@ def test_only_frames_it_serves_share(room):
 
     assert shares() and not shares(share_channel_shading=False)
     assert not shares(camera=Pinhole())                 # one channel set
-    assert shares(msaa=4) and shares(msaa=16)           # 3 x 16 sub-rays fit one MSAA trace group ...
-    assert not shares(msaa=32) and not shares(msaa=4, ssaa=True)   # ... 3 x 32 do not; SSAA shades every sub-ray
+    assert shares(msaa=4) and shares(msaa=8)            # by default up to 8x, where it measured faster ...
+    assert not shares(msaa=16) and shares(msaa=16, share_channel_shading=True)   # ... 16x only when asked:
+    # 3 x 16 sub-rays fit a two-word coverage mask, 3 x 32 do not; SSAA shades every sub-ray
+    assert not shares(msaa=32, share_channel_shading=True) and not shares(msaa=4, ssaa=True)
     assert shares(tile_culling=True) and shares(tile_lists=64)   # the one cull bounds every set's rays
     with Renderer(None, MaterialConfig(default="ssr"), gl=room.gl) as r:   # reads neighbours' G-buffer
         r.settings = RenderSettings(primary="rays")
@@ -181,4 +183,4 @@ def test_the_flags_turn_it_off_and_on():
     parse = build_parser().parse_args
     assert parse(["capture", "--no-share-channel-shading"]).share_channel_shading is False
     assert parse(["capture", "--share-channel-shading"]).share_channel_shading is True
-    assert parse(["capture"]).share_channel_shading is None   # unset: the config's, else on
+    assert parse(["capture"]).share_channel_shading is None   # unset: the config's, else auto (up to 8x)

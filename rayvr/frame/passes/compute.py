@@ -12,9 +12,14 @@ TILE = declare("PIXEL_TILE", 8)  # local_size_x/y of every per-pixel compute sha
 def dispatch_per_pixel(fc, program: moderngl.ComputeShader, listed: bool = False) -> None:
     """One invocation per pixel per layer (none in an MSAA round past its count; with `listed` only
     the round's listed tiles': round_gate.py), then make the writes visible to what follows."""
-    w, h = fc.sizing.size
-    dispatch_frame(fc, program, ((w + TILE - 1) // TILE, (h + TILE - 1) // TILE, fc.sizing.layers), listed)
+    dispatch_frame(fc, program, pixel_grid(fc.sizing), listed)
     fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
+
+
+def pixel_grid(sizing) -> tuple:
+    """The workgroups of a per-pixel pass: TILE x TILE pixels each, per layer."""
+    w, h = sizing.size
+    return (w + TILE - 1) // TILE, (h + TILE - 1) // TILE, sizing.layers
 
 
 def dispatch_frame(fc, program: moderngl.ComputeShader, grid: tuple, listed: bool = False) -> None:

@@ -74,7 +74,7 @@ from ..effect_registry import EFFECTS
 from ..graph import SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
 from ...gl.gpu_layout import BLOCK_TILES, IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_PIXELS, TILE_RAYS, channel
 from ...options import Option, declare
-from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
+from .compute import camera_defines, dispatch_per_pixel, pixel_grid, set_eye_uniforms
 from . import round_gate
 from .round_gate import RoundGate, round_tile_bytes
 
@@ -123,12 +123,19 @@ TILE_OVERFLOW = declare_constant("TILE_OVERFLOW", 0xFFFFFFFF, uint=True)
 EDGE_SLACK = declare_constant("EDGE_SLACK", 1e-5)
 
 
-SHARE_CHANNELS = declare(Option("share_channel_shading", bool, True, "a chromatic camera (three colour channel "
+SHARE_CHANNELS = declare(Option("share_channel_shading", bool, None, "a chromatic camera (three colour channel "
                                 "sets) casts its sets together as sub-rays of each sample and shades a pixel once "
                                 "per distinct triangle its sets' rays hit, each channel taking its own share "
                                 "(HVVR's shared shading: the approximation and its error are in docs/design.md; "
-                                "--msaa up to 8); false: every channel set cast and shaded on its own",
-                                scope="plan", plan_field="share_channels", commands=("capture", "preview", "info", "bench")))
+                                "--msaa up to 16); false: every channel set cast and shaded on its own; auto: "
+                                "up to --msaa 8, where it measured faster on the H200",
+                                scope="plan", plan_field="share_channels", auto=True,
+                                commands=("capture", "preview", "info", "bench")))
+# Shared channel shading by default up to this --msaa: faster than the sets apart at 1x and 4x (H200,
+# Sponza and the room, worst pose: 6.9 / 14.4 ms against 11.1 / 21.1 on Sponza), slower at 16x
+# (47.9 against 44.5; its 48 sub-rays a pixel trace at 1.6x the sets' apart), 8x not timed
+# (bench/results/h200/2026-12-03/rounds2).
+SHARED_AUTO_MSAA = 8
 
 
 def primary_visibility(settings, camera) -> str:
@@ -213,10 +220,13 @@ SHARED_SETS = 3  # colour channel sets cast together with shared channel shading
 def shares_channels(settings, camera, samples: int, effects, view: str) -> bool:
     """Whether a frame casts its three colour channel sets together as sub-rays and shades once per
     distinct triangle: a camera of three sets, MSAA (or one sub-ray) whose sub-rays for all three sets
-    fit a coverage mask of two words (--msaa 16 at most: 48 sub-rays), the
+    fit a coverage mask of two words (--msaa 16 at most: 48 sub-rays; unset, SHARED_AUTO_MSAA), the
     colour view, and no effect that reads other pixels' G-buffer in a round (the quadtree's: a
     skipped pixel's G-buffer is an earlier round's)."""
-    return (settings.share_channel_shading and camera.channels == SHARED_SETS and not settings.ssaa
+    share = settings.share_channel_shading
+    if share is None:
+        share = samples <= SHARED_AUTO_MSAA
+    return (share and camera.channels == SHARED_SETS and not settings.ssaa
             and samples * SHARED_SETS <= MASK_BITS and view == "color"
             and not any(EFFECTS[e].uses_quadtree for e in effects if e in EFFECTS))
 
@@ -520,7 +530,8 @@ class PrimaryRaysPass(Pass):
         self.programs[2]["msaa_round"].value = rnd.ordinal if rnd.active else -1
         tiles = fc.resource("round_tiles")
         tiles.bind_to_storage_buffer(SSBO["round_tiles"])
-        fc.stage("select", lambda: (dispatch_per_pixel(fc, self.programs[2]), self.gate.list_tiles(tiles)))
+        fc.stage("select", lambda: (dispatch_per_pixel(fc, self.programs[2]),
+                                    self.gate.list_tiles(tiles, pixel_grid(fc.sizing))))
         rnd.tiles = tiles if round_gate.LIST_TILES else None
 
     def count_reader(self, fc, channel: int):

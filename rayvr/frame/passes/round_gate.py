@@ -13,7 +13,7 @@ Round tiles: within the count, most of a round's pixels are still skipped (a pix
 distinct triangles than the round's slot), and each per-pixel pass over the whole frame cost ~0.05
 ms to skip them. The select lists the 8x8 tiles that hold a pixel the round shades
 (glsl/common/round_skip.glsl ROUND_TILES), the gate turns the list's count into a dispatch size
-(`list_tiles`), and the gbuffer resolve, shade and sample_accumulate run one workgroup a listed tile
+(`list_tiles`; the frame's grid where most tiles are listed, as in a round of slot 0), and the gbuffer resolve, shade and sample_accumulate run one workgroup a listed tile
 (compute.py `dispatch_frame(..., listed=True)`). The frame is bit-identical (tests/test_round_gate.py,
 tests/test_msaa_rounds.py)."""
 from __future__ import annotations
@@ -23,7 +23,7 @@ import moderngl
 from ...gl import shaders
 from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import SSBO
-from .compute import TILE
+from .compute import pixel_grid
 
 # Whether a round's per-pixel passes run over its listed tiles (primary_rays sets Round.tiles). A test
 # hook, not a setting (tests/test_round_gate.py compares frames with and without): read afresh by each
@@ -79,10 +79,13 @@ class RoundGate:
             self.write()
         program.run_indirect(self.args, offset=16 * self.grids.index(grid))
 
-    def list_tiles(self, tiles: moderngl.Buffer) -> None:
-        """After a round's select: the dispatch size of the passes over its listed tiles."""
+    def list_tiles(self, tiles: moderngl.Buffer, grid: tuple) -> None:
+        """After a round's select: the dispatch size of the passes over its listed tiles (`grid`, the
+        frame's per-pixel grid, where most are listed)."""
         tiles.bind_to_storage_buffer(SSBO["round_tiles"])
-        self.program(True).run(1)
+        program = self.program(True)
+        program["round_grid"].value = tuple(int(g) for g in grid)
+        program.run(1)
         self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
 
     def release(self) -> None:
@@ -91,6 +94,6 @@ class RoundGate:
 
 
 def round_tile_bytes(sizing) -> int:
-    """The round tiles' buffer: the dispatch size, the running count, a word a tile."""
-    w, h = sizing.size
-    return 20 + 4 * -(-w // TILE) * -(-h // TILE) * sizing.layers
+    """The round tiles' buffer: the dispatch size, the running count, the whole-frame flag, a word a tile."""
+    gx, gy, layers = pixel_grid(sizing)
+    return 24 + 4 * gx * gy * layers

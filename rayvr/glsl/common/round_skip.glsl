@@ -26,11 +26,12 @@ bool round_skips(ivec3 p) { return false; }
 layout(std430, binding = SSBO_ROUND_TILES) restrict buffer RoundTiles {
     uvec4 round_tile_args;  // the listed passes' dispatch size; w: the tiles listed
     uint round_tile_count;  // the select's running count (round_gate.comp moves it to the args)
+    uint round_tile_every;  // 1: most tiles are listed, the dispatch is the whole frame's grid
     uint round_tiles[];     // tile x | y << 14 | layer << 28
 };
 uniform int round_listed;
 ivec3 round_pixel() {
-    if (round_listed == 0)
+    if (round_listed == 0 || round_tile_every != 0u)
         return ivec3(gl_GlobalInvocationID);
     uint g = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     if (g >= round_tile_args.w)
