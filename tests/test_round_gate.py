@@ -79,18 +79,23 @@ def test_a_gate_without_traced_effects_needs_no_lists(gl, gate):
     count_buf.release()
 
 
-def test_the_gate_refuses_more_grids_than_it_sizes(gl, gate):
+def test_a_full_gate_starts_its_table_over_and_still_sizes_every_dispatch(gl, gate):
+    """Frame sizes come and go (a preview window resized): past GATE_GRIDS grids the table starts over,
+    and every dispatch, before and after, runs the grid it asked for (commands run in order)."""
     count_buf = gl.ctx.buffer(np.array([1], np.uint32).tobytes())
     count_buf.bind_to_storage_buffer(SSBO["msaa_count"])
+    counter = gl.ctx.buffer(reserve=4)
+    counter.bind_to_storage_buffer(37)
+    program = gl.ctx.compute_shader(COUNTER)
     gate.open(SimpleNamespace(resources={}), 0)
-    program = gl.ctx.compute_shader(COUNTER.replace("binding = 37", "binding = 38"))
-    scratch = gl.ctx.buffer(reserve=4)
-    scratch.bind_to_storage_buffer(38)
-    for i in range(GATE_GRIDS):
-        gate.dispatch(program, (i + 1, 1, 1))
-    with pytest.raises(RuntimeError, match="at most"):
-        gate.dispatch(program, (GATE_GRIDS + 1, 1, 1))
-    for b in (count_buf, program, scratch):
+    counter.write(bytes(4))
+    grids = [(i + 1, 1, 1) for i in range(GATE_GRIDS + 3)]
+    for grid in grids:
+        gate.dispatch(program, grid)
+    gl.ctx.finish()
+    assert int(np.frombuffer(counter.read(), np.uint32)[0]) == 4 * sum(g[0] for g in grids)
+    assert len(gate.grids) == 3
+    for b in (count_buf, program, counter):
         b.release()
 
 
@@ -135,7 +140,8 @@ def test_frames_over_listed_tiles_equal_frames_over_the_whole_frame(gl, room, co
 
     aux = ("hdr", "position", "normal", "albedo", "material", "triangle")
     samples = int(case.split()[-1].rstrip("x"))
-    camera = Distorted(coefficients=((0.1, 0.0, 0.0), (0.2, 0.0, 0.0), (0.3, 0.0, 0.0))) if "chromatic" in case else None
+    chromatic = Distorted(coefficients=((0.1, 0.0, 0.0), (0.2, 0.0, 0.0), (0.3, 0.0, 0.0)))
+    camera = chromatic if "chromatic" in case else None
     materials = {"traced 8x": "rayvr/assets/default_room.toml",
                  "ssr 4x": parse_config({"materials": {"floor": {"effect": "ssr"}}}, "<listed tiles ssr>")}.get(case)
     # the room's ceiling corner: up to 3 triangles in a pixel, most pixels one (few tiles listed past slot 0)

@@ -19,8 +19,9 @@ class GBufferResolvePass(Pass):
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.rays = plan.primary == "rays"  # triangle IDs from frame/passes/primary_rays.py
-        self.program = shaders.compute(gl.ctx, "gbuffer/resolve.comp", {"PRIMARY_RAYS": int(self.rays),
-                                                                        **camera_defines(plan), **round_skip_defines(plan, listed=True)})
+        self.program = shaders.compute(gl.ctx, "gbuffer/resolve.comp",
+                                       {"PRIMARY_RAYS": int(self.rays), **camera_defines(plan),
+                                        **round_skip_defines(plan, listed=True)})
 
     def execute(self, fc) -> None:
         set_eye_uniforms(self.program, fc)

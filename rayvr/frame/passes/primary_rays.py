@@ -247,7 +247,8 @@ def sample_group(rays: int) -> int:
 
 
 MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
-MSAA_GROUP = 64  # invocations of an MSAA trace workgroup a colour channel set: a block of 64 / N pixels, N sub-rays each
+# invocations of an MSAA trace workgroup a colour channel set: a block of 64 / N pixels, N sub-rays each
+MSAA_GROUP = 64
 SAMPLE_WEIGHT = Texture("r32f")
 CHANNEL_WEIGHT = Texture("rgba32f")  # shared channel shading: each channel's weight of the round's surface
 # How recording learns an MSAA channel's count of rounds: "fence" polls it after each round without

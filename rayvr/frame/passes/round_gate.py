@@ -6,15 +6,16 @@ eight the slots allow (bench/results/h200/2026-12-03/rounds). Instead, primary_r
 (glsl/rt/round_gate.comp, one invocation) at the start of each such round; it reads the count on the
 GPU and writes the dispatch size of each frame-wide pass of the round: its grid where the round is
 within the count, nothing where it is not. The round's per-pixel passes then dispatch indirectly
-from it (compute.py `dispatch_frame`), and the traced effects, which dispatch from classify's pixel lists,
-find those lists emptied.
+from it (compute.py `dispatch_frame`), and the traced effects, which dispatch from classify's
+pixel lists, find those lists emptied.
 
 Round tiles: within the count, most of a round's pixels are still skipped (a pixel has fewer
 distinct triangles than the round's slot), and each per-pixel pass over the whole frame cost ~0.05
 ms to skip them. The select lists the 8x8 tiles that hold a pixel the round shades
 (glsl/common/round_skip.glsl ROUND_TILES), the gate turns the list's count into a dispatch size
-(`list_tiles`; the frame's grid where most tiles are listed, as in a round of slot 0), and the gbuffer resolve, shade and sample_accumulate run one workgroup a listed tile
-(compute.py `dispatch_frame(..., listed=True)`). The frame is bit-identical (tests/test_round_gate.py,
+(`list_tiles`; the frame's grid where most tiles are listed, as in a round of slot 0), and the
+gbuffer resolve, shade and sample_accumulate run one workgroup a listed tile (compute.py
+`dispatch_frame(..., listed=True)`). The frame is bit-identical (tests/test_round_gate.py,
 tests/test_msaa_rounds.py)."""
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ from .compute import pixel_grid
 # hook, not a setting (tests/test_round_gate.py compares frames with and without): read afresh by each
 # round, no program or resource depends on it.
 LIST_TILES = True
-GATE_GRIDS = declare("GATE_GRIDS", 8)  # distinct grids of a round's frame-wide passes the gate sizes (two today)
+GATE_GRIDS = declare("GATE_GRIDS", 8)  # grids the gate sizes at once (a round's frame-wide passes have two)
 
 
 class RoundGate:
@@ -70,11 +71,12 @@ class RoundGate:
 
     def dispatch(self, program: moderngl.ComputeShader, grid: tuple) -> None:
         """`program` over `grid`, if the round lies within the count. A grid not seen before (a
-        frame's first gated round) is added and the gate run again for it."""
+        frame's first gated round, or a new frame size) is added and the gate run again for it; a
+        full table starts over (commands run in order: dispatches made read the sizes of their time)."""
         grid = tuple(int(g) for g in grid)
         if grid not in self.grids:
             if len(self.grids) == GATE_GRIDS:
-                raise RuntimeError(f"the round gate sizes at most {GATE_GRIDS} grids a round")
+                self.grids = []
             self.grids.append(grid)
             self.write()
         program.run_indirect(self.args, offset=16 * self.grids.index(grid))

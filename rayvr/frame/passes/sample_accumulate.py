@@ -33,11 +33,13 @@ class SampleAccumulatePass(Pass):
 
     def io(self, plan: FramePlan) -> list:
         return [read("hdr"), read("sample_weight"), write("sample_sum", SAMPLE_SUM)] + (
-            [read("channel_weight")] if plan.share_channels else []) + ([read("round_tiles")] if skips_rounds(plan) else [])
+            [read("channel_weight")] if plan.share_channels else []) + (
+            [read("round_tiles")] if skips_rounds(plan) else [])
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.program = shaders.compute(gl.ctx, "shade/sample_accumulate.comp",
-                                       {"SHARE_CHANNELS": int(plan.share_channels), "ROUND_TILES": int(skips_rounds(plan))})
+                                       {"SHARE_CHANNELS": int(plan.share_channels),
+                                        "ROUND_TILES": int(skips_rounds(plan))})
 
     def execute(self, fc) -> None:
         rnd = fc.round

@@ -219,7 +219,8 @@ void main() {
 #if ROUND_TILES
     barrier();  // the workgroup is a PIXEL_TILE tile: listed once if any of its pixels is not skipped
     if (gl_LocalInvocationIndex == 0u && tile_live != 0u)
-        round_tiles[atomicAdd(round_tile_count, 1u)] = gl_WorkGroupID.x | (gl_WorkGroupID.y << 14) | (gl_WorkGroupID.z << 28);
+        round_tiles[atomicAdd(round_tile_count, 1u)] =
+            gl_WorkGroupID.x | (gl_WorkGroupID.y << 14) | (gl_WorkGroupID.z << 28);
 #endif
 #endif
 }
