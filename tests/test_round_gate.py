@@ -163,3 +163,29 @@ def test_frames_over_listed_tiles_equal_frames_over_the_whole_frame(gl, room, co
             np.testing.assert_array_equal(got[eye].depth, ref[eye].depth, err_msg=f"{key} {eye}")
             for name in aux:
                 np.testing.assert_array_equal(got[eye].aux[name], ref[eye].aux[name], err_msg=f"{key} {eye} {name}")
+
+
+def test_one_renderer_at_two_frame_sizes_gates_and_lists_each(gl, room, count_poll, monkeypatch):
+    """A renderer whose frames change size (a preview window resized) sizes each round's gate and
+    tile list for the frame at hand: every frame equals a fresh renderer's frame of its size, with the
+    count never known while recording (every round after the first gated) and known after the first."""
+    from rayvr import Renderer
+    from rayvr.frame.cameras.rig import Pose, StereoRig
+    from rayvr.renderer import RenderSettings
+
+    pose = Pose.look_at([0.3, 1.5, 1.0], [0.3, 2.5, -1])
+    rigs = [StereoRig(pose, ipd=0.064, fov_y=60, size=size, near=1e-3) for size in ((40, 24), (24, 40), (40, 24))]
+    settings = RenderSettings(msaa=4)
+    count_poll("wait")
+    refs = []
+    for rig in rigs[:2]:
+        with Renderer(room, "rayvr/assets/default_room.toml", gl=gl, settings=settings) as r:
+            refs.append(r.render(rig))
+    count_poll("never")
+    with Renderer(room, "rayvr/assets/default_room.toml", gl=gl, settings=settings) as r:
+        got = [r.render(rig) for rig in rigs]
+    for frame, ref in zip(got, [refs[0], refs[1], refs[0]]):
+        for eye in ("left", "right"):
+            assert frame[eye].color.shape == ref[eye].color.shape
+            np.testing.assert_array_equal(frame[eye].color, ref[eye].color)
+            np.testing.assert_array_equal(frame[eye].depth, ref[eye].depth)
