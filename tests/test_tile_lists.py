@@ -180,7 +180,8 @@ def test_an_msaa_trace_block_lies_in_one_tile(samples, sets):
     set's block with shared channel sets (full warps)."""
     from rayvr.frame.passes.primary_rays import MSAA_GROUP, msaa_block
 
-    w, h = msaa_block(samples, sets)
+    w, h = msaa_block(samples)
     assert TILE_PIXELS[0] % w == 0 and TILE_PIXELS[1] % h == 0, (samples, sets, w, h)
     # the most pixels whose sub-rays of one set fit (the group holds all sets': 192 invocations shared)
     assert w * h == 1 or (w * h * samples <= MSAA_GROUP < 2 * w * h * samples)
+    assert (w * h * samples * sets) % 32 == 0   # full 32-lane warps, one set or three

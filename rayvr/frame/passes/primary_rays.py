@@ -260,12 +260,13 @@ COUNT_POLLS = ("fence", "wait", "never")
 COUNT_POLL = "fence"
 
 
-def msaa_block(samples: int, sets: int = 1) -> tuple[int, int]:
-    """Pixels (w, h) of an MSAA trace workgroup: the largest power of two of them whose sub-rays of
-    one colour channel set fit MSAA_GROUP invocations, as square as it allows; a workgroup is the
-    block's sub-rays of all `sets` (shared channel shading: 3 sets, 192 invocations, full warps: 48
-    sub-rays a 1-pixel group at 16x left a quarter of the lanes idle, the trace 2x the three sets
-    cast apart, H200 Sponza bench/results/h200/2026-12-03/rounds). A power of two on both sides, so
+def msaa_block(samples: int) -> tuple[int, int]:
+    """Pixels (w, h) of an MSAA trace workgroup: the largest power of two of them whose `samples`
+    sub-rays (one colour channel set's) fit MSAA_GROUP invocations, as square as it allows; a
+    workgroup is the block's sub-rays of every set it casts (shared channel shading: 3 sets, 192
+    invocations, full warps: 48 sub-rays a 1-pixel group at 16x left a quarter of the lanes idle,
+    the trace 2x the three sets cast apart, H200 Sponza bench/results/h200/2026-12-03/rounds). A
+    power of two on both sides, so
     a block lies in one TILE_PIXELS tile: with tile lists the trace casts only the tiles whose list
     overflowed, and leaves the group as a whole (a group over two tiles would leave some invocations
     before the barriers the others reach: undefined, and wrong on the H200 with the 3 sub-rays of
@@ -312,15 +313,14 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
                 ids.append(tri)
                 masks.append(1 << i)
         pop = [bin(m).count("1") for m in masks]
+        coverage = [msaa_coverage(m, n_sub, channel_blocks) for m in masks]
         order = sorted(range(len(ids)), key=lambda k: (-pop[k], k))
         for rank, k in enumerate(order):
             bits = [i for i in range(n_sub) if masks[k] >> i & 1]
             dist = ((offsets[bits] - offsets[bits].mean(0)) ** 2).sum(1)
             best = bits[int(np.argmin(dist))]
-            covered = sum(msaa_coverage(m, n_sub, channel_blocks) for m in masks)
-            meta = best | ((len(ids) << 8) | (covered << 16) if rank == 0 else 0)
-            coverage = msaa_coverage(masks[k], n_sub, channel_blocks)
-            out[rank, px] = (ids[k], coverage, meta, flat_d[px, best].view(np.uint32))
+            meta = best | ((len(ids) << 8) | (sum(coverage) << 16) if rank == 0 else 0)
+            out[rank, px] = (ids[k], coverage[k], meta, flat_d[px, best].view(np.uint32))
     return out.reshape((slots,) + shape + (4,))
 
 
@@ -442,7 +442,7 @@ class PrimaryRaysPass(Pass):
     def setup(self, gl, plan: FramePlan) -> None:
         # the primary rays' BVH layout; tile entry lists name binary child pairs
         self.layout = "bvh2" if plan.tile_culling else plan.traversal[0]
-        self.block = msaa_block(plan.samples, subrays(plan) // plan.samples)
+        self.block = msaa_block(plan.samples)
         tiles = {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": TILE_ENTRIES, "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
                  "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
         lists = {"TILE_TRIS": plan.tile_lists, "TILE_TRIS_BINDING": SSBO["tile_tris"]} if plan.tile_lists else {}
