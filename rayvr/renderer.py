@@ -174,6 +174,8 @@ class Renderer:
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
                          tile_culling=culled, tile_lists=primary_rays.tile_list_bound(st, camera.name) if culled else 0,
                          block_culling=culled and primary_rays.culls_blocks(st, camera.name),
+                         **(primary_rays.tile_shape(st, camera.name, primary_rays.culls_blocks(st, camera.name))
+                            if culled else {}),
                          share_channels=primary == "rays" and primary_rays.shares_channels(
                              st, camera, samples, self.effects_in_use(), view),
                          channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots,

@@ -357,7 +357,9 @@ def test_the_fastest_variant_is_chosen_on_its_worst_pose_among_primary_knobs_onl
     chosen = primary_choices(rows)
     assert chosen["foveated"][16]["variant"] == "perray" and chosen["wide"][16]["variant"] == "blocks"
     assert chosen["pinhole"][16]["variant"] == "lists"   # 12.5 worst against 14.0
-    assert chosen["pinhole"][16]["knobs"] == {"tile_culling": True, "tile_lists": 256, "block_culling": False}
+    # the shapes a row does not name (runs from before they were knobs) are the ones those runs used
+    assert chosen["pinhole"][16]["knobs"] == {"tile_culling": True, "tile_lists": 256, "block_culling": False,
+                                              "tile_size": "16x8", "tile_entries": 32, "block_tiles": 8}
     assert chosen["pinhole"][16]["worst_ms"] == {"entries": 14.0, "lists": 12.5}
     assert chosen["dof"][4]["variant"] == "blocks" and chosen["dof"][4]["worst_ms"]["blocks"] == 4.0
 
@@ -369,7 +371,9 @@ def test_the_renderer_takes_the_measured_choices(tmp_path, monkeypatch, gl):
     from rayvr.frame.passes import primary_rays
 
     rows = [_choice_row("lists", {"tile_lists": 64, "block_culling": True}, "pinhole", 16, 0, 3.0, tile_lists=64,
-                        block_culling=True)]
+                        block_culling=True),
+            _choice_row("small", {"tile_size": "8x8", "block_culling": True, "block_tiles": 4}, "pinhole", 4, 0, 1.0,
+                        block_culling=True, tile_size="8x8", tile_entries=16, block_tiles=4)]
     meta = {"date": "today", "poses": 1, "pose_seed": 22, "per_eye_size": [8, 8], "gl_renderer": "GPU",
             "gl_version": "4.3"}
     data = choices_file(primary_choices(rows), meta, tmp_path)
@@ -387,6 +391,12 @@ def test_the_renderer_takes_the_measured_choices(tmp_path, monkeypatch, gl):
             assert r.plan().tile_lists == 64
             r.settings = RenderSettings(msaa=16, tile_lists=0, block_culling=False)
             assert r.plan().tile_lists == 0 and not r.plan().block_culling
+            r.settings = RenderSettings(msaa=4)   # the shapes the run's plan had
+            plan = r.plan()
+            assert (plan.tile_pixels, plan.tile_entries, plan.block_tiles) == ((8, 8), 16, 4)
+            r.settings = RenderSettings(msaa=4, tile_size="16x16", block_tiles=8)
+            plan = r.plan()
+            assert (plan.tile_pixels, plan.tile_entries, plan.block_tiles) == ((16, 16), 16, 8)
         data["choices"]["pinhole"]["4"] = {"tile_culling": False, "tile_lists": 64, "block_culling": False}
         path = tmp_path / "broken.json"
         path.write_text(json.dumps(data))

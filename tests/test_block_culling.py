@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import camera_rig
-from test_tile_culling_frame import gl_tile_rays
+from test_tile_culling_frame import SHAPE, gl_tile_rays
 from test_tile_lists import CASES as LIST_CASES
 
 from rayvr.accel.frustum import tile_grid
@@ -24,7 +24,7 @@ CASES = {name: case for name, case in LIST_CASES.items() if name != "pinhole 32x
 
 def render(r, rig, samples, **kw):
     """(triangle IDs, depth, colour of both eyes)."""
-    r.settings = RenderSettings(primary="rays", msaa=samples, share_channel_shading=False, **kw)
+    r.settings = RenderSettings(primary="rays", msaa=samples, share_channel_shading=False, **{**SHAPE, **kw})
     f = r.render(rig, aux=("triangle",))
     both = lambda a, b: np.stack([a, b])
     return (both(f.left.aux["triangle"], f.right.aux["triangle"]), both(f.left.depth, f.right.depth),

@@ -139,11 +139,11 @@ def test_tile_culled_shared_frames_equal_the_per_ray_shared_frame(room, culling)
 def test_the_shared_cull_bounds_every_channel_sets_rays(room):
     """The frame's one cull (CULL_CHANNELS 3): every channel set's ray lies inside the planes the GPU
     wrote for its tile (one set's planes would leave the others' rays at the tiles' edges out)."""
-    from test_tile_culling_frame import gl_tile_rays
+    from test_tile_culling_frame import SHAPE, gl_tile_rays
 
     from rayvr.accel.frustum import tile_grid
 
-    frame(room, CHROMATIC, tile_culling=True)
+    frame(room, CHROMATIC, tile_culling=True, **SHAPE)
     rig = StereoRig.for_scene(room.scene, size=SIZE, camera=CHROMATIC)
     nx, ny = tile_grid(*SIZE)
     planes = np.frombuffer(room.resource("tile_planes").read(), np.float32)[:2 * nx * ny * 20].reshape(-1, 5, 4)

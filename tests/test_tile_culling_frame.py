@@ -10,10 +10,13 @@ from PIL import Image
 from rayvr.accel.frustum import tile_grid
 from rayvr.frame.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
 from rayvr.frame.cameras.sampling import subsamples
-from rayvr.gl.gpu_layout import NO_HIT, TILE_ENTRIES, TILE_PIXELS
+from rayvr.gl.gpu_layout import BLOCK_TILES, NO_HIT, TILE_ENTRIES, TILE_PIXELS
 from rayvr.renderer import RenderSettings
 
 SIZE = (48, 24)   # 3 x 3 tiles an eye
+# The tile shapes these tests' numpy readings of the GPU's buffers assume, set rather than left to the
+# measured choice (which may pick others; tests/test_tile_shapes.py renders every shape).
+SHAPE = dict(tile_size="x".join(map(str, TILE_PIXELS)), tile_entries=TILE_ENTRIES, block_tiles=BLOCK_TILES[0])
 
 # name -> (camera model, sub-rays per sample, vertical fov or None)
 CASES = {
@@ -29,7 +32,7 @@ CASES = {
 def render(r, rig, samples, culled):
     """(triangle IDs of both eyes, colour of both eyes, the frame's tile lists or None)."""
     # share_channel_shading off: every channel set culled and cast on its own (tests/test_shared_channels.py has it on)
-    r.settings = RenderSettings(primary="rays", msaa=samples, tile_culling=culled, share_channel_shading=False)
+    r.settings = RenderSettings(primary="rays", msaa=samples, tile_culling=culled, share_channel_shading=False, **SHAPE)
     f = r.render(rig, aux=("triangle",))
     lists = None
     if culled:
@@ -67,8 +70,8 @@ def test_tiles_too_wide_fall_back_to_the_root(room):
     assert (planes == [0, 0, 0, 1]).all()   # the fallback's mark (tile_cull.comp)
 
 
-def gl_tile_rays(r, rig, eye, channel, samples):
-    """Every sub-ray of `eye` (numpy reference, scene-local origins) grouped by frame tile:
+def gl_tile_rays(r, rig, eye, channel, samples, tile=TILE_PIXELS):
+    """Every sub-ray of `eye` (numpy reference, scene-local origins) grouped by frame `tile` (w, h):
     {tile index within the eye: (origins (k, 3), directions (k, 3))}."""
     view = rig.eyes()[eye]
     w, h = view.size
@@ -78,12 +81,12 @@ def gl_tile_rays(r, rig, eye, channel, samples):
         rays = rig.camera.rays(view, channel, subsample=(i, samples) if samples > 1 else None)
         rows = np.arange(h)[:, None].repeat(w, 1)
         gl_y, x = h - 1 - rows, np.arange(w)[None, :].repeat(h, 0)
-        nx, _ = tile_grid(w, h)
-        tile = (gl_y // TILE_PIXELS[1]) * nx + x // TILE_PIXELS[0]
+        nx, _ = tile_grid(w, h, tile)
+        index = (gl_y // tile[1]) * nx + x // tile[0]
         ok = rays.valid
         o = (rays.origins - r.scene.origin)[ok]
-        for t in np.unique(tile[ok]):
-            m = tile[ok] == t
+        for t in np.unique(index[ok]):
+            m = index[ok] == t
             prev = out.get(int(t), (np.zeros((0, 3)), np.zeros((0, 3))))
             out[int(t)] = (np.r_[prev[0], o[m]], np.r_[prev[1], rays.directions[ok][m]])
     assert len(offsets) == samples
@@ -181,7 +184,7 @@ def test_planar_tile_beams_hold_every_sub_ray_and_touch_the_outer_ones(room, cas
     ray of the tile (its normal's angle to the nearest ray under 1e-3), as the corner rays are rays."""
     camera, samples, fov = CASES[case]
     rig = camera_rig(room, camera, fov)
-    room.settings = RenderSettings(primary="rays", msaa=samples, block_culling=True)
+    room.settings = RenderSettings(primary="rays", msaa=samples, block_culling=True, **SHAPE)
     room.render(rig)
     assert {p.name: p for p in room.compiled().passes}["primary_rays"].planar
     nx, ny = tile_grid(*SIZE)

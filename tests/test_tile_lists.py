@@ -14,6 +14,7 @@ from rayvr.frame.cameras import Distorted, Foveated, Pinhole, ThinLens, Wide
 from rayvr.frame.passes.primary_rays import TILE_OVERFLOW
 from rayvr.gl.gpu_layout import NO_HIT, TILE_PIXELS
 from rayvr.renderer import RenderSettings
+from test_tile_culling_frame import SHAPE
 
 SIZE = (48, 24)   # 3 x 3 tiles an eye
 
@@ -33,7 +34,7 @@ CASES = {
 
 def render(r, rig, samples, lists, ssaa=False):
     """(triangle IDs, depth, colour of both eyes, the frame's list words (tiles, bound + 1, 2) or None)."""
-    kw = dict(tile_culling=True, tile_lists=lists) if lists else dict(tile_culling=False)
+    kw = dict(tile_culling=True, tile_lists=lists, **SHAPE) if lists else dict(tile_culling=False)
     r.settings = RenderSettings(primary="rays", msaa=samples, ssaa=ssaa, **kw)
     f = r.render(rig, aux=("triangle",))
     words = None

@@ -40,7 +40,7 @@ from ..frame.cameras.rig import StereoRig
 from ..gl.context import create_context
 from ..renderer import Renderer, RenderSettings
 from ..scene.materials import load_config
-from ..frame.passes.primary_rays import MEASURED_CHOICES, PRIMARY_KNOBS
+from ..frame.passes.primary_rays import KNOB_DEFAULTS, MEASURED_CHOICES, PRIMARY_KNOBS
 from ..util.output import atomic_write_bytes
 from .head_poses import EYE_HEIGHT_M, MAX_PITCH_DEG, POSE_SEED, draw_poses, pose_bounds, region
 from .primary import CONFIGS as CAMERA_CONFIGS
@@ -226,7 +226,7 @@ def primary_choices(rows) -> dict:
         best = next(name for name in order if name in worst and worst[name] <= least * (1.0 + CHOICE_MARGIN))
         plan = by_variant[best][next(iter(common))]
         out.setdefault(model, {})[msaa] = {"variant": best, "worst_ms": worst,
-                                           "knobs": {k: plan.get(k) for k in PRIMARY_KNOBS}}
+                                           "knobs": {k: plan.get(k, KNOB_DEFAULTS.get(k)) for k in PRIMARY_KNOBS}}
     return out
 
 
@@ -451,7 +451,9 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
                         rows.append({"scene": name, "pose": head.to_dict(), "config": config, "variant": variant,
                                      "camera": camera, "camera_model": model.name, "primary": primary, "msaa": msaa,
                                      "variant_fields": variants[variant], "tile_culling": plan.tile_culling,
-                                     "tile_lists": plan.tile_lists, "block_culling": plan.block_culling, **timed})
+                                     "tile_lists": plan.tile_lists, "block_culling": plan.block_culling,
+                                     "tile_size": "x".join(map(str, plan.tile_pixels)),
+                                     "tile_entries": plan.tile_entries, "block_tiles": plan.block_tiles, **timed})
                         bar.update(1)
                     cell = [x["frame_ms"] for x in rows[-len(heads):]]
                     bar.write(f"  {name:8s} {config:8s} {variant:10s} {camera:20s} {msaa:2d}x frame median "

@@ -31,7 +31,7 @@ import numpy as np
 from ..accel.gpu import DEFAULT_TRAVERSAL
 from .cameras import DEFAULT_CAMERA_MODEL
 
-from ..gl.gpu_layout import CHANNELS
+from ..gl.gpu_layout import BLOCK_TILES, CHANNELS, TILE_ENTRIES, TILE_PIXELS
 from ..gl.glsl_constants import declare
 from ..gl.timing import TimerQuery, valid_elapsed_ns
 
@@ -62,6 +62,10 @@ class FramePlan:
     tile_culling: bool = False  # primary rays traced from tile frustum entry lists (frame/passes/primary_rays.py)
     tile_lists: int = 0  # with tile culling: the bound of each tile's triangle list, 0 none (primary_rays.py)
     block_culling: bool = False  # with tile culling: tiles cut the BVH from their block's entries (primary_rays.py)
+    # with tile culling: a tile's pixels (w, h), the entries a cut lists at most, a block's tiles a side
+    tile_pixels: tuple = TILE_PIXELS
+    tile_entries: int = TILE_ENTRIES
+    block_tiles: int = BLOCK_TILES[0]
     share_channels: bool = False  # the colour channel sets cast together, shaded once a distinct triangle (primary_rays.py)
     light_picks: int = 0  # lights the traced effects draw per surface by power, 0 every light (scene/light_selection.py)
     ray_order: str = "none"  # the wavefront's rays sorted before each trace kernel: "none" | "morton" (passes/ray_order.py)

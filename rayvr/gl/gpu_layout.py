@@ -114,6 +114,9 @@ COMPRESSED_LAYOUT = "cwbvh"
 # Tile frustum culling (HVVR): rays a tile (one work group), entry nodes a tile's list holds at most.
 TILE_RAYS = 128
 TILE_ENTRIES = 32
+# Defaults (the RayTracer's tiles, shaders compiled alone): frame tiles and blocks take their plan's
+# shape and bound, measured per camera model (frame/passes/primary_rays.py --tile-size, --tile-entries,
+# --block-tiles).
 TILE_PIXELS = (16, 8)  # a frame tile's pixel block (w, h): TILE_RAYS samples (primary_rays --tile-culling)
 BLOCK_TILES = (8, 8)  # a block of frame tiles (w, h): HVVR's block beams (primary_rays --block-culling)
 VERTEX_FLOATS = 8  # position xyz, normal xyz, uv (gpu_scene.interleaved_vertices)
@@ -161,9 +164,12 @@ def glsl_header() -> str:
     out += [f"#define NO_HIT 0x{NO_HIT:X}u", f"#define ROUND_SKIPPED {ROUND_SKIPPED!r}", f"#define VERTEX_FLOATS {VERTEX_FLOATS}",
             f"#define SSRT_RAY_GROUP {SSRT_RAY_GROUP}",
             f"#define DEFAULT_TILE_RAYS {TILE_RAYS}", f"#define DEFAULT_TILE_ENTRIES {TILE_ENTRIES}",
-            f"#define TILE_W {TILE_PIXELS[0]}", f"#define TILE_H {TILE_PIXELS[1]}",
-            f"#define BLOCK_TILES_X {BLOCK_TILES[0]}", f"#define BLOCK_TILES_Y {BLOCK_TILES[1]}",
+            # the defaults of a tile's and a block's shape: the primary-ray pass gives its plan's own
+            # (frame/passes/primary_rays.py tile_defines, measured per camera model)
+            "#ifndef TILE_W", f"#define TILE_W {TILE_PIXELS[0]}", f"#define TILE_H {TILE_PIXELS[1]}", "#endif",
+            "#ifndef BLOCK_TILES_X", f"#define BLOCK_TILES_X {BLOCK_TILES[0]}", f"#define BLOCK_TILES_Y {BLOCK_TILES[1]}",
             f"#define BLOCK_TILES {BLOCK_TILES[0] * BLOCK_TILES[1]}",  # a literal: local_size_x (GLSL 4.30)
+            "#endif",
             f"#define BVH_FACE_SLACK {BVH_FACE_SLACK!r}"]
     out += [f"#define BACKGROUND_EFFECT {BACKGROUND_EFFECT}u", f"#define MAX_EFFECT_ID {MAX_EFFECT_ID}",
             f"#define MATERIAL_PARAM_WORDS {PARAM_WORDS}"]

@@ -33,7 +33,7 @@ resolved, shaded and added with weight 0, a 4-byte weight read per pass.
 Tile frustum culling (FramePlan.tile_culling, RenderSettings.tile_culling, `--tile-culling`; by
 default where it measured faster on the H200, RenderSettings.culls_tiles): each channel set's first
 round first runs a `cull` stage (glsl/accel/tile_cull.comp with TILE_CAMERA): one workgroup per
-TILE_PIXELS block of pixels (16 x 8 = TILE_RAYS samples) bounds every ray the rounds will cast there
+tile of pixels (16 x 8 by default; --tile-size) bounds every ray the rounds will cast there
 (all sub-rays of each sample's footprint, thin-lens lens points, this channel set's distortion) with
 a conservative frustum and lists the BVH entry nodes it meets, nearest first; the trace then starts
 each ray from its tile's entries instead of the root. Exact: the same triangle and distance as
@@ -72,7 +72,7 @@ from ...accel.frustum import tile_grid
 from ...accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effect_registry import EFFECTS
 from ..graph import SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
-from ...gl.gpu_layout import BLOCK_TILES, IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_PIXELS, TILE_RAYS, channel
+from ...gl.gpu_layout import BLOCK_TILES, IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_PIXELS, channel
 from ...options import Option, declare
 from .compute import camera_defines, dispatch_per_pixel, pixel_grid, set_eye_uniforms
 from . import round_gate
@@ -99,6 +99,38 @@ BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary vi
                                "(rayvr/assets/primary_visibility.json: every camera model but foveated)",
                                scope="plan", plan_field="block_culling", auto=True,
                                implies=(("tile_culling", True),), commands=("capture", "preview", "info", "bench")))
+# A tile's and a block's shape and a cut's bound (item 4 of HVVR's pipeline: chosen by measurement per
+# camera model, like the stages; primary_visibility.json). A tile is a workgroup of its pixels (at most
+# 256 invocations), a power of two on each side so the MSAA trace's blocks (msaa_block) lie in one; a
+# cut tests its entries one an invocation, so a bound is at most a tile's pixels and a block's tiles.
+TILE_SIZES = ("8x8", "16x8", "16x16")
+TILE_ENTRY_BOUNDS = (8, 16, 32, 64)
+BLOCK_SIDES = (4, 8, 16)  # a block of N x N tiles
+
+
+def tile_pixels(text: str) -> tuple[int, int]:
+    """A TILE_SIZES spelling ("16x8") as (w, h)."""
+    w, h = text.split("x")
+    return int(w), int(h)
+
+
+TILE_SIZE = declare(Option("tile_size", str, None, "ray-cast primary visibility with tile culling: a tile's "
+                           "pixels (w x h), one frustum and entry list each; auto: the measured choice "
+                           "(rayvr/assets/primary_visibility.json); implies tile culling", scope="plan",
+                           plan_field="tile_pixels", choices=TILE_SIZES, auto=True, label="tile size", metavar="WxH",
+                           implies=(("tile_culling", True),),
+                           commands=("capture", "preview", "info", "bench")))
+TILE_ENTRIES_OPTION = declare(Option("tile_entries", int, None, "ray-cast primary visibility with tile culling: "
+                                     "the BVH entry nodes a tile's (and a block's) cut lists at most (more: a "
+                                     "tighter cut, longer lists to walk); implies tile culling; auto: the measured "
+                                     "choice", scope="plan", plan_field="tile_entries", choices=TILE_ENTRY_BOUNDS,
+                                     auto=True, implies=(("tile_culling", True),),
+                                     label="tile entry bound", metavar="N", commands=("capture", "preview", "info", "bench")))
+BLOCK_TILES_OPTION = declare(Option("block_tiles", int, None, "ray-cast primary visibility with block culling: "
+                                    "a block beam's tiles, N x N; implies block culling; auto: the measured choice",
+                                    scope="plan", plan_field="block_tiles", choices=BLOCK_SIDES, auto=True,
+                                    label="block side", implies=(("block_culling", True),),
+                                    metavar="N", commands=("capture", "preview", "info", "bench")))
 TILE_LIST_BOUNDS = (16, 32, 64, 128, 256, 512, 1024)  # triangles a tile's list may hold (a power of two: its sort)
 TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibility tests each 16x8-pixel tile's rays "
                             "against the tile's own list of at most N triangles (those of its frustum, nearest "
@@ -148,7 +180,10 @@ def primary_visibility(settings, camera) -> str:
 # block_culling None): per camera model and sub-rays per sample, the variant that measured fastest
 # (the asset names its runs; `rayvr bench vr --variants` writes its successor, primary_visibility.json).
 MEASURED_CHOICES = Path(__file__).resolve().parents[2] / "assets" / "primary_visibility.json"
-PRIMARY_KNOBS = ("tile_culling", "tile_lists", "block_culling")
+PRIMARY_KNOBS = ("tile_culling", "tile_lists", "block_culling", "tile_size", "tile_entries", "block_tiles")
+# What a knob is where neither the settings nor a measured choice say (the shapes timed before they were knobs).
+KNOB_DEFAULTS = {"tile_lists": 0, "block_culling": False, "tile_size": "x".join(map(str, TILE_PIXELS)),
+                 "tile_entries": TILE_ENTRIES, "block_tiles": BLOCK_TILES[0]}
 
 
 def measured_choices(path: Path | None = None) -> dict:
@@ -163,10 +198,16 @@ def _read_choices(path: Path) -> dict:
     out = {model: {int(n): dict(knobs) for n, knobs in counts.items()} for model, counts in data["choices"].items()}
     for model, counts in out.items():
         for n, knobs in counts.items():
-            if set(knobs) != set(PRIMARY_KNOBS) or ((knobs["tile_lists"] or knobs["block_culling"])
-                                                     and not knobs["tile_culling"]):
-                raise ValueError(f"{path}: {model} at {n}x must set {', '.join(PRIMARY_KNOBS)}, and tile lists "
-                                 f"and block culling only with tile culling, got {knobs}")
+            if (set(knobs) != set(PRIMARY_KNOBS) or ((knobs["tile_lists"] or knobs["block_culling"])
+                                                      and not knobs["tile_culling"])
+                    or knobs["tile_size"] not in TILE_SIZES or knobs["tile_entries"] not in TILE_ENTRY_BOUNDS
+                    or knobs["block_tiles"] not in BLOCK_SIDES
+                    or (knobs["block_culling"] and knobs["tile_entries"] > knobs["block_tiles"] ** 2)):
+                raise ValueError(f"{path}: {model} at {n}x must set {', '.join(PRIMARY_KNOBS)}: tile lists "
+                                 f"and block culling only with tile culling, a tile size of {', '.join(TILE_SIZES)}, "
+                                 f"a tile entry bound of {', '.join(map(str, TILE_ENTRY_BOUNDS))} (with block "
+                                 f"culling at most the block's tiles), a block side of "
+                                 f"{', '.join(map(str, BLOCK_SIDES))}; got {knobs}")
     return out
 
 
@@ -188,7 +229,8 @@ def culls_tiles(settings, camera: str = "pinhole") -> bool:
 
     if settings.tile_culling is not None:
         return settings.tile_culling
-    if settings.tile_lists or settings.block_culling:  # the lists and the blocks feed the cull's entries
+    if settings.tile_lists or settings.block_culling or settings.block_tiles or settings.tile_size \
+            or settings.tile_entries:  # the lists and the blocks feed the cull's entries; a shape asks for tiles
         return True
     choice = measured_choice(camera, settings.msaa)
     if choice is not None:
@@ -196,21 +238,43 @@ def culls_tiles(settings, camera: str = "pinhole") -> bool:
     return settings.msaa > 1 and CAMERA_MODELS[camera].culls_tiles_by_default
 
 
+def knob(settings, name: str, camera: str = "pinhole"):
+    """A tile-culled frame's PRIMARY_KNOBS `name` (not tile_culling: culls_tiles) for a `camera`
+    model (its name): the settings' value, or when None, the measured choice, else KNOB_DEFAULTS."""
+    value = getattr(settings, name)
+    if value is None:
+        value = (measured_choice(camera, settings.msaa) or {}).get(name, KNOB_DEFAULTS[name])
+    return value
+
+
 def culls_blocks(settings, camera: str = "pinhole") -> bool:
     """Whether tile-culled ray-cast primaries of a `camera` model (its name) start each tile's cut
     from its block's entries: block_culling, or when None, the measured choice (off where never timed)."""
-    if settings.block_culling is not None:
-        return settings.block_culling
-    return bool((measured_choice(camera, settings.msaa) or {}).get("block_culling", False))
+    if settings.block_culling is None and settings.block_tiles:   # a block's shape asks for blocks
+        return True
+    return bool(knob(settings, "block_culling", camera))
 
 
 def tile_list_bound(settings, camera: str = "pinhole") -> int:
     """The triangles a tile's list holds at most for ray-cast primaries of a `camera` model (its
     name) when they are tile-culled: tile_lists, or when None, the measured choice; 0: no lists,
     per-ray traversal from the tile's entries."""
-    if settings.tile_lists is not None:
-        return settings.tile_lists
-    return int((measured_choice(camera, settings.msaa) or {}).get("tile_lists", 0))
+    return int(knob(settings, "tile_lists", camera))
+
+
+def tile_shape(settings, camera: str = "pinhole", blocks: bool = False) -> dict:
+    """The FramePlan fields of a tile-culled frame's shapes (`blocks`: with block culling): tile_pixels,
+    tile_entries and block_tiles, each the settings' or the measured choice (`knob`). An entry bound
+    left to the choice is cut to a smaller block's tiles (a block's cut tests its entries one a tile);
+    one asked for beyond them is refused (ValueError)."""
+    entries, side = int(knob(settings, "tile_entries", camera)), int(knob(settings, "block_tiles", camera))
+    if blocks and entries > side * side:
+        if settings.tile_entries is not None:
+            raise ValueError(f"a block of {side}x{side} tiles (--block-tiles {side}) cuts to at most {side * side} "
+                             f"entries, one a tile: --tile-entries {entries} needs larger blocks or fewer entries")
+        entries = max(b for b in TILE_ENTRY_BOUNDS if b <= side * side)
+    return {"tile_pixels": tile_pixels(knob(settings, "tile_size", camera)), "tile_entries": entries,
+            "block_tiles": side if blocks else BLOCK_TILES[0]}
 
 
 MASK_BITS = 64  # sub-rays a coverage mask holds (glsl/rt/sub_mask.glsl: at most two words)
@@ -237,11 +301,11 @@ def shares_channels(settings, camera, samples: int, effects, view: str) -> bool:
 SAMPLE_SHARED_BYTES = 24 * 1024
 
 
-def sample_group(rays: int) -> int:
-    """Pixels of a tile_samples.comp workgroup whose pixels cast `rays` sub-rays each: the whole tile
-    (TILE_RAYS), or the largest band of its rows (a power of two) whose state fits SAMPLE_SHARED_BYTES."""
-    group = TILE_RAYS
-    while group > TILE_PIXELS[0] and group * (8 * rays + 56) > SAMPLE_SHARED_BYTES:
+def sample_group(rays: int, tile: tuple[int, int] = TILE_PIXELS) -> int:
+    """Pixels of a tile_samples.comp workgroup whose pixels cast `rays` sub-rays each: the whole
+    `tile` (w, h), or the largest band of its rows (a power of two) whose state fits SAMPLE_SHARED_BYTES."""
+    group = tile[0] * tile[1]
+    while group > tile[0] and group * (8 * rays + 56) > SAMPLE_SHARED_BYTES:
         group //= 2
     return group
 
@@ -267,7 +331,7 @@ def msaa_block(samples: int) -> tuple[int, int]:
     invocations, full warps: 48 sub-rays a 1-pixel group at 16x left a quarter of the lanes idle,
     the trace 2x the three sets cast apart, H200 Sponza bench/results/h200/2026-12-03/rounds). A
     power of two on both sides, so
-    a block lies in one TILE_PIXELS tile: with tile lists the trace casts only the tiles whose list
+    a block lies in one tile (TILE_SIZES: powers of two, at least 8 a side): with tile lists the trace casts only the tiles whose list
     overflowed, and leaves the group as a whole (a group over two tiles would leave some invocations
     before the barriers the others reach: undefined, and wrong on the H200 with the 3 sub-rays of
     shared channel shading at 1x, where 64 // 3 = 21 pixels made 4x5 blocks)."""
@@ -324,10 +388,17 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
     return out.reshape((slots,) + shape + (4,))
 
 
-def frame_tiles(sizing) -> int:
-    """Tiles of a frame (tile culling): TILE_PIXELS blocks of every layer."""
-    nx, ny = tile_grid(*sizing.size)
+def frame_tiles(sizing, tile: tuple[int, int] = TILE_PIXELS) -> int:
+    """Tiles of a frame (tile culling): `tile` (w, h) pixel blocks of every layer."""
+    nx, ny = tile_grid(*sizing.size, tile)
     return nx * ny * sizing.layers
+
+
+def tile_defines(plan: FramePlan) -> dict:
+    """The shaders' defines of a tile-culled plan's shapes and bound (gpu_layout's are the defaults)."""
+    (w, h), side = plan.tile_pixels, plan.block_tiles
+    return {"TILE_W": w, "TILE_H": h, "TILE_RAYS": w * h, "TILE_ENTRIES": plan.tile_entries,
+            "BLOCK_TILES_X": side, "BLOCK_TILES_Y": side, "BLOCK_TILES": side * side}
 
 
 PLANAR_BEAM_GROUP = declare_constant("PLANAR_BEAM_GROUP", 64)  # tiles a workgroup of tile_beams_planar.comp
@@ -342,14 +413,14 @@ def planar_beams(plan) -> bool:
     return CAMERA_MODELS[plan.camera].rasterizable and not plan.share_channels
 
 
-def block_grid(width: int, height: int) -> tuple[int, int]:
-    """Blocks (across, down) of BLOCK_TILES tiles of a width x height image (edge blocks partial)."""
-    nx, ny = tile_grid(width, height)
-    return -(-nx // BLOCK_TILES[0]), -(-ny // BLOCK_TILES[1])
+def block_grid(width: int, height: int, tile: tuple[int, int] = TILE_PIXELS, side: int = BLOCK_TILES[0]) -> tuple[int, int]:
+    """Blocks (across, down) of side x side `tile`s of a width x height image (edge blocks partial)."""
+    nx, ny = tile_grid(width, height, tile)
+    return -(-nx // side), -(-ny // side)
 
 
-def frame_blocks(sizing) -> int:
-    bx, by = block_grid(*sizing.size)
+def frame_blocks(sizing, tile: tuple[int, int], side: int) -> int:
+    bx, by = block_grid(*sizing.size, tile, side)
     return bx * by * sizing.layers
 
 
@@ -408,8 +479,9 @@ class PrimaryRaysPass(Pass):
             return None
         sub = f", {plan.samples} sub-rays per sample ({plan.shading})" if plan.samples > 1 else ""
         sub += f", its {plan.channels} colour channel sets cast together (shared shading)" if plan.share_channels else ""
-        tiles = ", tile frustum culling (bvh2)" if plan.tile_culling else ""
-        tiles += ", from 8x8-tile block beams" if plan.block_culling else ""
+        shape = "x".join(map(str, plan.tile_pixels))
+        tiles = f", tile frustum culling ({shape}-pixel tiles, {plan.tile_entries} entries, bvh2)" if plan.tile_culling else ""
+        tiles += f", from {plan.block_tiles}x{plan.block_tiles}-tile block beams" if plan.block_culling else ""
         tiles += f", tile triangle lists of {plan.tile_lists}" if plan.tile_lists else ""
         return f"primary visibility = rays ({plan.camera} camera{sub}{tiles})"
 
@@ -423,19 +495,21 @@ class PrimaryRaysPass(Pass):
             out += [write("msaa_hits", Buffer(lambda s, n=slots: s.pixels * n * 16, f"{slots} x 16 bytes per pixel")),
                     write("msaa_count", Buffer(lambda s: 4, "4 bytes")),
                     write("round_tiles", Buffer(round_tile_bytes, "a word per 8x8 tile", zeroed=True))]
+        tile, entries, side = plan.tile_pixels, plan.tile_entries, plan.block_tiles
+        tiles = functools.partial(frame_tiles, tile=tile)
         if plan.tile_culling:
-            out += [write("tile_entries", Buffer(lambda s: frame_tiles(s) * (TILE_ENTRIES + 1) * 4,
-                                                 f"{TILE_ENTRIES + 1} words per {TILE_RAYS}-pixel tile")),
-                    write("tile_planes", Buffer(lambda s: frame_tiles(s) * 80, "5 planes per tile"))]
+            out += [write("tile_entries", Buffer(lambda s: tiles(s) * (entries + 1) * 4,
+                                                 f"{entries + 1} words per {tile[0] * tile[1]}-pixel tile")),
+                    write("tile_planes", Buffer(lambda s: tiles(s) * 80, "5 planes per tile"))]
         if plan.block_culling:
-            out += [write("tile_boxes", Buffer(lambda s: frame_tiles(s) * 48, "3 vec4 per tile")),
-                    write("block_entries", Buffer(lambda s: frame_blocks(s) * (TILE_ENTRIES + 1) * 4,
-                                                  f"{TILE_ENTRIES + 1} words per block of tiles")),
-                    write("block_planes", Buffer(lambda s: frame_blocks(s) * 80, "5 planes per block"))]
+            out += [write("tile_boxes", Buffer(lambda s: tiles(s) * 48, "3 vec4 per tile")),
+                    write("block_entries", Buffer(lambda s: frame_blocks(s, tile, side) * (entries + 1) * 4,
+                                                  f"{entries + 1} words per block of tiles")),
+                    write("block_planes", Buffer(lambda s: frame_blocks(s, tile, side) * 80, "5 planes per block"))]
         if plan.share_channels:
             out.append(write("channel_weight", CHANNEL_WEIGHT))
         if plan.tile_lists:
-            out.append(write("tile_tris", Buffer(lambda s, n=plan.tile_lists: frame_tiles(s) * (n + 1) * 8,
+            out.append(write("tile_tris", Buffer(lambda s, n=plan.tile_lists: tiles(s) * (n + 1) * 8,
                                                  f"{plan.tile_lists + 1} x 8 bytes per tile")))
         return out
 
@@ -443,7 +517,7 @@ class PrimaryRaysPass(Pass):
         # the primary rays' BVH layout; tile entry lists name binary child pairs
         self.layout = "bvh2" if plan.tile_culling else plan.traversal[0]
         self.block = msaa_block(plan.samples)
-        tiles = {"TILE_RAYS": TILE_RAYS, "TILE_ENTRIES": TILE_ENTRIES, "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
+        tiles = {**tile_defines(plan), "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
                  "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
         lists = {"TILE_TRIS": plan.tile_lists, "TILE_TRIS_BINDING": SSBO["tile_tris"]} if plan.tile_lists else {}
         base = {**layout_defines(DEFAULT_BINDING, self.layout), **camera_defines(plan), "SAMPLED": int(plan.sampled),
@@ -459,7 +533,8 @@ class PrimaryRaysPass(Pass):
         # tiles: the tiles with a list (tile_samples.comp), and per ray from the entries where a list
         # overflowed (primary.comp). One program with both paths held the BVH walk's registers in the
         # list path too (H200, room, 16x: 13.7 ms, 10.7 without the walk).
-        self.group = sample_group(subrays(plan) if self.msaa else 1)
+        self.tile = plan.tile_pixels
+        self.group = sample_group(subrays(plan) if self.msaa else 1, self.tile)
         self.samples = (shaders.compute(gl.ctx, "rt/tile_samples.comp",
                                         {**base, "SAMPLE_MODE": int(self.msaa), "SAMPLE_GROUP": self.group})
                         if plan.tile_lists else None)
@@ -565,7 +640,7 @@ class PrimaryRaysPass(Pass):
                 fc.resource(name).bind_to_storage_buffer(SSBO[name])
         if not fc.round.first:
             return   # one cull per channel set (with shared channel shading one set of all three)
-        nx, ny = tile_grid(*fc.sizing.size)
+        nx, ny = tile_grid(*fc.sizing.size, self.tile)
         layers, barrier = fc.sizing.layers, lambda: fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
         if "beams" in self.cull:   # HVVR's block beams: tile frusta, the blocks' cuts, then the tiles'
             beams, blocks = self.cull["beams"], self.cull["blocks"]
@@ -574,7 +649,8 @@ class PrimaryRaysPass(Pass):
             blocks["tile_count"].value = (nx, ny)
             grid = (-(-nx * ny // PLANAR_BEAM_GROUP), 1) if self.planar else (nx, ny)
             fc.stage("beams", lambda: (beams.run(*grid, layers), barrier()))
-            fc.stage("blocks", lambda: (blocks.run(*block_grid(*fc.sizing.size), layers), barrier()))
+            grid_b = block_grid(*fc.sizing.size, self.tile, fc.plan.block_tiles)
+            fc.stage("blocks", lambda: (blocks.run(*grid_b, layers), barrier()))
         else:
             set_eye_uniforms(self.cull["cull"], fc)
             self.cull["cull"]["image_size"].value = tuple(fc.sizing.size)
@@ -597,8 +673,8 @@ class PrimaryRaysPass(Pass):
     def dispatch_sample_tests(self, fc) -> None:
         """With tile lists: tile_samples.comp, one workgroup per band of `self.group` pixels of a tile."""
         if self.samples is not None:
-            nx, ny = tile_grid(*fc.sizing.size)
-            self.samples.run(nx, ny * (TILE_RAYS // self.group), fc.sizing.layers)
+            nx, ny = tile_grid(*fc.sizing.size, self.tile)
+            self.samples.run(nx, ny * (self.tile[0] * self.tile[1] // self.group), fc.sizing.layers)
 
     def release(self) -> None:
         for p in [*self.programs.values(), *self.sample_tests(), *self.count_io, *self.fences.values(),
