@@ -364,6 +364,18 @@ def test_the_fastest_variant_is_chosen_on_its_worst_pose_among_primary_knobs_onl
     assert chosen["dof"][4]["variant"] == "blocks" and chosen["dof"][4]["worst_ms"]["blocks"] == 4.0
 
 
+def test_a_choice_is_judged_by_the_primary_pass_not_the_frame():
+    """The knobs change only the primary_rays pass: a variant whose frame was faster by another pass's
+    noise but whose primary pass was slower is not chosen."""
+    from rayvr.bench.vr import primary_choices
+
+    rows = [{**_choice_row("chosen", {}, "wide", 4, 0, 8.3), "passes": {"primary_rays": 2.80, "shade": 3.0}},
+            {**_choice_row("t8", {"tile_size": "8x8"}, "wide", 4, 0, 8.1, tile_size="8x8"),
+             "passes": {"primary_rays": 2.95, "shade": 2.6}}]
+    chosen = primary_choices(rows)["wide"][4]
+    assert chosen["variant"] == "chosen" and chosen["worst_ms"] == {"chosen": 2.80, "t8": 2.95}
+
+
 def test_the_renderer_takes_the_measured_choices(tmp_path, monkeypatch, gl):
     """A choices file (what bench vr writes from its variants) sets the knobs the settings leave to
     the renderer; explicit settings still win; a file breaking the knobs' rules is refused."""

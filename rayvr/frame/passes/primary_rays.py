@@ -163,10 +163,10 @@ SHARE_CHANNELS = declare(Option("share_channel_shading", bool, None, "a chromati
                                 "up to --msaa 8, where it measured faster on the H200",
                                 scope="plan", plan_field="share_channels", auto=True,
                                 commands=("capture", "preview", "info", "bench")))
-# Shared channel shading by default up to this --msaa: faster than the sets apart at 1x and 4x (H200,
-# Sponza and the room, worst pose: 6.9 / 14.4 ms against 11.1 / 21.1 on Sponza), slower at 16x
-# (47.9 against 44.5; its 48 sub-rays a pixel trace at 1.6x the sets' apart), 8x not timed
-# (bench/results/h200/2026-12-03/rounds2).
+# Shared channel shading by default up to this --msaa: faster than the sets apart at 1x, 4x and 8x (H200,
+# Sponza's worst pose: 6.9 / 14.4 / 23.9 ms against 11.1 / 21.1 / 38.6), slower at 16x (47.9 against
+# 44.5; its 48 sub-rays a pixel trace at 1.6x the sets' apart; bench/results/h200/2026-12-03/rounds2,
+# shapes/vr_shared8).
 SHARED_AUTO_MSAA = 8
 
 
