@@ -83,8 +83,8 @@ PRIMARY = declare(Option("primary", str, "raster", "primary visibility: the rast
                          "through the BVH (rays anyway where --msaa or the camera model needs them)", scope="plan",
                          plan_field="primary", choices=PRIMARY_MODES, label="primary visibility",
                          commands=("capture", "preview", "info")))
-TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visibility culls the BVH per 16x8-pixel "
-                              "tile first (a frustum over every sub-ray, lens point and channel of the tile; the same "
+TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visibility culls the BVH per tile of "
+                              "pixels first (--tile-size; a frustum over every sub-ray, lens point and channel of the tile; the same "
                               "hits, exact) and walks the binary layout; auto: where it measured faster on the H200 "
                               "(rayvr/assets/primary_visibility.json: every camera model but foveated, with block "
                               "culling); bench primary: each rays row without and with it",
@@ -93,7 +93,7 @@ TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visi
 
 
 BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary visibility with tile culling first "
-                               "cuts the BVH per block of 8x8 tiles (HVVR's block beams: a frustum over the tiles' "
+                               "cuts the BVH per block of tiles (--block-tiles; HVVR's block beams: a frustum over the tiles' "
                                "frusta), and each tile's cut starts from its block's entries instead of the root "
                                "(the same hits, exact); auto: where it measured faster on the H200 "
                                "(rayvr/assets/primary_visibility.json: every camera model but foveated)",
@@ -132,7 +132,7 @@ BLOCK_TILES_OPTION = declare(Option("block_tiles", int, None, "ray-cast primary 
                                     label="block side", implies=(("block_culling", True),),
                                     metavar="N", commands=("capture", "preview", "info", "bench")))
 TILE_LIST_BOUNDS = (16, 32, 64, 128, 256, 512, 1024)  # triangles a tile's list may hold (a power of two: its sort)
-TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibility tests each 16x8-pixel tile's rays "
+TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibility tests each tile's rays "
                             "against the tile's own list of at most N triangles (those of its frustum, nearest "
                             "first, from workgroup memory; the same hits, exact); a tile with more walks the BVH "
                             "from its entries; 0: off; implies tile culling; auto: where it measured faster",
