@@ -82,7 +82,7 @@ IMAGE = {"hdr": 0, "ldr": 1,
          "accum_in": 2, "accum_moments_in": 3, "accum_out": 4, "accum_moments_out": 5,
          "accum_history_out": 6, "accum_history_moments_out": 7,
          "denoise_in": 2, "denoise_out": 3, "denoise_moments": 4, "denoise_color": 5, "denoise_guide": 6,
-         "denoise_gradient": 7,
+         "denoise_gradient": 7, "denoise_variance": 1,
          "layer2": 2, "layer2_triangle": 3,  # frame/passes/second_layer.py
          "warp_color": 2, "warp_depth": 3,  # frame/passes/warp.py (glsl/stereo/warp.comp)
          "dof_in": 2, "dof_out": 3,  # frame/passes/dof.py (glsl/post/dof.comp)

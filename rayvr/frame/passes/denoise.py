@@ -53,6 +53,7 @@ class DenoiseParams:
 DEFAULTS = DenoiseParams()
 GUIDE = Texture("rgba32ui")  # depth, octahedral normal, 8-bit base colour, effect: one fetch per tap
 GRADIENT = Texture("rg32f")  # the view depth's screen-space gradient, once per frame
+VARIANCE = Texture("r32f")  # the variance blurred 3x3, for each iteration after the first
 
 
 class DenoisePass(Pass):
@@ -67,11 +68,11 @@ class DenoisePass(Pass):
     def io(self, plan: FramePlan) -> list:
         return [read("gbuffer"), read("hdr_accum"), read("accum_moments"),
                 write("denoise.ping", ACCUM), write("denoise.pong", ACCUM), write("denoise.guide", GUIDE),
-                write("denoise.gradient", GRADIENT), write("hdr_denoised", ACCUM)]
+                write("denoise.gradient", GRADIENT), write("denoise.variance", VARIANCE), write("hdr_denoised", ACCUM)]
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.programs = {s: shaders.compute(gl.ctx, "post/denoise.comp", {"DENOISE_STAGE": s, "DENOISE_TILE": DENOISE_TILE})
-                         for s in (0, 1, 2)}
+                         for s in (0, 1, 2, 3)}
 
     def execute(self, fc) -> None:
         iterations = int(fc.settings.denoise_iterations)
@@ -83,6 +84,7 @@ class DenoisePass(Pass):
         color.bind_to_image(IMAGE["denoise_color"], read=True, write=False)
         moments.bind_to_image(IMAGE["denoise_moments"], read=True, write=False)
         fc.resource("denoise.gradient").bind_to_image(IMAGE["denoise_gradient"], read=True, write=True)
+        fc.resource("denoise.variance").bind_to_image(IMAGE["denoise_variance"], read=True, write=True)
         for p in self.programs.values():
             for k, v in {**DEFAULTS.__dict__, "denoise_effects": mask}.items():
                 if k in p:
@@ -112,7 +114,9 @@ class DenoisePass(Pass):
 
             def iterate(i=i, src=src, dst=dst, last=last):
                 src.bind_to_image(IMAGE["denoise_in"], read=True, write=False)
-                p = self.programs[2]  # with the 3x3 blur of its input's variance (one dispatch, not two)
+                if i > 0:  # the 3x3 blur of its input's variance (the first iteration blurs in its own tile)
+                    over_tiles(self.programs[3])
+                p = self.programs[2]
                 p["step_size"].value = 1 << i
                 p["last_iteration"].value = int(last)
                 (out if last else dst).bind_to_image(IMAGE["denoise_out"], read=False, write=True)

@@ -11,13 +11,15 @@
 //                    weighted by depth, normal, albedo and luminance scaled by the input's variance
 //                    blurred 3x3 over the same effect; the last iteration multiplies the albedo back
 //                    and writes the output
+//   DENOISE_STAGE 3  denoised pixels: that variance blur, ahead of an iteration of step 2 or more
 // Stages 1-2 read their taps from workgroup memory: a work group loads the guides and values of a
 // 16x16 lattice of pixels `step` apart plus an apron of APRON lattice points once (à-trous taps of
 // step 2^i fall on the same lattice), instead of every pixel fetching 25-49 taps itself (4.7 ms at
 // 2x1440x1600 on the H200 that way). A group whose pixels are all undenoised stops after one fetch each.
-// The 3x3 variance blur's taps are 1 pixel apart: from the tile at step 1, else 8 fetches of
-// neighbouring pixels (cached), in the iteration's own dispatch rather than a dispatch and a tile load
-// of their own.
+// The 3x3 variance blur's taps are 1 pixel apart: the first iteration (step 1) takes them from its
+// own tile; the others get the blur from a stage-3 dispatch over the step-1 lattice. (Fetching the 8
+// neighbours in a step-2^i iteration instead was slower on the H200: 2.11 -> 2.30 ms for 4 iterations,
+// the room, bench/results/h200/2026-12-03/denoise_fused: a lattice group's neighbours are scattered.)
 #include "../common/gbuffer.glsl"
 #include "demodulate.glsl"
 
@@ -33,8 +35,10 @@ layout(rgba32f, binding = IMAGE_DENOISE_COLOR) uniform readonly image2DArray col
 layout(rgba32f, binding = IMAGE_DENOISE_MOMENTS) uniform readonly image2DArray moments_in;
 layout(rgba32f, binding = IMAGE_DENOISE_IN) uniform readonly image2DArray filter_in;  // rgb demodulated, a variance
 layout(rgba32f, binding = IMAGE_DENOISE_OUT) uniform writeonly image2DArray filter_out;
-// x, y: view depth gradient per pixel (stage 1 writes, stage 2 reads)
+// x, y: view depth gradient per pixel (stage 1 writes, stage 2 reads); the blurred variance (stage 3
+// writes, stage 2 reads at steps of 2 or more)
 layout(rg32f, binding = IMAGE_DENOISE_GRADIENT) uniform image2DArray gradient_image;
+layout(r32f, binding = IMAGE_DENOISE_VARIANCE) uniform image2DArray variance_image;
 // x view depth (float bits), y octahedral normal (snorm 2x16), z base colour (unorm 4x8), w effect ID
 #if DENOISE_STAGE == 0
 layout(rgba32ui, binding = IMAGE_DENOISE_GUIDE) uniform writeonly uimage2DArray guide_out;
@@ -68,6 +72,8 @@ struct Guide { float depth; vec3 normal; vec3 albedo; uint effect; };
 #if DENOISE_STAGE != 0
 #if DENOISE_STAGE == 1
 #define APRON 3  // the 7x7 spatial variance
+#elif DENOISE_STAGE == 3
+#define APRON 1  // the 3x3 variance blur
 #else
 #define APRON 2  // the 5x5 à-trous taps
 #endif
@@ -82,7 +88,7 @@ shared uint tile_any;
 
 bool denoised(uint effect) { return effect < 32u && ((denoise_effects >> effect) & 1u) != 0u; }
 
-// The value a stage filters at pixel q: stage 1 the demodulated colour, 2 the previous
+// The value a stage filters at pixel q: stage 1 the demodulated colour, 2 and 3 the previous
 // iteration's (demodulated colour, variance).
 vec4 stage_value(ivec3 q) {
 #if DENOISE_STAGE == 1
@@ -176,27 +182,17 @@ float geometry_log2_weight(Centre c, Guide q, ivec2 offset) {
 
 const float B3[3] = float[3](3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0);  // (1 4 6 4 1) / 16
 
-#if DENOISE_STAGE == 2
-// The input's variance at p blurred 3x3 (Gaussian) over the pixels of the centre's effect: a
-// steadier scale for the luminance edge-stop than one pixel's estimate. Its taps are the pixels 1
-// apart: the tile's own lattice at step 1, else fetched (neighbours: cached).
-float blurred_variance(ivec3 p, int step, uint effect) {
-    ivec2 size = imageSize(guide_in).xy;
+#if DENOISE_STAGE >= 2
+// The input's variance at this invocation's pixel blurred 3x3 (Gaussian) over the pixels of the
+// centre's effect, from a tile of step 1: a steadier scale for the luminance edge-stop than one
+// pixel's estimate.
+float blurred_variance(uint effect) {
     float vs = 0.0, vw = 0.0;
     for (int dy = -1; dy <= 1; dy++) {
         for (int dx = -1; dx <= 1; dx++) {
-            float v;
-            if (step == 1) {
-                if (tile_look[tile_index(dx, dy)].y != effect) continue;
-                v = tile_value[tile_index(dx, dy)].a;
-            } else {
-                ivec3 q = p + ivec3(dx, dy, 0);
-                if (any(lessThan(q.xy, ivec2(0))) || any(greaterThanEqual(q.xy, size)) || imageLoad(guide_in, q).w != effect)
-                    continue;
-                v = imageLoad(filter_in, q).a;
-            }
+            if (tile_look[tile_index(dx, dy)].y != effect) continue;
             float k = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
-            vs += k * v; vw += k;
+            vs += k * tile_value[tile_index(dx, dy)].a; vw += k;
         }
     }
     return vs / vw;
@@ -246,11 +242,14 @@ void main() {
         var = max(s2 - s1 * s1, 0.0);
     }
     imageStore(filter_out, p, vec4(illum, var));
+#elif DENOISE_STAGE == 3
+    imageStore(variance_image, p, vec4(blurred_variance(c.g.effect)));
 #else
     vec4 centre_value = tile_value[tile_index(0, 0)];
     c.grad = imageLoad(gradient_image, p).xy;
     c.lum = luminance(centre_value.rgb);
-    c.sigma_l = sigma_luminance * sqrt(max(blurred_variance(p, step, c.g.effect), 0.0)) + 1e-10;
+    float var = step == 1 ? blurred_variance(c.g.effect) : imageLoad(variance_image, p).x;
+    c.sigma_l = sigma_luminance * sqrt(max(var, 0.0)) + 1e-10;
     float log2_per_luminance = LOG2_E / c.sigma_l;
     float w0 = B3[0] * B3[0];
     float sum_w = w0;
