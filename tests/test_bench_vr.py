@@ -46,6 +46,8 @@ def test_the_quick_bench_times_every_cell_on_every_pose(quick):
     for r in rows:
         assert math.isfinite(r["frame_ms"]) and r["frame_ms"] > 0, r
         assert r["passes"] and all(math.isfinite(v) and v >= 0 for v in r["passes"].values()), r
+        # the render loop's times: a frame's CPU recording, and the wall time a frame back to back
+        assert 0 < r["record_ms"] and 0 < r["pipelined_ms"] and math.isfinite(r["pipelined_ms"]), r
         assert ("visibility" if r["camera"] == "raster_gbuffer" else "primary_rays") in r["passes"]
         assert r["primary"] == ("raster" if r["camera"] == "raster_gbuffer" else "rays")
         assert r["pose"] == poses[r["pose"]["index"]]
@@ -54,20 +56,22 @@ def test_the_quick_bench_times_every_cell_on_every_pose(quick):
 
 
 def _md_cells(md: str) -> dict:
-    """vr.md's table rows: (scene, config, variant, camera, msaa) -> (median, worst, best, worst pose)."""
+    """vr.md's table rows: (scene, config, variant, camera, msaa) -> (median, worst, best, worst pose,
+    CPU record / pipelined cell)."""
     out, scene = {}, None
     for line in md.splitlines():
         if line.startswith("## "):
             scene = line[3:].strip()
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if scene and line.startswith("|") and len(cells) == 13 and cells[4].isdigit():
+        if scene and line.startswith("|") and len(cells) == 14 and cells[4].isdigit():
             key = (scene, cells[0], cells[1], cells[2], int(cells[4]))
-            out[key] = (float(cells[6]), float(cells[7]), float(cells[8]), int(cells[9]))
+            out[key] = (float(cells[6]), float(cells[7]), float(cells[8]), int(cells[9]), cells[11])
     return out
 
 
 def test_the_worst_column_is_the_slowest_pose(quick):
-    """vr.md's median / worst / best frame ms of a cell, recomputed from vr.json's rows of its poses."""
+    """vr.md's median / worst / best frame ms of a cell, and its render loop's CPU record / pipelined
+    frame medians, recomputed from vr.json's rows of its poses."""
     result, md = quick
     table = _md_cells(md)
     groups: dict = {}
@@ -76,8 +80,11 @@ def test_the_worst_column_is_the_slowest_pose(quick):
     assert set(table) == set(groups)
     for key, rows in groups.items():
         frame = [r["frame_ms"] for r in rows]
-        median, worst, best, worst_pose = table[key]
+        median, worst, best, worst_pose, loop = table[key]
         assert worst == pytest.approx(max(frame), abs=6e-4), key
+        record, pipelined = (float(v) for v in loop.split(" / "))
+        assert record == pytest.approx(float(np.median([r["record_ms"] for r in rows])), abs=6e-4), key
+        assert pipelined == pytest.approx(float(np.median([r["pipelined_ms"] for r in rows])), abs=6e-4), key
         assert best == pytest.approx(min(frame), abs=6e-4), key
         assert median == pytest.approx(float(np.median(frame)), abs=6e-4), key
         assert worst_pose == max(rows, key=lambda r: r["frame_ms"])["pose"]["index"]

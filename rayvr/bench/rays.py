@@ -264,6 +264,28 @@ def time_frame(renderer, rig, repeat, warmup, warmup_s=0.3):
     return names, med, float(np.median(totals))
 
 
+PIPELINED_FRAMES = 20  # frames a render loop records back to back in time_pipelined
+
+
+def time_pipelined(renderer, rig, frames: int = PIPELINED_FRAMES) -> dict:
+    """What a render loop meets beside the GPU's passes: `frames` frames recorded back to back, then
+    one finish. `record_ms`: the median CPU time of one frame's recording; `pipelined_ms`: the wall
+    time a frame over the loop. Where the CPU records slower than the GPU runs (small frames of many
+    MSAA rounds) the GPU waits for commands, inside whichever pass's timer window is open: then the
+    passes' sum overstates the GPU's work, and the pipelined time is the frame rate
+    (bench/results/h200/2026-12-03/final/bubble)."""
+    renderer.gl.ctx.finish()
+    spent = []
+    start = time.perf_counter()
+    for _ in range(frames):
+        t0 = time.perf_counter()
+        renderer.record(rig, "both", "color")
+        spent.append(time.perf_counter() - t0)
+    renderer.gl.ctx.finish()
+    wall = time.perf_counter() - start
+    return {"record_ms": float(np.median(spent)) * 1e3, "pipelined_ms": wall / frames * 1e3}
+
+
 def time_stages(renderer, rig, prefix: str, repeat=5) -> dict:
     """Median GPU ms over `repeat` frames timed kernel by kernel (GL timer queries) of each kernel of
     the passes whose names start with `prefix` ("rt_shadows.shadow", ...), summed over a frame's rounds."""

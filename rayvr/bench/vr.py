@@ -20,7 +20,11 @@ grid is timed on each of them:
 
 Each (cell, pose) is one row of vr.json: the median GPU ms of the frame and of every pass over
 `repeat` frames after a warm-up that lasts until frame times settle (bench/rays.py time_frame; GL
-timer queries), and `visibility_ms`, what makes the G-buffer (bench/primary.py's definition). vr.md
+timer queries), `visibility_ms`, what makes the G-buffer (bench/primary.py's definition), and
+what a render loop meets (bench/rays.py time_pipelined): `record_ms`, the CPU's recording of a
+frame, and `pipelined_ms`, the wall time a frame of frames recorded back to back (where the CPU is
+the slower, the GPU's idle time falls inside the passes' timer windows and `frame_ms` overstates
+the GPU's work). vr.md
 has a table per scene: each cell's median, worst and best frame over the poses, the pose that was
 worst, and its most expensive passes. The report is rewritten after every cell (a run cut short keeps
 what it measured); rows of the scenes and configs a run does not measure stay from the folder's
@@ -44,7 +48,7 @@ from ..frame.passes.primary_rays import KNOB_DEFAULTS, MEASURED_CHOICES, PRIMARY
 from ..util.output import atomic_write_bytes
 from .head_poses import EYE_HEIGHT_M, MAX_PITCH_DEG, POSE_SEED, draw_poses, pose_bounds, region
 from .primary import CONFIGS as CAMERA_CONFIGS
-from .rays import MIRRORS, hybrid_config, time_frame, time_stages
+from .rays import MIRRORS, hybrid_config, time_frame, time_pipelined, time_stages
 from .report import device_meta, write_report
 from .scenes import bench_scenes, shipped_config
 
@@ -158,11 +162,12 @@ def round_totals(row: dict) -> list[float]:
 
 def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: float) -> dict:
     names, med, total = time_frame(r, rig, repeat, warmup, warmup_s)
+    loop = time_pipelined(r, rig)
     passes = {k: med[k] for k in names if k in med}
     visibility = passes.get("visibility", 0.0) + passes.get("primary_rays", 0.0) + passes.get("gbuffer", 0.0)
     stages = primary_stages(r, rig) if "primary_rays" in passes else {}
     return {"frame_ms": total, "visibility_ms": visibility, "passes": passes, "primary_stages": stages,
-            "round_passes": round_passes(r, rig)}
+            "round_passes": round_passes(r, rig), **loop}
 
 
 def kept_rows(path: Path, meta: dict, measured: set) -> tuple[list, dict]:
@@ -177,6 +182,13 @@ def kept_rows(path: Path, meta: dict, measured: set) -> tuple[list, dict]:
         return rows, {s: m for s, m in om["scenes"].items() if any(r["scene"] == s for r in rows)}
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return [], {}
+
+
+def loop_cell(s: dict) -> str:
+    """vr.md's "CPU record / pipelined frame" cell of a spread() entry."""
+    if s.get("record_ms") is None:
+        return "-"
+    return f"{s['record_ms']:.3f} / {s['pipelined_ms']:.3f}"
 
 
 def spread(rows) -> list[dict]:
@@ -197,6 +209,9 @@ def spread(rows) -> list[dict]:
                     "worst_ms": max(frame), "best_ms": min(frame), "worst_pose": worst["pose"]["index"],
                     "visibility_median_ms": float(np.median([g["visibility_ms"] for g in group])),
                     "visibility_worst_ms": max(g["visibility_ms"] for g in group),
+                    # the CPU's recording and the render loop's frame (rows from before they were timed: None)
+                    **{k: (float(np.median([g[k] for g in group])) if all(k in g for g in group) else None)
+                       for k in ("record_ms", "pipelined_ms")},
                     "passes": dict(sorted(passes.items(), key=lambda kv: -kv[1])), "primary_stages": stages})
     return out
 
@@ -341,15 +356,16 @@ def markdown(result: dict) -> str:
                       f"{pick['base']}: measured {pick['measured_ms']:.2f} ms there ({fit}); "
                       + "; ".join(f"{e}: {', '.join(sorted(m))}" for e, m in sorted(by_effect.items())) + ".", ""]
         lines += ["| config | variant | camera | primary | MSAA | poses | median ms | worst ms | best ms | worst pose "
-                  "| visibility median / worst ms | top passes (median ms) | primary_rays stages (median ms) |",
-                  "|" + "---|" * 13]
+                  "| visibility median / worst ms | CPU record / pipelined frame ms (median) "
+                  "| top passes (median ms) | primary_rays stages (median ms) |",
+                  "|" + "---|" * 14]
         for s in (s for s in summary if s["scene"] == scene):
             top = ", ".join(f"{k} {v:.3f}" for k, v in list(s["passes"].items())[:TOP_PASSES])
             stages = ", ".join(f"{k} {v:.3f}" for k, v in s.get("primary_stages", {}).items()) or "-"
             lines.append(f"| {s['config']} | {s['variant']} | {s['camera']} | {s['primary']} | {s['msaa']} | "
                          f"{s['poses']} | {s['median_ms']:.3f} | {s['worst_ms']:.3f} | {s['best_ms']:.3f} | "
                          f"{s['worst_pose']} | {s['visibility_median_ms']:.3f} / {s['visibility_worst_ms']:.3f} | "
-                         f"{top} | {stages} |")
+                         f"{loop_cell(s)} | {top} | {stages} |")
         lines.append("")
         rounds = [(s, round_totals(worst_row(rows, s))) for s in summary if s["scene"] == scene]
         if any(ms for _, ms in rounds):
