@@ -22,9 +22,9 @@ SIZE = (160, 24)   # 10 x 3 tiles an eye: two blocks across, the second partial
 CASES = {name: case for name, case in LIST_CASES.items() if name != "pinhole 32x msaa"}
 
 
-def render(r, rig, samples, **kw):
-    """(triangle IDs, depth, colour of both eyes)."""
-    r.settings = RenderSettings(primary="rays", msaa=samples, share_channel_shading=False, **{**SHAPE, **kw})
+def render(r, rig, samples, share=False, **kw):
+    """(triangle IDs, depth, colour of both eyes); `share`: share_channel_shading (None: auto)."""
+    r.settings = RenderSettings(primary="rays", msaa=samples, share_channel_shading=share, **{**SHAPE, **kw})
     f = r.render(rig, aux=("triangle",))
     both = lambda a, b: np.stack([a, b])
     return (both(f.left.aux["triangle"], f.right.aux["triangle"]), both(f.left.depth, f.right.depth),

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import camera_rig
-from test_block_culling import subtree_sets
+from test_block_culling import render as render_both, subtree_sets, words
 from test_tile_culling_frame import gl_tile_rays
 
 from rayvr.accel.frustum import tile_grid
@@ -40,16 +40,8 @@ SHAPES = {
 
 
 def render(r, rig, samples, **kw):
-    """(triangle IDs, depth, colour of both eyes)."""
-    r.settings = RenderSettings(primary="rays", msaa=samples, **kw)
-    f = r.render(rig, aux=("triangle",))
-    both = lambda a, b: np.stack([a, b])
-    return (both(f.left.aux["triangle"], f.right.aux["triangle"]), both(f.left.depth, f.right.depth),
-            both(f.left.color, f.right.color))
-
-
-def words(r, name, count, per):
-    return np.frombuffer(r.resource(name).read(), np.uint32)[:count * per].reshape(count, per)
+    """(triangle IDs, depth, colour of both eyes), the channel sets shared where the renderer picks it."""
+    return render_both(r, rig, samples, share=None, **kw)
 
 
 @pytest.mark.parametrize("shape", list(SHAPES))
