@@ -392,7 +392,8 @@ def markdown(result: dict) -> str:
                   + (f"{CHOICES_FILE} holds the choices (copy it to rayvr/assets/ for the renderer to take them)."
                      if meta.get("timings_meaningful", True) else
                      f"a software rasterizer's timings say nothing: no {CHOICES_FILE} written."), "",
-                  "| camera model | MSAA | chosen | its knobs | worst primary_rays ms per variant |", "|---|---|---|---|---|"]
+                  "| camera model | MSAA | chosen | its knobs | worst primary_rays ms per variant |",
+                  "|---|---|---|---|---|"]
         for model, counts in chosen.items():
             for msaa, c in counts.items():
                 knobs = ", ".join(f"{k}={v}" for k, v in c["knobs"].items())

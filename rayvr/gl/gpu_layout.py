@@ -167,7 +167,8 @@ def glsl_header() -> str:
             # the defaults of a tile's and a block's shape: the primary-ray pass gives its plan's own
             # (frame/passes/primary_rays.py tile_defines, measured per camera model)
             "#ifndef TILE_W", f"#define TILE_W {TILE_PIXELS[0]}", f"#define TILE_H {TILE_PIXELS[1]}", "#endif",
-            "#ifndef BLOCK_TILES_X", f"#define BLOCK_TILES_X {BLOCK_TILES[0]}", f"#define BLOCK_TILES_Y {BLOCK_TILES[1]}",
+            "#ifndef BLOCK_TILES_X", f"#define BLOCK_TILES_X {BLOCK_TILES[0]}",
+            f"#define BLOCK_TILES_Y {BLOCK_TILES[1]}",
             f"#define BLOCK_TILES {BLOCK_TILES[0] * BLOCK_TILES[1]}",  # a literal: local_size_x (GLSL 4.30)
             "#endif",
             f"#define BVH_FACE_SLACK {BVH_FACE_SLACK!r}"]

@@ -84,8 +84,9 @@ PRIMARY = declare(Option("primary", str, "raster", "primary visibility: the rast
                          plan_field="primary", choices=PRIMARY_MODES, label="primary visibility",
                          commands=("capture", "preview", "info")))
 TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visibility culls the BVH per tile of "
-                              "pixels first (--tile-size; a frustum over every sub-ray, lens point and channel of the tile; the same "
-                              "hits, exact) and walks the binary layout; auto: where it measured faster on the H200 "
+                              "pixels first (--tile-size; a frustum over every sub-ray, lens point and channel of "
+                              "the tile; the same hits, exact) and walks the binary layout; auto: where it measured "
+                              "faster on the H200 "
                               "(rayvr/assets/primary_visibility.json: every camera model but foveated, with block "
                               "culling); bench primary: each rays row without and with it",
                               scope="plan", plan_field="tile_culling", auto=True,
@@ -93,8 +94,8 @@ TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visi
 
 
 BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary visibility with tile culling first "
-                               "cuts the BVH per block of tiles (--block-tiles; HVVR's block beams: a frustum over the tiles' "
-                               "frusta), and each tile's cut starts from its block's entries instead of the root "
+                               "cuts the BVH per block of tiles (--block-tiles; HVVR's block beams: a frustum over "
+                               "the tiles' frusta), and each tile's cut starts from its block's entries instead of the root "
                                "(the same hits, exact); auto: where it measured faster on the H200 "
                                "(rayvr/assets/primary_visibility.json: every camera model but foveated)",
                                scope="plan", plan_field="block_culling", auto=True,
@@ -114,7 +115,7 @@ def tile_pixels(text: str) -> tuple[int, int]:
     return int(w), int(h)
 
 
-TILE_SIZE = declare(Option("tile_size", str, None, "ray-cast primary visibility with tile culling: a tile's "
+TILE_SIZE_OPTION = declare(Option("tile_size", str, None, "ray-cast primary visibility with tile culling: a tile's "
                            "pixels (w x h), one frustum and entry list each; auto: the measured choice "
                            "(rayvr/assets/primary_visibility.json); implies tile culling", scope="plan",
                            plan_field="tile_pixels", choices=TILE_SIZES, auto=True, label="tile size", metavar="WxH",
@@ -125,7 +126,8 @@ TILE_ENTRIES_OPTION = declare(Option("tile_entries", int, None, "ray-cast primar
                                      "tighter cut, longer lists to walk); implies tile culling; auto: the measured "
                                      "choice", scope="plan", plan_field="tile_entries", choices=TILE_ENTRY_BOUNDS,
                                      auto=True, implies=(("tile_culling", True),),
-                                     label="tile entry bound", metavar="N", commands=("capture", "preview", "info", "bench")))
+                                     label="tile entry bound", metavar="N",
+                                     commands=("capture", "preview", "info", "bench")))
 BLOCK_TILES_OPTION = declare(Option("block_tiles", int, None, "ray-cast primary visibility with block culling: "
                                     "a block beam's tiles, N x N; implies block culling; auto: the measured choice",
                                     scope="plan", plan_field="block_tiles", choices=BLOCK_SIDES, auto=True,
@@ -331,8 +333,8 @@ def msaa_block(samples: int) -> tuple[int, int]:
     invocations, full warps: 48 sub-rays a 1-pixel group at 16x left a quarter of the lanes idle,
     the trace 2x the three sets cast apart, H200 Sponza bench/results/h200/2026-12-03/rounds). A
     power of two on both sides, so
-    a block lies in one tile (TILE_SIZES: powers of two, at least 8 a side): with tile lists the trace casts only the tiles whose list
-    overflowed, and leaves the group as a whole (a group over two tiles would leave some invocations
+    a block lies in one tile (TILE_SIZES: powers of two, at least 8 a side): with tile lists the
+    trace casts only the tiles whose list overflowed, and leaves the group as a whole (a group over two tiles would leave some invocations
     before the barriers the others reach: undefined, and wrong on the H200 with the 3 sub-rays of
     shared channel shading at 1x, where 64 // 3 = 21 pixels made 4x5 blocks)."""
     pixels = 1 << (max(1, MSAA_GROUP // samples).bit_length() - 1)
@@ -413,7 +415,8 @@ def planar_beams(plan) -> bool:
     return CAMERA_MODELS[plan.camera].rasterizable and not plan.share_channels
 
 
-def block_grid(width: int, height: int, tile: tuple[int, int] = TILE_PIXELS, side: int = BLOCK_TILES[0]) -> tuple[int, int]:
+def block_grid(width: int, height: int, tile: tuple[int, int] = TILE_PIXELS,
+               side: int = BLOCK_TILES[0]) -> tuple[int, int]:
     """Blocks (across, down) of side x side `tile`s of a width x height image (edge blocks partial)."""
     nx, ny = tile_grid(width, height, tile)
     return -(-nx // side), -(-ny // side)
@@ -480,7 +483,8 @@ class PrimaryRaysPass(Pass):
         sub = f", {plan.samples} sub-rays per sample ({plan.shading})" if plan.samples > 1 else ""
         sub += f", its {plan.channels} colour channel sets cast together (shared shading)" if plan.share_channels else ""
         shape = "x".join(map(str, plan.tile_pixels))
-        tiles = f", tile frustum culling ({shape}-pixel tiles, {plan.tile_entries} entries, bvh2)" if plan.tile_culling else ""
+        tiles = (f", tile frustum culling ({shape}-pixel tiles, {plan.tile_entries} entries, bvh2)"
+                 if plan.tile_culling else "")
         tiles += f", from {plan.block_tiles}x{plan.block_tiles}-tile block beams" if plan.block_culling else ""
         tiles += f", tile triangle lists of {plan.tile_lists}" if plan.tile_lists else ""
         return f"primary visibility = rays ({plan.camera} camera{sub}{tiles})"
