@@ -58,6 +58,7 @@ import numpy as np
 
 from ..gl.glsl_constants import declare
 from ..gl.gpu_layout import SSRT_RAY_GROUP
+from ..gl.shaders import declares
 
 # A screen-space ray's status, shared by the three tracers (quadtree, bench/tracers/hiz.py, bench/tracers/dda.py)
 HIT = declare("SSRT_HIT", 1, uint=True)
@@ -176,7 +177,7 @@ def set_level_uniforms(program, size, prefix: str, per_layer_name: str) -> None:
     table[:len(sizes), 2] = offs
     for name, value in ((f"{prefix}_level", table.tobytes()), (f"{prefix}_top", np.int32(len(sizes) - 1).tobytes()),
                         (per_layer_name, np.uint32(per_layer).tobytes())):
-        if name in program:
+        if declares(program, name):
             program[name].write(value)
 
 

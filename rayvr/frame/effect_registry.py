@@ -35,6 +35,7 @@ import numpy as np
 
 from ..gl import gpu_layout
 from ..gl.gpu_layout import BACKGROUND_EFFECT, MAX_EFFECT_ID, PARAM_WORDS  # noqa: F401  (the registry's names too)
+from ..gl.shaders import declares
 
 PARAM_TYPES = (int, float)
 # Where a parameter's value lives: "material", a word of each material's GPU block (the shaders read
@@ -145,7 +146,7 @@ class Effect:
     def frame_uniforms(self, program, users) -> None:
         """Set `program`'s uniform param_<name> of each frame-scoped parameter it declares."""
         for k, v in self.frame_values(users).items():
-            if f"param_{k}" in program:
+            if declares(program, f"param_{k}"):
                 program[f"param_{k}"].value = v
 
     def __repr__(self) -> str:

@@ -255,7 +255,7 @@ class DdaTracer:
             raise ValueError(f"stride must be >= 1 pixel, got {stride}")
         prog = self.program
         for name, value in eyes[0].camera.uniforms(list(eyes), scene_origin).items():
-            if name in prog:
+            if shaders.declares(prog, name):
                 prog[name].write(np.ascontiguousarray(value).tobytes())
         rays = pack_screen_rays(origins, directions, eye)
         n = len(rays)

@@ -246,7 +246,7 @@ class HizTracer:
 
     def _set_eyes(self, program) -> None:
         for name, value in self._eye_values.items():
-            if name in program:
+            if shaders.declares(program, name):
                 program[name].write(np.ascontiguousarray(value).tobytes())
 
     def levels(self, layer: int = 0) -> list[np.ndarray]:

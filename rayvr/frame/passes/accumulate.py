@@ -75,7 +75,7 @@ class AccumulatePass(Pass):
             p["history_cap"].value = float(HISTORY_CAP) if moved else NO_CAP
             if moved:
                 for k in ("eye_position", "eye_rotation", "eye_tangents"):
-                    if f"prev_{k}" in p:
+                    if shaders.declares(p, f"prev_{k}"):
                         p[f"prev_{k}"].write(state.previous[k].tobytes())
             src[0].bind_to_image(IMAGE["accum_in"], read=True, write=False)
             src[1].bind_to_image(IMAGE["accum_moments_in"], read=True, write=False)

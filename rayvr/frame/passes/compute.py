@@ -5,6 +5,7 @@ import moderngl
 import numpy as np
 
 from ...gl.glsl_constants import declare
+from ...gl.shaders import declares
 
 TILE = declare("PIXEL_TILE", 8)  # local_size_x/y of every per-pixel compute shader
 
@@ -28,7 +29,7 @@ def dispatch_frame(fc, program: moderngl.ComputeShader, grid: tuple, listed: boo
     through the round's gate where the round may lie past its channel set's count (Round.gate), else
     directly."""
     tiles = fc.round.tiles if listed else None
-    if "round_listed" in program:
+    if declares(program, "round_listed"):
         program["round_listed"].value = int(tiles is not None)
     if tiles is not None:
         program.run_indirect(tiles)
@@ -64,6 +65,6 @@ def set_eye_uniforms(program, fc) -> None:
             cache["camera"] = block
     channel = np.array([getattr(getattr(fc, "round", None), "channel", 0)], np.int32).tobytes()
     for name, value in {**block, "camera_channel": channel}.items():
-        if name in program:
+        if declares(program, name):
             program[name].write(value)
     model.bind(fc.gl)

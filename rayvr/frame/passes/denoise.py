@@ -87,7 +87,7 @@ class DenoisePass(Pass):
         fc.resource("denoise.variance").bind_to_image(IMAGE["denoise_variance"], read=True, write=True)
         for p in self.programs.values():
             for k, v in {**DEFAULTS.__dict__, "denoise_effects": mask}.items():
-                if k in p:
+                if shaders.declares(p, k):
                     p[k].value = v
         w, h = fc.sizing.size
 

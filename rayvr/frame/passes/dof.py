@@ -58,7 +58,7 @@ class DofPass(Pass):
         for name, v in (("dof_diameter", float(st.dof_diameter)), ("dof_focus", float(st.dof_focus)),
                         ("dof_samples", int(st.dof_samples)), ("dof_thickness", THICKNESS),
                         ("frame_seed", int(st.seed))):
-            if name in p:
+            if shaders.declares(p, name):
                 p[name].value = v
         fc.gbuffer.bind_for_reading()
         fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])

@@ -60,7 +60,7 @@ def set_tree_uniforms(program, size, eyes: int) -> None:
     """qt_level, qt_top, qt_layer_nodes, qt_eyes of glsl/ssrt/quadtree.glsl for `eyes` eye images
     of `size` (tree layer = depth layer x eyes + eye)."""
     set_level_uniforms(program, size, "qt", "qt_layer_nodes")
-    if "qt_eyes" in program:
+    if shaders.declares(program, "qt_eyes"):
         program["qt_eyes"].value = int(eyes)
 
 
@@ -84,7 +84,7 @@ class QuadtreeBuilder:
         if self.depth_layers > 1:
             layer2.use(UNIT["layer2"])
         for name, v in (("gamma_norm", gamma_norm), ("gamma_dist", gamma_dist), ("gamma_adapt", gamma_adapt)):
-            if name in prog:
+            if shaders.declares(prog, name):
                 prog[name].value = float(v)
         gbuffer.bind_for_reading()
         nodes.bind_to_storage_buffer(SSBO["quadtree_nodes"])
@@ -230,7 +230,7 @@ class QuadtreeTracer:
 
     def _set_eyes(self, program) -> None:
         for name, value in self._eye_values.items():
-            if name in program:
+            if shaders.declares(program, name):
                 program[name].write(np.ascontiguousarray(value).tobytes())
 
     def levels(self, layer: int = 0) -> list[np.ndarray]:
@@ -262,7 +262,7 @@ class QuadtreeTracer:
         set_tree_uniforms(self.program, self.size, self.layers)
         for name, v in (("trace_layers", int(layers)), ("trace_thickness", float(thickness)),
                         ("qt_start", int(start_level))):
-            if name in self.program:
+            if shaders.declares(self.program, name):
                 self.program[name].value = v
         self._set_eyes(self.program)
         self.nodes.bind_to_storage_buffer(SSBO["quadtree_nodes"])

@@ -104,7 +104,7 @@ class RayOrder:
         program["order_lo"].value, program["order_scale"].value = tuple(map(float, lo)), tuple(map(float, scale))
         program["order_capacity"].value = capacity
         for k, v in uniforms.items():
-            if k in program:
+            if shaders.declares(program, k):
                 program[k].value = v
         pairs.bind_to_storage_buffer(SSBO["wave_order"])
         program.run(*dispatch_shape(capacity, ORDER_GROUP))

@@ -126,7 +126,7 @@ class ReuseMapPass(Pass):
         w, h = fc.gbuffer.size
         for name, p in self.programs.items():
             set_eye_uniforms(p, fc)
-            if "reuse_tolerance" in p:
+            if shaders.declares(p, "reuse_tolerance"):
                 p["reuse_tolerance"].value = self.tolerance
 
             def go(p=p):

@@ -44,7 +44,7 @@ class SampleAccumulatePass(Pass):
     def execute(self, fc) -> None:
         rnd = fc.round
         self.program["first"].value = int(rnd.index == 0)
-        if "channel" in self.program:   # (shared channel shading weighs each channel on its own)
+        if shaders.declares(self.program, "channel"):   # (shared channel shading weighs each channel on its own)
             self.program["channel"].value = rnd.channel if fc.plan.channels > 1 else -1
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=True, write=False)
         fc.resource("sample_weight").bind_to_image(IMAGE["sample_weight"], read=True, write=False)

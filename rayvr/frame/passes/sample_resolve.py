@@ -43,7 +43,7 @@ class SampleResolvePass(Pass):
         steps = [(DITHER_BITS, 0)] + [(k, step) for k in range(DITHER_BITS - 1, -1, -1) for step in (0, 1)]
         for level, step in steps:  # copy the samples, then fill coarse to fine: cell centres, edges
             self.program["resolve_level"].value = level
-            if "resolve_step" in self.program:
+            if shaders.declares(self.program, "resolve_step"):
                 self.program["resolve_step"].value = step
             dispatch_per_pixel(fc, self.program)
 

@@ -203,7 +203,7 @@ class TraceEffectPass(Pass):
         for p in self.programs.values():
             set_eye_uniforms(p, fc)
             for k, v in common.items():
-                if k in p:
+                if shaders.declares(p, k):
                     p[k].value = v
             self.effect.frame_uniforms(p, users)  # its frame-scoped parameters (uniform param_<name>)
         fc.gbuffer.bind_for_reading()
@@ -243,7 +243,7 @@ class TraceEffectPass(Pass):
             if tracing and self.persistent:
                 uniforms["wave_fetch_slot"] = next(fetch_slot)
             for k, v in uniforms.items():
-                if k in p:
+                if shaders.declares(p, k):
                     p[k].value = v
             if tracing and self.ray_order is not None:
                 order(name, items)
@@ -262,7 +262,7 @@ class TraceEffectPass(Pass):
         one_path, bounces, chunks, hit_chunks = shape.paths_per_pixel == 1, shape.bounces, shape.chunks, shape.hit_chunks
         for base in range(0, n_pixels, shape.batch):
             for p in self.programs.values():
-                if "wave_batch_base" in p:
+                if shaders.declares(p, "wave_batch_base"):
                     p["wave_batch_base"].value = base
             run("prep")
             fetch_slot = iter(range(shape.trace_kernels))

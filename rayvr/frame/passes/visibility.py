@@ -94,7 +94,7 @@ class VisibilityPass(Pass):
                     self.program["base_layer"].value = layer
                     vao.render(ctx.TRIANGLES, instances=1)
             else:
-                if "base_layer" in self.program:  # multiview shaders have no layer uniform
+                if shaders.declares(self.program, "base_layer"):  # multiview shaders have no layer uniform
                     self.program["base_layer"].value = 0
                 instanced = self.mode == "vertex"
                 vao.render(ctx.TRIANGLES, instances=len(fc.eyes) if instanced else 1)

@@ -102,7 +102,7 @@ class WarpPass(Pass):
         for layer, eye in enumerate(fc.out_eyes):
             # Camera slot 0: the central view (the tree's layer), slot 1: the eye being made.
             for name, value in center.camera.uniforms([center, eye], fc.scene.origin).items():
-                if name in p:
+                if shaders.declares(p, name):
                     p[name].write(np.ascontiguousarray(value).tobytes())
             p["warp_layer"].value = layer
             p.run((w + TILE - 1) // TILE, (h + TILE - 1) // TILE, 1)

@@ -22,7 +22,7 @@ def set_grid_uniforms(program, grid) -> None:
     values = {"grid_origin": tuple(float(x) for x in np.float32(grid.origin)),
               "grid_inv_cell": float(np.float32(1.0) / np.float32(grid.cell)), "grid_dims": tuple(grid.dims)}
     for k, v in values.items():
-        if k in program:
+        if shaders.declares(program, k):
             program[k].value = v
 
 

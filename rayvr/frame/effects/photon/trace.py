@@ -73,7 +73,7 @@ class PhotonTracePass(PhotonPass):
                   "photon_seed": ps.seed(fc.settings.seed),
                   "scene_sphere": ps.sphere}
         for k, v in values.items():
-            if k in p:
+            if shaders.declares(p, k):
                 p[k].value = v
         p.run(*dispatch_shape(ps.paths, TRACE_GROUP))
         fc.gl.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)
