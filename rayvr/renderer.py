@@ -137,6 +137,7 @@ class Renderer:
         # Peeling needs the raster's depth: with ray-cast primaries the second layer is ray-cast too.
         second = self.settings.second_layer if primary == "raster" else "rays"
         culled = st.culls_tiles(camera.name) and primary == "rays"
+        blocks = culled and primary_rays.culls_blocks(st, camera.name)
         if st.tile_lists and primary == "rays" and not culled:
             raise ValueError("tile triangle lists (--tile-lists) start from the tile culling's entry lists: "
                              "leave out --no-tile-culling (tile_culling=False)")
@@ -173,9 +174,7 @@ class Renderer:
                          dof=color and st.dof_diameter > 0,
                          samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
                          tile_culling=culled, tile_lists=primary_rays.tile_list_bound(st, camera.name) if culled else 0,
-                         block_culling=culled and primary_rays.culls_blocks(st, camera.name),
-                         **(primary_rays.tile_shape(st, camera.name, primary_rays.culls_blocks(st, camera.name))
-                            if culled else {}),
+                         block_culling=blocks, **(primary_rays.tile_shape(st, camera.name, blocks) if culled else {}),
                          share_channels=primary == "rays" and primary_rays.shares_channels(
                              st, camera, samples, self.effects_in_use(), view),
                          channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots,

@@ -213,7 +213,10 @@ OTHER = {"traversal": "bvh2", "layer_mode": "passes", "ambient": (0.1, 0.2, 0.3)
          "stereo": "reuse", "tile_lists": 64}
 # The camera an option needs to reach the plan at all (the chromatic model's three channel sets).
 CAMERA_CONTEXT = {"share_channel_shading": {"camera": Distorted()}}
-CONTEXT = {"share_channel_shading": {"primary": "rays"}, "ssaa": {"msaa": 4}, "tile_culling": {"primary": "rays"}, "tile_lists": {"primary": "rays"}, "block_culling": {"primary": "rays"}, "tile_size": {"primary": "rays"}, "tile_entries": {"primary": "rays"}, "block_tiles": {"primary": "rays", "block_culling": True}, "warp_layers": {"stereo": "warp"}}
+CONTEXT = {"share_channel_shading": {"primary": "rays"}, "ssaa": {"msaa": 4}, "tile_culling": {"primary": "rays"},
+           "tile_lists": {"primary": "rays"}, "block_culling": {"primary": "rays"}, "tile_size": {"primary": "rays"},
+           "tile_entries": {"primary": "rays"}, "block_tiles": {"primary": "rays", "block_culling": True},
+           "warp_layers": {"stereo": "warp"}}
 
 
 def other_value(o: options.Option):

@@ -95,8 +95,8 @@ TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visi
 
 BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary visibility with tile culling first "
                                "cuts the BVH per block of tiles (--block-tiles; HVVR's block beams: a frustum over "
-                               "the tiles' frusta), and each tile's cut starts from its block's entries instead of the root "
-                               "(the same hits, exact); auto: where it measured faster on the H200 "
+                               "the tiles' frusta), and each tile's cut starts from its block's entries instead of "
+                               "the root (the same hits, exact); auto: where it measured faster on the H200 "
                                "(rayvr/assets/primary_visibility.json: every camera model but foveated)",
                                scope="plan", plan_field="block_culling", auto=True,
                                implies=(("tile_culling", True),), commands=("capture", "preview", "info", "bench")))
@@ -332,11 +332,11 @@ def msaa_block(samples: int) -> tuple[int, int]:
     workgroup is the block's sub-rays of every set it casts (shared channel shading: 3 sets, 192
     invocations, full warps: 48 sub-rays a 1-pixel group at 16x left a quarter of the lanes idle,
     the trace 2x the three sets cast apart, H200 Sponza bench/results/h200/2026-12-03/rounds). A
-    power of two on both sides, so
-    a block lies in one tile (TILE_SIZES: powers of two, at least 8 a side): with tile lists the
-    trace casts only the tiles whose list overflowed, and leaves the group as a whole (a group over two tiles would leave some invocations
-    before the barriers the others reach: undefined, and wrong on the H200 with the 3 sub-rays of
-    shared channel shading at 1x, where 64 // 3 = 21 pixels made 4x5 blocks)."""
+    power of two on both sides, so a block lies in one tile (TILE_SIZES: powers of two, at least 8
+    a side): with tile lists the trace casts only the tiles whose list overflowed, and leaves the
+    group as a whole (a group over two tiles would leave some invocations before the barriers the
+    others reach: undefined, and wrong on the H200 with the 3 sub-rays of shared channel shading at
+    1x, where 64 // 3 = 21 pixels made 4x5 blocks)."""
     pixels = 1 << (max(1, MSAA_GROUP // samples).bit_length() - 1)
     w = 1 << (pixels.bit_length() // 2)
     return w, pixels // w
@@ -357,8 +357,9 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
                sampled: np.ndarray | None = None, channel_blocks: int = 1) -> np.ndarray:
     """Numpy twin of primary.comp's MSAA merge: per pixel, from its N sub-rays' triangles `tris`
     (..., N) (NO_HIT: background) and distances `ts`, the list msaa_hits holds, (slots, ..., 4)
-    uint32 entries (triangle, coverage (msaa_coverage of its mask), representative sub-ray | count << 8
-    | covered << 16 (entry 0 only; msaa_coverage, summed), distance bits), most covered first, ties in order of first sub-ray; unused
+    uint32 entries (triangle, coverage (msaa_coverage of its mask), representative sub-ray | count
+    << 8 | covered << 16 (entry 0 only; msaa_coverage, summed), distance bits), most covered first,
+    ties in order of first sub-ray; unused
     entries zero here (the GPU leaves entries past a pixel's count as the buffer held them: only
     the first count are defined, and only those are read). `offsets` (N, 2): the sub-rays' footprint offsets (cameras/sampling.subsamples);
     the representative is the sub-ray nearest the mean offset of its mask (the first of equally

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 from ...gl import shaders
 from ..graph import FramePlan, Pass, Texture, read, write
-from ...gl.gpu_layout import IMAGE, SSBO
+from ...gl.gpu_layout import IMAGE
 from .compute import dispatch_per_pixel
-from .primary_rays import skips_rounds
+from .primary_rays import bind_round_skip, skips_rounds
 
 SAMPLE_SUM = Texture("rgba32f")
 
@@ -51,8 +51,7 @@ class SampleAccumulatePass(Pass):
         fc.resource("sample_sum").bind_to_image(IMAGE["sample_sum"], read=True, write=True)
         if fc.plan.share_channels:
             fc.resource("channel_weight").bind_to_image(IMAGE["channel_weight"], read=True, write=False)
-        if skips_rounds(fc.plan):
-            fc.resource("round_tiles").bind_to_storage_buffer(SSBO["round_tiles"])
+        bind_round_skip(fc)  # the round's listed tiles (and the weight again) where rounds skip pixels
         # the frame's first round starts every pixel's sum, skipped or not: the whole frame
         dispatch_per_pixel(fc, self.program, listed=rnd.index > 0)
 
