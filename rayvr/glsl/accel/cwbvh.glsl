@@ -25,13 +25,17 @@
 
 // BVH_CW_NODE_VEC4 (uvec4 a node), BVH_CW_MARGIN: layout.glsl (rayvr/accel/cwbvh.py)
 layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhCompressed { uvec4 bvh_cw[]; };
+#if BVH_CW_NODE_VEC4 != 5
+#error "bvh_traverse reads a node as five uvec4"
+#endif
 
-#define BVH_CW_WORD(w) nd[(w) >> 2][(w) & 3]
 // byte i (a constant) of the 8-byte plane held in words (w0, w1)
 #define BVH_CW_BYTE(w0, w1, i) float(((((i) < 4) ? (w0) : (w1)) >> (8u * uint((i) & 3))) & 0xFFu)
+// No branch on an empty slot (meta 0): its box may pass, but it sets no visit bit (offset < 24) and
+// adds no triangle (count 0); branch-free slots were 1-4 % faster on the H200 (2026-12-04).
 #define BVH_CW_CHILD(i) { \
         uint m = (meta[(i) >> 2] >> (8u * uint((i) & 3))) & 0xFFu; \
-        if (m != 0u) { \
+        { \
             vec3 t0 = vec3(BVH_CW_BYTE(near_x.x, near_x.y, i), BVH_CW_BYTE(near_y.x, near_y.y, i), \
                            BVH_CW_BYTE(near_z.x, near_z.y, i)) * step + base_near; \
             vec3 t1 = vec3(BVH_CW_BYTE(far_x.x, far_x.y, i), BVH_CW_BYTE(far_y.x, far_y.y, i), \
@@ -67,27 +71,27 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
             uint slot = k ^ octant;
             uint node = group.x + uint(bitCount(group.y & ((1u << slot) - 1u) & 0xFFu));
             BVH_WORK(0);
-            uvec4 nd[BVH_CW_NODE_VEC4];
-            for (int j = 0; j < BVH_CW_NODE_VEC4; ++j)
-                nd[j] = bvh_cw[int(node) * BVH_CW_NODE_VEC4 + j];
-            uint e = BVH_CW_WORD(3);
+            // The node's five uvec4 as five variables, each word read by a constant swizzle: NVIDIA's
+            // compiler put an array of them in local memory, which made this traversal 3.5-4.4x slower
+            // on the H200 (`bench/results/h200/2026-12-04/cwbvh_registers`).
+            int word = int(node) * BVH_CW_NODE_VEC4;
+            uvec4 n0 = bvh_cw[word], n1 = bvh_cw[word + 1], n2 = bvh_cw[word + 2], n3 = bvh_cw[word + 3], n4 = bvh_cw[word + 4];
+            uint e = n0.w;
             vec3 scale = uintBitsToFloat(uvec3(e & 0xFFu, (e >> 8) & 0xFFu, (e >> 16) & 0xFFu) << 23u);
             vec3 step = scale * inv;   // exact: scale is a power of two
-            vec3 base = (uintBitsToFloat(nd[0].xyz) - r.origin) * inv;
+            vec3 base = (uintBitsToFloat(n0.xyz) - r.origin) * inv;
             vec3 base_near = base - abs(base) * BVH_CW_MARGIN, base_far = base + abs(base) * BVH_CW_MARGIN;
             // the near and far plane of each axis, by the direction's sign (words 8.. lo, 14.. hi)
-            uvec2 lo_x = uvec2(BVH_CW_WORD(8), BVH_CW_WORD(9)), lo_y = uvec2(BVH_CW_WORD(10), BVH_CW_WORD(11));
-            uvec2 lo_z = uvec2(BVH_CW_WORD(12), BVH_CW_WORD(13)), hi_x = uvec2(BVH_CW_WORD(14), BVH_CW_WORD(15));
-            uvec2 hi_y = uvec2(BVH_CW_WORD(16), BVH_CW_WORD(17)), hi_z = uvec2(BVH_CW_WORD(18), BVH_CW_WORD(19));
+            uvec2 lo_x = n2.xy, lo_y = n2.zw, lo_z = n3.xy, hi_x = n3.zw, hi_y = n4.xy, hi_z = n4.zw;
             uvec2 near_x = inv.x < 0.0 ? hi_x : lo_x, far_x = inv.x < 0.0 ? lo_x : hi_x;
             uvec2 near_y = inv.y < 0.0 ? hi_y : lo_y, far_y = inv.y < 0.0 ? lo_y : hi_y;
             uvec2 near_z = inv.z < 0.0 ? hi_z : lo_z, far_z = inv.z < 0.0 ? lo_z : hi_z;
-            uvec2 meta = uvec2(BVH_CW_WORD(6), BVH_CW_WORD(7));
+            uvec2 meta = n1.zw;
             uint visits = 0u, tri_hits = 0u;
             BVH_CW_CHILD(0) BVH_CW_CHILD(1) BVH_CW_CHILD(2) BVH_CW_CHILD(3)
             BVH_CW_CHILD(4) BVH_CW_CHILD(5) BVH_CW_CHILD(6) BVH_CW_CHILD(7)
-            group = uvec2(BVH_CW_WORD(4), (visits << 24) | (e >> 24));
-            tris = uvec2(BVH_CW_WORD(5), tri_hits);
+            group = uvec2(n1.x, (visits << 24) | (e >> 24));
+            tris = uvec2(n1.y, tri_hits);
         } else {   // a triangle group from the stack
             tris = group;
             group = uvec2(0u);
@@ -110,7 +114,6 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
     return h.prim != BVH_MISS;
 }
 
-#undef BVH_CW_WORD
 #undef BVH_CW_BYTE
 #undef BVH_CW_CHILD
 #endif
