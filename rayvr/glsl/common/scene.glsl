@@ -57,14 +57,20 @@ float material_param_float(uint m, int slot) { return uintBitsToFloat(material_p
 
 struct TriangleVerts { vec3 p[3]; vec3 n[3]; vec2 uv[3]; };
 
+void scene_vertex(uint tri, uint k, out vec3 p, out vec3 n, out vec2 uv) {
+    uint b = index_data[3u * tri + k] * uint(VERTEX_FLOATS);
+    p = vec3(vertex_data[b], vertex_data[b + 1u], vertex_data[b + 2u]);
+    n = vec3(vertex_data[b + 3u], vertex_data[b + 4u], vertex_data[b + 5u]);
+    uv = vec2(vertex_data[b + 6u], vertex_data[b + 7u]);
+}
+
+// The three vertices written with constant indices: filled in a loop, NVIDIA kept the struct's
+// arrays in local memory in photon/trace.comp (its NV assembly, 2026-12-04).
 TriangleVerts scene_triangle(uint tri) {
     TriangleVerts t;
-    for (int k = 0; k < 3; ++k) {
-        uint b = index_data[3u * tri + uint(k)] * uint(VERTEX_FLOATS);
-        t.p[k] = vec3(vertex_data[b], vertex_data[b + 1u], vertex_data[b + 2u]);
-        t.n[k] = vec3(vertex_data[b + 3u], vertex_data[b + 4u], vertex_data[b + 5u]);
-        t.uv[k] = vec2(vertex_data[b + 6u], vertex_data[b + 7u]);
-    }
+    scene_vertex(tri, 0u, t.p[0], t.n[0], t.uv[0]);
+    scene_vertex(tri, 1u, t.p[1], t.n[1], t.uv[1]);
+    scene_vertex(tri, 2u, t.p[2], t.n[2], t.uv[2]);
     return t;
 }
 
