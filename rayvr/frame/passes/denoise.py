@@ -53,7 +53,7 @@ class DenoiseParams:
 DEFAULTS = DenoiseParams()
 GUIDE = Texture("rgba32ui")  # depth, octahedral normal, 8-bit base colour, effect: one fetch per tap
 GRADIENT = Texture("rg32f")  # the view depth's screen-space gradient, once per frame
-VARIANCE = Texture("r32f")  # the variance blurred 3x3, once per iteration
+VARIANCE = Texture("r32f")  # the variance blurred 3x3, for each iteration after the first
 
 
 class DenoisePass(Pass):
@@ -114,8 +114,9 @@ class DenoisePass(Pass):
 
             def iterate(i=i, src=src, dst=dst, last=last):
                 src.bind_to_image(IMAGE["denoise_in"], read=True, write=False)
-                over_tiles(self.programs[2])  # the variance blur of this iteration's input
-                p = self.programs[3]
+                if i > 0:  # the 3x3 blur of its input's variance (the first iteration blurs in its own tile)
+                    over_tiles(self.programs[3])
+                p = self.programs[2]
                 p["step_size"].value = 1 << i
                 p["last_iteration"].value = int(last)
                 (out if last else dst).bind_to_image(IMAGE["denoise_out"], read=False, write=True)

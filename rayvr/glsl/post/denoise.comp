@@ -7,15 +7,21 @@
 //   DENOISE_STAGE 1  denoised pixels: demodulate albedo, estimate the variance of the luminance
 //                    (temporal moments from 4 samples on, else spatially over 7x7), and the depth
 //                    gradient the depth edge-stop uses (once, not per iteration)
-//   DENOISE_STAGE 2  denoised pixels: the variance blurred 3x3 over the same effect (the scale of
-//                    the next iteration's luminance edge-stop)
-//   DENOISE_STAGE 3  denoised pixels: one à-trous iteration, 5x5 B3-spline taps 2^i pixels apart,
-//                    weighted by depth, normal, albedo and variance-scaled luminance; the last
-//                    iteration multiplies the albedo back and writes the output
-// Stages 1-3 read their taps from workgroup memory: a work group loads the guides and values of a
+//   DENOISE_STAGE 2  denoised pixels: one à-trous iteration, 5x5 B3-spline taps 2^i pixels apart,
+//                    weighted by depth, normal, albedo and luminance scaled by the input's variance
+//                    blurred 3x3 over the same effect; the last iteration multiplies the albedo back
+//                    and writes the output
+//   DENOISE_STAGE 3  denoised pixels: that variance blur, ahead of an iteration of step 2 or more
+// Stages 1-2 read their taps from workgroup memory: a work group loads the guides and values of a
 // 16x16 lattice of pixels `step` apart plus an apron of APRON lattice points once (à-trous taps of
 // step 2^i fall on the same lattice), instead of every pixel fetching 25-49 taps itself (4.7 ms at
 // 2x1440x1600 on the H200 that way). A group whose pixels are all undenoised stops after one fetch each.
+// The 3x3 variance blur's taps are 1 pixel apart: the first iteration (step 1) takes them from its
+// own tile; the others get the blur from a stage-3 dispatch over the step-1 lattice. (Fetching the 8
+// neighbours in a step-2^i iteration instead was slower on the H200: 2.11 -> 2.30 ms for 4 iterations,
+// the room, bench/results/h200/2026-12-03/denoise_fused: a lattice group's neighbours are scattered.)
+// The first iteration's own blur: the room's denoiser 2.44-3.32 ms against 2.55-3.45 with a blur
+// dispatch before it (4 head poses, bench/results/h200/2026-12-04/frames).
 #include "../common/gbuffer.glsl"
 #include "demodulate.glsl"
 
@@ -31,8 +37,8 @@ layout(rgba32f, binding = IMAGE_DENOISE_COLOR) uniform readonly image2DArray col
 layout(rgba32f, binding = IMAGE_DENOISE_MOMENTS) uniform readonly image2DArray moments_in;
 layout(rgba32f, binding = IMAGE_DENOISE_IN) uniform readonly image2DArray filter_in;  // rgb demodulated, a variance
 layout(rgba32f, binding = IMAGE_DENOISE_OUT) uniform writeonly image2DArray filter_out;
-// x, y: view depth gradient per pixel (stage 1 writes, stage 3 reads); the blurred variance (stage 2
-// writes, stage 3 reads)
+// x, y: view depth gradient per pixel (stage 1 writes, stage 2 reads); the blurred variance (stage 3
+// writes, stage 2 reads at steps of 2 or more)
 layout(rg32f, binding = IMAGE_DENOISE_GRADIENT) uniform image2DArray gradient_image;
 layout(r32f, binding = IMAGE_DENOISE_VARIANCE) uniform image2DArray variance_image;
 // x view depth (float bits), y octahedral normal (snorm 2x16), z base colour (unorm 4x8), w effect ID
@@ -43,7 +49,7 @@ layout(rgba32ui, binding = IMAGE_DENOISE_GUIDE) uniform readonly uimage2DArray g
 #endif
 
 uniform uint denoise_effects;  // bit e: pixels of effect e are denoised
-uniform int step_size;       // 2^iteration (stage 3)
+uniform int step_size;       // 2^iteration (stage 2)
 uniform int last_iteration;  // 1: remodulate and write the frame's denoised colour
 uniform float sigma_depth, sigma_normal, sigma_luminance, sigma_albedo;
 
@@ -68,7 +74,7 @@ struct Guide { float depth; vec3 normal; vec3 albedo; uint effect; };
 #if DENOISE_STAGE != 0
 #if DENOISE_STAGE == 1
 #define APRON 3  // the 7x7 spatial variance
-#elif DENOISE_STAGE == 2
+#elif DENOISE_STAGE == 3
 #define APRON 1  // the 3x3 variance blur
 #else
 #define APRON 2  // the 5x5 à-trous taps
@@ -84,8 +90,8 @@ shared uint tile_any;
 
 bool denoised(uint effect) { return effect < 32u && ((denoise_effects >> effect) & 1u) != 0u; }
 
-// The value a stage filters at pixel q: stage 1 the demodulated colour, 2 the variance, 3 the
-// previous iteration's (demodulated colour, variance).
+// The value a stage filters at pixel q: stage 1 the demodulated colour, 2 and 3 the previous
+// iteration's (demodulated colour, variance).
 vec4 stage_value(ivec3 q) {
 #if DENOISE_STAGE == 1
     return vec4(finite_or_zero(imageLoad(color_in, q).rgb) / demodulation_albedo(texelFetch(gb_albedo, q, 0).rgb), 0.0);
@@ -178,6 +184,23 @@ float geometry_log2_weight(Centre c, Guide q, ivec2 offset) {
 
 const float B3[3] = float[3](3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0);  // (1 4 6 4 1) / 16
 
+#if DENOISE_STAGE >= 2
+// The input's variance at this invocation's pixel blurred 3x3 (Gaussian) over the pixels of the
+// centre's effect, from a tile of step 1: a steadier scale for the luminance edge-stop than one
+// pixel's estimate.
+float blurred_variance(uint effect) {
+    float vs = 0.0, vw = 0.0;
+    for (int dy = -1; dy <= 1; dy++) {
+        for (int dx = -1; dx <= 1; dx++) {
+            if (tile_look[tile_index(dx, dy)].y != effect) continue;
+            float k = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
+            vs += k * tile_value[tile_index(dx, dy)].a; vw += k;
+        }
+    }
+    return vs / vw;
+}
+#endif
+
 void main() {
 #if DENOISE_STAGE == 0
     ivec3 p = ivec3(gl_GlobalInvocationID);
@@ -189,7 +212,7 @@ void main() {
                                    packUnorm4x8(vec4(texelFetch(gb_albedo, p, 0).rgb, 0.0)),
                                    texelFetch(gb_material, p, 0).y));
 #else
-    int step = DENOISE_STAGE == 3 ? step_size : 1;
+    int step = DENOISE_STAGE == 2 ? step_size : 1;
     ivec3 origin = lattice_origin(step);
     if (!load_tile(origin, step)) return;
     ivec3 p = origin + ivec3(ivec2(gl_LocalInvocationID.xy) * step, 0);
@@ -221,23 +244,14 @@ void main() {
         var = max(s2 - s1 * s1, 0.0);
     }
     imageStore(filter_out, p, vec4(illum, var));
-#elif DENOISE_STAGE == 2
-    // The variance at p, blurred 3x3 (Gaussian) over the same kind: a steadier scale for the
-    // luminance edge-stop than one pixel's estimate.
-    float vs = 0.0, vw = 0.0;
-    for (int dy = -1; dy <= 1; dy++) {
-        for (int dx = -1; dx <= 1; dx++) {
-            if (tile_look[tile_index(dx, dy)].y != c.g.effect) continue;
-            float k = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
-            vs += k * tile_value[tile_index(dx, dy)].a; vw += k;
-        }
-    }
-    imageStore(variance_image, p, vec4(vs / vw));
+#elif DENOISE_STAGE == 3
+    imageStore(variance_image, p, vec4(blurred_variance(c.g.effect)));
 #else
     vec4 centre_value = tile_value[tile_index(0, 0)];
     c.grad = imageLoad(gradient_image, p).xy;
     c.lum = luminance(centre_value.rgb);
-    c.sigma_l = sigma_luminance * sqrt(max(imageLoad(variance_image, p).x, 0.0)) + 1e-10;
+    float var = step == 1 ? blurred_variance(c.g.effect) : imageLoad(variance_image, p).x;
+    c.sigma_l = sigma_luminance * sqrt(max(var, 0.0)) + 1e-10;
     float log2_per_luminance = LOG2_E / c.sigma_l;
     float w0 = B3[0] * B3[0];
     float sum_w = w0;
