@@ -69,6 +69,8 @@ _RAW_SIGNATURES: dict[str, tuple] = {
     "glGetError": (_u, ()),
     "glGetIntegerv": (None, (_u, ctypes.POINTER(_i))),
     "glGetString": (ctypes.c_char_p, (_u,)),
+    "glGetProgramiv": (None, (_u, _u, ctypes.POINTER(_i))),
+    "glGetProgramBinary": (None, (_u, _i, ctypes.POINTER(_i), ctypes.POINTER(_u), _p)),
     # Timer queries with 64-bit results (moderngl reads 32 bits: passes over 4.29 s saturate).
     "glGenQueries": (None, (_i, ctypes.POINTER(_u))),
     "glDeleteQueries": (None, (_i, ctypes.POINTER(_u))),
