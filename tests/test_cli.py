@@ -269,6 +269,7 @@ def test_a_missing_optional_extra_is_one_line_before_any_work(tmp_path, args):
 
 def test_preview_without_a_display_is_one_line_with_glfws_reason():
     """No display: one line that carries GLFW's own reason, not a Python warning beside it."""
+    pytest.importorskip("glfw", reason="GLFW's reason needs the glfw package (its absence: the next test)")
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     run = subprocess.run([sys.executable, "-m", "rayvr", "preview", "--frames", "1"], capture_output=True, text=True,
                          env=env, timeout=120)
