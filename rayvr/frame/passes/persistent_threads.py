@@ -5,7 +5,8 @@ atomic counter of the kernel whenever it is done with one, until the batch's ray
 (glsl/rt/wave_fetch.glsl). Incoherent rays take very different times; with fetching, a SIMD group
 whose rays ended early takes new ones instead of the GPU waiting on a new group being launched.
 Each ray's result goes to its own slot as before: the images are exactly those of one ray per
-invocation; the speed is to be measured on the GPU (`rayvr bench ... --persistent off,on`)."""
+invocation. On the H200 it changes nothing within 1 % (`rayvr bench rays --persistent off,on`,
+bench/results/h200/2026-12-02/rays_order): these kernels have no long tail for it to remove."""
 from __future__ import annotations
 
 from ...options import Option, declare
@@ -14,12 +15,13 @@ from .classify import RT_LOCAL_SIZE
 PERSISTENT_MODES = ("off", "on")
 PERSISTENT = declare(Option(
     "persistent", str, "off", "on: the wavefront's trace kernels run as persistent work groups that fetch batches of "
-    "rays from an atomic counter (Aila and Laine 2009); off: one invocation per ray (the same images; speed to be "
-    "measured)", scope="plan", plan_field="persistent", choices=PERSISTENT_MODES, label="persistent mode",
+    "rays from an atomic counter (Aila and Laine 2009); off: one invocation per ray (the same images; within 1 % "
+    "of each other on the H200)", scope="plan", plan_field="persistent", choices=PERSISTENT_MODES, label="persistent mode",
     commands=("capture", "preview", "info")))
 
 # Work groups (of RT_LOCAL_SIZE, 64 invocations) a persistent trace kernel launches: an H200's 132
-# SMs hold 16 such groups each at half occupancy (32 of 64 warps), 2112 in all. A guess until measured.
+# SMs hold 16 such groups each at half occupancy (32 of 64 warps), 2112 in all (not tuned: the mode
+# measured no different from off).
 PERSISTENT_GROUPS = 2048
 
 

@@ -6,7 +6,8 @@ map uses (frame/passes/radix_sort.py), and invocation k of the trace kernel take
 that order (glsl/rt/wave_fetch.glsl). Neighbouring invocations then start near each other in
 the same octant and walk the same BVH nodes. Each ray's result still goes to its own slot and
 nothing is summed across rays, so hits and images are exactly the unsorted wavefront's: only the
-speed changes, which is to be measured on the GPU (`rayvr bench ... --ray-order none,morton`).
+speed changes (`rayvr bench ... --ray-order none,morton`; on the H200 the sort costs more than it
+saves, and with the default 1 GiB wave buffers the sorted shadow items thrash: docs/design.md).
 
 A shadow-ray kernel traces an item's (pixel's or path's) rays in one invocation and sums them in
 slot order, so the items are sorted, each by its first shadow ray of the chunk."""
@@ -25,7 +26,7 @@ from .radix_sort import RadixSort, table_words
 RAY_ORDERS = ("none", "morton")
 RAY_ORDER = declare_option(Option(
     "ray_order", str, "none", "the order the wavefront traces its rays in: none (as shaded) or morton (sorted by "
-    "direction octant and origin cell before each trace kernel; the same images, speed to be measured)",
+    "direction octant and origin cell before each trace kernel; the same images, slower on the H200: its sort costs more than it saves, bench/results/h200/2026-12-04/final/ray_order)",
     scope="plan", plan_field="ray_order", choices=RAY_ORDERS, label="ray order",
     commands=("capture", "preview", "info")))
 
