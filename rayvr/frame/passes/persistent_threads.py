@@ -16,7 +16,8 @@ PERSISTENT_MODES = ("off", "on")
 PERSISTENT = declare(Option(
     "persistent", str, "off", "on: the wavefront's trace kernels run as persistent work groups that fetch batches of "
     "rays from an atomic counter (Aila and Laine 2009); off: one invocation per ray (the same images; within 1 % "
-    "of each other on the H200)", scope="plan", plan_field="persistent", choices=PERSISTENT_MODES, label="persistent mode",
+    "of each other on the H200)", scope="plan", plan_field="persistent", choices=PERSISTENT_MODES,
+    label="persistent mode",
     commands=("capture", "preview", "info")))
 
 # Work groups (of RT_LOCAL_SIZE, 64 invocations) a persistent trace kernel launches: an H200's 132
