@@ -241,6 +241,43 @@ def test_a_sweep_cut_short_keeps_the_views_it_finished(tmp_path, monkeypatch):
     assert [(r["view"], r["label"]) for r in got["rows"]] == [("fixed", "effect=raster")]
 
 
+
+def test_a_run_keeps_the_folders_views_it_does_not_measure(tmp_path, monkeypatch):
+    """Runs split over device calls add up: a run of the fixed view leaves the head pose an earlier
+    run of the same device and settings measured, and replaces the fixed view; a run with other
+    settings keeps nothing."""
+    run_label = ["first"]
+
+    def sweep(gl, scene, rig, *a, **k):
+        return [{"scene": scene.name, "knob": "effect", "value": "raster", "label": run_label[0], "gpu_ms": 1.0,
+                 "flip": 0.5}], None
+
+    monkeypatch.setattr(T, "run_sweep", sweep)
+    monkeypatch.setattr(T, "plot_tradeoff", lambda *a, **k: None)
+    T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=1, progress=False)
+    run_label[0] = "second"
+    got = T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=0, progress=False)
+    on_disk = json.loads((tmp_path / "tradeoff.json").read_text())
+    for result in (got, on_disk):
+        assert sorted((r["view"], r["label"]) for r in result["rows"]) == [("fixed", "second"), ("pose 0", "first")]
+        assert result["meta"]["kept_views"] == ["default pose 0"]
+    got = T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=0, repeat=3, progress=False)
+    assert [(r["view"], r["label"]) for r in got["rows"]] == [("fixed", "second")] and not got["meta"]["kept_views"]
+
+
+def test_budget_reports_are_kept_only_from_the_same_grid_and_rungs(tmp_path):
+    meta = {"gl_renderer": "gpu", "gl_version": "4.3", "per_eye_size": [16, 12], "quick": True, "repeat": 10,
+            "ppd": 67.0, "pose_seed": 22, "reference_spp": 64, "grid": ["stereo=dual"], "rungs": "the ladder's effects"}
+    rows = [{"scene": "sponza", "view": "fixed", "budget_ms": 11.1}, {"scene": "default", "view": "pose 0"}]
+    (tmp_path / "budget.json").write_text(json.dumps({"meta": meta, "rows": rows}))
+    assert T._earlier_views(tmp_path, "budget", dict(meta), T.SAME_BUDGET) == rows
+    mine = [{"scene": "default", "view": "pose 0", "budget_ms": 8.3}]
+    assert T._with_earlier(rows, mine, {("default", "pose 0")}) == [rows[0]] + mine
+    for key, other in (("grid", ["stereo=dual,reuse"]), ("rungs", ["raster"]), ("per_eye_size", [32, 24]),
+                       ("gl_renderer", "llvmpipe")):
+        assert T._earlier_views(tmp_path, "budget", {**meta, key: other}, T.SAME_BUDGET) == [], key
+    assert T._earlier_views(tmp_path, "budget_grid", meta, T.SAME_BUDGET) == []  # no such report yet
+
 def test_the_foveated_variant_is_left_out_where_the_config_traces_in_screen_space():
     """ssr marches the pinhole's depth buffer, which the foveated camera has none of: a sweep of
     an ssr config has no camera variant (instead of a run that stops at it)."""

@@ -25,7 +25,6 @@ Plots (matplotlib, the `bench` extra) after each part: ms vs FLIP per scene.
 """
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -38,7 +37,7 @@ from ..scene.materials import parse_config
 from ..renderer import Renderer, RenderSettings
 from . import photon, stereo
 from .rays import time_effect_stages, time_frame
-from .report import _plot, device_meta, write_report
+from .report import _plot, device_meta, earlier_rows, write_report
 from .scenes import bench_scenes
 from ..quality.measure import REFERENCE_SEED
 
@@ -179,15 +178,9 @@ def check_parts(parts) -> tuple:
 def kept_rows(path: Path, meta: dict, measured: set) -> tuple[list, dict]:
     """Rows (and per-part meta) of an earlier gi.json at `path` whose (part, scene) this run does
     not measure, if that run had this run's device, size and mode; else nothing."""
-    try:
-        old = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return [], {}
-    om = old.get("meta", {}) if isinstance(old, dict) else {}
-    if any(om.get(k) != meta.get(k) for k in ("gl_renderer", "gl_version", "per_eye_size", "quick")):
-        return [], {}
-    rows = [r for r in old.get("rows", []) if isinstance(r, dict) and r.get("part") in PARTS
-            and (r.get("part"), r.get("scene")) not in measured]
+    rows, om = earlier_rows(path, meta, ("gl_renderer", "gl_version", "per_eye_size", "quick"),
+                            lambda r: isinstance(r, dict) and r.get("part") in PARTS
+                            and (r.get("part"), r.get("scene")) not in measured)
     return rows, (om.get("parts") or {}) if rows else {}
 
 

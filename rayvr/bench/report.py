@@ -205,6 +205,22 @@ def _check(name: str, result) -> None:
         raise TypeError("result['rows'] must be a list of dicts")
 
 
+def earlier_rows(path, meta: dict, same: tuple, keep) -> tuple[list, dict]:
+    """The rows r of the report at `path` with keep(r) true, and that report's meta, if it was
+    written with this run's `meta` values for the keys `same` (the device, the size, the settings
+    its figures depend on); else ([], {}). A bench that measures part of its grid (some scenes,
+    some views) keeps the folder's rows of the rest this way: runs split over several device
+    calls add up to one report."""
+    try:
+        old = json.loads(Path(path).read_text())
+        om = old["meta"]
+        if any(om.get(k) != meta.get(k) for k in same):
+            return [], {}
+        return [r for r in old["rows"] if keep(r)], om
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return [], {}
+
+
 def write_report(out_dir, name: str, result: dict, plots: list[dict] | None = None, md: str | None = None) -> dict:
     """Write ``name.json``, ``name.md`` (`md`, or the meta and rows as a table) and the requested
     plots under `out_dir`.

@@ -218,16 +218,40 @@ def view_suffix(view: str) -> str:
     return "" if view == "fixed" else "_" + view.replace(" ", "")
 
 
+# What a folder's earlier tradeoff/budget report must share with a new run for its rows to stand
+# beside the new ones: the views ((scene, view) pairs) the new run does not measure are kept, so
+# runs split over device calls (--scenes default, then --scenes sponza) add up to one report.
+SAME_SWEEP = ("gl_renderer", "gl_version", "per_eye_size", "quick", "repeat", "ppd", "pose_seed", "reference_spp")
+SAME_BUDGET = SAME_SWEEP + ("grid", "rungs")
+
+
+def _earlier_views(out_dir, name: str, meta: dict, same: tuple) -> list:
+    """The rows of the folder's earlier report `name` (any view), if it matches `meta` on `same`."""
+    from .report import earlier_rows
+
+    return earlier_rows(f"{out_dir}/{name}.json", meta, same, lambda r: isinstance(r, dict) and "view" in r)[0]
+
+
+def _with_earlier(earlier: list, rows: list, measured: set) -> list:
+    """The earlier rows of views this run did not measure, then this run's rows."""
+    return [r for r in earlier if (r.get("scene"), r["view"]) not in measured] + rows
+
+
+def _kept_views(earlier: list, measured: set) -> list[str]:
+    return sorted({f"{r.get('scene')} {r['view']}" for r in earlier if (r.get("scene"), r["view"]) not in measured})
+
+
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
         base_config=None, backend=None, progress=True, workers=None, address=None,
         connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=POSE_SEED, reference_spp=None) -> dict:
     """Sweep every knob on each scene, from its fixed view and from `poses` random head poses,
     each against the reference of the same view (`reference_spp` samples a pixel; default
     REFERENCE_SPP, --quick QUICK_REFERENCE_SPP); write tradeoff.json/.md and one plot per view.
-    `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here."""
+    `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here.
+    Views of the folder's earlier tradeoff.json that this run does not measure stay (SAME_SWEEP)."""
     from .report import device_meta, write_report
 
-    rows, skipped = [], {}
+    rows, skipped, measured = [], {}, set()
     reference_spp = reference_spp or (QUICK_REFERENCE_SPP if quick else REFERENCE_SPP)
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
@@ -235,6 +259,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
                 "reference_spp": reference_spp,
                 "error": "vs the scene's reference (rayvr.quality.reference_images); "
                 "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
+        earlier = _earlier_views(out_dir, "tradeoff", meta, SAME_SWEEP)
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
                                                                          poses, pose_seed):
             with RendererPool(gl) as pool:
@@ -244,10 +269,13 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
             for row in r:
                 row["scene"], row["view"] = name, view
             rows += r
-            write_report(out_dir, "tradeoff", {"meta": {**meta, "partial": True}, "rows": rows})  # a cut run keeps its views
-    result = {"meta": meta, "rows": rows}
+            measured.add((name, view))
+            write_report(out_dir, "tradeoff", {"meta": {**meta, "partial": True},  # a cut run keeps its views
+                                               "rows": _with_earlier(earlier, rows, measured)})
+    meta["kept_views"] = _kept_views(earlier, measured)
+    result = {"meta": meta, "rows": _with_earlier(earlier, rows, measured)}
     write_report(out_dir, "tradeoff", result)
-    plot_tradeoff(rows, out_dir, meta)
+    plot_tradeoff(result["rows"], out_dir, meta)
     return result
 
 
@@ -266,7 +294,8 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     written as the config that reproduces it. `workers`: the per-rung measurements spread over
     Ray workers; each pick is confirmed here. Each view's reference is run()'s (`reference_spp`),
     and its noise floor is in every row: errors below it are noise. `rungs`: the rung keys a
-    material chooses from (quality/rungs.py; default the ladder's effects)."""
+    material chooses from (quality/rungs.py; default the ladder's effects). Views of the folder's
+    earlier budget reports that this run does not measure stay (SAME_BUDGET)."""
     from ..quality.budget import pick_toml
     from ..quality.frame_budget import choose_frame_under_budget, grid_best, measure_candidates
     from ..quality.frame_knobs import DEFAULT_KNOBS
@@ -274,7 +303,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     from .report import device_meta, markdown, write_report
 
     grid = grid or [DEFAULT_KNOBS]
-    rows, grid_rows, fixed_rows, skipped = [], [], [], {}
+    rows, grid_rows, fixed_rows, skipped, measured = [], [], [], {}, set()
     reference_spp = reference_spp or (QUICK_REFERENCE_SPP if quick else REFERENCE_SPP)
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
@@ -288,6 +317,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                          "whole-frame passes (denoise, quadtree, photon map, ...) paid once per frame as fixed-cost "
                          "groups (budget_fixed.json); total error = sum importance x coverage x error; exact "
                          "multiple-choice knapsack per point, the best point taken (rayvr.quality.frame_budget)"}
+        earlier = {n: _earlier_views(out_dir, n, meta, SAME_BUDGET) for n in ("budget", "budget_grid", "budget_fixed")}
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
                                                                          poses, pose_seed):
             with RendererPool(gl) as pool:
@@ -318,7 +348,12 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                 stem = f"{out_dir}/budget_{name}{view_suffix(view)}_{b:.4g}ms"
                 write_png(f"{stem}.png", pick["image"])
                 atomic_write_bytes(f"{stem}.toml", pick_toml(scene, pick, pick["config"], size).encode())
-            write_report(out_dir, "budget", {"meta": {**meta, "partial": True}, "rows": rows})  # a cut run keeps its views
+            measured.add((name, view))
+            write_report(out_dir, "budget", {"meta": {**meta, "partial": True},  # a cut run keeps its views
+                                             "rows": _with_earlier(earlier["budget"], rows, measured)})
+    meta["kept_views"] = _kept_views(earlier["budget"], measured)
+    rows, grid_rows, fixed_rows = (_with_earlier(earlier[n], r, measured) for n, r in
+                                   (("budget", rows), ("budget_grid", grid_rows), ("budget_fixed", fixed_rows)))
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "budget", result, md=budget_headline(rows, meta) + "\n" + markdown("budget", result))
     write_report(out_dir, "budget_grid", {"meta": meta, "rows": grid_rows})

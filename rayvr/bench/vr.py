@@ -49,7 +49,7 @@ from ..util.output import atomic_write_bytes
 from .head_poses import EYE_HEIGHT_M, MAX_PITCH_DEG, POSE_SEED, draw_poses, pose_bounds, region
 from .primary import CONFIGS as CAMERA_CONFIGS
 from .rays import MIRRORS, hybrid_config, time_frame, time_pipelined, time_stages
-from .report import device_meta, write_report
+from .report import device_meta, earlier_rows, write_report
 from .scenes import bench_scenes, shipped_config
 
 MATERIAL_CONFIGS = ("shadows", "room", "budget")
@@ -173,14 +173,10 @@ def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: f
 def kept_rows(path: Path, meta: dict, measured: set) -> tuple[list, dict]:
     """Rows of an earlier vr.json at `path` whose (scene, config) this run does not measure, and
     that run's per-scene meta, if it matches this run (SAME_RUN); else nothing."""
+    rows, om = earlier_rows(path, meta, SAME_RUN, lambda r: (r["scene"], r["config"]) not in measured)
     try:
-        old = json.loads(path.read_text())
-        om = old["meta"]
-        if any(om.get(k) != meta.get(k) for k in SAME_RUN):
-            return [], {}
-        rows = [r for r in old["rows"] if (r["scene"], r["config"]) not in measured]
         return rows, {s: m for s, m in om["scenes"].items() if any(r["scene"] == s for r in rows)}
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+    except (KeyError, TypeError, AttributeError):
         return [], {}
 
 
