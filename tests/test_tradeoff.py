@@ -241,7 +241,6 @@ def test_a_sweep_cut_short_keeps_the_views_it_finished(tmp_path, monkeypatch):
     assert [(r["view"], r["label"]) for r in got["rows"]] == [("fixed", "effect=raster")]
 
 
-
 def test_a_run_keeps_the_folders_views_it_does_not_measure(tmp_path, monkeypatch):
     """Runs split over device calls add up: a run of the fixed view leaves the head pose an earlier
     run of the same device and settings measured, and replaces the fixed view; a run with other
@@ -277,6 +276,7 @@ def test_budget_reports_are_kept_only_from_the_same_grid_and_rungs(tmp_path):
                        ("gl_renderer", "llvmpipe")):
         assert T._earlier_views(tmp_path, "budget", {**meta, key: other}, T.SAME_BUDGET) == [], key
     assert T._earlier_views(tmp_path, "budget_grid", meta, T.SAME_BUDGET) == []  # no such report yet
+
 
 def test_the_foveated_variant_is_left_out_where_the_config_traces_in_screen_space():
     """ssr marches the pinhole's depth buffer, which the foveated camera has none of: a sweep of

@@ -232,13 +232,18 @@ def _earlier_views(out_dir, name: str, meta: dict, same: tuple) -> list:
     return earlier_rows(f"{out_dir}/{name}.json", meta, same, lambda r: isinstance(r, dict) and "view" in r)[0]
 
 
+def _unmeasured(earlier: list, measured: set) -> list:
+    """The earlier rows of views ((scene, view) pairs) this run did not measure."""
+    return [r for r in earlier if (r.get("scene"), r["view"]) not in measured]
+
+
 def _with_earlier(earlier: list, rows: list, measured: set) -> list:
     """The earlier rows of views this run did not measure, then this run's rows."""
-    return [r for r in earlier if (r.get("scene"), r["view"]) not in measured] + rows
+    return _unmeasured(earlier, measured) + rows
 
 
 def _kept_views(earlier: list, measured: set) -> list[str]:
-    return sorted({f"{r.get('scene')} {r['view']}" for r in earlier if (r.get("scene"), r["view"]) not in measured})
+    return sorted({f"{r.get('scene')} {r['view']}" for r in _unmeasured(earlier, measured)})
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
