@@ -190,6 +190,8 @@ def test_knobs_become_render_options_and_capture_flags():
     f = FrameKnobs(temporal=True, camera="foveated")
     v = f.variant("budget", "glossy", None, COMPARE_SETTINGS)
     assert v.settings.temporal and v.camera == "foveated" and f.render_table()["temporal"] is True
+    assert v.settings.accumulate  # what --temporal implies: without it a still view's image is one frame's
+    assert not DEFAULT_KNOBS.settings(COMPARE_SETTINGS).accumulate
     assert f.capture_flags((1440, 1600)) == "--camera-model foveated"
 
 

@@ -98,8 +98,87 @@ def test_noise_knobs_are_variants_drawing_other_samples_than_the_reference():
     flat = T.noisy_base(scene, parse_config({"default": "raster"}))
     from rayvr.frame.effects import traced_effects
 
-    last_sampled = [e.name for e in traced_effects() if e.denoised][-1]  # glossy today, path once it lands
+    last_sampled = [e.name for e in traced_effects() if e.denoised][-1]  # photon today
     assert {a.effect for a in flat.assign(names, warn=False)} == {last_sampled}
+
+
+def test_a_config_that_samples_a_few_materials_gets_the_noise_knobs_again_on_the_sampled_rung_everywhere():
+    """The room's config path-traces a few materials, so its spp and denoiser knobs move little of
+    the image; the sweep repeats them with every material on path, the frame that converges to the
+    reference (the budget mode's best picks are there), under knobs named path_everywhere.*."""
+    scene = load()
+    names = scene.material_names()
+    room = load_config("rayvr/assets/default_room.toml")
+    assert T.converging_rung() == "path"
+    swept = T.variants(scene, room, quick=True)
+    everywhere = [v for v in swept if v.knob.startswith("path_everywhere.")]
+    assert [v.label for v in everywhere] == ["path_everywhere.denoise.iterations=0",
+                                             "path_everywhere.denoise.iterations=4", "path_everywhere.spp=4",
+                                             "path_everywhere.spp+denoise=4", "path_everywhere.temporal=13"]
+    for v in everywhere:
+        assert {a.effect for a in v.config.assign(names, warn=False)} == {"path"} and v.touches == ()
+        assert v.settings.seed == T.NOISE_SEED != T.reference_variant(room).settings.seed
+    # the room's own noise knobs stay, on its own config
+    assert [v.config for v in swept if v.knob == "spp"] == [room]
+    # A config already all on path has them once; one on no sampled rung has its noise knobs on the
+    # ladder's last sampled rung (photon) and these too.
+    assert not [v for v in T.variants(scene, parse_config({"default": "path"}), quick=True)
+                if v.knob.startswith("path_everywhere.")]
+    flat = T.variants(scene, parse_config({"default": "raster"}), quick=True)
+    assert len([v for v in flat if v.knob.startswith("path_everywhere.")]) == 5
+    (spp,) = [v for v in flat if v.knob == "spp"]
+    assert {a.effect for a in spp.config.assign(names, warn=False)} == {"photon"}
+
+
+def test_knobs_select_a_knob_or_its_family_and_an_unknown_name_is_refused():
+    scene = load()
+    swept = T.variants(scene, load_config("rayvr/assets/default_room.toml"), quick=True)
+    got = T.chosen_knobs(swept, ("path_everywhere", "stereo", "path.samples"))
+    assert {v.knob for v in got} == {"path_everywhere.denoise.iterations", "path_everywhere.spp",
+                                     "path_everywhere.spp+denoise", "path_everywhere.temporal", "stereo",
+                                     "path.samples"}
+    assert {v.knob for v in T.chosen_knobs(swept, ("path",))} == {k for k in (v.knob for v in swept)
+                                                                  if k.startswith("path.")}
+    assert T.chosen_knobs(swept, None) == swept
+    with pytest.raises(ValueError, match=r"--knobs: pth, spp\+ names no knob here; the knobs: .*path_everywhere\.spp"):
+        T.chosen_knobs(swept, ("pth", "stereo", "spp+"))
+
+
+def test_a_run_of_some_knobs_keeps_the_other_knobs_rows_and_says_from_which_run(tmp_path, monkeypatch):
+    """`bench tradeoff --knobs K` into a folder of a full run of the same settings: K's rows and
+    the noise floor are new, every other knob's rows stay, and the report (and its plots' title)
+    names the commit they came from."""
+    measured = []
+
+    def sweep(gl, scene, rig, reference, variants_, *a, **k):
+        measured.append([v.knob for v in variants_])
+        rows = [{"scene": scene.name, "knob": "noise floor", "value": "", "label": f"floor {len(measured)}",
+                 "gpu_ms": 1.0, "flip": 0.1}]
+        return rows + [{"scene": scene.name, "knob": v.knob, "value": v.value, "label": f"{v.label} #{len(measured)}",
+                        "gpu_ms": 1.0, "flip": 0.5} for v in variants_], None
+
+    monkeypatch.setattr(T, "run_sweep", sweep)
+    monkeypatch.setattr(T, "plot_tradeoff", lambda *a, **k: None)
+    monkeypatch.setenv("RAYVR_COMMIT", "aaaaaaa")
+    first = T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=0, progress=False)
+    monkeypatch.setenv("RAYVR_COMMIT", "bbbbbbb")
+    got = T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=0, progress=False,
+                knobs=("stereo",))
+    assert set(measured[1]) == {"stereo"}
+    labels = {r["label"] for r in got["rows"]}
+    assert labels == ({r["label"] for r in first["rows"] if r["knob"] not in ("stereo", "noise floor")}
+                      | {"floor 2", "stereo=warp #2", "stereo=reuse #2"})
+    assert got == json.loads((tmp_path / "tradeoff.json").read_text())
+    meta = got["meta"]
+    assert "stereo" not in meta["kept_knobs"] and "effect" in meta["kept_knobs"] and meta["knobs"] == ["stereo"]
+    assert meta["kept_from"]["commit"] == "aaaaaaa" and meta["commit"] == "bbbbbbb"
+    from rayvr.bench.report import provenance
+
+    assert provenance(meta).endswith("commit bbbbbbb; other rows " + first["meta"]["date"][:10] + ", commit aaaaaaa")
+    # a full run keeps nothing of the views it measures
+    got = T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=0, progress=False)
+    assert all(r["label"].endswith("#3") or r["label"] == "floor 3" for r in got["rows"])
+    assert "kept_from" not in got["meta"] and got["meta"]["kept_knobs"] == []
 
 
 def test_swept_parameters_reach_per_material_entries():
@@ -335,3 +414,41 @@ def test_an_image_slower_than_the_bound_is_timed_over_fewer_frames(gl, room, mon
     M.measure(gl, scene, rig, M.Variant("effect", "raster", parse_config({"default": "raster"}), settings, spp=spp),
               repeat=10)
     assert rendered == [frames]
+
+
+@pytest.mark.parametrize("software", [True, False])
+def test_the_temporal_knob_on_a_still_view_is_the_mean_of_as_many_samples_as_its_value(gl, room, monkeypatch,
+                                                                                       software):
+    """`temporal=N` holds the N frames measure() renders (warm-up and timed), no more and no fewer:
+    its image equals N accumulated samples exactly. (The knob once set --temporal without the
+    accumulation it implies, and its image was one frame's; the settle's frames, on a GPU, and an
+    earlier variant's on the same renderer must not count either.)"""
+    from rayvr.gl.context import GLContext
+    from rayvr.quality import measure as M
+    from rayvr.renderer import Renderer
+
+    scene, rig = room
+    if not software:  # as on the H200: a settle that renders frames of the variant first
+        monkeypatch.setattr(GLContext, "is_software", property(lambda self: False))
+        warm_up = Renderer.warm_up
+        monkeypatch.setattr(Renderer, "warm_up", lambda self, r, **k: {
+            **warm_up(self, r, min_frames=4), "settled": True, "last": 1.0})
+    noisy = [v for v in T.noise_variants(T.everywhere(load_config("rayvr/assets/default_room.toml"), "path"),
+                                         quick=True, repeat=2)]
+    (temporal,) = [v for v in noisy if v.knob == "temporal"]
+    assert temporal.settings.accumulate and temporal.value == M.WARMUP_FRAMES + 2
+    with M.RendererPool(gl) as pool:
+        first = M.measure(gl, scene, rig, temporal, repeat=2, pool=pool)
+        again = M.measure(gl, scene, rig, temporal, repeat=2, pool=pool)  # the same renderer, its history dropped
+        one = M.measure(gl, scene, rig, replace_spp(temporal, 1, accumulate=False), repeat=2, pool=pool)
+        mean = M.measure(gl, scene, rig, replace_spp(temporal, temporal.value, accumulate=False), repeat=1, pool=pool)
+    np.testing.assert_array_equal(first.image, mean.image)
+    np.testing.assert_array_equal(again.image, mean.image)
+    assert np.abs(one.image.astype(int) - mean.image.astype(int)).mean() > 1.0  # one sample is another image
+
+
+def replace_spp(variant, spp, **settings):
+    """`variant` as `spp` accumulated samples of one frame each (no temporal history)."""
+    from dataclasses import replace
+
+    return replace(variant, spp=spp, settings=replace(variant.settings, temporal=False, **settings))

@@ -145,7 +145,7 @@ def _sweep_arguments(args) -> dict:
 def _tradeoff(args, out, camera_from_args):
     from . import tradeoff
 
-    tradeoff.run(out, quick=args.quick, **_sweep_arguments(args), **_views(args, quick_poses=0))
+    tradeoff.run(out, quick=args.quick, knobs=args.knobs, **_sweep_arguments(args), **_views(args, quick_poses=0))
 
 
 def _budget(args, out, camera_from_args):

@@ -79,8 +79,12 @@ def source_commit() -> str | None:
 
 def provenance(meta: dict) -> str:
     """One line for a figure: device, date and commit of the run it shows."""
-    return (f"{meta.get('gl_renderer', '?')}, {str(meta.get('date', '?'))[:10]}, "
+    line = (f"{meta.get('gl_renderer', '?')}, {str(meta.get('date', '?'))[:10]}, "
             f"commit {meta.get('commit') or 'unknown'}")
+    kept = meta.get("kept_from")  # rows an earlier run of the same settings measured (bench tradeoff --knobs)
+    if kept:
+        line += f"; other rows {str(kept.get('date') or '?')[:10]}, commit {kept.get('commit') or 'unknown'}"
+    return line
 
 
 # -------------------------------------------------------------------------------------------

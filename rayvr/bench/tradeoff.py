@@ -21,6 +21,7 @@ from ..quality import metrics
 from ..quality.metric_pool import judge
 from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 from ..frame.effects import traced_effects
+from ..settings import merged
 from ..scene.materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
 from .head_poses import POSE_SEED, draw_poses
 from ..quality.measure import (BENCH_QUALITY, COMPARE_SETTINGS, QUICK_REFERENCE_SPP, REFERENCE_SPP, WARMUP_FRAMES,
@@ -67,8 +68,15 @@ def variants(scene, base: MaterialConfig, quick: bool = False, repeat: int = 10)
                                    touches=touched))
     for s in ([0.5, 1.0] if quick else [0.5, 0.75, 1.0]):
         out.append(Variant("resolution_scale", s, base, scale=s))
-    out += frame_variants(base, quick) + noise_variants(noisy_base(scene, base), quick, repeat)
-    names = scene.material_names()  # a camera that is not a pinhole cannot take screen-space tracing
+    noisy = noisy_base(scene, base)
+    out += frame_variants(base, quick) + noise_variants(noisy, quick, repeat)
+    names = scene.material_names()
+    rung = converging_rung()
+    if {a.effect for a in noisy.assign(names, warn=False)} != {rung}:
+        # The same knobs on the frame that converges to the reference, every material on path:
+        # the trade the budget mode weighs (samples and the denoiser on every pixel).
+        out += noise_variants(everywhere(base, rung), quick, repeat, knob_prefix=f"{rung}_everywhere.")
+    # a camera that is not a pinhole cannot take screen-space tracing
     return [v for v in out if not camera_refusal(v, names)]
 
 
@@ -90,29 +98,62 @@ def frame_variants(base: MaterialConfig, quick: bool = False) -> list[Variant]:
 NOISE_SEED = 1  # the noise knobs draw other samples than the other variants (and the reference: REFERENCE_SEED)
 
 
+def everywhere(base: MaterialConfig, effect: str) -> MaterialConfig:
+    """`base` with every material on `effect` (its parameters kept)."""
+    return config_with(base, default=effect, materials={n: effect for n in base.by_name})
+
+
+def converging_rung() -> str:
+    """The sampled rung the reference renders diffuse surfaces with (path today): the frame whose
+    samples, accumulated, converge to the reference."""
+    from ..quality.reference_images import chain
+
+    sampled = {e.name for e in traced_effects() if e.denoised}
+    return next(e for e in chain("diffuse") if e in sampled)
+
+
 def noisy_base(scene, base: MaterialConfig) -> MaterialConfig:
     """`base` if some material of `scene` uses a sampled (denoised) effect there, else the whole
-    scene on the last such rung of the ladder (the most sampled): noise knobs on a noiseless
-    image would measure nothing."""
+    scene on the last such rung of the ladder: noise knobs on a noiseless image would measure nothing."""
     sampled = [e.name for e in traced_effects() if e.denoised]
     if not sampled or any(a.effect in sampled for a in base.assign(scene.material_names(), warn=False)):
         return base
-    return config_with(base, default=sampled[-1], materials={n: sampled[-1] for n in base.by_name})
+    return everywhere(base, sampled[-1])
 
 
-def noise_variants(base: MaterialConfig, quick: bool = False, repeat: int = 10) -> list[Variant]:
+def noise_variants(base: MaterialConfig, quick: bool = False, repeat: int = 10, knob_prefix: str = "") -> list[Variant]:
     """The denoiser (off, then 1..5 à-trous iterations) at one sample a pixel, accumulated samples
     per pixel with and without it (the speed of a still view's convergence), and temporal
-    accumulation on a still view (its image holds every frame measure() renders, one frame's cost)."""
+    accumulation on a still view (its image holds every frame measure() renders, one frame's cost).
+    `knob_prefix` names the frame they vary when it is not the scene's own config."""
     plain = replace(COMPARE_SETTINGS, seed=NOISE_SEED)
-    out = [Variant("denoise.iterations", k, base,
+    out = [Variant(f"{knob_prefix}denoise.iterations", k, base,
                    replace(plain, denoise=k > 0, denoise_iterations=max(k, 1)))
            for k in ((0, 4) if quick else (0, 1, 2, 3, 4, 5))]
     for spp in ((4,) if quick else (4, 16)):  # (1 sample: the denoise.iterations rows 0 and 4)
-        out.append(Variant("spp", spp, base, plain, spp=spp))
-        out.append(Variant("spp+denoise", spp, base, replace(plain, denoise=True), spp=spp))
-    out.append(Variant("temporal", WARMUP_FRAMES + repeat, base, replace(plain, temporal=True)))
+        out.append(Variant(f"{knob_prefix}spp", spp, base, plain, spp=spp))
+        out.append(Variant(f"{knob_prefix}spp+denoise", spp, base, replace(plain, denoise=True), spp=spp))
+    out.append(Variant(f"{knob_prefix}temporal", WARMUP_FRAMES + repeat, base,
+                       replace(plain, **merged({"temporal": True}))))  # with what it implies: accumulation
     return out
+
+
+def knob_selected(knob: str, knobs) -> bool:
+    """Whether `knob` is among `knobs` (None: all): named itself or by its family, the part
+    before a dot ("path" selects path.samples, "path_everywhere" every path_everywhere.* knob)."""
+    return knobs is None or any(knob == k or knob.startswith(k + ".") for k in knobs)
+
+
+def chosen_knobs(variants_: list[Variant], knobs) -> list[Variant]:
+    """The variants of `knobs` (None: all); a name that selects none is an error naming the knobs there are."""
+    if knobs is None:
+        return variants_
+    unknown = [k for k in knobs if not any(knob_selected(v.knob, (k,)) for v in variants_)]
+    if unknown:
+        families = sorted({v.knob for v in variants_})
+        raise ValueError(f"bench tradeoff --knobs: {', '.join(unknown)} names no knob here; "
+                         f"the knobs: {', '.join(families)}")
+    return [v for v in variants_ if knob_selected(v.knob, knobs)]
 
 
 def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd: float, repeat=10,
@@ -225,21 +266,28 @@ SAME_SWEEP = ("gl_renderer", "gl_version", "per_eye_size", "quick", "repeat", "p
 SAME_BUDGET = SAME_SWEEP + ("grid", "rungs")
 
 
-def _earlier_views(out_dir, name: str, meta: dict, same: tuple) -> list:
-    """The rows of the folder's earlier report `name` (any view), if it matches `meta` on `same`."""
+def _earlier_report(out_dir, name: str, meta: dict, same: tuple) -> tuple[list, dict]:
+    """The rows (any view) and meta of the folder's earlier report `name`, if it matches `meta` on `same`."""
     from .report import earlier_rows
 
-    return earlier_rows(f"{out_dir}/{name}.json", meta, same, lambda r: isinstance(r, dict) and "view" in r)[0]
+    return earlier_rows(f"{out_dir}/{name}.json", meta, same, lambda r: isinstance(r, dict) and "view" in r)
 
 
-def _unmeasured(earlier: list, measured: set) -> list:
-    """The earlier rows of views ((scene, view) pairs) this run did not measure."""
-    return [r for r in earlier if (r.get("scene"), r["view"]) not in measured]
+def _earlier_views(out_dir, name: str, meta: dict, same: tuple) -> list:
+    """The rows of the folder's earlier report `name` (any view), if it matches `meta` on `same`."""
+    return _earlier_report(out_dir, name, meta, same)[0]
 
 
-def _with_earlier(earlier: list, rows: list, measured: set) -> list:
-    """The earlier rows of views this run did not measure, then this run's rows."""
-    return _unmeasured(earlier, measured) + rows
+def _unmeasured(earlier: list, measured: set, knobs=None) -> list:
+    """The earlier rows of views ((scene, view) pairs) this run did not measure and, when it swept
+    only `knobs`, of the knobs it left out (its noise floor row replaces theirs)."""
+    return [r for r in earlier if (r.get("scene"), r["view"]) not in measured
+            or (knobs is not None and r.get("knob") != "noise floor" and not knob_selected(r.get("knob", ""), knobs))]
+
+
+def _with_earlier(earlier: list, rows: list, measured: set, knobs=None) -> list:
+    """The earlier rows this run leaves standing (_unmeasured), then this run's rows."""
+    return _unmeasured(earlier, measured, knobs) + rows
 
 
 def _kept_views(earlier: list, measured: set) -> list[str]:
@@ -248,12 +296,15 @@ def _kept_views(earlier: list, measured: set) -> list[str]:
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
         base_config=None, backend=None, progress=True, workers=None, address=None,
-        connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=POSE_SEED, reference_spp=None) -> dict:
-    """Sweep every knob on each scene, from its fixed view and from `poses` random head poses,
+        connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=POSE_SEED, reference_spp=None,
+        knobs=None) -> dict:
+    """Sweep every knob (or those `knobs` select: knob_selected) on each scene, from its fixed view and from `poses` random head poses,
     each against the reference of the same view (`reference_spp` samples a pixel; default
     REFERENCE_SPP, --quick QUICK_REFERENCE_SPP); write tradeoff.json/.md and one plot per view.
     `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here.
-    Views of the folder's earlier tradeoff.json that this run does not measure stay (SAME_SWEEP)."""
+    Views of the folder's earlier tradeoff.json that this run does not measure stay (SAME_SWEEP),
+    and with `knobs` the other knobs' rows of the views it measures: meta's kept_views, kept_knobs
+    and kept_from (the earlier run's commit and date) say which."""
     from .report import device_meta, write_report
 
     rows, skipped, measured = [], {}, set()
@@ -261,14 +312,15 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
                 "ppd": ppd, "skipped": skipped, "workers": workers or 0, "poses": poses, "pose_seed": pose_seed,
-                "reference_spp": reference_spp,
+                "reference_spp": reference_spp, "knobs": list(knobs) if knobs else "all",
                 "error": "vs the scene's reference (rayvr.quality.reference_images); "
                 "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
-        earlier = _earlier_views(out_dir, "tradeoff", meta, SAME_SWEEP)
+        earlier, earlier_meta = _earlier_report(out_dir, "tradeoff", meta, SAME_SWEEP)
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
                                                                          poses, pose_seed):
+            swept = chosen_knobs(variants(scene, base, quick, repeat), knobs)
             with RendererPool(gl) as pool:
-                r, _ = run_sweep(gl, scene, rig, reference, variants(scene, base, quick, repeat), ppd, repeat,
+                r, _ = run_sweep(gl, scene, rig, reference, swept, ppd, repeat,
                                  progress, with_flip=True, pool=pool, measure_all=_measurer(cluster, name, rig, repeat),
                                  reference_spp=reference_spp, per_frame=reference_per_frame(quick))
             for row in r:
@@ -276,9 +328,13 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
             rows += r
             measured.add((name, view))
             write_report(out_dir, "tradeoff", {"meta": {**meta, "partial": True},  # a cut run keeps its views
-                                               "rows": _with_earlier(earlier, rows, measured)})
+                                               "rows": _with_earlier(earlier, rows, measured, knobs)})
     meta["kept_views"] = _kept_views(earlier, measured)
-    result = {"meta": meta, "rows": _with_earlier(earlier, rows, measured)}
+    kept = _unmeasured(earlier, measured, knobs)
+    meta["kept_knobs"] = sorted({r["knob"] for r in kept if (r.get("scene"), r["view"]) in measured})
+    if kept:
+        meta["kept_from"] = {k: earlier_meta.get(k) for k in ("commit", "date")}
+    result = {"meta": meta, "rows": kept + rows}
     write_report(out_dir, "tradeoff", result)
     plot_tradeoff(result["rows"], out_dir, meta)
     return result

@@ -42,6 +42,14 @@ def _among(text: str, what: str, allowed, unique: bool = False) -> tuple[str, ..
     return names
 
 
+def _knob_names(text: str) -> tuple[str, ...]:
+    """bench tradeoff --knobs: comma-separated knob names (checked against a scene's knobs when it runs)."""
+    names = tuple(dict.fromkeys(_split(text)))
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected knob names, comma-separated, got {text!r}")
+    return names
+
+
 def _builds(text: str) -> tuple[str, ...]:
     return _among(text, "BVH builds", BUILDS, unique=True)
 
@@ -137,6 +145,10 @@ def add_parser(sub) -> None:
                    help="budget: per-material settings a material may take beside each effect's own, e.g. "
                         "\"glossy.samples=1,4;path.samples=1,4\" (each a rung: one more render per point of the "
                         "grid; default: none; docs/budget.md)")
+    b.add_argument("--knobs", type=_knob_names, metavar="NAMES",
+                   help="tradeoff: sweep only these knobs, comma-separated: a knob (path.samples, stereo) or its "
+                        "family (path, path_everywhere); the folder's earlier rows of the other knobs stay "
+                        "(default: every knob)")
     b.add_argument("--out", default=DEFAULT_OUT, help=f"folder for JSON/markdown results (default ./{DEFAULT_OUT}: "
                    "the repository's committed bench/results/ is only written when named)")
     b.add_argument("--size", type=_size, default=(1440, 1600), help="per-eye size (default 1440x1600)")

@@ -20,6 +20,7 @@ from ..frame.cameras import DEFAULT_CAMERA_MODEL as DEFAULT_CAMERA
 from ..frame.cameras.sampling import MSAA
 from ..frame.passes.denoise import DENOISE_ITERATIONS
 from ..options import BOOL_WORDS
+from ..settings import merged
 
 MAX_SPP = 64  # a budget pick accumulates at most this many samples an image
 SCALES = (0.5, 1.0)  # a resolution scale lies in [0.5, 1]: below half the upscaled image is a blur
@@ -52,8 +53,8 @@ class FrameKnobs:
         return {**out, "temporal": True} if self.temporal else out
 
     def settings(self, base):
-        """`base` RenderSettings with these knobs' render options."""
-        return replace(base, **self.render_table())
+        """`base` RenderSettings with these knobs' render options and what they imply (temporal: accumulation)."""
+        return replace(base, **merged(self.render_table()))
 
     def variant(self, knob: str, value, config, base_settings):
         """A measured variant (quality/measure.py) rendered with these knobs."""

@@ -158,11 +158,14 @@ def measure(gl, scene, rig: StereoRig, variant: Variant, repeat: int = 10, warmu
         software = r.gl.is_software  # no clocks to bring up: no settle, one frame for first-use work
         settled = r.warm_up(sized, max_seconds=MEASURE_SETTLE_MAX_S) if settle and not software else {}
         lap("settle")
-        if software:
+        if variant.settings.temporal:
+            # its image holds every frame from here on (warmup + repeat, the knob's value): none of
+            # the settle's frames, nor of an earlier variant's on the pool's renderer
+            r.accumulator.invalidate()
+        elif software:
             warmup = min(warmup, SOFTWARE_WARMUP_FRAMES)
-        elif settled.get("last", 0.0) * variant.spp > SLOW_IMAGE_MS and not variant.settings.temporal:
-            # the settle ran frames of it at speed already, and a timer's jitter is nothing beside
-            # this many ms; temporal accumulation is left alone (its image holds every frame)
+        elif settled.get("last", 0.0) * variant.spp > SLOW_IMAGE_MS:
+            # the settle ran frames of it at speed already, and a timer's jitter is nothing beside this many ms
             warmup, repeat = 0, min(repeat, SLOW_IMAGE_REPEAT)
         rigs = [sized] * (warmup + repeat)
         totals, per_pass, last = [], [], None
