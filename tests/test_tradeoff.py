@@ -171,13 +171,20 @@ def test_a_run_of_some_knobs_keeps_the_other_knobs_rows_and_says_from_which_run(
     assert got == json.loads((tmp_path / "tradeoff.json").read_text())
     meta = got["meta"]
     assert "stereo" not in meta["kept_knobs"] and "effect" in meta["kept_knobs"] and meta["knobs"] == ["stereo"]
-    assert meta["kept_from"]["commit"] == "aaaaaaa" and meta["commit"] == "bbbbbbb"
+    assert meta["kept_from"] == ["aaaaaaa"] and meta["commit"] == "bbbbbbb"
+    assert {r["commit"] for r in got["rows"] if r["knob"] in ("stereo", "noise floor")} == {"bbbbbbb"}
+    assert {r["commit"] for r in got["rows"] if r["knob"] not in ("stereo", "noise floor")} == {"aaaaaaa"}
     from rayvr.bench.report import provenance
 
-    assert provenance(meta).endswith("commit bbbbbbb; other rows " + first["meta"]["date"][:10] + ", commit aaaaaaa")
+    assert provenance(meta).endswith("commit bbbbbbb; other rows: commit aaaaaaa")
+    # a third commit sweeps the camera into that folder: both earlier commits are named
+    monkeypatch.setenv("RAYVR_COMMIT", "ccccccc")
+    got = T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=0, progress=False,
+                knobs=("camera",))
+    assert got["meta"]["kept_from"] == ["aaaaaaa", "bbbbbbb"]
     # a full run keeps nothing of the views it measures
     got = T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=0, progress=False)
-    assert all(r["label"].endswith("#3") or r["label"] == "floor 3" for r in got["rows"])
+    assert all(r["label"].endswith("#4") or r["label"] == "floor 4" for r in got["rows"])
     assert "kept_from" not in got["meta"] and got["meta"]["kept_knobs"] == []
 
 

@@ -81,9 +81,8 @@ def provenance(meta: dict) -> str:
     """One line for a figure: device, date and commit of the run it shows."""
     line = (f"{meta.get('gl_renderer', '?')}, {str(meta.get('date', '?'))[:10]}, "
             f"commit {meta.get('commit') or 'unknown'}")
-    kept = meta.get("kept_from")  # rows an earlier run of the same settings measured (bench tradeoff --knobs)
-    if kept:
-        line += f"; other rows {str(kept.get('date') or '?')[:10]}, commit {kept.get('commit') or 'unknown'}"
+    if meta.get("kept_from"):  # rows earlier runs of the same settings measured (bench tradeoff --knobs)
+        line += f"; other rows: commit {', '.join(meta['kept_from'])}"
     return line
 
 

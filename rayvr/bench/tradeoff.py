@@ -304,7 +304,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here.
     Views of the folder's earlier tradeoff.json that this run does not measure stay (SAME_SWEEP),
     and with `knobs` the other knobs' rows of the views it measures: meta's kept_views, kept_knobs
-    and kept_from (the earlier run's commit and date) say which."""
+    and kept_from (the commits that measured them; every row names its commit) say which."""
     from .report import device_meta, write_report
 
     rows, skipped, measured = [], {}, set()
@@ -316,6 +316,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
                 "error": "vs the scene's reference (rayvr.quality.reference_images); "
                 "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
         earlier, earlier_meta = _earlier_report(out_dir, "tradeoff", meta, SAME_SWEEP)
+        earlier = [{"commit": earlier_meta.get("commit"), **r} for r in earlier]  # rows before rows had theirs
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
                                                                          poses, pose_seed):
             swept = chosen_knobs(variants(scene, base, quick, repeat), knobs)
@@ -324,7 +325,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
                                  progress, with_flip=True, pool=pool, measure_all=_measurer(cluster, name, rig, repeat),
                                  reference_spp=reference_spp, per_frame=reference_per_frame(quick))
             for row in r:
-                row["scene"], row["view"] = name, view
+                row["scene"], row["view"], row["commit"] = name, view, meta["commit"]
             rows += r
             measured.add((name, view))
             write_report(out_dir, "tradeoff", {"meta": {**meta, "partial": True},  # a cut run keeps its views
@@ -332,8 +333,9 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     meta["kept_views"] = _kept_views(earlier, measured)
     kept = _unmeasured(earlier, measured, knobs)
     meta["kept_knobs"] = sorted({r["knob"] for r in kept if (r.get("scene"), r["view"]) in measured})
-    if kept:
-        meta["kept_from"] = {k: earlier_meta.get(k) for k in ("commit", "date")}
+    older = sorted({str(r["commit"]) for r in kept} - {str(meta["commit"])})
+    if older:
+        meta["kept_from"] = older
     result = {"meta": meta, "rows": kept + rows}
     write_report(out_dir, "tradeoff", result)
     plot_tradeoff(result["rows"], out_dir, meta)
