@@ -466,7 +466,7 @@ def plot_budget(rows: list[dict], grid_rows: list[dict], out_dir, meta: dict | N
     written = []
     for scene, view in dict.fromkeys((r["scene"], r["view"]) for r in grid_rows):
         mine = [r for r in grid_rows if (r["scene"], r["view"]) == (scene, view)]
-        fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
+        fig, ax = plt.subplots(figsize=(11, 5.5), dpi=110)
         points = list(dict.fromkeys(r["knobs"] for r in mine))
         for knobs, label in zip(points, grid_labels(points)):
             pts = [(r["gpu_ms"], r["flip"]) for r in mine if r["knobs"] == knobs]
@@ -519,11 +519,14 @@ def _save_speed_error(plt, fig, ax, title: str, path, meta: dict | None = None):
     ax.set_ylabel("mean FLIP vs the converged reference (lower is better)")
     ax.set_title(title + (f"\n{provenance(meta)}" if meta else ""), fontsize=9)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=6, ncol=2)
+    ax.legend(fontsize=6, ncol=2, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the points, not on them
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+KNOB_MARKERS = "os^Dv"
 
 
 def plot_tradeoff(rows: list[dict], out_dir, meta: dict | None = None) -> list:
@@ -546,10 +549,11 @@ def plot_tradeoff(rows: list[dict], out_dir, meta: dict | None = None) -> list:
         mine = [r for r in here if r["knob"] != "noise floor"]
         if not mine:
             continue
-        fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
-        for knob in dict.fromkeys(r["knob"] for r in mine):
+        fig, ax = plt.subplots(figsize=(11, 5.5), dpi=110)
+        for i, knob in enumerate(dict.fromkeys(r["knob"] for r in mine)):
             pts = [(r["gpu_ms"], r["flip"]) for r in mine if r["knob"] == knob]
-            ax.scatter(*zip(*pts), s=22, label=knob, alpha=0.85)
+            # ten colours a marker: past ten knobs the marker tells them apart
+            ax.scatter(*zip(*pts), s=22, label=knob, alpha=0.85, marker=KNOB_MARKERS[i // 10 % len(KNOB_MARKERS)])
         front = [mine[i] for i in pareto_front([(r["gpu_ms"], r["flip"]) for r in mine])]
         ax.step([r["gpu_ms"] for r in front], [r["flip"] for r in front], where="post", color="k", lw=1,
                 label="Pareto front")
