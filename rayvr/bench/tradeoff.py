@@ -298,9 +298,10 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
         base_config=None, backend=None, progress=True, workers=None, address=None,
         connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=POSE_SEED, reference_spp=None,
         knobs=None) -> dict:
-    """Sweep every knob (or those `knobs` select: knob_selected) on each scene, from its fixed view and from `poses` random head poses,
-    each against the reference of the same view (`reference_spp` samples a pixel; default
-    REFERENCE_SPP, --quick QUICK_REFERENCE_SPP); write tradeoff.json/.md and one plot per view.
+    """Sweep every knob (or those `knobs` select: knob_selected) on each scene, from its fixed
+    view and from `poses` random head poses, each against the reference of the same view
+    (`reference_spp` samples a pixel; default REFERENCE_SPP, --quick QUICK_REFERENCE_SPP); write
+    tradeoff.json/.md and one plot per view.
     `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here.
     Views of the folder's earlier tradeoff.json that this run does not measure stay (SAME_SWEEP),
     and with `knobs` the other knobs' rows of the views it measures: meta's kept_views, kept_knobs
