@@ -459,3 +459,46 @@ def replace_spp(variant, spp, **settings):
     from dataclasses import replace
 
     return replace(variant, spp=spp, settings=replace(variant.settings, temporal=False, **settings))
+
+
+def test_views_name_the_fixed_view_and_head_poses_and_runs_of_some_add_up(tmp_path, monkeypatch):
+    """`--views fixed,0` / `--views 1`: the head pose numbered I is the same pose however many are
+    drawn, so a run of pose 1 alone into the folder of a run of the fixed view and pose 0 adds up to
+    all three views (a device call's time limit splits the budget run this way)."""
+    import argparse
+
+    from rayvr.bench import _views
+    from rayvr.commands.bench import _view_names
+
+    assert _view_names("fixed,0,2,0") == ("fixed", "pose 0", "pose 2")
+    for bad in ("x", "-1", ",", "pose1"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            _view_names(bad)
+    args = argparse.Namespace(views=("pose 2", "fixed"), poses=None, pose_seed=22, quick=False)
+    assert _views(args) == {"poses": 3, "pose_seed": 22, "views": ("pose 2", "fixed")}
+    assert _views(argparse.Namespace(views=("fixed",), poses=None, pose_seed=7, quick=False))["poses"] == 0
+    with pytest.raises(ValueError, match="--views .* or --poses"):
+        _views(argparse.Namespace(views=("fixed",), poses=2, pose_seed=22, quick=False))
+
+    scene, rig = load(), StereoRig.for_scene(load(), size=(16, 12))
+    every = dict(T.views_of("default", scene, rig, 3, 22))
+    some = T.views_of("default", scene, rig, 2, 22, only=("pose 1",))
+    assert [v for v, _ in some] == ["pose 1"]
+    np.testing.assert_array_equal(some[0][1].pose.position, every["pose 1"].pose.position)
+    np.testing.assert_array_equal(some[0][1].pose.rotation, every["pose 1"].pose.rotation)
+    assert not np.allclose(every["pose 0"].pose.position, every["pose 1"].pose.position)
+
+    run_label = ["first"]
+
+    def sweep(gl, scene, rig, *a, **k):
+        return [{"scene": scene.name, "knob": "effect", "value": "raster", "label": run_label[0], "gpu_ms": 1.0,
+                 "flip": 0.5}], None
+
+    monkeypatch.setattr(T, "run_sweep", sweep)
+    monkeypatch.setattr(T, "plot_tradeoff", lambda *a, **k: None)
+    T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=1, progress=False)
+    run_label[0] = "second"
+    got = T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=2, views=("pose 1",), progress=False)
+    assert sorted((r["view"], r["label"]) for r in got["rows"]) == [("fixed", "first"), ("pose 0", "first"),
+                                                                    ("pose 1", "second")]
+    assert got["meta"]["kept_views"] == ["default fixed", "default pose 0"]

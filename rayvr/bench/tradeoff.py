@@ -240,17 +240,19 @@ def _bench_gl(out_dir, backend):
         gl.release()
 
 
-def views_of(name: str, scene, rig, poses: int, pose_seed: int) -> list[tuple[str, object]]:
+def views_of(name: str, scene, rig, poses: int, pose_seed: int, only=None) -> list[tuple[str, object]]:
     """("fixed", the bench view) and ("pose I", a rig at seeded random head pose I inside the
-    scene: bench vr's poses) for I < poses."""
+    scene: bench vr's poses) for I < poses; `only`: those of these names (pose I is the same
+    whatever `poses` is, so runs of some views add up to one of all)."""
     heads = draw_poses(scene, name, poses, pose_seed) if poses else []
-    return [("fixed", rig)] + [(f"pose {h.index}", replace(rig, pose=h.pose)) for h in heads]
+    views = [("fixed", rig)] + [(f"pose {h.index}", replace(rig, pose=h.pose)) for h in heads]
+    return [v for v in views if only is None or v[0] in only]
 
 
-def _views_of_setups(scenes, size, base_config, skipped, quick, poses, pose_seed):
+def _views_of_setups(scenes, size, base_config, skipped, quick, poses, pose_seed, only=None):
     """_setups' (name, scene, rig, base, reference) for each view of each scene, with the view's name."""
     for name, scene, fixed, base, reference in _setups(scenes, size, base_config, skipped, quick):
-        for view, rig in views_of(name, scene, fixed, poses, pose_seed):
+        for view, rig in views_of(name, scene, fixed, poses, pose_seed, only):
             yield name, scene, rig, base, reference, view
 
 
@@ -297,11 +299,11 @@ def _kept_views(earlier: list, measured: set) -> list[str]:
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, quick=False, ppd=metrics.DEFAULT_PPD,
         base_config=None, backend=None, progress=True, workers=None, address=None,
         connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=POSE_SEED, reference_spp=None,
-        knobs=None) -> dict:
+        knobs=None, views=None) -> dict:
     """Sweep every knob (or those `knobs` select: knob_selected) on each scene, from its fixed
     view and from `poses` random head poses, each against the reference of the same view
     (`reference_spp` samples a pixel; default REFERENCE_SPP, --quick QUICK_REFERENCE_SPP); write
-    tradeoff.json/.md and one plot per view.
+    tradeoff.json/.md and one plot per view. `views`: only those of them (views_of's `only`).
     `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here.
     Views of the folder's earlier tradeoff.json that this run does not measure stay (SAME_SWEEP),
     and with `knobs` the other knobs' rows of the views it measures: meta's kept_views, kept_knobs
@@ -319,7 +321,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
         earlier, earlier_meta = _earlier_report(out_dir, "tradeoff", meta, SAME_SWEEP)
         earlier = [{"commit": earlier_meta.get("commit"), **r} for r in earlier]  # rows before rows had theirs
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
-                                                                         poses, pose_seed):
+                                                                         poses, pose_seed, views):
             swept = chosen_knobs(variants(scene, base, quick, repeat), knobs)
             with RendererPool(gl) as pool:
                 r, _ = run_sweep(gl, scene, rig, reference, swept, ppd, repeat,
@@ -350,7 +352,7 @@ BUDGETS_MS = (1000.0 / 90, 1000.0 / 120)  # bench budget's frame budgets unless 
 def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default", "sponza"), repeat=10,
                ppd=metrics.DEFAULT_PPD, base_config=None, backend=None, progress=True, quick=False, workers=None,
                address=None, connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, grid=None, poses=0, pose_seed=POSE_SEED,
-               reference_spp=None, rungs=None) -> dict:
+               reference_spp=None, rungs=None, views=None) -> dict:
     """For each scene and budget: the pick (frame-wide knobs of `grid` and the effect per
     material), its predicted and measured ms and error, the best render of the measured grid that
     fits (every point of `grid` with every material on one rung) and the pick's FLIP above it
@@ -358,8 +360,9 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     written as the config that reproduces it. `workers`: the per-rung measurements spread over
     Ray workers; each pick is confirmed here. Each view's reference is run()'s (`reference_spp`),
     and its noise floor is in every row: errors below it are noise. `rungs`: the rung keys a
-    material chooses from (quality/rungs.py; default the ladder's effects). Views of the folder's
-    earlier budget reports that this run does not measure stay (SAME_BUDGET)."""
+    material chooses from (quality/rungs.py; default the ladder's effects). `views`: only those
+    (views_of's `only`). Views of the folder's earlier budget reports that this run does not
+    measure stay (SAME_BUDGET)."""
     from ..quality.budget import pick_toml
     from ..quality.frame_budget import choose_frame_under_budget, grid_best, measure_candidates
     from ..quality.frame_knobs import DEFAULT_KNOBS
@@ -383,7 +386,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                          "multiple-choice knapsack per point, the best point taken (rayvr.quality.frame_budget)"}
         earlier = {n: _earlier_views(out_dir, n, meta, SAME_BUDGET) for n in ("budget", "budget_grid", "budget_fixed")}
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
-                                                                         poses, pose_seed):
+                                                                         poses, pose_seed, views):
             with RendererPool(gl) as pool:
                 converged = measure_reference(gl, scene, rig, reference, reference_spp, reference_per_frame(quick),
                                               pool)

@@ -50,6 +50,22 @@ def _knob_names(text: str) -> tuple[str, ...]:
     return names
 
 
+def _view_names(text: str) -> tuple[str, ...]:
+    """bench tradeoff/budget --views: "fixed" and head pose numbers -> ("fixed", "pose 3", ...)."""
+    out = []
+    for x in dict.fromkeys(_split(text)):
+        if x == "fixed":
+            out.append(x)
+        elif x.isdigit() and int(x) < MAX_POSES:
+            out.append(f"pose {int(x)}")
+        else:
+            raise argparse.ArgumentTypeError(f"views are 'fixed' and head pose numbers 0 to {MAX_POSES - 1}, "
+                                             f"comma-separated; got {x!r} in {text!r}")
+    if not out:
+        raise argparse.ArgumentTypeError(f"expected views (fixed, 0, 1, ...), got {text!r}")
+    return tuple(out)
+
+
 def _builds(text: str) -> tuple[str, ...]:
     return _among(text, "BVH builds", BUILDS, unique=True)
 
@@ -205,6 +221,10 @@ def add_parser(sub) -> None:
     b.add_argument("--poses", type=_count(0, MAX_POSES), help="vr: random head poses per scene (default 8; --quick 2); "
                    "lights: (default 2; --quick 1); tradeoff, budget: the head poses measured beside the fixed view "
                    "(default 2; --quick 1; 0: the fixed view only)")
+    b.add_argument("--views", type=_view_names, metavar="VIEWS",
+                   help="tradeoff, budget: only these views, comma-separated: fixed and head pose numbers, e.g. "
+                        "fixed,0 or 1,2 (instead of --poses; the folder's report keeps the views a run leaves out, "
+                        "so runs of some views add up)")
     b.add_argument("--pose-seed", type=_count(0, MAX_SEED), default=POSE_SEED,
                    help=f"vr, tradeoff, budget: the seed the head poses are drawn from (default {POSE_SEED})")
     add_camera_model_arguments(b)
