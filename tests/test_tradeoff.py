@@ -272,6 +272,15 @@ def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
             if best is not None:  # the gap is the pick's FLIP above the grid's best that fits
                 assert row["optimality_gap"] == pytest.approx(row["measured_flip"] - best["flip"])
         assert "| default | fixed | 11.11 ms (90 Hz) |" in (tmp_path / "budget.md").read_text()
+        # budget_options.json is the solver's table: each pick's predicted error is its sum
+        table = json.loads((tmp_path / "budget_options.json").read_text())["rows"]
+        for row in rows:
+            mine = [o for o in table if (o["view"], o["knobs"]) == (row["view"], row["knobs"])]
+            assert mine and {o["material"] for o in mine} <= set(row["assignment"])  # those the view sees
+            assert all(o["cost_ms"] == 0.0 for o in mine if o["effect"] == "raster")  # the cost over all-raster
+            assert row["predicted_error"] == pytest.approx(sum(
+                o["importance"] * o["coverage"] * o["error"] for o in mine
+                if row["assignment"][o["material"]] == o["effect"]), rel=1e-9)
 
 
 @needs_flip

@@ -370,7 +370,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     from .report import device_meta, markdown, write_report
 
     grid = grid or [DEFAULT_KNOBS]
-    rows, grid_rows, fixed_rows, skipped, measured = [], [], [], {}, set()
+    rows, grid_rows, fixed_rows, option_rows, skipped, measured = [], [], [], [], {}, set()
     reference_spp = reference_spp or (QUICK_REFERENCE_SPP if quick else REFERENCE_SPP)
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
@@ -384,7 +384,8 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                          "whole-frame passes (denoise, quadtree, photon map, ...) paid once per frame as fixed-cost "
                          "groups (budget_fixed.json); total error = sum importance x coverage x error; exact "
                          "multiple-choice knapsack per point, the best point taken (rayvr.quality.frame_budget)"}
-        earlier = {n: _earlier_views(out_dir, n, meta, SAME_BUDGET) for n in ("budget", "budget_grid", "budget_fixed")}
+        earlier = {n: _earlier_views(out_dir, n, meta, SAME_BUDGET)
+                   for n in ("budget", "budget_grid", "budget_fixed", "budget_options")}
         for name, scene, rig, base, reference, view in _views_of_setups(scenes, size, base_config, skipped, quick,
                                                                          poses, pose_seed, views):
             with RendererPool(gl) as pool:
@@ -403,6 +404,10 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                           for c in candidates for e, (ms, flip) in c.rungs.items()]
             fixed_rows += [{"scene": name, "view": view, "knobs": c.knobs.label, "pass": g.name, "cost_ms": g.cost_ms,
                             "effects": sorted(g.effects)} for c in candidates for g in c.fixed]
+            option_rows += [{"scene": name, "view": view, "knobs": c.knobs.label, "base_ms": c.base_ms,
+                             "material": m.name, "coverage": m.coverage, "importance": m.importance,
+                             "effect": o.effect, "cost_ms": o.cost_ms, "error": o.error}
+                            for c in candidates for m in c.materials for o in m.options]
             for b, pick in zip(budgets, picks):
                 best = grid_best(candidates, b)
                 rows.append({"scene": name, "view": view, "reference_ms": ref.gpu_ms,
@@ -419,12 +424,17 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
             write_report(out_dir, "budget", {"meta": {**meta, "partial": True},  # a cut run keeps its views
                                              "rows": _with_earlier(earlier["budget"], rows, measured)})
     meta["kept_views"] = _kept_views(earlier["budget"], measured)
-    rows, grid_rows, fixed_rows = (_with_earlier(earlier[n], r, measured) for n, r in
-                                   (("budget", rows), ("budget_grid", grid_rows), ("budget_fixed", fixed_rows)))
+    rows, grid_rows, fixed_rows, option_rows = (
+        _with_earlier(earlier[n], r, measured) for n, r in (("budget", rows), ("budget_grid", grid_rows),
+                                                            ("budget_fixed", fixed_rows), ("budget_options", option_rows)))
     result = {"meta": meta, "rows": rows}
     write_report(out_dir, "budget", result, md=budget_headline(rows, meta) + "\n" + markdown("budget", result))
     write_report(out_dir, "budget_grid", {"meta": meta, "rows": grid_rows})
     write_report(out_dir, "budget_fixed", {"meta": meta, "rows": fixed_rows})
+    write_report(out_dir, "budget_options", {"meta": meta, "rows": option_rows},
+                 md="# budget_options\n\nThe solver's table: per view, point of the knob grid and material, each "
+                    "rung's extra GPU ms over the all-raster frame and mean FLIP over the material's pixels, with the "
+                    "material's screen coverage and importance (budget_options.json; base_ms: the all-raster frame).\n")
     plot_budget(rows, grid_rows, out_dir, meta)
     return result
 
