@@ -336,10 +336,8 @@ def test_a_sweep_cut_short_keeps_the_views_it_finished(tmp_path, monkeypatch):
     assert [(r["view"], r["label"]) for r in got["rows"]] == [("fixed", "effect=raster")]
 
 
-def test_a_run_keeps_the_folders_views_it_does_not_measure(tmp_path, monkeypatch):
-    """Runs split over device calls add up: a run of the fixed view leaves the head pose an earlier
-    run of the same device and settings measured, and replaces the fixed view; a run with other
-    settings keeps nothing."""
+def labelled_sweeps(monkeypatch) -> list:
+    """run_sweep stubbed: one row a view, labelled with the list's first item (set it between runs)."""
     run_label = ["first"]
 
     def sweep(gl, scene, rig, *a, **k):
@@ -348,6 +346,14 @@ def test_a_run_keeps_the_folders_views_it_does_not_measure(tmp_path, monkeypatch
 
     monkeypatch.setattr(T, "run_sweep", sweep)
     monkeypatch.setattr(T, "plot_tradeoff", lambda *a, **k: None)
+    return run_label
+
+
+def test_a_run_keeps_the_folders_views_it_does_not_measure(tmp_path, monkeypatch):
+    """Runs split over device calls add up: a run of the fixed view leaves the head pose an earlier
+    run of the same device and settings measured, and replaces the fixed view; a run with other
+    settings keeps nothing."""
+    run_label = labelled_sweeps(monkeypatch)
     T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=1, progress=False)
     run_label[0] = "second"
     got = T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=0, progress=False)
@@ -497,14 +503,7 @@ def test_views_name_the_fixed_view_and_head_poses_and_runs_of_some_add_up(tmp_pa
     np.testing.assert_array_equal(some[0][1].pose.rotation, every["pose 1"].pose.rotation)
     assert not np.allclose(every["pose 0"].pose.position, every["pose 1"].pose.position)
 
-    run_label = ["first"]
-
-    def sweep(gl, scene, rig, *a, **k):
-        return [{"scene": scene.name, "knob": "effect", "value": "raster", "label": run_label[0], "gpu_ms": 1.0,
-                 "flip": 0.5}], None
-
-    monkeypatch.setattr(T, "run_sweep", sweep)
-    monkeypatch.setattr(T, "plot_tradeoff", lambda *a, **k: None)
+    run_label = labelled_sweeps(monkeypatch)
     T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=1, progress=False)
     run_label[0] = "second"
     got = T.run(tmp_path, size=(16, 12), scenes=("default",), quick=True, poses=2, views=("pose 1",), progress=False)
