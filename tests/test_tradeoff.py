@@ -477,7 +477,7 @@ def replace_spp(variant, spp, **settings):
 
 
 def test_views_name_the_fixed_view_and_head_poses_and_runs_of_some_add_up(tmp_path, monkeypatch):
-    """`--views fixed,0` / `--views 1`: the head pose numbered I is the same pose however many are
+    """`--only-views fixed,0` / `--only-views 1`: the head pose numbered I is the same pose however many are
     drawn, so a run of pose 1 alone into the folder of a run of the fixed view and pose 0 adds up to
     all three views (a device call's time limit splits the budget run this way)."""
     import argparse
@@ -489,11 +489,11 @@ def test_views_name_the_fixed_view_and_head_poses_and_runs_of_some_add_up(tmp_pa
     for bad in ("x", "-1", ",", "pose1"):
         with pytest.raises(argparse.ArgumentTypeError):
             _view_names(bad)
-    args = argparse.Namespace(views=("pose 2", "fixed"), poses=None, pose_seed=22, quick=False)
+    args = argparse.Namespace(only_views=("pose 2", "fixed"), poses=None, pose_seed=22, quick=False)
     assert _views(args) == {"poses": 3, "pose_seed": 22, "views": ("pose 2", "fixed")}
-    assert _views(argparse.Namespace(views=("fixed",), poses=None, pose_seed=7, quick=False))["poses"] == 0
-    with pytest.raises(ValueError, match="--views .* or --poses"):
-        _views(argparse.Namespace(views=("fixed",), poses=2, pose_seed=22, quick=False))
+    assert _views(argparse.Namespace(only_views=("fixed",), poses=None, pose_seed=7, quick=False))["poses"] == 0
+    with pytest.raises(ValueError, match="--only-views .* or --poses"):
+        _views(argparse.Namespace(only_views=("fixed",), poses=2, pose_seed=22, quick=False))
 
     scene, rig = load(), StereoRig.for_scene(load(), size=(16, 12))
     every = dict(T.views_of("default", scene, rig, 3, 22))

@@ -168,15 +168,15 @@ def _budgets(args) -> list:
 def _views(args, quick_poses: int = 1) -> dict:
     """tradeoff and budget: the random head poses beside the fixed view (--poses; with --quick
     `quick_poses`: CI's budget run takes one, its tradeoff run none, to stay short), or the views
-    --views names."""
+    --only-views names."""
     from .tradeoff import SWEEP_POSES
 
-    if args.views is not None:
+    if args.only_views is not None:
         if args.poses is not None:
-            raise ValueError("give --views (the views by name) or --poses (the fixed view and that many head poses), "
-                             "not both")
-        poses = 1 + max((int(v.split()[1]) for v in args.views if v != "fixed"), default=-1)
-        return {"poses": poses, "pose_seed": args.pose_seed, "views": args.views}
+            raise ValueError("give --only-views (the views by name) or --poses (the fixed view and that many head "
+                             "poses), not both")
+        poses = 1 + max((int(v.split()[1]) for v in args.only_views if v != "fixed"), default=-1)
+        return {"poses": poses, "pose_seed": args.pose_seed, "views": args.only_views}
     return {"poses": args.poses if args.poses is not None else (quick_poses if args.quick else SWEEP_POSES),
             "pose_seed": args.pose_seed}
 

@@ -51,7 +51,7 @@ def _knob_names(text: str) -> tuple[str, ...]:
 
 
 def _view_names(text: str) -> tuple[str, ...]:
-    """bench tradeoff/budget --views: "fixed" and head pose numbers -> ("fixed", "pose 3", ...)."""
+    """bench tradeoff/budget --only-views: "fixed" and head pose numbers -> ("fixed", "pose 3", ...)."""
     out = []
     for x in dict.fromkeys(_split(text)):
         if x == "fixed":
@@ -221,7 +221,7 @@ def add_parser(sub) -> None:
     b.add_argument("--poses", type=_count(0, MAX_POSES), help="vr: random head poses per scene (default 8; --quick 2); "
                    "lights: (default 2; --quick 1); tradeoff, budget: the head poses measured beside the fixed view "
                    "(default 2; --quick 1; 0: the fixed view only)")
-    b.add_argument("--views", type=_view_names, metavar="VIEWS",
+    b.add_argument("--only-views", type=_view_names, metavar="VIEWS",
                    help="tradeoff, budget: only these views, comma-separated: fixed and head pose numbers, e.g. "
                         "fixed,0 or 1,2 (instead of --poses; the folder's report keeps the views a run leaves out, "
                         "so runs of some views add up)")
