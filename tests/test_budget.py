@@ -145,10 +145,10 @@ def test_fixed_cost_groups_match_brute_force(seed):
     mats = [{"name": f"m{i}", "importance": 1.0, "coverage": rng.uniform(0.05, 0.4),
              "options": [(e, rng.uniform(0, 0.5) * (j > 0), rng.uniform(0, 1) / (1 + j)) for j, e in enumerate(effects)]}
             for i in range(n)]
-    # e0 stays free of groups (it is `raster`); the others share 1-3 groups, one effect in two
+    # e0 stays free of groups (it is `raster`); the others share 1-6 groups (nested, as layers, or not)
     groups = [FixedCost(f"g{g}", float(rng.uniform(0.1, 1.5)),
                         frozenset(rng.choice(effects[1:], size=rng.integers(1, k), replace=False)))
-              for g in range(rng.integers(1, 4))]
+              for g in range(rng.integers(1, 7))]
     base = rng.uniform(0, 0.5)
     budget = base + rng.uniform(0, 0.5 * n + 1.5)
     r = solve_budget(mats, budget, base, fixed=groups)
@@ -212,6 +212,35 @@ def test_fixed_costs_come_from_the_passes_a_rung_adds_over_raster():
     # without pass timers (a measurer that has none) everything is per pixel, as before
     groups, per_pixel = fixed_costs({e: r[:2] for e, r in rungs.items()})
     assert groups == [] and per_pixel["path"] == pytest.approx(11.4)
+
+
+def test_a_pass_some_rungs_grow_far_more_is_charged_at_the_costliest_rung_a_frame_takes():
+    """The denoiser grows by 0.5 ms for `shadows`, 1.5 for `glossy` and 3.0 for `path`. Charging
+    every frame that denoises the most (3.0 ms) predicted the whole-scene `shadows` render at 5 ms
+    (its 0.5 ms per-pixel share could not pay the 2.5 ms difference) where it measured 3. As layers
+    (0.5 with all three, 1.0 more with glossy and path, 1.5 more with path) a frame pays what its
+    costliest rung grows the pass by, and every whole-scene render is predicted exactly."""
+    import itertools
+
+    from rayvr.quality.budget import fixed_costs
+
+    flip = np.zeros(4)
+    rungs = {"raster": (2.0, flip, {"gbuffer": 1.0, "shade": 1.0}),
+             "shadows": (3.0, flip, {"gbuffer": 1.0, "shade": 0.9, "rt_shadows": 0.6, "denoise": 0.5}),
+             "glossy": (4.0, flip, {"gbuffer": 1.0, "shade": 0.8, "rt_glossy": 1.0, "denoise": 1.5}),
+             "path": (9.0, flip, {"gbuffer": 1.0, "shade": 0.5, "rt_path": 4.0, "denoise": 3.0})}
+    groups, per_pixel = fixed_costs(rungs)
+    assert {g.name: (g.cost_ms, set(g.effects)) for g in groups} == {
+        "denoise": (pytest.approx(0.5), {"shadows", "glossy", "path"}),
+        "denoise+1": (pytest.approx(1.0), {"glossy", "path"}), "denoise+2": (pytest.approx(1.5), {"path"})}
+    for e, (ms, _, _) in rungs.items():
+        assert rungs["raster"][0] + per_pixel[e] + sum(g.cost_ms for g in groups if e in g.effects) == \
+            pytest.approx(ms), e
+    growth = {"raster": 0.0, "shadows": 0.5, "glossy": 1.5, "path": 3.0}
+    for k in range(1, 4):
+        for taken in itertools.combinations(growth, k):  # a frame with these rungs pays the most they grow it
+            charged = sum(g.cost_ms for g in groups if g.effects & set(taken))
+            assert charged == pytest.approx(max(growth[e] for e in taken)), taken
 
 
 def test_a_pick_whose_every_estimate_is_low_ends_within_budget_not_on_the_cheapest(monkeypatch):

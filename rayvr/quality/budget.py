@@ -34,8 +34,8 @@ H200: 3.5 ms of an 11.1 ms budget).
 
 Solver
 ------
-Exact, on the real (not rounded) costs. With fixed-cost groups, every subset T of the groups is
-solved as a plain knapsack over the options whose groups lie in T, with T's fixed costs taken from
+Exact, on the real (not rounded) costs. With fixed-cost groups, every subset T of the groups (but
+those charging a group whose effects the groups left out ban: _useful_subsets) is solved as a plain knapsack over the options whose groups lie in T, with T's fixed costs taken from
 the budget; the least error over all T is the optimum (an assignment using groups U is solved
 exactly under T = U and charged too much under any larger T). The plain knapsack is dynamic
 programming over materials that keeps, after each material, only the Pareto-optimal partial
@@ -49,7 +49,6 @@ returned with ``feasible=False`` instead of raising.
 """
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -219,24 +218,42 @@ def solve_budget(materials, budget_ms: float, base_ms: float = 0.0, fixed=()) ->
     base_ms = _finite(base_ms, "base_ms")
     groups = [g for g in fixed if _finite(g.cost_ms, f"fixed cost {g.name!r}") > 0]
     best = None
-    for k in range(len(groups) + 1):
-        for charged in itertools.combinations(groups, k):
-            banned = set().union(*(g.effects for g in groups if g not in charged))
-            kept = [[i for i, o in enumerate(m.options) if o.effect not in banned] for m in mats]
-            if not all(kept):
-                continue  # a material with only charged-elsewhere effects: no assignment under this subset
-            sub = [MaterialOptions(m.name, [m.options[i] for i in idx], m.importance, m.coverage)
-                   for m, idx in zip(mats, kept)]
-            fixed_ms = sum(g.cost_ms for g in charged)
-            r = _solve_plain(sub, budget_ms, base_ms + fixed_ms)
-            r = BudgetResult(budget_ms, base_ms, r.total_ms, r.error, r.feasible,
-                             [idx[i] for idx, i in zip(kept, r.choice)], r.assignment, mats,
-                             fixed_ms, tuple(g.name for g in charged))
-            if best is None or _better(r, best):
-                best = r
+    for charged in _useful_subsets(groups):
+        banned = set().union(*(g.effects for g in groups if g not in charged))
+        kept = [[i for i, o in enumerate(m.options) if o.effect not in banned] for m in mats]
+        if not all(kept):
+            continue  # a material with only charged-elsewhere effects: no assignment under this subset
+        sub = [MaterialOptions(m.name, [m.options[i] for i in idx], m.importance, m.coverage)
+               for m, idx in zip(mats, kept)]
+        fixed_ms = sum(g.cost_ms for g in charged)
+        r = _solve_plain(sub, budget_ms, base_ms + fixed_ms)
+        r = BudgetResult(budget_ms, base_ms, r.total_ms, r.error, r.feasible,
+                         [idx[i] for idx, i in zip(kept, r.choice)], r.assignment, mats,
+                         fixed_ms, tuple(g.name for g in charged))
+        if best is None or _better(r, best):
+            best = r
     if best is None:
         raise ValueError("no assignment avoids every fixed-cost group: give each material an option outside them")
     return best
+
+
+def _useful_subsets(groups: list[FixedCost]):
+    """The subsets of `groups` worth solving under: every subset but those charging a group whose
+    effects the groups left out ban already (it is paid for nothing). A pass's layers (fixed_costs)
+    nest, so leaving out its first layer prunes all the others: the count stays near the product of
+    the passes' layer counts, not 2 ** len(groups)."""
+    order = sorted(groups, key=lambda g: -len(g.effects))  # wider first: leaving one out bans the most
+
+    def walk(i, charged, banned):
+        if i == len(order):
+            yield tuple(g for g in groups if g in charged)
+            return
+        g = order[i]
+        if not g.effects <= banned:
+            yield from walk(i + 1, charged | {g}, banned)
+        yield from walk(i + 1, charged, banned | g.effects)
+
+    yield from walk(0, frozenset(), frozenset())
 
 
 def _better(a: BudgetResult, b: BudgetResult) -> bool:
@@ -359,8 +376,13 @@ def fixed_costs(rungs: dict) -> tuple[list[FixedCost], dict]:
 
     A traced effect's own passes (`rt_*`) run over its pixels' list: per pixel. Every other pass
     that a rung's render adds or grows over the all-raster render (denoise, quadtree, classify,
-    second_layer, ...) runs over the whole frame once: a group of the rungs that grow it, at the
-    most any of them grew it. A pass that shrinks (shade, which skips traced pixels) stays per pixel."""
+    second_layer, ...) runs over the whole frame once, and a frame pays for it what the costliest of
+    its rungs grows it by. So a pass is layers: the first costs the least growth and comes with
+    every rung that grows it, each next one the step to the next costlier rungs and comes with
+    those; a frame pays the layers of the costliest rung it takes, and each whole-scene render is
+    predicted exactly. Rungs within timer noise of each other share a layer (at their most; the
+    others pay the difference out of their per-pixel share). A pass that shrinks (shade, which
+    skips traced pixels) stays per pixel."""
     raster = rungs["raster"][2] if len(rungs["raster"]) > 2 else {}
     grown: dict = {}
     per_pixel = {}
@@ -373,18 +395,32 @@ def fixed_costs(rungs: dict) -> tuple[list[FixedCost], dict]:
                 grown.setdefault(p, {})[e] = delta
                 extra -= delta
         per_pixel[e] = max(extra, 0.0)
-    charged = {p: max(by.values()) for p, by in grown.items()}  # a pass costs the most any rung grew it
-    # a rung charged a pass's max pays for the rest of it out of its own per-pixel share
-    for p, by in grown.items():
-        for e, delta in by.items():
-            per_pixel[e] = max(per_pixel[e] - (charged[p] - delta), 0.0)
-    # passes the same rungs run are one group (photon's map: trace, sort, scan, cells), so the
-    # solver's subsets of groups stay few
-    merged: dict = {}
+    layers: dict = {}  # frozenset of rungs -> (pass layer names, ms)
     for p, by in sorted(grown.items()):
-        names, cost = merged.get(frozenset(by), ((), 0.0))
-        merged[frozenset(by)] = (names + (p,), cost + charged[p])
-    return [FixedCost("+".join(names), cost, effects) for effects, (names, cost) in merged.items()], per_pixel
+        below, levels = 0.0, _growth_levels(by)
+        for k, (top, members) in enumerate(levels):
+            for e in members:  # a rung charged its level's top pays the rest out of its own per-pixel share
+                per_pixel[e] = max(per_pixel[e] - (top - by[e]), 0.0)
+            # this level's rungs and the costlier ones; passes the same rungs run are one group
+            # (photon's map: trace, sort, scan, cells), so the solver's subsets of groups stay few
+            effects = frozenset(e for _, costlier in levels[k:] for e in costlier)
+            names, cost = layers.get(effects, ((), 0.0))
+            layers[effects] = (names + (p if k == 0 else f"{p}+{k}",), cost + top - below)
+            below = top
+    return [FixedCost("+".join(names), cost, effects) for effects, (names, cost) in layers.items()], per_pixel
+
+
+def _growth_levels(by: dict) -> list[tuple[float, list]]:
+    """A pass's growth by rung {rung: ms} as levels, cheapest first: (the level's ms, its rungs),
+    rungs within FIXED_COST_MIN_MS + FIXED_COST_NOISE x the level's ms of its costliest in one."""
+    order = sorted(by, key=by.get, reverse=True)
+    levels = []
+    while order:
+        top = by[order[0]]
+        members = [e for e in order if by[e] >= top - (FIXED_COST_MIN_MS + FIXED_COST_NOISE * top)]
+        levels.append((top, members))
+        order = order[len(members):]
+    return levels[::-1]
 
 
 def options_from_rungs(scene, reference_image, base, rungs: dict, min_coverage=1e-4):
