@@ -35,7 +35,8 @@ H200: 3.5 ms of an 11.1 ms budget).
 Solver
 ------
 Exact, on the real (not rounded) costs. With fixed-cost groups, every subset T of the groups (but
-those charging a group whose effects the groups left out ban: _useful_subsets) is solved as a plain knapsack over the options whose groups lie in T, with T's fixed costs taken from
+those charging a group whose effects the groups left out ban: _useful_subsets) is solved as a
+plain knapsack over the options whose groups lie in T, with T's fixed costs taken from
 the budget; the least error over all T is the optimum (an assignment using groups U is solved
 exactly under T = U and charged too much under any larger T). The plain knapsack is dynamic
 programming over materials that keeps, after each material, only the Pareto-optimal partial
