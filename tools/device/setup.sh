@@ -1,0 +1,11 @@
+# Sourced first by every device command (tools/device/README.md): the GL loader, the wheels, the
+# shared scenes as ../shared, the NVIDIA EGL vendor; prints the GPU, driver and clock.
+for f in .gl/*.deb; do dpkg -x $f /; done; ldconfig
+python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
+export PYTHONPATH=/tmp/site:$PWD
+mkdir -p .shared && tar -C .shared -xJf .gpu/scenes.tar.xz
+[ -e ../shared ] || ln -s "$PWD/.shared" ../shared
+export RAYVR_SCENES=$PWD/.shared/scenes RAYVR_COMMIT=$(cat .gpu/commit.txt)
+vendor=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+[ -f $vendor ] && export __EGL_VENDOR_LIBRARY_FILENAMES=$vendor
+nvidia-smi --query-gpu=name,driver_version,clocks.sm --format=csv,noheader
