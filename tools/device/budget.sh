@@ -1,8 +1,7 @@
 # bench budget at 2x1440x1600, the frame-wide grid stereo x denoise x resolution scale, one scene a
 # call (its reference size differs), into $OUT/r/budget/SCENE.
 # Usage: bash .gpu/budget.sh SCENE REFERENCE_SPP VIEWS TIMEOUT_S   (e.g. default 2048 fixed,0 540)
-. .gpu/setup.sh > $OUT/device_smi.txt
-mkdir -p $OUT/r; cp $OUT/device_smi.txt $OUT/r/device.txt; cp .gpu/commit.txt $OUT/r/commit.txt
+. .gpu/setup.sh $OUT/r
 ( time timeout $4 python3 -m rayvr bench budget --scenes $1 --only-views $3 --repeat 25 --reference-spp $2 \
    --frame-knobs "stereo=dual,reuse;spp=1;denoise=off,on;scale=0.5,1" \
    --rung-params "glossy.samples=1,16;path.samples=4" --out $OUT/r/budget/$1 ) 2>&1 |

@@ -8,7 +8,7 @@
 set -euo pipefail
 cd "$(git rev-parse --show-toplevel)"
 parts=${1:-9}
-[ -d .whl ] && ls .whl/embreex-* >/dev/null 2>&1 || bash ../shared/gpu/bundle-offline.sh tqdm==4.67.1 \
+ls .whl/embreex-* >/dev/null 2>&1 || bash ../shared/gpu/bundle-offline.sh tqdm==4.67.1 \
   pytest==8.3.4 pytest-xdist==3.6.1 execnet==2.1.1 iniconfig==2.0.0 pluggy==1.5.0 packaging==24.2 \
   flip-evaluator==1.7 embreex==4.4.0.post1
 grep -qxF /.gpu/ .git/info/exclude || echo /.gpu/ >> .git/info/exclude

@@ -1,5 +1,6 @@
-# Sourced first by every device command (tools/device/README.md): the GL loader, the wheels, the
-# shared scenes as ../shared, the NVIDIA EGL vendor; prints the GPU, driver and clock.
+# Sourced first by every device command (tools/device/README.md) with its results folder:
+# `. .gpu/setup.sh $OUT/r`. The GL loader, the wheels, the shared scenes as ../shared, the NVIDIA
+# EGL vendor; the folder gets device.txt (GPU, driver, clock) and commit.txt.
 for f in .gl/*.deb; do dpkg -x $f /; done; ldconfig
 python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
 export PYTHONPATH=/tmp/site:$PWD
@@ -8,4 +9,5 @@ mkdir -p .shared && tar -C .shared -xJf .gpu/scenes.tar.xz
 export RAYVR_SCENES=$PWD/.shared/scenes RAYVR_COMMIT=$(cat .gpu/commit.txt)
 vendor=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
 [ -f $vendor ] && export __EGL_VENDOR_LIBRARY_FILENAMES=$vendor
-nvidia-smi --query-gpu=name,driver_version,clocks.sm --format=csv,noheader
+mkdir -p $1 && cp .gpu/commit.txt $1/commit.txt
+nvidia-smi --query-gpu=name,driver_version,clocks.sm --format=csv,noheader > $1/device.txt
