@@ -1,5 +1,5 @@
 # bench budget at 2x1440x1600, the frame-wide grid stereo x denoise x resolution scale, one scene a
-# call (its reference size differs), into $OUT/r/budget/SCENE.
+# call (its reference size differs), into $OUT/r/budget/SCENE, packed as $OUT/r_PID.tgz.
 # Usage: bash .gpu/budget.sh SCENE REFERENCE_SPP VIEWS TIMEOUT_S   (e.g. default 2048 fixed,0 540)
 . .gpu/setup.sh $OUT/r
 ( time timeout $4 python3 -m rayvr bench budget --scenes $1 --only-views $3 --repeat 25 --reference-spp $2 \

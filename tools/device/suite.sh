@@ -1,6 +1,6 @@
 # The whole suite twice at once on one GPU: pytest -n 6, and serially in the parts prepare.sh
 # dealt (each part's files one test after another, in its own process). Logs under $OUT/s,
-# written as they go, so a run cut short still returns what finished.
+# written as they go (a call cut short returns up to 8 of them) and packed as $OUT/s_PID.tgz.
 . .gpu/setup.sh $OUT/s
 export PYTEST_DISABLE_PLUGIN_AUTOLOAD=1
 (timeout 560 python3 -m pytest -p xdist -n 6 -q -p no:cacheprovider tests > $OUT/s/suite_n6.log 2>&1
