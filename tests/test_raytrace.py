@@ -632,7 +632,8 @@ def test_shadow_chunks_follow_each_events_own_rays(gl, monkeypatch):
     a hit event with area_samples in rows of its paths. Under a limit that fits one hit slot per
     path, the bounces run the hit kernel over the hit's chunks only (they ran over all of the
     pixel event's: 4 x the work here), the pixel event's chunks are `samples` times as large as
-    a hit's, and the image is the one rendered in one go."""
+    a hit's, and the image is the one rendered in one go. Every shadow ray is traced
+    (shadow_probes 0): adaptive shadows probe each chunk's part of a light's rays on its own."""
     from rayvr.frame.passes import trace_effect
     scene = load()
     rects = sum(light.kind == "rect" for light in scene.lights)
@@ -640,12 +641,13 @@ def test_shadow_chunks_follow_each_events_own_rays(gl, monkeypatch):
     assert rects >= 1
     rig = StereoRig.for_scene(scene, size=(24, 18))
     cfg = {"default": "path", "params": {"path": {"samples": 4, "bounces": 2, "area_samples": 2}}}
-    _, whole, _ = render(gl, scene, rig, cfg)
+    every_ray = RenderSettings(shadow_probes=0)
+    _, whole, _ = render(gl, scene, rig, cfg, every_ray)
     hits = []
     real_run = moderngl.ComputeShader.run_indirect
 
     limit = 24 * 18 * 2 * 4 * trace_effect.SLOT_BYTES
-    with Renderer(scene, parse_config(cfg, "<t>"), gl=gl, wave_buffer_bytes=limit) as r:
+    with Renderer(scene, parse_config(cfg, "<t>"), gl=gl, wave_buffer_bytes=limit, settings=every_ray) as r:
         plan = r.plan(2, "color", rig.eyes()[0].camera)
         shape = trace_effect.WaveShape(EFFECTS["path"], r.sizing(rig.size, 2, plan))
         assert shape.slots == rects * 2 * 4 + others and shape.hit_slots == rects * 2 + others

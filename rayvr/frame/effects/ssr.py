@@ -18,8 +18,8 @@ import math
 from ..effect_registry import Effect, Param, register
 from ..passes.quadtree import GAMMA_DIST, GAMMA_NORM
 from ..passes.second_layer import DEPTH_LAYERS
-from ..passes.trace_effect import WAVE_AREA_SAMPLES, WAVE_BOUNCES, WAVE_SAMPLES, TraceEffectPass
-from .shadows import AREA_SAMPLES, AREA_SAMPLES_SWEEP
+from ..passes.trace_effect import WAVE_AREA_SAMPLES, WAVE_HIT_AREA_SAMPLES, WAVE_BOUNCES, WAVE_SAMPLES, TraceEffectPass
+from .shadows import AREA_SAMPLES, AREA_SAMPLES_SWEEP, HIT_AREA_SAMPLES, HIT_AREA_SAMPLES_SWEEP
 
 # the roughness up to which a surface is a mirror: ssr's default for one mirror path, and the
 # reference image's mirror class (rayvr/quality/reference_images.py)
@@ -49,6 +49,7 @@ class ScreenSpaceReflections(Effect):
         "mirror_roughness": Param(float, MIRROR_ROUGHNESS, 0.0, 1.0, "surfaces up to this roughness take one "
                                                                      "mirror ray whatever `samples` says"),
         WAVE_AREA_SAMPLES: AREA_SAMPLES,
+        WAVE_HIT_AREA_SAMPLES: HIT_AREA_SAMPLES,
     }
     traced = True
     denoised = False  # mirror reflections are sharp detail, not noise: --denoise leaves them
@@ -60,7 +61,8 @@ class ScreenSpaceReflections(Effect):
              GAMMA_DIST: ((0.0, 1e-5, 1e-3, 1e-1), (0.0, 1e-3)),
              DEPTH_LAYERS: ((1, 2), (1, 2)),
              WAVE_SAMPLES: ((0, 1, 4, 16), (0, 4)),
-             WAVE_AREA_SAMPLES: AREA_SAMPLES_SWEEP}
+             WAVE_AREA_SAMPLES: AREA_SAMPLES_SWEEP,
+             WAVE_HIT_AREA_SAMPLES: HIT_AREA_SAMPLES_SWEEP}
     reference = {"mirror": 15, "glossy": 12}  # below BVH `reflections` (30) / `glossy` (30, 20)
 
     def passes(self):  # the quadtree pass is a core one (the visits view uses it too)

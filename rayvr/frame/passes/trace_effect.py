@@ -29,9 +29,11 @@ from .second_layer import bind_second_layer
 
 # The material parameters the wavefront reads by name, from an effect that declares them in `params`
 # (keyed by these): the hit events after the pixel's (an effect whose rays go on, `follows_rays`), the
-# paths per pixel, and the points per rect light of each event's shadow rays (PARAM_AREA_SAMPLES).
+# paths per pixel, the points per rect light of the pixel's shadow rays (PARAM_AREA_SAMPLES) and of
+# a reflection ray's hit (PARAM_HIT_AREA_SAMPLES; an effect without it lights hits as its pixels).
 WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES = "bounces", "samples", "area_samples"
-WAVE_PARAMS = (WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES)
+WAVE_HIT_AREA_SAMPLES = "hit_area_samples"
+WAVE_PARAMS = (WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES, WAVE_HIT_AREA_SAMPLES)
 
 # Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.
 PATH_BYTES, SLOT_BYTES = 80, 48
@@ -62,13 +64,31 @@ def chunk_ranges(total: int, size: int) -> list:
     return [(k, min(size, total - k)) for k in range(0, total, size)]
 
 
-def effect_maxima(assignments, effect: str) -> dict:
-    """The largest of each integer parameter over the materials that use `effect` (sizes the waves)."""
+def hit_points(effect: Effect, params: dict) -> int:
+    """Points per rect light where a reflection ray of a material with `params` lands, at most
+    (glsl/rt/wave_shade.comp path_vertex_begin): `hit_area_samples`, or with 0 the pixel's
+    `area_samples` spread over the rays it sends, at least one a ray. An effect whose `samples` may be
+    0 (ssr: mirror pixels send one ray whatever it says) may send one: area_samples then."""
+    area = int(params.get(WAVE_AREA_SAMPLES, 1))
+    if WAVE_HIT_AREA_SAMPLES not in effect.params:  # its hits are lit as its pixels
+        return area
+    hit = int(params.get(WAVE_HIT_AREA_SAMPLES, effect.params[WAVE_HIT_AREA_SAMPLES].default))
+    if hit > 0:
+        return hit
+    samples = effect.params.get(WAVE_SAMPLES)
+    rays = int(params.get(WAVE_SAMPLES, 1)) if samples is not None and (samples.lo or 0) >= 1 else 1
+    return max(-(-area // max(rays, 1)), 1)
+
+
+def effect_maxima(assignments, effect: Effect) -> dict:
+    """The largest of each integer parameter over the materials that use `effect` (sizes the waves);
+    WAVE_HIT_AREA_SAMPLES: the largest hit_points."""
     out = dict.fromkeys(WAVE_PARAMS, 1)
     for a in assignments:
-        if a.effect == effect:
+        if a.effect == effect.name:
             for k in out:
-                out[k] = max(out[k], int(a.params.get(k, 1)))
+                value = hit_points(effect, a.params) if k == WAVE_HIT_AREA_SAMPLES else a.params.get(k, 1)
+                out[k] = max(out[k], int(value))
     return out
 
 
@@ -81,7 +101,7 @@ class WaveShape:
     """How an effect's wavefront is cut for one frame: batches, shadow chunks, path counts."""
 
     def __init__(self, effect: Effect, s: Sizing):
-        prm = effect_maxima(s.assignments, effect.name)
+        prm = effect_maxima(s.assignments, effect)
         self.bounces = prm[WAVE_BOUNCES] if follows_rays(effect) else 0  # hit events after the pixel's
         self.paths_per_pixel = prm[WAVE_SAMPLES] if WAVE_SAMPLES in effect.params else 1
         lights = s.scene.lights if s.scene is not None else ()
@@ -90,9 +110,9 @@ class WaveShape:
             return shadow_rays_per_surface(lights, per_rect, s.light_picks)
         per_path = prm[WAVE_SAMPLES] if effect.shader_defines.get("PIXEL_LIGHT_SAMPLES_PER_PATH") else 1
         self.slots = shadow_rays(prm[WAVE_AREA_SAMPLES] * per_path)
-        # A hit event lights its surface with `area_samples` points per rect light, never the
-        # pixel event's set per path: its shadow rays fill the first hit_slots slots only.
-        self.hit_slots = shadow_rays(prm[WAVE_AREA_SAMPLES])
+        # A hit event lights its surface with hit_points per rect light, never the pixel event's set
+        # per path: its shadow rays fill the first hit_slots slots only.
+        self.hit_slots = shadow_rays(prm[WAVE_HIT_AREA_SAMPLES])
         cap = s.wave_buffer_bytes or WAVE_BUFFER_BYTES
         limit = min(s.max_ssbo_bytes or cap, cap)
         self.capacity_pixels = s.pixels
@@ -198,7 +218,8 @@ class TraceEffectPass(Pass):
         common = {"ambient": tuple(fc.settings.ambient), "background": tuple(fc.settings.background),
                   "frame_seed": int(fc.settings.seed), "rt_capacity": n_pixels,
                   "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel,
-                  "light_picks": fc.plan.light_picks, "wave_fetch_slots": shape.trace_kernels}
+                  "light_picks": fc.plan.light_picks, "wave_fetch_slots": shape.trace_kernels,
+                  "shadow_probes": int(fc.settings.shadow_probes)}
         users = [(a.rule, a.params) for a in fc.gpu_scene.assignments if a.effect == self.effect.name]
         for p in self.programs.values():
             set_eye_uniforms(p, fc)

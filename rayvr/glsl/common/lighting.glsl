@@ -2,7 +2,8 @@
 // A pass that traces shadow rays defines HAS_LIGHT_VISIBILITY and provides
 //   vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist);
 // which returns the unshadowed `contribution` of one light (sample) scaled by its visibility, or
-// records a shadow ray for it (rt/shadow_rays.glsl); without it every light is unoccluded (`raster`).
+// records a shadow ray for it (rt/shadow_rays.glsl), and void light_visibility_begin(int i), told
+// which light the next calls sample; without it every light is unoccluded (`raster`).
 #ifndef RAYVR_LIGHTING_GLSL
 #define RAYVR_LIGHTING_GLSL
 #include "scene.glsl"
@@ -13,6 +14,7 @@
 
 #ifndef HAS_LIGHT_VISIBILITY
 vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist) { return contribution; }
+void light_visibility_begin(int i) {}  // shadow_rays.glsl: the light the next shadowed() calls sample
 #endif
 
 #ifdef LIGHT_MIS
@@ -36,6 +38,7 @@ void add_light(int i, vec3 p, vec3 n, vec3 v, vec3 base_color, float metallic, f
                inout vec3 sum) {
     Light li = lights[i];
     int kind = int(li.position_kind.w);
+    light_visibility_begin(i);
     if (kind == LIGHT_DIRECTIONAL) {
         vec3 l = -normalize(li.direction.xyz);
         vec3 f = brdf_cos(n, v, l, base_color, metallic, roughness);

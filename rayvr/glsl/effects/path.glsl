@@ -50,7 +50,7 @@ bool path_last_vertex(uint mi) {
     return wave_bounce >= max(material_param_int(mi, PARAM_BOUNCES), 1) - 1;
 }
 
-void path_vertex_begin(uint p, uint mi, inout uint rng) {
+void path_vertex_begin(uint p, uint mi, ivec3 px, inout uint rng) {
     rng = path_rng(rng, p / wave_args[0].w, wave_bounce + 1);
     light_samples_begin(rng);  // this vertex's own light samples
     mis_bsdf_samples = path_last_vertex(mi) ? 0.0 : 1.0;  // the last vertex takes no BSDF sample

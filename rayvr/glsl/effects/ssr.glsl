@@ -21,3 +21,12 @@ void effect_start_paths(uint i, Surface s, vec3 v, vec3 ng, uint mi, inout uint 
         end_path(j * n + i);
     }
 }
+
+// The rays the pixel sent (wave_shade.comp spreads its area_samples over them at their hits): as
+// effect_start_paths chose, `samples` GGX rays on a rough surface, else one mirror ray.
+#define EFFECT_PIXEL_RAYS
+int effect_pixel_rays(uint mi, ivec3 px) {
+    int samples = material_param_int(mi, PARAM_SAMPLES);
+    if (samples <= 0) return 1;
+    return gbuffer_fetch(px).roughness > material_param_float(mi, PARAM_MIRROR_ROUGHNESS) ? samples : 1;
+}

@@ -46,6 +46,11 @@ Ray shadow_ray(vec3 p, vec3 to_light, float dist) {
 }
 
 uint shadow_item;           // wave item (pixel or path) the rays belong to
+int shadow_light;           // the light being sampled (lighting.glsl light_visibility_begin)
+
+// The next shadow rays are light i's: a slot keeps its light's index, so the trace kernel sees each
+// light's run of rays (rt/wave_trace.comp adaptive_run).
+void light_visibility_begin(int i) { shadow_light = i; }
 vec3 shadow_weight;         // throughput of that item's path up to this surface
 int shadow_calls;           // shadow rays asked for at this surface so far
 
@@ -57,7 +62,7 @@ vec3 shadowed(vec3 contribution, vec3 p, vec3 n, vec3 to_light, float dist) {
     if (k >= 0 && k < int(wave_slot_count)) {  // this chunk of the slots
         Ray r = shadow_ray(p, to_light, dist);
         wave_shadows[uint(k) * wave_slot_stride + shadow_item] =
-            ShadowSlot(vec4(r.origin, r.tmin), vec4(r.direction, r.tmax), vec4(c, 0.0));
+            ShadowSlot(vec4(r.origin, r.tmin), vec4(r.direction, r.tmax), vec4(c, float(shadow_light)));
     }
     return vec3(0.0);
 }

@@ -26,7 +26,7 @@ struct WavePath {
 struct ShadowSlot {
     vec4 origin;      // xyz, w tmin
     vec4 direction;   // xyz (to the light, unnormalized allowed), w tmax
-    vec4 light;       // rgb contribution if unoccluded (path weight included)
+    vec4 light;       // rgb contribution if unoccluded (path weight included), w the light's index
 };
 
 layout(std430, binding = SSBO_WAVE_PATHS) restrict buffer WavePaths { WavePath wave_paths[]; };

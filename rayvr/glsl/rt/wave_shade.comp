@@ -76,13 +76,16 @@ bool pixel_path(uint i, int j, int samples, out uint p) {
 // Per-pixel sampling state, as the pixel's own event set it: same stream, same lattice, seeded
 // from the surface point the pixel sees (the same in both eyes: common/random.glsl).
 // The pixel's material has this pass's effect: PARAM_* (its parameter slots) apply.
+int pixel_area_samples;  // points per rect light at the pixel's own surface (area_samples)
+
 uint pixel_setup(ivec3 px, out uint rng) {
     uint mi = texelFetch(gb_material, px, 0).x;
     vec4 position = texelFetch(gb_position, px, 0);  // xyz scene-local, w view depth
     vec4 t = eye_tangents[px.z];
     float footprint = position.w * (t.w - t.z) / float(textureSize(gb_material, 0).y);
     rng = rng_seed_surface(position.xyz, footprint, frame_seed);
-    shadow_area_samples = max(material_param_int(mi, PARAM_AREA_SAMPLES), 1);
+    pixel_area_samples = max(material_param_int(mi, PARAM_AREA_SAMPLES), 1);
+    shadow_area_samples = pixel_area_samples;
     light_samples_begin(rng);
 #ifdef LIGHT_MIS  // the pixel's light samples against its `samples` BSDF rays
     mis_bsdf_samples = float(max(material_param_int(mi, PARAM_SAMPLES), 1));
@@ -95,16 +98,38 @@ uint pixel_setup(ivec3 px, out uint rng) {
 
 #if WAVE_STAGE == 4 && !defined(EFFECT_PATH_VERTEX)
 // The hit event of the reflection effects: mirror rays (delta directions) take no part in MIS.
-void path_vertex_begin(uint p, uint mi, inout uint rng) {
+// Where a reflection ray lands, its surface is lit with `hit_area_samples` points per rect light,
+// by default (0) the pixel's area_samples spread over the rays it sent (at least one a ray): the
+// pixel averages its rays' hits, so a glossy floor's 4 rays cast 4 shadow rays there, not
+// 4 x area_samples, and a mirror's one ray keeps area_samples. Each path and bounce draws its own
+// lattice shift, so a pixel's rays sample different points of a light (the pixel's stream hashed
+// with path and bounce: still the same in both eyes).
+#ifndef EFFECT_PIXEL_RAYS
+#ifdef PARAM_SAMPLES
+int effect_pixel_rays(uint mi, ivec3 px) { return max(material_param_int(mi, PARAM_SAMPLES), 1); }
+#else
+int effect_pixel_rays(uint mi, ivec3 px) { return 1; }
+#endif
+#endif
+
+void path_vertex_begin(uint p, uint mi, ivec3 px, inout uint rng) {
     mis_bsdf_samples = 0.0;
+#ifdef PARAM_HIT_AREA_SAMPLES
+    int hit = material_param_int(mi, PARAM_HIT_AREA_SAMPLES);
+    int rays = effect_pixel_rays(mi, px);
+    shadow_area_samples = hit > 0 ? hit : max((pixel_area_samples + rays - 1) / rays, 1);
+#endif
+    uint r = pcg_hash(rng ^ pcg_hash((p / wave_args[0].w) * 131u + uint(wave_bounce) + 0x2C1B3C6Du));
+    light_samples_begin(r);
 }
 
 // The hit's emission (MIS-weighted against the light samples when the ray was a BSDF sample:
 // radiance.w > 0, glossy's first bounce) and ambient term; a reflective surface continues the
 // ray in its mirror direction while bounces remain, any other ends it.
 void path_vertex_end(uint p, Surface s, vec3 v, vec3 hng, uint mi, inout uint rng, vec3 throughput) {
+    // radiance.w > 0 only on the first bounce: the light samples it is weighed against are the pixel's
     vec3 emission = s.emission * emission_mis_weight(wave_paths[p].origin.xyz, -v, s.position,
-                                                     wave_paths[p].radiance.w, float(shadow_area_samples));
+                                                     wave_paths[p].radiance.w, float(pixel_area_samples));
     int bounces = max(material_param_int(mi, PARAM_BOUNCES), 1);
     if (!is_reflective(s.effect) || wave_bounce >= bounces - 1) {
         wave_paths[p].radiance.rgb += throughput * (emission + ambient * s.base_color);
@@ -156,7 +181,7 @@ void main() {
     ivec3 px = wave_pixel(p % n);
     uint rng;
     uint mi = pixel_setup(px, rng);
-    path_vertex_begin(p, mi, rng);
+    path_vertex_begin(p, mi, px, rng);
     vec3 dir = wave_paths[p].direction.xyz;
     vec3 throughput = wave_paths[p].throughput.rgb;
     Hit h;

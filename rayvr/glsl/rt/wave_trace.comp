@@ -118,15 +118,76 @@ void main() {
 layout(rgba16f, binding = IMAGE_HDR) uniform writeonly image2DArray hdr_out;
 #endif
 uniform uint wave_items;  // 0: the batch's pixels, 1: its paths (wave_args index)
+uniform int shadow_probes;  // adaptive area-light shadows (frame/passes/trace_effect.py SHADOW_PROBES); 0: off
+
+bool slot_unoccluded(uint at) {
+    vec4 o = wave_shadows[at].origin;
+    vec4 d = wave_shadows[at].direction;
+    return !trace_any(Ray(o.xyz, o.w, d.xyz, d.w));
+}
+
+// The unoccluded contributions of slots [k0, k1) of item q, all of them traced.
+vec3 traced_run(uint q, uint k0, uint k1) {
+    vec3 sum = vec3(0.0);
+    for (uint k = k0; k < k1; ++k) {
+        uint at = k * wave_slot_stride + q;
+        if (slot_unoccluded(at)) sum += wave_shadows[at].light.rgb;
+    }
+    return sum;
+}
+
+// One light's run of m shadow rays (slots [k0, k0 + m), light.w its index), adaptively: with more
+// than shadow_probes of them, that many spread over the run (the lattice's stratified points: the
+// run's order is the light's lattice order) are traced first; when they agree, the others take
+// their visibility untraced (all lit: the run's whole sum; all blocked: nothing), else the others
+// are traced too. Exact where the light is wholly seen or wholly hidden; in a penumbra all probes
+// agree only when it covers less of the light than the gaps between them: the bias lies there
+// (tests/test_adaptive_shadows.py bounds it against every ray traced).
+vec3 adaptive_run(uint q, uint k0, uint m) {
+    uint probes = uint(shadow_probes);
+    if (shadow_probes <= 0 || m <= probes) return traced_run(q, k0, k0 + m);
+    vec3 lit = vec3(0.0), all_of_run = vec3(0.0);
+    uint seen = 0u;
+    uint next_probe = 0u, j = 0u;  // probe j sits at run slot (j * m) / probes
+    for (uint k = 0u; k < m; ++k) {
+        uint at = (k0 + k) * wave_slot_stride + q;
+        vec3 c = wave_shadows[at].light.rgb;
+        all_of_run += c;
+        if (k == next_probe) {
+            if (slot_unoccluded(at)) {
+                lit += c;
+                seen += 1u;
+            }
+            j += 1u;
+            next_probe = j < probes ? (j * m) / probes : m;
+        }
+    }
+    if (seen == probes) return all_of_run;
+    if (seen == 0u) return vec3(0.0);
+    vec3 sum = lit;  // disagreement: a penumbra; trace the rest
+    j = 0u;
+    next_probe = 0u;
+    for (uint k = 0u; k < m; ++k) {
+        if (k == next_probe) {
+            j += 1u;
+            next_probe = j < probes ? (j * m) / probes : m;
+            continue;
+        }
+        uint at = (k0 + k) * wave_slot_stride + q;
+        if (slot_unoccluded(at)) sum += wave_shadows[at].light.rgb;
+    }
+    return sum;
+}
+
 void trace_shadows(uint q) {
     uint n = floatBitsToUint(wave_paths[q].throughput.w);
     vec3 sum = vec3(0.0);
-    for (uint k = 0u; k < n; ++k) {
-        uint at = k * wave_slot_stride + q;
-        vec4 o = wave_shadows[at].origin;
-        vec4 d = wave_shadows[at].direction;
-        if (!trace_any(Ray(o.xyz, o.w, d.xyz, d.w)))
-            sum += wave_shadows[at].light.rgb;
+    for (uint k0 = 0u; k0 < n;) {  // the item's slots, one light's run at a time
+        float light = wave_shadows[k0 * wave_slot_stride + q].light.w;
+        uint k1 = k0 + 1u;
+        while (k1 < n && wave_shadows[k1 * wave_slot_stride + q].light.w == light) ++k1;
+        sum += adaptive_run(q, k0, k1 - k0);
+        k0 = k1;
     }
 #ifdef WAVE_FINISH
     imageStore(hdr_out, wave_pixel(q), vec4(wave_paths[q].radiance.rgb + sum, 1.0));
