@@ -89,3 +89,23 @@ def test_probes_at_least_the_rays_trace_every_ray(gl, floor):
     """A light with no more rays than probes is traced whole: the same image as shadow_probes 0."""
     got, _, _ = render(gl, 16, 1)
     assert np.array_equal(got, floor[0])
+
+
+def test_the_gpu_counts_the_rays_the_probes_save(gl):
+    """count_rays on the blocker scene: with every ray traced a pixel casts its 16 shadow rays (a
+    few fewer where the light is behind the surface); with 4 probes the lit floor and the umbra
+    take 4: fewer rays, and at least 4 a pixel."""
+    from rayvr.frame.passes.trace_effect import count_rays
+
+    rig = StereoRig(Pose.look_at((0, 4.5, 2.5), (0, 0, 0)), ipd=0.1, fov_y=50, size=(64, 48))
+    cfg = parse_config({"default": "shadows", "params": {"shadows": {"area_samples": 16}}}, "t")
+    counted = {}
+    for probes in (0, 4):
+        settings = RenderSettings(ambient=(0, 0, 0), background=(0, 0, 0), shadow_probes=probes, seed=1)
+        with Renderer(scene(), cfg, gl=gl, settings=settings) as r:
+            counted[probes] = count_rays(r, rig)["shadows"]
+    assert counted[0]["pixels"] == counted[4]["pixels"] > 0
+    assert counted[0]["closest"] == counted[4]["closest"] == 0  # shadows trace no reflection rays
+    assert counted[0]["shadow"] <= 16 * counted[0]["pixels"]
+    assert counted[0]["shadow"] > 15 * counted[0]["pixels"]  # the floor's far side faces away: few skip
+    assert 4 * counted[4]["pixels"] <= counted[4]["shadow"] < 0.6 * counted[0]["shadow"]

@@ -84,14 +84,18 @@ LAYOUTS = ("bvh2", "bvh4", "bvh8", "cwbvh")  # every ray kind through one layout
 
 
 def frame_variants(base: MaterialConfig, quick: bool = False) -> list[Variant]:
-    """The frame-wide knobs: the stereo mode, MSAA, the foveated camera model, and the BVH layout
-    and build (speed only: every layout and build returns the same hits, so the same image)."""
+    """The frame-wide knobs: the stereo mode, MSAA, the foveated camera model, the BVH layout
+    and build (speed only: every layout and build returns the same hits, so the same image), and
+    the shadow probes of adaptive area-light shadows."""
     out = [Variant("stereo", m, base, replace(COMPARE_SETTINGS, stereo=m)) for m in ("warp", "reuse")]
     out += [Variant("msaa", n, base, replace(COMPARE_SETTINGS, msaa=n)) for n in ((4,) if quick else (4, 16))]
     out.append(Variant("camera", "foveated", base, camera="foveated"))
     out += [Variant("traversal", layout, base, replace(COMPARE_SETTINGS, traversal=(layout,) * 3))
             for layout in (LAYOUTS[:2] if quick else LAYOUTS)]
     out.append(Variant("bvh_build", "sbvh", base, replace(COMPARE_SETTINGS, bvh_build="sbvh")))
+    # adaptive area-light shadows: 0 traces every shadow ray (the full count they are judged by)
+    out += [Variant("shadow_probes", k, base, replace(COMPARE_SETTINGS, shadow_probes=k))
+            for k in ((0, 2) if quick else (0, 2, 4, 8))]
     return out
 
 

@@ -35,8 +35,10 @@ WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES = "bounces", "samples", "area_samp
 WAVE_HIT_AREA_SAMPLES = "hit_area_samples"
 WAVE_PARAMS = (WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES, WAVE_HIT_AREA_SAMPLES)
 
-# Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot.
+# Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot; the args buffer: two
+# indirect dispatches, then the ray counters (closest hits, shadow rays) at COUNTERS_OFFSET.
 PATH_BYTES, SLOT_BYTES = 80, 48
+ARGS_BYTES, COUNTERS_OFFSET = 48, 32
 # Largest wavefront buffer: the device's storage-block limit or this (Sizing.wave_buffer_bytes, from
 # Renderer(wave_buffer_bytes=...), gives another: tests split the waves with a small one).
 WAVE_BUFFER_BYTES = 1 << 30
@@ -144,6 +146,7 @@ class WaveShape:
 
 class TraceEffectPass(Pass):
     timed_kernels = True
+    count_rays = False  # count_rays(): the trace kernels add up the rays they trace
 
     def __init__(self, effect: Effect):
         self.effect = effect
@@ -155,7 +158,7 @@ class TraceEffectPass(Pass):
                                              "80 B per path of a batch")),
             "shadows": (f"{key}.shadows", Buffer(lambda s: WaveShape(effect, s).shadow_slots * SLOT_BYTES,
                                                  "48 B per shadow ray of a batch's chunk")),
-            "args": (f"{key}.args", Buffer(lambda s: 32, "2 indirect dispatches")),
+            "args": (f"{key}.args", Buffer(lambda s: ARGS_BYTES, "2 indirect dispatches, the ray counters")),
         }
         # --ray-order morton: the (key, ray) pairs, their ping-pong copy, the sort's digit table
         self.order_buffers = {
@@ -219,7 +222,7 @@ class TraceEffectPass(Pass):
                   "frame_seed": int(fc.settings.seed), "rt_capacity": n_pixels,
                   "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel,
                   "light_picks": fc.plan.light_picks, "wave_fetch_slots": shape.trace_kernels,
-                  "shadow_probes": int(fc.settings.shadow_probes)}
+                  "shadow_probes": int(fc.settings.shadow_probes), "wave_count_rays": int(self.count_rays)}
         users = [(a.rule, a.params) for a in fc.gpu_scene.assignments if a.effect == self.effect.name]
         for p in self.programs.values():
             set_eye_uniforms(p, fc)
@@ -312,3 +315,32 @@ class TraceEffectPass(Pass):
             p.release()
         if self.ray_order is not None:
             self.ray_order.release()
+
+
+def count_rays(renderer, rig) -> dict:
+    """Rays each traced effect's pass traces in one frame of `rig` (both eyes, every round), counted on
+    the GPU: {effect: {"closest": reflection/path rays, "shadow": shadow rays, "pixels": its pixels
+    (the pixel list's entries of the frame's last round)}}. One frame more than the caller's: the
+    counters cost an atomic add per invocation, so timed frames leave them off."""
+    import numpy as np
+
+    plan = renderer.plan(camera=rig.camera)
+    passes = [p for p in renderer.compiled(plan).passes if isinstance(p, TraceEffectPass)]
+    zero = np.zeros(4, np.uint32).tobytes()
+    renderer.render(rig)  # the frame's resources, made or kept
+    try:
+        for p in passes:
+            p.count_rays = True
+            renderer.resource(p.buffers["args"][0]).write(zero, offset=COUNTERS_OFFSET)
+        renderer.render(rig)
+        lists = np.frombuffer(renderer.resource("rt_list_args").read(), np.uint32)
+        out = {}
+        for p in passes:
+            counts = np.frombuffer(renderer.resource(p.buffers["args"][0]).read(), np.uint32)
+            start = COUNTERS_OFFSET // 4
+            out[p.effect.name] = {"closest": int(counts[start]), "shadow": int(counts[start + 1]),
+                                  "pixels": int(lists[4 * p.slot + 3])}
+        return out
+    finally:
+        for p in passes:
+            p.count_rays = False

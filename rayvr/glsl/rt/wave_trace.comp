@@ -87,6 +87,8 @@ bool screen_space_hit(uint p, vec3 o, vec3 d, out uint tri, out vec2 uv, out uin
     return true;
 }
 #endif
+uint traced_rays = 0u;  // this invocation's rays (wave_args[2], while counting)
+
 void trace_path(uint p) {
     vec4 o = wave_paths[p].origin;
     vec4 d = wave_paths[p].direction;
@@ -94,6 +96,7 @@ void trace_path(uint p) {
         wave_paths[p].hit = uvec4(WAVE_IDLE, BVH_MISS, 0u, 0u);
         return;
     }
+    traced_rays += 1u;
 #if SSR_TRACE
     uint tri, mi;
     vec2 uv;
@@ -112,6 +115,7 @@ void trace_path(uint p) {
 }
 void main() {
     WAVE_FOR_EACH_RAY(k, wave_args[1].w) trace_path(wave_ray(k));
+    if (wave_count_rays != 0u && traced_rays != 0u) atomicAdd(wave_args[2].x, traced_rays);
 }
 #else
 #ifdef WAVE_FINISH
@@ -120,7 +124,10 @@ layout(rgba16f, binding = IMAGE_HDR) uniform writeonly image2DArray hdr_out;
 uniform uint wave_items;  // 0: the batch's pixels, 1: its paths (wave_args index)
 uniform int shadow_probes;  // adaptive area-light shadows (frame/passes/trace_effect.py SHADOW_PROBES); 0: off
 
+uint traced_rays = 0u;  // this invocation's shadow rays (wave_args[2], while counting)
+
 bool slot_unoccluded(uint at) {
+    traced_rays += 1u;
     vec4 o = wave_shadows[at].origin;
     vec4 d = wave_shadows[at].direction;
     return !trace_any(Ray(o.xyz, o.w, d.xyz, d.w));
@@ -198,6 +205,7 @@ void trace_shadows(uint q) {
 }
 void main() {
     WAVE_FOR_EACH_RAY(k, wave_args[wave_items].w) trace_shadows(wave_ray(k));
+    if (wave_count_rays != 0u && traced_rays != 0u) atomicAdd(wave_args[2].y, traced_rays);
 }
 #endif
 #endif
