@@ -1,4 +1,4 @@
-"""`rayvr bench vr`: the headset's frame on seeded random head poses (issue 22). The figures come
+"""`rayvr bench vr`: the headset's frame on seeded head poses (content and random). The figures come
 from the GPU machine; here: the quick run's rows and report, the poses, the refusals."""
 from __future__ import annotations
 
@@ -56,16 +56,16 @@ def test_the_quick_bench_times_every_cell_on_every_pose(quick):
 
 
 def _md_cells(md: str) -> dict:
-    """vr.md's table rows: (scene, config, variant, camera, msaa) -> (median, worst, best, worst pose,
-    CPU record / pipelined cell)."""
+    """vr.md's table rows: (scene, config, variant, camera, msaa) -> (median, worst, best, worst pose
+    "I (kind)", CPU record / pipelined cell, frame shows (median), frame shows (worst pose))."""
     out, scene = {}, None
     for line in md.splitlines():
         if line.startswith("## "):
             scene = line[3:].strip()
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if scene and line.startswith("|") and len(cells) == 14 and cells[4].isdigit():
+        if scene and line.startswith("|") and len(cells) == 16 and cells[4].isdigit():
             key = (scene, cells[0], cells[1], cells[2], int(cells[4]))
-            out[key] = (float(cells[6]), float(cells[7]), float(cells[8]), int(cells[9]), cells[11])
+            out[key] = (float(cells[6]), float(cells[7]), float(cells[8]), cells[9], cells[11], cells[14], cells[15])
     return out
 
 
@@ -80,14 +80,15 @@ def test_the_worst_column_is_the_slowest_pose(quick):
     assert set(table) == set(groups)
     for key, rows in groups.items():
         frame = [r["frame_ms"] for r in rows]
-        median, worst, best, worst_pose, loop = table[key]
+        median, worst, best, worst_pose, loop, _, _ = table[key]
         assert worst == pytest.approx(max(frame), abs=6e-4), key
         record, pipelined = (float(v) for v in loop.split(" / "))
         assert record == pytest.approx(float(np.median([r["record_ms"] for r in rows])), abs=6e-4), key
         assert pipelined == pytest.approx(float(np.median([r["pipelined_ms"] for r in rows])), abs=6e-4), key
         assert best == pytest.approx(min(frame), abs=6e-4), key
         assert median == pytest.approx(float(np.median(frame)), abs=6e-4), key
-        assert worst_pose == max(rows, key=lambda r: r["frame_ms"])["pose"]["index"]
+        slowest = max(rows, key=lambda r: r["frame_ms"])["pose"]
+        assert worst_pose == f"{slowest['index']} ({slowest['kind']})"  # the headline's pose, and its kind
     assert any(len({r["frame_ms"] for r in rows}) > 1 for rows in groups.values())  # poses really differ
 
 
@@ -109,6 +110,13 @@ def test_targets_judge_the_worst_pose(quick):
              if (r["camera"], r["msaa"], r["variant"]) == ("pinhole", 1, "default")]
     assert by["primary_rate"]["worst"] == pytest.approx(min(rates))
     assert "4x MSAA frame <= 1.3x the 1x ray-cast frame" in md
+    # each target by name and bound, on the worst pose named with its kind
+    assert "Targets, on the worst pose" in md and "Issue" not in md
+    kinds = {p["index"]: p["kind"] for p in result["meta"]["scenes"]["default"]["poses"]}
+    t = by["msaa4_frame"]
+    assert t["worst_pose_label"] == f"{t['worst_pose']} ({kinds[t['worst_pose']]})"
+    assert f"| msaa4_frame | 4x MSAA frame <= 1.3x the 1x ray-cast frame | default | {t['worst']:.3f}x | " \
+           f"{t['worst_pose_label']}, {t['worst_config']} |" in md
 
 
 def test_poses_come_back_from_the_seed(quick, room):
@@ -123,6 +131,52 @@ def test_poses_come_back_from_the_seed(quick, room):
     assert draw_poses(room, "default", 3, 22) == again[:3]  # the count does not move the first poses
     for a, b in zip(again, other):
         assert a.position != b.position and a.yaw_deg != b.yaw_deg and a.pitch_deg != b.pitch_deg
+
+
+def test_every_row_records_what_its_frame_shows(quick, room, gl):
+    """effect_share of each row: shares of the frame's pixels that add up to 1, equal to a count of
+    the material ids of the same view read back here, each material's pixels given its config's
+    effect; vr.md prints the cell's median over the poses and its worst pose's."""
+    from rayvr.bench.head_poses import HeadPose
+    from rayvr.bench.primary import CONFIGS
+    from rayvr.bench.rays import hybrid_config
+    from rayvr.bench.scenes import shipped_config
+    from rayvr.frame.cameras.rig import StereoRig
+    from rayvr.scene.materials import load_config
+
+    result, md = quick
+    meta = result["meta"]
+    sm = meta["scenes"]["default"]
+    poses = {p["index"]: HeadPose(p["index"], tuple(p["position"]), p["yaw_deg"], p["pitch_deg"], p["kind"])
+             for p in sm["poses"]}
+    configs = {"shadows": hybrid_config("default"), "room": load_config(shipped_config("default"))}
+    names = room.material_names()
+    first = {}  # the frame the bench read: the first (variant, msaa) of each (config, camera, pose)
+    for r in result["rows"]:
+        share = r["effect_share"]
+        assert sum(share.values()) == pytest.approx(1.0, abs=1e-6), r
+        assert "background" in share and all(v >= 0 for v in share.values())
+        first.setdefault((r["config"], r["camera"], r["pose"]["index"]), r)
+        assert share == first[(r["config"], r["camera"], r["pose"]["index"])]["effect_share"]
+    with Renderer(room, gl=gl) as rr:
+        for (config, camera, pose), row in first.items():
+            model, fov, primary = CONFIGS[camera]
+            rig = StereoRig(poses[pose].pose, ipd=sm["ipd"], fov_y=fov or sm["fov_y"], near=sm["near"],
+                            size=tuple(meta["per_eye_size"]), camera=model)
+            rr.set_materials(configs[config])
+            rr.settings = RenderSettings(primary=primary, msaa=row["msaa"])
+            f = rr.render(rig, aux=("material",))
+            ids = np.concatenate([f.left.aux["material"].ravel(), f.right.aux["material"].ravel()])
+            effect = {i: a.effect for i, a in enumerate(configs[config].assign(names, warn=False))}
+            counted = {}
+            for i in ids.tolist():
+                key = effect.get(i, "background")
+                counted[key] = counted.get(key, 0) + 1
+            got = {k: v for k, v in row["effect_share"].items() if v > 0}
+            assert got == pytest.approx({k: v / ids.size for k, v in counted.items()}, abs=1e-9), (config, camera)
+    cells = _md_cells(md)
+    shown = {c[5] for c in cells.values()} | {c[6] for c in cells.values()}
+    assert all("%" in x for x in shown) and any("background" in x or "shadows" in x for x in shown)
 
 
 def _eyes_clear_of_triangles(scene, rig_kw, poses) -> None:
@@ -148,19 +202,24 @@ def _check_orientation(poses) -> None:
         assert np.allclose(r.T @ r, np.eye(3), atol=1e-12)
         forward, right = -r[:, 2], r[:, 0]
         pitch = math.degrees(math.asin(forward[1]))
-        assert abs(pitch) <= 20.0 and pitch == pytest.approx(p.pitch_deg, abs=1e-9)
+        # random heads look within +-20 degrees of level, content heads at their target within +-60
+        assert abs(pitch) <= (20.0 if p.kind == "random" else 60.0) and pitch == pytest.approx(p.pitch_deg, abs=1e-9)
         assert abs(right[1]) < 1e-12  # no roll: the eyes stay level
         yaw = math.degrees(math.atan2(-forward[0], -forward[2])) % 360.0  # 0 along -Z, turning left
         assert yaw == pytest.approx(p.yaw_deg % 360.0, abs=1e-9)
-    pitches = [p.pitch_deg for p in poses]
+        if p.kind == "content":
+            to = np.asarray(p.target) - np.asarray(p.position)
+            np.testing.assert_allclose(forward, to / np.linalg.norm(to), atol=1e-9)
+    pitches = [p.pitch_deg for p in poses if p.kind == "random"]
     assert min(pitches) < -10 and max(pitches) > 10  # drawn across the range, not one fixed view
+    assert {p.kind for p in poses} == {"content", "random"}
 
 
 def test_room_poses_stay_inside_the_room(room):
     from rayvr.bench.head_poses import draw_poses
     from rayvr.frame.cameras.rig import StereoRig
 
-    poses = draw_poses(room, "default", 64, 22)
+    poses = draw_poses(room, "default", 128, 22)  # 64 random ones: the 64 of before content poses came
     base = StereoRig.for_scene(room)
     _eyes_clear_of_triangles(room, {"ipd": base.ipd, "near": base.near}, poses)
     _check_orientation(poses)
@@ -175,7 +234,7 @@ def test_sponza_poses_stay_inside_the_nave(shared_scene):
     from rayvr.scene import loader
 
     sponza = loader.load(shared_scene(SCENES["sponza"][0]))
-    poses = draw_poses(sponza, "sponza", 32, 22)
+    poses = draw_poses(sponza, "sponza", 64, 22)  # 32 random ones: the 32 poses of before content poses came
     base = StereoRig.for_scene(sponza)
     _eyes_clear_of_triangles(sponza, {"ipd": base.ipd, "near": 0.05}, poses)
     _check_orientation(poses)

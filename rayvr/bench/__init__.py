@@ -166,7 +166,7 @@ def _budgets(args) -> list:
 
 
 def _views(args, quick_poses: int = 1) -> dict:
-    """tradeoff and budget: the random head poses beside the fixed view (--poses; with --quick
+    """tradeoff and budget: the head poses beside the fixed view (--poses; with --quick
     `quick_poses`: CI's budget run takes one, its tradeoff run none, to stay short), or the views
     --only-views names."""
     from .tradeoff import SWEEP_POSES
@@ -216,8 +216,9 @@ def _lights(args, out, camera_from_args):
     from . import lights
 
     lights.run(out, size=(32, 24) if args.quick else args.size, scenes=_scenes(args),
-               poses=1 if args.quick else (2 if args.poses is None else args.poses), repeat=2 if args.quick else share(args.repeat, 5),
-               frames=2 if args.quick else 4, reference_frames=2 if args.quick else 8, backend=args.backend)
+               poses=1 if args.quick else (lights.POSES if args.poses is None else args.poses),
+               repeat=2 if args.quick else share(args.repeat, 5), frames=2 if args.quick else 4,
+               reference_frames=2 if args.quick else 8, backend=args.backend, pose_seed=args.pose_seed)
 
 
 def _crosscheck(args, out, camera_from_args):
@@ -259,7 +260,8 @@ AREAS: dict[str, Area] = {
     "crosscheck": Area("the reference vs Mitsuba 3 on the Cornell boxes", _crosscheck, ("mitsuba",) + FLIP),
     "workers": Area("frames/s of a capture path in one process and on --workers N,M Ray workers", _workers,
                     workers="list"),
-    "vr": Area("the headset's frame on --poses N seeded random head poses (--pose-seed): camera model (--cameras) x "
+    "vr": Area("the headset's frame on --poses N seeded head poses (--pose-seed; half gaze at the scene's content, "
+               "half random): camera model (--cameras) x "
                "MSAA (--counts) x materials config (--configs shadows,room,budget): GPU ms per pass and frame, "
                "median / worst / best over the poses", _vr),
 }

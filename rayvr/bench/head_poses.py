@@ -1,11 +1,30 @@
-"""Seeded random head poses inside a benchmark scene (`rayvr bench vr`): where a headset's wearer
-stands and looks, instead of the one fixed view of rayvr/bench/scenes.py that the other benches time.
+"""Seeded head poses inside a benchmark scene (`rayvr bench vr`, `tradeoff`, `budget`, `lights`):
+where a headset's wearer stands and looks, instead of the one fixed view of rayvr/bench/scenes.py
+that the other benches time.
 
-A pose is drawn uniformly: the head's floor position inside the scene's walkable region (REGIONS),
-its eye height above that floor (EYE_HEIGHT_M), its yaw over the whole turn and its pitch within
-+-MAX_PITCH_DEG; no roll, so the eyes stay level, the rig's IPD apart along the head's horizontal
-right axis (StereoRig.eye). The draws come from a generator seeded with the bench's seed and the
-scene's name: a scene's poses depend on the seed alone, not on which other scenes a run measures.
+Every pose's head stands at a point drawn uniformly in the scene's walkable region (REGIONS), its
+eye height above that floor within EYE_HEIGHT_M; no roll, so the eyes stay level, the rig's IPD
+apart along the head's horizontal right axis (StereoRig.eye). Poses come in two kinds, alternating
+(pose_kind):
+
+- even indices, `content`: the head gazes at a point of the scene's content, so the pose measures
+  something a user looks at. The point is drawn area-weighted over the triangles that are neither
+  the scene's enclosing shell (shell_triangles: its walls, floors and ceilings) nor emitters (a
+  light is drawn raster and its glare says nothing about the effects); it must be visible from the
+  head (no triangle in between, a CPU ray cast through the scene's BVH), at least MIN_TARGET_M
+  away, seen at most MAX_GRAZING_DEG from its surface's normal (a surface seen edge-on fills no
+  pixel) and within +-MAX_GAZE_PITCH_DEG of level (a user does not stare at the floor under the
+  feet or straight up); head and point are drawn again, up to TARGET_DRAWS times, else a
+  ValueError says why. Yaw and pitch put the point on the view axis through the point between the
+  eyes, at the image's centre (no offset: a random aim off the point would only look past small
+  objects);
+- odd indices, `random`: yaw over the whole turn, pitch within +-MAX_PITCH_DEG, as every pose was
+  before content poses came: random pose k (index 2k + 1) is the pose k of that older scheme, drawn
+  from the same stream, so its figures still compare.
+
+The draws come from generators seeded with the bench's seed and the scene's name (content pose k
+from one of its own): a scene's poses depend on the seed alone, not on which other scenes a run
+measures, and pose I is the same however many are drawn.
 """
 from __future__ import annotations
 
@@ -17,9 +36,32 @@ import numpy as np
 
 from ..frame.cameras.rig import Pose
 
-POSE_SEED = 22  # the default seed (the issue's number): fixed, so runs on different days time the same heads
+POSE_SEED = 22  # the default seed: fixed, so runs on different days time the same heads
 MAX_PITCH_DEG = 20.0  # a seated or standing user looks about this far up or down while moving the head
 EYE_HEIGHT_M = (1.5, 1.8)  # standing adults' eye heights above the floor, metres
+POSE_KINDS = ("content", "random")  # pose I's kind: POSE_KINDS[I % 2]
+# How poses are drawn, for the reports' meta: a folder's earlier rows stand beside new ones only when
+# they were drawn the same way (before content poses every pose was random, under the same seed).
+POSE_SCHEME = "even content, odd random"
+
+# The enclosing shell (shell_triangles): a triangle within SHELL_NORMAL_DEG of an axis lies in an
+# axis-aligned plane; the plane's area is that of the triangles facing the same way whose offsets
+# along the axis lie within SHELL_PLANE_M of its own; a plane of at least SHELL_SHARE of the
+# scene's largest plane is shell. Printed on the bench scenes: the room's floor and ceiling are
+# 64 m2, its walls 25.6 m2 (0.40), its largest other plane the mirror panel 2 cm in front of a wall
+# (3.6 m2, 0.06); Sponza's largest plane is the outer box's side (577 m2), its end walls 187-193 m2
+# (0.32), the colonnades' flat faces 173-177 m2 (0.30), the largest plane below them the aisles'
+# flat ceilings (72 m2, 0.13).
+SHELL_NORMAL_DEG = 5.0
+SHELL_PLANE_M = 0.005  # modelled walls are flat to well under this; the room's light hangs 1 cm below the ceiling
+SHELL_SHARE = 0.2
+# A content pose's gaze (draw_poses)
+MIN_TARGET_M = 0.75  # nearer than this a point fills the view; the eyes' parallax grows with 1 / distance
+MAX_GAZE_PITCH_DEG = 60.0
+MAX_GRAZING_DEG = 80.0
+TARGET_DRAWS = 256  # (head, point) draws a content pose may take, TARGET_BATCH at a time (one ray cast each)
+TARGET_BATCH = 16
+VISIBLE_SLACK_M = 1e-3  # a hit this close before the point is the point's own surface (or its neighbour's)
 
 
 @dataclass(frozen=True)
@@ -54,23 +96,51 @@ def head_rotation(yaw_deg: float, pitch_deg: float) -> np.ndarray:
     return turn @ tilt
 
 
+def gaze_angles(direction) -> tuple[float, float]:
+    """(yaw, pitch) in degrees that head_rotation turns the view axis (-Z) to `direction`; yaw in [0, 360)."""
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    yaw = math.degrees(math.atan2(-d[0], -d[2])) % 360.0
+    return (0.0 if yaw == 360.0 else yaw), math.degrees(math.asin(max(-1.0, min(1.0, float(d[1])))))
+
+
+def pose_kind(index: int) -> str:
+    """Pose `index`'s kind: content poses at even indices, random ones at odd."""
+    return POSE_KINDS[index % 2]
+
+
 @dataclass(frozen=True)
 class HeadPose:
     """One drawn head: `position` the point between the eyes (world metres), yaw and pitch in degrees
-    (head_rotation)."""
+    (head_rotation); `kind` (POSE_KINDS) and, for a content pose, the `target` it gazes at (world)."""
 
     index: int
     position: tuple[float, float, float]
     yaw_deg: float
     pitch_deg: float
+    kind: str = "random"
+    target: tuple[float, float, float] | None = None
 
     @property
     def pose(self) -> Pose:
         return Pose(np.asarray(self.position, dtype=np.float64), head_rotation(self.yaw_deg, self.pitch_deg))
 
+    @property
+    def label(self) -> str:
+        """"3 (random)": the index with its kind, as reports name a pose."""
+        return f"{self.index} ({self.kind})"
+
     def to_dict(self) -> dict:
-        return {"index": self.index, "position": list(self.position), "yaw_deg": self.yaw_deg,
-                "pitch_deg": self.pitch_deg}
+        out = {"index": self.index, "kind": self.kind, "position": list(self.position), "yaw_deg": self.yaw_deg,
+               "pitch_deg": self.pitch_deg}
+        if self.target is not None:
+            out["target"] = list(self.target)
+        return out
+
+
+def pose_label(pose: dict) -> str:
+    """A row's pose (HeadPose.to_dict) as reports name it: "3 (random)" (rows from before kinds: "3")."""
+    return f"{pose['index']} ({pose['kind']})" if "kind" in pose else str(pose["index"])
 
 
 def region(name: str) -> PoseRegion:
@@ -90,16 +160,142 @@ def pose_bounds(scene, name: str) -> dict:
             "z": [centre[2] - reg.span[1] * half[2], centre[2] + reg.span[1] * half[2]]}
 
 
+def _triangles(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(world vertices (T, 3, 3), unit geometric normals (T, 3), areas (T,)) of the scene's triangles."""
+    tri = scene.world_vertices()[scene.indices]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(cross, axis=1)
+    return tri, cross / np.maximum(length, 1e-300)[:, None], 0.5 * length
+
+
+def plane_areas(scene) -> np.ndarray:
+    """Per triangle, the area of its axis-aligned plane (the module's SHELL_* rule), 0 for a
+    triangle in no axis-aligned plane: the same-facing triangles of its axis whose offsets along
+    it lie within SHELL_PLANE_M of its own (a window round each offset, so no plane is split at a
+    bin's edge)."""
+    tri, normal, area = _triangles(scene)
+    axis = np.argmax(np.abs(normal), axis=1)
+    rows = np.arange(len(tri))
+    along = normal[rows, axis]
+    aligned = (np.abs(along) >= math.cos(math.radians(SHELL_NORMAL_DEG))) & (area > 0)
+    offset = tri.mean(axis=1)[rows, axis]
+    out = np.zeros(len(tri))
+    for a in range(3):
+        for sign in (-1.0, 1.0):
+            mine = np.flatnonzero(aligned & (axis == a) & (np.sign(along) == sign))
+            if not len(mine):
+                continue
+            order = mine[np.argsort(offset[mine], kind="stable")]
+            sorted_off = offset[order]
+            total = np.concatenate([[0.0], np.cumsum(area[order])])
+            lo = np.searchsorted(sorted_off, sorted_off - SHELL_PLANE_M, side="left")
+            hi = np.searchsorted(sorted_off, sorted_off + SHELL_PLANE_M, side="right")
+            out[order] = total[hi] - total[lo]
+    return out
+
+
+def shell_triangles(scene) -> np.ndarray:
+    """Per triangle, whether it belongs to the scene's enclosing shell: its walls, floors and
+    ceilings, the axis-aligned planes of at least SHELL_SHARE of the largest one's area
+    (plane_areas). Everything else is the content a user looks at (furniture, pillars, arches)."""
+    planes = plane_areas(scene)
+    return planes >= SHELL_SHARE * planes.max() if planes.max() > 0 else np.zeros(len(planes), bool)
+
+
+def content_triangles(scene) -> np.ndarray:
+    """Per triangle, whether a content pose may gaze at it: neither shell nor emissive, with an area."""
+    emissive = np.array([m.is_emissive for m in scene.materials], bool)
+    _, _, area = _triangles(scene)
+    return ~shell_triangles(scene) & ~emissive[scene.triangle_material] & (area > 0)
+
+
+def _random_pose(rng, bounds: dict, index: int) -> HeadPose:
+    """The next random pose of `rng`: five draws, position, yaw, pitch (the older scheme's, in its order)."""
+    position = tuple(float(rng.uniform(*bounds[axis])) for axis in ("x", "y", "z"))
+    yaw = float(rng.uniform(0.0, 360.0))
+    pitch = float(rng.uniform(-MAX_PITCH_DEG, MAX_PITCH_DEG))
+    return HeadPose(index, position, yaw, pitch, "random")
+
+
+class _Gaze:
+    """What a scene's content poses draw from: its content triangles (area-weighted) and its BVH
+    (accel/scene.py kept_scene_bvh: the renderer's, built once a process) to cast the sight line."""
+
+    def __init__(self, scene, name: str):
+        from ..accel.scene import kept_scene_bvh
+
+        tri, normal, area = _triangles(scene)
+        ok = content_triangles(scene)
+        if not ok.any():
+            raise ValueError(f"scene {name!r} has no content to gaze at: every triangle is its shell "
+                             f"(walls, floors, ceilings) or emissive")
+        self.ids = np.flatnonzero(ok)
+        self.cdf = np.cumsum(area[self.ids])
+        self.cdf /= self.cdf[-1]
+        self.tri, self.normal, self.origin = tri, normal, np.asarray(scene.origin, dtype=np.float64)
+        self.bvh = kept_scene_bvh(scene, "sah")
+
+    def points(self, rng, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """(triangle ids, points) of `n` points drawn uniformly over the content's area."""
+        ids = self.ids[np.minimum(np.searchsorted(self.cdf, rng.random(n)), len(self.ids) - 1)]
+        r1, r2 = np.sqrt(rng.random(n)), rng.random(n)
+        t = self.tri[ids]
+        return ids, ((1 - r1)[:, None] * t[:, 0] + (r1 * (1 - r2))[:, None] * t[:, 1]
+                     + (r1 * r2)[:, None] * t[:, 2])
+
+    def visible(self, heads: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Whether the first surface on the ray from each head towards its point is the point's."""
+        from ..accel.bvh import trace_reference
+
+        d = points - heads
+        dist = np.linalg.norm(d, axis=1)
+        _, t, _, _ = trace_reference(self.bvh, heads - self.origin, d / dist[:, None])
+        return t >= dist - VISIBLE_SLACK_M
+
+
+def _content_pose(gaze: _Gaze, bounds: dict, index: int, rng, name: str) -> HeadPose:
+    """A content pose (the module's rules): heads and points drawn TARGET_BATCH at a time, the
+    first pair in draw order that passes every test."""
+    why = {"nearer than MIN_TARGET_M": 0, "pitch beyond MAX_GAZE_PITCH_DEG": 0, "seen edge-on": 0, "hidden": 0}
+    for _ in range(TARGET_DRAWS // TARGET_BATCH):
+        heads = np.stack([rng.uniform(*bounds[axis], TARGET_BATCH) for axis in ("x", "y", "z")], axis=1)
+        ids, points = gaze.points(rng, TARGET_BATCH)
+        d = points - heads
+        dist = np.linalg.norm(d, axis=1)
+        unit = d / np.maximum(dist, 1e-300)[:, None]
+        near = dist < MIN_TARGET_M
+        steep = np.abs(unit[:, 1]) > math.sin(math.radians(MAX_GAZE_PITCH_DEG))
+        grazing = np.abs(np.sum(unit * gaze.normal[ids], axis=1)) < math.cos(math.radians(MAX_GRAZING_DEG))
+        ok = ~near & ~steep & ~grazing
+        seen = np.zeros(TARGET_BATCH, bool)
+        if ok.any():
+            seen[ok] = gaze.visible(heads[ok], points[ok])
+        for k, v in (("nearer than MIN_TARGET_M", near), ("pitch beyond MAX_GAZE_PITCH_DEG", ~near & steep),
+                     ("seen edge-on", ~near & ~steep & grazing), ("hidden", ok & ~seen)):
+            why[k] += int(v.sum())
+        if seen.any():
+            i = int(np.argmax(seen))
+            yaw, pitch = gaze_angles(unit[i])
+            return HeadPose(index, tuple(float(x) for x in heads[i]), yaw, pitch, "content",
+                            tuple(float(x) for x in points[i]))
+    raise ValueError(f"scene {name!r}: content pose {index} found no visible point of the scene's content in "
+                     f"{TARGET_DRAWS} draws of head and point ("
+                     + ", ".join(f"{k}: {v}" for k, v in why.items()) + ")")
+
+
 def draw_poses(scene, name: str, count: int, seed: int) -> list[HeadPose]:
-    """`count` head poses inside scene `name`'s region (pose_bounds), from `seed`."""
+    """`count` head poses inside scene `name`'s region (pose_bounds), from `seed`: content poses at
+    even indices, random ones at odd (the module's docstring)."""
     if count < 1:
-        raise ValueError(f"--poses: a bench over random head poses needs at least one, got {count}")
+        raise ValueError(f"--poses: a bench over head poses needs at least one, got {count}")
     bounds = pose_bounds(scene, name)
-    rng = np.random.default_rng([seed, zlib.crc32(name.encode())])
+    key = zlib.crc32(name.encode())
+    rng = np.random.default_rng([seed, key])  # the random poses' stream, as before content poses came
+    gaze = _Gaze(scene, name)
     out = []
     for i in range(count):
-        position = tuple(float(rng.uniform(*bounds[axis])) for axis in ("x", "y", "z"))
-        yaw = float(rng.uniform(0.0, 360.0))
-        pitch = float(rng.uniform(-MAX_PITCH_DEG, MAX_PITCH_DEG))
-        out.append(HeadPose(i, position, yaw, pitch))
+        if pose_kind(i) == "random":
+            out.append(_random_pose(rng, bounds, i))
+        else:  # a generator of its own: how many draws pose k takes moves no other pose
+            out.append(_content_pose(gaze, bounds, i, np.random.default_rng([seed, key, 1, i // 2]), name))
     return out

@@ -4,7 +4,8 @@ scenes with ADDED_LIGHTS point lights added (seeded: inside the heads' region, 0
 the floor, intensities over two decades), `shadows` on every material (the shadow rays are what K
 changes).
 
-Per scene, head pose (the bench view and `poses` random heads of rayvr/bench/head_poses.py) and K
+Per scene, head pose (the bench view and `poses` heads of rayvr/bench/head_poses.py, content and
+random) and K
 in PICKS (0: every light):
   - `ms`: GPU ms of the frame, both eyes (median over `repeat` frames after the warm-up);
   - `mse`: the mean squared error of one frame's displayed colour (tonemapped, 0..1: a light next
@@ -33,6 +34,7 @@ from .report import device_meta, write_report
 from .scenes import bench_scenes
 
 ADDED_LIGHTS = 64
+POSES = 8  # heads beside the bench view unless --poses says
 PICKS = (0, 1, 4, 16)
 REFERENCE_SEED = 10_000  # the reference's seeds start here; the variants' at 0
 
@@ -57,8 +59,9 @@ def displayed(r, rig, seed: int) -> np.ndarray:
     return np.stack([f.left.color[..., :3], f.right.color[..., :3]]).astype(np.float64) / 255.0
 
 
-def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), poses: int = 2, repeat: int = 10,
-        frames: int = 4, reference_frames: int = 8, picks=PICKS, backend=None, progress: bool = True) -> dict:
+def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), poses: int = POSES, repeat: int = 10,
+        frames: int = 4, reference_frames: int = 8, picks=PICKS, backend=None, progress: bool = True,
+        pose_seed: int = POSE_SEED) -> dict:
     gl = create_context(backend)
     rows, skipped = [], {}
     config = parse_config({"default": "shadows"}, "bench:lights")
@@ -66,10 +69,10 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), poses: i
         for name, scene, rig in bench_scenes(scenes, size, skipped):
             own = len(scene.lights)
             add_lights(scene, name, ADDED_LIGHTS)
-            heads = [("bench view", rig.pose)] + [(f"head {h.index}", h.pose)
-                                                  for h in draw_poses(scene, name, poses, POSE_SEED)]
+            drawn = draw_poses(scene, name, poses, pose_seed) if poses else []
+            heads = [("bench view", "fixed", rig.pose)] + [(f"head {h.index}", h.kind, h.pose) for h in drawn]
             with Renderer(scene, config, gl=gl, settings=RenderSettings(light_picks=0)) as r:
-                for where, pose in heads:
+                for where, kind, pose in heads:
                     rig.pose = pose
                     r.settings = replace(r.settings, light_picks=0)
                     reference = np.mean([displayed(r, rig, REFERENCE_SEED + i) for i in range(reference_frames)], axis=0)
@@ -79,8 +82,9 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), poses: i
                         _, passes, ms = time_frame(r, rig, repeat, 3)
                         base_ms = ms if k == 0 else base_ms
                         mse = float(np.mean([np.mean((displayed(r, rig, i) - reference) ** 2) for i in range(frames)]))
-                        row = {"scene": name, "pose": where, "light_picks": k, "lights": len(scene.lights),
-                               "scene_lights": own, "ms": ms, "rt_shadows_ms": passes.get("rt_shadows"), "mse": mse,
+                        row = {"scene": name, "pose": where, "pose_kind": kind, "light_picks": k,
+                               "lights": len(scene.lights), "scene_lights": own, "ms": ms,
+                               "rt_shadows_ms": passes.get("rt_shadows"), "mse": mse,
                                "equal_time_mse": mse * ms / base_ms if base_ms else None}
                         rows.append(row)
                         if progress:
@@ -88,7 +92,7 @@ def run(out_dir: Path, size=(1440, 1600), scenes=("default", "sponza"), poses: i
                                   f"at equal time {row['equal_time_mse']:.3e}", flush=True)
         meta = {**device_meta(gl.info()), "bench": "lights", "per_eye_size": list(size), "repeat": repeat,
                 "frames": frames, "reference_frames": reference_frames, "added_lights": ADDED_LIGHTS,
-                "pose_seed": POSE_SEED, "skipped": skipped, "timings_meaningful": not gl.is_software,
+                "poses": poses, "pose_seed": pose_seed, "skipped": skipped, "timings_meaningful": not gl.is_software,
                 "config": "shadows on every material"}
         result = {"meta": meta, "rows": rows}
         write_report(out_dir, "lights", result)

@@ -136,6 +136,34 @@ def to_jsonable(x):
     return str(x)
 
 
+# -------------------------------------------------------------------------------------------
+# What a frame shows
+
+
+def effect_share(material_maps, names, config) -> dict:
+    """{effect: the fraction of the pixels of `material_maps` (each eye's material ids, read back
+    from the G-buffer) whose material `config` gives that effect, "background": the pixels that hit
+    nothing (ids past the scene's `names`)}: which effects a timed frame spends its pixels on.
+    Every effect the config gives a material is a key, 0 where the frame shows none of it."""
+    ids = np.concatenate([np.asarray(m).ravel() for m in material_maps])
+    counts = np.bincount(np.minimum(ids, len(names)).astype(np.int64), minlength=len(names) + 1)
+    out: dict = {}
+    for a, n in zip(config.assign(list(names), warn=False), counts[:len(names)]):
+        out[a.effect] = out.get(a.effect, 0) + int(n)
+    out["background"] = int(counts[len(names)])
+    return {k: v / max(ids.size, 1) for k, v in out.items()}
+
+
+def share_text(share: dict | None) -> str:
+    """An effect_share as reports print it, largest first: "shadows 40%, glossy 31%, background 8%"
+    (effects the frame does not show left out; "<1%" for a sliver)."""
+    if not share:
+        return "-"
+    parts = [f"{k} {v * 100:.0f}%" if v >= 0.005 else f"{k} <1%"
+             for k, v in sorted(share.items(), key=lambda kv: -kv[1]) if v > 0]
+    return ", ".join(parts) or "-"
+
+
 def _atomic_write(path: Path, write) -> None:
     """Write through a temp file in the same folder, then rename: readers (and a crash
     mid-sweep) never see a half-written file."""

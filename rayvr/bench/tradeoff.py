@@ -245,9 +245,9 @@ def _bench_gl(out_dir, backend):
 
 
 def views_of(name: str, scene, rig, poses: int, pose_seed: int, only=None) -> list[tuple[str, object]]:
-    """("fixed", the bench view) and ("pose I", a rig at seeded random head pose I inside the
-    scene: bench vr's poses) for I < poses; `only`: those of these names (pose I is the same
-    whatever `poses` is, so runs of some views add up to one of all)."""
+    """("fixed", the bench view) and ("pose I", a rig at seeded head pose I inside the scene:
+    bench vr's poses, content and random, head_poses.py) for I < poses; `only`: those of these
+    names (pose I is the same whatever `poses` is, so runs of some views add up to one of all)."""
     heads = draw_poses(scene, name, poses, pose_seed) if poses else []
     views = [("fixed", rig)] + [(f"pose {h.index}", replace(rig, pose=h.pose)) for h in heads]
     return [v for v in views if only is None or v[0] in only]
@@ -349,7 +349,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     return result
 
 
-SWEEP_POSES = 2  # tradeoff and budget: random head poses beside the fixed view unless --poses says
+SWEEP_POSES = 8  # tradeoff and budget: head poses (half content, half random) beside the fixed view unless --poses says
 BUDGETS_MS = (1000.0 / 90, 1000.0 / 120)  # bench budget's frame budgets unless --budget-ms gives others: 90, 120 Hz
 
 

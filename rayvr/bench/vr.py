@@ -1,9 +1,11 @@
-"""`rayvr bench vr`: the frame a headset asks for, timed on seeded random head poses (issue 22).
+"""`rayvr bench vr`: the frame a headset asks for, timed on seeded head poses.
 
 Per scene (the built-in room `default`, and Sponza from the shared scenes when present), `poses`
-head poses are drawn inside the room or Sponza's nave (rayvr/bench/head_poses.py: eye height and yaw
-drawn, pitch within +-20 degrees, the bench rig's IPD, fov and near plane), and every cell of a
-grid is timed on each of them:
+head poses are drawn inside the room or Sponza's nave (rayvr/bench/head_poses.py: the even-numbered
+gaze at a visible point of the scene's content, furniture, mirrors, pillars, arches, not its walls,
+floors and ceilings; the odd-numbered look about at random, yaw drawn over the whole turn, pitch
+within +-20 degrees; the bench rig's IPD, fov and near plane), and every cell of a grid is timed on
+each of them:
 
   materials config x variant x camera model x MSAA count
 
@@ -24,9 +26,13 @@ timer queries), `visibility_ms`, what makes the G-buffer (bench/primary.py's def
 what a render loop meets (bench/rays.py time_pipelined): `record_ms`, the CPU's recording of a
 frame, and `pipelined_ms`, the wall time a frame of frames recorded back to back (where the CPU is
 the slower, the GPU's idle time falls inside the passes' timer windows and `frame_ms` overstates
-the GPU's work). vr.md
-has a table per scene: each cell's median, worst and best frame over the poses, the pose that was
-worst, and its most expensive passes. The report is rewritten after every cell (a run cut short keeps
+the GPU's work). Each row also records `effect_share`, what the frame shows: the share of its pixels
+(both eyes) whose material the config gives each effect, and "background" for the pixels that hit
+nothing, from the G-buffer's material ids of one more frame read back after the timed ones, once per
+(pose, config, camera: a camera model's fov and lens change the view). vr.md has a table per scene:
+each cell's median, worst and best frame over the poses, the pose that was worst (with its kind),
+what the frame shows (median over the poses, and on the worst pose) and its most expensive passes;
+the targets are judged on the worst pose. The report is rewritten after every cell (a run cut short keeps
 what it measured); rows of the scenes and configs a run does not measure stay from the folder's
 earlier vr.json when it was taken on the same device with the same size, poses and seed, so the
 scenes and configs can run as separate commands.
@@ -36,6 +42,7 @@ from __future__ import annotations
 import itertools
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -46,10 +53,11 @@ from ..renderer import Renderer, RenderSettings
 from ..scene.materials import load_config
 from ..frame.passes.primary_rays import KNOB_DEFAULTS, MEASURED_CHOICES, PRIMARY_KNOBS
 from ..util.output import atomic_write_bytes
-from .head_poses import EYE_HEIGHT_M, MAX_PITCH_DEG, POSE_SEED, draw_poses, pose_bounds, region
+from .head_poses import (EYE_HEIGHT_M, MAX_GAZE_PITCH_DEG, MAX_PITCH_DEG, MIN_TARGET_M, POSE_SCHEME, POSE_SEED,
+                         draw_poses, pose_bounds, pose_label, region)
 from .primary import CONFIGS as CAMERA_CONFIGS
 from .rays import MIRRORS, hybrid_config, time_frame, time_pipelined, time_stages
-from .report import device_meta, earlier_rows, write_report
+from .report import device_meta, earlier_rows, effect_share, share_text, write_report
 from .scenes import bench_scenes, shipped_config
 
 MATERIAL_CONFIGS = ("shadows", "room", "budget")
@@ -70,7 +78,7 @@ TOP_PASSES = 3  # passes vr.md names per cell
 QUICK = {"size": (32, 24), "poses": 2, "cameras": ("raster_gbuffer", "pinhole", "distorted_chromatic"),
          "counts": (1, 4), "configs": ("shadows", "room")}
 # earlier rows are kept only when these meta entries match
-SAME_RUN = ("gl_renderer", "gl_version", "per_eye_size", "quick", "poses", "pose_seed")
+SAME_RUN = ("gl_renderer", "gl_version", "per_eye_size", "quick", "poses", "pose_seed", "pose_scheme")
 CHOICES_FILE = "primary_visibility.json"  # with several variants: the renderer's measured choices, renewed
 CHOICE_MARGIN = 0.03  # a worst time within 3 % of the least is a tie (single frames vary about that much)
 
@@ -170,6 +178,20 @@ def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: f
             "round_passes": round_passes(r, rig), **loop}
 
 
+def frame_share(r: Renderer, rig: StereoRig, config) -> dict:
+    """report.effect_share of one frame of `r` through `rig` under its settings (stereo `warp`
+    read as `dual`: warp has no per-eye G-buffer): a frame rendered and read back apart from the
+    timed ones."""
+    settings = r.settings
+    if settings.stereo == "warp":
+        r.settings = replace(settings, stereo="dual")
+    try:
+        f = r.render(rig, aux=("material",))
+    finally:
+        r.settings = settings
+    return effect_share([f.left.aux["material"], f.right.aux["material"]], r.scene.material_names(), config)
+
+
 def kept_rows(path: Path, meta: dict, measured: set) -> tuple[list, dict]:
     """Rows of an earlier vr.json at `path` whose (scene, config) this run does not measure, and
     that run's per-scene meta, if it matches this run (SAME_RUN); else nothing."""
@@ -189,7 +211,9 @@ def loop_cell(s: dict) -> str:
 
 def spread(rows) -> list[dict]:
     """Per scene and cell (config, variant, camera, msaa): frame ms median / worst / best over the
-    poses, the worst pose, the median visibility ms and the median of each pass, most expensive first."""
+    poses, the worst pose (its label names its kind), the median visibility ms and the median of each
+    pass, most expensive first, and what the frame shows: each effect's median share over the poses
+    (the medians need not add up to 1) and the worst pose's shares."""
     groups: dict = {}
     for r in rows:
         groups.setdefault((r["scene"], r["config"], r["variant"], r["camera"], r["msaa"]), []).append(r)
@@ -200,9 +224,17 @@ def spread(rows) -> list[dict]:
         passes = {k: float(np.median([g["passes"].get(k, 0.0) for g in group])) for k in group[0]["passes"]}
         stages = {k: float(np.median([g.get("primary_stages", {}).get(k, 0.0) for g in group]))
                   for k in group[0].get("primary_stages", {})}
+        shares = [g.get("effect_share") for g in group]
+        effects = list(dict.fromkeys(k for sh in shares if sh for k in sh))
+        share = ({k: float(np.median([sh.get(k, 0.0) for sh in shares])) for k in effects}
+                 if all(shares) else None)  # rows from before shares were recorded: none
         out.append({"scene": scene, "config": config, "variant": variant, "camera": camera, "msaa": msaa,
                     "primary": group[0]["primary"], "poses": len(group), "median_ms": float(np.median(frame)),
                     "worst_ms": max(frame), "best_ms": min(frame), "worst_pose": worst["pose"]["index"],
+                    "worst_pose_label": pose_label(worst["pose"]),
+                    "worst_pose_kind": worst["pose"].get("kind", "random"),  # rows from before kinds: random
+                    "effect_share": share,
+                    "worst_effect_share": worst.get("effect_share"),
                     "visibility_median_ms": float(np.median([g["visibility_ms"] for g in group])),
                     "visibility_worst_ms": max(g["visibility_ms"] for g in group),
                     # the CPU's recording and the render loop's frame (rows from before they were timed: None)
@@ -264,7 +296,7 @@ def choices_file(chosen: dict, meta: dict, out: Path) -> dict:
             "device": f"{meta.get('gl_renderer')}, {meta.get('gl_version')}", "choices": merged}
 
 
-# Issue 22's targets for the headset's frame, judged on the worst pose: (name, what, camera, msaa,
+# Targets for the headset's frame, judged on the worst pose: (name, what, camera, msaa,
 # kind, bound) where kind "ms" bounds the primary_rays pass, "grays" is a least rate of its 1x rays
 # (GRays/s), and "ratio:<camera>:<msaa>" bounds the frame against that cell's frame on the same pose
 # and config.
@@ -280,9 +312,11 @@ TARGETS = (
 
 def targets(rows, per_eye_size) -> list[dict]:
     """Each target of TARGETS per scene and variant whose cells were measured: the worst pose's
-    figure (over the poses and configs) and whether it meets the bound."""
+    figure (over the poses and configs), that pose (its label names its kind) and whether it meets
+    the bound."""
     w, h = per_eye_size
     cell = {(r["scene"], r["config"], r["variant"], r["camera"], r["msaa"], r["pose"]["index"]): r for r in rows}
+    labels = {(r["scene"], r["pose"]["index"]): pose_label(r["pose"]) for r in rows}
     out = []
     for scene, variant in dict.fromkeys((r["scene"], r["variant"]) for r in rows):
         for name, what, camera, msaa, kind, bound in TARGETS:
@@ -305,7 +339,8 @@ def targets(rows, per_eye_size) -> list[dict]:
             lowest_is_worst = kind == "grays"
             figure, pose, config = min(figures) if lowest_is_worst else max(figures)
             out.append({"scene": scene, "variant": variant, "target": name, "what": what, "bound": bound,
-                        "worst": figure, "worst_pose": pose, "worst_config": config,
+                        "worst": figure, "worst_pose": pose, "worst_pose_label": labels[(scene, pose)],
+                        "worst_config": config,
                         "met": figure >= bound if lowest_is_worst else figure <= bound})
     return out
 
@@ -313,12 +348,18 @@ def targets(rows, per_eye_size) -> list[dict]:
 def markdown(result: dict) -> str:
     meta, rows = result["meta"], result["rows"]
     w, h = meta["per_eye_size"]
-    lines = ["# rayvr bench vr: the headset's frame on random head poses", "",
+    lines = ["# rayvr bench vr: the headset's frame on seeded head poses", "",
              f"- **device**: {meta.get('gl_renderer')} ({meta.get('gl_vendor')}), driver {meta.get('gl_version')}",
              f"- **resolution**: 2x{w}x{h} (both eyes, {w}x{h} each)",
              f"- **poses**: {meta['poses']} per scene, seed {meta['pose_seed']} (--pose-seed); eye height "
-             f"{EYE_HEIGHT_M[0]}-{EYE_HEIGHT_M[1]} m above the floor, yaw 0-360 deg, pitch within +-{MAX_PITCH_DEG:g} "
-             f"deg, no roll; the bench rig's IPD, fov and near plane",
+             f"{EYE_HEIGHT_M[0]}-{EYE_HEIGHT_M[1]} m above the floor, no roll; even-numbered poses (content) gaze "
+             f"at a visible point of the scene's content (not its walls, floors, ceilings or lights) at least "
+             f"{MIN_TARGET_M:g} m away, pitch within +-{MAX_GAZE_PITCH_DEG:g} deg; odd-numbered (random) yaw "
+             f"0-360 deg, pitch within +-{MAX_PITCH_DEG:g} deg; the bench rig's IPD, fov and near plane"
+             + ("" if meta.get("pose_scheme") else " (rows from before content poses: every pose random)"),
+             "- **frame shows**: the share of the frame's pixels (both eyes) whose material the config gives each "
+             "effect, background: pixels that hit nothing; from the material ids of one frame read back after the "
+             "timed ones (per pose, config and camera)",
              f"- **timing**: {meta['what_times_include']}",
              f"- **grid**: configs {', '.join(meta['configs'])}; variants "
              + ", ".join(f"{k} {json.dumps(v)}" for k, v in meta["variants"].items())
@@ -353,15 +394,18 @@ def markdown(result: dict) -> str:
                       + "; ".join(f"{e}: {', '.join(sorted(m))}" for e, m in sorted(by_effect.items())) + ".", ""]
         lines += ["| config | variant | camera | primary | MSAA | poses | median ms | worst ms | best ms | worst pose "
                   "| visibility median / worst ms | CPU record / pipelined frame ms (median) "
-                  "| top passes (median ms) | primary_rays stages (median ms) |",
-                  "|" + "---|" * 14]
+                  "| top passes (median ms) | primary_rays stages (median ms) | frame shows (median over poses) "
+                  "| frame shows (worst pose) |",
+                  "|" + "---|" * 16]
         for s in (s for s in summary if s["scene"] == scene):
             top = ", ".join(f"{k} {v:.3f}" for k, v in list(s["passes"].items())[:TOP_PASSES])
             stages = ", ".join(f"{k} {v:.3f}" for k, v in s.get("primary_stages", {}).items()) or "-"
             lines.append(f"| {s['config']} | {s['variant']} | {s['camera']} | {s['primary']} | {s['msaa']} | "
                          f"{s['poses']} | {s['median_ms']:.3f} | {s['worst_ms']:.3f} | {s['best_ms']:.3f} | "
-                         f"{s['worst_pose']} | {s['visibility_median_ms']:.3f} / {s['visibility_worst_ms']:.3f} | "
-                         f"{loop_cell(s)} | {top} | {stages} |")
+                         f"{s['worst_pose_label']} | "
+                         f"{s['visibility_median_ms']:.3f} / {s['visibility_worst_ms']:.3f} | "
+                         f"{loop_cell(s)} | {top} | {stages} | {share_text(s['effect_share'])} | "
+                         f"{share_text(s['worst_effect_share'])} |")
         lines.append("")
         rounds = [(s, round_totals(worst_row(rows, s))) for s in summary if s["scene"] == scene]
         if any(ms for _, ms in rounds):
@@ -369,16 +413,17 @@ def markdown(result: dict) -> str:
                       "a channel set's last round shades every pixel, the others only the pixels with that "
                       "many distinct triangles):", ""]
             lines += [f"- {s['config']} {s['variant']} {s['camera']} {s['msaa']}x: " + ", ".join(f"{v:.3f}" for v in ms)
-                      for s, ms in rounds if ms]
+                      + f" (pose {s['worst_pose']}, {s['worst_pose_kind']})" for s, ms in rounds if ms]
             lines.append("")
         judged = [t for t in targets(rows, meta["per_eye_size"]) if t["scene"] == scene]
         if judged:
-            lines += ["Issue 22's targets, on the worst pose (over the poses and configs measured):", "",
-                      "| target | variant | worst | pose, config | met |", "|---|---|---|---|---|"]
+            lines += ["Targets, on the worst pose (over the poses and configs measured):", "",
+                      "| target | bound | variant | worst | pose (kind), config | met |", "|---|---|---|---|---|---|"]
             for t in judged:
                 unit = " GRays/s" if t["target"] == "primary_rate" else ("x" if "frame" in t["target"] else " ms")
-                lines.append(f"| {t['what']} | {t['variant']} | {t['worst']:.3f}{unit} | {t['worst_pose']}, "
-                             f"{t['worst_config']} | {'yes' if t['met'] else 'NO'} |")
+                lines.append(f"| {t['target']} | {t['what']} | {t['variant']} | {t['worst']:.3f}{unit} | "
+                             f"{t.get('worst_pose_label', t['worst_pose'])}, {t['worst_config']} | "
+                             f"{'yes' if t['met'] else 'NO'} |")
             lines.append("")
     chosen = meta.get("primary_choices") or {}
     if len({r["variant"] for r in rows}) > 1 and chosen:
@@ -419,7 +464,8 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
     rows, skipped = [], {}
     try:
         meta = {**device_meta(gl.info()), "bench": "vr", "per_eye_size": list(size), "quick": quick,
-                "poses": poses, "pose_seed": pose_seed, "repeat": repeat, "warmup_frames": warmup,
+                "poses": poses, "pose_seed": pose_seed, "pose_scheme": POSE_SCHEME, "repeat": repeat,
+                "warmup_frames": warmup,
                 "configs": list(configs), "variants": variants, "cameras": list(cameras), "counts": list(counts),
                 "budget_ms": budget_ms, "timings_meaningful": not gl.is_software, "skipped": skipped,
                 "what_times_include": f"median GPU ms (GL timer queries per pass, summed over a frame's rounds) "
@@ -458,6 +504,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
                 mats[config], about = materials_config(gl, config, name, scene, view, budget_ms, progress)
                 sm["configs" if mats[config] is not None else "configs_skipped"][config] = about
             todo = [c for c in grid if mats[c[0]] is not None]
+            shares = {}  # (config, camera, pose index) -> frame_share: the variants and counts see the same view
             bar = tqdm(total=len(todo) * len(heads), desc=f"vr {name}", unit="frame", disable=not progress)
             with Renderer(scene, gl=gl) as r:
                 for cell_index, (config, variant, camera, msaa) in enumerate(todo):
@@ -470,12 +517,16 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
                                         camera=model)
                         first = SCENE_WARMUP_S if cell_index == 0 else WARMUP_S
                         timed = frame_row(r, rig, repeat, warmup, first if head.index == 0 else 0.0)
+                        seen = (config, camera, head.index)
+                        if seen not in shares:  # after the timed frames, apart from them
+                            shares[seen] = frame_share(r, rig, mats[config])
                         rows.append({"scene": name, "pose": head.to_dict(), "config": config, "variant": variant,
                                      "camera": camera, "camera_model": model.name, "primary": primary, "msaa": msaa,
                                      "variant_fields": variants[variant], "tile_culling": plan.tile_culling,
                                      "tile_lists": plan.tile_lists, "block_culling": plan.block_culling,
                                      "tile_size": "x".join(map(str, plan.tile_pixels)),
-                                     "tile_entries": plan.tile_entries, "block_tiles": plan.block_tiles, **timed})
+                                     "tile_entries": plan.tile_entries, "block_tiles": plan.block_tiles, **timed,
+                                     "effect_share": shares[seen]})
                         bar.update(1)
                     cell = [x["frame_ms"] for x in rows[-len(heads):]]
                     bar.write(f"  {name:8s} {config:8s} {variant:10s} {camera:20s} {msaa:2d}x frame median "

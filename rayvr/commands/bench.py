@@ -218,15 +218,17 @@ def add_parser(sub) -> None:
     b.add_argument("--cameras", type=_names,
                    help="vr: the camera models, comma-separated among primary's --configs names (default "
                         "raster_gbuffer,pinhole,distorted_chromatic,foveated,wide_210x130,dof_0.5m)")
-    b.add_argument("--poses", type=_count(0, MAX_POSES), help="vr: random head poses per scene (default 8; --quick 2); "
-                   "lights: (default 2; --quick 1); tradeoff, budget: the head poses measured beside the fixed view "
-                   "(default 2; --quick 1; 0: the fixed view only)")
+    b.add_argument("--poses", type=_count(0, MAX_POSES),
+                   help="vr: head poses per scene, the even-numbered gazing at a point of the scene's content, the "
+                        "odd-numbered random (default 8; --quick 2); lights, tradeoff, budget: the head poses measured "
+                        "beside the fixed view (default 8; --quick: lights and budget 1, tradeoff 0; 0: the fixed "
+                        "view only)")
     b.add_argument("--only-views", type=_view_names, metavar="VIEWS",
                    help="tradeoff, budget: only these views, comma-separated: fixed and head pose numbers, e.g. "
                         "fixed,0 or 1,2 (instead of --poses; the folder's report keeps the views a run leaves out, "
                         "so runs of some views add up)")
     b.add_argument("--pose-seed", type=_count(0, MAX_SEED), default=POSE_SEED,
-                   help=f"vr, tradeoff, budget: the seed the head poses are drawn from (default {POSE_SEED})")
+                   help=f"vr, tradeoff, budget, lights: the seed the head poses are drawn from (default {POSE_SEED})")
     add_camera_model_arguments(b)
     settings_mod.add_arguments(b, COMMAND)
     b.set_defaults(func=cmd_bench)
