@@ -19,6 +19,7 @@ from rayvr.scene.materials import parse_config
 from rayvr.reference.shading import light_samples, shade_eye
 from rayvr.renderer import Renderer, RenderSettings
 from rayvr.scene.loader import Light, Material, from_arrays, load
+from rayvr.scene.light_selection import SHADOW_PROBES
 
 SIZE = (64, 48)
 AMBIENT = (0.10, 0.08, 0.06)       # large enough that a wrong ambient term fails the mean check
@@ -43,10 +44,11 @@ RECT_SAMPLES = 64                  # GPU area_samples and numpy points per rect 
 MIN_ROUGHNESS = 0.2                # compared surfaces (see _compare)
 
 
-def _render(gl, scene, rig, effect, seed=1):
+def _render(gl, scene, rig, effect, seed=1, probes=0):
     config = parse_config({"default": effect, "params": {"shadows": {"area_samples": RECT_SAMPLES}}},
                           "<test_numpy_shading>")
-    settings = RenderSettings(ambient=AMBIENT, background=BACKGROUND, seed=seed)
+    # by default every shadow ray traced (shadow_probes 0), as the numpy reference takes them all
+    settings = RenderSettings(ambient=AMBIENT, background=BACKGROUND, seed=seed, shadow_probes=probes)
     with Renderer(scene, config, gl=gl, settings=settings) as r:
         frame = r.render(rig, eyes="left", aux=("hdr", "triangle"))
     triangle = frame.left.aux["triangle"].astype(np.int64)
@@ -54,14 +56,14 @@ def _render(gl, scene, rig, effect, seed=1):
     return frame.left.aux["hdr"].astype(np.float64), triangle
 
 
-def _compare(gl, scene, rig, effect):
+def _compare(gl, scene, rig, effect, probes=0):
     """GPU and numpy images plus the error statistics of the compared pixels.
 
     Surfaces with roughness < MIN_ROUGHNESS (the room's mirrors and glass) are left out: their GGX
     lobe (alpha down to 1e-3) is as narrow as the error of the G-buffer's float16 normal (~1e-3), so
     a highlight's value there depends on the rounding; and point samples of a rect light estimate a
     near-delta lobe with unbounded variance as alpha -> 0."""
-    gpu, gpu_tri = _render(gl, scene, rig, effect)
+    gpu, gpu_tri = _render(gl, scene, rig, effect, probes=probes)
     ref = shade_eye(scene, rig.eye("left"), effect, ambient=AMBIENT, background=BACKGROUND,
                     rect_samples=RECT_SAMPLES, seed=12345)
     assert gpu.shape == ref["hdr"].shape
@@ -126,6 +128,15 @@ def test_default_room_matches_numpy_reference(gl, effect):
     rig = StereoRig.for_scene(scene, size=SIZE)
     _, _, _, stats = _compare(gl, scene, rig, effect)
     _check(stats, effect)
+
+
+def test_adaptive_shadows_match_numpy_reference_too(gl):
+    """The default adaptive shadows (64 points a pixel: 16 probes first) hold the same tolerances
+    against the numpy reference that traces all 64."""
+    scene = load()
+    rig = StereoRig.for_scene(scene, size=SIZE)
+    _, _, _, stats = _compare(gl, scene, rig, "shadows", probes=SHADOW_PROBES.default)
+    _check(stats, "shadows")
 
 
 # ------------------------------------------------------------------------------ Cornell box

@@ -117,7 +117,7 @@ def render_room(gl, effect, order="none", persistent="off", **renderer):
         # memory it was given: never written, never read). A path's slot follows its pixel's place in
         # the classify pass's list, which atomics fill in whatever order the GPU's threads run (on
         # llvmpipe under load, another order each run), so the hits are compared as a set of rows.
-        paths = np.frombuffer(r.resource(f"rt_wave.{effect}.args").read(), np.uint32).reshape(2, 4)[1, 3]
+        paths = np.frombuffer(r.resource(f"rt_wave.{effect}.args").read(), np.uint32).reshape(-1, 4)[1, 3]
         hits = np.frombuffer(r.resource(f"rt_wave.{effect}.paths").read(), WAVE_PATH)["hit"][:paths]
         hits = hits[np.lexsort(hits.T[::-1])].copy()
         assert r.plan().ray_order == order and r.plan().persistent == (persistent == "on")

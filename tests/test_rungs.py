@@ -42,8 +42,9 @@ def test_a_picked_setting_is_the_material_config_it_names():
     got = config_for_assignment(base, Scene(), {"floor": "glossy(samples=16)", "gold": "glossy",
                                                 "wall": "path(bounces=2)"})
     floor, gold, wall = got.assign(Scene().material_names(), warn=False)
-    assert (floor.effect, floor.params) == ("glossy", {"samples": 16, "bounces": 1, "area_samples": 4})
-    assert (gold.effect, gold.params) == ("glossy", {"samples": 8, "bounces": 1, "area_samples": 4})
+    hits = {"hit_area_samples": 0}  # (glossy's default: the pixel's area_samples spread over its rays)
+    assert (floor.effect, floor.params) == ("glossy", {"samples": 16, "bounces": 1, "area_samples": 4, **hits})
+    assert (gold.effect, gold.params) == ("glossy", {"samples": 8, "bounces": 1, "area_samples": 4, **hits})
     assert wall.effect == "path" and wall.params == {**base.effect_params("path"), "bounces": 2}
     assert config_for_assignment(base, Scene(), {}).assign(["wall"], warn=False)[0].effect == "raster"
 
@@ -53,5 +54,5 @@ def test_the_bench_refuses_a_bad_setting_in_one_line(tmp_path):
                     timeout=120)
     assert run.returncode == 2 and "Traceback" not in run.stderr, run.stderr
     assert run.stderr.strip().splitlines()[-1].endswith("rung params: glossy has no parameter 'nope'; it has "
-                                                         "samples, bounces, area_samples")
+                                                         "samples, bounces, area_samples, hit_area_samples")
     assert not (tmp_path / "o").exists()
