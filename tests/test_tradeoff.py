@@ -259,6 +259,15 @@ def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
             for r in mine:
                 if r["knob"] in ("traversal", "bvh_build"):
                     assert r["flip"] == pytest.approx(full["flip"], abs=1e-9), r["label"]
+        # what each row's frame shows: the effect knob's rows put every material on its rung
+        for r in rows:
+            assert sum(r["effect_share"].values()) == pytest.approx(1.0, abs=1e-6), r["label"]
+            assert r["view_kind"] == "fixed"
+        background = {r["effect_share"]["background"] for r in rows}
+        assert len(background) == 1  # one view, one material map
+        for r in (r for r in rows if r["knob"] == "effect"):
+            assert {k: v for k, v in r["effect_share"].items() if v > 0} == pytest.approx(
+                {k: v for k, v in {r["value"]: 1.0 - min(background), "background": min(background)}.items() if v > 0})
         pytest.importorskip("matplotlib")
         assert {p.name for p in tmp_path.glob("*.png")} >= {"tradeoff_default.png"}
     else:
@@ -271,7 +280,14 @@ def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
             best = row["grid_best"]
             if best is not None:  # the gap is the pick's FLIP above the grid's best that fits
                 assert row["optimality_gap"] == pytest.approx(row["measured_flip"] - best["flip"])
-        assert "| default | fixed | 11.11 ms (90 Hz) |" in (tmp_path / "budget.md").read_text()
+        md = (tmp_path / "budget.md").read_text()
+        assert "| default | fixed | 11.11 ms (90 Hz) |" in md
+        assert "| default | pose 0 (content) | 11.11 ms (90 Hz) |" in md  # the head pose named with its kind
+        # the headline names the worst view of the set, and its kind
+        worst = max((r for r in rows if r["budget_ms"] == rows[0]["budget_ms"]), key=lambda r: r["measured_flip"])
+        label = "fixed" if worst["view"] == "fixed" else f"{worst['view']} ({worst['view_kind']})"
+        assert f"| {worst['measured_flip']:.4f} | {label} |" in md
+        _check_shares_against_a_readback(rows)
         # budget_options.json is the solver's table: each pick's predicted error is its sum
         table = json.loads((tmp_path / "budget_options.json").read_text())["rows"]
         for row in rows:
@@ -281,6 +297,30 @@ def test_bench_quick_writes_json_table_and_pictures(tmp_path, area):
             assert row["predicted_error"] == pytest.approx(sum(
                 o["importance"] * o["coverage"] * o["error"] for o in mine
                 if row["assignment"][o["material"]] == o["effect"]), rel=1e-9)
+
+
+def _check_shares_against_a_readback(rows) -> None:
+    """Each budget row's effect_share: shares adding up to 1, equal to a count of the material ids
+    of its view (read back here, the reference's settings) with the pick's assignment."""
+    from rayvr.bench.scenes import bench_scenes
+    from rayvr.quality.measure import COMPARE_SETTINGS
+    from rayvr.renderer import Renderer
+
+    ((_, scene, fixed),) = list(bench_scenes(("default",), (32, 24), {}))
+    views = dict(T.views_of("default", scene, fixed, 1, 22))
+    names = scene.material_names()
+    with Renderer(scene, settings=COMPARE_SETTINGS) as r:
+        for row in rows:
+            assert sum(row["effect_share"].values()) == pytest.approx(1.0, abs=1e-6)
+            f = r.render(views[row["view"]], aux=("material",))
+            ids = np.concatenate([f.left.aux["material"].ravel(), f.right.aux["material"].ravel()])
+            counted: dict = {}
+            for i in ids.tolist():
+                effect = row["assignment"].get(names[i]) if i < len(names) else "background"
+                counted[effect] = counted.get(effect, 0) + 1
+            assert None not in counted  # every material the view shows has its pick
+            got = {k: v for k, v in row["effect_share"].items() if v > 0}
+            assert got == pytest.approx({k: n / ids.size for k, n in counted.items()}, abs=1e-9), row["view"]
 
 
 @needs_flip
@@ -395,7 +435,7 @@ def test_the_budget_headline_names_the_floor_the_solvers_gap_and_a_grid_answer()
            "grid_best": {"flip": 0.21}, "optimality_gap": 0.0, "solver_gap": 0.034, "noise_floor": 0.0712}
     text = T.budget_headline([row], {"gl_renderer": "GPU", "per_eye_size": [1440, 1600], "reference_spp": 2048})
     line = next(l for l in text.splitlines() if l.startswith("| room"))
-    assert line.split(" | ")[6:] == ["stereo=reuse (the grid render)", "0.2100", "+0.0000", "+0.0340", "0.0712 |"]
+    assert line.split(" | ")[6:] == ["stereo=reuse (the grid render)", "0.2100", "+0.0000", "+0.0340", "0.0712", "- |"]
     assert "| 0.2100 | 10.50 | yes |" in line and "(2048 samples a pixel in all)" in text
 
 

@@ -23,7 +23,8 @@ from ..app.cluster import DEFAULT_CONNECT_TIMEOUT_S
 from ..frame.effects import traced_effects
 from ..settings import merged
 from ..scene.materials import EFFECTS, MaterialConfig, config_with, implemented_effects  # noqa: F401
-from .head_poses import POSE_SEED, draw_poses
+from .head_poses import POSE_SCHEME, POSE_SEED, draw_poses, pose_kind
+from .report import effect_share, share_text
 from ..quality.measure import (BENCH_QUALITY, COMPARE_SETTINGS, QUICK_REFERENCE_SPP, REFERENCE_SPP, WARMUP_FRAMES,
                                Measured, Reference, RendererPool, Variant, camera_refusal, local_measurer,
                                measure_reference, reference_per_frame, reference_variant)
@@ -167,13 +168,19 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
     """The reference measured here (measure_reference: `reference_spp` samples a pixel, default
     one frame a half, of `per_frame` samples each), the variants through `measure_all` (default:
     here too). The first row is the noise floor: the reference's two halves against each other
-    (the second drawn with NOISE_FLOOR_SEED), below which no variant's error means anything."""
+    (the second drawn with NOISE_FLOOR_SEED), below which no variant's error means anything. Every
+    row records `effect_share` (report.effect_share): what the view shows under the row's config,
+    from the reference's material ids (no render of its own)."""
     ref = measure_reference(gl, scene, rig, reference, reference_spp or 2 * per_frame, per_frame, pool)
     ref_image = ref.measured
+
+    def shows(config) -> dict | None:  # what the view's frame shows under `config` (the reference's material ids)
+        return None if ref_image.material is None else effect_share([ref_image.material], scene.material_names(),
+                                                                    config)
     floor = replace(reference, knob="noise floor", value=f"reference halves, {ref.samples // 2} spp each")
     rows = [{"scene": scene.name, "knob": floor.knob, "value": floor.value, "label": floor.label,
              "gpu_ms": ref.halves[1].gpu_ms, **error_row(*ref.halves, scene, floor, ppd, with_flip).result(),
-             "reference_ms": ref_image.gpu_ms, "reference_spp": ref.samples}]
+             "reference_ms": ref_image.gpu_ms, "reference_spp": ref.samples, "effect_share": shows(reference.config)}]
     measure_all = measure_all or local_measurer(gl, scene, rig, repeat, pool)
     bar = None
     if progress:
@@ -186,7 +193,8 @@ def run_sweep(gl, scene, rig, reference: Variant, variants_: list[Variant], ppd:
                    for v, m in zip(variants_, measure_all(variants_, bar))]
         # *_s: where a sweep's wall time goes (renderer set-up with its shader compiles, settle, render)
         rows += [{"scene": scene.name, "knob": v.knob, "value": v.value, "label": v.label, "gpu_ms": ms,
-                  **errors.result(), "reference_ms": ref_image.gpu_ms, **{f"{k}_s": t for k, t in seconds.items()}}
+                  **errors.result(), "reference_ms": ref_image.gpu_ms, **{f"{k}_s": t for k, t in seconds.items()},
+                  "effect_share": shows(v.config)}
                  for v, ms, seconds, errors in pending]
     finally:
         if bar is not None:
@@ -260,6 +268,17 @@ def _views_of_setups(scenes, size, base_config, skipped, quick, poses, pose_seed
             yield name, scene, rig, base, reference, view
 
 
+def view_kind(view: str) -> str:
+    """"fixed" for the bench view, else the head pose's kind (head_poses.pose_kind: content, random)."""
+    return "fixed" if view == "fixed" else pose_kind(int(view.split()[1]))
+
+
+def view_label(row: dict) -> str:
+    """A row's view as reports name it: "fixed", "pose 3 (random)" (rows from before kinds: "pose 3")."""
+    kind = row.get("view_kind")
+    return row["view"] if row["view"] == "fixed" or kind is None else f"{row['view']} ({kind})"
+
+
 def view_suffix(view: str) -> str:
     """A file name's part for a view: "" for the fixed view, "_pose3" for pose 3."""
     return "" if view == "fixed" else "_" + view.replace(" ", "")
@@ -268,7 +287,8 @@ def view_suffix(view: str) -> str:
 # What a folder's earlier tradeoff/budget report must share with a new run for its rows to stand
 # beside the new ones: the views ((scene, view) pairs) the new run does not measure are kept, so
 # runs split over device calls (--scenes default, then --scenes sponza) add up to one report.
-SAME_SWEEP = ("gl_renderer", "gl_version", "per_eye_size", "quick", "repeat", "ppd", "pose_seed", "reference_spp")
+SAME_SWEEP = ("gl_renderer", "gl_version", "per_eye_size", "quick", "repeat", "ppd", "pose_seed", "pose_scheme",
+              "reference_spp")
 SAME_BUDGET = SAME_SWEEP + ("grid", "rungs")
 
 
@@ -319,7 +339,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         meta = {**device_meta(gl.info()), "bench": "tradeoff", "per_eye_size": list(size), "repeat": repeat,
                 "ppd": ppd, "skipped": skipped, "workers": workers or 0, "poses": poses, "pose_seed": pose_seed,
-                "reference_spp": reference_spp, "knobs": list(knobs) if knobs else "all",
+                "pose_scheme": POSE_SCHEME, "reference_spp": reference_spp, "knobs": list(knobs) if knobs else "all",
                 "error": "vs the scene's reference (rayvr.quality.reference_images); "
                 "flip/psnr/ssim over both eyes side by side; *_mask over the pixels the knob touches"}
         earlier, earlier_meta = _earlier_report(out_dir, "tradeoff", meta, SAME_SWEEP)
@@ -332,7 +352,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
                                  progress, with_flip=True, pool=pool, measure_all=_measurer(cluster, name, rig, repeat),
                                  reference_spp=reference_spp, per_frame=reference_per_frame(quick))
             for row in r:
-                row["scene"], row["view"], row["commit"] = name, view, meta["commit"]
+                row["scene"], row["view"], row["view_kind"], row["commit"] = name, view, view_kind(view), meta["commit"]
             rows += r
             measured.add((name, view))
             write_report(out_dir, "tradeoff", {"meta": {**meta, "partial": True},  # a cut run keeps its views
@@ -379,7 +399,7 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
     with _bench_gl(out_dir, backend) as gl, _workers(workers, address, connect_timeout) as cluster:
         meta = {**device_meta(gl.info()), "bench": "budget", "per_eye_size": list(size), "repeat": repeat,
                 "ppd": ppd, "skipped": skipped, "workers": workers or 0, "grid": [k.label for k in grid],
-                "poses": poses, "pose_seed": pose_seed, "reference_spp": reference_spp,
+                "poses": poses, "pose_seed": pose_seed, "pose_scheme": POSE_SCHEME, "reference_spp": reference_spp,
                 "rungs": list(rungs) if rungs else "the ladder's effects",
                 "noise_floor": "mean FLIP of the reference's two halves (each half its samples, its own seed) "
                                "against each other: conservative, each half has half the reference's samples",
@@ -414,13 +434,16 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
                             for c in candidates for m in c.materials for o in m.options]
             for b, pick in zip(budgets, picks):
                 best = grid_best(candidates, b)
-                rows.append({"scene": name, "view": view, "reference_ms": ref.gpu_ms,
+                rows.append({"scene": name, "view": view, "view_kind": view_kind(view), "reference_ms": ref.gpu_ms,
                              "reference_spp": converged.samples, "noise_floor": floor,
                              **{k: v for k, v in pick.items() if k not in ("config", "image", "knobs")},
                              "knobs": pick["knobs"].label, "grid_points": len(grid), "grid_best": best,
                              "optimality_gap": None if best is None else pick["measured_flip"] - best["flip"],
                              "solver_gap": None if best is None or pick["solver_flip"] is None
-                             else pick["solver_flip"] - best["flip"]})
+                             else pick["solver_flip"] - best["flip"],
+                             # what the pick's frame shows (the reference's material ids, the pick's effects)
+                             "effect_share": None if ref.material is None else
+                             effect_share([ref.material], scene.material_names(), pick["config"])})
                 stem = f"{out_dir}/budget_{name}{view_suffix(view)}_{b:.4g}ms"
                 write_png(f"{stem}.png", pick["image"])
                 atomic_write_bytes(f"{stem}.toml", pick_toml(scene, pick, pick["config"], size).encode())
@@ -444,24 +467,49 @@ def run_budget(out_dir, budgets=BUDGETS_MS, size=(1440, 1600), scenes=("default"
 
 
 def budget_headline(rows: list[dict], meta: dict) -> str:
-    """The answer first: per scene and budget, the best mean FLIP the pick reaches, within the
-    budget or not on the measured frame, and how far it is from the grid's best render."""
+    """The answer first: per scene and budget, the worst view of the set (by the pick's mean FLIP
+    and by its measured frame, named with its kind), then per view the best mean FLIP the pick
+    reaches, within the budget or not on the measured frame, how far it is from the grid's best
+    render, and what the pick's frame shows."""
     def num(v, fmt):
         return "-" if v is None else format(v, fmt)
 
+    def budget(r):
+        return f"{r['budget_ms']:.4g} ms ({1000 / r['budget_ms']:.0f} Hz)"
+
     lines = [f"# The best image within each budget ({meta.get('gl_renderer', '?')}, "
-             f"2x{meta['per_eye_size'][0]}x{meta['per_eye_size'][1]})", "",
-             "| scene | view | budget | mean FLIP | measured ms | within | frame knobs | grid's best FLIP within | gap "
-             "| solver's gap | noise floor |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             f"2x{meta['per_eye_size'][0]}x{meta['per_eye_size'][1]})", ""]
+    groups: dict = {}
+    for r in rows:
+        groups.setdefault((r["scene"], round(r["budget_ms"], 6)), []).append(r)
+    if any(len(g) > 1 for g in groups.values()):
+        # the headline: the set's worst view, by the pick's error and by its measured frame
+        lines += ["The worst view of each scene and budget (over the fixed view and the head poses measured):", "",
+                  "| scene | budget | views | worst mean FLIP | its view | slowest measured ms | its view "
+                  "| all within |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for (scene, _), g in groups.items():
+            bad, slow = max(g, key=lambda r: r["measured_flip"]), max(g, key=lambda r: r["measured_ms"])
+            lines.append(f"| {scene} | {budget(g[0])} | {len(g)} | {bad['measured_flip']:.4f} | {view_label(bad)} | "
+                         f"{slow['measured_ms']:.2f} | {view_label(slow)} | "
+                         f"{'yes' if all(r['within_budget'] for r in g) else 'NO'} |")
+        lines.append("")
+    lines += ["| scene | view | budget | mean FLIP | measured ms | within | frame knobs | grid's best FLIP within "
+              "| gap | solver's gap | noise floor | the pick's frame shows |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         best = r.get("grid_best") or {}
-        lines.append(f"| {r['scene']} | {r['view']} | {r['budget_ms']:.4g} ms ({1000 / r['budget_ms']:.0f} Hz) | "
+        lines.append(f"| {r['scene']} | {view_label(r)} | {budget(r)} | "
                      f"{r['measured_flip']:.4f} | {r['measured_ms']:.2f} | {'yes' if r['within_budget'] else 'NO'} | "
                      f"{r['knobs']}{' (the grid render)' if r.get('from_grid') else ''} | "
                      f"{num(best.get('flip'), '.4f')} | {num(r.get('optimality_gap'), '+.4f')} | "
-                     f"{num(r.get('solver_gap'), '+.4f')} | {num(r.get('noise_floor'), '.4f')} |")
-    lines += ["", "gap: the pick's mean FLIP minus the best render of the measured grid (every point of the "
+                     f"{num(r.get('solver_gap'), '+.4f')} | {num(r.get('noise_floor'), '.4f')} | "
+                     f"{share_text(r.get('effect_share'))} |")
+    lines += ["", "view: the bench's fixed view or head pose I (content: gazing at a point of the scene's content; "
+              "random: looking about; rayvr/bench/head_poses.py).",
+              "the pick's frame shows: the share of the view's pixels (both eyes) whose material the pick gives each "
+              "effect, background: pixels that hit nothing (the reference's material ids).",
+              "gap: the pick's mean FLIP minus the best render of the measured grid (every point of the "
               "frame-knob grid with every material on one rung) that fits the budget; negative: the pick is better. "
               "solver's gap: the same for the best per-material pick the solver made (the pick is the grid's render "
               "where that measured better: '(the grid render)').",
