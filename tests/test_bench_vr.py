@@ -493,3 +493,21 @@ def test_the_shipped_choices_cover_every_built_in_model_and_count():
     assert set(table) == set(CAMERA_MODELS) and all(set(c) == set(SAMPLE_COUNTS) for c in table.values())
     for model, counts in table.items():   # where a model declines culling, its measured choice does too
         assert all(not k["tile_culling"] for k in counts.values()) or CAMERA_MODELS[model].culls_tiles_by_default
+
+
+def test_rows_count_each_effects_rays_on_the_gpu(quick):
+    """Every row's `rays` holds each traced effect of its config, counted on the GPU: `shadows` traces
+    shadow rays alone; the room's glossy and mirror materials trace closest hits exactly where the
+    frame shows them; vr.md prints them per pixel of the effect."""
+    result, md = quick
+    for r in result["rows"]:
+        rays = r["rays"]
+        assert "shadows" in rays and rays["shadows"]["closest"] == 0 and rays["shadows"]["shadow"] > 0, r
+        w, h = result["meta"]["per_eye_size"]
+        for n in rays.values():
+            assert n["shadow_per_pixel"] == pytest.approx(n["shadow"] / (2 * w * h))
+        if r["config"] == "room":  # a reflective effect in view traces closest hits; out of view, none
+            for effect in ("glossy", "reflections"):
+                assert (rays[effect]["closest"] > 0) == (r["effect_share"].get(effect, 0.0) > 0), (effect, r)
+    assert any(r["rays"].get("glossy", {}).get("closest") for r in result["rows"])
+    assert "rays a pixel of it" in md

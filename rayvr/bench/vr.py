@@ -26,7 +26,9 @@ timer queries), `visibility_ms`, what makes the G-buffer (bench/primary.py's def
 what a render loop meets (bench/rays.py time_pipelined): `record_ms`, the CPU's recording of a
 frame, and `pipelined_ms`, the wall time a frame of frames recorded back to back (where the CPU is
 the slower, the GPU's idle time falls inside the passes' timer windows and `frame_ms` overstates
-the GPU's work). Each row also records `effect_share`, what the frame shows: the share of its pixels
+the GPU's work), and `rays`: each traced effect's closest-hit and shadow rays of one more frame,
+counted on the GPU (frame/passes/trace_effect.py count_rays), per pixel and per second of its pass
+(vr.md: per pixel of the effect, for the worst pose). Each row also records `effect_share`, what the frame shows: the share of its pixels
 (both eyes) whose material the config gives each effect, and "background" for the pixels that hit
 nothing, from the G-buffer's material ids of one more frame read back after the timed ones, once per
 (pose, config, camera: a camera model's fov and lens change the view). vr.md has a table per scene:
@@ -52,6 +54,7 @@ from ..gl.context import create_context
 from ..renderer import Renderer, RenderSettings
 from ..scene.materials import load_config
 from ..frame.passes.primary_rays import KNOB_DEFAULTS, MEASURED_CHOICES, PRIMARY_KNOBS
+from ..frame.passes.trace_effect import count_rays
 from ..util.output import atomic_write_bytes
 from .head_poses import (EYE_HEIGHT_M, MAX_GAZE_PITCH_DEG, MAX_PITCH_DEG, MIN_TARGET_M, POSE_SCHEME, POSE_SEED,
                          draw_poses, pose_bounds, pose_label, region)
@@ -175,7 +178,37 @@ def frame_row(r: Renderer, rig: StereoRig, repeat: int, warmup: int, warmup_s: f
     visibility = passes.get("visibility", 0.0) + passes.get("primary_rays", 0.0) + passes.get("gbuffer", 0.0)
     stages = primary_stages(r, rig) if "primary_rays" in passes else {}
     return {"frame_ms": total, "visibility_ms": visibility, "passes": passes, "primary_stages": stages,
-            "round_passes": round_passes(r, rig), **loop}
+            "round_passes": round_passes(r, rig), "rays": effect_rays(r, rig, passes), **loop}
+
+
+def effect_rays(r: Renderer, rig: StereoRig, passes: dict) -> dict:
+    """The rays each traced effect's pass traced in one more frame, counted on the GPU
+    (trace_effect.count_rays: closest hits and shadow rays, every round), per pixel of the frame
+    (both eyes), and the pass's rays per second at its median ms in the timed frames."""
+    pixels = 2 * rig.size[0] * rig.size[1]
+    out = {}
+    for effect, n in count_rays(r, rig).items():
+        ms = passes.get(f"rt_{effect}", 0.0)
+        total = n["closest"] + n["shadow"]
+        out[effect] = {"closest": n["closest"], "shadow": n["shadow"],
+                       "closest_per_pixel": n["closest"] / pixels, "shadow_per_pixel": n["shadow"] / pixels,
+                       "grays_per_s": total / ms / 1e6 if ms > 0 else None}
+    return out
+
+
+def rays_text(rays: dict, share: dict | None) -> str:
+    """vr.md's words for a row's `rays`: per effect in view, the rays a pixel of that effect traces
+    (closest + shadow; its share of the frame from `share`) and the pass's GRays/s."""
+    parts = []
+    for effect, n in rays.items():
+        own = (share or {}).get(effect, 0.0)
+        if own <= 0:
+            continue
+        closest, shadow = n["closest_per_pixel"] / own, n["shadow_per_pixel"] / own
+        speed = f", {n['grays_per_s']:.1f} GRays/s" if n.get("grays_per_s") else ""
+        parts.append(f"rt_{effect} {closest + shadow:.1f} rays a pixel of it ({closest:.1f} closest + "
+                     f"{shadow:.1f} shadow){speed}")
+    return "; ".join(parts) or "no traced effect in view"
 
 
 def frame_share(r: Renderer, rig: StereoRig, config) -> dict:
@@ -414,6 +447,13 @@ def markdown(result: dict) -> str:
                       "many distinct triangles):", ""]
             lines += [f"- {s['config']} {s['variant']} {s['camera']} {s['msaa']}x: " + ", ".join(f"{v:.3f}" for v in ms)
                       + f" (pose {s['worst_pose']}, {s['worst_pose_kind']})" for s, ms in rounds if ms]
+            lines.append("")
+        counted = [(s, worst_row(rows, s)) for s in summary if s["scene"] == scene]
+        if any(w.get("rays") for _, w in counted):
+            lines += ["Rays of the worst pose, counted on the GPU in one more frame (every round), and each "
+                      "pass's rays per second at its timed ms:", ""]
+            lines += [f"- {s['config']} {s['variant']} {s['camera']} {s['msaa']}x, pose {s['worst_pose']} rays: "
+                      f"{rays_text(w['rays'], w.get('effect_share'))}" for s, w in counted if w.get("rays")]
             lines.append("")
         judged = [t for t in targets(rows, meta["per_eye_size"]) if t["scene"] == scene]
         if judged:
