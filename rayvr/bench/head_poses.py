@@ -49,9 +49,10 @@ POSE_SCHEME = "even content, odd random"
 # along the axis lie within SHELL_PLANE_M of its own; a plane of at least SHELL_SHARE of the
 # scene's largest plane is shell. Printed on the bench scenes: the room's floor and ceiling are
 # 64 m2, its walls 25.6 m2 (0.40), its largest other plane the mirror panel 2 cm in front of a wall
-# (3.6 m2, 0.06); Sponza's largest plane is the outer box's side (577 m2), its end walls 187-193 m2
-# (0.32), the colonnades' flat faces 173-177 m2 (0.30), the largest plane below them the aisles'
-# flat ceilings (72 m2, 0.13).
+# (3.6 m2, 0.06); Sponza's largest plane is the outer box's side (577 m2), its end walls 187-193
+# m2 (0.32-0.34), the colonnades' flat faces 173-177 m2 (0.30-0.31), the largest plane below them
+# the aisles' flat ceilings (72 m2, 0.13). Relative to the largest plane, not to the total area:
+# detailed content does not push the walls under the bar.
 SHELL_NORMAL_DEG = 5.0
 SHELL_PLANE_M = 0.005  # modelled walls are flat to well under this; the room's light hangs 1 cm below the ceiling
 SHELL_SHARE = 0.2

@@ -325,7 +325,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
         connect_timeout=DEFAULT_CONNECT_TIMEOUT_S, poses=0, pose_seed=POSE_SEED, reference_spp=None,
         knobs=None, views=None) -> dict:
     """Sweep every knob (or those `knobs` select: knob_selected) on each scene, from its fixed
-    view and from `poses` random head poses, each against the reference of the same view
+    view and from `poses` head poses (views_of), each against the reference of the same view
     (`reference_spp` samples a pixel; default REFERENCE_SPP, --quick QUICK_REFERENCE_SPP); write
     tradeoff.json/.md and one plot per view. `views`: only those of them (views_of's `only`).
     `workers`: the variants spread over that many Ray workers (rayvr.app.cluster), the reference here.
@@ -369,7 +369,7 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), repeat=10, qui
     return result
 
 
-SWEEP_POSES = 8  # tradeoff and budget: head poses (half content, half random) beside the fixed view unless --poses says
+SWEEP_POSES = 8  # tradeoff and budget: head poses (half content, half random) beside the fixed view, unless --poses
 BUDGETS_MS = (1000.0 / 90, 1000.0 / 120)  # bench budget's frame budgets unless --budget-ms gives others: 90, 120 Hz
 
 
