@@ -126,63 +126,46 @@ uniform int shadow_probes;  // adaptive area-light shadows (frame/passes/trace_e
 
 uint traced_rays = 0u;  // this invocation's shadow rays (wave_args[2], while counting)
 
-bool slot_unoccluded(uint at) {
-    traced_rays += 1u;
-    vec4 o = wave_shadows[at].origin;
-    vec4 d = wave_shadows[at].direction;
-    return !trace_any(Ray(o.xyz, o.w, d.xyz, d.w));
-}
-
-// The unoccluded contributions of slots [k0, k1) of item q, all of them traced.
-vec3 traced_run(uint q, uint k0, uint k1) {
-    vec3 sum = vec3(0.0);
-    for (uint k = k0; k < k1; ++k) {
-        uint at = k * wave_slot_stride + q;
-        if (slot_unoccluded(at)) sum += wave_shadows[at].light.rgb;
-    }
-    return sum;
+// Slot k of a run of m is one of its `probes` probes: probe j sits at (j * m) / probes.
+bool is_probe(uint k, uint m, uint probes) {
+    uint j = (k * probes + probes - 1u) / m;  // the first probe at or after k
+    return j < probes && (j * m) / probes == k;
 }
 
 // One light's run of m shadow rays (slots [k0, k0 + m), light.w its index), adaptively: with more
 // than shadow_probes of them, that many or a quarter of the run, whichever is more (4 points of 64
 // agree wrongly too often: the room's mean error against numpy doubled), spread over the run (the
-// lattice's stratified points: the run's order is the light's lattice order) are traced first; when they agree, the others take
-// their visibility untraced (all lit: the run's whole sum; all blocked: nothing), else the others
-// are traced too. Exact where the light is wholly seen or wholly hidden; in a penumbra all probes
-// agree only when it covers less of the light than the gaps between them: the bias lies there
-// (tests/test_adaptive_shadows.py bounds it against every ray traced).
+// lattice's stratified points: the run's order is the light's lattice order) are traced first; when
+// they agree, the others take their visibility untraced (all lit: the run's whole sum; all blocked:
+// nothing), else the others are traced too. Exact where the light is wholly seen or wholly hidden;
+// in a penumbra all probes agree only when it covers less of the light than the gaps between them:
+// the bias lies there (tests/test_adaptive_shadows.py bounds it against every ray traced).
+// One loop of two sweeps with one trace call in it: each call site of the traversal costs the
+// kernel registers and code.
 vec3 adaptive_run(uint q, uint k0, uint m) {
     uint probes = max(uint(shadow_probes), (m + 3u) / 4u);
-    if (shadow_probes <= 0 || m <= probes) return traced_run(q, k0, k0 + m);
-    vec3 lit = vec3(0.0), all_of_run = vec3(0.0);
+    bool adaptive = shadow_probes > 0 && m > probes;
+    vec3 sum = vec3(0.0), all_of_run = vec3(0.0);
     uint seen = 0u;
-    uint next_probe = 0u, j = 0u;  // probe j sits at run slot (j * m) / probes
-    for (uint k = 0u; k < m; ++k) {
+    for (uint step = 0u; step < 2u * m; ++step) {
+        bool rest = step >= m;  // the second sweep: the slots the probes left
+        uint k = rest ? step - m : step;
+        if (step == m) {  // the probes are in
+            if (!adaptive || seen == 0u) break;          // every ray traced, or all blocked
+            if (seen == probes) return all_of_run;       // all lit
+        }
         uint at = (k0 + k) * wave_slot_stride + q;
         vec3 c = wave_shadows[at].light.rgb;
-        all_of_run += c;
-        if (k == next_probe) {
-            if (slot_unoccluded(at)) {
-                lit += c;
-                seen += 1u;
-            }
-            j += 1u;
-            next_probe = j < probes ? (j * m) / probes : m;
+        if (!rest) all_of_run += c;
+        bool first_sweep = !adaptive || is_probe(k, m, probes);  // a probe, or every ray
+        if (first_sweep == rest) continue;  // not this sweep's
+        vec4 o = wave_shadows[at].origin;
+        vec4 d = wave_shadows[at].direction;
+        traced_rays += 1u;
+        if (!trace_any(Ray(o.xyz, o.w, d.xyz, d.w))) {
+            sum += c;
+            seen += rest ? 0u : 1u;
         }
-    }
-    if (seen == probes) return all_of_run;
-    if (seen == 0u) return vec3(0.0);
-    vec3 sum = lit;  // disagreement: a penumbra; trace the rest
-    j = 0u;
-    next_probe = 0u;
-    for (uint k = 0u; k < m; ++k) {
-        if (k == next_probe) {
-            j += 1u;
-            next_probe = j < probes ? (j * m) / probes : m;
-            continue;
-        }
-        uint at = (k0 + k) * wave_slot_stride + q;
-        if (slot_unoccluded(at)) sum += wave_shadows[at].light.rgb;
     }
     return sum;
 }
