@@ -64,7 +64,27 @@ def set_eye_uniforms(program, fc) -> None:
         if cache is not None:
             cache["camera"] = block
     channel = np.array([getattr(getattr(fc, "round", None), "channel", 0)], np.int32).tobytes()
-    for name, value in {**block, "camera_channel": channel}.items():
-        if declares(program, name):
-            program[name].write(value)
+    write_uniforms(program, fc, {**block, "camera_channel": channel})
     model.bind(fc.gl)
+
+
+_UNSET = object()
+
+
+def write_uniforms(program, fc, values: dict) -> None:
+    """Set each uniform of `values` (name -> bytes in GLSL layout, or a value moderngl takes) that
+    `program` declares, unless this frame set it to that value before (fc.uniform_cache). A program
+    keeps its uniforms between dispatches, and a sampled frame's passes set the same ones in every
+    round: each write costs the CPU a call into the driver while the GPU may wait for commands.
+    Only for uniforms nothing else writes within the frame (the cache would not see that write)."""
+    cache = getattr(fc, "uniform_cache", None)
+    written = {} if cache is None else cache.setdefault(("written", id(program)), {})
+    for name, value in values.items():
+        if written.get(name, _UNSET) == value:
+            continue
+        written[name] = value
+        if declares(program, name):
+            if isinstance(value, bytes):
+                program[name].write(value)
+            else:
+                program[name].value = value

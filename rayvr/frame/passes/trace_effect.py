@@ -21,7 +21,7 @@ from ..graph import Buffer, FramePlan, Pass, Sizing, compose, read, write
 from ...gl.gpu_layout import IMAGE, SSBO, UNIT
 from ...scene.light_selection import shadow_rays_per_surface
 from .classify import bind_lists
-from .compute import camera_defines, set_eye_uniforms
+from .compute import camera_defines, set_eye_uniforms, write_uniforms
 from .persistent_threads import persistent_groups
 from .quadtree import set_tree_uniforms
 from .ray_order import ORDER_PATHS, ORDER_SHADOWS, RayOrder, pair_bytes, sort_table_bytes
@@ -224,12 +224,11 @@ class TraceEffectPass(Pass):
                   "light_picks": fc.plan.light_picks, "wave_fetch_slots": shape.trace_kernels,
                   "shadow_probes": int(fc.settings.shadow_probes), "wave_count_rays": int(self.count_rays)}
         users = [(a.rule, a.params) for a in fc.gpu_scene.assignments if a.effect == self.effect.name]
+        # its frame-scoped parameters (uniform param_<name>)
+        common.update({f"param_{k}": v for k, v in self.effect.frame_values(users).items()})
         for p in self.programs.values():
             set_eye_uniforms(p, fc)
-            for k, v in common.items():
-                if shaders.declares(p, k):
-                    p[k].value = v
-            self.effect.frame_uniforms(p, users)  # its frame-scoped parameters (uniform param_<name>)
+            write_uniforms(p, fc, common)
         fc.gbuffer.bind_for_reading()
         fc.gpu_scene.bind()
         fc.gpu_scene.textures.use(UNIT["base_color_textures"])
