@@ -255,6 +255,21 @@ def test_variants_name_their_rows_and_reach_the_settings(tmp_path, gl):
     assert json.loads((tmp_path / "vr.json").read_text())["meta"]["variants"]["per_ray"] == {"tile_culling": False}
 
 
+def test_the_ssr_config_puts_the_hybrid_frames_mirrors_on_ssr(tmp_path, gl):
+    """`--configs ssr`: the hybrid frame with its mirrors (the room's mirror and gold) on `ssr`, the
+    rest on shadows, timed under its own name; the frame shows the mirrors as ssr pixels."""
+    from rayvr.bench import vr
+
+    result = vr.run(tmp_path, size=(16, 12), scenes=("default",), poses=1, cameras=("pinhole",), counts=(1,),
+                    configs=("shadows", "ssr"), repeat=1, warmup=1, progress=False, gl=gl)
+    rows = {r["config"]: r for r in result["rows"]}
+    assert set(rows) == {"shadows", "ssr"}
+    assert "rt_ssr" in rows["ssr"]["passes"] and "rt_reflections" not in rows["ssr"]["passes"]
+    assert "rt_reflections" in rows["shadows"]["passes"] and "rt_ssr" not in rows["shadows"]["passes"]
+    meta = json.loads((tmp_path / "vr.json").read_text())["meta"]["scenes"]["default"]["configs"]
+    assert meta["ssr"]["ssr"] == meta["shadows"]["reflections"] == ["mirror*", "gold"]
+
+
 def test_the_variants_flag_parses_named_options_and_refuses_bad_ones():
     """--variants "NAME:option=value,...;...": values parsed and checked by their render options,
     each variant on top of the render flags given; a bad spec is one line naming the variant."""

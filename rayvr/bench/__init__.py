@@ -190,7 +190,7 @@ def _vr(args, out, camera_from_args):
     budgets = _budgets(args) or (vr.BUDGET_MS,)
     if len(budgets) != 1:
         raise ValueError(f"bench vr --budget-ms takes one budget (its budget config), got {len(budgets)}")
-    configs = args.configs or quick.get("configs", vr.MATERIAL_CONFIGS)
+    configs = args.configs or quick.get("configs", vr.DEFAULT_CONFIGS)
     if "budget" in configs:
         require("flip_evaluator", "bench vr --configs budget")  # the pick predicts image error with FLIP
     # the render flags given (--tile-culling, --tile-lists, --ssaa) are one variant of every row; --msaa: the counts

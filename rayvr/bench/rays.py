@@ -67,9 +67,11 @@ from .scenes import bench_scenes
 MIRRORS = {"default": ("mirror*", "gold"), "sponza": ("floors",)}
 
 
-def hybrid_config(name: str):
+def hybrid_config(name: str, mirrors: str = "reflections"):
+    """Shadows on every material, the scene's MIRRORS on one bounce of `mirrors` (reflections: the
+    BVH; ssr: the depth quadtree first, the BVH where the screen cannot answer)."""
     return parse_config({"default": "shadows",
-                         "materials": {m: {"effect": "reflections", "bounces": 1} for m in MIRRORS.get(name, ())}},
+                         "materials": {m: {"effect": mirrors, "bounces": 1} for m in MIRRORS.get(name, ())}},
                         f"bench:{name}")
 
 

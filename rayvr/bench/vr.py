@@ -11,7 +11,8 @@ each of them:
 
 - materials configs (MATERIAL_CONFIGS): `shadows`, shadows on every material plus the scene's mirrors
   on one-bounce BVH reflections (bench/rays.py MIRRORS: what `bench rays` and `bench stereo` call the
-  hybrid frame); `room`, rayvr/assets/default_room.toml (the room only); `budget`, the effects
+  hybrid frame); `ssr`, the same with the mirrors on `ssr` (the depth quadtree first: does the
+  cheaper rung cost less on the same views?); `room`, rayvr/assets/default_room.toml (the room only); `budget`, the effects
   capture's `--budget-ms` picks for `budget_ms` (default 11.1 ms, a 90 Hz frame), chosen once per
   scene on its bench view at the bench's size, starting from the scene's shipped config;
 - variants: extra RenderSettings fields per row ({name: {field: value}}, default one variant
@@ -63,7 +64,10 @@ from .rays import MIRRORS, hybrid_config, time_frame, time_pipelined, time_stage
 from .report import device_meta, earlier_rows, effect_share, share_text, write_report
 from .scenes import bench_scenes, shipped_config
 
-MATERIAL_CONFIGS = ("shadows", "room", "budget")
+MATERIAL_CONFIGS = ("shadows", "ssr", "room", "budget")
+# the hybrid configs: shadows everywhere, the mirrors on BVH reflections or on screen-space ones
+HYBRID_MIRRORS = {"shadows": "reflections", "ssr": "ssr"}
+DEFAULT_CONFIGS = ("shadows", "room", "budget")  # what bench vr measures unless --configs names others
 CAMERAS = ("raster_gbuffer", "pinhole", "distorted_chromatic", "foveated", "wide_210x130", "dof_0.5m")
 COUNTS = (1, 4, 16, 32)
 POSES = 8
@@ -122,8 +126,9 @@ def cells(cameras, counts, configs, variants) -> list[tuple]:
 def materials_config(gl, config: str, name: str, scene, rig, budget_ms: float, progress: bool):
     """The MaterialConfig of `config` for scene `name` and what to record about it, or (None, why)
     where it does not apply. `budget` renders its pick on `gl` through `rig` (capture's --budget-ms)."""
-    if config == "shadows":
-        return hybrid_config(name), {"default": "shadows", "reflections": list(MIRRORS.get(name, ())), "bounces": 1}
+    if config in HYBRID_MIRRORS:
+        mirrors = HYBRID_MIRRORS[config]
+        return hybrid_config(name, mirrors), {"default": "shadows", mirrors: list(MIRRORS.get(name, ())), "bounces": 1}
     if config == "room":
         if name != "default":
             return None, "the room's config (default_room.toml) is the room's only"
@@ -485,7 +490,7 @@ def markdown(result: dict) -> str:
 
 
 def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, pose_seed=POSE_SEED,
-        cameras=CAMERAS, counts=COUNTS, configs=MATERIAL_CONFIGS, variants=None, budget_ms=BUDGET_MS,
+        cameras=CAMERAS, counts=COUNTS, configs=DEFAULT_CONFIGS, variants=None, budget_ms=BUDGET_MS,
         repeat=10, warmup=3, quick=False, backend=None, progress=True, gl=None) -> dict:
     """Time the grid (cells) on `poses` head poses of each of `scenes` into `out_dir` (vr.json, vr.md).
     `variants`: {name: RenderSettings fields} added to every row's settings (default VARIANTS); `gl`:

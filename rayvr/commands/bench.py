@@ -204,7 +204,7 @@ def add_parser(sub) -> None:
                         "Table 5 rows at 2160x1200, then raster_gbuffer, pinhole at --size; among raster_gbuffer, "
                         "pinhole, distorted, distorted_chromatic, foveated, wide_210x130, dof_0.5m, dof_0.25m, "
                         "dof_0.1m); gi: the parts to measure (default all: photon, reuse, path); vr: the materials "
-                        "configs (default shadows,room,budget); rays: the ray kinds (default all: primary, shadow, "
+                        "configs (default shadows,room,budget; also ssr: the hybrid frame's mirrors on ssr); rays: the ray kinds (default all: primary, shadow, "
                         "reflect, glossy_0.1, glossy_0.3, glossy_0.6, diffuse, area_shadow)")
     b.add_argument("--reference-spp", type=_count(16, 1 << 16),
                    help="gi: samples per pixel of the path reference (default 1024; --quick 64); tradeoff, budget: "
