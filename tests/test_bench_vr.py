@@ -389,7 +389,7 @@ def test_a_missing_scene_is_skipped_with_its_reason(tmp_path, gl, monkeypatch):
 
 
 @pytest.mark.parametrize("args, message", [
-    (("--configs", "glossy"), "bench vr --configs must be among shadows, room, budget, got glossy"),
+    (("--configs", "glossy"), "bench vr --configs must be among shadows, ssr, room, budget, got glossy"),
     (("--counts", "3"), "sub-ray counts must be among 1, 4, 8, 16, 32, got '3'"),
     (("--poses", "0"), "bench vr --poses must be at least 1, got 0"),
     (("--cameras", "pinhole,fisheye"), "bench vr --cameras must be among raster_gbuffer, pinhole"),
