@@ -257,13 +257,20 @@ def test_variants_name_their_rows_and_reach_the_settings(tmp_path, gl):
 
 def test_the_ssr_config_puts_the_hybrid_frames_mirrors_on_ssr(tmp_path, gl):
     """`--configs ssr`: the hybrid frame with its mirrors (the room's mirror and gold) on `ssr`, the
-    rest on shadows, timed under its own name; the frame shows the mirrors as ssr pixels."""
+    rest on shadows, timed under its own name. Through a lens the renderer refuses ssr: that cell is
+    named with the refusal, and the others are still measured."""
     from rayvr.bench import vr
 
-    result = vr.run(tmp_path, size=(16, 12), scenes=("default",), poses=1, cameras=("pinhole",), counts=(1,),
-                    configs=("shadows", "ssr"), repeat=1, warmup=1, progress=False, gl=gl)
-    rows = {r["config"]: r for r in result["rows"]}
+    result = vr.run(tmp_path, size=(16, 12), scenes=("default",), poses=1, cameras=("distorted_chromatic", "pinhole"),
+                    counts=(1,), configs=("shadows", "ssr"), repeat=1, warmup=1, progress=False, gl=gl)
+    rows = {r["config"]: r for r in result["rows"] if r["camera"] == "pinhole"}
     assert set(rows) == {"shadows", "ssr"}
+    assert {(r["config"], r["camera"]) for r in result["rows"]} == {("shadows", "distorted_chromatic"),
+                                                                     ("shadows", "pinhole"), ("ssr", "pinhole")}
+    skipped = result["meta"]["scenes"]["default"]["cells_skipped"]
+    assert list(skipped) == ["ssr default distorted_chromatic 1x"] and "not a pinhole" in skipped[
+        "ssr default distorted_chromatic 1x"]
+    assert "Cell ssr default distorted_chromatic 1x not measured" in (tmp_path / "vr.md").read_text()
     assert "rt_ssr" in rows["ssr"]["passes"] and "rt_reflections" not in rows["ssr"]["passes"]
     assert "rt_reflections" in rows["shadows"]["passes"] and "rt_ssr" not in rows["shadows"]["passes"]
     meta = json.loads((tmp_path / "vr.json").read_text())["meta"]["scenes"]["default"]["configs"]

@@ -420,6 +420,8 @@ def markdown(result: dict) -> str:
                   + f"; IPD {sm.get('ipd')} m, fov {sm.get('fov_y')} deg, near {sm.get('near')} m.", ""]
         for config, why in sm.get("configs_skipped", {}).items():
             lines += [f"Config {config} not measured: {why}.", ""]
+        for cell, why in sm.get("cells_skipped", {}).items():
+            lines += [f"Cell {cell} not measured: {why}.", ""]
         if "budget" in sm.get("configs", {}):
             pick = sm["configs"]["budget"]
             by_effect: dict = {}
@@ -543,7 +545,8 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
                                          "ipd": view.ipd, "fov_y": view.fov_y, "near": view.near,
                                          "configs": {c: v for c, v in earlier.get("configs", {}).items()
                                                      if c not in configs},
-                                         "configs_skipped": {}, "poses": [p.to_dict() for p in heads]}
+                                         "configs_skipped": {}, "cells_skipped": {},
+                                         "poses": [p.to_dict() for p in heads]}
             mats = {}
             for config in configs:
                 mats[config], about = materials_config(gl, config, name, scene, view, budget_ms, progress)
@@ -556,7 +559,12 @@ def run(out_dir, size=(1440, 1600), scenes=("default", "sponza"), poses=POSES, p
                     model, fov, primary = CAMERA_CONFIGS[camera]
                     r.set_materials(mats[config])
                     r.settings = RenderSettings(primary=primary, msaa=msaa, **variants[variant])
-                    plan = r.plan(camera=model)
+                    try:
+                        plan = r.plan(camera=model)
+                    except ValueError as e:  # the renderer refuses the cell (ssr through a lens): say so, go on
+                        sm["cells_skipped"][f"{config} {variant} {camera} {msaa}x"] = str(e)
+                        bar.update(len(heads))
+                        continue
                     for head in heads:
                         rig = StereoRig(head.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=size,
                                         camera=model)
