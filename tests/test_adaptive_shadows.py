@@ -109,3 +109,38 @@ def test_the_gpu_counts_the_rays_the_probes_save(gl):
     assert counted[0]["shadow"] <= 16 * counted[0]["pixels"]
     assert counted[0]["shadow"] > 15 * counted[0]["pixels"]  # the floor's far side faces away: few skip
     assert 4 * counted[4]["pixels"] <= counted[4]["shadow"] < 0.6 * counted[0]["shadow"]
+
+
+def test_where_no_run_outnumbers_its_probes_the_plain_kernel_traces_the_same_rays(gl, monkeypatch):
+    """With as many probes as a light has points (16), the adaptive loop traces every ray; the pass
+    then takes the plain loop (WaveShape.adaptive False), and forcing the adaptive one gives the same
+    image (up to the order of the sums). shadow_probes 0 also takes the plain loop: the same frame."""
+    from rayvr.frame.passes import trace_effect
+
+    plain, _, _ = render(gl, 16, 1)
+    every, _, _ = render(gl, 0, 1)
+    np.testing.assert_array_equal(plain, every)
+    monkeypatch.setattr(trace_effect.WaveShape, "adaptive", lambda self, probes: True)
+    forced, _, _ = render(gl, 16, 1)
+    np.testing.assert_allclose(forced, plain, rtol=1e-3, atol=1e-4)
+    assert plain.max() > 0.1  # a lit floor, not an empty comparison
+
+
+def test_only_a_rect_lights_run_longer_than_the_probes_is_adaptive():
+    """WaveShape.adaptive: a rect light whose points outnumber the probes; not without a rect light,
+    with probes 0, or with probes at least the slots an event holds."""
+    from types import SimpleNamespace
+
+    from rayvr.frame.effect_registry import EFFECTS
+    from rayvr.frame.passes.trace_effect import WaveShape
+
+    def shape(lights, samples):
+        s = SimpleNamespace(assignments=[SimpleNamespace(effect="shadows", rule="*", params={"area_samples": samples})],
+                            scene=SimpleNamespace(lights=lights), light_picks=0, wave_buffer_bytes=None,
+                            max_ssbo_bytes=None, pixels=64)
+        return WaveShape(EFFECTS["shadows"], s)
+    rect, point = Light("rect", position=(0, 1, 0), u=(1, 0, 0), v=(0, 0, 1)), Light("point", position=(0, 1, 0))
+    assert shape([rect], 16).adaptive(4)
+    assert not shape([rect], 16).adaptive(0)
+    assert not shape([rect], 4).adaptive(4)
+    assert not shape([point, point], 16).adaptive(4)

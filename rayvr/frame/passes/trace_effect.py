@@ -44,7 +44,8 @@ ARGS_BYTES, COUNTERS_OFFSET = 48, 32
 WAVE_BUFFER_BYTES = 1 << 30
 # The lean kernels that trace rays (rt/wave_trace.comp stages 1 and 2): ordered and fetched as the
 # plan says; the others run one invocation per item.
-TRACE_KERNELS = ("closest", "shadow", "shadow_finish")
+SHADOW_KERNELS = ("shadow", "shadow_finish", "shadow_every", "shadow_finish_every")
+TRACE_KERNELS = ("closest", *SHADOW_KERNELS)
 
 
 def wave_plan(pixel_capacity: int, paths_per_pixel: int, slots: int, limit: int,
@@ -107,6 +108,7 @@ class WaveShape:
         self.bounces = prm[WAVE_BOUNCES] if follows_rays(effect) else 0  # hit events after the pixel's
         self.paths_per_pixel = prm[WAVE_SAMPLES] if WAVE_SAMPLES in effect.params else 1
         lights = s.scene.lights if s.scene is not None else ()
+        self.rect_lights = any(light.kind == "rect" for light in lights)
 
         def shadow_rays(per_rect: int) -> int:  # of one surface: per_rect points a rect light, 1 another
             return shadow_rays_per_surface(lights, per_rect, s.light_picks)
@@ -121,6 +123,11 @@ class WaveShape:
         self.batch, self.chunk, self.hit_chunk = wave_plan(s.pixels, self.paths_per_pixel, self.slots, limit,
                                                            self.hit_slots)
         self.capacity = self.batch * self.paths_per_pixel  # paths the buffers hold
+
+    def adaptive(self, probes: int) -> bool:
+        """Whether adaptive shadows with `probes` (SHADOW_PROBES) may leave a ray untraced: only a rect
+        light's run of points outnumbers its probes, and no run is longer than an event's slots."""
+        return probes > 0 and self.rect_lights and max(self.slots, self.hit_slots) > probes
 
     @property
     def shadow_slots(self) -> int:
@@ -200,7 +207,7 @@ class TraceEffectPass(Pass):
         # The tracing kernels take the plan's layout for their ray kind; the shading kernels only
         # read triangles (the same buffer in every layout) and stay on the binary defines.
         _, shadow, reflect = plan.traversal
-        self.layouts = {"closest": reflect, "shadow": shadow, "shadow_finish": shadow}
+        self.layouts = {"closest": reflect, **dict.fromkeys(SHADOW_KERNELS, shadow)}
         ds, dr = ({**d, **layout_defines(DEFAULT_BINDING, x)} for x in (shadow, reflect))
         self.programs = {
             "prep": shaders.compute(gl.ctx, trace, {**d, **fetch, "WAVE_STAGE": 0}),
@@ -214,6 +221,12 @@ class TraceEffectPass(Pass):
         }
         if follows_rays(self.effect):
             self.programs["hit"] = shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 4})
+        # every slot in a plain loop, where no light's run can outnumber its probes (WaveShape.adaptive):
+        # built when a frame first needs them (a scene without rect lights never runs the adaptive ones)
+        self.plain_shadow_kernels = lambda: {
+            "shadow_every": shaders.compute(gl.ctx, trace, {**ds, **fetch, "WAVE_STAGE": 2, "ADAPTIVE_SHADOWS": 0}),
+            "shadow_finish_every": shaders.compute(gl.ctx, trace, {**ds, **fetch, "WAVE_STAGE": 2, "WAVE_FINISH": 1,
+                                                                   "ADAPTIVE_SHADOWS": 0})}
 
     def execute(self, fc) -> None:
         shape = WaveShape(self.effect, fc.sizing)
@@ -223,6 +236,9 @@ class TraceEffectPass(Pass):
                   "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel,
                   "light_picks": fc.plan.light_picks, "wave_fetch_slots": shape.trace_kernels,
                   "shadow_probes": int(fc.settings.shadow_probes), "wave_count_rays": int(self.count_rays)}
+        every = "" if shape.adaptive(int(fc.settings.shadow_probes)) else "_every"  # the shadow kernels' variant
+        if every and "shadow_every" not in self.programs:
+            self.programs.update(self.plain_shadow_kernels())
         users = [(a.rule, a.params) for a in fc.gpu_scene.assignments if a.effect == self.effect.name]
         # its frame-scoped parameters (uniform param_<name>)
         common.update({f"param_{k}": v for k, v in self.effect.frame_values(users).items()})
@@ -293,7 +309,7 @@ class TraceEffectPass(Pass):
                 last = ci == len(chunks) - 1
                 run("pixel", 0, wave_slot_first=first, wave_slot_count=count, wave_slot_stride=shape.batch)
                 fuse = last and bounces == 0 and one_path
-                run("shadow_finish" if fuse else "shadow", 0, wave_items=0, wave_slot_first=first,
+                run(("shadow_finish" if fuse else "shadow") + every, 0, wave_items=0, wave_slot_first=first,
                     wave_slot_count=count, wave_slot_stride=shape.batch)
             for b in range(bounces):
                 run("closest", 1)
@@ -302,7 +318,8 @@ class TraceEffectPass(Pass):
                     run("hit", 1, wave_bounce=b, wave_last_chunk=int(last), wave_slot_first=first,
                         wave_slot_count=count, wave_slot_stride=shape.capacity)
                     fuse = last and b == bounces - 1 and one_path
-                    run("shadow_finish" if fuse else "shadow", 1, wave_items=1, wave_slot_stride=shape.capacity)
+                    run(("shadow_finish" if fuse else "shadow") + every, 1, wave_items=1,
+                        wave_slot_stride=shape.capacity)
             if not one_path:
                 run("finish", 0)
 

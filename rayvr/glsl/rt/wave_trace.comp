@@ -122,9 +122,16 @@ void main() {
 layout(rgba16f, binding = IMAGE_HDR) uniform writeonly image2DArray hdr_out;
 #endif
 uniform uint wave_items;  // 0: the batch's pixels, 1: its paths (wave_args index)
-uniform int shadow_probes;  // adaptive area-light shadows (frame/passes/trace_effect.py SHADOW_PROBES); 0: off
-
 uint traced_rays = 0u;  // this invocation's shadow rays (wave_args[2], while counting)
+
+// ADAPTIVE_SHADOWS 0: every slot traced in one plain loop, the kernel the pass takes where no
+// light's run can be longer than its probes (no rect light, or shadow_probes 0 or at least the
+// slots): the adaptive loop would trace the same rays, with more code and registers.
+#ifndef ADAPTIVE_SHADOWS
+#define ADAPTIVE_SHADOWS 1
+#endif
+#if ADAPTIVE_SHADOWS
+uniform int shadow_probes;  // adaptive area-light shadows (frame/passes/trace_effect.py SHADOW_PROBES)
 
 // Slot k of a run of m is one of its `probes` probes: probe j sits at (j * m) / probes.
 bool is_probe(uint k, uint m, uint probes) {
@@ -170,9 +177,11 @@ vec3 adaptive_run(uint q, uint k0, uint m) {
     return sum;
 }
 
+#endif
 void trace_shadows(uint q) {
     uint n = floatBitsToUint(wave_paths[q].throughput.w);
     vec3 sum = vec3(0.0);
+#if ADAPTIVE_SHADOWS
     for (uint k0 = 0u; k0 < n;) {  // the item's slots, one light's run at a time
         float light = wave_shadows[k0 * wave_slot_stride + q].light.w;
         uint k1 = k0 + 1u;
@@ -180,6 +189,16 @@ void trace_shadows(uint q) {
         sum += adaptive_run(q, k0, k1 - k0);
         k0 = k1;
     }
+#else
+    for (uint k = 0u; k < n; ++k) {
+        uint at = k * wave_slot_stride + q;
+        vec4 o = wave_shadows[at].origin;
+        vec4 d = wave_shadows[at].direction;
+        traced_rays += 1u;
+        if (!trace_any(Ray(o.xyz, o.w, d.xyz, d.w)))
+            sum += wave_shadows[at].light.rgb;
+    }
+#endif
 #ifdef WAVE_FINISH
     imageStore(hdr_out, wave_pixel(q), vec4(wave_paths[q].radiance.rgb + sum, 1.0));
 #else
