@@ -200,6 +200,19 @@ def test_info_lists_gl_and_scene_effects(tmp_path):
     assert "None" not in run.stdout  # a field the driver does not report reads "unknown"
 
 
+def test_info_names_the_shipped_configs_and_lists_the_room_by_default():
+    """`rayvr info --materials raster.toml` takes a shipped config by its bare name, as capture and
+    preview do; `rayvr info` alone lists the built-in room's materials with the room's own config."""
+    plain = rayvr("info", "--json", "--materials", "raster.toml")
+    assert plain.returncode == 0, plain.stderr
+    effects = {m["name"]: m["effect"] for m in json.loads(plain.stdout)["scene"]["materials"]}
+    assert set(effects.values()) == {"raster"} and "floor" in effects
+    own = rayvr("info", "--json")
+    assert own.returncode == 0, own.stderr
+    effects = {m["name"]: m["effect"] for m in json.loads(own.stdout)["scene"]["materials"]}
+    assert effects["floor"] == "glossy" and effects["mirror"] == "reflections"
+
+
 def test_bench_quick_writes_results(tmp_path):
     run = rayvr("bench", "gbuffer", "--quick", "--out", str(tmp_path))
     assert run.returncode == 0, run.stderr

@@ -169,7 +169,7 @@ def _graph(*args):
 
 
 def test_graph_prunes_what_the_scene_does_not_need():
-    text = _graph("--graph", "--size", "64x48")
+    text = _graph("--materials", "raster.toml", "--graph", "--size", "64x48")
     passes = re.findall(r"(?m)^\s+\d+\. (\S+)", text)
     assert passes == ["visibility", "gbuffer", "shade", "tonemap"], passes  # all raster: no BVH, no lists
     assert "bvh" not in text and "rt_lists" not in text
@@ -178,7 +178,9 @@ def test_graph_prunes_what_the_scene_does_not_need():
     for name in ("bvh", "classify", "rt_shadows", "rt_reflections", "rt_glossy"):
         assert f" {name} " in traced, name
     assert "mirror" in traced  # why rt_reflections runs: the materials that use it
-    rays = re.findall(r"(?m)^\s+\d+\. (\S+)", _graph("--graph", "--primary", "rays", "--size", "64x48"))
+    assert _graph("--graph", "--size", "64x48") == traced  # the room without --materials: its own config, as capture
+    rays = re.findall(r"(?m)^\s+\d+\. (\S+)", _graph("--materials", "raster.toml", "--graph", "--primary", "rays",
+                                                        "--size", "64x48"))
     assert rays == ["bvh", "primary_rays", "gbuffer", "shade", "tonemap"], rays
     dot = _graph("--materials", room, "--graph", "dot")
     assert dot.startswith("digraph") and '"res:hdr" -> "tonemap"' in dot and "compose" in dot

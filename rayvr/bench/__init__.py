@@ -249,7 +249,7 @@ AREAS: dict[str, Area] = {
     "ssrt": Area("quadtree screen-space tracing vs the DDA baseline", _ssrt, FLIP),
     "photon": Area("the photon-mapping paper's tables (kd-tree vs hash grid, heap vs no heap: ms per pass, FLIP)",
                    _photon, FLIP),
-    "gi": Area("issue 11's global illumination figures (the photon tables over 128²-512² x 0.02-0.2 m, Table 5 "
+    "gi": Area("the global illumination figures (the photon tables over 128²-512² x 0.02-0.2 m, Table 5 "
                "dual vs reuse, path at 1/4/16 spp with and without the denoiser; targets met or missed)", _gi, FLIP),
     "stereo": Area("the stereo modes dual, warp, reuse (ms per pass, FLIP against dual, holes)", _stereo, FLIP),
     "lights": Area("light picks by power (--light-picks 1, 4, 16) against every light on the bench scenes with 64 "

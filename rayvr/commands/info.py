@@ -31,10 +31,11 @@ def print_graph(args) -> int:
     """`rayvr info SCENE --materials FILE --graph [dot]`: the compiled frame graph."""
     from ..gl.context import create_context
     from ..frame.graph import compile_graph
+    from ..scene.defaults import materials_for
     from ..scene.materials import load_config
     from ..renderer import Renderer, RenderSettings, candidate_passes
 
-    config = load_config(args.materials)
+    config = load_config(materials_for(args.scene, args.materials)[0])
     given = shared.render_values(args, COMMAND, config, **({"accumulate": True} if args.spp > 1 else {}))
     settings = RenderSettings(**given)
     camera = shared.camera_from_args(args, settings, given)
@@ -66,17 +67,18 @@ def cmd_info(args) -> int:
         info = gl.info()
     finally:
         gl.release()
-    if args.scene is not None or args.materials:
-        from ..scene import materials, loader as scene
+    # the scene's materials and their effects: the built-in room's (with its own config) when none is named
+    from ..scene import materials, loader as scene
+    from ..scene.defaults import materials_for
 
-        s = scene.load(args.scene)
-        cfg = materials.load_config(args.materials)
-        assigned = cfg.assign(s.material_names(), warn=False)
-        info["scene"] = {"summary": s.summary(), "materials": [
-            {"index": i, "name": m.name, "effect": a.effect, "rule": a.rule, "params": a.params}
-            for i, (m, a) in enumerate(zip(s.materials, assigned))],
-            "lights": [{"kind": l.kind, "source": l.source} for l in s.lights],
-            "unmatched_config_keys": cfg.unmatched(s.material_names())}
+    s = scene.load(args.scene)
+    cfg = materials.load_config(materials_for(args.scene, args.materials)[0])
+    assigned = cfg.assign(s.material_names(), warn=False)
+    info["scene"] = {"summary": s.summary(), "materials": [
+        {"index": i, "name": m.name, "effect": a.effect, "rule": a.rule, "params": a.params}
+        for i, (m, a) in enumerate(zip(s.materials, assigned))],
+        "lights": [{"kind": l.kind, "source": l.source} for l in s.lights],
+        "unmatched_config_keys": cfg.unmatched(s.material_names())}
     if args.json:
         print(json.dumps(info, indent=1, default=str))
         return 0
