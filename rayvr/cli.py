@@ -62,6 +62,14 @@ def main(argv=None) -> int:
     return code
 
 
+def tells_the_room(args) -> bool:
+    """Whether the built-in room's one-line hint (scene/defaults.py ROOM_NOTICE) says something true and
+    new: not with --quiet, not after --budget-ms replaced the room's config with its pick, not over a
+    --views set (a dataset capture, not a first look)."""
+    budget = getattr(args, "budget_ms", None) is not None or getattr(args, "budget_hz", None) is not None
+    return not (getattr(args, "quiet", False) or budget or getattr(args, "views", None))
+
+
 def run_command(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -81,7 +89,7 @@ def run_command(argv=None) -> int:
     with sigterm_as_interrupt() as sigterm:
         try:
             code = args.func(args)
-            if notice and code == 0 and not getattr(args, "quiet", False):  # after the work: an error stays one line
+            if notice and code == 0 and tells_the_room(args):  # after the work: an error stays one line
                 print(notice, file=sys.stderr)
             return code
         except (ContextError, ConfigError, SceneError, OutputError, ShaderError, ClusterError, MissingExtraError,

@@ -213,6 +213,17 @@ def test_info_names_the_shipped_configs_and_lists_the_room_by_default():
     assert effects["floor"] == "glossy" and effects["mirror"] == "reflections"
 
 
+def test_the_rooms_hint_follows_a_first_look_only(tmp_path):
+    """The built-in room's one line about its effects follows a plain capture, not a --views set."""
+    hint = "renders with its own effects"
+    still = rayvr("capture", "--size", "16x12", "--out", str(tmp_path / "still"))
+    assert still.returncode == 0, still.stderr
+    assert hint in still.stderr
+    views = rayvr("capture", "--size", "16x12", "--views", "sphere:2", "--out", str(tmp_path / "views"))
+    assert views.returncode == 0, views.stderr
+    assert hint not in views.stderr
+
+
 def test_bench_quick_writes_results(tmp_path):
     run = rayvr("bench", "gbuffer", "--quick", "--out", str(tmp_path))
     assert run.returncode == 0, run.stderr
