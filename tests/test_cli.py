@@ -224,6 +224,13 @@ def test_the_rooms_hint_follows_a_first_look_only(tmp_path):
     assert hint not in views.stderr
 
 
+def test_a_misspelt_shipped_config_lists_the_shipped_names(tmp_path):
+    run = rayvr("capture", "--size", "8x8", "--materials", "rastr.toml", "--out", str(tmp_path))
+    assert run.returncode == 2
+    line = run.stderr.strip().splitlines()[-1]
+    assert "rastr.toml" in line and "raster.toml" in line and "default_room.toml" in line and "Traceback" not in run.stderr
+
+
 def test_bench_quick_writes_results(tmp_path):
     run = rayvr("bench", "gbuffer", "--quick", "--out", str(tmp_path))
     assert run.returncode == 0, run.stderr

@@ -271,6 +271,17 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
     return cfg
 
 
+def shipped_hint(path: Path) -> str:
+    """For a bare file name that is neither here nor shipped (a misspelt `raster.toml`): the names of
+    the configs rayvr ships, which commands take by name alone."""
+    from .loader import ASSETS_DIR
+
+    if path.name != str(path) or path.exists():
+        return ""
+    names = sorted(p.name for p in ASSETS_DIR.glob("*.toml"))
+    return f" (rayvr ships {', '.join(names)}, taken by name alone)" if names else ""
+
+
 def load_config(path: str | Path | None) -> MaterialConfig:
     """Read and validate a TOML material config; None gives the all-`raster` default."""
     if path is None:
@@ -279,7 +290,7 @@ def load_config(path: str | Path | None) -> MaterialConfig:
     try:
         text = read_text(path, "material config", MAX_CONFIG_BYTES)
     except InputFileError as exc:
-        raise ConfigError(str(exc)) from None
+        raise ConfigError(str(exc) + shipped_hint(path)) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
