@@ -79,7 +79,12 @@ def test_unknown_material_warns_with_scene_names(tmp_path, caplog):
     msg = caplog.text
     assert "materials.flor" in msg and "materials.nothing*" in msg and "ids.42" in msg
     assert "floor, mirror_ball, mirror_panel, walls, gold" in msg
+    assert "ids.42 match no material" in msg and "(did you mean floor?)" in msg  # the typo's near name
     assert set(cfg.unmatched(NAMES)) == {"flor", "nothing*", "42"}
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        load_config(write(tmp_path, '[materials]\n"flor" = "raster"')).assign(NAMES)
+    assert "materials.flor matches no material" in caplog.text  # one key: singular
 
 
 def test_missing_file_is_a_config_error(tmp_path):

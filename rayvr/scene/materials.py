@@ -121,8 +121,9 @@ class MaterialConfig:
             unused = [f"materials.{k}" for k in self.by_name if f"materials.{k}" not in used_keys]
             unused += [f"ids.{k}" for k in self.by_id if f"ids.{k}" not in used_keys]
             if unused:
-                log.warning("%s: %s match no material in this scene; its materials are: %s",
-                            self.source, ", ".join(map(short, unused)), ", ".join(map(short, material_names)))
+                log.warning("%s: %s %s no material in this scene%s; its materials are: %s", self.source,
+                            ", ".join(map(short, unused)), "matches" if len(unused) == 1 else "match",
+                            near_names(unused, material_names), ", ".join(map(short, material_names)))
         return result
 
     def unmatched(self, material_names: list[str]) -> list[str]:
@@ -269,6 +270,15 @@ def parse_config(data: dict, source: str = "<config>") -> MaterialConfig:
         cfg.by_id[index] = (effect, params_)
         cfg.importance_of[f"ids.{index}"] = importance
     return cfg
+
+
+def near_names(keys: list[str], material_names: list[str]) -> str:
+    """' (did you mean floor?)' for config keys (`materials.flor`) close to a material's name."""
+    import difflib
+
+    guesses = [g for k in keys if k.startswith("materials.")
+               for g in difflib.get_close_matches(k.split(".", 1)[1], material_names, n=1, cutoff=0.75)]
+    return f" (did you mean {', '.join(map(short, dict.fromkeys(guesses)))}?)" if guesses else ""
 
 
 def shipped_hint(path: Path) -> str:
