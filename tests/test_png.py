@@ -1,5 +1,7 @@
-"""The PNG encoder (util/png.py) against Pillow's decoder: every pixel back as written."""
+"""The PNG encoder (util/png.py) against Pillow's decoder (every pixel back as written) and the
+specification's chunk layout and CRC."""
 import io
+import struct
 
 import numpy as np
 import pytest
@@ -69,3 +71,33 @@ def test_compression_level_shrinks_a_smooth_image():
 def test_bad_images_say_what(bad):
     with pytest.raises(ValueError, match="PNG encoding takes"):
         encode_png(bad)
+
+
+def crc32_reference(data: bytes) -> int:
+    """CRC-32 as the PNG specification defines it (reflected polynomial 0xEDB88320, initial and
+    final XOR 0xFFFFFFFF), bit by bit: independent of zlib."""
+    crc = 0xFFFFFFFF
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ (0xEDB88320 if crc & 1 else 0)
+    return crc ^ 0xFFFFFFFF
+
+
+@pytest.mark.parametrize("channels", [1, 3, 4])
+def test_every_chunk_has_its_length_and_crc(channels):
+    """Each chunk's length and CRC (over tag and data) by the specification: Pillow's reader does
+    not check IEND's CRC, so an IEND with a wrong one would pass the decode tests."""
+    img = np.random.default_rng(channels).integers(0, 256, (5, 7, channels), dtype=np.uint8)
+    blob = b"".join(encode_png(img))
+    assert blob[:8] == b"\x89PNG\r\n\x1a\n"
+    at, tags = 8, []
+    while at < len(blob):
+        (length,), tag = struct.unpack(">I", blob[at:at + 4]), blob[at + 4:at + 8]
+        data = blob[at + 8:at + 8 + length]
+        (crc,) = struct.unpack(">I", blob[at + 8 + length:at + 12 + length])
+        assert len(data) == length and crc == crc32_reference(tag + data), tag
+        tags.append(tag)
+        at += 12 + length
+    assert at == len(blob) and tags[0] == b"IHDR" and tags[-1] == b"IEND" and b"IDAT" in tags
+    assert blob[-12:] == b"\x00\x00\x00\x00IEND\xaeB`\x82"  # the one IEND every PNG ends with
