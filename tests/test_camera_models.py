@@ -26,6 +26,9 @@ def rig_for(model, size=(23, 17), fov=90.0, **kw):
 MODELS = {
     "pinhole": lambda: rig_for(Pinhole()),
     "distorted": lambda: rig_for(Distorted(center=(0.05, -0.02))),
+    # the shipped lens has k3 = 0: a GLSL term of the wrong power of r would pass without this one
+    "distorted_k3": lambda: rig_for(Distorted(coefficients=((0.1, 0.05, 0.08), (0.12, 0.06, 0.11), (0.14, 0.07, 0.15)),
+                                              center=(0.05, -0.02))),
     "wide_spherical": lambda: rig_for(Wide(fov_x=210), fov=130),
     "wide_equidistant": lambda: rig_for(Wide(mapping="equidistant"), fov=200),
     "foveated": lambda: rig_for(Foveated(gaze=(0.3, 0.6), mar_slope=0.4, fovea_radius=2.0), size=(40, 30)),
@@ -105,6 +108,25 @@ def test_distortion_and_its_inverse_round_trip_over_the_lens():
     # Chromatic: blue is bent most, and off-centre the three channels' rays differ.
     r = [np.linalg.norm(model.distort(q, ch, model.center) - model.center, axis=-1)[0, 0] for ch in range(3)]
     assert r[0] < r[1] < r[2]
+
+
+def test_each_coefficient_is_its_own_power_of_the_radius():
+    """The rays' view tangents against the polynomial written out term by term, one coefficient at a
+    time: the pixel centre's panel tangent q (the pinhole's), u = c + (q - c)(1 + k r^(2n))."""
+    size = (11, 9)
+    for n in (1, 2, 3):
+        k = [0.0, 0.0, 0.0]
+        k[n - 1] = 0.3
+        rig = rig_for(Distorted(coefficients=tuple(k), center=(0.1, -0.05)), size=size)
+        for eye in rig.eyes():
+            l, r, b, t = eye.tangents
+            x, y = np.meshgrid(np.arange(size[0]) + 0.5, np.arange(size[1]) + 0.5)
+            q = np.stack([l + x / size[0] * (r - l), t - y / size[1] * (t - b)], axis=-1)  # rows top-down
+            c = rig.camera.lens_center(eye)
+            radius = np.linalg.norm(q - c, axis=-1, keepdims=True)
+            u = c + (q - c) * (1.0 + 0.3 * radius ** (2 * n))
+            d = rig.camera.rays(eye, 0).directions @ eye.rotation  # world -> eye space
+            np.testing.assert_allclose(d[..., :2] / -d[..., 2:], u, rtol=1e-9, atol=1e-12)
 
 
 def test_one_coefficient_triple_is_one_channel_set():
