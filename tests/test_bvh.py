@@ -232,3 +232,16 @@ def test_offset_ray_moves_to_the_normal_side(shift):
     step = (q.astype(np.float64) - p) * n      # per axis: never against the normal
     assert (step >= 0).all()
     assert ((step.sum(1)) > 0).all()            # and strictly off the surface plane through p
+
+
+def test_sah_cost_of_a_known_tree_is_its_closed_form():
+    """Two unit triangles 10 apart in the z = 0 plane: the build must split them (one leaf each
+    costs (1 + 1) / 11 + 1 against 2), and the cost is each node's box area over the root's
+    (flat boxes: area dx * dy) times its test cost, written out by hand."""
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
+    verts = np.concatenate([tri, tri + np.float32([10, 0, 0])])
+    bvh = build_bvh(verts, np.array([[0, 1, 2], [3, 4, 5]]))
+    assert bvh.node_count == 3 and sorted(bvh.count[bvh.left < 0].tolist()) == [1, 1]
+    root, leaf = 11.0 * 1.0, 1.0 * 1.0
+    assert bvh.sah_cost() == pytest.approx((root + 2 * leaf) / root)
+    assert bvh.sah_cost(traversal_cost=2.0, triangle_cost=3.0) == pytest.approx((2 * root + 3 * 2 * leaf) / root)
