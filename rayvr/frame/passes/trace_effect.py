@@ -209,24 +209,40 @@ class TraceEffectPass(Pass):
         _, shadow, reflect = plan.traversal
         self.layouts = {"closest": reflect, **dict.fromkeys(SHADOW_KERNELS, shadow)}
         ds, dr = ({**d, **layout_defines(DEFAULT_BINDING, x)} for x in (shadow, reflect))
+        # the trace kernels' sources, so that count_rays() can build their counting variants
+        self.trace_sources = {"closest": (trace, {**dr, **fetch, "WAVE_STAGE": 1, "QT_DEPTH_LAYERS": plan.depth_layers,
+                                                  "SSR_TRACE": int(self.effect.uses_quadtree)}),
+                              "shadow": (trace, {**ds, **fetch, "WAVE_STAGE": 2}),
+                              "shadow_finish": (trace, {**ds, **fetch, "WAVE_STAGE": 2, "WAVE_FINISH": 1})}
+        # every slot in a plain loop, where no light's run can outnumber its probes (WaveShape.adaptive):
+        # built when a frame first needs them (a scene without rect lights never runs the adaptive ones)
+        for name in ("shadow", "shadow_finish"):
+            source, defines = self.trace_sources[name]
+            self.trace_sources[f"{name}_every"] = (source, {**defines, "ADAPTIVE_SHADOWS": 0})
+        self.ctx, self.counting = gl.ctx, {}  # count_rays' variants of the trace kernels, built on first use
         self.programs = {
             "prep": shaders.compute(gl.ctx, trace, {**d, **fetch, "WAVE_STAGE": 0}),
-            # screen-space effects (ssr) find closest hits in the quadtree first (SSR_TRACE)
-            "closest": shaders.compute(gl.ctx, trace, {**dr, **fetch, "WAVE_STAGE": 1, "QT_DEPTH_LAYERS": plan.depth_layers,
-                                                       "SSR_TRACE": int(self.effect.uses_quadtree)}),
-            "shadow": shaders.compute(gl.ctx, trace, {**ds, **fetch, "WAVE_STAGE": 2}),
-            "shadow_finish": shaders.compute(gl.ctx, trace, {**ds, **fetch, "WAVE_STAGE": 2, "WAVE_FINISH": 1}),
+            **{name: shaders.compute(gl.ctx, *self.trace_sources[name]) for name in ("closest", "shadow", "shadow_finish")},
             "pixel": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 3}),
             "finish": shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 5}),
         }
         if follows_rays(self.effect):
             self.programs["hit"] = shaders.compute(gl.ctx, shade, {**d, "WAVE_STAGE": 4})
-        # every slot in a plain loop, where no light's run can outnumber its probes (WaveShape.adaptive):
-        # built when a frame first needs them (a scene without rect lights never runs the adaptive ones)
-        self.plain_shadow_kernels = lambda: {
-            "shadow_every": shaders.compute(gl.ctx, trace, {**ds, **fetch, "WAVE_STAGE": 2, "ADAPTIVE_SHADOWS": 0}),
-            "shadow_finish_every": shaders.compute(gl.ctx, trace, {**ds, **fetch, "WAVE_STAGE": 2, "WAVE_FINISH": 1,
-                                                                   "ADAPTIVE_SHADOWS": 0})}
+
+    def frame_programs(self, every: str) -> dict:
+        """The programs this frame runs: the shadow kernels of variant `every` ("_every": the plain
+        loop, built on first use) and, while count_rays is on, the trace kernels' counting variants
+        (WAVE_COUNT_RAYS: the kernels the timed frames run have no counters at all)."""
+        for name in ("shadow", "shadow_finish"):
+            if name + every not in self.programs:
+                self.programs[name + every] = shaders.compute(self.ctx, *self.trace_sources[name + every])
+        if not self.count_rays:
+            return self.programs
+        for name in self.programs:
+            if name in TRACE_KERNELS and name not in self.counting:
+                source, defines = self.trace_sources[name]
+                self.counting[name] = shaders.compute(self.ctx, source, {**defines, "WAVE_COUNT_RAYS": 1})
+        return {name: self.counting.get(name, p) for name, p in self.programs.items()}
 
     def execute(self, fc) -> None:
         shape = WaveShape(self.effect, fc.sizing)
@@ -235,14 +251,13 @@ class TraceEffectPass(Pass):
                   "frame_seed": int(fc.settings.seed), "rt_capacity": n_pixels,
                   "wave_capacity": shape.capacity, "wave_paths_per_pixel": shape.paths_per_pixel,
                   "light_picks": fc.plan.light_picks, "wave_fetch_slots": shape.trace_kernels,
-                  "shadow_probes": int(fc.settings.shadow_probes), "wave_count_rays": int(self.count_rays)}
+                  "shadow_probes": int(fc.settings.shadow_probes)}
         every = "" if shape.adaptive(int(fc.settings.shadow_probes)) else "_every"  # the shadow kernels' variant
-        if every and "shadow_every" not in self.programs:
-            self.programs.update(self.plain_shadow_kernels())
+        programs = self.running = self.frame_programs(every)
         users = [(a.rule, a.params) for a in fc.gpu_scene.assignments if a.effect == self.effect.name]
         # its frame-scoped parameters (uniform param_<name>)
         common.update({f"param_{k}": v for k, v in self.effect.frame_values(users).items()})
-        for p in self.programs.values():
+        for p in programs.values():
             set_eye_uniforms(p, fc)
             write_uniforms(p, fc, common)
         fc.gbuffer.bind_for_reading()
@@ -259,7 +274,7 @@ class TraceEffectPass(Pass):
         wave_args = fc.resource(self.buffers["args"][0])
         if self.effect.uses_quadtree:
             fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
-            set_tree_uniforms(self.programs["closest"], fc.gbuffer.size, fc.gbuffer.layers)
+            set_tree_uniforms(programs["closest"], fc.gbuffer.size, fc.gbuffer.layers)
             bind_second_layer(fc)
         barrier = fc.gl.ctx.memory_barrier
         fetch_slot = iter(())  # the next trace kernel's ray counter (persistent threads), per batch
@@ -277,7 +292,7 @@ class TraceEffectPass(Pass):
             fc.stage("order", go)
 
         def run(name, items=1, **uniforms):
-            p = self.programs[name]
+            p = programs[name]
             tracing = name in TRACE_KERNELS
             if tracing and self.persistent:
                 uniforms["wave_fetch_slot"] = next(fetch_slot)
@@ -300,7 +315,7 @@ class TraceEffectPass(Pass):
 
         one_path, bounces, chunks, hit_chunks = shape.paths_per_pixel == 1, shape.bounces, shape.chunks, shape.hit_chunks
         for base in range(0, n_pixels, shape.batch):
-            for p in self.programs.values():
+            for p in programs.values():
                 if shaders.declares(p, "wave_batch_base"):
                     p["wave_batch_base"].value = base
             run("prep")
@@ -324,10 +339,11 @@ class TraceEffectPass(Pass):
                 run("finish", 0)
 
     def bind_extra(self, fc) -> None:
-        """What a subclass binds beyond the wavefront's buffers (frame/effects/photon/shade.py: the photon map)."""
+        """What a subclass binds beyond the wavefront's buffers (frame/effects/photon/shade.py: the photon
+        map) to the programs this frame runs (self.running)."""
 
     def release(self) -> None:
-        for p in self.programs.values():
+        for p in [*self.programs.values(), *self.counting.values()]:
             p.release()
         if self.ray_order is not None:
             self.ray_order.release()

@@ -115,7 +115,7 @@ void trace_path(uint p) {
 }
 void main() {
     WAVE_FOR_EACH_RAY(k, wave_args[1].w) trace_path(wave_ray(k));
-    if (wave_count_rays != 0u && traced_rays != 0u) atomicAdd(wave_args[2].x, traced_rays);
+    if (WAVE_COUNT_RAYS != 0 && traced_rays != 0u) atomicAdd(wave_args[2].x, traced_rays);
 }
 #else
 #ifdef WAVE_FINISH
@@ -208,7 +208,7 @@ void trace_shadows(uint q) {
 }
 void main() {
     WAVE_FOR_EACH_RAY(k, wave_args[wave_items].w) trace_shadows(wave_ray(k));
-    if (wave_count_rays != 0u && traced_rays != 0u) atomicAdd(wave_args[2].y, traced_rays);
+    if (WAVE_COUNT_RAYS != 0 && traced_rays != 0u) atomicAdd(wave_args[2].y, traced_rays);
 }
 #endif
 #endif

@@ -41,5 +41,5 @@ class PhotonShadePass(TraceEffectPass):
         fc.resource("photon_map").bind_to_storage_buffer(SSBO["photon_map"])
         fc.resource("photon_start").bind_to_storage_buffer(SSBO["photon_scan"])
         fc.resource("photon_kdtree").bind_to_storage_buffer(SSBO["photon_kdtree"])
-        for p in self.programs.values():
+        for p in self.running.values():
             set_grid_uniforms(p, ps.grid)
