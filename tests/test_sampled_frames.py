@@ -155,19 +155,21 @@ def test_msaa_frames_run_one_shading_round_per_distinct_triangle(gl, room):
     assert set(timings) >= {"primary_rays", "gbuffer", "shade", "sample_accumulate", "sample_resolve", "tonemap"}
 
 
-@pytest.mark.parametrize("n", [4, 32])
-def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n):
+@pytest.mark.parametrize("n, kept", [(4, 8), (32, 8), (8, 2)])
+def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n, kept):
     """The MSAA trace (one invocation per sub-ray, merged per pixel in shared memory; a 30x22 or
     18x14 image leaves partial pixel blocks) against passes/primary_rays.msaa_lists over numpy
     traces of the model's own sub-rays: the same distinct triangles, coverages, counts and
     order; the representative sub-ray is one nearest the mean offset of the sub-rays numpy saw on
-    its triangle, its distance that sub-ray's. 32 sub-rays at the smaller size: numpy traces each of them."""
+    its triangle, its distance that sub-ray's. 32 sub-rays at the smaller size: numpy traces each of
+    them. With shading_slots 2 (`kept`) a pixel keeps its two most covered triangles, wherever
+    their first sub-rays fall."""
     from rayvr.frame.cameras.sampling import subsamples
     from rayvr.frame.passes.primary_rays import msaa_lists
 
-    (w, h), slots = (30, 22) if n < 32 else (18, 14), min(n, 8)
+    (w, h), slots = (30, 22) if n < 32 else (18, 14), min(n, kept)
     rig = StereoRig(ROOM_POSE, ipd=0.064, fov_y=90, size=(w, h), near=1e-3)
-    with Renderer(room, gl=gl, settings=RenderSettings(msaa=n)) as r:
+    with Renderer(room, gl=gl, settings=RenderSettings(msaa=n, shading_slots=kept)) as r:
         r.record(rig)
         r.gl.ctx.finish()
         got = np.frombuffer(r.resource("msaa_hits").read(), np.uint32).reshape(slots, 2, h, w, 4)

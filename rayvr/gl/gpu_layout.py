@@ -52,7 +52,7 @@ SSBO = {
     "picked": 7,  # preview: the texel under the cursor
     "bvh_nodes": 8, "bvh_triangles": 9,  # accel/gpu.py (batch tracers may use other bases)
     "rt_lists": 10, "rt_list_args": 11,  # frame/passes/classify.py
-    "wave_paths": 12, "wave_shadows": 13, "wave_args": 14,  # frame/passes/trace_effect.py
+    "wave_paths": 12, "wave_shadows": 13, "wave_args": 14, "wave_rays": 52,  # frame/passes/trace_effect.py
     "wave_order": 17, "wave_fetch": 18,  # its ray order (frame/passes/ray_order.py), persistent threads' counters
     "sort_count": 19,  # frame/passes/radix_sort.py: a pair count the GPU wrote (SORT_COUNTED)
     "dda_rays": 15, "dda_results": 16,  # bench/tracers/dda.py DdaTracer (glsl/ssrt/dda_batch.comp)

@@ -4,7 +4,7 @@ import numpy as np
 from rayvr.bench import vr
 from rayvr.bench.vr import bench_scenes, draw_poses, materials_config, StereoRig, Renderer, RenderSettings, count_rays, time_frame, time_pipelined
 from rayvr.gl.context import create_context
-from rayvr.frame.passes.trace_effect import TraceEffectPass, COUNTERS_OFFSET
+from rayvr.frame.passes.trace_effect import TraceEffectPass
 
 size = (int(sys.argv[1]), int(sys.argv[2])) if len(sys.argv) > 2 else (640, 360)
 gl = create_context(None)

@@ -71,7 +71,7 @@ from ...gl.glsl_constants import declare as declare_constant
 from ...accel.frustum import tile_grid
 from ...accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effect_registry import EFFECTS
-from ..graph import SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
+from ..graph import MAX_SLOTS, SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
 from ...gl.gpu_layout import BLOCK_TILES, IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_PIXELS, channel
 from ...options import Option, declare
 from .compute import camera_defines, dispatch_per_pixel, pixel_grid, set_eye_uniforms
@@ -312,7 +312,12 @@ def sample_group(rays: int, tile: tuple[int, int] = TILE_PIXELS) -> int:
     return group
 
 
-MAX_SLOTS = 8  # distinct triangles kept per pixel (MSAA); sub-rays on further ones are dropped
+SHADING_SLOTS = declare(Option("shading_slots", int, MAX_SLOTS, "MSAA for rays and shared channel shading: "
+                               "a pixel shades at most its N most covered distinct triangles, the rounds the "
+                               "frame runs at most (the sub-rays on the others go to the kept ones, by "
+                               "coverage); fewer: fewer rounds at edges where many triangles meet",
+                               bounds=(1, MAX_SLOTS), scope="plan", plan_field="shading_slots", metavar="N",
+                               commands=("capture", "preview", "info", "bench")))
 # invocations of an MSAA trace workgroup a colour channel set: a block of 64 / N pixels, N sub-rays each
 MSAA_GROUP = 64
 SAMPLE_WEIGHT = Texture("r32f")
@@ -359,7 +364,7 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
     (..., N) (NO_HIT: background) and distances `ts`, the list msaa_hits holds, (slots, ..., 4)
     uint32 entries (triangle, coverage (msaa_coverage of its mask), representative sub-ray | count
     << 8 | covered << 16 (entry 0 only; msaa_coverage, summed), distance bits), most covered first,
-    ties in order of first sub-ray; unused
+    ties in order of first sub-ray, the `slots` most covered kept (the others' sub-rays dropped); unused
     entries zero here (the GPU leaves entries past a pixel's count as the buffer held them: only
     the first count are defined, and only those are read). `offsets` (N, 2): the sub-rays' footprint offsets (cameras/sampling.subsamples);
     the representative is the sub-ray nearest the mean offset of its mask (the first of equally
@@ -376,18 +381,19 @@ def msaa_lists(tris: np.ndarray, ts: np.ndarray, offsets: np.ndarray, slots: int
         for i, tri in enumerate(flat_t[px]):
             if tri in ids:
                 masks[ids.index(tri)] |= 1 << i
-            elif len(ids) < slots:
+            else:
                 ids.append(tri)
                 masks.append(1 << i)
         pop = [bin(m).count("1") for m in masks]
+        order = sorted(range(len(ids)), key=lambda k: (-pop[k], k))[:slots]  # the most covered are kept
+        ids, masks = [ids[k] for k in order], [masks[k] for k in order]
         coverage = [msaa_coverage(m, n_sub, channel_blocks) for m in masks]
-        order = sorted(range(len(ids)), key=lambda k: (-pop[k], k))
-        for rank, k in enumerate(order):
-            bits = [i for i in range(n_sub) if masks[k] >> i & 1]
+        for rank, (tri, mask) in enumerate(zip(ids, masks)):
+            bits = [i for i in range(n_sub) if mask >> i & 1]
             dist = ((offsets[bits] - offsets[bits].mean(0)) ** 2).sum(1)
             best = bits[int(np.argmin(dist))]
             meta = best | ((len(ids) << 8) | (sum(coverage) << 16) if rank == 0 else 0)
-            out[rank, px] = (ids[k], coverage[k], meta, flat_d[px, best].view(np.uint32))
+            out[rank, px] = (tri, coverage[rank], meta, flat_d[px, best].view(np.uint32))
     return out.reshape((slots,) + shape + (4,))
 
 
@@ -435,7 +441,8 @@ def subrays(plan: FramePlan) -> int:
 
 
 def msaa_slots(plan: FramePlan) -> int:
-    return min(subrays(plan), MAX_SLOTS)
+    """Distinct triangles a pixel keeps, each a round: at most its sub-rays and the plan's shading_slots."""
+    return min(subrays(plan), plan.shading_slots)
 
 
 def uses_msaa(plan: FramePlan) -> bool:

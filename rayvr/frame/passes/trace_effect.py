@@ -20,7 +20,7 @@ from ..effect_registry import Effect, traced_effects
 from ..graph import Buffer, FramePlan, Pass, Sizing, compose, read, write
 from ...gl.gpu_layout import IMAGE, SSBO, UNIT
 from ...scene.light_selection import shadow_rays_per_surface
-from .classify import bind_lists
+from .classify import ARGS_BYTES as LIST_ARGS_BYTES, bind_lists, list_slots
 from .compute import camera_defines, set_eye_uniforms, write_uniforms
 from .persistent_threads import persistent_groups
 from .quadtree import set_tree_uniforms
@@ -36,9 +36,9 @@ WAVE_HIT_AREA_SAMPLES = "hit_area_samples"
 WAVE_PARAMS = (WAVE_BOUNCES, WAVE_SAMPLES, WAVE_AREA_SAMPLES, WAVE_HIT_AREA_SAMPLES)
 
 # Wavefront buffers (glsl/rt/wave.glsl): bytes per path and per shadow slot; the args buffer: two
-# indirect dispatches, then the ray counters (closest hits, shadow rays) at COUNTERS_OFFSET.
+# indirect dispatches; the ray counters (closest hits, shadow rays) of count_rays.
 PATH_BYTES, SLOT_BYTES = 80, 48
-ARGS_BYTES, COUNTERS_OFFSET = 48, 32
+ARGS_BYTES, RAYS_BYTES = 32, 8
 # Largest wavefront buffer: the device's storage-block limit or this (Sizing.wave_buffer_bytes, from
 # Renderer(wave_buffer_bytes=...), gives another: tests split the waves with a small one).
 WAVE_BUFFER_BYTES = 1 << 30
@@ -165,7 +165,8 @@ class TraceEffectPass(Pass):
                                              "80 B per path of a batch")),
             "shadows": (f"{key}.shadows", Buffer(lambda s: WaveShape(effect, s).shadow_slots * SLOT_BYTES,
                                                  "48 B per shadow ray of a batch's chunk")),
-            "args": (f"{key}.args", Buffer(lambda s: ARGS_BYTES, "2 indirect dispatches, the ray counters")),
+            "args": (f"{key}.args", Buffer(lambda s: ARGS_BYTES, "2 indirect dispatches")),
+            "rays": (f"{key}.rays", Buffer(lambda s: RAYS_BYTES, "the ray counters of count_rays")),
         }
         # --ray-order morton: the (key, ray) pairs, their ping-pong copy, the sort's digit table
         self.order_buffers = {
@@ -266,7 +267,7 @@ class TraceEffectPass(Pass):
         fc.accel.gpu.bind(DEFAULT_BINDING)
         bind_lists(fc)
         for part, (name, _) in self.buffers.items():
-            fc.resource(name).bind_to_storage_buffer(SSBO[f"wave_{part}"])
+            fc.resource(name).bind_to_storage_buffer(SSBO[f"wave_{part}"])  # (wave_rays: read while counting)
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
         self.bind_extra(fc)
         if self.persistent:
@@ -276,7 +277,10 @@ class TraceEffectPass(Pass):
             fc.resource("quadtree").bind_to_storage_buffer(SSBO["quadtree_nodes"])
             set_tree_uniforms(programs["closest"], fc.gbuffer.size, fc.gbuffer.layers)
             bind_second_layer(fc)
+        # Between its own kernels the pass hands on buffers and dispatch sizes only (storage, command
+        # bits); the passes after it read its image through the graph's barrier at the pass's end.
         barrier = fc.gl.ctx.memory_barrier
+        within = moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.COMMAND_BARRIER_BIT
         fetch_slot = iter(())  # the next trace kernel's ray counter (persistent threads), per batch
 
         def order(name, items):  # the sorted (key, ray) pairs the trace kernel `name` reads
@@ -310,7 +314,7 @@ class TraceEffectPass(Pass):
                     p.run(persistent_groups(shape.capacity if items else shape.batch))
                 else:
                     p.run_indirect(wave_args, offset=16 * items)
-                barrier(moderngl.ALL_BARRIER_BITS)
+                barrier(within)
             fc.stage(name, go)
 
         one_path, bounces, chunks, hit_chunks = shape.paths_per_pixel == 1, shape.bounces, shape.chunks, shape.hit_chunks
@@ -337,6 +341,7 @@ class TraceEffectPass(Pass):
                         wave_slot_stride=shape.capacity)
             if not one_path:
                 run("finish", 0)
+        barrier(moderngl.ALL_BARRIER_BITS)
 
     def bind_extra(self, fc) -> None:
         """What a subclass binds beyond the wavefront's buffers (frame/effects/photon/shade.py: the photon
@@ -352,27 +357,37 @@ class TraceEffectPass(Pass):
 def count_rays(renderer, rig) -> dict:
     """Rays each traced effect's pass traces in one frame of `rig` (both eyes, every round), counted on
     the GPU: {effect: {"closest": reflection/path rays, "shadow": shadow rays, "pixels": its pixels
-    (the pixel list's entries of the frame's last round)}}. One frame more than the caller's: the
-    counters cost an atomic add per invocation, so timed frames leave them off."""
+    (the pixel list's entries of the frame's last round)}}. One frame more than the caller's, by the
+    trace kernels' counting variants (an atomic add per invocation: timed frames run kernels without).
+    The counters are zeroed and read back through GPU copies: the CPU never touches a buffer the
+    kernels write (the NVIDIA driver may then keep it in host memory)."""
     import numpy as np
 
     plan = renderer.plan(camera=rig.camera)
     passes = [p for p in renderer.compiled(plan).passes if isinstance(p, TraceEffectPass)]
-    zero = np.zeros(4, np.uint32).tobytes()
+    ctx = renderer.gl.ctx
     renderer.render(rig)  # the frame's resources, made or kept
+    zero = ctx.buffer(bytes(RAYS_BYTES))
+    base = RAYS_BYTES * len(passes)  # the readback: each pass's counters, then the lists' dispatch args
+    readback = ctx.buffer(reserve=base + LIST_ARGS_BYTES * list_slots())
     try:
         for p in passes:
             p.count_rays = True
-            renderer.resource(p.buffers["args"][0]).write(zero, offset=COUNTERS_OFFSET)
+            ctx.copy_buffer(renderer.resource(p.buffers["rays"][0]), zero)
         renderer.render(rig)
-        lists = np.frombuffer(renderer.resource("rt_list_args").read(), np.uint32)
+        for i, p in enumerate(passes):
+            ctx.copy_buffer(readback, renderer.resource(p.buffers["rays"][0]), write_offset=RAYS_BYTES * i)
+        ctx.copy_buffer(readback, renderer.resource("rt_list_args"), size=LIST_ARGS_BYTES * list_slots(),
+                        write_offset=base)
+        words = np.frombuffer(readback.read(), np.uint32)
         out = {}
-        for p in passes:
-            counts = np.frombuffer(renderer.resource(p.buffers["args"][0]).read(), np.uint32)
-            start = COUNTERS_OFFSET // 4
-            out[p.effect.name] = {"closest": int(counts[start]), "shadow": int(counts[start + 1]),
-                                  "pixels": int(lists[4 * p.slot + 3])}
+        for i, p in enumerate(passes):
+            closest, shadow = (int(x) for x in words[2 * i:2 * i + 2])
+            out[p.effect.name] = {"closest": closest, "shadow": shadow,
+                                  "pixels": int(words[(base + LIST_ARGS_BYTES * p.slot) // 4 + 3])}
         return out
     finally:
         for p in passes:
             p.count_rays = False
+        zero.release()
+        readback.release()

@@ -94,8 +94,8 @@ shared uint pixel_mixed[MSAA_BLOCK_W * MSAA_BLOCK_H];              // 1: the pix
 // the first sub-ray on a triangle writes that triangle's entry.
 uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint sub, uint j, bool inside) {
     // The coverage mask of this sub-ray's triangle (sub-ray i is bit i); distinct triangles are
-    // numbered in order of their first sub-ray, and only the first MSAA_SLOTS are kept (the
-    // sub-rays on the others are dropped).
+    // ranked by coverage (ties in order of first sub-ray) and only the MSAA_SLOTS most covered are
+    // kept (the sub-rays on the others are dropped: the kept share the pixel among themselves).
     uint tri = sub_tri[base + sub];
     if (sub == 0u) {
         for (uint w = 0u; w < MASK_WORDS; w++) pixel_first[MASK_WORDS * j + w] = 0u;
@@ -113,10 +113,18 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
     }
     bool first = mask_lsb(mask) == sub;
     if (first) atomicOr(pixel_first[MASK_WORDS * j + sub / 32u], 1u << (sub % 32u));
+    sub_mask[base + sub] = mask;
     barrier();
     SubMask firsts = MASK_OF_WORDS(pixel_first, MASK_WORDS * j);
-    bool kept = first && mask_count_below(firsts, sub) < uint(MSAA_SLOTS);
-    sub_mask[base + sub] = mask;
+    // The entry's rank among all the pixel's distinct triangles: its slot where it is kept.
+    uint pop = mask_count(mask), rank = 0u;
+    if (first && pixel_mixed[j] != 0u) {
+        for (SubMask m = firsts; !mask_empty(m); m = mask_drop_lsb(m)) {
+            uint k = mask_lsb(m), pk = mask_count(sub_mask[base + k]);
+            rank += uint(pk > pop || (pk == pop && k < sub));
+        }
+    }
+    bool kept = first && rank < uint(MSAA_SLOTS);
     uint coverage = kept ? msaa_coverage(mask) : 0u;
     if (kept) atomicAdd(pixel_covered[j], coverage);
     barrier();
@@ -128,13 +136,7 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
     }
     uint n = min(mask_count(firsts), uint(MSAA_SLOTS));
     if (kept) {
-        // Stored most covered first (slot 0 is the pixel's main surface, the G-buffer the frame
-        // keeps): the slot is the entry's rank among the kept, ties in order of first sub-ray.
-        uint pop = mask_count(mask), rank = 0u, seen = 0u;
-        for (SubMask m = firsts; !mask_empty(m) && seen < n; m = mask_drop_lsb(m), seen++) {
-            uint k = mask_lsb(m), pk = mask_count(sub_mask[base + k]);
-            rank += uint(pk > pop || (pk == pop && k < sub));
-        }
+        // Stored most covered first (slot 0 is the pixel's main surface, the G-buffer the frame keeps).
         uint best = msaa_representative(mask);
         uint meta = best | (rank == 0u ? (n << 8) | (pixel_covered[j] << 16) : 0u);
         HIT(rank) = uvec4(tri, coverage, meta, floatBitsToUint(sub_t[base + best]));

@@ -84,12 +84,18 @@ layout(rgba32f, binding = IMAGE_CHANNEL_WEIGHT) uniform writeonly image2DArray i
 
 // The select's weight of pixel p's entry of coverage `mine` (msaa_coverage of its mask) among its
 // `covered` (those summed): its share of the pixel's sub-rays; with CHANNEL_SAMPLES 3 each channel
-// set's share, stored in channel_weight, and the largest of them (the round skips a pixel only where all are 0).
+// set's share, stored in channel_weight, and the largest of them (the round skips a pixel only where
+// all are 0). A set none of whose sub-rays hit a kept triangle (a pixel with more than MSAA_SLOTS)
+// takes the entry's share of all three sets: its weights still sum to one.
+uint coverage_sum(uint c) { return (c & 31u) + ((c >> 5) & 31u) + ((c >> 10) & 31u); }
 float msaa_weight(ivec3 p, uint mine, uint covered) {
 #if CHANNEL_SAMPLES > 1
     vec3 w;
-    for (int c = 0; c < 3; ++c)
-        w[c] = float((mine >> (5 * c)) & 31u) / float(max((covered >> (5 * c)) & 31u, 1u));
+    float whole = float(coverage_sum(mine)) / float(max(coverage_sum(covered), 1u));
+    for (int c = 0; c < 3; ++c) {
+        uint set_covered = (covered >> (5 * c)) & 31u;
+        w[c] = set_covered > 0u ? float((mine >> (5 * c)) & 31u) / float(set_covered) : whole;
+    }
     imageStore(img_channel_weight, p, vec4(w, w.g));
     return max(max(w.r, w.g), w.b);
 #else

@@ -31,14 +31,20 @@ struct ShadowSlot {
 
 layout(std430, binding = SSBO_WAVE_PATHS) restrict buffer WavePaths { WavePath wave_paths[]; };
 layout(std430, binding = SSBO_WAVE_SHADOWS) restrict buffer WaveShadows { ShadowSlot wave_shadows[]; };
-// [0]: dispatch over the batch's pixels, [1]: over its paths; w = item count. [2]: the rays the
-// trace kernels traced, x closest hits, y shadow rays, counted by the kernels compiled with
-// WAVE_COUNT_RAYS 1 (frame/passes/trace_effect.py count_rays; the host zeroes them, prep leaves
-// them). A define, not a uniform: the timed kernels carry no trace of it, and on the H100 the
-// uniform's kernels lost the pixel events' counts after a renderer's first counting frame.
-layout(std430, binding = SSBO_WAVE_ARGS) restrict buffer WaveArgs { uvec4 wave_args[3]; };
+// [0]: dispatch over the batch's pixels, [1]: over its paths; w = item count.
+layout(std430, binding = SSBO_WAVE_ARGS) restrict buffer WaveArgs { uvec4 wave_args[2]; };
+// The rays the trace kernels traced, [0] closest hits, [1] shadow rays, counted by the kernels
+// compiled with WAVE_COUNT_RAYS 1 (frame/passes/trace_effect.py count_rays: zeroed and read back
+// through GPU copies). Neither a uniform nor the indirect-dispatch buffer the CPU reads: on the H100
+// such counters lost the pixel events' counts after a renderer's first counting frame.
 #ifndef WAVE_COUNT_RAYS
 #define WAVE_COUNT_RAYS 0
+#endif
+#if WAVE_COUNT_RAYS
+layout(std430, binding = SSBO_WAVE_RAYS) buffer WaveRays { uint wave_rays[2]; };
+#define COUNT_RAYS(kind, n) if (n != 0u) atomicAdd(wave_rays[kind], n)
+#else
+#define COUNT_RAYS(kind, n)
 #endif
 #ifndef WAVE_PERSISTENT
 #define WAVE_PERSISTENT 0

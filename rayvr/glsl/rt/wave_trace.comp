@@ -87,7 +87,7 @@ bool screen_space_hit(uint p, vec3 o, vec3 d, out uint tri, out vec2 uv, out uin
     return true;
 }
 #endif
-uint traced_rays = 0u;  // this invocation's rays (wave_args[2], while counting)
+uint traced_rays = 0u;  // this invocation's rays (wave_rays, while counting)
 
 void trace_path(uint p) {
     vec4 o = wave_paths[p].origin;
@@ -115,14 +115,14 @@ void trace_path(uint p) {
 }
 void main() {
     WAVE_FOR_EACH_RAY(k, wave_args[1].w) trace_path(wave_ray(k));
-    if (WAVE_COUNT_RAYS != 0 && traced_rays != 0u) atomicAdd(wave_args[2].x, traced_rays);
+    COUNT_RAYS(0, traced_rays);
 }
 #else
 #ifdef WAVE_FINISH
 layout(rgba16f, binding = IMAGE_HDR) uniform writeonly image2DArray hdr_out;
 #endif
 uniform uint wave_items;  // 0: the batch's pixels, 1: its paths (wave_args index)
-uint traced_rays = 0u;  // this invocation's shadow rays (wave_args[2], while counting)
+uint traced_rays = 0u;  // this invocation's shadow rays (wave_rays, while counting)
 
 // ADAPTIVE_SHADOWS 0: every slot traced in one plain loop, the kernel the pass takes where no
 // light's run can be longer than its probes (no rect light, or shadow_probes 0 or at least the
@@ -208,7 +208,7 @@ void trace_shadows(uint q) {
 }
 void main() {
     WAVE_FOR_EACH_RAY(k, wave_args[wave_items].w) trace_shadows(wave_ray(k));
-    if (WAVE_COUNT_RAYS != 0 && traced_rays != 0u) atomicAdd(wave_args[2].y, traced_rays);
+    COUNT_RAYS(1, traced_rays);
 }
 #endif
 #endif
