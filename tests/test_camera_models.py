@@ -268,6 +268,35 @@ def test_foveated_sample_counts_match_the_density_integral(gaze):
     assert (f[::-1][::64, ::64] > 0).all()
 
 
+@pytest.mark.parametrize("tangents", [None, (-1.9, 0.6, -0.7, 1.3)], ids=["symmetric", "off_axis_non_square"])
+def test_foveated_pixel_angle_is_the_root_of_the_pixels_exact_solid_angle(tangents):
+    """With one MAR everywhere (mar_slope 0) the density is (pixel angle / MAR)^2, so density x MAR^2
+    is the pixel's solid angle in square degrees: against the exact solid angle of the pixel's
+    rectangle on the image plane (the sum of atan(x y / sqrt(1 + x^2 + y^2)) over its corners),
+    independent of the model's cos^3 form. An exponent of the wrong power, or a step taken along x
+    alone (off-axis, non-square pixels), fails it."""
+    import dataclasses
+
+    mar = 8.0  # degrees: the densities stay inside (1/4096, 1), unclamped
+    model = Foveated(fovea_mar=mar, mar_slope=0.0, fovea_radius=0.0)
+    eye = rig_for(model, size=(40, 30), fov=100).eye("left")
+    if tangents is not None:
+        eye = dataclasses.replace(eye, tangents=tangents)
+    (w, h), (l, r, b, t) = eye.size, eye.tangents
+    xs, ys = l + (r - l) * np.arange(w + 1) / w, b + (t - b) * np.arange(h + 1) / h
+
+    def corner(x, y):
+        return np.arctan(x * y / np.sqrt(1 + x * x + y * y))
+    X, Y = np.meshgrid(xs, ys)  # GL rows: y grows upward
+    F = corner(X, Y)
+    solid = F[1:, 1:] - F[1:, :-1] - F[:-1, 1:] + F[:-1, :-1]  # steradians, (h, w) bottom-up
+    exact = np.degrees(np.sqrt(solid)) ** 2
+    x, y = (np.arange(w) + 0.5)[None, :], (np.arange(h) + 0.5)[:, None]
+    density = model.density_at(eye, x, y)
+    assert (density > 1 / 4096).all() and (density < 1).all()
+    np.testing.assert_allclose(density * mar ** 2, exact, rtol=2e-3)
+
+
 def test_foveated_reconstruction_fills_between_samples():
     model = Foveated(mar_slope=0.1, fovea_radius=2.0)
     eye = rig_for(model, size=(64, 48)).eye("left")
