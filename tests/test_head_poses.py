@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from rayvr.bench import head_poses as H
+from rayvr.scene import content as scene_content
 
 SHELL = {"walls", "wall_green", "wall_red", "floor", "ceiling"}  # the room's enclosing box (default_room.toml)
 CONTENT = {"glass", "box_blue", "box_white", "gold", "mirror_panel", "mirror"}  # its objects ("light": an emitter)
@@ -33,11 +34,11 @@ def _material_names(scene, mask) -> set:
 
 def test_the_room_s_walls_floor_and_ceiling_are_shell_and_its_objects_content(scene):
     assert set(scene.material_names()) == SHELL | CONTENT | {"light"}  # the test knows every material
-    shell = H.shell_triangles(scene)
+    shell = scene_content.shell_triangles(scene)
     names = np.array(scene.material_names())[scene.triangle_material]
     assert shell[np.isin(names, sorted(SHELL))].all()
     assert not shell[np.isin(names, sorted(CONTENT | {"light"}))].any()  # the mirror panel 2 cm off its wall too
-    content = H.content_triangles(scene)
+    content = scene_content.content_triangles(scene)
     assert _material_names(scene, content) == CONTENT  # the light is neither shell nor a target
 
 
@@ -46,9 +47,9 @@ def test_sponza_s_floors_and_big_walls_are_shell_and_its_pillars_and_arches_cont
     from rayvr.scene import loader
 
     sponza = loader.load(shared_scene(SCENES["sponza"][0]))
-    shell = H.shell_triangles(sponza)
+    shell = scene_content.shell_triangles(sponza)
     names = np.array(sponza.material_names())[sponza.triangle_material]
-    _, _, area = H._triangles(sponza)
+    _, _, area = scene_content.triangles(sponza)
     for m in ("floors", "outside01"):
         assert shell[names == m].all(), m
     walls = names == "walls"

@@ -9,7 +9,7 @@ apart along the head's horizontal right axis (StereoRig.eye). Poses come in two 
 
 - even indices, `content`: the head gazes at a point of the scene's content, so the pose measures
   something a user looks at. The point is drawn area-weighted over the triangles that are neither
-  the scene's enclosing shell (shell_triangles: its walls, floors and ceilings) nor emitters (a
+  the scene's enclosing shell (rayvr/scene/content.py: its walls, floors and ceilings) nor emitters (a
   light is drawn raster and its glare says nothing about the effects); it must be visible from the
   head (no triangle in between, a CPU ray cast through the scene's BVH), at least MIN_TARGET_M
   away, seen at most MAX_GRAZING_DEG from its surface's normal (a surface seen edge-on fills no
@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..frame.cameras.rig import Pose
+from ..scene.content import content_triangles, triangles
 
 POSE_SEED = 22  # the default seed: fixed, so runs on different days time the same heads
 MAX_PITCH_DEG = 20.0  # a seated or standing user looks about this far up or down while moving the head
@@ -44,18 +45,6 @@ POSE_KINDS = ("content", "random")  # pose I's kind: POSE_KINDS[I % 2]
 # they were drawn the same way (before content poses every pose was random, under the same seed).
 POSE_SCHEME = "even content, odd random"
 
-# The enclosing shell (shell_triangles): a triangle within SHELL_NORMAL_DEG of an axis lies in an
-# axis-aligned plane; the plane's area is that of the triangles facing the same way whose offsets
-# along the axis lie within SHELL_PLANE_M of its own; a plane of at least SHELL_SHARE of the
-# scene's largest plane is shell. Printed on the bench scenes: the room's floor and ceiling are
-# 64 m2, its walls 25.6 m2 (0.40), its largest other plane the mirror panel 2 cm in front of a wall
-# (3.6 m2, 0.06); Sponza's largest plane is the outer box's side (577 m2), its end walls 187-193
-# m2 (0.32-0.34), the colonnades' flat faces 173-177 m2 (0.30-0.31), the largest plane below them
-# the aisles' flat ceilings (72 m2, 0.13). Relative to the largest plane, not to the total area:
-# detailed content does not push the walls under the bar.
-SHELL_NORMAL_DEG = 5.0
-SHELL_PLANE_M = 0.005  # modelled walls are flat to well under this; the room's light hangs 1 cm below the ceiling
-SHELL_SHARE = 0.2
 # A content pose's gaze (draw_poses)
 MIN_TARGET_M = 0.75  # nearer than this a point fills the view; the eyes' parallax grows with 1 / distance
 MAX_GAZE_PITCH_DEG = 60.0
@@ -161,55 +150,6 @@ def pose_bounds(scene, name: str) -> dict:
             "z": [centre[2] - reg.span[1] * half[2], centre[2] + reg.span[1] * half[2]]}
 
 
-def _triangles(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(world vertices (T, 3, 3), unit geometric normals (T, 3), areas (T,)) of the scene's triangles."""
-    tri = scene.world_vertices()[scene.indices]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    length = np.linalg.norm(cross, axis=1)
-    return tri, cross / np.maximum(length, 1e-300)[:, None], 0.5 * length
-
-
-def plane_areas(scene) -> np.ndarray:
-    """Per triangle, the area of its axis-aligned plane (the module's SHELL_* rule), 0 for a
-    triangle in no axis-aligned plane: the same-facing triangles of its axis whose offsets along
-    it lie within SHELL_PLANE_M of its own (a window round each offset, so no plane is split at a
-    bin's edge)."""
-    tri, normal, area = _triangles(scene)
-    axis = np.argmax(np.abs(normal), axis=1)
-    rows = np.arange(len(tri))
-    along = normal[rows, axis]
-    aligned = (np.abs(along) >= math.cos(math.radians(SHELL_NORMAL_DEG))) & (area > 0)
-    offset = tri.mean(axis=1)[rows, axis]
-    out = np.zeros(len(tri))
-    for a in range(3):
-        for sign in (-1.0, 1.0):
-            mine = np.flatnonzero(aligned & (axis == a) & (np.sign(along) == sign))
-            if not len(mine):
-                continue
-            order = mine[np.argsort(offset[mine], kind="stable")]
-            sorted_off = offset[order]
-            total = np.concatenate([[0.0], np.cumsum(area[order])])
-            lo = np.searchsorted(sorted_off, sorted_off - SHELL_PLANE_M, side="left")
-            hi = np.searchsorted(sorted_off, sorted_off + SHELL_PLANE_M, side="right")
-            out[order] = total[hi] - total[lo]
-    return out
-
-
-def shell_triangles(scene) -> np.ndarray:
-    """Per triangle, whether it belongs to the scene's enclosing shell: its walls, floors and
-    ceilings, the axis-aligned planes of at least SHELL_SHARE of the largest one's area
-    (plane_areas). Everything else is the content a user looks at (furniture, pillars, arches)."""
-    planes = plane_areas(scene)
-    return planes >= SHELL_SHARE * planes.max() if planes.max() > 0 else np.zeros(len(planes), bool)
-
-
-def content_triangles(scene) -> np.ndarray:
-    """Per triangle, whether a content pose may gaze at it: neither shell nor emissive, with an area."""
-    emissive = np.array([m.is_emissive for m in scene.materials], bool)
-    _, _, area = _triangles(scene)
-    return ~shell_triangles(scene) & ~emissive[scene.triangle_material] & (area > 0)
-
-
 def _random_pose(rng, bounds: dict, index: int) -> HeadPose:
     """The next random pose of `rng`: five draws, position, yaw, pitch (the older scheme's, in its order)."""
     position = tuple(float(rng.uniform(*bounds[axis])) for axis in ("x", "y", "z"))
@@ -225,7 +165,7 @@ class _Gaze:
     def __init__(self, scene, name: str):
         from ..accel.scene import kept_scene_bvh
 
-        tri, normal, area = _triangles(scene)
+        tri, normal, area = triangles(scene)
         ok = content_triangles(scene)
         if not ok.any():
             raise ValueError(f"scene {name!r} has no content to gaze at: every triangle is its shell "
