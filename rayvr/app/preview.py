@@ -28,6 +28,7 @@ from ..scene import materials as materials_mod
 from ..gl import shaders
 from ..frame.accumulation import MAX_DENOISE_ITERATIONS, temporal_problem
 from ..frame.cameras.rig import Pose, StereoRig, save_path
+from .viewpoint import first_rig
 from ..frame.gbuffer import NO_HIT
 
 log = logging.getLogger(__name__)
@@ -421,7 +422,8 @@ class Preview:
                 self.renderer.settings = replace(self.renderer.settings, dof_diameter=dof[0], dof_focus=dof[1],
                                                  dof_samples=dof[2])
             ctx = self.ctx = self.gl.ctx
-            self.home_rig = rig or StereoRig.for_scene(self.renderer.scene, size=size, **(rig_options or {}))
+            self.home_rig = rig or (first_rig(self.renderer.scene, size, **(rig_options or {})) if look_at is None
+                                    else StereoRig.for_scene(self.renderer.scene, size=size, **(rig_options or {})))
             if look_at is not None:  # (eye, target)
                 self.home_rig = replace(self.home_rig, pose=Pose.look_at(*look_at))
             self.camera = Camera(self.home_rig, self.renderer.scene.center, self.renderer.scene.extent)

@@ -210,11 +210,14 @@ def rig_keywords(args, camera) -> dict:
 
 
 def rig_from_args(args, scene, camera):
+    """--pose's rig, else the scene's first view (app/viewpoint.py: inside an interior)."""
+    from ..app.viewpoint import first_rig
     from ..frame.cameras.rig import Pose, StereoRig
 
+    if not args.pose:
+        return first_rig(scene, args.size, **rig_keywords(args, camera))
     rig = StereoRig.for_scene(scene, size=args.size, **rig_keywords(args, camera))
-    if args.pose:
-        rig.pose = Pose.look_at(args.pose[:3], args.pose[3:])
+    rig.pose = Pose.look_at(args.pose[:3], args.pose[3:])
     return rig
 
 

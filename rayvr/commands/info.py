@@ -57,6 +57,18 @@ def known(value) -> str:
     return "unknown" if value is None else str(value)
 
 
+def view_facts(scene) -> dict:
+    """Where the scene is first seen from (app/viewpoint.py): its bounds, whether it encloses its
+    centre, and the first view's pose in --pose syntax."""
+    from ..app.viewpoint import SceneView, first_rig, first_view, pose_argument
+
+    view = SceneView(scene)
+    how, _ = first_view(scene)
+    met, facing = view.enclosed_shares()
+    return {"bounds": [list(map(float, b)) for b in scene.bounds], "rays_met": met, "rays_facing": facing,
+            "encloses": view.encloses(), "first_view": how, "first_pose": pose_argument(first_rig(scene, (64, 64)).pose)}
+
+
 def cmd_info(args) -> int:
     from ..gl.context import create_context
 
@@ -78,7 +90,7 @@ def cmd_info(args) -> int:
         {"index": i, "name": m.name, "effect": a.effect, "rule": a.rule, "params": a.params}
         for i, (m, a) in enumerate(zip(s.materials, assigned))],
         "lights": [{"kind": l.kind, "source": l.source} for l in s.lights],
-        "unmatched_config_keys": cfg.unmatched(s.material_names())}
+        "unmatched_config_keys": cfg.unmatched(s.material_names()), **view_facts(s)}
     if args.json:
         print(json.dumps(info, indent=1, default=str))
         return 0
@@ -93,6 +105,11 @@ def cmd_info(args) -> int:
         print(f"  {'yes' if v else 'no ':3s} {k}")
     if "scene" in info:
         print(info["scene"]["summary"])
+        v = info["scene"]
+        lo, hi = (", ".join(f"{x:.4g}" for x in b) for b in v["bounds"])
+        print(f"bounds    ({lo}) to ({hi}); encloses its centre: {'yes' if v['encloses'] else 'no'} "
+              f"(of rays from it {v['rays_met']:.0%} meet a surface, {v['rays_facing']:.0%} one facing them)")
+        print(f"first view {v['first_view']}: --pose {v['first_pose']}")
         for m in info["scene"]["materials"]:
             print(f"  [{m['index']:3d}] {m['name']:24s} -> {m['effect']:12s} ({m['rule']})")
         for key in info["scene"]["unmatched_config_keys"]:

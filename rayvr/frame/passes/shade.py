@@ -32,8 +32,9 @@ def _rgb(name: str):
     return convert
 
 
-AMBIENT = declare(Option("ambient", tuple, (0.03, 0.03, 0.03), "ambient light every material adds (linear RGB)",
-                         scope="material", metavar="R,G,B", convert=_rgb("ambient")))
+AMBIENT = declare(Option("ambient", tuple, (0.03, 0.03, 0.03), "ambient light every material adds (linear RGB; "
+                         "raise it to see an interior away from its lights)",
+                         scope="material", metavar="R,G,B", convert=_rgb("ambient"), commands=("capture", "preview")))
 BACKGROUND = declare(Option("background", tuple, (0.02, 0.02, 0.025), "radiance where no surface is (linear RGB)",
                             scope="material", metavar="R,G,B", convert=_rgb("background"),
                             commands=("capture", "preview")))
