@@ -16,6 +16,7 @@ from rayvr.scene.loader import Light, Material, from_arrays
 from rayvr.scene.materials import parse_config
 
 RIG = StereoRig(Pose.look_at((0, 3.0, 2.0), (0, 0, 0)), ipd=0.1, fov_y=60, size=(48, 32))
+OTHER = StereoRig(Pose.look_at((1.0, 2.0, 2.5), (0, 0, -1)), ipd=0.1, fov_y=60, size=(48, 32))
 
 
 def scene():
@@ -44,12 +45,23 @@ def test_each_floor_pixel_casts_one_shadow_ray_on_every_counting_frame(gl):
         r.render(RIG)  # a timed frame between counting ones
         counts.append(count_rays(r, RIG)["shadows"])
         again = r.render(RIG, aux=("hdr",))
-    for c in counts:
-        assert c == {"closest": 0, "shadow": n, "pixels": n}, counts
-    # the counting kernels trace what the timed ones do: the frames after counting are the same image
+        r.render(OTHER)
+        passes = [p for p in r.compiled(r.plan(camera=RIG.camera)).passes if isinstance(p, TraceEffectPass)]
+        for p in passes:
+            p.count_rays = True
+        counting = r.render(RIG, aux=("hdr",))
+        for p in passes:
+            p.count_rays = False
+    # the counting kernels trace what the timed ones do: a counting frame, and the frames after
+    # counting, are the image of a frame that never counted (at another pose in between, so that a
+    # kernel that did not run would leave the other pose's image)
     for a, b in ((frame.left, again.left), (frame.right, again.right)):
         np.testing.assert_array_equal(a.aux["hdr"], b.aux["hdr"])
         assert a.aux["hdr"].max() > 0.05  # a lit floor, not an empty comparison
+    for a, b in ((frame.left, counting.left), (frame.right, counting.right)):
+        np.testing.assert_array_equal(a.aux["hdr"], b.aux["hdr"])
+    for c in counts:
+        assert c == {"closest": 0, "shadow": n, "pixels": n}, counts
 
 
 def test_each_mirror_pixel_casts_one_reflection_ray(gl):
