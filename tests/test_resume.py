@@ -228,3 +228,15 @@ def test_a_shipped_config_is_known_by_name_and_content_not_by_where_the_checkout
     shutil.copy(shipped, own)
     ident = file_identity(own)
     assert ident["path"] == str(own.resolve()) and {"bytes", "mtime_ns"} <= set(ident)
+
+
+def test_a_resume_with_every_frame_written_says_there_was_nothing_to_write(tmp_path, capsys):
+    """Not "wrote 0 files" (issue 46 item 9): the folder holds every frame already."""
+    out = tmp_path / "o"
+    assert capture(out) == 0
+    capsys.readouterr()
+    assert main(["capture", "--frames", "3", "--size", SIZE, "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert f"nothing to write: {out}/ holds all 3 frame(s) (both eye(s)) already" in said and "wrote 0" not in said
+    assert "frames: 0 written, 3 skipped" in said
+

@@ -335,6 +335,15 @@ def test_capture_budget_mode_records_the_choice(tmp_path):
     assert pick["assignment"]["mirror"] != "raster"
 
 
+def test_the_budget_mode_says_when_its_timings_are_a_software_rasterizers(gl, tmp_path):
+    """On llvmpipe (CI) the budget's milliseconds are no GPU's: capture says so before it spends
+    its time; on a GPU it says nothing of the kind (issue 46 item 3)."""
+    run = run_rayvr("capture", "--size", "16x12", "--budget-ms", "1e6", "--out", tmp_path, timeout=900)
+    assert run.returncode == 0, run.stderr[-3000:]
+    said = "is a software rasterizer: the budget's GPU timings do not measure a GPU here" in run.stdout
+    assert said == gl.is_software, run.stdout[:2000]
+
+
 def test_reference_and_variants_draw_different_samples():
     """A variant that shared the reference's seed would share its noise and score too well
     (16-sample variants beat 32-sample ones): the reference has a seed of its own, nothing else."""

@@ -114,7 +114,10 @@ def capture_poses(args, rig, scene):
 def print_capture(args, summary, summary_path, scene_summary) -> None:
     if not args.quiet:
         print(scene_summary)
-        print(f"wrote {len(summary['files'])} files to {args.out}/ ({summary['frames']} frame(s), {args.eye} eye(s))")
+        if summary["files"] or not summary.get("skipped"):
+            print(f"wrote {len(summary['files'])} files to {args.out}/ ({summary['frames']} frame(s), {args.eye} eye(s))")
+        else:  # a resume that found every frame written
+            print(f"nothing to write: {args.out}/ holds all {summary['frames']} frame(s) ({args.eye} eye(s)) already")
         counts = [f"{summary[k]} {k}" for k in ("written", "skipped", "retried", "failed") if k in summary]
         print("frames: " + ", ".join(counts))
     if args.timings:
@@ -182,6 +185,10 @@ def cmd_capture(args) -> int:
             from ..quality.budget import describe_pick, pick_toml
             from ..quality.frame_budget import auto_config
 
+            if r.gl.is_software and not args.quiet:
+                print(f"note: {r.gl.info()['renderer']} is a software rasterizer: the budget's GPU timings do not "
+                      f"measure a GPU here, so its pick (and whether it fits {args.budget_ms:.2f} ms) says nothing "
+                      f"about a headset's GPU; it takes a while on a CPU")
             config, pick = auto_config(r, rig, args.budget_ms, progress=not args.quiet, grid=grid)
             r.set_materials(config)
             if grid:  # the frame-wide knobs it picked: render options and samples per pixel
