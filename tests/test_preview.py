@@ -830,3 +830,30 @@ def test_budget_mode_picks_at_start_on_k_and_when_the_view_changes(worker):
     assert out["key"] == 2
     assert out["moved"] == 3  # moved and settled (SETTLE_S 0 here): one pick, not one per frame
     assert out["default"] == "shadows"  # the pick renders
+
+
+def test_a_refused_first_config_says_what_renders_instead_and_file_writes_reach_the_terminal(tmp_path, caplog, capsys):
+    """Issue 46 item 8: a first config that does not load keeps no "previous" one (every material
+    renders raster until it loads); a refused config after a good one keeps that one. A message that
+    names files written (a screenshot, a camera path) is printed, not only shown on the HUD."""
+    import logging
+    from types import SimpleNamespace
+
+    from rayvr.app.preview import Preview
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text('default = "warp9"\n')
+    state = SimpleNamespace(materials_path=bad, _config_stamp=None, config_error=None, config_loaded=False)
+    with caplog.at_level(logging.WARNING, logger="rayvr.app.preview"):
+        assert Preview.poll_config(state, force=True)
+    assert "every material raster until the file loads" in caplog.text and "previous" not in caplog.text
+    caplog.clear()
+    state.config_loaded = True
+    with caplog.at_level(logging.WARNING, logger="rayvr.app.preview"):
+        assert Preview.poll_config(state, force=True)
+    assert "keeping the previous material config" in caplog.text
+    Preview.say(state, "screenshot: out/preview_0001_* (3 files)", wrote=True)
+    Preview.say(state, "stereo: warp")
+    printed = capsys.readouterr().out
+    assert "rayvr preview: screenshot: out/preview_0001_* (3 files)" in printed and "stereo" not in printed
+    assert state.message == "stereo: warp"

@@ -108,7 +108,9 @@ class Camera:
         self.position = np.array(rig.pose.position, dtype=np.float64)
         self.yaw, self.pitch = _yaw_pitch(rig.pose.rotation)
         self.ipd, self.convergence = rig.ipd, rig.convergence
-        self.speed = self.extent * 0.25  # scene units per second
+        # scene units per second: a tenth of the scene's diagonal, about a walk (1.2 m/s) in the room;
+        # a quarter crossed the room in 2 s (the wheel changes it)
+        self.speed = self.extent * 0.1
         self.distance = max(float(np.linalg.norm(self.position - self.center)), self.extent * 1e-3)
 
     @property
@@ -441,7 +443,8 @@ class Preview:
             self.gl.release()
             raise
         self.materials_path = Path(materials) if materials else None
-        self.file_config = materials_mod.MaterialConfig()
+        self.file_config = materials_mod.MaterialConfig()  # every material raster until a config loads
+        self.config_loaded = False  # whether a config file has loaded (a refused one then keeps it)
         self.quadtree_preset = 0
         self.config_error: str | None = None
         self._config_stamp = None
@@ -532,9 +535,11 @@ class Preview:
         except materials_mod.ConfigError as exc:
             # Keep rendering with the last good config; the HUD shows why the file was refused.
             self.config_error = str(exc)
-            log.warning("%s (keeping the previous material config)", exc)
+            kept = ("keeping the previous material config" if self.config_loaded
+                    else "every material raster until the file loads")
+            log.warning("%s (%s)", exc, kept)
             return True
-        self.file_config, self.config_error = config, None
+        self.file_config, self.config_error, self.config_loaded = config, None, True
         self._apply_materials()
         self.say(f"material config loaded: {self.materials_path.name}")
         return True
@@ -583,9 +588,14 @@ class Preview:
                  + ("" if users else "; no material uses ssr (O overrides every material)"))
 
     # -- actions ------------------------------------------------------------------------
-    def say(self, text: str, seconds: float = MESSAGE_SECONDS) -> None:
+    def say(self, text: str, seconds: float = MESSAGE_SECONDS, wrote: bool = False) -> None:
+        """Show `text` on the HUD for `seconds`; `wrote`: it names files written, so the terminal
+        says it too (a screenshot or a path lands in a folder the window does not show)."""
         self.message, self._message_until = text, time.perf_counter() + seconds
-        log.info("%s", text)
+        if wrote:
+            print(f"rayvr preview: {text}", flush=True)
+        else:
+            log.info("%s", text)
 
     def _do(self, action: str) -> None:
         if action == "vsync":
@@ -613,7 +623,8 @@ class Preview:
         if not poses:
             return None
         save_path(self.path_file, poses, fps=RECORD_FPS, ipd=self.camera.ipd, fov_y=self.home_rig.fov_y)
-        self.say(f"camera path saved: {self.path_file} ({len(poses)} poses; rayvr capture --path {self.path_file})")
+        self.say(f"camera path saved: {self.path_file} ({len(poses)} poses; rayvr capture --path {self.path_file})",
+                 wrote=True)
         return self.path_file
 
     def screenshot(self, window_image: np.ndarray | None, layout: Layout) -> list[Path]:
@@ -637,7 +648,7 @@ class Preview:
             write_png(p, window_image)
             files.append(p)
         self.last_files = files
-        self.say(f"screenshot: {self.out_dir}/{prefix}_* ({len(files)} files)")
+        self.say(f"screenshot: {self.out_dir}/{prefix}_* ({len(files)} files)", wrote=True)
         return files
 
     # -- the frame ----------------------------------------------------------------------
