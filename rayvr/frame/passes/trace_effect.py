@@ -267,7 +267,7 @@ class TraceEffectPass(Pass):
         fc.accel.gpu.bind(DEFAULT_BINDING)
         bind_lists(fc)
         for part, (name, _) in self.buffers.items():
-            fc.resource(name).bind_to_storage_buffer(SSBO[f"wave_{part}"])  # (wave_rays: read while counting)
+            fc.resource(name).bind_to_storage_buffer(SSBO[f"wave_{part}"])  # (wave_rays: the counting kernels add to it)
         fc.resource("hdr").bind_to_image(IMAGE["hdr"], read=False, write=True)
         self.bind_extra(fc)
         if self.persistent:
