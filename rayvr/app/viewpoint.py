@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ..frame.cameras.rig import Pose, StereoRig
-from ..scene.content import content_triangles, triangles
+from ..scene.content import content_triangles, draw_points, triangles
 
 VIEW_RAYS = 128
 ENCLOSED_HITS, FACING_SHARE = 0.9, 0.5
@@ -99,11 +99,7 @@ class SceneView:
             return None
         ids = np.flatnonzero(ok)
         cdf = np.cumsum(self.area[ids])
-        rng = np.random.default_rng(0)
-        pick = ids[np.minimum(np.searchsorted(cdf / cdf[-1], rng.random(GAZE_DRAWS)), len(ids) - 1)]
-        r1, r2 = np.sqrt(rng.random(GAZE_DRAWS)), rng.random(GAZE_DRAWS)
-        t = self.tri[pick]
-        points = (1 - r1)[:, None] * t[:, 0] + (r1 * (1 - r2))[:, None] * t[:, 1] + (r1 * r2)[:, None] * t[:, 2]
+        _, points = draw_points(self.tri, ids, cdf / cdf[-1], np.random.default_rng(0), GAZE_DRAWS)
         d = points - head
         dist = np.linalg.norm(d, axis=1)
         unit = d / np.maximum(dist, 1e-300)[:, None]

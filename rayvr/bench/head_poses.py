@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..frame.cameras.rig import Pose
-from ..scene.content import content_triangles, triangles
+from ..scene.content import content_triangles, draw_points, triangles
 
 POSE_SEED = 22  # the default seed: fixed, so runs on different days time the same heads
 MAX_PITCH_DEG = 20.0  # a seated or standing user looks about this far up or down while moving the head
@@ -178,11 +178,7 @@ class _Gaze:
 
     def points(self, rng, n: int) -> tuple[np.ndarray, np.ndarray]:
         """(triangle ids, points) of `n` points drawn uniformly over the content's area."""
-        ids = self.ids[np.minimum(np.searchsorted(self.cdf, rng.random(n)), len(self.ids) - 1)]
-        r1, r2 = np.sqrt(rng.random(n)), rng.random(n)
-        t = self.tri[ids]
-        return ids, ((1 - r1)[:, None] * t[:, 0] + (r1 * (1 - r2))[:, None] * t[:, 1]
-                     + (r1 * r2)[:, None] * t[:, 2])
+        return draw_points(self.tri, self.ids, self.cdf, rng, n)
 
     def visible(self, heads: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Whether the first surface on the ray from each head towards its point is the point's."""

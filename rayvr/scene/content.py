@@ -69,3 +69,14 @@ def content_triangles(scene) -> np.ndarray:
     emissive = np.array([m.is_emissive for m in scene.materials], bool)
     _, _, area = triangles(scene)
     return ~shell_triangles(scene) & ~emissive[scene.triangle_material] & (area > 0)
+
+
+def draw_points(tri: np.ndarray, ids: np.ndarray, cdf: np.ndarray, rng, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(triangle ids, points) of `n` points drawn uniformly over the area of triangles `ids` of `tri`
+    ((T, 3, 3) world vertices), `cdf` their normalized cumulative areas: a triangle by area, then a
+    point in it (three draws of `rng` each, in this order: seeded poses depend on it)."""
+    pick = ids[np.minimum(np.searchsorted(cdf, rng.random(n)), len(ids) - 1)]
+    r1, r2 = np.sqrt(rng.random(n)), rng.random(n)
+    t = tri[pick]
+    return pick, ((1 - r1)[:, None] * t[:, 0] + (r1 * (1 - r2))[:, None] * t[:, 1] + (r1 * r2)[:, None] * t[:, 2])
+
