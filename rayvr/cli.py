@@ -75,6 +75,14 @@ def run_command(argv=None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="rayvr: %(message)s")
     notice = None
+    if getattr(args, "device", None) is not None:
+        from .gl.context import EGL_DEVICE_ENV
+
+        if getattr(args, "workers", None) or getattr(args, "address", None):
+            print(f"rayvr {args.command}: error: --device picks one GPU for this process; with --workers or "
+                  f"--address each Ray worker takes the GPU Ray gives it: leave out --device", file=sys.stderr)
+            return 2
+        os.environ[EGL_DEVICE_ENV] = str(args.device)  # every headless context of the command takes it
     if args.command in ROOM_COMMANDS:
         from .scene.defaults import materials_for
 

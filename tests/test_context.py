@@ -243,3 +243,27 @@ def test_a_frame_whose_passes_all_read_0_ns_on_a_gpu_is_an_error(gl, monkeypatch
             r.render(rig)
         monkeypatch.setattr(r.graph, "read_ms", lambda fc: {k: max(v, 1e-3) for k, v in real(fc).items()})
         assert np.asarray(r.render(rig).left.color).any()
+
+
+def test_device_picks_the_egl_device_by_index_and_refuses_one_that_is_not_there(tmp_path):
+    """--device N (RAYVR_EGL_DEVICE) renders on EGL device N, which `rayvr info` lists; a device
+    that does not exist is one line naming the devices there are, with no fallback to OSMesa; it
+    does not go with Ray workers, which each take the GPU Ray gives them (issue 46 item 5)."""
+    from conftest import run_rayvr
+    from rayvr.gl.context import egl_devices
+
+    devices = egl_devices()
+    info = run_rayvr("info")
+    assert info.returncode == 0 and "EGL devices (--device N)" in info.stdout
+    for d in devices:
+        assert f"  {d.describe()}" in info.stdout
+    last = len(devices) - 1
+    ok = run_rayvr("capture", "--device", last, "--size", "16x12", "--out", tmp_path / "a", "-q")
+    assert ok.returncode == 0, ok.stderr
+    missing = run_rayvr("capture", "--device", len(devices), "--size", "16x12", "--out", tmp_path / "b", "-q")
+    assert missing.returncode == 2 and len(missing.stderr.strip().splitlines()) == 1, missing.stderr
+    assert f"--device {len(devices)}: there is no EGL device {len(devices)}" in missing.stderr
+    assert "0: " in missing.stderr and "osmesa" not in missing.stderr.lower()
+    assert not (tmp_path / "b").exists() or not any((tmp_path / "b").iterdir())
+    workers = run_rayvr("capture", "--device", 0, "--workers", 2, "--out", tmp_path / "c")
+    assert workers.returncode == 2 and "leave out --device" in workers.stderr

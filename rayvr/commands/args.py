@@ -126,6 +126,13 @@ def budget_grid(args, given: dict, frame_knobs: tuple[str, ...]) -> list | None:
     return grid
 
 
+def add_device_argument(p) -> None:
+    """--device N: the EGL device (GPU) every headless context of the command takes (cli.py applies it)."""
+    p.add_argument("--device", type=count(0, 63), metavar="N",
+                   help="the EGL device (GPU) to render on, by its index in `rayvr info`'s list (default: "
+                        "the driver's first; the environment variable RAYVR_EGL_DEVICE does the same)")
+
+
 def add_pose_arguments(g) -> None:
     """Where the rig stands and how its eyes look (capture, preview: rig_keywords reads them)."""
     # --pose, not --camera: the camera model is --camera-model (the old spelling still works)

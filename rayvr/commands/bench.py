@@ -9,7 +9,7 @@ from .. import settings as settings_mod
 from ..accel.bvh import BUILDS
 from ..gl.gpu_layout import BVH_LAYOUTS
 from .args import FOV, FRAMES, add_camera_model_arguments, add_connect_timeout_argument, camera_from_args
-from .args import count as _count, size as _size
+from .args import add_device_argument, count as _count, size as _size
 
 COMMAND = "bench"
 REPEAT = _count(1, 100_000)  # bench --repeat: timed frames per measurement
@@ -198,6 +198,7 @@ def add_parser(sub) -> None:
     add_connect_timeout_argument(b)
     b.add_argument("--frames", type=FRAMES, default=64, help="workers: frames of the capture path (default 64)")
     b.add_argument("--backend", choices=("egl", "osmesa"))
+    add_device_argument(b)
     b.add_argument("--fov", type=FOV, help="primary: vertical field of view of the --camera-model row")
     b.add_argument("--configs", type=_names,
                    help="primary: the bench views' rows to measure, comma-separated, alone (default: the paper's "

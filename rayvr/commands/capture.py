@@ -74,6 +74,7 @@ def add_parser(sub) -> None:
                                    "against a reference; overrides --materials' effects); the pick is printed as a "
                                    "config to save")
     c.add_argument("--backend", choices=("egl", "osmesa"), help="headless GL backend (default: egl, then osmesa)")
+    shared.add_device_argument(c)
     c.add_argument("-q", "--quiet", action="store_true")
     shared.add_rig_arguments(c)
     shared.add_render_arguments(c, COMMAND)

@@ -15,6 +15,7 @@ def add_parser(sub) -> None:
     i.add_argument("scene", nargs="?", help="also list this scene's materials and their effects")
     i.add_argument("--materials", help="material-ID config to apply to the scene")
     i.add_argument("--backend", choices=("egl", "osmesa"))
+    shared.add_device_argument(i)
     i.add_argument("--json", action="store_true")
     i.add_argument("--graph", nargs="?", const="text", choices=("text", "dot"),
                    help="print the compiled frame graph (passes in order, why each runs, resources); "
@@ -57,6 +58,16 @@ def known(value) -> str:
     return "unknown" if value is None else str(value)
 
 
+def egl_device_list() -> list[str]:
+    """The EGL devices as --device numbers them ([] where EGL cannot enumerate them)."""
+    from ..gl.context import ContextError, egl_devices
+
+    try:
+        return [d.describe() for d in egl_devices()]
+    except ContextError:
+        return []
+
+
 def view_facts(scene) -> dict:
     """Where the scene is first seen from (app/viewpoint.py): its bounds, whether it encloses its
     centre, and the first view's pose in --pose syntax."""
@@ -79,6 +90,7 @@ def cmd_info(args) -> int:
         info = gl.info()
     finally:
         gl.release()
+    info["egl_devices"] = egl_device_list()
     # the scene's materials and their effects: the built-in room's (with its own config) when none is named
     from ..scene import materials, loader as scene
     from ..scene.defaults import materials_for
@@ -100,6 +112,10 @@ def cmd_info(args) -> int:
     print("limits")
     for k, v in info["limits"].items():
         print(f"  {k:40s} {known(v)}")
+    if info.get("egl_devices"):
+        print("EGL devices (--device N)")
+        for line in info["egl_devices"]:
+            print(f"  {line}")
     print("extensions rayvr uses")
     for k, v in info["extensions"].items():
         print(f"  {'yes' if v else 'no ':3s} {k}")

@@ -390,7 +390,10 @@ def _egl_proc_loader() -> Callable[[str], int | None]:
 # devices in its own order (software devices included). EGL_NV_device_cuda says which CUDA device
 # an EGL device is, which is what ties the two together.
 EGL_EXTENSIONS, EGL_CUDA_DEVICE_NV = 0x3055, 0x323A
-EGL_DEVICE_ENV = "RAYVR_EGL_DEVICE"  # an explicit EGL device index wins over the mapping
+EGL_VENDOR, EGL_RENDERER_EXT, EGL_DRM_DEVICE_FILE_EXT = 0x3053, 0x335F, 0x3233  # a device's name, where told
+# An explicit EGL device index (rayvr's --device sets it): every headless context of the process takes
+# that device, and it wins over the CUDA_VISIBLE_DEVICES mapping.
+EGL_DEVICE_ENV = "RAYVR_EGL_DEVICE"
 
 
 @dataclass(frozen=True)
@@ -398,10 +401,20 @@ class EglDevice:
     index: int  # position in eglQueryDevicesEXT's list: moderngl's `device_index`
     extensions: str
     cuda: int | None  # the CUDA device ordinal EGL_NV_device_cuda reports (None: no answer)
+    name: str = ""  # EGL_EXT_device_query_name's renderer (and vendor), else its DRM file, else ""
 
     @property
     def nvidia(self) -> bool:
         return "EGL_NV_device_cuda" in self.extensions.split()
+
+    @property
+    def software(self) -> bool:
+        return "EGL_MESA_device_software" in self.extensions.split()
+
+    def describe(self) -> str:
+        """"1: NVIDIA H100 ... (CUDA device 0)": as rayvr info lists it, the index --device takes."""
+        name = self.name or ("a software rasterizer" if self.software else "unnamed")
+        return f"{self.index}: {name}" + (f" (CUDA device {self.cuda})" if self.cuda is not None else "")
 
 
 def egl_devices() -> list[EglDevice]:
@@ -426,8 +439,32 @@ def egl_devices() -> list[EglDevice]:
         if query_attrib and "EGL_NV_device_cuda" in ext.split() and query_attrib(handles[i], EGL_CUDA_DEVICE_NV,
                                                                                ctypes.byref(value)):
             cuda = int(value.value)
-        out.append(EglDevice(i, ext, cuda))
+        names = []
+        for enum, needs in ((EGL_RENDERER_EXT, "EGL_EXT_device_query_name"), (EGL_VENDOR, "EGL_EXT_device_query_name"),
+                            (EGL_DRM_DEVICE_FILE_EXT, "EGL_EXT_device_drm")):
+            text = query_string(handles[i], enum) if needs in ext.split() else None
+            if text and text.decode(errors="replace") not in names:
+                names.append(text.decode(errors="replace"))
+        out.append(EglDevice(i, ext, cuda, ", ".join(names[:2])))
     return out
+
+
+def chosen_egl_device(env=None, check: bool = True) -> int | None:
+    """RAYVR_EGL_DEVICE's EGL device index (--device), with `check` one of the devices there are; None unset."""
+    env = os.environ if env is None else env
+    text = env.get(EGL_DEVICE_ENV, "").strip()
+    if not text:
+        return None
+    try:
+        index = int(text)
+    except ValueError:
+        raise ContextError(f"{EGL_DEVICE_ENV} must be an EGL device index (--device N), got {text!r}") from None
+    devices = egl_devices() if check else []
+    if check and not 0 <= index < len(devices):
+        listed = "; ".join(d.describe() for d in devices) or "none"
+        raise ContextError(f"--device {index}: there is no EGL device {index}; the devices are {listed} "
+                           f"(rayvr info lists them)")
+    return index
 
 
 def egl_device_for_gpu(devices: list[EglDevice], gpu: str, visible: list[str]) -> int | None:
@@ -465,10 +502,7 @@ def assigned_egl_device(env=None, devices=None) -> int | None:
     None without either (the driver's default device)."""
     env = os.environ if env is None else env
     if env.get(EGL_DEVICE_ENV, "").strip():
-        try:
-            return int(env[EGL_DEVICE_ENV])
-        except ValueError:
-            raise ContextError(f"{EGL_DEVICE_ENV} must be an EGL device index, got {env[EGL_DEVICE_ENV]!r}") from None
+        return chosen_egl_device(env, check=False)  # (the context it makes says if there is no such device)
     visible = [v.strip() for v in env.get("CUDA_VISIBLE_DEVICES", "").split(",") if v.strip()]
     if not visible:
         return None
@@ -551,17 +585,20 @@ def create_osmesa_context(size: tuple[int, int] = (16, 16)) -> GLContext:
 def create_context(backend: str | None = None, device_index: int | None = None) -> GLContext:
     """A headless context. `backend` is 'egl', 'osmesa' or None (try each; env RAYVR_GL_BACKEND)."""
     backend = backend or os.environ.get("RAYVR_GL_BACKEND") or None
-    order = [backend] if backend else list(HEADLESS_BACKENDS)
+    # a device asked for by index is an EGL device: no other backend stands in for it
+    order = [backend] if backend else (["egl"] if os.environ.get(EGL_DEVICE_ENV, "").strip() else list(HEADLESS_BACKENDS))
     failures = []
     for name in order:
         try:
             if name == "egl":
-                return create_egl_context(device_index)
+                return create_egl_context(chosen_egl_device() if device_index is None else device_index)
             if name == "osmesa":
                 return create_osmesa_context()
             raise ContextError(f"unknown backend {name!r}; choose one of {', '.join(HEADLESS_BACKENDS)}")
         except ContextError as exc:
             failures.append(f"  - {exc}")
+    if len(failures) == 1:  # one backend tried: one line
+        raise ContextError(f"no OpenGL 4.3 core context could be made: {failures[0].strip()[2:]}")
     raise ContextError("no OpenGL 4.3 core context could be made:\n" + "\n".join(failures))
 
 
