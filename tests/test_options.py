@@ -4,6 +4,7 @@ RenderSettings field and its validation, the CLI flag of each command that offer
 options reach the FramePlan (the compiled graphs' key), the others never do."""
 import dataclasses
 import json
+import re
 import warnings
 
 import pytest
@@ -271,3 +272,14 @@ def test_background_is_a_flag_by_its_declaration_alone(tmp_path):
     assert bad.returncode == 2 and bad.stderr.splitlines() == [
         "rayvr capture: error: argument --background: background must be 3 finite numbers R,G,B (linear), "
         "got (1.0, 0.0) (see rayvr capture -h)"]
+
+
+@pytest.mark.parametrize("command", ["capture", "preview", "info", "bench", "options"])
+def test_help_names_no_issue_and_no_device_run(command, capsys):
+    """What a user reads speaks of the product, not of the lab (issue 44 item 4): no issue numbers,
+    no GPU a run happened on (the measured choices name their runs in their own files)."""
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert not re.search(r"\b[Ii]ssues? #?\d+", text), re.search(r".{60}[Ii]ssues? #?\d+.{20}", text)
+    assert not re.search(r"\bH[12]00\b", text), re.search(r".{60}H[12]00.{20}", text)

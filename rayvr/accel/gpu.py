@@ -96,8 +96,8 @@ def traversal_value(value) -> tuple[str, str, str]:
 
 TRAVERSAL = declare_option(Option(
     "traversal", tuple, DEFAULT_TRAVERSAL, "BVH node layout of the traced rays: one for all (bvh2, bvh4, bvh8, cwbvh) or per "
-    "ray kind, e.g. primary=bvh8,shadow=bvh4,reflect=bvh2; kinds not named keep the default (the fastest on the "
-    "H200; bvh2 is the reference)", scope="plan", plan_field="traversal", metavar="LAYOUTS", convert=traversal_value,
+    "ray kind, e.g. primary=bvh8,shadow=bvh4,reflect=bvh2; kinds not named keep the default (the fastest "
+    "measured; bvh2 is the reference)", scope="plan", plan_field="traversal", metavar="LAYOUTS", convert=traversal_value,
     commands=("capture", "preview", "bench")))
 
 

@@ -310,7 +310,7 @@ def targets(rows: list) -> list:
 def markdown(result: dict, plot_note: str | None = None) -> str:
     meta, rows = result["meta"], result["rows"]
     size = "x".join(map(str, meta["per_eye_size"]))
-    lines = ["# rayvr bench gi: global illumination (issue 11)", "",
+    lines = ["# rayvr bench gi: global illumination", "",
              f"{meta.get('gl_renderer')} ({meta.get('gl_version')}), 2x{size} stereo, scenes "
              f"{', '.join(meta['scenes'])}, {meta['repeat']} timed frames a setting, {meta['date']}; parts run: "
              f"{', '.join(meta['parts_run'])}; {meta['seconds'].get('total', 0):.0f} s so far." +
@@ -320,7 +320,7 @@ def markdown(result: dict, plot_note: str | None = None) -> str:
         lines += [f"Kept: {meta['kept_rows']}.", ""]
     if meta.get("skipped"):
         lines += ["Skipped scenes: " + "; ".join(f"{k}: {v}" for k, v in meta["skipped"].items()), ""]
-    lines += ["## Targets (issue 11: the H200 at 2x1440x1600)", "", "| target | where | measured | verdict |",
+    lines += ["## Targets (set for a GPU at 2x1440x1600)", "", "| target | where | measured | verdict |",
               "|---|---|---|---|"]
     lines += [f"| {' | '.join(t)} |" for t in targets(rows)]
     lines.append("")

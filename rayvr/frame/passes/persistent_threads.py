@@ -16,7 +16,7 @@ PERSISTENT_MODES = ("off", "on")
 PERSISTENT = declare(Option(
     "persistent", str, "off", "on: the wavefront's trace kernels run as persistent work groups that fetch batches of "
     "rays from an atomic counter (Aila and Laine 2009); off: one invocation per ray (the same images; within 1 % "
-    "of each other on the H200)", scope="plan", plan_field="persistent", choices=PERSISTENT_MODES,
+    "of each other where measured)", scope="plan", plan_field="persistent", choices=PERSISTENT_MODES,
     label="persistent mode",
     commands=("capture", "preview", "info")))
 

@@ -86,7 +86,7 @@ PRIMARY = declare(Option("primary", str, "raster", "primary visibility: the rast
 TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visibility culls the BVH per tile of "
                               "pixels first (--tile-size; a frustum over every sub-ray, lens point and channel of "
                               "the tile; the same hits, exact) and walks the binary layout; auto: where it measured "
-                              "faster on the H200 "
+                              "faster "
                               "(rayvr/assets/primary_visibility.json: every camera model but foveated, with block "
                               "culling); bench primary: each rays row without and with it",
                               scope="plan", plan_field="tile_culling", auto=True,
@@ -96,7 +96,7 @@ TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visi
 BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary visibility with tile culling first "
                                "cuts the BVH per block of tiles (--block-tiles; HVVR's block beams: a frustum over "
                                "the tiles' frusta), and each tile's cut starts from its block's entries instead of "
-                               "the root (the same hits, exact); auto: where it measured faster on the H200 "
+                               "the root (the same hits, exact); auto: where it measured faster "
                                "(rayvr/assets/primary_visibility.json: every camera model but foveated)",
                                scope="plan", plan_field="block_culling", auto=True,
                                implies=(("tile_culling", True),), commands=("capture", "preview", "info", "bench")))
@@ -162,7 +162,7 @@ SHARE_CHANNELS = declare(Option("share_channel_shading", bool, None, "a chromati
                                 "per distinct triangle its sets' rays hit, each channel taking its own share "
                                 "(HVVR's shared shading: the approximation and its error are in docs/design.md; "
                                 "--msaa up to 16); false: every channel set cast and shaded on its own; auto: "
-                                "up to --msaa 8, where it measured faster on the H200",
+                                "up to --msaa 8, where it measured faster",
                                 scope="plan", plan_field="share_channels", auto=True,
                                 commands=("capture", "preview", "info", "bench")))
 # Shared channel shading by default up to this --msaa: faster than the sets apart at 1x, 4x and 8x (H200,

@@ -26,8 +26,8 @@ from .radix_sort import RadixSort, table_words
 RAY_ORDERS = ("none", "morton")
 RAY_ORDER = declare_option(Option(
     "ray_order", str, "none", "the order the wavefront traces its rays in: none (as shaded) or morton (sorted by "
-    "direction octant and origin cell before each trace kernel; the same images, slower on the H200: its sort "
-    "costs more than it saves, bench/results/h200/2026-12-04/final/ray_order)",
+    "direction octant and origin cell before each trace kernel; the same images, slower where measured: its "
+    "sort costs more than it saves)",
     scope="plan", plan_field="ray_order", choices=RAY_ORDERS, label="ray order",
     commands=("capture", "preview", "info")))
 
