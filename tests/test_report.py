@@ -56,6 +56,9 @@ def test_write_json_and_markdown(tmp_path):
     md = paths["md"].read_text()
     lines = md.splitlines()
     assert lines[0] == "# tradeoff"
+    # llvmpipe's timings are said to be no GPU's before anything else; the table before the meta
+    assert lines[2].startswith("**A software rasterizer (llvmpipe)")
+    assert lines.index("## The run") > max(i for i, ln in enumerate(lines) if ln.startswith("|"))
     assert "- **scene**: cornell_box" in lines
     assert "- **settings.bounces**: 2" in lines
     table = [ln for ln in lines if ln.startswith("|")]

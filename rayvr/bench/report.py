@@ -207,11 +207,13 @@ def _flatten(d: dict, prefix: str = "") -> dict:
 
 
 def markdown(name: str, result: dict) -> str:
-    """The markdown text: a title, meta as a list, then the rows as a table."""
+    """The markdown text: a title, a warning where the timings are a software rasterizer's, the rows
+    as a table, then the run's meta as a list (what a reader looks for first comes first)."""
+    meta = result.get("meta", {})
     lines = [f"# {name}", ""]
-    for k, v in _flatten(result.get("meta", {})).items():
-        lines.append(f"- **{k}**: {_fmt(v)}")
-    lines.append("")
+    if meta.get("timings_meaningful") is False or "llvmpipe" in str(meta.get("gl_renderer", "")):
+        lines += [f"**A software rasterizer ({meta.get('gl_renderer', 'no GPU')}): its GL timer queries do not "
+                  "measure GPU work; the ms, and whatever is chosen by them, are for correctness only.**", ""]
     rows = result.get("rows", [])
     cols: list[str] = []
     for r in rows:  # union of keys, in first-seen order
@@ -223,6 +225,9 @@ def markdown(name: str, result: dict) -> str:
             lines.append("| " + " | ".join(_fmt(r.get(c)) for c in cols) + " |")
     else:
         lines.append("(no rows)")
+    lines += ["", "## The run", ""]
+    for k, v in _flatten(meta).items():
+        lines.append(f"- **{k}**: {_fmt(v)}")
     return "\n".join(lines) + "\n"
 
 
