@@ -27,7 +27,7 @@ BENCH_USERS = {"rayvr.commands.bench"}
 # below, never one above. A module or package is placed by its longest listed prefix; a new module
 # must be placed (the test says so).
 LAYERS = (
-    # the packages of tools/relayout.py's layout: their __init__ imports nothing
+    # the packages: their __init__ imports nothing
     ("rayvr.gl", "rayvr.util", "rayvr.scene", "rayvr.frame", "rayvr.reference", "rayvr.quality", "rayvr.app"),
     ("rayvr.gl.glsl_constants", "rayvr.options"),
     ("rayvr.gl.gpu_layout",),
