@@ -857,3 +857,21 @@ def test_a_refused_first_config_says_what_renders_instead_and_file_writes_reach_
     printed = capsys.readouterr().out
     assert "rayvr preview: screenshot: out/preview_0001_* (3 files)" in printed and "stereo" not in printed
     assert state.message == "stereo: warp"
+
+
+def test_the_hud_covers_at_most_a_third_of_a_small_window_keeping_what_matters():
+    """Issue 46 item 8: at small sizes the HUD covered two thirds of the window. It is cut to a third:
+    the frame time first, the coloured lines (an error, a message) kept before the plain ones, and a last
+    line that says how many were left out; a tall window shows everything."""
+    from rayvr.app.preview import hud_fitted
+
+    white, red, dim = (1, 1, 1, 1), (1, 0.35, 0.3, 1), (0.7, 0.7, 0.7, 1)
+    lines = [("12.0 ms/frame", white)] + [(f"info {i}", white) for i in range(6)] + \
+        [("config error: warp9", red), ("H: help", dim)]
+    assert hud_fitted(lines, 1000, 14) == lines
+    small = hud_fitted(lines, 90, 14)  # 30 px: two lines' room, at least the first and the help line
+    assert [t for t, _ in small] == ["12.0 ms/frame", "H: help   (7 lines more in a larger window)"]
+    mid = hud_fitted(lines, 180, 14)  # 60 px: four lines
+    assert [t for t, _ in mid] == ["12.0 ms/frame", "info 0", "config error: warp9",  # kept in their order
+                                   "H: help   (5 lines more in a larger window)"]
+    assert len(mid) * 14 <= 180 / 3 + 14

@@ -392,6 +392,24 @@ def _wrap(text: str, width_px: int, measure) -> list[str]:
 
 # ------------------------------------------------------------------------------ window
 
+HUD_SHARE = 1 / 3  # of the window's height the HUD panel may cover; a help line tells what is cut
+
+
+def hud_fitted(lines: list, height: int, line_height: int) -> list:
+    """`lines` ((text, rgba) each, first the frame time, last "H: help") cut to HUD_SHARE of a window
+    `height` pixels tall: the first line, the coloured ones (errors, recording, messages, the budget)
+    and as many of the others as fit, in their order; the last line says how many were left out."""
+    fits = max(2, int(height * HUD_SHARE) // max(int(line_height), 1))
+    if len(lines) <= fits:
+        return lines
+    white = (1, 1, 1, 1)
+    body = lines[1:-1]
+    ranked = sorted(range(len(body)), key=lambda i: (tuple(body[i][1]) == white, i))
+    keep = sorted(ranked[:max(fits - 2, 0)])
+    cut = len(body) - len(keep)
+    return [lines[0], *[body[i] for i in keep], (f"H: help   ({cut} lines more in a larger window)", lines[-1][1])]
+
+
 class Preview:
     """The preview window around a `Renderer`. `run()` loops until the window closes;
     `frame()` renders one frame (tests drive it directly)."""
@@ -826,7 +844,7 @@ class Preview:
         hud = self.hud
         hud.set_window_size(fb)  # the font follows the window
         if self.state.hud and not self.state.help:
-            hud.panel(MARGIN, MARGIN, self.hud_lines(layout, fb), pad=PAD)
+            hud.panel(MARGIN, MARGIN, hud_fitted(self.hud_lines(layout, fb), fb[1], hud.line_height), pad=PAD)
         if self.state.help:
             place = help_layout(fb, KEYS, hud.font_size, hud.measure)
             hud.use_font_size(place.font_size)
