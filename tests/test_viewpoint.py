@@ -43,7 +43,7 @@ def view_axis_hits(scene, pose) -> int:
 def test_a_room_is_seen_from_inside_at_eye_height_gazing_at_its_content():
     room = scene_of(ROOM_WALLS + cube((2.0, 0.5, -1.5), 0.5))
     view = SceneView(room)
-    met, facing = view.enclosed_shares()
+    met, facing = view.enclosed_shares
     assert met == 1.0 and facing == 1.0 and view.encloses()
     how, pose = first_view(room)
     assert how == "inside"
@@ -63,7 +63,7 @@ def test_an_object_or_an_open_box_is_seen_from_outside(parts, why):
     scene = scene_of(parts)
     view = SceneView(scene)
     assert not view.encloses(), why
-    met, facing = view.enclosed_shares()
+    met, facing = view.enclosed_shares
     assert (met, facing) == ((1.0, 0.0) if len(parts) == 6 else (met, met)) and (len(parts) == 6 or met < 0.9)
     how, pose = first_view(scene)
     assert how == "outside" and pose is None

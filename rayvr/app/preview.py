@@ -393,6 +393,7 @@ def _wrap(text: str, width_px: int, measure) -> list[str]:
 # ------------------------------------------------------------------------------ window
 
 HUD_SHARE = 1 / 3  # of the window's height the HUD panel may cover; a help line tells what is cut
+HUD_WHITE = (1, 1, 1, 1)  # the HUD's plain lines; the coloured ones (errors, messages) are kept first when cut
 
 
 def hud_fitted(lines: list, height: int, line_height: int) -> list:
@@ -402,9 +403,8 @@ def hud_fitted(lines: list, height: int, line_height: int) -> list:
     fits = max(2, int(height * HUD_SHARE) // max(int(line_height), 1))
     if len(lines) <= fits:
         return lines
-    white = (1, 1, 1, 1)
     body = lines[1:-1]
-    ranked = sorted(range(len(body)), key=lambda i: (tuple(body[i][1]) == white, i))
+    ranked = sorted(range(len(body)), key=lambda i: (tuple(body[i][1]) == HUD_WHITE, i))
     keep = sorted(ranked[:max(fits - 2, 0)])
     cut = len(body) - len(keep)
     return [lines[0], *[body[i] for i in keep], (f"H: help   ({cut} lines more in a larger window)", lines[-1][1])]
@@ -798,7 +798,7 @@ class Preview:
         from .hud import text_width_for
 
         s, cam = self.state, self.camera
-        white, dim, red, yellow = (1, 1, 1, 1), (0.7, 0.7, 0.7, 1), (1, 0.35, 0.3, 1), (1, 0.85, 0.3, 1)
+        white, dim, red, yellow = HUD_WHITE, (0.7, 0.7, 0.7, 1), (1, 0.35, 0.3, 1), (1, 0.85, 0.3, 1)
         fps = 1000.0 / self.frame_ms if self.frame_ms > 0 else 0.0
         lines = [(f"{self.frame_ms:6.1f} ms/frame  {fps:5.1f} fps   {self.gl_name}", white)]
         gpu = "  ".join(f"{k} {v:.2f}" for k, v in self.timings.items())

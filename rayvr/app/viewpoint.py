@@ -10,6 +10,7 @@ of its own), the Cornell boxes 0.84-0.86 / the same (one side open: their classi
 outside, through it), the duck and the damaged helmet 1.0 / 0.0."""
 from __future__ import annotations
 
+import functools
 import logging
 import math
 
@@ -57,6 +58,7 @@ class SceneView:
         hit = np.isfinite(t) & (prim >= 0) & (prim < len(self.tri))
         return np.where(hit, prim, -1), np.where(hit, t, np.inf)
 
+    @functools.cached_property
     def enclosed_shares(self) -> tuple[float, float]:
         """The shares of VIEW_RAYS rays from the bounds' centre that meet a surface, and one facing them."""
         d = sphere_directions(VIEW_RAYS)
@@ -69,7 +71,7 @@ class SceneView:
     def encloses(self) -> bool:
         if not len(self.tri):
             return False
-        met, facing = self.enclosed_shares()
+        met, facing = self.enclosed_shares
         return met >= ENCLOSED_HITS and facing >= FACING_SHARE
 
     def inside_pose(self) -> Pose | None:
@@ -109,19 +111,20 @@ class SceneView:
         return points[int(np.argmax(ok))] if ok.any() else None
 
 
-def first_view(scene) -> tuple[str, Pose | None]:
-    """(how the scene is first seen: "its camera", "inside" or "outside", the inside pose or None)."""
+def first_view(scene, view: SceneView | None = None) -> tuple[str, Pose | None]:
+    """(how the scene is first seen: "its camera", "inside" or "outside", the inside pose or None);
+    `view`: the scene's SceneView where the caller has one."""
     if scene.camera is not None:
         return "its camera", None
-    view = SceneView(scene)
+    view = view or SceneView(scene)
     pose = view.inside_pose() if view.encloses() else None
     return ("inside", pose) if pose is not None else ("outside", None)
 
 
-def first_rig(scene, size, **kw) -> StereoRig:
-    """The rig a scene is first seen through (the module's rule); `kw` as StereoRig's. -v logs its
-    pose in --pose syntax."""
-    how, pose = first_view(scene)
+def first_rig(scene, size, first: tuple | None = None, **kw) -> StereoRig:
+    """The rig a scene is first seen through (the module's rule; `first`: first_view's answer where
+    the caller has it); `kw` as StereoRig's. -v logs its pose in --pose syntax."""
+    how, pose = first or first_view(scene)
     if pose is not None:
         kw.setdefault("near", max(scene.extent * 1e-4, 1e-6))
         rig = StereoRig(pose=pose, size=size, **kw)

@@ -74,10 +74,11 @@ def view_facts(scene) -> dict:
     from ..app.viewpoint import SceneView, first_rig, first_view, pose_argument
 
     view = SceneView(scene)
-    how, _ = first_view(scene)
-    met, facing = view.enclosed_shares()
+    first = first_view(scene, view)
+    met, facing = view.enclosed_shares
     return {"bounds": [list(map(float, b)) for b in scene.bounds], "rays_met": met, "rays_facing": facing,
-            "encloses": view.encloses(), "first_view": how, "first_pose": pose_argument(first_rig(scene, (64, 64)).pose)}
+            "encloses": view.encloses(), "first_view": first[0],
+            "first_pose": pose_argument(first_rig(scene, (64, 64), first).pose)}
 
 
 def cmd_info(args) -> int:

@@ -239,8 +239,8 @@ class TraceEffectPass(Pass):
                 self.programs[name + every] = shaders.compute(self.ctx, *self.trace_sources[name + every])
         if not self.count_rays:
             return self.programs
-        for name in self.programs:
-            if name in TRACE_KERNELS and name not in self.counting:
+        for name in ("closest", "shadow" + every, "shadow_finish" + every):  # the trace kernels this frame runs
+            if name not in self.counting:
                 source, defines = self.trace_sources[name]
                 self.counting[name] = shaders.compute(self.ctx, source, {**defines, "WAVE_COUNT_RAYS": 1})
         return {name: self.counting.get(name, p) for name, p in self.programs.items()}
