@@ -177,7 +177,7 @@ class Renderer:
                          block_culling=blocks, **(primary_rays.tile_shape(st, camera.name, blocks) if culled else {}),
                          share_channels=primary == "rays" and primary_rays.shares_channels(
                              st, camera, samples, self.effects_in_use(), view),
-                         shading_slots=st.shading_slots,
+                         shading_slots=st.shading_slots, shading_merge=st.shading_merge,
                          channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots,
                          light_picks=st.light_picks, ray_order=st.ray_order, persistent=st.persistent == "on")
 

@@ -155,21 +155,27 @@ def test_msaa_frames_run_one_shading_round_per_distinct_triangle(gl, room):
     assert set(timings) >= {"primary_rays", "gbuffer", "shade", "sample_accumulate", "sample_resolve", "tonemap"}
 
 
-@pytest.mark.parametrize("n, kept", [(4, 8), (32, 8), (8, 2)])
-def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n, kept):
+@pytest.mark.parametrize("n, kept, merge", [(4, 8, "triangle"), (4, 8, "surface"), (32, 8, "triangle"),
+                                            (8, 2, "triangle"), (8, 2, "surface")])
+def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n, kept, merge):
     """The MSAA trace (one invocation per sub-ray, merged per pixel in shared memory; a 30x22 or
     18x14 image leaves partial pixel blocks) against passes/primary_rays.msaa_lists over numpy
     traces of the model's own sub-rays: the same distinct triangles, coverages, counts and
     order; the representative sub-ray is one nearest the mean offset of the sub-rays numpy saw on
     its triangle, its distance that sub-ray's. 32 sub-rays at the smaller size: numpy traces each of
     them. With shading_slots 2 (`kept`) a pixel keeps its two most covered triangles, wherever
-    their first sub-rays fall."""
+    their first sub-rays fall. With shading_merge "surface" an entry is a smooth surface's sub-rays
+    at one depth (the mirror sphere's many triangles in a pixel make one entry): numpy merges by
+    scene/surfaces.py's surfaces, and makes fewer entries than by triangle where a pixel sees the
+    sphere's or torus's triangles."""
     from rayvr.frame.cameras.sampling import subsamples
     from rayvr.frame.passes.primary_rays import msaa_lists
+    from rayvr.scene.surfaces import surface_groups
 
     (w, h), slots = (30, 22) if n < 32 else (18, 14), min(n, kept)
     rig = StereoRig(ROOM_POSE, ipd=0.064, fov_y=90, size=(w, h), near=1e-3)
-    with Renderer(room, gl=gl, settings=RenderSettings(msaa=n, shading_slots=kept)) as r:
+    surfaces = surface_groups(room.vertices, room.indices, room.triangle_material) if merge == "surface" else None
+    with Renderer(room, gl=gl, settings=RenderSettings(msaa=n, shading_slots=kept, shading_merge=merge)) as r:
         r.record(rig)
         r.gl.ctx.finish()
         got = np.frombuffer(r.resource("msaa_hits").read(), np.uint32).reshape(slots, 2, h, w, 4)
@@ -184,7 +190,11 @@ def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n, ke
             tris.append(np.asarray(prim, np.uint32).reshape(h, w)[::-1])
             ts.append(np.asarray(t, np.float32).reshape(h, w)[::-1])
         sub_tris = np.stack(tris, -1)
-        ref = msaa_lists(sub_tris, np.stack(ts, -1), offsets, slots)
+        ref = msaa_lists(sub_tris, np.stack(ts, -1), offsets, slots, surfaces=surfaces)
+        if merge == "surface":  # the smooth objects' triangles merged: fewer entries than by triangle
+            by_triangle = msaa_lists(sub_tris, np.stack(ts, -1), offsets, slots)
+            fewer = (ref[0, ..., 2] >> 8) < (by_triangle[0, ..., 2] >> 8)
+            assert fewer.sum() >= 3, fewer.sum()
         mine = got[:, e]
         count = (mine[0, ..., 2] >> 8) & 255
         assert count.max() >= 2 and (count >= 1).all()  # edges in view; every pixel has its list
@@ -197,6 +207,9 @@ def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n, ke
         for y, x in zip(*np.nonzero(same)):
             for k in range(count[y, x]):
                 tri, _, meta, tbits = (int(v) for v in mine[k, y, x])
+                if merge == "surface":  # the entry's sub-rays are the numpy merge's: its representative
+                    assert meta & 255 == ref[k, y, x, 2] & 255
+                    continue
                 bits = [i for i in range(n) if sub_tris[y, x, i] == tri]
                 dist = ((offsets[bits] - offsets[bits].mean(0)) ** 2).sum(1)
                 best = meta & 255

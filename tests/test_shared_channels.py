@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rayvr.scene.surfaces import surface_groups
 from rayvr.frame.cameras import Distorted, Pinhole
 from rayvr.frame.graph import SHARED_CHANNEL
 from rayvr.frame.passes import primary_rays
@@ -56,8 +57,9 @@ def test_each_distinct_triangle_of_a_pixel_is_shaded_once_for_the_channels_on_it
     """One sub-ray per colour channel set, cast together: every channel shows the shading of the
     triangle its own ray hits, made at the first set's ray that hits it (green's where green's does):
     a numpy composite of three single-set frames; channels that hit other triangles than green's
-    keep their own shading, as the frame that shades every set apart has it."""
-    shared, tri = frame(room, CHROMATIC)
+    keep their own shading, as the frame that shades every set apart has it. Merged by triangle: by
+    smooth surface (the default) a channel on the sphere's next triangle takes the first set's shading."""
+    shared, tri = frame(room, CHROMATIC, shading_merge="triangle")
     assert room.plan(camera=CHROMATIC).share_channels
     expected, per_set = expected_shared(room, CHROMATIC)
     assert np.array_equal(shared, expected)
@@ -91,6 +93,7 @@ def test_shared_msaa_lists_merge_every_sets_sub_rays(room, n):
     got = np.frombuffer(room.resource("msaa_hits").read(), np.uint32).reshape(slots, 2, h, w, 4)
     scene = room.scene
     bvh = build_bvh(scene.vertices, scene.indices)
+    surfaces = surface_groups(scene.vertices, scene.indices, scene.triangle_material)
     offsets = np.tile(subsamples(n)[0], (3, 1))
     agree = []
     for e, eye in enumerate(rig.eyes()):
@@ -102,7 +105,8 @@ def test_shared_msaa_lists_merge_every_sets_sub_rays(room, n):
                                                 rays.directions.reshape(-1, 3), tmin=rig.near)
                 tris.append(np.asarray(prim, np.uint32).reshape(h, w)[::-1])
                 ts.append(np.asarray(t, np.float32).reshape(h, w)[::-1])
-        ref = primary_rays.msaa_lists(np.stack(tris, -1), np.stack(ts, -1), offsets, slots, channel_blocks=3)
+        ref = primary_rays.msaa_lists(np.stack(tris, -1), np.stack(ts, -1), offsets, slots, channel_blocks=3,
+                                      surfaces=surfaces)   # the default merge: by smooth surface
         mine = got[:, e]
         count = (mine[0, ..., 2] >> 8) & 255
         used = np.arange(slots)[:, None, None] < count[None]

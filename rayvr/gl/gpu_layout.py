@@ -49,6 +49,7 @@ CHANNELS = (
 # Shader storage buffer bindings.
 SSBO = {
     "triangle_material": 0, "materials": 1, "lights": 2, "vertices": 3, "indices": 4,
+    "triangle_surface": 5,  # scene/gpu_scene.py: each triangle's smooth surface (scene/surfaces.py), for the MSAA merge
     "picked": 7,  # preview: the texel under the cursor
     "bvh_nodes": 8, "bvh_triangles": 9,  # accel/gpu.py (batch tracers may use other bases)
     "rt_lists": 10, "rt_list_args": 11,  # frame/passes/classify.py

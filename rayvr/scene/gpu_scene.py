@@ -9,6 +9,7 @@ from ..gl.gpu_layout import LIGHT_KINDS, SSBO
 from .light_selection import pick_table
 from .loader import Light, Scene
 from .materials import Assignment
+from .surfaces import surface_groups
 
 MATERIAL_DTYPE = np.dtype([("base_color", "<f4", 4), ("emission", "<f4", 4), ("metallic", "<f4"),
                            ("roughness", "<f4"), ("texture_layer", "<i4"), ("effect", "<u4"),
@@ -95,6 +96,16 @@ class GpuScene:
         self.materials = ctx.buffer(material_records(scene, assignments, self.texture_layers))
         self.lights = ctx.buffer(light_records(scene))
         self.assignments = assignments
+        self.triangle_surface = None  # made on first use (surfaces)
+
+    def surfaces(self):
+        """The buffer of each triangle's smooth surface (scene/surfaces.py), for the MSAA merge; made
+        when a frame first merges by surface (the scene's geometry as loaded)."""
+        if self.triangle_surface is None:
+            scene = self.scene
+            groups = surface_groups(scene.vertices, scene.indices, scene.triangle_material)
+            self.triangle_surface = self.ctx.buffer(groups if len(groups) else np.zeros(1, np.uint32))
+        return self.triangle_surface
 
     def upload_vertices(self) -> None:
         """Re-upload the scene's (moved) vertices; same count and layout."""
@@ -142,5 +153,6 @@ class GpuScene:
         return layers, tex
 
     def release(self) -> None:
-        for obj in (self.vbo, self.ibo, self.triangle_material, self.materials, self.lights, self.textures):
+        for obj in (self.vbo, self.ibo, self.triangle_material, self.materials, self.lights, self.textures,
+                    *([self.triangle_surface] if self.triangle_surface is not None else [])):
             obj.release()

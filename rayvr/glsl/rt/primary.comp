@@ -10,8 +10,8 @@
 // PRIMARY_MODE 1 (MSAA, trace): all CAMERA_SUBRAYS sub-rays, one invocation each (a workgroup
 //   is a block of MSAA_BLOCK_W x MSAA_BLOCK_H pixels times their sub-rays); then the pixel's sub-rays
 //   merge their hits from shared memory, each invocation its own (msaa_merge): the distinct
-//   triangles (the background counts as one) with their coverage masks go to msaa_hits, most
-//   covered first, at most MSAA_SLOTS; the largest count of any pixel to msaa_count (at most one
+//   triangles, or smooth surfaces (rt/same_surface.glsl; the background counts as one), with their
+//   coverage masks go to msaa_hits, most covered first, at most MSAA_SLOTS; the largest count of any pixel to msaa_count (at most one
 //   atomic per workgroup). frame/passes/primary_rays.py msaa_lists is the numpy twin of the merge.
 //   (On the H200 the merge by one invocation per pixel was 30 % of the 16x trace: room 8.25 -> 5.76
 //   ms with every lane merging, bench/results/h200/2026-12-02/msaa_merge; the ~80 ms frames of an
@@ -47,13 +47,15 @@ layout(local_size_x = PIXEL_TILE, local_size_y = PIXEL_TILE, local_size_z = 1) i
 #include "../common/camera.glsl"
 #include "../common/round_skip.glsl"
 #include "primary_ray.glsl"
+#include "same_surface.glsl"
 #define MSAA_OUT (PRIMARY_MODE != 0)
 #include "primary_out.glsl"
 #if PRIMARY_MODE == 1
 // The workgroup's largest count: at most one global atomic per workgroup, not one per pixel.
 shared uint group_count;
-shared uint sub_tri[MSAA_GROUP];   // each sub-ray's triangle (BVH_MISS: background) and distance,
-shared float sub_t[MSAA_GROUP];    //   pixel-major: the block's pixel j has entries j * N .. j * N + N - 1
+shared uint sub_tri[MSAA_GROUP];   // each sub-ray's triangle (BVH_MISS: background), distance and
+shared float sub_t[MSAA_GROUP];    //   surface (rt/same_surface.glsl), pixel-major: the block's pixel j
+shared uint sub_surface[MSAA_GROUP];  // has entries j * N .. j * N + N - 1
 #endif
 uniform int subsample;  // PRIMARY_MODE 0
 uniform int msaa_round;  // PRIMARY_MODE 2
@@ -83,40 +85,54 @@ void cast_primary(ivec3 p, ivec2 size, bool valid, vec3 o, vec3 d, inout Hit h) 
 #endif
 }
 #if PRIMARY_MODE == 1
-shared SubMask sub_mask[MSAA_GROUP];                              // each sub-ray's triangle's coverage mask
+shared SubMask sub_mask[MSAA_GROUP];                              // each sub-ray's links, then its entry's coverage mask
 shared uint pixel_first[MSAA_BLOCK_W * MSAA_BLOCK_H * MASK_WORDS]; // the first sub-ray on each distinct triangle
 shared uint pixel_covered[MSAA_BLOCK_W * MSAA_BLOCK_H];            // sub-rays on the kept triangles
-shared uint pixel_mixed[MSAA_BLOCK_W * MSAA_BLOCK_H];              // 1: the pixel's sub-rays hit more than one
+shared uint pixel_mixed[MSAA_BLOCK_W * MSAA_BLOCK_H];              // 1: the pixel's sub-rays make more than one entry
 
 // The sample at pixel p, block pixel j, whose sub-rays' hits are sub_tri/sub_t[base ..]: its
-// distinct triangles to msaa_hits; their number. Every invocation of the group calls it, each for
-// its own sub-ray `sub` (all lanes work: one lane per pixel merging alone left 15 of 16 idle at 16x):
-// the first sub-ray on a triangle writes that triangle's entry.
+// entries to msaa_hits; their number. Every invocation of the group calls it, each for its own
+// sub-ray `sub` (all lanes work: one lane per pixel merging alone left 15 of 16 idle at 16x): the
+// first sub-ray of an entry writes it, with the triangle its representative sub-ray hit.
 uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint sub, uint j, bool inside) {
-    // The coverage mask of this sub-ray's triangle (sub-ray i is bit i); distinct triangles are
-    // ranked by coverage (ties in order of first sub-ray) and only the MSAA_SLOTS most covered are
-    // kept (the sub-rays on the others are dropped: the kept share the pixel among themselves).
-    uint tri = sub_tri[base + sub];
+    // The coverage mask of this sub-ray's entry (sub-ray i is bit i): the sub-rays linked to it
+    // (rt/same_surface.glsl: on one triangle, or with MSAA_MERGE_SURFACES one surface at one
+    // depth), directly or through others; entries are ranked by coverage (ties in order of first
+    // sub-ray) and only the MSAA_SLOTS most covered are kept (the sub-rays on the others are
+    // dropped: the kept share the pixel among themselves).
+    uint tri = sub_tri[base + sub], surface = sub_surface[base + sub];
+    float t = sub_t[base + sub];
     if (sub == 0u) {
         for (uint w = 0u; w < MASK_WORDS; w++) pixel_first[MASK_WORDS * j + w] = 0u;
         pixel_covered[j] = 0u;
     }
-    if (tri != sub_tri[base]) pixel_mixed[j] = 1u;  // (main zeroed it before the trace's barrier)
+    if (!same_surface(sub_tri[base], sub_surface[base], sub_t[base], tri, surface, t))
+        pixel_mixed[j] = 1u;  // (main zeroed it before the trace's barrier)
     barrier();
-    // Most pixels see one triangle: their mask is every sub-ray's, with no walk over the pixel's
-    // sub-rays (O(N) a lane: at 48 sub-rays a large share of the merge).
+    // Most pixels' sub-rays all link to the first: their mask is every sub-ray's, with no walk over
+    // the pixel's sub-rays (O(N) a lane: at 48 sub-rays a large share of the merge).
     SubMask mask = MASK_ALL;
-    if (pixel_mixed[j] != 0u) {
+    if (pixel_mixed[j] != 0u) {  // the sub-rays linked to this one directly
         mask = MASK_NONE;
         for (uint k = 0u; k < uint(CAMERA_SUBRAYS); k++)
-            if (sub_tri[base + k] == tri) mask |= MASK_BIT(k);
+            if (same_surface(sub_tri[base + k], sub_surface[base + k], sub_t[base + k], tri, surface, t))
+                mask |= MASK_BIT(k);
+        sub_mask[base + sub] = mask;
     }
+    barrier();
+    if (pixel_mixed[j] != 0u) {  // grown by its members' links until it holds its whole entry
+        for (SubMask grown = mask;; mask = grown) {
+            for (SubMask m = mask; !mask_empty(m); m = mask_drop_lsb(m)) grown |= sub_mask[base + mask_lsb(m)];
+            if (mask_same(grown, mask)) break;
+        }
+    }
+    barrier();  // every lane has read the links before the masks replace them
     bool first = mask_lsb(mask) == sub;
     if (first) atomicOr(pixel_first[MASK_WORDS * j + sub / 32u], 1u << (sub % 32u));
     sub_mask[base + sub] = mask;
     barrier();
     SubMask firsts = MASK_OF_WORDS(pixel_first, MASK_WORDS * j);
-    // The entry's rank among all the pixel's distinct triangles: its slot where it is kept.
+    // The entry's rank among all the pixel's entries: its slot where it is kept.
     uint pop = mask_count(mask), rank = 0u;
     if (first && pixel_mixed[j] != 0u) {
         for (SubMask m = firsts; !mask_empty(m); m = mask_drop_lsb(m)) {
@@ -139,7 +155,7 @@ uint msaa_merge(ivec3 p, ivec2 size, uint index, uint pixels, uint base, uint su
         // Stored most covered first (slot 0 is the pixel's main surface, the G-buffer the frame keeps).
         uint best = msaa_representative(mask);
         uint meta = best | (rank == 0u ? (n << 8) | (pixel_covered[j] << 16) : 0u);
-        HIT(rank) = uvec4(tri, coverage, meta, floatBitsToUint(sub_t[base + best]));
+        HIT(rank) = uvec4(sub_tri[base + best], coverage, meta, floatBitsToUint(sub_t[base + best]));
     }
     return n;
 }
@@ -178,6 +194,7 @@ void main() {
     cast_primary(p, size, valid, o, d, h);
     sub_tri[lid] = h.prim;
     sub_t[lid] = h.t;
+    sub_surface[lid] = surface_of(h.prim);
     barrier();
     uint n = msaa_merge(p, size, index, pixels, j * uint(CAMERA_SUBRAYS), sub, j, inside);
     if (inside && sub == 0u) atomicMax(group_count, n);

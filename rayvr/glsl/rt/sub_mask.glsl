@@ -30,6 +30,8 @@ uint mask_drop_lsb(uint m) { return m & (m - 1u); }
 uvec2 mask_drop_lsb(uvec2 m) { return m.x != 0u ? uvec2(m.x & (m.x - 1u), m.y) : uvec2(0u, m.y & (m.y - 1u)); }
 bool mask_empty(uint m) { return m == 0u; }
 bool mask_empty(uvec2 m) { return (m.x | m.y) == 0u; }
+bool mask_same(uint a, uint b) { return a == b; }
+bool mask_same(uvec2 a, uvec2 b) { return all(equal(a, b)); }
 // The bits of m below bit k.
 uint mask_count_below(uint m, uint k) { return k >= 32u ? uint(bitCount(m)) : uint(bitCount(m & ((1u << k) - 1u))); }
 uint mask_count_below(uvec2 m, uint k) {

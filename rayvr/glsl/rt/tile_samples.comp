@@ -65,6 +65,7 @@ layout(local_size_x = SAMPLE_GROUP) in;
 #include "primary_ray.glsl"
 #define MSAA_OUT (SAMPLE_MODE == 1)
 #include "primary_out.glsl"
+#include "same_surface.glsl"
 
 #if SAMPLE_MODE == 1
 #define PIXEL_RAYS CAMERA_SUBRAYS
@@ -101,7 +102,7 @@ uniform int subsample;  // SAMPLE_MODE 0
 #if SAMPLE_MODE == 1
 // The MSAA list of pixel p from its sub-rays' hits (sub_tri, sub_t of invocation lid), as
 // rt/primary.comp's msaa_merge makes it (frame/passes/primary_rays.py msaa_lists, its numpy twin):
-// the distinct triangles (the background counts as one) in order of their first sub-ray, the first
+// the entries (rt/same_surface.glsl; the background counts as one) in order of their first sub-ray, the first
 // MSAA_SLOTS kept (sub-rays on the others dropped), stored most covered first (ties in order of first
 // sub-ray), each with its coverage and the sub-ray nearest its coverage mask's mean footprint offset
 // (the first of equally near ones), whose distance it keeps. Returns their number.
@@ -113,22 +114,27 @@ uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
         HIT(0) = uvec4(BVH_MISS, 0u, 0u, 0u);  // no sample at this pixel (foveated): an empty list, filled for display
         return 0u;
     }
-    uint ids[MSAA_SLOTS];
     SubMask masks[MSAA_SLOTS];
     uint n = 0u;
+    SubMask placed = MASK_NONE;  // sub-rays in an entry already (or dropped with one past MSAA_SLOTS)
     for (uint k = 0u; k < uint(PIXEL_RAYS); ++k) {
-        uint tri = sub_tri[SUB(k)];
-        bool known = false;
-        for (uint s = 0u; s < n; ++s)
-            if (ids[s] == tri) {
-                masks[s] |= MASK_BIT(k);
-                known = true;
+        if (!mask_empty(placed & MASK_BIT(k))) continue;
+        // a new entry: every sub-ray linked to k (rt/same_surface.glsl), directly or through others
+        SubMask entry = MASK_BIT(k), frontier = entry;
+        while (!mask_empty(frontier)) {
+            uint m = mask_lsb(frontier), tri = sub_tri[SUB(m)], surface = surface_of(tri);
+            frontier = mask_drop_lsb(frontier);
+            for (uint o = k + 1u; o < uint(PIXEL_RAYS); ++o) {
+                uint other = sub_tri[SUB(o)];
+                if (mask_empty((entry | placed) & MASK_BIT(o)) &&
+                    same_surface(tri, surface, sub_t[SUB(m)], other, surface_of(other), sub_t[SUB(o)])) {
+                    entry |= MASK_BIT(o);
+                    frontier |= MASK_BIT(o);
+                }
             }
-        if (!known && n < uint(MSAA_SLOTS)) {
-            ids[n] = tri;
-            masks[n] = MASK_BIT(k);
-            ++n;
         }
+        placed |= entry;
+        if (n < uint(MSAA_SLOTS)) masks[n++] = entry;
     }
     uint coverage[MSAA_SLOTS], covered = 0u;
     for (uint s = 0u; s < n; ++s) {
@@ -143,7 +149,7 @@ uint msaa_store_pixel(ivec3 p, ivec2 size, uint lid) {
         }
         uint best = msaa_representative(masks[s]);
         uint meta = best | (rank == 0u ? (n << 8) | (covered << 16) : 0u);
-        HIT(rank) = uvec4(ids[s], coverage[s], meta, floatBitsToUint(sub_t[SUB(best)]));
+        HIT(rank) = uvec4(sub_tri[SUB(best)], coverage[s], meta, floatBitsToUint(sub_t[SUB(best)]));
     }
     return n;
 }
