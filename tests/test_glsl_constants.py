@@ -36,7 +36,7 @@ SHADER_LOCAL = {
     "LOG2_E": "math (denoise.comp's weights as one exp2)", "NO_WEIGHT": "denoise.comp: log2 of a zero weight",
     "RT_MAX_GROUPS_X": "GL's minimum of the most work groups in x",
     "WAVE_IDLE": "wave.glsl: a path without a ray this bounce", "RT_SLOT": "wave_shade.comp's list",
-    "FILLED": "sample_resolve.comp: the weight of a filled point",
+    "FILLED": "cameras/foveated_resolve.glsl: the weight of a filled point",
     "MASK_NONE": "sub_mask.glsl: the empty sub-ray mask", "MASK_WORDS": "sub_mask.glsl: words a sub-ray mask takes",
 }
 

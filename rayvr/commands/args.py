@@ -163,10 +163,8 @@ def add_camera_model_arguments(p: argparse.ArgumentParser) -> None:
                    help="how each eye makes its rays; every model but the pinhole casts its primary rays "
                         "(" + "; ".join(f"{n}: {m.doc}" for n, m in CAMERA_MODELS.items() if m.doc) + ")")
     g.add_argument("--camera-param", action="append", metavar="KEY=VALUE",
-                   help="a camera model parameter, repeatable: distorted coefficients=K1,K2,K3[/K1,K2,K3/K1,K2,K3] "
-                        "center=CX,CY samples=FILE; wide mapping=spherical|equidistant fov_x=DEG; foveated "
-                        "gaze=X,Y fovea_mar=DEG mar_slope=S fovea_radius=DEG; dof aperture=RADIUS focus=D (the "
-                        "lens radius; --dof-diameter is the screen-space blur's lens diameter)")
+                   help="a camera model parameter, repeatable: " + "; ".join(  # each model's own (param_syntax)
+                       f"{n} {m.param_help()}" for n, m in CAMERA_MODELS.items() if m.parameters()))
 
 
 def add_render_arguments(p: argparse.ArgumentParser, command: str) -> None:

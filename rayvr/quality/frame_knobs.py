@@ -1,6 +1,6 @@
 """The frame-wide knobs a budget pick chooses beside the per-material effects: the stereo mode,
 samples per pixel, the denoiser and its iterations, the MSAA count, the resolution scale,
-temporal accumulation and the camera model (pinhole or foveated). One `FrameKnobs` is one
+temporal accumulation and the camera model (those judged by the pinhole). One `FrameKnobs` is one
 value of each; a grid (`--frame-knobs "stereo=dual,reuse;spp=1,4;denoise=off,on"`) is every
 combination of the values given, each knob left out at its default.
 
@@ -16,7 +16,7 @@ import math
 from dataclasses import dataclass, fields, replace
 
 from ..frame.stereo import STEREO
-from ..frame.cameras import DEFAULT_CAMERA_MODEL as DEFAULT_CAMERA
+from ..frame.cameras import CAMERA_MODELS, DEFAULT_CAMERA_MODEL as DEFAULT_CAMERA
 from ..frame.cameras.sampling import MSAA
 from ..frame.passes.denoise import DENOISE_ITERATIONS
 from ..options import BOOL_WORDS
@@ -24,9 +24,13 @@ from ..settings import merged
 
 MAX_SPP = 64  # a budget pick accumulates at most this many samples an image
 SCALES = (0.5, 1.0)  # a resolution scale lies in [0.5, 1]: below half the upscaled image is a blur
-# Camera models a pick may take: those whose image is the pinhole's, so the pinhole reference
-# judges them (foveated samples the pinhole's image sparsely; a distorted or wide image is another).
-CAMERAS = (DEFAULT_CAMERA, "foveated")
+
+
+def cameras() -> tuple:
+    """The camera models a pick may take: those that declare their image the pinhole's
+    (CameraModel.judged_by_pinhole), so the pinhole reference judges them; a plugin's too, once
+    registered (a distorted or wide image is another)."""
+    return tuple(name for name, model in CAMERA_MODELS.items() if model.judged_by_pinhole)
 
 
 @dataclass(frozen=True)
@@ -93,10 +97,11 @@ def _one(name: str, text: str):
             raise ValueError(f"frame knob {name}: {text!r} is not on or off")
         return BOOL_WORDS[t]
     if name == "camera":
-        if t not in CAMERAS:
-            raise ValueError(f"frame knob camera: {text!r} is not one of {', '.join(CAMERAS)} (the models the "
-                             f"pinhole reference can judge)")
-        return t
+        names = {n.lower(): n for n in cameras()}  # registered names differ in more than case
+        if t not in names:
+            raise ValueError(f"frame knob camera: {text!r} is not one of {', '.join(names.values())} (the models "
+                             f"the pinhole reference can judge)")
+        return names[t]
     if name in ("spp", "msaa", "iterations"):
         try:
             v = int(t)

@@ -27,6 +27,18 @@ named camera_*):
     // the footprint side (pixels) of the sample at pixel centre `pixel`; 0: no sample there
     float camera_footprint(int eye, vec2 pixel, vec2 size);
 
+A sparse model (`sparse`: footprint 0 between its samples) fills the gaps for display with its own
+GLSL file, `reconstruction`, which glsl/shade/sample_resolve.comp includes after declaring the
+images `sum` (the samples' accumulated colour), `fill` (rgba32f, kept between dispatches) and
+`frame_hdr` (the displayed colour), the uniform `exposure` and the helpers is_sample, compress
+and expand (the units tonemap shows):
+
+    // pixel p.xy of eye layer p.z of an n-pixel image, once per dispatch of resolve_steps(),
+    // whose uniforms it reads; the last dispatch writes frame_hdr at every pixel
+    void camera_resolve(ivec3 p, ivec2 n);
+
+`reconstruct` is its numpy twin (a test compares them).
+
 A model is added by `register_camera_model(cls)` (rayvr's own through the same function), from
 inside rayvr or outside it: it then has a name in CAMERA_MODELS and a CAMERA_<NAME> id in the
 generated header (layout.glsl), which every program compiled afterwards sees.
@@ -116,10 +128,20 @@ class CameraModel:
     # the model's own parameter for a lens (depth of field), if it has one: what the refusal of
     # the frame's --dof-diameter blur points to instead
     lens_parameter: ClassVar[str | None] = None
+    # its image is the pinhole's, however sampled, so the pinhole reference judges its error: a
+    # budget pick may choose it (--frame-knobs camera=, quality/frame_knobs.py)
+    judged_by_pinhole: ClassVar[bool] = False
     glsl: ClassVar[str]  # the model's GLSL file: relative to rayvr/glsl/, or absolute (a model outside rayvr)
     channels: ClassVar[int] = 1  # colour channel sets (a model may make it a property)
-    sparse: ClassVar[bool] = False  # samples leave pixels between them, filled in for display (frame/passes/sample_resolve.py)
+    # samples leave pixels between them, which `reconstruction` fills for display
+    sparse: ClassVar[bool] = False
+    # a sparse model's fill (frame/passes/sample_resolve.py): its GLSL file (as `glsl`), defining
+    # `void camera_resolve(ivec3 p, ivec2 n)`, run over every pixel once per resolve_steps() entry;
+    # `reconstruct` is its numpy twin
+    reconstruction: ClassVar[str | None] = None
     doc: ClassVar[str] = ""
+    # --camera-param's help: each parameter's value syntax (KEY=SYNTAX); one left out reads VALUE
+    param_syntax: ClassVar[dict] = {}
 
     @classmethod
     def glsl_id(cls) -> str:
@@ -143,6 +165,11 @@ class CameraModel:
     def parameters(cls) -> dict:
         """{name: (type, default)} of the model's parameters (its dataclass fields)."""
         return {f.name: (f.type, f.default) for f in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) else {}
+
+    @classmethod
+    def param_help(cls) -> str:
+        """The model's parameters as --camera-param's help spells them: `KEY=SYNTAX ...`."""
+        return " ".join(f"{key}={cls.param_syntax.get(key, 'VALUE')}" for key in cls.parameters())
 
     def check_rig(self, rig: "StereoRig") -> None:
         """Refuse rig settings this model cannot render (ValueError); nothing by default."""
@@ -177,6 +204,19 @@ class CameraModel:
         ddx -= d * np.sum(ddx * d, axis=-1, keepdims=True)  # derivatives of unit vectors are orthogonal to them
         ddy -= d * np.sum(ddy * d, axis=-1, keepdims=True)
         return CameraRays(np.broadcast_to(origins, d.shape), d, ddx, ddy, valid & (f > 0))
+
+    # -- the frame for display ------------------------------------------------------------
+    def resolve_steps(self) -> list[dict]:
+        """The dispatches of the frame's resolve (frame/passes/sample_resolve.py), in order: the
+        uniform values of each (a sparse model's `reconstruction` reads them); the last writes
+        the frame. One dispatch by default: the samples as they are."""
+        return [{}]
+
+    def reconstruct(self, eye: "EyeView", image: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+        """The numpy twin of the resolve: the displayed colour ((H, W, C) linear, rows top-down) of
+        `image`, which holds the samples' colour (0 between them); `exposure` is what tonemap
+        multiplies by. The samples as they are by default."""
+        return image
 
     def _check_channel(self, channel: int) -> None:
         if not 0 <= channel < self.channels:
@@ -242,7 +282,9 @@ def register_camera_model(cls: type[CameraModel]) -> type[CameraModel]:
     """Add camera model `cls` to CAMERA_MODELS and declare its CAMERA_<NAME> id in the generated
     header, for programs compiled from then on; returns `cls` (a class decorator too). Refuses, in
     one line, what is not a CameraModel subclass, a name that is no identifier or is taken (its id
-    included: names differing in case only), and a GLSL file that does not exist."""
+    included: names differing in case only), a GLSL file that does not exist, sparse samples without
+    a reconstruction file (or a reconstruction without sparse samples), and param_syntax for a
+    parameter the model does not have."""
     what = getattr(cls, "__qualname__", repr(cls))
     if not (isinstance(cls, type) and issubclass(cls, CameraModel)):
         raise TypeError(f"camera model {what}: not a subclass of rayvr.frame.cameras.CameraModel")
@@ -258,6 +300,17 @@ def register_camera_model(cls: type[CameraModel]) -> type[CameraModel]:
         raise ValueError(f"camera model {name!r}: `glsl` must name its GLSL file (under rayvr/glsl/ or absolute)")
     if not cls.glsl_path().is_file():
         raise ValueError(f"camera model {name!r}: its GLSL file {cls.glsl_path()} does not exist")
+    if cls.sparse or cls.reconstruction is not None:  # a fill exists exactly for sparse samples
+        if not cls.sparse:
+            raise ValueError(f"camera model {name!r}: a `reconstruction` fills the pixels between sparse samples; "
+                             f"declare sparse = True or leave it out")
+        if not isinstance(cls.reconstruction, str) or not (GLSL_DIR / cls.reconstruction).is_file():
+            raise ValueError(f"camera model {name!r}: sparse samples need `reconstruction`, the GLSL file that fills "
+                             f"the pixels between them; got {cls.reconstruction!r}, which is no file")
+    unknown = [key for key in cls.param_syntax if key not in cls.parameters()]
+    if unknown:
+        raise ValueError(f"camera model {name!r}: param_syntax names {unknown[0]!r}, which is none of its "
+                         f"parameters ({', '.join(cls.parameters()) or 'none'})")
     declare(f"CAMERA_{name.upper()}", _CAMERA_IDS.setdefault(name.upper(), len(_CAMERA_IDS) + 1))
     CAMERA_MODELS[name] = cls
     return cls

@@ -146,6 +146,7 @@ class Distorted(CameraModel):
     name = "distorted"
     glsl = "cameras/distorted.glsl"
     doc = "HMD lens pre-distortion: radial polynomial per colour channel (or a sample file)"
+    param_syntax = {"coefficients": "K1,K2,K3[/K1,K2,K3/K1,K2,K3]", "center": "CX,CY", "samples": "FILE"}
     coefficients: tuple = DEFAULT_COEFFICIENTS  # (k1, k2, k3) per channel R, G, B, or one triple for all
     center: tuple = (0.0, 0.0)  # lens centre on the left eye's panel (tangent units); mirrored for the right
     samples: str | None = None  # a measured sample file instead of the polynomial

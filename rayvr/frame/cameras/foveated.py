@@ -10,7 +10,7 @@ frustum (the pinhole's rays); pixel p is a sample when its 64x64 ordered-dither 
 stride-2^k lattices are nested (the sparsest, every 64th pixel each way, is always sampled); the
 last column and the top row are samples too, so every pixel lies in a cell with sampled corners.
 A sample's footprint is 1 / sqrt(density) pixels (its sub-rays spread over it). The frame fills
-the pixels between samples for display (`reconstruct`; GLSL in glsl/shade/sample_resolve.comp),
+the pixels between samples for display (`reconstruct`; GLSL in glsl/cameras/foveated_resolve.glsl),
 coarse to fine by diamond-square: on each level k = 5 .. 0, the centres of the stride-2^(k+1)
 cells that are not samples are the mean of the linear fills between the cell's opposite edge
 midpoints along x and along y, each its sample or else linear between the cell corners beside it
@@ -37,7 +37,7 @@ from .base import CameraModel
 from .pinhole import Pinhole, planar_directions
 
 DITHER_BITS = declare("DITHER_BITS", 6)  # 64x64 ordered-dither tile: densities down to 1/4096
-DITHER_LEVELS = 4 ** DITHER_BITS
+DITHER_LEVELS = declare("DITHER_LEVELS", 4 ** DITHER_BITS)
 BAYER_2X2 = np.array([[0, 2], [3, 1]])  # [y bit][x bit]
 # Ranges of the acuity parameters (degrees): the density's (pixel angle / MAR)^2 stays far inside
 # float32 for pixels up to 180 degrees, and no display has pixels near 1e-6 degrees.
@@ -59,9 +59,12 @@ class Foveated(Pinhole):
     name = "foveated"
     rasterizable = False
     culls_tiles_by_default = False  # sparse samples: tile culling measured 5.9 -> 8.9 ms on the H200
+    judged_by_pinhole = True  # a sparse sampling of the pinhole's image
     sparse = True
     glsl = "cameras/foveated.glsl"
+    reconstruction = "cameras/foveated_resolve.glsl"
     doc = "foveated samples: density falls off with eccentricity from the gaze (linear MAR), reconstructed"
+    param_syntax = {"gaze": "X,Y", "fovea_mar": "DEG", "mar_slope": "S", "fovea_radius": "DEG"}
     gaze: tuple = (0.5, 0.5)  # gaze point, fraction of the image (x right, y down), both eyes
     fovea_mar: float = 1.0 / 60.0  # degrees: MAR at the fovea (20/20 acuity)
     mar_slope: float = 0.022  # degrees of MAR per degree of eccentricity
@@ -106,6 +109,11 @@ class Foveated(Pinhole):
         x, y = np.arange(w)[None, :], (h - 1 - np.arange(h))[:, None]  # GL rows
         sample = ((dither_rank(x, y) + 0.5) / DITHER_LEVELS < rho) | (x == w - 1) | (y == h - 1)
         return np.where(sample, 1.0 / np.sqrt(rho), 0.0)
+
+    def resolve_steps(self) -> list[dict]:
+        """Copy the samples, then fill coarse to fine: on each level the cell centres, then the edges."""
+        return [{"resolve_level": DITHER_BITS, "resolve_step": 0}] + [
+            {"resolve_level": k, "resolve_step": step} for k in range(DITHER_BITS - 1, -1, -1) for step in (0, 1)]
 
     def reconstruct(self, eye, image: np.ndarray, exposure: float = 1.0) -> np.ndarray:
         """Fill the pixels between samples of `image` ((H, W, C) linear colour, rows top-down;

@@ -79,6 +79,7 @@ def check_planar_rig(rig) -> None:
 class Pinhole(CameraModel):
     name = "pinhole"
     rasterizable = True
+    judged_by_pinhole = True  # the reference itself
     glsl = "cameras/pinhole.glsl"
 
     def check_rig(self, rig) -> None:

@@ -32,8 +32,11 @@ class ThinLens(Pinhole):
     # 2026-11-30), but with block culling faster on Sponza's worst poses at every count (2026-12-03).
     culls_tiles_by_default = True
     lens_parameter = "aperture"
+    judged_by_pinhole = False  # out of focus it blurs the pinhole's image on purpose
     glsl = "cameras/thin_lens.glsl"
     doc = "thin-lens depth of field (aperture radius, focus distance); lens positions per sub-ray"
+    param_syntax = {"aperture": "RADIUS (the lens radius; --dof-diameter is the screen-space blur's lens diameter)",
+                    "focus": "D"}
     aperture: float = 0.01  # lens radius, world units
     focus: float = 2.0  # focus distance along the view axis, world units
 

@@ -30,6 +30,7 @@ class Wide(CameraModel):
     converges = False  # angles, not planar frusta: nothing to shear
     depth_along_ray = True
     doc = "wide field of view past 180 degrees: spherical section or equidistant fisheye"
+    param_syntax = {"mapping": "|".join(MAPPINGS), "fov_x": "DEG"}
     mapping: str = "spherical"  # spherical | equidistant
     fov_x: float | None = None  # horizontal degrees (None: fov_y x width / height)
 

@@ -1,18 +1,18 @@
 """`sample_resolve`: the accumulated colour of a sampled frame for display (`frame_hdr`, what
-`tonemap` reads then), with a foveated camera's pixels between samples filled in, one dispatch per
-dither level, coarse to fine, through the float32 `sample_fill` (glsl/shade/sample_resolve.comp;
-frame/cameras/foveated.py reconstruct is its numpy twin)."""
+`tonemap` reads then), through the camera model's resolve (glsl/shade/sample_resolve.comp): a
+sparse model's `reconstruction` fills the pixels between its samples, one dispatch per entry of its
+`resolve_steps()`, in the float32 scratch `sample_fill` (its `reconstruct` is the numpy twin)."""
 from __future__ import annotations
 
 from ...gl import shaders
+from ..cameras import CAMERA_MODELS
 from ..graph import FramePlan, Pass, Texture, read, write
-from ..cameras.foveated import DITHER_BITS
 from ...gl.gpu_layout import IMAGE
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 from .sample_accumulate import sampling_reason
 
 FRAME_HDR = Texture("rgba16f")
-SAMPLE_FILL = Texture("rgba32f")  # the samples and the dither lattices filled so far (RECONSTRUCT)
+SAMPLE_FILL = Texture("rgba32f")  # a sparse model's samples and what its fill has made so far
 
 
 class SampleResolvePass(Pass):
@@ -27,9 +27,8 @@ class SampleResolvePass(Pass):
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.reconstruct = plan.reconstruct
-        self.program = shaders.compute(gl.ctx, "shade/sample_resolve.comp",
-                                       {"RECONSTRUCT": int(plan.reconstruct),
-                                        **camera_defines(plan)})
+        resolve = {"CAMERA_RESOLVE_FILE": CAMERA_MODELS[plan.camera].reconstruction} if plan.reconstruct else {}
+        self.program = shaders.compute(gl.ctx, "shade/sample_resolve.comp", {**resolve, **camera_defines(plan)})
 
     def execute(self, fc) -> None:
         set_eye_uniforms(self.program, fc)
@@ -39,12 +38,12 @@ class SampleResolvePass(Pass):
             dispatch_per_pixel(fc, self.program)
             return
         fc.resource("sample_fill").bind_to_image(IMAGE["sample_fill"], read=True, write=True)
-        self.program["exposure"].value = float(fc.settings.exposure)
-        steps = [(DITHER_BITS, 0)] + [(k, step) for k in range(DITHER_BITS - 1, -1, -1) for step in (0, 1)]
-        for level, step in steps:  # copy the samples, then fill coarse to fine: cell centres, edges
-            self.program["resolve_level"].value = level
-            if shaders.declares(self.program, "resolve_step"):
-                self.program["resolve_step"].value = step
+        if shaders.declares(self.program, "exposure"):
+            self.program["exposure"].value = float(fc.settings.exposure)
+        for step in fc.eyes[0].camera.resolve_steps():  # in the model's order; the last writes the frame
+            for name, value in step.items():
+                if shaders.declares(self.program, name):  # a uniform the compiler dropped is skipped
+                    self.program[name].value = value
             dispatch_per_pixel(fc, self.program)
 
     def release(self) -> None:
