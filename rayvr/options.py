@@ -1,6 +1,7 @@
-"""Render options, each declared once by the module that uses it (as Falcor's pass properties or
-Mitsuba's plugin properties): the tonemap pass declares `exposure` and `tonemapper`, the
-primary-ray pass `primary` and `tile_culling`, the stereo module `stereo` and `warp_layers`, ...
+"""Render options, each declared once for the module that uses it (as Falcor's pass properties or
+Mitsuba's plugin properties), in its light twin under rayvr/render_options/: the tonemap pass's
+`exposure` and `tonemapper`, the primary-ray pass's `primary` and `tile_culling`, the stereo
+module's `stereo` and `warp_layers`, ...
 
     EXPOSURE = declare(Option("exposure", float, 1.0, "linear scale before tonemapping",
                               bounds=(0, 1e6), lo_open=True, commands=("capture", "preview")))
@@ -18,7 +19,7 @@ compiles another graph; "frame" options are values the passes read each frame (u
 change the plan; "material" options take part in every material's shading (ambient light).
 tests/test_options.py checks both directions for every declared option.
 
-This module imports nothing from rayvr (the lowest layer): the owners, at every layer, import it.
+This module imports nothing from rayvr (the lowest layer): the owners (rayvr/render_options/) import it.
 """
 from __future__ import annotations
 

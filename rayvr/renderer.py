@@ -136,7 +136,7 @@ class Renderer:
         color, st = view == "color", self.settings
         # Peeling needs the raster's depth: with ray-cast primaries the second layer is ray-cast too.
         second = self.settings.second_layer if primary == "raster" else "rays"
-        culled = st.culls_tiles(camera.name) and primary == "rays"
+        culled = primary_rays.culls_tiles(st, camera.name) and primary == "rays"
         blocks = culled and primary_rays.culls_blocks(st, camera.name)
         if st.tile_lists and primary == "rays" and not culled:
             raise ValueError("tile triangle lists (--tile-lists) start from the tile culling's entry lists: "

@@ -2,26 +2,23 @@
 (rayvr/options.py; docs/options.md); and what needs every option at once: the flags of a command,
 a config's [render] table, the values a command runs with.
 
-OWNERS are the modules that declare rayvr's options, imported here by name (their order is the
-fields' order); an option declared elsewhere later (a plugin's) takes part too, its value kept in
-RenderSettings.more.
+OWNERS are the modules that declare rayvr's options (rayvr/render_options/: they import nothing
+heavy, so neither does this module), imported here by name (their order is the fields' order); an
+option declared elsewhere later (a plugin's) takes part too, its value kept in RenderSettings.more.
 """
 from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
 
-from .frame import accumulation, stereo
 from . import options
-from .accel import bvh, gpu
-from .frame.cameras import sampling
-from .scene import light_selection
 from .options import TABLE, Option, OptionError
-from .frame.passes import accumulate, denoise, dof, persistent_threads, primary_rays, quadtree, ray_order, second_layer, shade, \
-    tonemap, visibility
+from .render_options import (accumulate, accumulation, bvh_build, denoise, dof, light_selection, persistent_threads,
+                             primary_rays, quadtree, ray_order, sampling, second_layer, shade, stereo, tonemap, traversal,
+                             visibility)
 
 OWNERS = (tonemap, shade, visibility, primary_rays, accumulation, accumulate, denoise, second_layer, stereo, quadtree,
-          gpu, bvh, dof, sampling, light_selection, ray_order, persistent_threads)
+          traversal, bvh_build, dof, sampling, light_selection, ray_order, persistent_threads)
 RANK = {m.__name__: i for i, m in enumerate(OWNERS)}
 _ordered: list = [None, {}]  # (the declarations, all_options()' answer to them)
 
@@ -179,7 +176,3 @@ class RenderSettings:
     module that uses it (`rayvr options` lists them: type, default, allowed values, scope, flags).
     `RenderSettings(exposure=2)` checks every value on construction (OptionError, a ValueError);
     `to_dict()` / `from_dict()` carry them through files (the capture's job file)."""
-
-    def culls_tiles(self, camera: str = "pinhole") -> bool:
-        """Whether ray-cast primaries of a `camera` model (its name) are tile-culled (frame/passes/primary_rays.py)."""
-        return primary_rays.culls_tiles(self, camera)

@@ -34,7 +34,8 @@ LAYERS = (
     ("rayvr.frame.effect_registry", "rayvr.frame.cameras", "rayvr.gl.shaders", "rayvr.gl.limits", "rayvr.util.inputs",
      "rayvr.frame.pcg", "rayvr.gl.timing", "rayvr.util.signals", "rayvr.util.extras", "rayvr.util.output",
      "rayvr.frame.cameras.rig", "rayvr.scene.loader", "rayvr.scene.light_selection", "rayvr.frame.stereo", "rayvr.gl.context",
-     "rayvr.frame.accumulation"),
+     "rayvr.frame.accumulation", "rayvr.render_options"),
+    ("rayvr.settings",),  # the render options collected: nothing heavy (test_settings_import_nothing_heavy)
     ("rayvr.accel", "rayvr.frame.gbuffer", "rayvr.frame.graph"),
     ("rayvr.frame.passes",),
     ("rayvr.frame.effects",),
@@ -45,7 +46,7 @@ LAYERS = (
      "rayvr.quality.frame_knobs", "rayvr.quality.frame_budget", "rayvr.quality.tonemap", "rayvr.quality.metric_pool",
      "rayvr.quality.rungs",
      "rayvr.scene.config_toml",
-     "rayvr.app.cluster", "rayvr.app.preview", "rayvr.app.hud", "rayvr.settings"),
+     "rayvr.app.cluster", "rayvr.app.preview", "rayvr.app.hud"),
     (BENCH,),
     ("rayvr.cli", "rayvr.commands", "rayvr.__main__", "rayvr"),
 )
@@ -263,3 +264,59 @@ def test_cycles_are_found_and_named(tmp_path):
     assert strongly_connected(graph) == [["pkg.reg", "pkg.reg.one"], ["pkg.x", "pkg.y"]]
     assert cycle_path(graph, ["pkg.x", "pkg.y"]) == ["pkg.x", "pkg.y", "pkg.x"]
     assert describe_cycles(graph)[0] == "2 modules: pkg.reg -> pkg.reg.one -> pkg.reg"
+
+
+# Modules that load nothing heavy: a value object and the options' declarations must not pull in the
+# GL, the passes, the BVH code or the scene loader (trimesh) with them.
+LIGHT = ("rayvr.options", "rayvr.render_options", "rayvr.settings")
+HEAVY = ("rayvr.frame", "rayvr.accel", "rayvr.scene", "rayvr.renderer", "rayvr.app", "rayvr.quality", "rayvr.gl.context",
+         "rayvr.gl.shaders", "rayvr.gl.timing")
+
+
+def heavy_reach(graph: dict[str, set[str]], light=LIGHT, heavy=HEAVY) -> list[str]:
+    """'light -> ... -> heavy' for every light module that reaches a heavy one, directly or through others."""
+    def within(m, prefixes):
+        return any(m == p or m.startswith(p + ".") for p in prefixes)
+
+    found = []
+    for start in sorted(m for m in graph if within(m, light)):
+        seen, stack = {start: None}, [start]
+        while stack:
+            m = stack.pop()
+            for t in sorted(graph.get(m, ())):
+                if t in seen:
+                    continue
+                seen[t] = m
+                if within(t, heavy):
+                    path = [t]
+                    while seen[path[-1]] is not None:
+                        path.append(seen[path[-1]])
+                    found.append(" -> ".join(reversed(path)))
+                    stack.clear()
+                    break
+                stack.append(t)
+    return found
+
+
+def test_light_modules_reach_no_heavy_one():
+    assert heavy_reach(import_graph()) == []
+
+
+def test_a_light_module_importing_a_heavy_one_is_found(tmp_path):
+    graph = _graph_of(tmp_path, {
+        "pkg/__init__.py": "", "pkg/light.py": "from . import middle\n", "pkg/middle.py": "def f():\n    from . import heavy\n",
+        "pkg/heavy.py": "", "pkg/other.py": "from . import heavy\n"})
+    assert heavy_reach(graph, ("pkg.light",), ("pkg.heavy",)) == ["pkg.light -> pkg.middle -> pkg.heavy"]
+
+
+def test_settings_import_nothing_heavy():
+    """`import rayvr.settings` in a fresh interpreter: the declarations and RenderSettings, no GL."""
+    import subprocess
+    import sys
+
+    code = ("import sys, rayvr.settings as s; s.RenderSettings(msaa=4); "
+            "print(' '.join(sorted(m for m in sys.modules if m in ('moderngl', 'trimesh', 'glfw') or "
+            "m.startswith(('rayvr.frame', 'rayvr.accel', 'rayvr.scene', 'rayvr.renderer', 'rayvr.gl.context')))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=ROOT.parent).stdout
+    assert out.strip() == ""

@@ -47,8 +47,8 @@ def toml_error(tmp_path, body: str) -> str:
 
 
 def test_a_real_option_is_a_field_a_flag_of_each_command_a_toml_key_and_a_listing_entry(tmp_path, capsys):
-    option = settings_mod.all_options()["quadtree_adapt"]  # declared by frame/passes/quadtree.py
-    assert option.owner == "rayvr.frame.passes.quadtree" and set(option.commands) == {"capture", "preview"}
+    option = settings_mod.all_options()["quadtree_adapt"]  # declared by render_options/quadtree.py
+    assert option.owner == "rayvr.render_options.quadtree" and set(option.commands) == {"capture", "preview"}
     assert RenderSettings().quadtree_adapt == 0.0 and RenderSettings(quadtree_adapt=2).quadtree_adapt == 2.0
     for command in ("capture", "preview"):
         assert parse(command, "--quadtree-adapt", "0.5").quadtree_adapt == 0.5
@@ -59,7 +59,7 @@ def test_a_real_option_is_a_field_a_flag_of_each_command_a_toml_key_and_a_listin
     assert main(["options", "quadtree_adapt"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("quadtree_adapt  --quadtree-adapt\n") and "[0, 1e+06]" in out and "scope frame" in out
-    assert "declared in rayvr.frame.passes.quadtree" in out and "Widmer" in out
+    assert "declared in rayvr.render_options.quadtree" in out and "Widmer" in out
 
 
 def test_every_module_that_declares_an_option_is_an_owner():
@@ -149,7 +149,8 @@ def test_render_settings_round_trip_through_a_capture_job_file_and_an_old_one_re
     run = run_rayvr("capture", "--size", "8x6", "--frames", "2", "--out", out, "-q", *flags)
     assert run.returncode == 0, run.stderr
     job = json.loads((out / "frame_job.json").read_text())
-    want = RenderSettings(exposure=2.5, traversal="bvh2", seed=3, tonemapper="clamp")
+    # (denoise: a capture's own default, commands/args.py CAPTURE_DEFAULTS)
+    want = RenderSettings(exposure=2.5, traversal="bvh2", seed=3, tonemapper="clamp", denoise=True)
     assert job["settings"] == want.to_dict() and RenderSettings.from_dict(job["settings"]) == want
     # The folder as an older rayvr left it: the settings' repr in the job file, the records naming its digest.
     old = {**job, "settings": repr(want).replace("dof_diameter=", "dof_aperture=")}
@@ -182,7 +183,7 @@ def test_rayvr_options_lists_every_render_setting(capsys):
     entries = json.loads(capsys.readouterr().out)
     assert [e["name"] for e in entries] == [f.name for f in dataclasses.fields(RenderSettings) if f.name != "more"]
     by_name = {e["name"]: e for e in entries}
-    assert by_name["exposure"]["allowed"] == "(0, 1e+06]" and by_name["exposure"]["owner"] == "rayvr.frame.passes.tonemap"
+    assert by_name["exposure"]["allowed"] == "(0, 1e+06]" and by_name["exposure"]["owner"] == "rayvr.render_options.tonemap"
     assert by_name["msaa"]["plan_field"] == "samples" and by_name["msaa"]["flag"] == "--msaa"
     assert by_name["ambient"]["flag"] == "--ambient" and by_name["ambient"]["scope"] == "material"
     assert by_name["accumulate"]["flag"] is None  # an option no command offers as a flag

@@ -654,7 +654,7 @@ def test_quadtree_key_steps_the_ssr_thresholds_of_the_config():
 
 
 def test_noise_keys_toggle_accumulation_denoiser_and_temporal_reprojection():
-    from rayvr.frame.accumulation import MAX_DENOISE_ITERATIONS
+    from rayvr.render_options.denoise import MAX_DENOISE_ITERATIONS
 
     c = make_controls()
     assert c.state.accumulate and not c.state.denoise and not c.state.temporal  # accumulate while still

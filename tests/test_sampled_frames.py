@@ -174,7 +174,7 @@ def test_msaa_lists_match_a_numpy_merge_of_numpy_traced_sub_rays(gl, room, n, ke
 
     (w, h), slots = (30, 22) if n < 32 else (18, 14), min(n, kept)
     rig = StereoRig(ROOM_POSE, ipd=0.064, fov_y=90, size=(w, h), near=1e-3)
-    surfaces = surface_groups(room.vertices, room.indices, room.triangle_material) if merge == "surface" else None
+    surfaces = surface_groups(room.vertices, room.indices, room.triangle_material, room.normals) if merge == "surface" else None
     with Renderer(room, gl=gl, settings=RenderSettings(msaa=n, shading_slots=kept, shading_merge=merge)) as r:
         r.record(rig)
         r.gl.ctx.finish()

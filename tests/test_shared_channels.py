@@ -57,9 +57,9 @@ def test_each_distinct_triangle_of_a_pixel_is_shaded_once_for_the_channels_on_it
     """One sub-ray per colour channel set, cast together: every channel shows the shading of the
     triangle its own ray hits, made at the first set's ray that hits it (green's where green's does):
     a numpy composite of three single-set frames; channels that hit other triangles than green's
-    keep their own shading, as the frame that shades every set apart has it. Merged by triangle: by
-    smooth surface (the default) a channel on the sphere's next triangle takes the first set's shading."""
-    shared, tri = frame(room, CHROMATIC, shading_merge="triangle")
+    keep their own shading, as the frame that shades every set apart has it (merged by triangle, the
+    default: by smooth surface a channel on the sphere's next triangle takes the first set's shading)."""
+    shared, tri = frame(room, CHROMATIC)
     assert room.plan(camera=CHROMATIC).share_channels
     expected, per_set = expected_shared(room, CHROMATIC)
     assert np.array_equal(shared, expected)
@@ -73,18 +73,19 @@ def test_each_distinct_triangle_of_a_pixel_is_shaded_once_for_the_channels_on_it
     assert not np.array_equal(shared, apart)   # the approximation shows somewhere
 
 
-@pytest.mark.parametrize("n", [4, 16])
-def test_shared_msaa_lists_merge_every_sets_sub_rays(room, n):
+@pytest.mark.parametrize("n, merge", [(4, "triangle"), (4, "surface"), (16, "triangle")])
+def test_shared_msaa_lists_merge_every_sets_sub_rays(room, n, merge):
     """MSAA with the three sets cast together (4x: 12 sub-rays a pixel, green's block first; 16x: 48,
     masks of two words): the trace's lists against passes/primary_rays.msaa_lists over numpy traces
     of each set's own sub-rays, with each set's covered count in the meta; one round sequence for the
-    frame, not three."""
+    frame, not three. By smooth surface (shading_merge "surface") numpy merges by scene/surfaces.py's."""
     from rayvr.accel.bvh import build_bvh, trace_reference
     from rayvr.frame.cameras.sampling import subsamples
 
     w, h = (30, 22) if n == 4 else (18, 14)
     rig = StereoRig.for_scene(room.scene, size=(w, h), camera=CHROMATIC)
-    room.settings = RenderSettings(primary="rays", msaa=n, share_channel_shading=True)   # (16x: not by default)
+    room.settings = RenderSettings(primary="rays", msaa=n, share_channel_shading=True,   # (16x: not by default)
+                                   shading_merge=merge)
     fc = room.record(rig)
     room.gl.ctx.finish()
     plan = room.plan(camera=CHROMATIC)
@@ -93,7 +94,7 @@ def test_shared_msaa_lists_merge_every_sets_sub_rays(room, n):
     got = np.frombuffer(room.resource("msaa_hits").read(), np.uint32).reshape(slots, 2, h, w, 4)
     scene = room.scene
     bvh = build_bvh(scene.vertices, scene.indices)
-    surfaces = surface_groups(scene.vertices, scene.indices, scene.triangle_material)
+    surfaces = surface_groups(scene.vertices, scene.indices, scene.triangle_material, scene.normals)
     offsets = np.tile(subsamples(n)[0], (3, 1))
     agree = []
     for e, eye in enumerate(rig.eyes()):
@@ -106,7 +107,7 @@ def test_shared_msaa_lists_merge_every_sets_sub_rays(room, n):
                 tris.append(np.asarray(prim, np.uint32).reshape(h, w)[::-1])
                 ts.append(np.asarray(t, np.float32).reshape(h, w)[::-1])
         ref = primary_rays.msaa_lists(np.stack(tris, -1), np.stack(ts, -1), offsets, slots, channel_blocks=3,
-                                      surfaces=surfaces)   # the default merge: by smooth surface
+                                      surfaces=surfaces if merge == "surface" else None)
         mine = got[:, e]
         count = (mine[0, ..., 2] >> 8) & 255
         used = np.arange(slots)[:, None, None] < count[None]

@@ -47,8 +47,21 @@ def test_materials_and_creases_split_surfaces():
     # a 20-sided prism's sides meet at 18 degrees: one surface below the 30-degree crease, not at 10
     prism = trimesh.creation.cylinder(0.5, 1, 20)
     assert len(np.unique(groups(prism))) == 3
-    coarse = surface_groups(np.asarray(prism.vertices, np.float32), prism.faces, np.zeros(len(prism.faces)), 10.0)
+    coarse = surface_groups(np.asarray(prism.vertices, np.float32), prism.faces, np.zeros(len(prism.faces)),
+                            max_angle_deg=10.0)
     assert len(np.unique(coarse)) == 22
+
+
+def test_split_normals_keep_a_smooth_looking_mesh_apart():
+    """A sphere shaded flat (each triangle's own normal at its corners, as a loader gives faceted
+    geometry) is one surface per triangle; its own smooth vertex normals make it one surface again."""
+    sphere = unwelded(trimesh.creation.icosphere(2))
+    tris = len(sphere.faces)
+    vertices, faces, material = np.asarray(sphere.vertices, np.float32), sphere.faces, np.zeros(tris)
+    flat = np.repeat(sphere.face_normals, 3, axis=0)
+    assert len(np.unique(surface_groups(vertices, faces, material, flat))) == tris
+    smooth = vertices / np.linalg.norm(vertices, axis=1, keepdims=True)
+    assert len(np.unique(surface_groups(vertices, faces, material, smooth))) == 1
 
 
 def bfs_groups(mesh, max_deg):

@@ -53,18 +53,13 @@ import numpy as np
 
 from ..gl.glsl_constants import declare
 from ..gl.gpu_layout import BVH_FACE_SLACK
-from ..options import Option, declare as declare_option
 from .sah import _binned_sah, _half_area, _leaf_or_split, _segment_positions
 from .sbvh import build_sbvh
+from ..render_options.bvh_build import BUILDS
 
 EMPTY_LO = np.float32(3.0e38)   # inverted box for an empty child slot: lo > hi, never entered
 EMPTY_HI = np.float32(-3.0e38)
 NODE_BYTES = 64
-BUILDS = ("sah", "sbvh")    # build_bvh without / with spatial splits (RenderSettings.bvh_build)
-BVH_BUILD = declare_option(Option("bvh_build", str, "sah", "BVH build: sah (binned SAH) or sbvh (spatial splits: "
-                                  "lower SAH cost, up to 30 % more triangle references, a longer build; "
-                                  "accel/sbvh.py)", scope="plan", plan_field="bvh_build", choices=BUILDS,
-                                  label="BVH build", commands=("capture", "preview")))
 SPLIT_ALPHA = 1e-5          # SBVH: try spatial splits where object children overlap > alpha x root area
 MAX_DUPLICATION = 0.3       # SBVH: at most 30 % more triangle references than triangles
 # SBVH: try spatial splits only in nodes of at least this many references. Clipping the references

@@ -26,10 +26,12 @@ import numpy as np
 
 from ..scene import materials as materials_mod
 from ..gl import shaders
-from ..frame.accumulation import MAX_DENOISE_ITERATIONS, temporal_problem
+from ..frame.accumulation import temporal_problem
+from ..render_options.denoise import MAX_DENOISE_ITERATIONS
 from ..frame.cameras.rig import Pose, StereoRig, save_path
 from .viewpoint import first_rig
 from ..frame.gbuffer import NO_HIT
+from ..frame.passes import primary_rays
 
 log = logging.getLogger(__name__)
 
@@ -810,7 +812,7 @@ class Preview:
         speed = f"speed {cam.speed:.3g}/s" if cam.mode == "fly" else f"distance {cam.distance:.3g}"
         st = self.renderer.settings
         aa = f"{st.msaa}x {'ssaa' if st.ssaa else 'msaa'}" if st.msaa > 1 else "no anti-aliasing"
-        aa += ", tile culling" if st.culls_tiles(cam.home.camera.name) else ""
+        aa += ", tile culling" if primary_rays.culls_tiles(st, cam.home.camera.name) else ""
         lines.append((f"{cam.mode}  {speed}   IPD {cam.ipd:.4g}  convergence {conv}   "
                       f"camera {cam.home.camera.name}, {aa}", white))
         lines.append((self.picked_text(), white))

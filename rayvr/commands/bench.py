@@ -101,12 +101,12 @@ def _variants(text: str) -> dict:
 
 
 def _ray_orders(text: str) -> tuple[str, ...]:
-    from ..frame.passes.ray_order import RAY_ORDERS
+    from ..render_options.ray_order import RAY_ORDERS
     return _among(text, "ray orders", RAY_ORDERS, unique=True)
 
 
 def _persistent_modes(text: str) -> tuple[str, ...]:
-    from ..frame.passes.persistent_threads import PERSISTENT_MODES
+    from ..render_options.persistent_threads import PERSISTENT_MODES
     return _among(text, "persistent modes", PERSISTENT_MODES, unique=True)
 
 

@@ -19,11 +19,8 @@ from dataclasses import astuple, dataclass, replace
 import numpy as np
 
 from .pcg import pcg_hash
-from ..options import Option, declare
 
-MAX_DENOISE_ITERATIONS = 6  # à-trous steps up to 2^5 = 32 pixels: wider, the guides no longer hold
-SEED = declare(Option("seed", int, 0, "random sequence of the sampled effects: the same seed gives the same image",
-                      bounds=(0, 2**32 - 1), commands=("capture", "preview")))  # the shaders' frame_seed is a uint
+
 HISTORY_CAP = 32  # samples a reprojected history counts for at most while the camera moves (Falcor SVGF)
 
 

@@ -28,17 +28,14 @@ from typing import Callable
 import moderngl
 import numpy as np
 
-from ..accel.gpu import DEFAULT_TRAVERSAL
+from ..render_options.primary_rays import MAX_SLOTS
+from ..render_options.traversal import DEFAULT_TRAVERSAL
 from .cameras import DEFAULT_CAMERA_MODEL
-
 from ..gl.gpu_layout import BLOCK_TILES, CHANNELS, TILE_ENTRIES, TILE_PIXELS
 from ..gl.glsl_constants import declare
 from ..gl.timing import TimerQuery, valid_elapsed_ns
 
 
-MAX_SLOTS = 8  # entries kept per pixel (MSAA, frame/passes/primary_rays.py); sub-rays on further ones are dropped
-# What an MSAA entry is: the sub-rays on one smooth surface at one depth (scene/surfaces.py), or on one triangle
-SHADING_MERGES = ("surface", "triangle")
 
 
 @dataclass(frozen=True)
@@ -73,7 +70,7 @@ class FramePlan:
     block_tiles: int = BLOCK_TILES[0]
     share_channels: bool = False  # the colour channel sets cast together, shaded once a distinct triangle (primary_rays.py)
     shading_slots: int = MAX_SLOTS  # MSAA: the most entries a pixel shades, its most covered (primary_rays.py)
-    shading_merge: str = "surface"  # MSAA: an entry is a smooth surface or a triangle (SHADING_MERGES)
+    shading_merge: str = "triangle"  # MSAA: an entry is a triangle or a smooth surface (SHADING_MERGES)
     light_picks: int = 0  # lights the traced effects draw per surface by power, 0 every light (scene/light_selection.py)
     ray_order: str = "none"  # the wavefront's rays sorted before each trace kernel: "none" | "morton" (passes/ray_order.py)
     persistent: bool = False  # the wavefront's trace kernels as persistent threads (passes/persistent_threads.py)

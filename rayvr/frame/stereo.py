@@ -18,22 +18,12 @@ frusta, so they need the pinhole camera model.
 """
 from __future__ import annotations
 
-from ..options import Option, declare
 
-STEREO_MODES = ("dual", "warp", "reuse")
+from ..render_options.stereo import STEREO_MODES, STEREO
+
 PLANAR_MODES = ("warp", "reuse")  # need a planar (pinhole) projection
 WARP_OUTPUT = "stereo_ldr"  # the warped eyes (the frame's output under `warp`)
 WARP_DEPTH = "stereo_depth"  # each warped eye's linear view depth
-
-
-STEREO = declare(Option("stereo", str, "dual", "how the second eye is made: dual renders both; warp synthesizes "
-                        "both from a central view through its screen-space quadtree; reuse gives the right eye the "
-                        "left eye's shading where it sees the same surface", scope="plan", choices=STEREO_MODES,
-                        label="stereo mode", plan_field="stereo", commands=("capture", "preview", "info")))
-WARP_LAYERS = declare(Option("warp_layers", int, 2, "depth layers of the central view warp traces: 2 finds what lies "
-                             "behind its first surfaces (the second layer, --second-layer), 1 inpaints those "
-                             "disocclusions", scope="plan", plan_field="depth_layers", choices=(1, 2),
-                             label="warp layer count", commands=("capture", "preview")))
 
 
 def check_mode(mode: str) -> str:

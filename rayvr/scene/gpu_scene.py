@@ -103,7 +103,7 @@ class GpuScene:
         when a frame first merges by surface (the scene's geometry as loaded)."""
         if self.triangle_surface is None:
             scene = self.scene
-            groups = surface_groups(scene.vertices, scene.indices, scene.triangle_material)
+            groups = surface_groups(scene.vertices, scene.indices, scene.triangle_material, scene.normals)
             self.triangle_surface = self.ctx.buffer(groups if len(groups) else np.zeros(1, np.uint32))
         return self.triangle_surface
 

@@ -1,10 +1,11 @@
 """Probe (tools/device/README.md): what the MSAA merge by smooth surface (--shading-merge surface) and
 fewer shading slots save in the headset frame, and what they cost in image error.
-`python3 tools/device/probe_merge.py W H POSES [REF_SPP]` prints, for the room (default_room.toml)
+`python3 tools/device/probe_merge.py W H POSES [REF_SPP [FRAMES]]` prints, for the room (default_room.toml)
 and Sponza (hybrid) through the distorted chromatic camera at 4x MSAA, on bench vr's head poses: per
 variant (merge by triangle with 8 slots, the reference merge; by surface with 8, 4 and 2 slots) the
-rounds, the GPU timer sum (median of 8 frames after warm-up) and mean FLIP of both eyes against a
-converged frame (the triangle merge, REF_SPP samples, default 64, its own seed)."""
+rounds, the GPU timer sum (median of FRAMES, default 8, after warm-up; 0: not timed, for a CPU) and mean FLIP of both eyes against a
+converged frame: every sub-ray shaded with the colour channels apart (--ssaa, no shared channel
+shading: the frame MSAA approximates), REF_SPP samples (default 64), its own seed."""
 import sys
 
 import numpy as np
@@ -19,6 +20,7 @@ from rayvr.renderer import Renderer, RenderSettings
 size = (int(sys.argv[1]), int(sys.argv[2]))
 poses = int(sys.argv[3])
 ref_spp = int(sys.argv[4]) if len(sys.argv) > 4 else 64
+frames = int(sys.argv[5]) if len(sys.argv) > 5 else 8
 VARIANTS = (("triangle", 8), ("surface", 8), ("surface", 4), ("surface", 2))
 gl = create_context(None)
 print(gl.info()["renderer"], flush=True)
@@ -41,13 +43,14 @@ for scene_name, config in (("default", "room"), ("sponza", "shadows")):
         r.set_materials(mats)
         for head in heads:
             rig = StereoRig(head.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=size, camera=model)
-            r.settings = RenderSettings(primary=primary, msaa=4, shading_merge="triangle", seed=1000)
+            r.settings = RenderSettings(primary=primary, msaa=4, ssaa=True, share_channel_shading=False, seed=1000)
             reference = both(r.render(rig, spp=ref_spp))
             for merge, slots in VARIANTS:
                 r.settings = RenderSettings(primary=primary, msaa=4, shading_merge=merge, shading_slots=slots)
-                r.warm_up(rig, seconds=1.0, min_frames=3)
+                if frames:
+                    r.warm_up(rig, seconds=1.0, min_frames=3)
                 gpu, rounds = [], 0
-                for _ in range(8):
+                for _ in range(max(frames, 1)):
                     fc = r.record(rig, "both", "color")
                     gpu.append(sum(r.read_ms(fc).values()))
                     rounds = len(r.read_round_ms(fc).get("sample_accumulate", [])) or 1

@@ -15,18 +15,13 @@ from ..accumulation import HISTORY_CAP
 from ..graph import FramePlan, Pass, Texture, read, write
 from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import IMAGE
-from ...options import Option, declare as declare_option
 from . import frame_colour
 from .compute import dispatch_per_pixel
+
 
 # The albedo floor of demodulation (glsl/post/demodulate.glsl, here and in the denoiser; Falcor uses
 # 0.001), numpy_denoise's too.
 DEMODULATE_FLOOR = declare("DEMODULATE_FLOOR", 0.001)
-ACCUMULATE = declare_option(Option("accumulate", bool, False, "successive frames add samples while nothing changes; "
-                                                     "any change starts over", scope="plan", plan_field="accumulate"))
-TEMPORAL = declare_option(Option("temporal", bool, False, "camera paths: carry each frame's samples into the next by "
-                                                 "reprojection (pinhole)", commands=("capture", "preview"),
-                          implies=(("accumulate", True),)))
 ACCUM = Texture("rgba32f")  # float32: a mean over thousands of samples keeps its last bits
 NO_CAP = 3.0e38  # still camera: the exact running mean, however many samples
 

@@ -26,17 +26,10 @@ from ...gl import shaders
 from ..effect_registry import EFFECTS
 from ..graph import FramePlan, Pass, Texture, read, write
 from ...gl.gpu_layout import IMAGE
-from ..accumulation import MAX_DENOISE_ITERATIONS
-from ...options import Option, declare
+from ...render_options.denoise import DENOISE_ITERATIONS  # (quality/frame_knobs.py reads it here)
 from .accumulate import ACCUM
 from .compute import dispatch_per_pixel
 
-DENOISE = declare(Option("denoise", bool, False, "edge-aware a-trous denoiser on the pixels of the effects the "
-                                               "config's `denoise` key lists (default: every traced effect)",
-                         scope="plan", plan_field="denoise", commands=("capture", "preview", "info")))
-DENOISE_ITERATIONS = declare(Option("denoise_iterations", int, 4, "a-trous iterations (step 2^i; implies --denoise)",
-                                    bounds=(1, MAX_DENOISE_ITERATIONS), metavar="K", commands=("capture", "preview"),
-                                    implies=(("denoise", True),)))
 DENOISE_TILE = 16  # one work group of glsl/post/denoise.comp filters 16x16 lattice points
 
 

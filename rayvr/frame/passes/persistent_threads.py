@@ -9,16 +9,9 @@ invocation. On the H200 it changes nothing within 1 % (`rayvr bench rays --persi
 bench/results/h200/2026-12-02/rays_order): these kernels have no long tail for it to remove."""
 from __future__ import annotations
 
-from ...options import Option, declare
+
 from .classify import RT_LOCAL_SIZE
 
-PERSISTENT_MODES = ("off", "on")
-PERSISTENT = declare(Option(
-    "persistent", str, "off", "on: the wavefront's trace kernels run as persistent work groups that fetch batches of "
-    "rays from an atomic counter (Aila and Laine 2009); off: one invocation per ray (the same images; within 1 % "
-    "of each other where measured)", scope="plan", plan_field="persistent", choices=PERSISTENT_MODES,
-    label="persistent mode",
-    commands=("capture", "preview", "info")))
 
 # Work groups (of RT_LOCAL_SIZE, 64 invocations) a persistent trace kernel launches: an H200's 132
 # SMs hold 16 such groups each at half occupancy (32 of 64 warps), 2112 in all (not tuned: the mode

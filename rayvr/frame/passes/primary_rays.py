@@ -31,7 +31,7 @@ way where exact (`skips_empty_slots`, FramePlan.skip_empty_slots): instead of a 
 resolved, shaded and added with weight 0, a 4-byte weight read per pass.
 
 Tile frustum culling (FramePlan.tile_culling, RenderSettings.tile_culling, `--tile-culling`; by
-default where it measured faster on the H200, RenderSettings.culls_tiles): each channel set's first
+default where it measured faster on the H200, primary_rays.culls_tiles): each channel set's first
 round first runs a `cull` stage (glsl/accel/tile_cull.comp with TILE_CAMERA): one workgroup per
 tile of pixels (16 x 8 by default; --tile-size) bounds every ray the rounds will cast there
 (all sub-rays of each sample's footprint, thin-lens lens points, this channel set's distortion) with
@@ -71,42 +71,12 @@ from ...gl.glsl_constants import declare as declare_constant
 from ...accel.frustum import tile_grid
 from ...accel.gpu import DEFAULT_BINDING, layout_defines
 from ..effect_registry import EFFECTS
-from ..graph import MAX_SLOTS, SHADING_MERGES, SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
+from ..graph import SHARED_CHANNEL, Buffer, FramePlan, GBufferChannels, Pass, Texture, read, write
 from ...gl.gpu_layout import BLOCK_TILES, IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TILE_PIXELS, channel
-from ...options import Option, declare
 from .compute import camera_defines, dispatch_per_pixel, pixel_grid, set_eye_uniforms
 from . import round_gate
 from .round_gate import RoundGate, round_tile_bytes
-
-PRIMARY_MODES = ("raster", "rays")
-PRIMARY = declare(Option("primary", str, "raster", "primary visibility: the raster G-buffer pass, or camera rays "
-                         "through the BVH (rays anyway where --msaa or the camera model needs them)", scope="plan",
-                         plan_field="primary", choices=PRIMARY_MODES, label="primary visibility",
-                         commands=("capture", "preview", "info")))
-TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visibility culls the BVH per tile of "
-                              "pixels first (--tile-size; a frustum over every sub-ray, lens point and channel of "
-                              "the tile; the same hits, exact) and walks the binary layout; auto: where it measured "
-                              "faster "
-                              "(rayvr/assets/primary_visibility.json: every camera model but foveated, with block "
-                              "culling); bench primary: each rays row without and with it",
-                              scope="plan", plan_field="tile_culling", auto=True,
-                              commands=("capture", "preview", "info", "bench")))
-
-
-BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary visibility with tile culling first "
-                               "cuts the BVH per block of tiles (--block-tiles; HVVR's block beams: a frustum over "
-                               "the tiles' frusta), and each tile's cut starts from its block's entries instead of "
-                               "the root (the same hits, exact); auto: where it measured faster "
-                               "(rayvr/assets/primary_visibility.json: every camera model but foveated)",
-                               scope="plan", plan_field="block_culling", auto=True,
-                               implies=(("tile_culling", True),), commands=("capture", "preview", "info", "bench")))
-# A tile's and a block's shape and a cut's bound (item 4 of HVVR's pipeline: chosen by measurement per
-# camera model, like the stages; primary_visibility.json). A tile is a workgroup of its pixels (at most
-# 256 invocations), a power of two on each side so the MSAA trace's blocks (msaa_block) lie in one; a
-# cut tests its entries one an invocation, so a bound is at most a tile's pixels and a block's tiles.
-TILE_SIZES = ("8x8", "16x8", "16x16")
-TILE_ENTRY_BOUNDS = (8, 16, 32, 64)
-BLOCK_SIDES = (4, 8, 16)  # a block of N x N tiles
+from ...render_options.primary_rays import TILE_SIZES, TILE_ENTRY_BOUNDS, BLOCK_SIDES
 
 
 def tile_pixels(text: str) -> tuple[int, int]:
@@ -115,32 +85,6 @@ def tile_pixels(text: str) -> tuple[int, int]:
     return int(w), int(h)
 
 
-TILE_SIZE_OPTION = declare(Option("tile_size", str, None, "ray-cast primary visibility with tile culling: a tile's "
-                           "pixels (w x h), one frustum and entry list each; auto: the measured choice "
-                           "(rayvr/assets/primary_visibility.json); implies tile culling", scope="plan",
-                           plan_field="tile_pixels", choices=TILE_SIZES, auto=True, label="tile size", metavar="WxH",
-                           implies=(("tile_culling", True),),
-                           commands=("capture", "preview", "info", "bench")))
-TILE_ENTRIES_OPTION = declare(Option("tile_entries", int, None, "ray-cast primary visibility with tile culling: "
-                                     "the BVH entry nodes a tile's (and a block's) cut lists at most (more: a "
-                                     "tighter cut, longer lists to walk); implies tile culling; auto: the measured "
-                                     "choice", scope="plan", plan_field="tile_entries", choices=TILE_ENTRY_BOUNDS,
-                                     auto=True, implies=(("tile_culling", True),),
-                                     label="tile entry bound", metavar="N",
-                                     commands=("capture", "preview", "info", "bench")))
-BLOCK_TILES_OPTION = declare(Option("block_tiles", int, None, "ray-cast primary visibility with block culling: "
-                                    "a block beam's tiles, N x N; implies block culling; auto: the measured choice",
-                                    scope="plan", plan_field="block_tiles", choices=BLOCK_SIDES, auto=True,
-                                    label="block side", implies=(("block_culling", True),),
-                                    metavar="N", commands=("capture", "preview", "info", "bench")))
-TILE_LIST_BOUNDS = (16, 32, 64, 128, 256, 512, 1024)  # triangles a tile's list may hold (a power of two: its sort)
-TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibility tests each tile's rays "
-                            "against the tile's own list of at most N triangles (those of its frustum, nearest "
-                            "first, from workgroup memory; the same hits, exact); a tile with more walks the BVH "
-                            "from its entries; 0: off; implies tile culling; auto: where it measured faster",
-                            scope="plan", plan_field="tile_lists", choices=(0,) + TILE_LIST_BOUNDS, auto=True,
-                            implies=(("tile_culling", True),), label="tile list bound", metavar="N",
-                            commands=("capture", "preview", "info", "bench")))
 # The tile list stage (glsl/accel/tile_tris.comp): invocations a tile, nodes one sweep of a tile's walk
 # may hold (more: the tile overflows, as with more than its bound of triangles), and the count that says so.
 DEFAULT_TILE_TRIS = declare_constant("DEFAULT_TILE_TRIS", 256)  # tile_tris.comp's bound when compiled alone (tests)
@@ -157,14 +101,6 @@ TILE_OVERFLOW = declare_constant("TILE_OVERFLOW", 0xFFFFFFFF, uint=True)
 EDGE_SLACK = declare_constant("EDGE_SLACK", 1e-5)
 
 
-SHARE_CHANNELS = declare(Option("share_channel_shading", bool, None, "a chromatic camera (three colour channel "
-                                "sets) casts its sets together as sub-rays of each sample and shades a pixel once "
-                                "per distinct triangle its sets' rays hit, each channel taking its own share "
-                                "(HVVR's shared shading: the approximation and its error are in docs/design.md; "
-                                "--msaa up to 16); false: every channel set cast and shaded on its own; auto: "
-                                "up to --msaa 8, where it measured faster",
-                                scope="plan", plan_field="share_channels", auto=True,
-                                commands=("capture", "preview", "info", "bench")))
 # Shared channel shading by default up to this --msaa: faster than the sets apart at 1x, 4x and 8x (H200,
 # Sponza's worst pose: 6.9 / 14.4 / 23.9 ms against 11.1 / 21.1 / 38.6), slower at 16x (47.9 against
 # 44.5; its 48 sub-rays a pixel trace at 1.6x the sets' apart; bench/results/h200/2026-12-03/rounds2,
@@ -312,18 +248,6 @@ def sample_group(rays: int, tile: tuple[int, int] = TILE_PIXELS) -> int:
     return group
 
 
-SHADING_SLOTS = declare(Option("shading_slots", int, MAX_SLOTS, "MSAA for rays and shared channel shading: "
-                               "a pixel shades at most its N most covered distinct triangles, the rounds the "
-                               "frame runs at most (the sub-rays on the others go to the kept ones, by "
-                               "coverage); fewer: fewer rounds at edges where many triangles meet",
-                               bounds=(1, MAX_SLOTS), scope="plan", plan_field="shading_slots", metavar="N",
-                               commands=("capture", "preview", "info", "bench")))
-SHADING_MERGE = declare(Option("shading_merge", str, "surface", "MSAA for rays and shared channel shading: what "
-                               "a pixel shades once: each smooth surface it sees (neighbouring triangles of one "
-                               "material, creases under 30 degrees, at one depth), or each distinct triangle "
-                               "(the reference; more rounds where a pixel covers a tessellated object's edges)",
-                               choices=SHADING_MERGES, scope="plan", plan_field="shading_merge", metavar="HOW",
-                               label="shading merge", commands=("capture", "preview", "info", "bench")))
 # Sub-rays on one smooth surface are linked where their distances agree to this share of the
 # larger (an entry chains them: a surface seen at a slant spreads its sub-rays' distances by more):
 # the chromatic camera's 12 sub-rays on the room's sphere 0.65 m away at 96x64 pixels span 4 % in

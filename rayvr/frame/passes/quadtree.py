@@ -23,16 +23,12 @@ from ..effect_registry import EFFECTS
 from ..graph import Buffer, FramePlan, Pass, read, write
 from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import SSBO, UNIT
-from ...options import Option, declare as declare_option
 from .compute import camera_defines, set_eye_uniforms
+
 
 # The material parameters by which an effect that uses the quadtree (`uses_quadtree`) sets its
 # proxy-plane merge thresholds, where it declares them (ssr): a cosine, a relative depth error.
 GAMMA_NORM, GAMMA_DIST = "gamma_norm", "gamma_dist"
-QUADTREE_ADAPT = declare_option(Option(
-    "quadtree_adapt", float, 0.0, "distance-adaptive quadtree thresholds (Widmer et al. §6): gamma_dist and the "
-    "normal angle grow by 1 + this x the node's view depth (scene units); 0 = off", bounds=(0, 1e6),
-    commands=("capture", "preview")))
 LOCAL = declare("QT_BUILD_LOCAL", 8)  # quadtree_build.comp's local size (x and y)
 QUADTREE = Buffer(lambda s: quadtree_bytes(s.size[0], s.size[1], s.layers * s.depth_layers),
                   "8 B per node: ceil(W/2^k) x ceil(H/2^k) nodes on every level k up to 1 x 1, per eye and depth layer",

@@ -19,17 +19,9 @@ import numpy as np
 from ...gl import shaders
 from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import SSBO
-from ...options import Option, declare as declare_option
 from .prefix_scan import dispatch_shape
 from .radix_sort import RadixSort, table_words
 
-RAY_ORDERS = ("none", "morton")
-RAY_ORDER = declare_option(Option(
-    "ray_order", str, "none", "the order the wavefront traces its rays in: none (as shaded) or morton (sorted by "
-    "direction octant and origin cell before each trace kernel; the same images, slower where measured: its "
-    "sort costs more than it saves)",
-    scope="plan", plan_field="ray_order", choices=RAY_ORDERS, label="ray order",
-    commands=("capture", "preview", "info")))
 
 ORDER_AXIS_BITS = declare("ORDER_AXIS_BITS", 7)  # Morton bits per coordinate: 128^3 origin cells
 OCTANT_BITS = 3

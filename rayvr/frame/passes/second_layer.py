@@ -21,16 +21,11 @@ from ...accel.gpu import DEFAULT_BINDING, GpuBvh
 from ..graph import FramePlan, Pass, Texture, read, write
 from ..gbuffer import layered_depth_target, delete_texture
 from ...gl.gpu_layout import IMAGE, NO_HIT, UNIT
-from ...options import Option, declare
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 from .quadtree import uses_quadtree
 from .visibility import VisibilityPass
 
-SECOND_LAYER_MODES = ("rays", "peel")
-SECOND_LAYER = declare(Option("second_layer", str, "rays", "how the second depth layer (ssr layers = 2) is made: "
-                              "primary rays continued through the BVH, or depth peeling in the raster (rayvr bench "
-                              "ssrt times both)", scope="plan", plan_field="second_layer", choices=SECOND_LAYER_MODES,
-                              label="second layer", commands=("capture", "preview")))
+
 LAYER2 = Texture("rgba32f")
 LAYER2_TRIANGLE = Texture("r32ui")
 GL_COLOR = 0x1800

@@ -5,17 +5,11 @@ from __future__ import annotations
 from ...gl import shaders
 from ..graph import FramePlan, Pass, Texture, read, write
 from ...gl.gpu_layout import IMAGE, TONEMAPPERS
-from ...options import Option, declare
 from . import radiance
 from .compute import dispatch_per_pixel
 
-LDR = Texture("rgba8")  # what frames return and the preview shows
 
-MAX_EXPOSURE = 1e6  # x1e6 already turns any lit pixel white
-EXPOSURE = declare(Option("exposure", float, 1.0, "linear scale before tonemapping", bounds=(0, MAX_EXPOSURE),
-                          lo_open=True, commands=("capture", "preview")))
-TONEMAPPER = declare(Option("tonemapper", str, "aces", "the tone curve (glsl/common/color.glsl)", choices=TONEMAPPERS,
-                            commands=("capture", "preview")))
+LDR = Texture("rgba8")  # what frames return and the preview shows
 
 
 class TonemapPass(Pass):

@@ -7,16 +7,10 @@ import numpy as np
 from ...gl import shaders
 from ..graph import FramePlan, GBufferChannels, Pass, write
 from ...gl.limits import to_float32
-from ...options import Option, declare
+from ...render_options.visibility import LAYER_MODES
 
 GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE, GL_ZERO_TO_ONE = 0x8CA1, 0x935E, 0x935F
-LAYER_MODES = ("vertex", "geometry", "multiview", "passes")
 LAYER_MODE_DEFINE = {"vertex": 0, "passes": 0, "geometry": 1, "multiview": 2}
-LAYER_MODE = declare(Option("layer_mode", str, "auto", "how the stereo G-buffer reaches both layers (auto: vertex "
-                                                           "where the GL sets gl_Layer in the vertex stage, else "
-                                                           "geometry)",
-                            scope="plan", choices=("auto",) + LAYER_MODES, label="layer mode", plan_field="layer_mode",
-                            commands=("capture", "preview")))
 
 
 def pick_layer_mode(gl, requested: str = "auto") -> str:
