@@ -245,3 +245,49 @@ def test_sah_cost_of_a_known_tree_is_its_closed_form():
     root, leaf = 11.0 * 1.0, 1.0 * 1.0
     assert bvh.sah_cost() == pytest.approx((root + 2 * leaf) / root)
     assert bvh.sah_cost(traversal_cost=2.0, triangle_cost=3.0) == pytest.approx((2 * root + 3 * 2 * leaf) / root)
+
+
+def hand_tree(left, right, leaf_triangles):
+    """A Bvh built by hand: nodes in preorder with children `left`, `right` (-1: a leaf), the
+    triangles (3 x 3 vertices each) of leaf n in `leaf_triangles[n]`, reordered into one range per
+    leaf; boxes from `refit` (bottom up from the triangles)."""
+    from rayvr.accel.bvh import Bvh
+
+    n = len(left)
+    start, count, depth = np.zeros(n, np.int32), np.zeros(n, np.int32), np.zeros(n, np.int32)
+    tris = []
+    for node in range(n):
+        for child in (left[node], right[node]):
+            if child >= 0:
+                depth[child] = depth[node] + 1
+        if left[node] < 0:
+            start[node], count[node] = len(tris), len(leaf_triangles[node])
+            tris += leaf_triangles[node]
+    verts = np.asarray(tris, np.float32).reshape(-1, 3)
+    bvh = Bvh(np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32), np.asarray(left, np.int32),
+              np.asarray(right, np.int32), start, count, depth, np.arange(len(tris), dtype=np.uint32),
+              np.arange(len(verts)).reshape(-1, 3), verts)
+    bvh.refit(verts)
+    return bvh
+
+
+def test_sah_cost_of_a_hand_built_three_level_tree_is_its_hand_computed_value():
+    """A root over an internal node A (leaves A1 of two triangles and A2 of one) and a leaf B of
+    three, boxes of three different sides each (so every term of the half area counts, and leaf
+    sizes differ). Half areas xy + yz + zx by hand: root [0,4]x[0,2]x[0,1] 8 + 2 + 4 = 14, A
+    [0,1]^3 3, A1 [0,1]x[0,1]x[0,.5] 1 + .5 + .5 = 2, A2 [0,1]x[0,1]x[.5,1] 2, B [2,4]x[0,2]x[0,1]
+    4 + 2 + 2 = 8. SAH = (C_t (14 + 3) + C_i (2 x 2 + 2 x 1 + 8 x 3)) / 14. Fails if leaves are not
+    weighted by their triangle counts (the two-leaf test's leaves hold one each), if a term of the
+    half area is dropped (its boxes are flat), if leaves count as traversal steps, if the root's
+    own test is left out or the sum is not over the root's area."""
+    a1 = [[(0, 0, 0), (1, 0, 0), (0, 1, 0.5)], [(1, 1, 0.5), (1, 0, 0), (0, 1, 0)]]
+    a2 = [[(0, 0, 0.5), (1, 1, 1), (1, 0, 0.75)]]
+    b = [[(2, 0, 0), (4, 2, 1), (3, 1, 0.5)], [(2, 2, 1), (4, 0, 0), (3, 1, 0.5)], [(2, 0, 1), (4, 2, 0), (3, 0, 0)]]
+    #              root A  A1  A2  B
+    bvh = hand_tree([1, 2, -1, -1, -1], [4, 3, -1, -1, -1], {2: a1, 3: a2, 4: b})
+    boxes = {0: ((0, 0, 0), (4, 2, 1)), 1: ((0, 0, 0), (1, 1, 1)), 2: ((0, 0, 0), (1, 1, 0.5)),
+             3: ((0, 0, 0.5), (1, 1, 1)), 4: ((2, 0, 0), (4, 2, 1))}
+    for node, (lo, hi) in boxes.items():
+        assert bvh.node_lo[node].tolist() == list(lo) and bvh.node_hi[node].tolist() == list(hi)
+    assert bvh.sah_cost() == pytest.approx((17 + 30) / 14, rel=1e-12)
+    assert bvh.sah_cost(traversal_cost=2.0, triangle_cost=3.0) == pytest.approx((2 * 17 + 3 * 30) / 14, rel=1e-12)

@@ -151,6 +151,28 @@ def test_octant_order_places_children_by_corner_and_is_a_permutation():
     assert ray_octants([[1, -1, 1], [-1, 1, -1], [0, 0, -0.0]]).tolist() == [2, 5, 0]
 
 
+def test_built_node_puts_the_child_at_each_corner_in_that_corners_slot():
+    """Eight small triangles, one near each corner of a box about 2 x 8 x 4 (the binary build splits y,
+    then z, then x: its children come in that order), given in a scrambled order: the built tree is
+    one node of eight one-triangle leaves, and slot s holds the triangle at the corner of sign
+    vector (s & 4: +x, s & 2: +y, s & 1: +z), the order in which a ray of octant bits o visits
+    them, slot k ^ o (accel/cwbvh.py's module docstring). Fails if the build stores the children by
+    the inverse of octant_slots' placement (from the binary order y z x to x y z: a 3-cycle of the
+    bits, no involution), or in the binary order."""
+    corners = np.array([[(s >> 2) & 1, (s >> 1) & 1, s & 1] for s in range(8)], np.float32) * 2 - 1
+    order = np.array([3, 6, 0, 5, 7, 1, 4, 2])                  # input triangle i sits at corner order[i]
+    tri = np.float32([[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0.1]])
+    v = (corners[order][:, None, :] * np.float32([0.9, 3.9, 1.9]) + tri[None]).reshape(-1, 3).astype(np.float32)
+    bvh = build_bvh(v, np.arange(24).reshape(8, 3), max_leaf_size=1)
+    cw = build_cwbvh(bvh)
+    assert cw.node_count == 1 and (cw.kind[0] == LEAF).all() and (cw.tri_count[0] == 1).all()
+    face = bvh.prim_ids[cw.tri_slot[cw.tri_first[0]]]            # the input triangle in each slot
+    # (the binary tree's leaves, left to right, are corners y z x: slot (x y z) = its order's bits rotated)
+    binary = order[bvh.prim_ids[bvh.start[bvh.left < 0]]]
+    assert binary.tolist() == [((p & 1) << 2) | (p >> 1) for p in range(8)]
+    assert order[face].tolist() == list(range(8))
+
+
 @pytest.mark.parametrize("case", ["soup", "room"])
 def test_numpy_walk_matches_binary_reference(case):
     name, v, f, o, d = next(c for c in cases() if c[0] == case)
@@ -230,7 +252,7 @@ def test_gpu_cwbvh_rays_from_a_nodes_quantization_origin_to_its_triangles_corner
     children (a corner lies on its child box's faces wherever it is the extreme), near the origin
     and 1e4 from it. The GPU's compressed wide BVH hits what bvh2 hits, bit for bit. (A far plane
     decoded 1e-6 short passes it too: the quantized boxes' outward rounding leaves these corners
-    inside; a ray grazing a far plane exactly is not made here.)"""
+    inside; test_gpu_cwbvh_rays_grazing_a_child_boxs_far_plane makes rays that graze one.)"""
     from rayvr.accel.cwbvh import NODE_VEC4
 
     v, f = soup(300, seed=7)
@@ -250,6 +272,103 @@ def test_gpu_cwbvh_rays_from_a_nodes_quantization_origin_to_its_triangles_corner
     out = traces(gl, bvh, o[keep], d[keep], np.float32(1e6))
     assert_bitwise_bvh2(out)
     assert keep.sum() > 500 and (out["bvh2"][0].prim != MISS).mean() > 0.9  # the rays meet what they aim at
+
+
+GRID = 2.0 ** -7        # the quantum of grazing_scene's one node: its origin is (-1, -1, -1)
+# Per grazing triangle, in quanta from the origin: its lower y face and its upper z face. The lines
+# of sight from the origin, (y + 1) / (z + 1) ~ j / k, lie apart, so no triangle hides another.
+GRAZING_PLANES = ((136, 144), (150, 176), (160, 184), (140, 200), (170, 190))
+
+
+def grazing_scene():
+    """One CWBVH node, origin (-1, -1, -1), quantum 2^-7 on every axis (three anchor triangles give
+    its widened minimum exactly -1 and its maximum), and five triangles lying in planes z = c, each
+    with an edge along y = y0, placed so that the quantized child box's lower y plane and upper z
+    plane are their widened faces exactly: grid planes one ulp outside y0 and c. A ray through that
+    edge enters the box by the y plane and leaves it by the z plane at the edge itself.
+    Returns vertices, faces and per grazing triangle (face, x range of its edge, y0, c)."""
+    f32 = np.float32
+    below, above = f32(np.nextafter(f32(-1), f32(0))), f32(0.9)      # widened: -1 exactly
+    tris = [[(below, above - .4, above), (below, above, above), (below, above, above - .4)],
+            [(above - .4, below, above), (above, below, above), (above, below, above - .4)],
+            [(above - .4, above, below), (above, above, below), (above, above - .4, below)]]
+    grazing = []
+    for i, (j, k) in enumerate(GRAZING_PLANES):
+        y0 = np.nextafter(f32(-1 + j * GRID), f32(np.inf))             # its face widened: the grid plane
+        c = np.nextafter(f32(-1 + k * GRID), f32(-np.inf))
+        xa, xb = f32(0.1 + 0.02 * i), f32(0.5 + 0.02 * i)
+        grazing.append((len(tris), xa, xb, y0, c))
+        tris.append([(xa, y0, c), (xb, y0, c), (0.5 * (xa + xb), y0 + f32(0.01), c)])
+    v = np.asarray(tris, np.float32).reshape(-1, 3)
+    return v, np.arange(len(v)).reshape(-1, 3), grazing
+
+
+def test_gpu_cwbvh_rays_grazing_a_child_boxs_far_plane(gl):
+    """Rays through an edge that lies in two planes of its child's quantized box, the near y plane
+    and the far z plane (grazing_scene): each passes through the box within 2.5e-7 of its distance
+    (float64 on the decoded boxes; some, by exact arithmetic, just outside it, where the float32
+    triangle test still hits). From the node's quantization origin (the box test's margin, relative
+    to the origin's offset, is nothing), along directions scaled by random factors so that 1/d
+    rounds both ways; and from 20 to 60 node widths behind the origin on the same lines of sight.
+    bvh2 hits the aimed triangle at the analytic distance of its plane; the compressed layout returns
+    bvh2's hits bit for bit. It fails if the far distance loses 1e-6 (t1 * (1 - 1e-6): the origin's
+    rays miss), if the far plane's base is 1e-6 of it short after its margin (base - 2 * margin *
+    |base|: the far rays miss), or if the 1.00000024 rounding factor is dropped (~100 rays, those
+    whose box test float32 rounds closed: counted here in numpy)."""
+    from rayvr.accel.cwbvh import NODE_VEC4
+
+    f32 = np.float32
+    v, f, grazing = grazing_scene()
+    bvh = build_bvh(v, f, max_leaf_size=1)
+    cw = build_cwbvh(bvh)
+    nodes = cw.packed[:cw.node_count * NODE_VEC4].reshape(-1, NODE_WORDS)
+    origin, ebias = unpack(nodes)[:2]
+    assert cw.node_count == 1 and (cw.kind == LEAF).all() and (cw.tri_count == 1).all()
+    assert (origin == -1).all() and (ebias - 127 == -7).all()
+    lo, hi = (x[0] for x in cw.decode())
+    face_of_slot = bvh.prim_ids[cw.tri_slot[cw.tri_first[0]]]
+    rng = np.random.default_rng(0)
+    o, d, aim, plane = [], [], [], []
+    for face, xa, xb, y0, c in grazing:
+        s = int(np.flatnonzero(face_of_slot == face)[0])
+        assert lo[s, 1] == np.nextafter(y0, f32(-np.inf)) and hi[s, 2] == np.nextafter(c, f32(np.inf))
+        x = rng.uniform(xa + 0.02, xb - 0.02, 400)
+        q = np.stack([x.astype(np.float32), np.full_like(x, y0), np.full_like(x, c)], 1).astype(np.float64)
+        scale = rng.uniform(0.5, 2.0, (len(x), 1))
+        back = rng.uniform(20, 60, (len(x), 1))
+        far = -1 - back * (q + 1) + rng.normal(size=q.shape) * 0.02 * back
+        o += [np.full_like(q, -1.0), far]
+        d += [(q + 1) * scale, q - far]
+        aim += [np.full(2 * len(x), face)]
+        plane += [np.full(2 * len(x), float(c))]
+    n = sum(len(x) for x in aim) // 2
+    o, d = np.asarray(np.concatenate(o), np.float32), np.asarray(np.concatenate(d), np.float32)
+    aim, plane = np.concatenate(aim), np.concatenate(plane)
+    from_origin = (o == -1).all(1)
+    assert from_origin.sum() == n
+
+    # They graze: the decoded child box holds a stretch of each ray at most 2.5e-7 of its distance.
+    slot = np.array([np.flatnonzero(face_of_slot == a)[0] for a in aim])
+    o64, d64 = o.astype(np.float64), d.astype(np.float64)
+    ta, tb = (lo[slot] - o64) / d64, (hi[slot] - o64) / d64
+    t_in, t_out = np.minimum(ta, tb).max(1), np.maximum(ta, tb).min(1)
+    assert (np.abs(t_out - t_in) < 2.5e-7 * t_out).all()
+    # An IEEE float32 box test from the origin without the rounding factor (what cwbvh.glsl
+    # computes there: base 0, planes q * (scale * 1/d)) closes on some of them.
+    inv = f32(1) / d
+    q_lo, q_hi = np.round((lo + 1) / GRID).astype(np.float32), np.round((hi + 1) / GRID).astype(np.float32)
+    t0, t1 = q_lo[slot] * (f32(GRID) * inv), q_hi[slot] * (f32(GRID) * inv)
+    closed = from_origin & (np.maximum(t0.max(1), 0) > t1.min(1))
+
+    out = traces(gl, bvh, o, d, np.float32(1e3))
+    ref = out["bvh2"][0]
+    hit = ref.prim != MISS
+    for rays in (from_origin, ~from_origin):
+        assert hit[rays].mean() > 0.7
+    assert (ref.prim[hit] == aim[hit]).all()
+    np.testing.assert_allclose(ref.t[hit], (plane - o64[:, 2])[hit] / d64[hit, 2], rtol=1e-6)
+    assert closed.sum() > 50 and (closed & hit).sum() > 20, (closed.sum(), (closed & hit).sum())
+    assert_bitwise_bvh2(out)
 
 
 def test_gpu_cwbvh_empty_single_triangle_and_refit(gl):

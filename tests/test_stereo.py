@@ -346,6 +346,72 @@ def test_warp_holes_are_disocclusions_and_symmetric(gl):
         assert np.isfinite(warp[eye].depth).all() and np.isfinite(warp2[eye].depth).all()
 
 
+def warp_outcomes(eye_sign, half_ipd, tau, depth_f, depth_b, slab):
+    """Per column of an eye at x = eye_sign * half_ipd (tangents `tau`) over two fronto-parallel
+    planes, F at depth_f covering x < 0 and B at depth_b covering x > 0 of the central view (at
+    the origin, looking down -z): (hole, within a slab, depth of the surface it lands on) by the
+    slab rule of docs/stereo.md. The ray's central-view tangent is e / depth + tau: it enters the
+    image through the border on its eye's side at depth e / (+-1 - tau), over that side's plane,
+    and crosses to the other side's plane at depth -e / tau. Over each plane in turn: entering it
+    deeper than its depth, it is behind it there: a hole if deeper than depth / (1 - slab), else it
+    takes the plane's sample; entering in front and leaving deeper, it hits the plane."""
+    e = eye_sign * half_ipd
+    own, other = (depth_b, depth_f) if eye_sign > 0 else (depth_f, depth_b)
+    hole = np.zeros(len(tau), bool)
+    in_slab = np.zeros(len(tau), bool)
+    depth = np.zeros(len(tau))
+    for i, t in enumerate(tau):
+        enter = e / (eye_sign - t)
+        cross = -e / t if t * eye_sign < 0 else np.inf
+        for surface, a, b in ((own, enter, cross), (other, cross, np.inf)):
+            if a > surface:
+                hole[i], in_slab[i], depth[i] = a > surface / (1 - slab), a <= surface / (1 - slab), surface
+                break
+            if b > surface:
+                depth[i] = surface
+                break
+    return hole, in_slab, depth
+
+
+def test_warp_slab_thickness_alone_decides_which_rays_behind_a_surface_are_holes(gl):
+    """The warp's threshold, as docs/stereo.md states it: each surface of the central view is a slab
+    2 % deep in S's z (near / depth); a ray entering a surface's pixels deeper than that behind it
+    passed behind it (a hole, with one depth layer), one within it takes its sample. Two
+    fronto-parallel planes, F at depth 1 covering x < 0 (its edge on the central image's middle
+    pixel boundary) and B at depth 2 covering x > 0, seen by eyes ~0.8 either side of the centre,
+    with tangents -1..1 across 4096 x 2 pixels: no ray leaves the central image, and each either
+    hits a plane or enters a plane's pixels already behind it, at a depth known in closed form
+    (warp_outcomes), through the image border or across F's edge. The holes are the columns where
+    that depth is more than 1 / 0.98 of the plane's, in both eyes exactly; the columns within a
+    slab (33, and 16 more in the right eye) land on its plane, at its depth. Fails if the slab is
+    1 % or 4 % (THICKNESS in frame/passes/warp.py; the thickness warp.comp traces with, halved or
+    doubled), if qt_cell (ssrt/quadtree.glsl) compares the depth behind with 2 % absolute instead
+    of 2 % of z, or with 2 % of the ray's z (a slab 2 % deep in depth: its back 0.6 px off here)."""
+    slab = 0.02                                   # docs/stereo.md: "a slab 2 % deep in z"
+    W, H, depth_f, depth_b = 4096, 2, 1.0, 2.0
+    half_ipd = 1606 / (W / 2) / (1 - slab)        # ~0.8: the slabs' backs fall on pixel edges
+    v, f, _ = merge(quad((-1.5, 0, -depth_f), (1.5, 0, 0), (0, 0.5, 0)),     # F: x in [-3, 0]
+                    quad((1.5, 0, -depth_b), (1.5, 0, 0), (0, 1, 0)))       # B: x in [0, 3]
+    rig = StereoRig(Pose.look_at([0, 0, 0], [0, 0, -1]), ipd=2 * half_ipd, size=(W, H),
+                    fov_y=float(np.degrees(2 * np.arctan(H / W))))
+    with Renderer(from_arrays(v, f), None, gl=gl, settings=RenderSettings(warp_layers=1)) as r:
+        warp = render(r, "warp", rig)
+        holes = read_holes(r._last)
+        c = r.stereo_counts()
+    tau = (np.arange(W) + 0.5) / W * 2 - 1        # column tangents (x / depth)
+    for i, (eye, sign) in enumerate((("left", -1), ("right", 1))):
+        assert np.allclose(rig.eye(eye).tangents, (-1, 1, -H / W, H / W))
+        hole, in_slab, depth = warp_outcomes(sign, half_ipd, tau, depth_f, depth_b, slab)
+        for nudge in (-0.1, 0.1):                 # no ray within 0.1 px of where its outcome flips
+            assert np.array_equal(warp_outcomes(sign, half_ipd, tau + nudge * 2 / W, depth_f, depth_b, slab)[0], hole)
+        # within F's slab 0.02 x 0.8 of tangent: 33 columns (both eyes); within B's (right eye) 16 more
+        assert in_slab.sum() == {"left": 33, "right": 49}[eye] and hole.sum() > 1000
+        assert np.array_equal(holes[i], np.broadcast_to(hole, (H, W))), (eye, np.flatnonzero(holes[i][0] != hole))
+        assert c[f"disoccluded_{eye}"] == hole.sum() * H and c[f"offscreen_{eye}"] == 0
+        seen = np.broadcast_to(~hole, (H, W))
+        np.testing.assert_allclose(warp[eye].depth[seen], np.broadcast_to(depth, (H, W))[seen], rtol=1e-5)
+
+
 def test_cli_stereo(tmp_path):
     run = run_rayvr
     p = run("capture", "--stereo", "warp", "--size", "32x24", "--out", str(tmp_path), "-q")

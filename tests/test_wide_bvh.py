@@ -55,6 +55,42 @@ def test_quantized_boxes_contain_the_binary_boxes(offset, scale):
         assert np.isfinite(lo[valid]).all() and np.isfinite(hi[valid]).all()
 
 
+def test_collapse_opens_the_largest_child_and_keeps_the_binary_left_to_right_order():
+    """A hand-built binary tree (preorder): root (1, 6), 1 (2, 5), 2 (3, 4), 6 (7, 8), leaves of one
+    unit triangle each, box x ranges 3 [0,1], 4 [1,2], 5 [2,3], 7 [10,11] and 8 at 20 (far) or
+    10.5 (near), y and z [0,1]. Half areas by hand: node 2 5, node 1 7, node 6 23 (far) or 4 (near).
+    Width 4, far: the root's children 1, 6; 6 is larger, opened: 1, 7, 8; then 1: 2, 5, 7, 8 in the
+    tree's left-to-right order, and a second node for 2: 3, 4. Near: 1 is opened first (7 > 4),
+    then 2 (5 > 4): 3, 4, 5, 6, and 6's node 7, 8. Width 8 opens every internal node: one node of
+    all five leaves. Fails if the smallest child is opened, or the first, or if the opened
+    children are not put back in the tree's order; the packed slots follow the same order."""
+    from test_bvh import hand_tree
+
+    def unit(x):
+        return [[(x, 0, 0), (x + 1, 1, 0), (x, 0, 1)]]
+
+    left, right = [1, 2, 3, -1, -1, -1, 7, -1, -1], [6, 5, 4, -1, -1, -1, 8, -1, -1]
+    for x8, area6, expected in ((20.0, 23.0, [[2, 5, 7, 8], [3, 4, -1, -1]]),
+                                (10.5, 4.0, [[3, 4, 5, 6], [7, 8, -1, -1]])):
+        bvh = hand_tree(left, right, {3: unit(0), 4: unit(1), 5: unit(2), 7: unit(10), 8: unit(x8)})
+        side = (bvh.node_hi - bvh.node_lo).astype(np.float64)
+        area = {n: side[n, 0] * side[n, 1] + side[n, 1] * side[n, 2] + side[n, 2] * side[n, 0] for n in (1, 2, 6)}
+        assert area == {1: 7.0, 2: 5.0, 6: area6}
+        assert collapse(bvh, 4).tolist() == expected
+        assert collapse(bvh, 8).tolist() == [[3, 4, 5, 7, 8, -1, -1, -1]]
+        w = build_wide(bvh, 4)
+        _, _, nchild, _, count, index = unpack(w.packed, 4)
+        lo, hi = w.decode()
+        for node, row in enumerate(expected):
+            kids = [c for c in row if c >= 0]
+            assert nchild[node] == len(kids)
+            for slot, c in enumerate(kids):
+                leaf = bvh.left[c] < 0
+                assert count[node, slot] == (1 if leaf else 0)
+                assert index[node, slot] == (bvh.start[c] if leaf else 1)    # the internal child: wide node 1
+                assert (lo[node, slot] <= bvh.node_lo[c]).all() and (hi[node, slot] >= bvh.node_hi[c]).all()
+
+
 @pytest.mark.parametrize("width", [4, 8])
 def test_numpy_wide_walk_matches_binary_reference(width):
     v, f = soup(1500, seed=1)
