@@ -8,6 +8,7 @@ import os
 import signal
 import sys
 
+from .options import PlanRefusal
 from .util.extras import MissingExtraError
 from .util.signals import handling
 
@@ -102,7 +103,8 @@ def run_command(argv=None) -> int:
             return code
         except (ContextError, ConfigError, SceneError, OutputError, ShaderError, ClusterError, MissingExtraError,
                 ValueError) as exc:
-            print(f"rayvr {args.command}: error: {exc}", file=sys.stderr)
+            words = exc.in_flags() if isinstance(exc, PlanRefusal) else exc  # the core names options, not flags
+            print(f"rayvr {args.command}: error: {words}", file=sys.stderr)
             return 2
         except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: one line, the shell's status for the signal
             print(f"rayvr {args.command}: {str(exc) or 'interrupted'}", file=sys.stderr)

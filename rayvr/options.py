@@ -211,6 +211,109 @@ def _argparse_type(option: Option):
     return parse
 
 
+# ----------------------------------------------------------------------------- plan refusals
+
+class PlanRefusal(ValueError):
+    """A frame plan that the options given cannot make. `reason` says why in words of the renderer
+    (no flag); `advice` ("leave out" or "use") and `options`, (option, value) pairs, what would make
+    it: the API's message names them as keywords (tile_culling=False), `in_flags()` as the command
+    line spells them (--no-tile-culling), so the core never names a flag."""
+
+    def __init__(self, reason: str, advice: str, *options: tuple):
+        self.reason, self.advice, self.options = reason, advice, options
+        words = " and ".join(f"{name}={value!r}" for name, value in options)
+        super().__init__(f"{reason}: {advice} {words}" if options else reason)
+
+    def in_flags(self) -> str:
+        """The refusal as the command line says it: "...: leave out --no-tile-culling"."""
+        if not self.options:
+            return self.reason
+        return f"{self.reason}: {self.advice} " + " and ".join(flag_words(n, v) for n, v in self.options)
+
+
+def flag_words(name: str, value) -> str:
+    """How the command line gives option `name` the value `value`: --msaa 4, --no-tile-culling,
+    --temporal (its flag; a name no option has stays as it is)."""
+    option = _REGISTRY.get(name)
+    flag = option.cli_flag if option is not None else "--" + name.replace("_", "-")
+    if isinstance(value, bool) or (option is not None and option.type is bool):
+        return flag if value else "--no-" + flag[2:]
+    text = ",".join(map(str, value)) if isinstance(value, (tuple, list)) else str(value)
+    return f"{flag} {text}"
+
+
+# ----------------------------------------------------------------------------- plan parts
+
+@dataclass(frozen=True)
+class PlanAsk:
+    """What a frame plan is made for: the settings, the camera model, the view and eyes, and what
+    the scene's materials ask (Renderer.plan fills it)."""
+
+    settings: Any
+    camera: Any  # a rayvr.frame.cameras model
+    view: str = "color"
+    layers: int = 2
+    accumulate: bool = False  # a running mean of samples was asked for (render(spp=N))
+    effects: frozenset = frozenset()  # the effects the materials use
+    denoised: frozenset = frozenset()  # the effects the config's `denoise` key names
+    depth_layers: int = 1  # depth layers the materials' effects need
+
+    @property
+    def color(self) -> bool:
+        return self.view == "color"
+
+
+_PLAN_PARTS: dict[str, tuple[Callable, tuple]] = {}
+
+
+def plan_part(name: str, after: tuple = ()):
+    """Register `fn(ask, plan)` as the owner `name`'s part of the frame plan: it adds its FramePlan
+    fields to `plan` (the fields of the parts named in `after`, which run before it, and of the
+    renderer's frame: effects, view, camera, ...) or raises PlanRefusal. A plan option no part fills
+    reaches its plan_field as it is."""
+    def register(fn):
+        if name in _PLAN_PARTS and _PLAN_PARTS[name][0].__qualname__ != fn.__qualname__:
+            raise ValueError(f"plan part {name!r} is registered twice")
+        _PLAN_PARTS[name] = (fn, tuple(after))
+        return fn
+    return register
+
+
+def _ordered_parts() -> list[Callable]:
+    """The parts with each one after those it names (registration order otherwise)."""
+    done, out = set(), []
+
+    def visit(name, path=()):
+        if name in done or name not in _PLAN_PARTS:
+            return
+        if name in path:
+            raise ValueError(f"plan parts name each other in a loop: {' -> '.join(path + (name,))}")
+        for before in _PLAN_PARTS[name][1]:
+            visit(before, path + (name,))
+        done.add(name)
+        out.append(_PLAN_PARTS[name][0])
+    for name in list(_PLAN_PARTS):
+        visit(name)
+    return out
+
+
+def remove_plan_part(name: str) -> None:
+    """Forget a plan part (tests that register a toy one)."""
+    _PLAN_PARTS.pop(name, None)
+
+
+def plan_fields(ask: PlanAsk, frame: dict) -> dict:
+    """The frame plan's fields: `frame`'s (the renderer's: effects, view, camera, ...), every owner's
+    part, then the plan options no part filled."""
+    plan = dict(frame)
+    for fn in _ordered_parts():
+        fn(ask, plan)
+    for option in _REGISTRY.values():
+        if option.scope == "plan" and option.plan_field not in plan:
+            plan[option.plan_field] = getattr(ask.settings, option.name)
+    return plan
+
+
 # ------------------------------------------------------------------------------- the registry
 
 _REGISTRY: dict[str, Option] = {}

@@ -10,6 +10,7 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import replace
 
@@ -20,7 +21,7 @@ from .scene import materials as materials_mod
 from .scene import loader as scene_mod
 from .frame import stereo as stereo_mod
 from .accel.scene import SceneAccel
-from .frame.accumulation import Accumulator, sample_seed, temporal_problem
+from .frame.accumulation import Accumulator, sample_seed
 from .frame.cameras.rig import StereoRig
 from .frame.cameras import CAMERA_MODELS, DEFAULT_CAMERA_MODEL, get_camera_model
 from .gl.context import GLContext, GpuError, create_context
@@ -30,14 +31,20 @@ from .gl.gpu_layout import VIEWS
 from .scene.gpu_scene import GpuScene
 from .frame.passes import primary_rays
 from .frame.passes.core import core_passes
+from .frame.cameras import sampling
+from .frame.passes import accumulate as accumulate_pass, denoise, dof, persistent_threads, quadtree, second_layer
+from .options import PlanAsk, plan_fields
 from .frame.passes.classify import pixel_counts
-from .frame.passes.quadtree import screen_space_refusal
 from .frame.passes.second_layer import depth_layers
 from .frame.passes.visibility import pick_layer_mode
 from .frame.readback import AUX_CHANNELS, Reader
 from .settings import RenderSettings
 from .gl.timing import settle
 
+# The modules whose plan parts make a FramePlan (rayvr/options.py plan_part: each registers its own
+# on import); Renderer.plan runs them all.
+PLAN_OWNERS = (sampling, primary_rays, second_layer, denoise, stereo_mod, dof, quadtree, accumulate_pass,
+               persistent_threads)
 MAX_TILES = 64  # a frame that needs more tiles than this is refused (FrameTooLarge) instead
 HOST_BYTES_PER_PIXEL = 16  # colour, depth and the pixel buffers they come through, per eye pixel
 SAMPLES_IN_FLIGHT = 2  # samples of an accumulation queued on the GPU before the next is recorded
@@ -131,55 +138,15 @@ class Renderer:
         names = self.scene.material_names()
         users = tuple((e, tuple(n for n, a in zip(names, self.assignments) if a.effect == e))
                       for e in effects_mod.EFFECTS if e in self.effects_in_use())
-        samples = self.settings.msaa
-        primary = primary_rays.primary_visibility(self.settings, camera)
-        color, st = view == "color", self.settings
-        # Peeling needs the raster's depth: with ray-cast primaries the second layer is ray-cast too.
-        second = self.settings.second_layer if primary == "raster" else "rays"
-        culled = primary_rays.culls_tiles(st, camera.name) and primary == "rays"
-        blocks = culled and primary_rays.culls_blocks(st, camera.name)
-        if st.tile_lists and primary == "rays" and not culled:
-            raise ValueError("tile triangle lists (--tile-lists) start from the tile culling's entry lists: "
-                             "leave out --no-tile-culling (tile_culling=False)")
-        if st.block_culling and primary == "rays" and not culled:
-            raise ValueError("block culling (--block-culling) hands its entries to the tile culling: "
-                             "leave out --no-tile-culling (tile_culling=False)")
-        denoise = tuple(sorted(self.denoised_effects())) if color and st.denoise else ()
-        stereo = stereo_mod.effective_mode(self.settings.stereo, layers, camera)
-        if stereo != "dual" and samples > 1:  # their passes read one G-buffer, not a frame of rounds
-            raise ValueError(f"stereo mode {stereo!r} reprojects one sample per pixel: it cannot take --msaa "
-                             f"{samples} (use --stereo dual)")
-        if color and st.dof_diameter > 0 and not (stereo == "dual" and camera.rasterizable):
-            # frame/passes/dof.py blurs each eye's own pinhole frame: a warped or reused eye has none, and
-            # the other models' rays are not that frame's (the dof model has a lens of its own)
-            why = (f"the {camera.name} camera is not a pinhole" if not camera.rasterizable
-                   else f"--stereo {stereo} makes an eye from the other's frame")
-            hint = (f"its {camera.lens_parameter} parameter" if camera.lens_parameter
-                    else "the pinhole camera and --stereo dual")
-            raise ValueError(f"depth of field (--dof-diameter) blurs each eye's own pinhole frame, and {why}: use {hint}")
-        refusal = screen_space_refusal(self.effects_in_use(), camera.name)
-        if refusal:
-            raise ValueError(refusal)
-        accumulates = color and (accumulate or st.accumulate or bool(denoise))
-        problem = temporal_problem(camera) if accumulates and st.temporal else None
-        if problem:
-            raise ValueError(f"{problem}: leave out --temporal")
-        warp = stereo == "warp"  # one central view is rendered; the warp pass makes both eyes from it
-        return FramePlan(effects=self.effects_in_use(), view=view, layers=1 if warp else layers,
-                         layer_mode=self.layer_mode, primary=primary, camera=camera.name, stereo=stereo,
-                         output=stereo_mod.WARP_OUTPUT if warp else "ldr", users=users,
-                         accumulate=accumulates, denoise=denoise,
-                         depth_layers=max(depth_layers(self.assignments), st.warp_layers if warp else 1),
-                         second_layer=second, traversal=st.traversal, bvh_build=st.bvh_build,
-                         dof=color and st.dof_diameter > 0,
-                         samples=samples, shading="ssaa" if st.ssaa and samples > 1 else "msaa",
-                         tile_culling=culled, tile_lists=primary_rays.tile_list_bound(st, camera.name) if culled else 0,
-                         block_culling=blocks, **(primary_rays.tile_shape(st, camera.name, blocks) if culled else {}),
-                         share_channels=primary == "rays" and primary_rays.shares_channels(
-                             st, camera, samples, self.effects_in_use(), view),
-                         shading_slots=st.shading_slots, shading_merge=st.shading_merge,
-                         channels=camera.channels, reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots,
-                         light_picks=st.light_picks, ray_order=st.ray_order, persistent=st.persistent == "on")
+        ask = PlanAsk(self.settings, camera, view, layers, accumulate, self.effects_in_use(),
+                      frozenset(self.denoised_effects()), depth_layers(self.assignments))
+        frame = dict(effects=self.effects_in_use(), view=view, layers=layers, layer_mode=self.layer_mode,
+                     camera=camera.name, output="ldr", users=users, channels=camera.channels,
+                     reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots)
+        fields = plan_fields(ask, frame)  # every owner's part (rayvr/options.py plan_part)
+        known = {f.name for f in dataclasses.fields(FramePlan)}
+        extra = tuple(sorted((k, v) for k, v in fields.items() if k not in known))  # plugins' plan fields
+        return FramePlan(**{k: v for k, v in fields.items() if k in known}, extra=extra)
 
     def set_stereo(self, mode: str) -> None:
         """How the second eye is made from now on: "dual", "warp" or "reuse" (rayvr/frame/stereo.py)."""

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from rayvr.frame.passes import primary_rays
 from conftest import camera_rig
 from test_tile_culling_frame import SHAPE, gl_tile_rays
 from test_tile_lists import CASES as LIST_CASES
@@ -121,7 +123,7 @@ def test_block_culling_needs_tile_culling_and_follows_the_measured_choice(room):
     room.settings = RenderSettings(primary="rays", tile_culling=False, block_culling=True)
     with pytest.raises(ValueError, match="tile culling"):
         room.render(rig)
-    assert RenderSettings(primary="rays", block_culling=True).culls_tiles()   # the blocks imply the cull
+    assert primary_rays.culls_tiles(RenderSettings(primary="rays", block_culling=True))   # the blocks imply the cull
     for n in (1, 16):
         room.settings = RenderSettings(primary="rays", msaa=n)
         assert room.plan().block_culling == measured_choice("pinhole", n)["block_culling"]

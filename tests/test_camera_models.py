@@ -6,6 +6,8 @@ import math
 import numpy as np
 import pytest
 
+from rayvr.frame.passes import primary_rays
+
 from rayvr.frame.cameras.rig import Pose, StereoRig
 from rayvr.frame.cameras import (CAMERA_MODELS, Distorted, Foveated, Pinhole, ThinLens, Wide, get_camera_model,
                            parse_camera_params)
@@ -163,7 +165,7 @@ def test_sample_file_reproduces_the_model_it_was_written_from(tmp_path):
         rays = table.rays(rig2.eye("left"), ch)
         np.testing.assert_array_equal(rays.valid, valid[ch])
         np.testing.assert_allclose(rays.directions[valid[ch]], parametric.rays(eye, ch).directions[valid[ch]], atol=1e-12)
-    with pytest.raises(ValueError, match=r"covers 12x9 pixels, the eye image is 13x9: render at --size 12x9"):
+    with pytest.raises(ValueError, match=r"covers 12x9 pixels, the eye image is 13x9: render at 12x9"):
         rig_for(table, size=(13, 9))
 
 
@@ -383,7 +385,8 @@ def test_the_frame_reads_camera_capabilities_from_the_model_not_its_name(monkeyp
 
     for model in (PlanarCopy, Untiled):
         monkeypatch.setitem(CAMERA_MODELS, model.name, model)
-    assert RenderSettings(msaa=4).culls_tiles("planar_copy") and not RenderSettings(msaa=4).culls_tiles("untiled")
+    assert primary_rays.culls_tiles(RenderSettings(msaa=4), "planar_copy")
+    assert not primary_rays.culls_tiles(RenderSettings(msaa=4), "untiled")
     for camera, planar in (("planar_copy", True), ("pinhole", True), ("wide", False), ("foveated", False)):
         plan = FramePlan(effects=frozenset({"ssr"}), view="quadtree_visits", camera=camera)
         assert (QuadtreePass().why(plan) is not None) == planar, camera

@@ -329,8 +329,8 @@ def test_preview_without_the_glfw_package_is_one_line(tmp_path):
     (("--camera-model", "wide", "--primary", "raster"), "--primary raster: the wide camera cannot be rasterized"),
     (("--dof-diameter", "0.1", "--camera-model", "wide"), "the wide camera is not a pinhole"),
     (("--dof-diameter", "0.1", "--camera-model", "dof"), "use its aperture parameter"),
-    (("--dof-diameter", "0.1", "--stereo", "warp"), "--stereo warp makes an eye from the other's frame"),
-    (("--dof-diameter", "0.1", "--stereo", "reuse"), "--stereo reuse makes an eye from the other's frame")])
+    (("--dof-diameter", "0.1", "--stereo", "warp"), "stereo mode 'warp' makes an eye from the other's frame: use --stereo dual"),
+    (("--dof-diameter", "0.1", "--stereo", "reuse"), "stereo mode 'reuse' makes an eye from the other's frame: use --stereo dual")])
 def test_flags_a_frame_would_ignore_are_one_line(tmp_path, args, says):
     """A flag the frame cannot honour (it used to be dropped, the frame rendered without it) is
     refused in one line, before anything is written."""

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from rayvr.frame.passes import primary_rays
 from conftest import camera_rig
 from PIL import Image
 
@@ -155,10 +157,10 @@ def test_tile_culling_is_chosen_where_it_measured_faster():
     for model in ("pinhole", "distorted", "foveated", "dof", "wide"):
         for n in (1, 4, 16):
             want = measured_choice(model, n)["tile_culling"]
-            assert RenderSettings(primary="rays", msaa=n).culls_tiles(model) == want, (model, n)
-    assert RenderSettings(msaa=4).culls_tiles() and not RenderSettings(msaa=4).culls_tiles("foveated")
-    assert RenderSettings(primary="rays", tile_culling=True).culls_tiles("foveated")
-    assert not RenderSettings(msaa=4, tile_culling=False).culls_tiles()
+            assert primary_rays.culls_tiles(RenderSettings(primary="rays", msaa=n), model) == want, (model, n)
+    assert primary_rays.culls_tiles(RenderSettings(msaa=4)) and not primary_rays.culls_tiles(RenderSettings(msaa=4), "foveated")
+    assert primary_rays.culls_tiles(RenderSettings(primary="rays", tile_culling=True), "foveated")
+    assert not primary_rays.culls_tiles(RenderSettings(msaa=4, tile_culling=False))
     with pytest.raises(ValueError, match="tile_culling"):
         RenderSettings(tile_culling="yes")
 

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from rayvr.frame.passes import primary_rays
 from conftest import camera_rig
 
 from rayvr.accel.frustum import tile_grid
@@ -168,7 +170,7 @@ def test_tile_lists_need_tile_culling(room):
         room.render(rig)
     with pytest.raises(ValueError, match="tile list bound"):
         RenderSettings(tile_lists=100)
-    assert RenderSettings(primary="rays", tile_lists=64).culls_tiles()   # the lists imply the cull
+    assert primary_rays.culls_tiles(RenderSettings(primary="rays", tile_lists=64))   # the lists imply the cull
 
 
 @pytest.mark.parametrize("samples", [1, 4, 8, 16, 32])

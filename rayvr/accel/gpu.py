@@ -26,6 +26,10 @@ from .bvh import Bvh, BufferTooLargeError
 from .cwbvh import CwBvh, build_cwbvh, pack as pack_cwbvh
 from .wide import WideBvh, build_wide, node_words, pack as pack_wide
 from ..render_options.traversal import RAY_KINDS, DEFAULT_TRAVERSAL, parse_traversal, check_layout
+# declare constants the tile-culled trace shaders read (TILE_SLACK, TILE_MIN_COS; CAMERA_*; SHARED_CHANNEL)
+from . import frustum  # noqa: F401
+from ..frame import graph  # noqa: F401
+from ..frame.cameras import base as camera_models  # noqa: F401
 
 DEFAULT_BINDING = SSBO["bvh_nodes"]  # nodes here, triangles at +1 (gpu_layout.SSBO)
 STACK_SIZE = declare("BVH_BINARY_STACK_SIZE", 64)  # bvh.glsl's default BVH_STACK_SIZE (>= the build's max_depth)

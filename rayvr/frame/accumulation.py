@@ -30,7 +30,7 @@ def temporal_problem(camera) -> str | None:
     which only a rasterizable model has (Renderer.plan refuses the others; the preview leaves it off)."""
     if camera.rasterizable:
         return None
-    return (f"temporal reprojection (--temporal) reprojects the last frame's samples through the eyes' planar "
+    return (f"temporal reprojection reprojects the last frame's samples through the eyes' planar "
             f"frusta, which the {camera.name} camera does not have")
 
 

@@ -22,7 +22,7 @@ builds no BVH and dispatches no ray because no pass that reads `bvh` is left.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Callable
 
 import moderngl
@@ -80,12 +80,20 @@ class FramePlan:
     # (effect, (material names, ...)) pairs, for the reasons --graph shows; not part of the key:
     # moving an effect to other materials compiles nothing new.
     users: tuple = field(default=(), compare=False)
+    # (field, value) pairs of plan options from outside rayvr (a plugin's plan_field: FramePlan.part)
+    extra: tuple = ()
 
     @property
     def sampled(self) -> bool:
         """The frame's colour is made of several rounds of samples, or of sparse samples: it is
         accumulated (frame/passes/sample_accumulate.py) and resolved for display (sample_resolve.py)."""
         return self.samples > 1 or self.channels > 1 or self.reconstruct
+
+    def part(self, name: str, default=None):
+        """A plan field by name: rayvr's own, or a plugin's from `extra`."""
+        if name in {f.name for f in fields(self)} - {"extra"}:
+            return getattr(self, name)
+        return dict(self.extra).get(name, default)
 
     def materials_using(self, effect: str) -> tuple:
         return next((names for e, names in self.users if e == effect), ())

@@ -19,6 +19,7 @@ frusta, so they need the pinhole camera model.
 from __future__ import annotations
 
 
+from ..options import PlanRefusal, plan_part
 from ..render_options.stereo import STEREO_MODES, STEREO
 
 PLANAR_MODES = ("warp", "reuse")  # need a planar (pinhole) projection
@@ -37,9 +38,22 @@ def effective_mode(mode: str, eyes: int, camera) -> str:
     if eyes != 2:
         return "dual"
     if mode in PLANAR_MODES and not camera.rasterizable:
-        raise ValueError(f"stereo mode {mode!r} reprojects between planar frusta: it needs the pinhole camera, "
-                         f"not {camera.name!r} (use --stereo dual)")
+        raise PlanRefusal(f"stereo mode {mode!r} reprojects between planar frusta: it needs the pinhole camera, "
+                          f"not {camera.name!r}", "use", ("stereo", "dual"))
     return mode
+
+
+@plan_part("stereo", after=("sampling",))
+def stereo_plan(ask, plan) -> None:
+    """How the second eye is made; warp renders one central view (one layer, its own output) with
+    the depth layers it asks for."""
+    stereo = effective_mode(ask.settings.stereo, ask.layers, ask.camera)
+    if stereo != "dual" and plan["samples"] > 1:  # their passes read one G-buffer, not a frame of rounds
+        raise PlanRefusal(f"stereo mode {stereo!r} reprojects one sample per pixel: it cannot take "
+                          f"{plan['samples']} sub-rays a sample", "use", ("stereo", "dual"))
+    warp = stereo == "warp"
+    plan.update(stereo=stereo, layers=1 if warp else ask.layers, output=WARP_OUTPUT if warp else "ldr",
+                depth_layers=max(ask.depth_layers, ask.settings.warp_layers if warp else 1))
 
 
 def rendered_eyes(rig, eyes: str, mode: str) -> list:

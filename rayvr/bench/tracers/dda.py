@@ -64,6 +64,9 @@ from ...accel.gpu import WARMUP_S
 from ...accel.quadtree import HIT, NEAR, NONE, OFFSCREEN, dispatch_per_ray, pack_screen_rays
 from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import SSBO
+# declare constants the screen-space shaders read (CAMERA_*, SHARED_CHANNEL)
+from ...frame import graph  # noqa: F401
+from ...frame.cameras import base as camera_models  # noqa: F401
 from ...gl.timing import time_gpu
 
 EDGE = declare("DDA_EDGE", np.float32(1.0 / 256.0))  # a column is tested if the segment reaches this far (px) into it

@@ -40,6 +40,9 @@ from ...accel.quadtree import (HIT, INF, NEAR, NONE, OFFSCREEN, ScreenCamera, Tr
                                trace_screen_rays)
 from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import SSBO
+# declare constants the screen-space shaders read (CAMERA_*, SHARED_CHANNEL)
+from ...frame import graph  # noqa: F401
+from ...frame.cameras import base as camera_models  # noqa: F401
 
 STATUS_NAMES = {HIT: "hit", OFFSCREEN: "offscreen", NEAR: "near", NONE: "none"}
 EMPTY = declare("HIZ_EMPTY", np.float32(3.0e38))  # zmin of a cell without geometry (finite: EMPTY * 0 is 0, not NaN)

@@ -227,7 +227,7 @@ class Distorted(CameraModel):
             if tuple(rig.size) != self._table.size:
                 w, h = self._table.size
                 raise ValueError(f"{self._table.path}: the sample file covers {w}x{h} pixels, the eye image is "
-                                 f"{rig.size[0]}x{rig.size[1]}: render at --size {w}x{h}")
+                                 f"{rig.size[0]}x{rig.size[1]}: render at {w}x{h}")
             return
         for eye in rig.eyes():
             l, r, b, t = eye.tangents

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from ...options import plan_part
 from ...render_options.sampling import SAMPLE_COUNTS, MSAA
 
 
@@ -54,3 +55,10 @@ def subsamples(n: int) -> tuple[np.ndarray, np.ndarray]:
     lens = np.array([concentric_disk((radical_inverse(i, 3) + 0.5) % 1.0, (radical_inverse(i, 5) + 0.5) % 1.0)
                      for i in range(n)])
     return offsets, lens
+
+
+@plan_part("sampling")
+def sampling_plan(ask, plan) -> None:
+    """Sub-rays per sample, and whether each is shaded (supersampling) or each distinct triangle."""
+    plan["samples"] = ask.settings.msaa
+    plan["shading"] = "ssaa" if ask.settings.ssaa and ask.settings.msaa > 1 else "msaa"

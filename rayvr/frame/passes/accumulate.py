@@ -11,7 +11,8 @@ so it lives in two textures of its own that swap every frame (the pass reads one
 from __future__ import annotations
 
 from ...gl import shaders
-from ..accumulation import HISTORY_CAP
+from ..accumulation import HISTORY_CAP, temporal_problem
+from ...options import PlanRefusal, plan_part
 from ..graph import FramePlan, Pass, Texture, read, write
 from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import IMAGE
@@ -94,3 +95,14 @@ class AccumulatePass(Pass):
         for p in self.programs.values():
             p.release()
         self._release_history()
+
+
+@plan_part("accumulate", after=("denoise",))
+def accumulate_plan(ask, plan) -> None:
+    """A running mean of samples where asked or where the denoiser reads one; temporal reprojection
+    follows only a camera with planar frusta."""
+    st = ask.settings
+    plan["accumulate"] = ask.color and (ask.accumulate or st.accumulate or bool(plan["denoise"]))
+    problem = temporal_problem(ask.camera) if plan["accumulate"] and st.temporal else None
+    if problem:
+        raise PlanRefusal(problem, "leave out", ("temporal", True))

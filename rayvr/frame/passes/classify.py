@@ -28,7 +28,6 @@ def args_bytes() -> int:
     return ARGS_BYTES * list_slots() + 4 * (list_slots() + 1)
 
 
-RT_LOCAL_SIZE = declare("RT_LOCAL_SIZE", 64)  # invocations per work group of the effect passes
 MAX_LIST_EXTENT = 1 << 14  # rt_pack_pixel (glsl/rt/pixel_list.glsl) keeps x and y in 14 bits
 PIXEL_LISTS = Buffer(lambda s: 4 * s.pixels * list_slots(), "4 B per eye pixel per traced effect",
                      max_extent=MAX_LIST_EXTENT)

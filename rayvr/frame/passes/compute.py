@@ -8,6 +8,7 @@ from ...gl.glsl_constants import declare
 from ...gl.shaders import declares
 
 TILE = declare("PIXEL_TILE", 8)  # local_size_x/y of every per-pixel compute shader
+RT_LOCAL_SIZE = declare("RT_LOCAL_SIZE", 64)  # invocations per work group of the effect passes' lists
 
 
 def dispatch_per_pixel(fc, program: moderngl.ComputeShader, listed: bool = False) -> None:

@@ -26,6 +26,7 @@ from ...gl import shaders
 from ..effect_registry import EFFECTS
 from ..graph import FramePlan, Pass, Texture, read, write
 from ...gl.gpu_layout import IMAGE
+from ...options import plan_part
 from ...render_options.denoise import DENOISE_ITERATIONS  # (quality/frame_knobs.py reads it here)
 from .accumulate import ACCUM
 from .compute import dispatch_per_pixel
@@ -121,3 +122,8 @@ class DenoisePass(Pass):
         for p in self.programs.values():
             p.release()
 
+
+@plan_part("denoise")
+def denoise_plan(ask, plan) -> None:
+    """The effects the denoiser filters: the config's (or every traced one), in the colour view."""
+    plan["denoise"] = tuple(sorted(ask.denoised)) if ask.color and ask.settings.denoise else ()

@@ -17,10 +17,28 @@ from ..pcg import pcg_hash
 from . import scene_radiance
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 from .quadtree import set_tree_uniforms
+from ...options import PlanRefusal, plan_part
 
 
 THICKNESS = 0.02  # relative depth of each surface's slab: a lens ray deeper than that passed behind it
 HDR_DOF = Texture("rgba32f")
+
+
+@plan_part("dof", after=("stereo",))
+def dof_plan(ask, plan) -> None:
+    """Depth of field blurs each eye's own pinhole frame: a warped or reused eye has none, and the
+    other models' rays are not that frame's (the dof camera model has a lens of its own)."""
+    plan["dof"] = ask.color and ask.settings.dof_diameter > 0
+    if not plan["dof"] or (plan["stereo"] == "dual" and ask.camera.rasterizable):
+        return
+    reason = "depth of field blurs each eye's own pinhole frame, and "
+    if plan["stereo"] != "dual":
+        raise PlanRefusal(reason + f"stereo mode {plan['stereo']!r} makes an eye from the other's frame", "use",
+                          ("stereo", "dual"))
+    hint = (f": use its {ask.camera.lens_parameter} parameter" if ask.camera.lens_parameter
+            else ": use the pinhole camera")
+    raise PlanRefusal(reason + f"the {ask.camera.name} camera is not a pinhole{hint}", "or leave out",
+                      ("dof_diameter", ask.settings.dof_diameter))
 
 
 class DofPass(Pass):

@@ -10,7 +10,8 @@ bench/results/h200/2026-12-02/rays_order): these kernels have no long tail for i
 from __future__ import annotations
 
 
-from .classify import RT_LOCAL_SIZE
+from .compute import RT_LOCAL_SIZE
+from ...options import plan_part
 
 
 # Work groups (of RT_LOCAL_SIZE, 64 invocations) a persistent trace kernel launches: an H200's 132
@@ -23,3 +24,8 @@ def persistent_groups(capacity: int) -> int:
     """Work groups of a persistent trace kernel over at most `capacity` rays: no more than
     one ray per invocation would keep busy."""
     return max(1, min(PERSISTENT_GROUPS, -(-capacity // RT_LOCAL_SIZE)))
+
+
+@plan_part("persistent")
+def persistent_plan(ask, plan) -> None:
+    plan["persistent"] = ask.settings.persistent == "on"

@@ -76,6 +76,7 @@ from ...gl.gpu_layout import BLOCK_TILES, IMAGE, NO_HIT, SSBO, TILE_ENTRIES, TIL
 from .compute import camera_defines, dispatch_per_pixel, pixel_grid, set_eye_uniforms
 from . import round_gate
 from .round_gate import RoundGate, round_tile_bytes
+from ...options import PlanRefusal, plan_part
 from ...render_options.primary_rays import TILE_SIZES, TILE_ENTRY_BOUNDS, BLOCK_SIDES
 
 
@@ -208,8 +209,9 @@ def tile_shape(settings, camera: str = "pinhole", blocks: bool = False) -> dict:
     entries, side = int(knob(settings, "tile_entries", camera)), int(knob(settings, "block_tiles", camera))
     if blocks and entries > side * side:
         if settings.tile_entries is not None:
-            raise ValueError(f"a block of {side}x{side} tiles (--block-tiles {side}) cuts to at most {side * side} "
-                             f"entries, one a tile: --tile-entries {entries} needs larger blocks or fewer entries")
+            raise PlanRefusal(f"a block of {side}x{side} tiles cuts to at most {side * side} entries, one a tile, "
+                              f"and {entries} were asked: use larger blocks or fewer entries",
+                              "for instance", ("tile_entries", max(b for b in TILE_ENTRY_BOUNDS if b <= side * side)))
         entries = max(b for b in TILE_ENTRY_BOUNDS if b <= side * side)
     return {"tile_pixels": tile_pixels(knob(settings, "tile_size", camera)), "tile_entries": entries,
             "block_tiles": side if blocks else BLOCK_TILES[0]}
@@ -231,6 +233,26 @@ def shares_channels(settings, camera, samples: int, effects, view: str) -> bool:
     return (share and camera.channels == SHARED_SETS and not settings.ssaa
             and samples * SHARED_SETS <= MASK_BITS and view == "color"
             and not any(EFFECTS[e].uses_quadtree for e in effects if e in EFFECTS))
+
+
+@plan_part("primary", after=("sampling",))
+def primary_plan(ask, plan) -> None:
+    """Primary visibility, the tile and block culling of ray-cast primaries with their shapes, shared
+    channel shading, and the MSAA merge's slots (shading_slots, shading_merge: as given)."""
+    st, camera = ask.settings, ask.camera
+    primary = primary_visibility(st, camera)
+    culled = primary == "rays" and culls_tiles(st, camera.name)
+    if primary == "rays" and not culled:
+        for option, what in (("tile_lists", "tile triangle lists start from the tile culling's entry lists"),
+                             ("block_culling", "block culling hands its entries to the tile culling")):
+            if getattr(st, option):
+                raise PlanRefusal(what, "leave out", ("tile_culling", False))
+    blocks = culled and culls_blocks(st, camera.name)
+    shape = tile_shape(st, camera.name, blocks) if culled else \
+        {"tile_pixels": TILE_PIXELS, "tile_entries": TILE_ENTRIES, "block_tiles": BLOCK_TILES[0]}
+    plan.update(primary=primary, tile_culling=culled, tile_lists=tile_list_bound(st, camera.name) if culled else 0,
+                block_culling=blocks, **shape,
+                share_channels=primary == "rays" and shares_channels(st, camera, plan["samples"], ask.effects, ask.view))
 
 
 # tile_samples.comp's workgroup memory: each pixel's sub-rays' hits (8 bytes a sub-ray) and the load of

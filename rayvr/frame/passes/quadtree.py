@@ -24,6 +24,7 @@ from ..graph import Buffer, FramePlan, Pass, read, write
 from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import SSBO, UNIT
 from .compute import camera_defines, set_eye_uniforms
+from ...options import PlanRefusal, plan_part
 
 
 # The material parameters by which an effect that uses the quadtree (`uses_quadtree`) sets its
@@ -50,6 +51,14 @@ def screen_space_refusal(effects, camera_name: str) -> str | None:
     return (f"screen-space tracing ({', '.join(users)}) marches the pinhole's depth buffer, and the {camera_name} "
             f"camera is not a pinhole: give those materials `reflections` or `glossy` (traced in the BVH), or use the "
             f"pinhole camera")
+
+
+@plan_part("screen_space")
+def screen_space_plan(ask, plan) -> None:
+    """No field: a frame whose effects trace the screen refuses a camera without the pinhole's depth."""
+    refusal = screen_space_refusal(ask.effects, ask.camera.name)
+    if refusal:
+        raise PlanRefusal(refusal, "leave out")
 
 
 def set_tree_uniforms(program, size, eyes: int) -> None:

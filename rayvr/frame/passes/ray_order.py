@@ -21,6 +21,8 @@ from ...gl.glsl_constants import declare
 from ...gl.gpu_layout import SSBO
 from .prefix_scan import dispatch_shape
 from .radix_sort import RadixSort, table_words
+from . import compute  # noqa: F401  (declares RT_LOCAL_SIZE, which rt/ray_order.comp reads)
+from ...accel import gpu  # noqa: F401  (declares BVH_MISS)
 
 
 ORDER_AXIS_BITS = declare("ORDER_AXIS_BITS", 7)  # Morton bits per coordinate: 128^3 origin cells

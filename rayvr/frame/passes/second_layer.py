@@ -24,6 +24,8 @@ from ...gl.gpu_layout import IMAGE, NO_HIT, UNIT
 from .compute import camera_defines, dispatch_per_pixel, set_eye_uniforms
 from .quadtree import uses_quadtree
 from .visibility import VisibilityPass
+from ...options import plan_part
+from ...accel import frustum  # noqa: F401  (declares TILE_SLACK, which gbuffer/second_layer.comp reads)
 
 
 LAYER2 = Texture("rgba32f")
@@ -140,3 +142,9 @@ def bind_second_layer(fc) -> None:
     if "layer2" in fc.resources:
         fc.resource("layer2").use(UNIT["layer2"])
         fc.resource("layer2_triangle").use(UNIT["layer2_triangle"])
+
+
+@plan_part("second_layer", after=("primary",))
+def second_layer_plan(ask, plan) -> None:
+    """Peeling needs the raster's depth: with ray-cast primaries the second layer is ray-cast too."""
+    plan["second_layer"] = ask.settings.second_layer if plan["primary"] == "raster" else "rays"

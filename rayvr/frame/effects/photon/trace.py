@@ -16,6 +16,7 @@ from ....gl.gpu_layout import SSBO, UNIT
 from ...passes.prefix_scan import dispatch_shape
 from ....scene.light_selection import LUMINANCE, light_flux
 from .setup import PhotonPass, photon_setup
+from ....accel import frustum  # noqa: F401  (declares TILE_SLACK, which photon/trace.comp reads)
 
 TRACE_GROUP = declare("PHOTON_TRACE_GROUP", 64)  # photon paths a trace.comp group traces
 # Mirror/glossy reflections one photon path may take on top of its diffuse bounces: a bound for
