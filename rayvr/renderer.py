@@ -52,7 +52,7 @@ SAMPLES_IN_FLIGHT = 2  # samples of an accumulation queued on the GPU before the
 
 def work_dropped(timings: dict) -> bool:
     """Whether a hardware GPU's pass timings say the frame's commands never ran: most passes at
-    exactly 0 ns (a pass that records nothing still reads about 1 us there). Seen on the H200
+    exactly 0 ns (a pass that records nothing still reads about 1 us there). Seen on the NVIDIA GPU
     when a fresh Renderer had queued ~20 s of samples: stale pixels, no GL error."""
     zeros = sum(v == 0.0 for v in timings.values())
     return len(timings) >= 2 and zeros * 2 > len(timings)
@@ -292,7 +292,7 @@ class Renderer:
             yield self._finish(pending)
 
     def _limit_queue(self, queued: list) -> None:
-        """Keep at most SAMPLES_IN_FLIGHT recorded samples ahead of the GPU. On the H200 a fresh
+        """Keep at most SAMPLES_IN_FLIGHT recorded samples ahead of the GPU. On the NVIDIA GPU a fresh
         Renderer that queued ~20 s of samples without a wait got its readback and timer queries
         back untouched (the previous Renderer's image, 0 ms), with no GL error."""
         queued.append(self.gl.fence())

@@ -38,7 +38,7 @@ raw vertices because the watertight test (Woop et al. 2013) works on them.
 Why this layout: one node fetch (4 vec4 loads) tests two boxes, so a ray needs half the dependent
 node fetches of a 32-byte one-box-per-node BVH2 for the same bytes. Measured with the reference
 traversal's counters (`trace_reference(..., stats=)`) on Sponza (66k triangles): 73.3 vs 36.1 fetches
-per primary ray from the atrium centre (2.34 vs 2.31 kB), 74.2 vs 36.6 for random rays. On an H200
+per primary ray from the atrium centre (2.34 vs 2.31 kB), 74.2 vs 36.6 for random rays. On the NVIDIA GPU
 (EGL, `python -m rayvr.accel.gpu`, 2 x 1440 x 1600 rays) this traversal runs Sponza at 2.9 GRays/s for
 coherent primary rays, 0.75 GRays/s for shadow rays to a point light, 0.19 GRays/s for random rays.
 Wide BVHs collapsed from this tree (BVH4/BVH8 with quantized child boxes) are in wide.py; `rayvr
@@ -63,15 +63,15 @@ NODE_BYTES = 64
 SPLIT_ALPHA = 1e-5          # SBVH: try spatial splits where object children overlap > alpha x root area
 MAX_DUPLICATION = 0.3       # SBVH: at most 30 % more triangle references than triangles
 # SBVH: try spatial splits only in nodes of at least this many references. Clipping the references
-# of every small node was most of the build; Sponza (bench/results/llvmpipe/sbvh_min_refs): 1 ->
+# of every small node was most of the build; Sponza, built on the host: 1 ->
 # 16.9 s, SAH cost 55.95; 64 -> 6.8 s, 56.92 (the SAH build: 69.05)
 SPATIAL_MIN_REFS = 64
 TRIANGLE_BYTES = 48
 # Box tests admit boxes entered up to this factor beyond the closest hit so far (glsl/accel/bvh.glsl
 # bvh_reach): a box's computed entry and a hit's computed distance each carry a few ulps, and a
 # triangle lying in its box's face (a floor) is entered at its own hit distance, so without it the
-# traversal order decided whether a closer hit was found (H200, Sponza, an edge pixel of a tile-culled
-# frame: bench/results/h200/2026-12-02/lists). 2^-16: ~128 ulps.
+# traversal order decided whether a closer hit was found (seen on the GPU: Sponza, an edge pixel of a
+# tile-culled frame). 2^-16: ~128 ulps.
 HIT_REACH = declare("BVH_HIT_REACH", 1.0 + 2.0 ** -16)
 SAFE_INVERSE_TINY = declare("BVH_SAFE_INVERSE_TINY", 1e-20)  # safe_inverse (and bvh.glsl's): |d| below it is zero
 # offset_ray (and glsl/accel/ray.glsl's): within OFFSET_ORIGIN_BAND of the origin a fixed distance

@@ -45,7 +45,7 @@ Triangles: (v0.xyz, original ID bits), (v1.xyz, binary slot bits), (v2.xyz, 0): 
 layout's triangles in leaf order (no index fetch in the leaf test), carrying the binary BVH's slot so
 that Hit.slot names the same slot of the shared triangle buffer in every layout.
 
-Measured (host, bench/results/llvmpipe/2026-12-02-cwbvh): the build takes 1.7-3.8 s for 262k
+Measured on the host (llvmpipe; docs/design.md, cwbvh): the build takes 1.7-3.8 s for 262k
 triangles on the shared 2-core host (the binary SAH build 2.2-5.5 s); the room's rays fetch a
 quarter of bvh2's nodes (2.9 against 12.1 for primary rays), a 262k-triangle soup's random rays a
 third (21 against 62), but shadow rays leaving a surface test 9x the triangles (the quantized box of

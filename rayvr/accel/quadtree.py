@@ -25,7 +25,7 @@ Build (§3.3): leaves are the pixels' planes from the G-buffer (position.w = vie
 exactly, the geometric normal of the pixel's triangle the slopes; no finite differences): the
 triangle's own plane. Not the shading normal: with smoothed vertex normals neighbouring pixels of
 one flat face got planes ~4 % apart at their shared edge (a ray slipped between them: warp's dark
-line across the room box's top, issue 20) and silhouette pixels slopes of ~50 per pixel. A parent becomes a plane when all
+line across the room box's top, docs/stereo.md) and silhouette pixels slopes of ~50 per pixel. A parent becomes a plane when all
 its (up to 2x2) children are planes, the cosine between each child's normal and the proxy's is
 >= gamma_norm, and every child-rectangle corner lies within gamma_dist *relative* depth of the
 proxy: |z_child - z_proxy| <= gamma_dist z_proxy (so the bound means the same at every distance).

@@ -22,8 +22,7 @@ MAX_DEFAULT_WRITERS = 16  # past this a capture is bound by the GPU or the disk,
 QUEUED_PER_POOL = 2  # frames waiting beyond one per thread: a thread never idles between two frames
 PNG_COMPRESSION_LEVELS = range(10)  # zlib's levels: 0 stores, 9 compresses hardest
 # zlib level 1: on a shaded frame 3.4 times the speed of Pillow's own default (6) for a file no
-# larger; a flat raster frame's is up to 1.8 times larger (docs/capture.md, from
-# bench/results/llvmpipe/2026-12-02-capture/)
+# larger; a flat raster frame's is up to 1.8 times larger (docs/capture.md)
 DEFAULT_PNG_COMPRESSION = 1
 
 

@@ -412,7 +412,7 @@ class EglDevice:
         return "EGL_MESA_device_software" in self.extensions.split()
 
     def describe(self) -> str:
-        """"1: NVIDIA H100 ... (CUDA device 0)": as rayvr info lists it, the index --device takes."""
+        """"1: NVIDIA ... (CUDA device 0)": as rayvr info lists it, the index --device takes."""
         name = self.name or ("a software rasterizer" if self.software else "unnamed")
         return f"{self.index}: {name}" + (f" (CUDA device {self.cuda})" if self.cuda is not None else "")
 

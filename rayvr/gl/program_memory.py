@@ -3,8 +3,8 @@
 NVIDIA's program binary (glGetProgramBinary) carries the program's NV_gpu_program5 assembly, where
 such an array is declared `TEMP lmemN[size]`. An array the compiler could not keep in registers
 costs a memory access per element read: the cwbvh node held as `uvec4 nd[5]` made that traversal
-3.5-4.4x slower on the H200 (bench/results/h200/2026-12-04/cwbvh_registers), and a loop filling
-TriangleVerts made photon tracing 2.2x slower (2026-12-04/frames). Other drivers' binaries hold no
+3.5-4.4x slower on the NVIDIA GPU (docs/design.md, cwbvh), and a loop filling TriangleVerts made
+photon tracing 2.2x slower. Other drivers' binaries hold no
 such text: `local_arrays` then returns None (nothing known), which tests read as "skip"."""
 from __future__ import annotations
 

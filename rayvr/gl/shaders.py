@@ -185,8 +185,8 @@ def declares(program, name: str) -> bool:
     """Whether `program` has the uniform (or block) `name`: GLSL compilers drop what a shader does not
     use, so passes set only what it declares. One dict lookup: moderngl programs define no
     `__contains__`, so `name in program` walks every member, a cost paid per uniform per pass per
-    MSAA round while the CPU records a frame (foveated 4x frames are that recording's, H200
-    bench/results/h200/2026-12-03/final/bubble)."""
+    MSAA round while the CPU records a frame (foveated 4x frames are that recording's:
+    docs/results.md)."""
     return program.get(name, None) is not None
 
 

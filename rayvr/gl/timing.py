@@ -1,6 +1,6 @@
 """GPU timing helpers: valid timer readings only, and warming a GPU up until its times settle.
 
-An idle GPU runs at a fraction of its clock (the H200 idles at 345 MHz against 1980 MHz), and
+An idle GPU runs at a fraction of its clock (the one measured idles at 345 MHz against 1980 MHz), and
 the first frames after a renderer is built ran 2-4x slow there even after 0.3 s of work (every
 pass, tonemapping too). A fixed warm-up is therefore not enough: `settle()` repeats a step until
 the times of the last few runs agree with the few before them.

@@ -30,7 +30,7 @@ frame pays a group's ``cost_ms`` once when any material takes one of its effects
 
 Without them a frame that puts two small materials on `path` is predicted to cost two slivers of
 the whole-scene `path` render and measures a whole denoiser more (Sponza at 2x1440x1600 on the
-H200: 3.5 ms of an 11.1 ms budget).
+GPU: 3.5 ms of an 11.1 ms budget; docs/budget.md).
 
 Solver
 ------

@@ -33,7 +33,7 @@ NOISE_FLOOR_SEED = REFERENCE_SEED + 1  # the reference again with other samples:
 WARMUP_FRAMES = 3  # frames measure() renders before it times any
 SOFTWARE_WARMUP_FRAMES = 1  # the same on a software rasterizer (llvmpipe), which has no clocks to ramp
 # An image that costs more than this (a glossy(16) or 4-spp path sweep point: 150-620 ms on Sponza
-# on the H200, 5 s of a budget run each) is timed over SLOW_IMAGE_REPEAT images with no warm-up
+# on the GPU, 5 s of a budget run each) is timed over SLOW_IMAGE_REPEAT images with no warm-up
 # after the settle: a bench budget grid spends its time on the rungs no budget can afford.
 SLOW_IMAGE_MS = 50.0
 SLOW_IMAGE_REPEAT = 2

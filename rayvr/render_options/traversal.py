@@ -6,11 +6,11 @@ from ..options import Option, declare
 
 RAY_KINDS = ("primary", "shadow", "reflect")   # RenderSettings.traversal: a layout for each
 
-# The renderer's layout per ray kind: the fastest on the H200. bvh4 for primary rays (1.00x, 1.06x of
-# bvh2: bench rays, room and Sponza, bench/results/h200/2026-11-30/traversal/run3), bvh2 for shadow
+# The renderer's layout per ray kind: the fastest on the GPU (docs/design.md). bvh4 for primary rays
+# (1.00x, 1.06x of bvh2: bench rays, room and Sponza), bvh2 for shadow
 # rays (bvh4 0.78x, 0.92x there; cwbvh made the room's area-light shadows 20-40 % slower and Sponza's
 # 10-13 % faster), cwbvh for reflection rays, the closest hits of reflections, glossy, path and
-# photons (2026-12-04/frames, 3 head poses: path 1 spp 4 bounces 11.4 -> 10.3 ms in the room, 38.5 ->
+# photons (3 head poses: path 1 spp 4 bounces 11.4 -> 10.3 ms in the room, 38.5 ->
 # 35.2 on Sponza, no frame slower).
 DEFAULT_TRAVERSAL = ("bvh4", "bvh2", "cwbvh")
 

@@ -114,7 +114,7 @@ class CameraModel:
     # reprojection (--temporal, warp, reuse) maps between and screen-space rays are straight in
     rasterizable: ClassVar[bool] = False
     # the frame's tile frustum culling is on by default at several sub-rays per sample (where it
-    # measured faster on the H200: RenderSettings.culls_tiles)
+    # measured faster on the GPU: primary_rays.culls_tiles)
     culls_tiles_by_default: ClassVar[bool] = True
     # the eyes' images lie on planar frusta that StereoRig.convergence shears off-axis (zero parallax
     # at a distance); False: the eyes map angles and stay parallel, and --convergence is refused

@@ -13,7 +13,7 @@ from .base import CAMERA_MODELS, CameraModel, CameraRays, normalize, planar_tran
 # Largest frustum tangent (x / -z at an image edge) the pinhole takes. Beyond it float32 clip
 # coordinates (raster) and pixel-ray directions (rays) lose the pixel and the two primary
 # visibility paths stop agreeing. Measured on the default room, triangle IDs of both paths, both
-# eyes, fov_y and one-sided HMD rigs, llvmpipe and an H200 at 160x120 to 1440x1600: >= 99.99 %
+# eyes, fov_y and one-sided HMD rigs, llvmpipe and an NVIDIA GPU at 160x120 to 1440x1600: >= 99.99 %
 # of pixels agree up to 1e5, 99.6 % at 1.5e5, 98.3-99.0 % from 2e5 on. 1e5 is 179.9989 degrees.
 MAX_TANGENT = 1e5
 # Smallest step of the frustum tangent from one pixel to the next. Float32 resolves directions to

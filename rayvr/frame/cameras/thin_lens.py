@@ -28,8 +28,8 @@ LENS_PIXEL_FRACTION = 0.1
 class ThinLens(Pinhole):
     name = "dof"
     rasterizable = False
-    # Lens rays widen the tiles' frusta: culled tiles were slower in the room at every focus (H200,
-    # 2026-11-30), but with block culling faster on Sponza's worst poses at every count (2026-12-03).
+    # Lens rays widen the tiles' frusta: culled tiles were slower in the room at every focus,
+    # but with block culling faster on Sponza's worst poses at every count (docs/design.md).
     culls_tiles_by_default = True
     lens_parameter = "aperture"
     judged_by_pinhole = False  # out of focus it blurs the pinhole's image on purpose

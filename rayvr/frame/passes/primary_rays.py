@@ -16,7 +16,7 @@ the frame's colour (`sample_weight`), which `sample_accumulate` applies.
 The CPU never waits for the count (Round.start_polled): it is copied to a readback buffer behind
 a fence, and after each round is recorded the fence is polled without waiting; until it answers,
 another round is recorded (at most msaa_slots), so the GPU is never left idle while the CPU
-waits and then records (H200, room, 4x: ~1.3 ms of the frame was that). Each round's select
+waits and then records (on the GPU, room, 4x: ~1.3 ms of the frame was that). Each round's select
 takes its slot from the count on the GPU: round k of a channel selects slot count - 1 - k, so
 slots run from the last to 0 and the G-buffer the frame keeps (depth, aux channels) is each
 pixel's most covered triangle. A round past the count (slot < 0: recorded before the count was
@@ -31,7 +31,7 @@ way where exact (`skips_empty_slots`, FramePlan.skip_empty_slots): instead of a 
 resolved, shaded and added with weight 0, a 4-byte weight read per pass.
 
 Tile frustum culling (FramePlan.tile_culling, RenderSettings.tile_culling, `--tile-culling`; by
-default where it measured faster on the H200, primary_rays.culls_tiles): each channel set's first
+default where it measured faster on the GPU, primary_rays.culls_tiles): each channel set's first
 round first runs a `cull` stage (glsl/accel/tile_cull.comp with TILE_CAMERA): one workgroup per
 tile of pixels (16 x 8 by default; --tile-size) bounds every ray the rounds will cast there
 (all sub-rays of each sample's footprint, thin-lens lens points, this channel set's distortion) with
@@ -102,10 +102,9 @@ TILE_OVERFLOW = declare_constant("TILE_OVERFLOW", 0xFFFFFFFF, uint=True)
 EDGE_SLACK = declare_constant("EDGE_SLACK", 1e-5)
 
 
-# Shared channel shading by default up to this --msaa: faster than the sets apart at 1x, 4x and 8x (H200,
+# Shared channel shading by default up to this --msaa: faster than the sets apart at 1x, 4x and 8x (on the GPU,
 # Sponza's worst pose: 6.9 / 14.4 / 23.9 ms against 11.1 / 21.1 / 38.6), slower at 16x (47.9 against
-# 44.5; its 48 sub-rays a pixel trace at 1.6x the sets' apart; bench/results/h200/2026-12-03/rounds2,
-# shapes/vr_shared8).
+# 44.5; its 48 sub-rays a pixel trace at 1.6x the sets' apart; docs/design.md).
 SHARED_AUTO_MSAA = 8
 
 
@@ -161,7 +160,7 @@ def measured_choice(camera: str, samples: int) -> dict | None:
 
 def culls_tiles(settings, camera: str = "pinhole") -> bool:
     """Whether ray-cast primaries of a `camera` model (its name) are tile-culled: tile_culling, or
-    when None, the measured choice (measured_choice; on the H200 culling with block beams won for
+    when None, the measured choice (measured_choice; on the GPU culling with block beams won for
     every model but the foveated one), for a model never measured with several sub-rays where it
     declares it (CameraModel.culls_tiles_by_default)."""
     from ..cameras import CAMERA_MODELS
@@ -293,11 +292,11 @@ def msaa_block(samples: int) -> tuple[int, int]:
     sub-rays (one colour channel set's) fit MSAA_GROUP invocations, as square as it allows; a
     workgroup is the block's sub-rays of every set it casts (shared channel shading: 3 sets, 192
     invocations, full warps: 48 sub-rays a 1-pixel group at 16x left a quarter of the lanes idle,
-    the trace 2x the three sets cast apart, H200 Sponza bench/results/h200/2026-12-03/rounds). A
+    the trace 2x the three sets cast apart on Sponza). A
     power of two on both sides, so a block lies in one tile (TILE_SIZES: powers of two, at least 8
     a side): with tile lists the trace casts only the tiles whose list overflowed, and leaves the
     group as a whole (a group over two tiles would leave some invocations before the barriers the
-    others reach: undefined, and wrong on the H200 with the 3 sub-rays of shared channel shading at
+    others reach: undefined, and wrong on the NVIDIA GPU with the 3 sub-rays of shared channel shading at
     1x, where 64 // 3 = 21 pixels made 4x5 blocks)."""
     pixels = 1 << (max(1, MSAA_GROUP // samples).bit_length() - 1)
     w = 1 << (pixels.bit_length() // 2)
@@ -528,7 +527,7 @@ class PrimaryRaysPass(Pass):
         # With tile lists the cast (mode 0) or trace (mode 1) is two programs, each skipping the other's
         # tiles: the tiles with a list (tile_samples.comp), and per ray from the entries where a list
         # overflowed (primary.comp). One program with both paths held the BVH walk's registers in the
-        # list path too (H200, room, 16x: 13.7 ms, 10.7 without the walk).
+        # list path too (room, 16x: 13.7 ms, 10.7 without the walk).
         self.tile = plan.tile_pixels
         self.group = sample_group(subrays(plan) if self.msaa else 1, self.tile)
         self.samples = (shaders.compute(gl.ctx, "rt/tile_samples.comp",
@@ -555,9 +554,9 @@ class PrimaryRaysPass(Pass):
                       if plan.tile_lists else None)
         # msaa_count is zeroed and read back through copies (GPU-side), never written or read by the
         # CPU itself: the CPU reading it every frame made the NVIDIA driver keep it in host memory,
-        # and each atomic on it then took ~1.1 us across the bus (H200: 80 ms for one per
+        # and each atomic on it then took ~1.1 us across the bus (80 ms for one per
         # workgroup of the 2x1440x1600 MSAA trace, 1.8 ms with these copies;
-        # bench/results/h200/2026-11-30/primary/README.md). The readback holds one count per channel set.
+        # docs/design.md). The readback holds one count per channel set.
         self.count_io = [gl.ctx.buffer(bytes(4)), gl.ctx.buffer(reserve=4 * plan.channels)] if self.msaa else []
         self.fences = {}  # channel set -> the fence after its count's copy (until read)
         self.gate = RoundGate(gl.ctx) if self.msaa else None

@@ -1,4 +1,4 @@
-"""Ray reordering in the wavefront (issue 23): before a trace kernel of frame/passes/trace_effect.py
+"""Ray reordering in the wavefront: before a trace kernel of frame/passes/trace_effect.py
 (closest hits of the paths, an event's shadow rays) every ray gets a key, its direction's octant in
 the 3 high bits and under them the Morton code of its origin's cell in the scene's bounds
 (glsl/rt/ray_order.glsl); the (key, ray) pairs are sorted on the GPU by the radix sort the photon
@@ -6,7 +6,7 @@ map uses (frame/passes/radix_sort.py), and invocation k of the trace kernel take
 that order (glsl/rt/wave_fetch.glsl). Neighbouring invocations then start near each other in
 the same octant and walk the same BVH nodes. Each ray's result still goes to its own slot and
 nothing is summed across rays, so hits and images are exactly the unsorted wavefront's: only the
-speed changes (`rayvr bench ... --ray-order none,morton`; on the H200 the sort costs more than it
+speed changes (`rayvr bench ... --ray-order none,morton`; on the GPU the sort costs more than it
 saves, and with the default 1 GiB wave buffers the sorted shadow items thrash: docs/design.md).
 
 A shadow-ray kernel traces an item's (pixel's or path's) rays in one invocation and sums them in

@@ -1,8 +1,8 @@
 """The round gate: an MSAA round recorded before the CPU knew the channel set's count of rounds
 (frame/graph.py Round.start_polled) may lie past it. Such a round used to run every pass of the
-round over the whole frame to skip every pixel: about 0.3 ms a round at 2x1440x1600 on the H200,
+round over the whole frame to skip every pixel: about 0.3 ms a round at 2x1440x1600 on the GPU,
 most of a 16x frame's rounds in the room, where pixels see two triangles and the CPU records the
-eight the slots allow (bench/results/h200/2026-12-03/rounds). Instead, primary_rays runs the gate
+eight the slots allow (docs/design.md). Instead, primary_rays runs the gate
 (glsl/rt/round_gate.comp, one invocation) at the start of each such round; it reads the count on the
 GPU and writes the dispatch size of each frame-wide pass of the round: its grid where the round is
 within the count, nothing where it is not. The round's per-pixel passes then dispatch indirectly

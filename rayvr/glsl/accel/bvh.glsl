@@ -38,7 +38,7 @@
 #if BVH_GLOBAL_STACK
 // One traversal stack per invocation at file scope, shared by every inlined call site of
 // bvh_traverse: a shader that traces from several places would otherwise hold one local-memory
-// array per site. Measured on the H200 (2x1440x1600, `bench rays` views, variants not kept): a
+// array per site. Measured on the GPU (2x1440x1600, `bench rays` views, variants not kept): a
 // 32-entry stack in shared memory, nearer-child-first leaves, and pushing entry distances to skip
 // popped nodes beyond the hit were each slower in the wavefront effect kernels (Sponza rt_shadows
 // 1.17 ms with this traversal, 1.4-3.0 ms with those).

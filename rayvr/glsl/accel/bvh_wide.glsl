@@ -4,11 +4,11 @@
 //             one byte per child: leaf triangle count (0 = internal); one word per child: wide node
 //             index (internal) or first triangle slot (leaf). Children are packed first.
 // BVH_ORDERED 1: a closest-hit ray enters its nearest internal child first; 0: the first stored.
-// Any-hit rays follow BVH_ORDERED (BVH_ORDERED_ANY), as bvh2 orders them; on the H200 this changed
+// Any-hit rays follow BVH_ORDERED (BVH_ORDERED_ANY), as bvh2 orders them; on the GPU this changed
 // nothing measurable against stored order (shadow rays 0.78x / 0.92x of bvh2 in room / Sponza both
-// ways: bench/results/h200/2026-11-30/traversal/run2, run3).
+// ways; docs/design.md).
 //
-// Why it looks like this (the H200 ran an earlier form with per-child arrays, a sorting network and a
+// Why it looks like this (the GPU ran an earlier form with per-child arrays, a sorting network and a
 // push per entered child at 0.05-0.17x of bvh2): every child test is written out by the preprocessor
 // (BVH_CHILD_TEST), so the node's words and the children's entry distances are indexed by constants
 // and stay in registers; leaves and the next child are picked from bit masks (findLSB), their words

@@ -32,7 +32,7 @@ layout(std430, binding = BVH_NODES_BINDING) readonly restrict buffer BvhCompress
 // byte i (a constant) of the 8-byte plane held in words (w0, w1)
 #define BVH_CW_BYTE(w0, w1, i) float(((((i) < 4) ? (w0) : (w1)) >> (8u * uint((i) & 3))) & 0xFFu)
 // No branch on an empty slot (meta 0): its box may pass, but it sets no visit bit (offset < 24) and
-// adds no triangle (count 0); branch-free slots were 1-4 % faster on the H200 (2026-12-04).
+// adds no triangle (count 0); branch-free slots were 1-4 % faster on the GPU.
 #define BVH_CW_CHILD(i) { \
         uint m = (meta[(i) >> 2] >> (8u * uint((i) & 3))) & 0xFFu; \
         { \
@@ -73,7 +73,7 @@ bool bvh_traverse(Ray r, bool any_hit, inout Hit h) {
             BVH_WORK(0);
             // The node's five uvec4 as five variables, each word read by a constant swizzle: NVIDIA's
             // compiler put an array of them in local memory, which made this traversal 3.5-4.4x slower
-            // on the H200 (`bench/results/h200/2026-12-04/cwbvh_registers`).
+            // on the GPU (docs/design.md, cwbvh).
             int word = int(node) * BVH_CW_NODE_VEC4;
             uvec4 n0 = bvh_cw[word], n1 = bvh_cw[word + 1], n2 = bvh_cw[word + 2], n3 = bvh_cw[word + 3], n4 = bvh_cw[word + 4];
             uint e = n0.w;

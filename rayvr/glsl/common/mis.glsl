@@ -17,7 +17,7 @@ float mis_bsdf_samples = 0.0;
 
 // Power heuristic (beta = 2) weight of technique a against b (count x pdf each); finite for
 // zero and infinite pdfs: a technique that cannot make the sample gets weight 0. NaN is tested
-// by name: GLSL need not keep IEEE comparisons, and the H200's compiler turns !(a > 0) into a <= 0.
+// by name: GLSL need not keep IEEE comparisons, and NVIDIA's compiler turns !(a > 0) into a <= 0.
 float power_heuristic(float a, float b) {
     if (isnan(a) || !(a > 0.0)) return 0.0;
     if (isnan(b) || !(b > 0.0)) return 1.0;

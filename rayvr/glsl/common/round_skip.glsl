@@ -17,7 +17,7 @@ bool round_skips(ivec3 p) { return false; }
 // ROUND_TILES 1 (frame/passes/round_gate.py): the round's select lists the PIXEL_TILE tiles that hold a
 // pixel the round does not leave alone, and the round's per-pixel passes may run over that list only
 // (round_listed 1: an indirect dispatch of one workgroup a listed tile, round_gate.comp's size): most
-// of an MSAA round's pixels are skipped, and a pass over the whole frame cost ~0.05 ms on the H200
+// of an MSAA round's pixels are skipped, and a pass over the whole frame cost ~0.05 ms on the GPU
 // to skip them. round_pixel() is the invocation's pixel either way (past the list: outside every image).
 #ifndef ROUND_TILES
 #define ROUND_TILES 0

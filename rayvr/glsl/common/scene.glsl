@@ -65,7 +65,7 @@ void scene_vertex(uint tri, uint k, out vec3 p, out vec3 n, out vec2 uv) {
 }
 
 // The three vertices written with constant indices: filled in a loop, NVIDIA kept the struct's
-// arrays in local memory in photon/trace.comp (its NV assembly, 2026-12-04).
+// arrays in local memory in photon/trace.comp (its NV assembly).
 TriangleVerts scene_triangle(uint tri) {
     TriangleVerts t;
     scene_vertex(tri, 0u, t.p[0], t.n[0], t.uv[0]);

@@ -13,8 +13,8 @@
 //   triangles, or smooth surfaces (rt/same_surface.glsl; the background counts as one), with their
 //   coverage masks go to msaa_hits, most covered first, at most MSAA_SLOTS; the largest count of any pixel to msaa_count (at most one
 //   atomic per workgroup). frame/passes/primary_rays.py msaa_lists is the numpy twin of the merge.
-//   (On the H200 the merge by one invocation per pixel was 30 % of the 16x trace: room 8.25 -> 5.76
-//   ms with every lane merging, bench/results/h200/2026-12-02/msaa_merge; the ~80 ms frames of an
+//   (On the GPU the merge by one invocation per pixel was 30 % of the 16x trace: room 8.25 -> 5.76
+//   ms with every lane merging; the ~80 ms frames of an
 //   earlier version came from msaa_count, see primary_rays.py.)
 // PRIMARY_MODE 2 (MSAA, select): slot msaa_count - 1 - `msaa_round` of each pixel's list (slot 0
 //   for msaa_round -1) becomes its visibility, shaded at the sub-ray of its mask nearest the mask's

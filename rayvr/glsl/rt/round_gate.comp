@@ -10,7 +10,7 @@
 // tiles (common/round_skip.glsl ROUND_TILES), one workgroup a tile, rows of at most 65535 (GL's
 // least limit a dimension); where more than half the frame's tiles are listed, the frame's own
 // grid instead (the list is in no order: a round of every pixel ran 0.04-0.05 ms slower a pass
-// over it on the H200); the select's running count restarts for the next round.
+// over it on the GPU); the select's running count restarts for the next round.
 layout(local_size_x = 1) in;
 #include "../layout.glsl"
 #ifndef GATE_LISTS

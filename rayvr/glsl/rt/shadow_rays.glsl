@@ -7,7 +7,7 @@
 // shadowed() traces nothing: it stores the ray and the unshadowed contribution (times
 // shadow_weight) in the item's shadow slots of rt/wave.glsl and returns 0; the lean any-hit kernel
 // (rt/wave_trace.comp) traces them all and adds the unoccluded contributions. (Tracing on the
-// spot, one fat kernel shading and tracing, ran 6-10x slower on the H200.)
+// spot, one fat kernel shading and tracing, ran 6-10x slower on the GPU.)
 #ifndef RAYVR_RT_SHADOW_RAYS_GLSL
 #define RAYVR_RT_SHADOW_RAYS_GLSL
 #define HAS_LIGHT_VISIBILITY

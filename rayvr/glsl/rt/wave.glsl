@@ -35,7 +35,7 @@ layout(std430, binding = SSBO_WAVE_SHADOWS) restrict buffer WaveShadows { Shadow
 layout(std430, binding = SSBO_WAVE_ARGS) restrict buffer WaveArgs { uvec4 wave_args[2]; };
 // The rays the trace kernels traced, [0] closest hits, [1] shadow rays, counted by the kernels
 // compiled with WAVE_COUNT_RAYS 1 (frame/passes/trace_effect.py count_rays: zeroed and read back
-// through GPU copies). Neither a uniform nor the indirect-dispatch buffer the CPU reads: on the H100
+// through GPU copies). Neither a uniform nor the indirect-dispatch buffer the CPU reads: on the NVIDIA GPU
 // such counters lost the pixel events' counts after a renderer's first counting frame.
 #ifndef WAVE_COUNT_RAYS
 #define WAVE_COUNT_RAYS 0

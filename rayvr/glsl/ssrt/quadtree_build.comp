@@ -5,7 +5,7 @@
 //   level 0: each pixel's plane in S from the G-buffer: z0 = near / view depth (position.w), slopes
 //            from the geometric normal of the pixel's triangle (gb_triangle, the scene's vertices):
 //            the triangle's own plane, exactly (no finite differences; the shading normal, smoothed
-//            across faces, tilted neighbouring planes of one face apart, issue 20); tree layers
+//            across faces, tilted neighbouring planes of one face apart: docs/stereo.md); tree layers
 //            past the eyes (qt_eyes) are the second depth layer's (frame/passes/second_layer.py:
 //            layer2 = its triangle's geometric normal facing the eye, view depth);
 //            background pixels are the AABB [0, 0]; the discontinuity flag from the 4 neighbours.

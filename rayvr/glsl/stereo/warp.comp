@@ -58,7 +58,7 @@ vec3 ray_point_at(vec3 o, vec3 d, float z) {
 // Where the eye's ray o + t d crosses triangle `tri`'s plane (x) and its view depth there, if that
 // is within `warp_thickness` of `z` (the hit's point in S: near / central depth) and not edge-on;
 // else false. The trace finds the hit in S, where z has an absolute precision of ~1e-7 from 1 at
-// the near plane down (a relative error up to ~1e-7 near / depth, 5e-4 on an H200 at the room's
+// the near plane down (a relative error up to ~1e-7 near / depth, 5e-4 on the GPU at the room's
 // far wall); the triangle's plane gives the depth the G-buffer resolve computes
 // (gbuffer/resolve.comp: t along the ray times its depth per distance), so at IPD 0, where the
 // eye's rays are the central view's, each eye's depth is the central view's.
