@@ -252,7 +252,7 @@ class PlanAsk:
     settings: Any
     camera: Any  # a rayvr.frame.cameras model
     view: str = "color"
-    layers: int = 2
+    eyes: int = 2
     accumulate: bool = False  # a running mean of samples was asked for (render(spp=N))
     effects: frozenset = frozenset()  # the effects the materials use
     denoised: frozenset = frozenset()  # the effects the config's `denoise` key names

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -125,22 +126,27 @@ class Renderer:
         return frozenset(self.effects_in_use() & traced & chosen)
 
     # -- the frame graph -------------------------------------------------------------
-    def plan(self, layers: int = 2, view: str = "color", camera=None, accumulate: bool = False) -> FramePlan:
-        """The FramePlan this renderer's scene, config and settings give for `layers` eyes seen
+    def plan(self, eyes: int = 2, view: str = "color", camera=None, accumulate: bool = False,
+             layers: int | None = None) -> FramePlan:
+        """The FramePlan this renderer's scene, config and settings give for `eyes` eyes seen
         through `camera` (a rayvr.frame.cameras model; default the pinhole). A camera a rasterizer cannot
         sample (not `rasterizable`), or sub-rays per sample (settings.msaa > 1: anti-aliasing), take
         ray-cast primary visibility whatever the settings say; such a camera refuses (ValueError)
         temporal reprojection and depth of field, which need the eyes' planar frusta.
-        `accumulate`: keep a running mean of samples (as `render(spp=N)`) whatever the settings say."""
+        `accumulate`: keep a running mean of samples (as `render(spp=N)`) whatever the settings say.
+        `layers`: the old name of `eyes`."""
+        if layers is not None:
+            warnings.warn("Renderer.plan(layers=...) is deprecated: use eyes", DeprecationWarning, stacklevel=2)
+            eyes = layers
         camera = camera or get_camera_model(DEFAULT_CAMERA_MODEL)
         if view not in VIEWS:
             raise ValueError(f"unknown view {view!r}; allowed: {', '.join(VIEWS)}")
         names = self.scene.material_names()
         users = tuple((e, tuple(n for n, a in zip(names, self.assignments) if a.effect == e))
                       for e in effects_mod.EFFECTS if e in self.effects_in_use())
-        ask = PlanAsk(self.settings, camera, view, layers, accumulate, self.effects_in_use(),
+        ask = PlanAsk(self.settings, camera, view, eyes, accumulate, self.effects_in_use(),
                       frozenset(self.denoised_effects()), depth_layers(self.assignments))
-        frame = dict(effects=self.effects_in_use(), view=view, layers=layers, layer_mode=self.layer_mode,
+        frame = dict(effects=self.effects_in_use(), view=view, eyes=eyes, layer_mode=self.layer_mode,
                      camera=camera.name, output="ldr", users=users, channels=camera.channels,
                      reconstruct=camera.sparse, skip_empty_slots=self.skip_empty_slots)
         fields = plan_fields(ask, frame)  # every owner's part (rayvr/options.py plan_part)
@@ -178,7 +184,7 @@ class Renderer:
         state = self.accumulator.next(camera, (plan, rig.size, eyes), self.settings, sample)
         settings = replace(self.settings, seed=sample_seed(self.settings.seed, state.sample))
         fc = FrameContext(self.gl, self.scene, self.gpu_scene, self.accel, rendered, plan, settings,
-                          self.sizing(rig.size, plan.layers, plan), samples=state, out_eyes=eye_views)
+                          self.sizing(rig.size, plan.eyes, plan), samples=state, out_eyes=eye_views)
         self.graph.execute(graph, fc, profile)
         self._last = fc
         return fc
@@ -307,7 +313,7 @@ class Renderer:
         plan = self.plan(len(eye_views), view, eye_views[0].camera)
         key = (plan, rig.size, id(self.assignments), self.graph.limits)  # sequences ask once per size
         if key not in self._tiles:
-            self._tiles = {key: self._plan_tiles(plan, rig.size, plan.layers)}
+            self._tiles = {key: self._plan_tiles(plan, rig.size, plan.eyes)}
         return self._tiles[key]
 
     def _plan_tiles(self, plan: FramePlan, size, layers: int) -> list:

@@ -348,10 +348,10 @@ def test_the_renderer_refuses_depth_of_field_it_cannot_apply(gl):
 
     with Renderer(gl=gl, settings=RenderSettings(dof_diameter=0.1, stereo="warp")) as r:
         with pytest.raises(ValueError, match="depth of field"):
-            r.plan(layers=2)
-        assert r.plan(layers=1).dof  # one eye: a dual frame, blurred
+            r.plan(eyes=2)
+        assert r.plan(eyes=1).dof  # one eye: a dual frame, blurred
     with Renderer(gl=gl, settings=RenderSettings(dof_diameter=0.1)) as r:
-        assert r.plan(layers=2).dof
+        assert r.plan(eyes=2).dof
 
 
 def test_default_primary_follows_the_camera_and_msaa(tmp_path):

@@ -162,6 +162,21 @@ def test_registry_refuses_clashes(flat):
         register(type("Bad", (Effect,), {"name": "no spaces please"})())
 
 
+def test_effect_ids_come_from_the_registry_in_the_ladders_order(flat):
+    """No effect names its ID: rayvr's rungs take 0.. in the order rayvr/frame/effects/__init__.py
+    registers them (the ladder's, which the G-buffer's effect channel and captures' aux "effect"
+    images keep), and a plugin the next free one."""
+    from rayvr.frame import effects
+    from rayvr.frame.effects import EFFECTS
+
+    ladder = ["raster", "shadows", "ssr", "reflections", "glossy", "path", "photon"]
+    assert [EFFECTS[n].id for n in ladder] == list(range(len(ladder)))
+    assert EFFECTS["flat"].id == len(ladder)
+    sources = Path(effects.__file__).parent
+    hand = [p.name for p in sources.rglob("*.py") if re.search(r"(?m)^    id = \d", p.read_text())]
+    assert hand == []
+
+
 def _graph(*args):
     run = run_rayvr("info", *args)
     assert run.returncode == 0, run.stderr

@@ -242,7 +242,7 @@ def test_plan_options_reach_their_plan_field_and_no_other_option_changes_the_pla
         context = CONTEXT.get(o.name, {})
         def plan(settings):
             with Renderer(None, config, gl=gl, settings=settings) as r:  # (the layer mode is picked here)
-                return r.plan(layers=2, **CAMERA_CONTEXT.get(o.name, {}))
+                return r.plan(eyes=2, **CAMERA_CONTEXT.get(o.name, {}))
 
         base = plan(RenderSettings(**context))
         # an automatic switch (None: the measured choice) set against what the renderer chose

@@ -94,3 +94,11 @@ def test_flag_words():
     assert flag_words("tile_culling", False) == "--no-tile-culling" and flag_words("temporal", True) == "--temporal"
     assert flag_words("dof_focus", 3.0) == "--focus-distance 3.0"  # the option's own flag
     assert flag_words("traversal", ("bvh2", "bvh2", "cwbvh")) == "--traversal bvh2,bvh2,cwbvh"
+
+
+def test_eyes_is_the_plans_count_of_views_and_layers_its_old_name(gl):
+    with Renderer(None, gl=gl) as r:
+        assert r.plan(eyes=1).eyes == 1 and r.plan().eyes == 2
+        with pytest.warns(DeprecationWarning, match="use eyes"):
+            plan = r.plan(layers=1)
+    assert plan.eyes == 1 and plan.layers == 1

@@ -376,11 +376,11 @@ def _events():
         start = p.camera.pose
         _press(p, glfw.KEY_TAB)
         p.frame()
-        out["after_tab"] = (p.state.stereo, p.last_frame.plan.layers)
+        out["after_tab"] = (p.state.stereo, p.last_frame.plan.eyes)
         _press(p, glfw.KEY_4)
         _press(p, glfw.KEY_V)
         p.frame()
-        out["after_4_v"] = (p.state.stereo, p.state.view, p.last_frame.plan.view, p.last_frame.plan.layers,
+        out["after_4_v"] = (p.state.stereo, p.state.view, p.last_frame.plan.view, p.last_frame.plan.eyes,
                             VIEWS[1])
         _press(p, glfw.KEY_V, glfw.MOD_SHIFT)
         p.on_key(p.window, glfw.KEY_W, 0, glfw.PRESS, 0)

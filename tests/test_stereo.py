@@ -46,7 +46,7 @@ def mean_abs(a, b) -> float:
 @pytest.mark.parametrize("effects", [frozenset({"raster"}), frozenset({"shadows", "reflections", "glossy", "ssr"})])
 def test_graph_compiles_only_what_the_mode_needs(effects):
     names = {m: set(compile_graph(candidate_passes(p), p).pass_names)
-             for m, p in ((m, FramePlan(effects=effects, stereo=m, layers=1 if m == "warp" else 2,
+             for m, p in ((m, FramePlan(effects=effects, stereo=m, eyes=1 if m == "warp" else 2,
                                         output="stereo_ldr" if m == "warp" else "ldr"))
                           for m in ("dual", "warp", "reuse"))}
     assert not names["dual"] & STEREO_PASSES
@@ -60,7 +60,7 @@ def test_graph_compiles_only_what_the_mode_needs(effects):
 def test_one_eye_and_debug_views_stay_dual(room):
     room.set_stereo("reuse")
     try:
-        assert room.plan(layers=1).stereo == "dual"
+        assert room.plan(eyes=1).stereo == "dual"
         assert not STEREO_PASSES & set(room.compiled(room.plan(view="normal")).pass_names)
     finally:
         room.set_stereo("dual")

@@ -43,9 +43,9 @@ def print_graph(args) -> int:
     gl = create_context(args.backend)
     try:
         with Renderer(args.scene, config, gl=gl, settings=settings) as r:
-            plan = r.plan(layers=2, view=args.view, camera=camera)
+            plan = r.plan(eyes=2, view=args.view, camera=camera)
             graph = compile_graph(candidate_passes(plan), plan)  # passes are not built: nothing compiles
-            print(graph.dot() if args.graph == "dot" else graph.describe(r.sizing(args.size, plan.layers, plan)), end="")
+            print(graph.dot() if args.graph == "dot" else graph.describe(r.sizing(args.size, plan.eyes, plan)), end="")
     finally:
         gl.release()
     if args.graph != "dot":

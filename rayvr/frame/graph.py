@@ -44,7 +44,7 @@ class FramePlan:
 
     effects: frozenset  # effect names the scene's materials use
     view: str = "color"  # "color" or a debug view (gpu_layout.DEBUG_VIEWS)
-    layers: int = 2
+    eyes: int = 2  # the views the frame renders (2: a stereo pair; 1 under warp's central view)
     layer_mode: str = "vertex"  # how the G-buffer reaches its layers: vertex | geometry | multiview | passes
     primary: str = "raster"  # primary visibility: "raster" (visibility pass) or "rays" (BVH)
     camera: str = DEFAULT_CAMERA_MODEL  # camera model (rayvr/frame/cameras/), its name
@@ -88,6 +88,11 @@ class FramePlan:
         """The frame's colour is made of several rounds of samples, or of sparse samples: it is
         accumulated (frame/passes/sample_accumulate.py) and resolved for display (sample_resolve.py)."""
         return self.samples > 1 or self.channels > 1 or self.reconstruct
+
+    @property
+    def layers(self) -> int:
+        """The old name of `eyes` (the G-buffer's array layers are the eyes)."""
+        return self.eyes
 
     def part(self, name: str, default=None):
         """A plan field by name: rayvr's own, or a plugin's from `extra`."""
@@ -278,7 +283,7 @@ class CompiledGraph:
         plan = self.plan
         uses = "; ".join(f"{e} ({', '.join(n)})" for e, n in plan.users) or ", ".join(sorted(plan.effects))
         lines = [f"plan: view {plan.view}, primary {plan.primary}, camera {plan.camera}, stereo {plan.stereo}, "
-                 f"{plan.layers} layer(s) ({plan.layer_mode})", f"effects: {uses}", "", "passes, in order:"]
+                 f"{plan.eyes} eye(s) ({plan.layer_mode})", f"effects: {uses}", "", "passes, in order:"]
         for i, p in enumerate(self.passes, 1):
             acc = self.io[p.name]
             fmt = lambda mode: ", ".join(a.resource for a in acc if a.mode == mode) or "-"  # noqa: E731

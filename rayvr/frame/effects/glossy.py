@@ -8,7 +8,6 @@ from .shadows import AREA_SAMPLES, AREA_SAMPLES_SWEEP, HIT_AREA_SAMPLES, HIT_ARE
 
 class Glossy(Effect):
     name = "glossy"
-    id = 4
     doc = "+ GGX glossy reflections (VNDF importance sampling)"
     params = {WAVE_SAMPLES: Param(int, 4, 1, 1024, "reflection rays per pixel"),
               WAVE_BOUNCES: Param(int, 1, 1, 8, "reflection bounces"),

@@ -5,7 +5,6 @@ from ..effect_registry import Effect, register
 
 class Raster(Effect):
     name = "raster"
-    id = 0
     doc = "direct light from the G-buffer, no shadows"
     reference = {"mirror": 0, "glossy": 0, "diffuse": 0}
 

@@ -7,7 +7,6 @@ from .shadows import AREA_SAMPLES, AREA_SAMPLES_SWEEP, HIT_AREA_SAMPLES, HIT_ARE
 
 class Reflections(Effect):
     name = "reflections"
-    id = 3
     doc = "+ ray-traced mirror reflections"
     params = {WAVE_BOUNCES: Param(int, 1, 1, 16, "reflection bounces"), WAVE_AREA_SAMPLES: AREA_SAMPLES,
               WAVE_HIT_AREA_SAMPLES: HIT_AREA_SAMPLES}

@@ -16,7 +16,6 @@ HIT_AREA_SAMPLES_SWEEP = ((0, 1, 4, 16), (0, 4))
 
 class Shadows(Effect):
     name = "shadows"
-    id = 1
     doc = "+ ray-traced hard shadows; area lights soft with N samples"
     params = {WAVE_AREA_SAMPLES: AREA_SAMPLES}
     traced = True

@@ -29,7 +29,6 @@ COS = {deg: math.cos(math.radians(deg)) for deg in (3, 10, 25)}
 
 class ScreenSpaceReflections(Effect):
     name = "ssr"
-    id = 2
     doc = "+ screen-space mirror and GGX reflections through the depth quadtree, BVH fallback"
     params = {
         # one quadtree per frame: the strictest thresholds of the materials (frame/passes/quadtree.py)

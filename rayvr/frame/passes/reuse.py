@@ -30,7 +30,7 @@ REUSE_MAP = Buffer(lambda s: 8 * s.size[0] * s.size[1], "8 B per eye pixel: sour
 
 
 def stereo_reuse(plan: FramePlan) -> bool:
-    return plan.stereo == "reuse" and plan.layers == 2
+    return plan.stereo == "reuse" and plan.eyes == 2
 
 
 def reuse_reads(plan: FramePlan) -> list:

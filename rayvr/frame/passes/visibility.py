@@ -50,8 +50,8 @@ class VisibilityPass(Pass):
         self.clip_control = gl.raw.has("glClipControl") and (
             gl.ctx.version_code >= 450 or gl.has_extension("GL_ARB_clip_control"))
         # Multiview renders exactly LAYERS views; one eye uses the instanced path.
-        self.mode = "vertex" if (self.mode == "multiview" and plan.layers != 2) else self.mode
-        defines = {"LAYER_MODE": LAYER_MODE_DEFINE[self.mode], "LAYERS": plan.layers}
+        self.mode = "vertex" if (self.mode == "multiview" and plan.eyes != 2) else self.mode
+        defines = {"LAYER_MODE": LAYER_MODE_DEFINE[self.mode], "LAYERS": plan.eyes}
         self.program = shaders.program(gl.ctx, "gbuffer/visibility.vert", self.fragment,
                                        "gbuffer/visibility.geom" if self.mode == "geometry" else None, defines)
         self.vao = None

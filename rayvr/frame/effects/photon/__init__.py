@@ -31,7 +31,6 @@ from .trace import PhotonTracePass
 
 class PhotonEffect(Effect):
     name = "photon"
-    id = 6
     doc = "+ photon-mapped indirect light and caustics (GPU hash-grid photon map)"
     params = {"photons": Param(int, DEFAULTS["photons"], 256, 1 << 22, "photon paths emitted per frame"),
               "radius": Param(float, DEFAULTS["radius"], 1e-4, 100.0, "search radius in scene units (metres); "
