@@ -255,16 +255,19 @@ def test_bench_peers_quick(tmp_path):
 
 def test_capture_accumulates_spp_samples_and_denoises(tmp_path):
     """--spp N: N samples per pixel, each its own sequence (the images differ from 1 sample);
-    --denoise filters the sampled effects' pixels; the summary says so; a progress bar counts samples."""
+    --denoise filters the sampled effects' pixels (a capture's default: --no-denoise leaves them
+    raw); the summary says so; a progress bar counts samples."""
     room = "rayvr/assets/default_room.toml"
     common = ("capture", "--materials", room, "--size", "32x24", "--eye", "left")
-    one = rayvr(*common, "--out", str(tmp_path / "one"), "-q")
+    one = rayvr(*common, "--no-denoise", "--out", str(tmp_path / "one"), "-q")
     many = rayvr(*common, "--spp", "3", "--denoise", "--denoise-iterations", "2", "--out", str(tmp_path / "many"))
     assert one.returncode == 0 and many.returncode == 0, one.stderr + many.stderr
     assert "3/3" in many.stderr  # tqdm's bar over the samples
     summary = json.loads((tmp_path / "many" / "frame_timings.json").read_text())
     assert summary["spp"] == 3 and summary["denoise"] == ["glossy", "shadows"]
     assert {"accumulate", "denoise"} <= set(summary["passes"])
+    raw = json.loads((tmp_path / "one" / "frame_timings.json").read_text())
+    assert raw["denoise"] == [] and "denoise" not in raw["passes"]
     a = np.asarray(Image.open(tmp_path / "one" / "frame_left.png")).astype(int)
     b = np.asarray(Image.open(tmp_path / "many" / "frame_left.png")).astype(int)
     assert a.shape == b.shape and np.abs(a - b).mean() > 0.5 and b.std() > 5

@@ -1,10 +1,12 @@
 """Builds docs/room.png, the README's picture: the built-in room's stereo pair as a first run
-renders it (rayvr/assets/default_room.toml), above a ladder strip of the left eye's view rendered
-with each effect on every material (the light stays `raster`), cheapest first.
+renders it (rayvr/assets/default_room.toml, the first view, one sample a pixel, denoised: a
+capture's defaults), above a ladder strip of the left eye's view rendered with each effect on
+every material (the light stays `raster`), cheapest first.
 
     python tools/make_room_figure.py [--size 448x504] [--spp 16]
 
-Every image is the Python API's (rayvr.Renderer); the sampled rungs are the mean of --spp samples.
+Every image is the Python API's (rayvr.Renderer); the ladder's sampled rungs are the mean of --spp
+samples, not denoised.
 """
 from __future__ import annotations
 
@@ -14,7 +16,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from rayvr import Renderer, StereoRig
+from rayvr import Renderer, RenderSettings
+from rayvr.app.viewpoint import first_rig
+from rayvr.commands.args import CAPTURE_DEFAULTS
 from rayvr.frame.effects import EFFECTS
 from rayvr.scene import loader
 from rayvr.scene.defaults import ROOM_CONFIG
@@ -35,7 +39,7 @@ def labelled(image: np.ndarray, text: str) -> Image.Image:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--size", default="448x504", help="per-eye size of the stereo pair (WIDTHxHEIGHT)")
-    p.add_argument("--spp", type=int, default=16, help="samples a pixel of every image")
+    p.add_argument("--spp", type=int, default=16, help="samples a pixel of the ladder's images")
     p.add_argument("--out", type=Path, default=OUT)
     args = p.parse_args()
     w, h = (int(v) for v in args.size.split("x"))
@@ -43,13 +47,13 @@ def main() -> None:
     if missing:
         raise SystemExit(f"this rayvr lacks the effects {', '.join(missing)}")
     room = loader.load(None)
-    rig = StereoRig.for_scene(room, size=(w, h))
-    with Renderer(room, load_config(ROOM_CONFIG)) as r:
-        pair = r.render(rig, spp=args.spp)
-        top = [labelled(pair.left.color, "left eye: default_room.toml"),
+    with Renderer(room, load_config(ROOM_CONFIG), settings=RenderSettings(**CAPTURE_DEFAULTS)) as r:
+        pair = r.render(first_rig(room, (w, h)))  # what `rayvr capture --size WxH` writes
+        top = [labelled(pair.left.color, "left eye: default_room.toml, 1 sample, denoised"),
                labelled(pair.right.color, "right eye")]
+        r.settings = RenderSettings()
         side = 2 * w // len(LADDER)  # the strip is as wide as the pair
-        small = StereoRig.for_scene(room, size=(side, round(side * h / w)))
+        small = first_rig(room, (side, round(side * h / w)))
         strip = []
         for effect in LADDER:
             r.set_materials(parse_config({"default": effect, "materials": {"light": "raster"}}, f"<all {effect}>"))

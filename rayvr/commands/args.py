@@ -95,10 +95,11 @@ def add_budget_arguments(p: argparse.ArgumentParser, help_ms: str, frame_knobs: 
                         "e.g. \"stereo=dual,reuse;spp=1,4;denoise=off,on;msaa=1,4\" (docs/budget.md)")
 
 
-def budget_grid(args, given: dict, frame_knobs: tuple[str, ...]) -> list | None:
+def budget_grid(args, given: dict, frame_knobs: tuple[str, ...], defaults: dict | None = None) -> list | None:
     """Turns --budget-hz into args.budget_ms; the --frame-knobs grid (quality/frame_knobs.py), or
     None without it. A knob the grid chooses may not also be set by a flag or the config; the
-    knobs it leaves out keep what the flags and the config give."""
+    knobs it leaves out keep what the flags and the config give, else the command's `defaults`
+    (CAPTURE_DEFAULTS)."""
     from ..quality.frame_knobs import DEFAULT_KNOBS, FrameKnobs, budget_ms_of, parse_grid
 
     if getattr(args, "budget_hz", None) is not None:
@@ -109,10 +110,11 @@ def budget_grid(args, given: dict, frame_knobs: tuple[str, ...]) -> list | None:
     if args.budget_ms is None:
         raise ValueError("--frame-knobs goes with --budget-ms or --budget-hz")
     d = DEFAULT_KNOBS
-    base = FrameKnobs(stereo=given.get("stereo", d.stereo), spp=getattr(args, "spp", d.spp),
-                      denoise=given.get("denoise", d.denoise), msaa=given.get("msaa", d.msaa),
-                      temporal=given.get("temporal", d.temporal),
-                      iterations=given.get("denoise_iterations", d.iterations))
+    values = {**(defaults or {}), **given}
+    base = FrameKnobs(stereo=values.get("stereo", d.stereo), spp=getattr(args, "spp", d.spp),
+                      denoise=values.get("denoise", d.denoise), msaa=values.get("msaa", d.msaa),
+                      temporal=values.get("temporal", d.temporal),
+                      iterations=values.get("denoise_iterations", d.iterations))
     grid = parse_grid(text, base)
     for part in text.split(";"):
         knob = part.partition("=")[0].strip().lower()
@@ -171,6 +173,26 @@ def add_render_arguments(p: argparse.ArgumentParser, command: str) -> None:
     """The camera model's flags and every render option `command` offers (generated)."""
     add_camera_model_arguments(p)
     settings_mod.add_arguments(p, command)
+
+
+# What `rayvr capture` renders, where neither a flag nor the config's [render] table says, beyond
+# RenderSettings' defaults (which the Python API and the preview keep): the denoiser on, so that
+# the first image, the built-in room at one sample a pixel, is clean in seconds on a CPU (its
+# fireflies clamped, its penumbrae smooth: docs/usage.md). Only the sampled effects' pixels are
+# filtered: a scene of one's own, all `raster` by default, runs no denoiser.
+CAPTURE_DEFAULTS = {"denoise": True}
+
+
+def add_capture_default_arguments(p: argparse.ArgumentParser) -> None:
+    """The switches that turn CAPTURE_DEFAULTS off (capture; info --graph, which shows a capture's)."""
+    p.add_argument("--no-denoise", dest="denoise", action="store_false", default=None,
+                   help="leave the denoiser off: the raw samples (a capture denoises the sampled effects "
+                        "unless told otherwise, here or by the config's [render] denoise = false)")
+
+
+def with_capture_defaults(given: dict) -> dict:
+    """The option values a capture runs with: CAPTURE_DEFAULTS under `given` (render_values')."""
+    return settings_mod.merged(CAPTURE_DEFAULTS, given)
 
 
 def render_values(args, command: str, config=None, **fixed) -> dict:

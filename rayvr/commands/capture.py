@@ -78,6 +78,7 @@ def add_parser(sub) -> None:
     c.add_argument("-q", "--quiet", action="store_true")
     shared.add_rig_arguments(c)
     shared.add_render_arguments(c, COMMAND)
+    shared.add_capture_default_arguments(c)
     c.set_defaults(func=cmd_capture)
 
 
@@ -141,8 +142,10 @@ def cmd_capture(args) -> int:
 
     config = load_config(args.materials)  # its [render] table, under the flags
     given = shared.render_values(args, COMMAND, config)
+    grid = shared.budget_grid(args, given, frame_knobs=("stereo", "spp", "denoise", "msaa"),
+                              defaults=shared.CAPTURE_DEFAULTS)
+    given = shared.with_capture_defaults(given)  # denoised unless --no-denoise (or the config) says not
     settings = RenderSettings(**given)  # --temporal implies accumulate, --denoise-iterations --denoise
-    grid = shared.budget_grid(args, given, frame_knobs=("stereo", "spp", "denoise", "msaa"))
     if args.budget_ms is not None:
         require("flip_evaluator", "--budget-ms")  # it predicts image error with FLIP, before any work
     if not args.workers and (args.address or args.chunk or args.connect_timeout is not None):

@@ -25,6 +25,7 @@ def add_parser(sub) -> None:
     i.add_argument("--view", choices=VIEWS, default="color", help="the view --graph is compiled for")
     i.add_argument("--spp", type=shared.SPP, default=1, help="the --graph of a capture with this many samples a pixel")
     shared.add_render_arguments(i, COMMAND)
+    shared.add_capture_default_arguments(i)
     i.set_defaults(func=cmd_info)
 
 
@@ -38,6 +39,7 @@ def print_graph(args) -> int:
 
     config = load_config(materials_for(args.scene, args.materials)[0])
     given = shared.render_values(args, COMMAND, config, **({"accumulate": True} if args.spp > 1 else {}))
+    given = shared.with_capture_defaults(given)  # the graph a capture compiles
     settings = RenderSettings(**given)
     camera = shared.camera_from_args(args, settings, given)
     gl = create_context(args.backend)

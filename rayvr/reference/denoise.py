@@ -4,15 +4,15 @@ the shader, so that a test comparing the two catches a mistake in either.
 
 One eye at a time; arrays are indexed [y, x] in any row order (the filter is symmetric).
 `denoise()` takes the accumulated colour, its sample counts and luminance moments, and the
-G-buffer guides, and returns the filtered colour; pixels whose effect is not denoised come back
-as they went in.
+G-buffer guides, clamps outliers (`clamp_outliers`), filters, and returns the filtered colour;
+pixels whose effect is not denoised come back as they went in.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..frame.passes.accumulate import DEMODULATE_FLOOR
-from ..frame.passes.denoise import DEFAULTS, DenoiseParams
+from ..frame.passes.denoise import DEFAULTS, OUTLIER_MIN_WEIGHT, OUTLIER_RADIUS, OUTLIER_SIGMAS, DenoiseParams
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 B3 = (3 / 8, 1 / 4, 1 / 16)  # the 5-tap B3 spline (1 4 6 4 1) / 16, by |offset|
@@ -91,12 +91,40 @@ def _demodulate(color, albedo):
     return _finite(color.astype(np.float64)) / np.maximum(albedo, DEMODULATE_FLOOR)
 
 
-def variance(color, samples, moments, albedo, g: _Guides) -> np.ndarray:
+# the outlier clamp's statistics: the 5x5 neighbours
+NEIGHBOURS = [(dx, dy) for dy in range(-OUTLIER_RADIUS, OUTLIER_RADIUS + 1)
+              for dx in range(-OUTLIER_RADIUS, OUTLIER_RADIUS + 1) if dx or dy]
+
+
+def clamp_outliers(illum, g: _Guides, sigmas: float = OUTLIER_SIGMAS) -> np.ndarray:
+    """Demodulated colour with each pixel's luminance clamped to its 5x5 neighbours' mean + `sigmas`
+    standard deviations: the neighbours of its effect weighted by the depth, normal and albedo
+    edge-stops, the brightest of them left out (a firefly's neighbour may be another). A pixel
+    whose neighbours weigh less than OUTLIER_MIN_WEIGHT in all stays as it is; a clamped one
+    keeps its chroma."""
+    lum = illum @ LUMA
+    same = np.stack([g.same(dx, dy) for dx, dy in NEIGHBOURS])
+    w = np.stack([np.where(same[k], g.weight(dx, dy), 0.0) for k, (dx, dy) in enumerate(NEIGHBOURS)])
+    lq = np.stack([_shift(lum, dx, dy) for dx, dy in NEIGHBOURS])
+    brightest = np.argmax(np.where(same, lq, -np.inf), axis=0)  # of the effect's, whatever its weight
+    w = np.where(np.arange(len(NEIGHBOURS))[:, None, None] == brightest, 0.0, w)
+    sw = w.sum(0)
+    judged = sw >= OUTLIER_MIN_WEIGHT
+    sw = np.where(judged, sw, 1.0)
+    mean = (w * lq).sum(0) / sw
+    sd = np.sqrt((w * (lq - mean) ** 2).sum(0) / sw)
+    bound = mean + sigmas * sd
+    over = judged & (lum > bound)
+    return illum * np.where(over, bound / np.where(over, lum, 1.0), 1.0)[..., None]
+
+
+def variance(illum, samples, moments, g: _Guides) -> np.ndarray:
     """The variance of each pixel's demodulated luminance: of the mean of its samples from
-    MIN_TEMPORAL_SAMPLES on, else the edge-weighted spread of its 7x7 neighbourhood."""
+    MIN_TEMPORAL_SAMPLES on, else the edge-weighted spread of `illum` (the demodulated colour)
+    over its 7x7 neighbourhood."""
     m1, m2 = moments[..., 0].astype(np.float64), moments[..., 1].astype(np.float64)
     temporal = np.maximum(m2 - m1 * m1, 0.0) / np.maximum(samples, 1.0)
-    lum = _demodulate(color, albedo) @ LUMA
+    lum = illum @ LUMA
     sw, s1, s2 = np.zeros_like(lum), np.zeros_like(lum), np.zeros_like(lum)
     for dy in range(-3, 4):
         for dx in range(-3, 4):
@@ -142,15 +170,18 @@ def atrous_iteration(illum, var, step: int, g: _Guides):
 
 
 def denoise(color, samples, moments, albedo, normal, depth, effect, denoised_ids, iterations: int = 4,
-            params: DenoiseParams = DEFAULTS) -> np.ndarray:
+            params: DenoiseParams = DEFAULTS, outlier_sigmas: float | None = OUTLIER_SIGMAS) -> np.ndarray:
     """Filter one eye. color (H, W, 3) accumulated linear colour; samples (H, W) its sample
     counts; moments (H, W, 2) mean demodulated luminance and its square; albedo (H, W, 3) base
     colour; normal (H, W, 3); depth (H, W) view depth; effect (H, W) effect IDs; denoised_ids
-    the effect IDs to filter. Returns (H, W, 3) float64."""
+    the effect IDs to filter; outlier_sigmas the clamp's bound (None: no clamp, to compare).
+    Returns (H, W, 3) float64."""
     g = _Guides(albedo, normal, depth, effect, params)
     albedo = albedo.astype(np.float64)  # demodulation: the G-buffer's own base colour
     illum = _demodulate(color, albedo)
-    var = variance(color, np.asarray(samples, np.float64), moments, albedo, g)
+    if outlier_sigmas is not None:
+        illum = clamp_outliers(illum, g, outlier_sigmas)
+    var = variance(illum, np.asarray(samples, np.float64), moments, g)
     for i in range(iterations):
         illum, var = atrous_iteration(illum, var, 1 << i, g)
     listed = np.isin(g.effect, list(denoised_ids))

@@ -7,9 +7,11 @@ albedo (demodulated, so texture and colour edges stay sharp), `iterations` times
 B3-spline kernel whose taps lie 2^i pixels apart, each tap weighted by depth (against the
 plane of the centre), normal, albedo and luminance scaled by the estimated standard deviation
 of the noise (temporal moments of the samples, or a 7x7 spatial estimate before 4 samples), and
-multiplies the albedo back. Only pixels of the denoised effects are filtered and only taps on
-pixels of the same effect count, so a `raster` wall never blurs into a `glossy` floor. Writes
-`hdr_denoised`, which tonemap shows.
+multiplies the albedo back. Before the filter, a pixel whose demodulated luminance lies more than
+OUTLIER_SIGMAS standard deviations above the mean of its 5x5 neighbours on the same surface (a
+firefly, which the luminance edge-stop would keep) is clamped to that bound. Only pixels of the
+denoised effects are filtered and only taps on pixels of the same effect count, so a `raster`
+wall never blurs into a `glossy` floor. Writes `hdr_denoised`, which tonemap shows.
 
 The kernels run over 16x16 tiles of the image (not the classify pass's pixel lists): a work
 group loads its tile and apron into workgroup memory once and takes every tap from there; an
@@ -23,6 +25,7 @@ from dataclasses import dataclass
 import moderngl
 
 from ...gl import shaders
+from ...gl.glsl_constants import declare as declare_constant
 from ..effect_registry import EFFECTS
 from ..graph import FramePlan, Pass, Texture, read, write
 from ...gl.gpu_layout import IMAGE
@@ -32,6 +35,16 @@ from .accumulate import ACCUM
 from .compute import dispatch_per_pixel
 
 DENOISE_TILE = 16  # one work group of glsl/post/denoise.comp filters 16x16 lattice points
+# The outlier clamp (denoise.comp clamp_outlier; rayvr/reference/denoise.py clamp_outliers): the bound
+# is the neighbours' weighted mean + OUTLIER_SIGMAS standard deviations of their luminance (the
+# brightest neighbour left out). 4 keeps a smooth peak and a one-pixel bright line (checked in
+# tests/test_denoise_outliers.py) and clamps the room's glossy-floor fireflies (docs/usage.md);
+# 5 left as few on the room and took less light from path_room at 16 samples (0.3 % against 0.4).
+OUTLIER_SIGMAS = declare_constant("DENOISE_OUTLIER_SIGMAS", 4.0)
+# Its neighbourhood: 5x5 (3x3 darkened penumbrae: denoise.comp clamp_outlier says why).
+OUTLIER_RADIUS = declare_constant("DENOISE_OUTLIER_RADIUS", 2)
+# Neighbours' summed edge-stop weight below which a pixel is not judged (a thin object, an edge):
+OUTLIER_MIN_WEIGHT = declare_constant("DENOISE_OUTLIER_MIN_WEIGHT", 2.0)
 
 
 @dataclass(frozen=True)
@@ -66,7 +79,7 @@ class DenoisePass(Pass):
 
     def setup(self, gl, plan: FramePlan) -> None:
         self.programs = {s: shaders.compute(gl.ctx, "post/denoise.comp", {"DENOISE_STAGE": s, "DENOISE_TILE": DENOISE_TILE})
-                         for s in (0, 1, 2, 3)}
+                         for s in (0, 1, 2, 3, 4)}
 
     def execute(self, fc) -> None:
         iterations = int(fc.settings.denoise_iterations)
@@ -96,11 +109,17 @@ class DenoisePass(Pass):
             dispatch_per_pixel(fc, self.programs[0])
             guide.bind_to_image(IMAGE["denoise_guide"], read=True, write=False)
 
+        def outliers():  # the demodulated colour, fireflies clamped, into pong
+            pong.bind_to_image(IMAGE["denoise_out"], read=False, write=True)
+            over_tiles(self.programs[4])
+
         def prepare():
+            pong.bind_to_image(IMAGE["denoise_in"], read=True, write=False)
             ping.bind_to_image(IMAGE["denoise_out"], read=False, write=True)
             over_tiles(self.programs[1])
 
         fc.stage("passthrough", passthrough)
+        fc.stage("outliers", outliers)
         fc.stage("prepare", prepare)
         src, dst = ping, pong
         for i in range(iterations):

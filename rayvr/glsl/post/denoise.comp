@@ -4,7 +4,9 @@
 // Mirrored step by step by rayvr/reference/denoise.py (the tests compare the two).
 //   DENOISE_STAGE 0  every pixel: the accumulated colour as it is (pixels nobody filters), and the
 //                    guides packed into 16 bytes (one fetch per tap instead of four)
-//   DENOISE_STAGE 1  denoised pixels: demodulate albedo, estimate the variance of the luminance
+//   DENOISE_STAGE 4  denoised pixels (before stage 1): demodulate albedo and clamp outliers (fireflies):
+//                    a luminance far above that of the pixel's 5x5 neighbours on its surface
+//   DENOISE_STAGE 1  denoised pixels: estimate the variance of the (clamped) demodulated luminance
 //                    (temporal moments from 4 samples on, else spatially over 7x7), and the depth
 //                    gradient the depth edge-stop uses (once, not per iteration)
 //   DENOISE_STAGE 2  denoised pixels: one à-trous iteration, 5x5 B3-spline taps 2^i pixels apart,
@@ -12,16 +14,16 @@
 //                    blurred 3x3 over the same effect; the last iteration multiplies the albedo back
 //                    and writes the output
 //   DENOISE_STAGE 3  denoised pixels: that variance blur, ahead of an iteration of step 2 or more
-// Stages 1-2 read their taps from workgroup memory: a work group loads the guides and values of a
+// Stages 1-4 read their taps from workgroup memory: a work group loads the guides and values of a
 // 16x16 lattice of pixels `step` apart plus an apron of APRON lattice points once (à-trous taps of
 // step 2^i fall on the same lattice), instead of every pixel fetching 25-49 taps itself (4.7 ms at
-// 2x1440x1600 on the H200 that way). A group whose pixels are all undenoised stops after one fetch each.
-// The 3x3 variance blur's taps are 1 pixel apart: the first iteration (step 1) takes them from its
-// own tile; the others get the blur from a stage-3 dispatch over the step-1 lattice. (Fetching the 8
-// neighbours in a step-2^i iteration instead was slower on the H200: 2.11 -> 2.30 ms for 4 iterations,
-// the room, bench/results/h200/2026-12-03/denoise_fused: a lattice group's neighbours are scattered.)
-// The first iteration's own blur: the room's denoiser 2.44-3.32 ms against 2.55-3.45 with a blur
-// dispatch before it (4 head poses, bench/results/h200/2026-12-04/frames).
+// 2x1440x1600 on a data-centre GPU that way). A group whose pixels are all undenoised stops after
+// one fetch each. The 3x3 variance blur's taps are 1 pixel apart: the first iteration (step 1)
+// takes them from its own tile; the others get the blur from a stage-3 dispatch over the step-1
+// lattice. (Fetching the 8 neighbours in a step-2^i iteration instead was slower: 2.11 -> 2.30 ms
+// for 4 iterations, the room: a lattice group's neighbours are scattered.) The first iteration's
+// own blur: the room's denoiser 2.44-3.32 ms against 2.55-3.45 with a blur dispatch before it (4
+// head poses). The runs are in docs/results.md.
 #include "../common/gbuffer.glsl"
 #include "demodulate.glsl"
 
@@ -76,6 +78,8 @@ struct Guide { float depth; vec3 normal; vec3 albedo; uint effect; };
 #define APRON 3  // the 7x7 spatial variance
 #elif DENOISE_STAGE == 3
 #define APRON 1  // the 3x3 variance blur
+#elif DENOISE_STAGE == 4
+#define APRON DENOISE_OUTLIER_RADIUS  // the 5x5 outlier statistics
 #else
 #define APRON 2  // the 5x5 à-trous taps
 #endif
@@ -90,10 +94,10 @@ shared uint tile_any;
 
 bool denoised(uint effect) { return effect < 32u && ((denoise_effects >> effect) & 1u) != 0u; }
 
-// The value a stage filters at pixel q: stage 1 the demodulated colour, 2 and 3 the previous
-// iteration's (demodulated colour, variance).
+// The value a stage filters at pixel q: stage 4 the demodulated colour, 1 that clamped (stage 4's
+// output), 2 and 3 the previous iteration's (demodulated colour, variance).
 vec4 stage_value(ivec3 q) {
-#if DENOISE_STAGE == 1
+#if DENOISE_STAGE == 4
     return vec4(finite_or_zero(imageLoad(color_in, q).rgb) / demodulation_albedo(texelFetch(gb_albedo, q, 0).rgb), 0.0);
 #else
     return imageLoad(filter_in, q);
@@ -149,7 +153,7 @@ bool tap(int dx, int dy, uint effect, out Guide g) {
 
 struct Centre { Guide g; vec2 grad; float lum; float sigma_l; };
 
-#if DENOISE_STAGE == 1
+#if DENOISE_STAGE == 1 || DENOISE_STAGE == 4
 // Screen-space depth gradient at the centre: per axis the smaller one-sided difference (a
 // silhouette next to it does not tilt its plane), 0 where neither neighbour is the same kind.
 vec2 depth_gradient(Guide c) {
@@ -180,11 +184,57 @@ float geometry_log2_weight(Centre c, Guide q, ivec2 offset) {
     float ta = dot(da, da) / (sigma_albedo * sigma_albedo);
     return sigma_normal * log2(cos_n) - (tz + ta) * LOG2_E;
 }
+
+#if DENOISE_STAGE == 4
+#define OUTLIER_SIDE (2 * DENOISE_OUTLIER_RADIUS + 1)
+#define OUTLIER_TAPS (OUTLIER_SIDE * OUTLIER_SIDE - 1)  // the neighbours
+// A firefly (one rare bright sample: the light through a glossy lobe's tail) outshines every
+// neighbour on its surface, so the à-trous luminance edge-stop shuts those out and it survives
+// the filter as a dot. Its luminance is clamped to the mean + DENOISE_OUTLIER_SIGMAS standard
+// deviations of its 5x5 neighbours', each weighted by the filter's edge-stops (depth, normal,
+// albedo: another surface says nothing), leaving out the brightest neighbour (a second firefly
+// beside it would lift the bound over both). 5x5, not 3x3: a penumbra's outer fringe at one
+// sample is a few lit pixels among dark ones, and 8 neighbours are often all dark: the clamp then
+// darkened the fringe (3x3 took 0.17 % of the denoised pixels' light in the room at one sample,
+// 5x5 0.05 %, the fireflies alike). A highlight wider than a pixel has bright neighbours and
+// stays; a pixel whose neighbours on its surface weigh less than DENOISE_OUTLIER_MIN_WEIGHT (a
+// thin object) stays as it is. A clamped colour keeps its chroma.
+vec3 clamp_outlier(Centre c, vec3 illum) {
+    float w[OUTLIER_TAPS], l[OUTLIER_TAPS];
+    int n = 0, top = -1;
+    Guide q;
+    for (int dy = -DENOISE_OUTLIER_RADIUS; dy <= DENOISE_OUTLIER_RADIUS; dy++) {
+        for (int dx = -DENOISE_OUTLIER_RADIUS; dx <= DENOISE_OUTLIER_RADIUS; dx++) {
+            if (dx == 0 && dy == 0) continue;
+            bool same = tap(dx, dy, c.g.effect, q);
+            w[n] = same ? exp2(geometry_log2_weight(c, q, ivec2(dx, dy))) : 0.0;
+            l[n] = luminance(tile_value[tile_index(dx, dy)].rgb);
+            // the brightest of the effect's pixels, whatever its weight (a threshold on a weight
+            // near 0 would pick by rounding)
+            if (same && (top < 0 || l[n] > l[top])) top = n;
+            n++;
+        }
+    }
+    float sw = 0.0, s1 = 0.0;
+    for (int k = 0; k < OUTLIER_TAPS; k++) {
+        if (k == top) continue;
+        sw += w[k]; s1 += w[k] * l[k];
+    }
+    if (sw < DENOISE_OUTLIER_MIN_WEIGHT) return illum;
+    float mean = s1 / sw, s2 = 0.0;
+    for (int k = 0; k < OUTLIER_TAPS; k++) {
+        if (k != top) s2 += w[k] * (l[k] - mean) * (l[k] - mean);  // about the mean: no cancellation
+    }
+    float bound = mean + DENOISE_OUTLIER_SIGMAS * sqrt(s2 / sw);
+    float lum = luminance(illum);
+    return lum > bound ? illum * (bound / lum) : illum;
+}
+#endif
 #endif
 
 const float B3[3] = float[3](3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0);  // (1 4 6 4 1) / 16
 
-#if DENOISE_STAGE >= 2
+#if DENOISE_STAGE == 2 || DENOISE_STAGE == 3
 // The input's variance at this invocation's pixel blurred 3x3 (Gaussian) over the pixels of the
 // centre's effect, from a tile of step 1: a steadier scale for the luminance edge-stop than one
 // pixel's estimate.
@@ -220,11 +270,14 @@ void main() {
     c.g = tile_guide(tile_index(0, 0));
     if (!denoised(c.g.effect)) return;  // outside the image (OUTSIDE) or not denoised
     Guide q;
-#if DENOISE_STAGE == 1
+#if DENOISE_STAGE == 4
+    c.grad = depth_gradient(c.g);
+    // demodulated by the G-buffer's own albedo (the guide's is rounded to 8 bits: edge-stops only)
+    imageStore(filter_out, p, vec4(clamp_outlier(c, tile_value[tile_index(0, 0)].rgb), 0.0));
+#elif DENOISE_STAGE == 1
     c.grad = depth_gradient(c.g);
     imageStore(gradient_image, p, vec4(c.grad, 0.0, 0.0));
     vec4 accum = imageLoad(color_in, p);
-    // demodulated by the G-buffer's own albedo (the guide's is rounded to 8 bits: edge-stops only)
     vec3 illum = tile_value[tile_index(0, 0)].rgb;
     float var;
     if (accum.a >= 4.0) {  // the spread of the samples, over their count: the variance of the mean
