@@ -2,7 +2,7 @@
 fewer shading slots save in the headset frame, and what they cost in image error.
 `python3 tools/device/probe_merge.py W H POSES [REF_SPP [FRAMES]]` prints, for the room (default_room.toml)
 and Sponza (hybrid) through the distorted chromatic camera at 4x MSAA, on bench vr's head poses: per
-variant (merge by triangle with 8 slots, the reference merge; by surface with 8, 4 and 2 slots) the
+variant (merge by triangle with 8 slots, the default, and with 4 and 3; by surface with 8, 4 and 2 slots) the
 rounds, the GPU timer sum (median of FRAMES, default 8, after warm-up; 0: not timed, for a CPU) and mean FLIP of both eyes against a
 converged frame: every sub-ray shaded with the colour channels apart (--ssaa, no shared channel
 shading: the frame MSAA approximates), REF_SPP samples (default 64), its own seed."""
@@ -21,7 +21,7 @@ size = (int(sys.argv[1]), int(sys.argv[2]))
 poses = int(sys.argv[3])
 ref_spp = int(sys.argv[4]) if len(sys.argv) > 4 else 64
 frames = int(sys.argv[5]) if len(sys.argv) > 5 else 8
-VARIANTS = (("triangle", 8), ("surface", 8), ("surface", 4), ("surface", 2))
+VARIANTS = (("triangle", 8), ("triangle", 4), ("triangle", 3), ("surface", 8), ("surface", 4), ("surface", 2))
 gl = create_context(None)
 print(gl.info()["renderer"], flush=True)
 model, fov, primary = CAMERA_CONFIGS["distorted_chromatic"]
