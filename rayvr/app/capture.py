@@ -24,7 +24,8 @@ from ..util.inputs import read_json
 from ..util.output import (FORMATS, OutputError, atomic_write_bytes, check_file_prefix, check_output_dir,
                      check_output_files, create_output_dir, openexr, remove_empty_dirs, write_exr, write_npy,
                      write_png)
-from .capture_files import aux_file, color_file, file_name
+from .capture_files import aux_file, color_file, file_name, flow_file
+from .flow import FLOW_AUX, check_flow_camera, flow_directions, frame_flows, render_order
 from .writers import (DEFAULT_PNG_COMPRESSION, FrameWriter, PipelineTimes, check_png_compression, check_writers,
                       default_writers)
 from ..renderer import Frame, Renderer
@@ -71,6 +72,8 @@ class CaptureJob:
             openexr()  # a missing package is one clear error before any rendering
         if self.rig_overrides is not None and len(self.rig_overrides) != len(self.poses):
             raise ValueError(f"{len(self.rig_overrides)} rig overrides for {len(self.poses)} poses")
+        if FLOW_AUX in self.aux:
+            check_flow_camera(self.rig.camera)  # one line before any rendering
 
     @property
     def hdr_exr(self) -> bool:
@@ -78,9 +81,20 @@ class CaptureJob:
         return self.format == "exr" and self.view == "color"
 
     @property
-    def render_aux(self) -> tuple:
-        """The aux channels to read back: the user's, plus the HDR colour for its EXR."""
+    def output_aux(self) -> tuple:
+        """The aux channels written: the user's, plus the HDR colour for its EXR."""
         return self.aux + ("hdr",) if self.hdr_exr and "hdr" not in self.aux else self.aux
+
+    @property
+    def render_aux(self) -> tuple:
+        """The aux channels to read back: output_aux, flow (app/flow.py) made from the position."""
+        aux = tuple(a for a in self.output_aux if a != FLOW_AUX)
+        return aux + ("position",) if FLOW_AUX in self.aux and "position" not in aux else aux
+
+    @property
+    def writes_transforms(self) -> bool:
+        """Whether the job writes transforms.json: a multi-view job's cameras, or a sequence's flow files."""
+        return self.cameras or FLOW_AUX in self.aux
 
     @property
     def eye_names(self) -> list[str]:
@@ -114,17 +128,22 @@ def frame_files(job: CaptureJob, index: int) -> list[Path]:
     out = []
     for eye in job.eye_names:
         out.append(color_file(job, index, eye))
-        out += [aux_file(job, index, eye, name) for name in job.render_aux]
+        out += [aux_file(job, index, eye, name) for name in job.output_aux if name != FLOW_AUX]
+        for direction in flow_directions(job, index):
+            out += [flow_file(job, index, eye, direction), flow_file(job, index, eye, direction, mask=True)]
         if job.cameras:
             out.append(file_name(job, index, eye, "camera", "json"))
     return out
 
 
-def write_frame(job: CaptureJob, index: int, frame: Frame, record: str | None = None) -> list[Path]:
+def write_frame(job: CaptureJob, index: int, frame: Frame, record: str | None = None,
+                neighbours: dict | None = None) -> list[Path]:
     """Write one frame's files, each atomically, and with `record` (a JobFolder's digest) then its
     record; the files written. A sequence's frame loses its record first: until write_record, the
-    frame on disk is not finished. Runs on a writer thread (app/writers.py)."""
+    frame on disk is not finished. With flow, `neighbours` holds the next ("forward") and previous
+    ("backward") frames it is flowed to (app/flow.py). Runs on a writer thread (app/writers.py)."""
     written = []
+    flows = frame_flows(job, index, frame, neighbours or {}) if FLOW_AUX in job.aux else {}
     if len(job.poses) > 1:
         record_file(job, index).unlink(missing_ok=True)
     rig = job.frame_rig(index) if job.cameras else None
@@ -136,12 +155,24 @@ def write_frame(job: CaptureJob, index: int, frame: Frame, record: str | None = 
             write_png(p, img.color, job.png_compression)
         written.append(p)
         for name, arr in img.aux.items():
+            if name not in job.output_aux:
+                continue  # read back only to make another channel (flow's position)
             p = aux_file(job, index, eye, name)
             if p.suffix == ".npy":
                 write_npy(p, arr)
             else:
                 write_exr(p, arr, EXR_CHANNELS[1 if arr.ndim == 2 else arr.shape[-1]])
             written.append(p)
+        for direction in flow_directions(job, index):
+            flow, valid = flows[eye, direction]
+            p = flow_file(job, index, eye, direction)
+            if p.suffix == ".npy":
+                write_npy(p, flow)
+            else:
+                write_exr(p, flow, "XY")
+            q = flow_file(job, index, eye, direction, mask=True)
+            write_npy(q, valid)
+            written += [p, q]
         if rig is not None:
             p = file_name(job, index, eye, "camera", "json")
             atomic_write_bytes(p, camera_json(rig.eye(eye)))
@@ -179,7 +210,7 @@ def job_identity(job: CaptureJob, **inputs) -> dict:
     rig_keys = ("ipd", "fov_y", "convergence", "near", "far", "eye_tangents", "size")
     return json.loads(json.dumps({
         "frames": [{**r.pose.to_dict(), **{k: getattr(r, k) for k in rig_keys}, "camera": r.camera.name} for r in rigs],
-        "eyes": job.eyes, "view": job.view, "aux": list(job.render_aux), "format": job.format, "spp": job.spp,
+        "eyes": job.eyes, "view": job.view, "aux": list(job.output_aux), "format": job.format, "spp": job.spp,
         "cameras": job.cameras, **inputs}, default=str))
 
 
@@ -406,7 +437,7 @@ class JobFolder:
             out += frame_files(job, i)
         if self.sequence:
             out += [job_file(job)] + [record_file(job, i) for i in range(len(job.poses))]
-        if job.cameras:
+        if job.writes_transforms:
             out.append(job.out_dir / "transforms.json")  # views.write_transforms
         return out
 
@@ -535,7 +566,13 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True, on_f
         with JobFolder(job, identity, resume) as folder:
             return run_capture(renderer, job, progress, on_frame, folder=folder)
     indices = [i for i in range(len(job.poses)) if i not in folder.done]
-    return render_frames(renderer, job, indices, progress, on_frame, record=folder.digest, skipped=len(folder.done))
+    summary = render_frames(renderer, job, indices, progress, on_frame, record=folder.digest,
+                            skipped=len(folder.done))
+    if FLOW_AUX in job.aux:  # the flow files of each frame, listed (a multi-view job's caller writes it too)
+        from .views import write_transforms
+
+        write_transforms(job)
+    return summary
 
 
 def render_frames(renderer: Renderer, job: CaptureJob, indices: list[int], progress: bool = False, on_frame=None,
@@ -548,7 +585,9 @@ def render_frames(renderer: Renderer, job: CaptureJob, indices: list[int], progr
     before it are encoded and written on job.writers threads (FrameWriter: at most its limit of
     frames in memory); one writer writes each frame here, in turn (the serial path)."""
     files, timings, unavailable, ran = [], [], set(), {}
-    rigs = [job.frame_rig(i) for i in indices]
+    order = render_order(job, indices)  # with flow also the neighbours of the frames written (not written)
+    writes = set(indices)
+    rigs = [job.frame_rig(i) for i in order]
     if rigs:  # what the frames' plan refuses (Renderer.plan) is one line before any work, no progress bar
         renderer.plan(len(rigs[0].eyes(job.eyes)), job.view, rigs[0].camera)
     bar = None
@@ -556,7 +595,7 @@ def render_frames(renderer: Renderer, job: CaptureJob, indices: list[int], progr
         from tqdm import tqdm
 
         # with --spp the bar counts samples: one frame of many samples is long work too
-        bar = tqdm(total=len(indices) * job.spp, unit="sample" if job.spp > 1 else "frame", desc="capture")
+        bar = tqdm(total=len(order) * job.spp, unit="sample" if job.spp > 1 else "frame", desc="capture")
     threads = max(1, min(job.writers or default_writers(), len(indices)))  # no pool for a still
     clock = PipelineTimes(renderer.reader, meaningful=not renderer.gl.is_software)
     written = 0
@@ -574,17 +613,25 @@ def render_frames(renderer: Renderer, job: CaptureJob, indices: list[int], progr
             with interrupts_between_frames() as check_interrupt:
                 frames = renderer.render_sequence(rigs, eyes=job.eyes, view=job.view, aux=job.render_aux, depth=False,
                                                   spp=job.spp, progress=bar.update if bar else None)
-                for i in indices:
+                window: dict = {}  # with flow: the frames rendered last, which the frames written flow to
+                for k in order:
                     with clock.rendering():
                         frame = next(frames)
                     check_interrupt()
-                    timings.append(frame.timings)
-                    unavailable.update(frame.timings_unavailable)
-                    ran.update(dict.fromkeys(frame.passes))
-                    with clock.writing():
-                        finished(writer.submit(i, partial(write_frame, job, i, frame, record)))
+                    if k in writes:
+                        timings.append(frame.timings)
+                        unavailable.update(frame.timings_unavailable)
+                        ran.update(dict.fromkeys(frame.passes))
+                    window[k] = frame
                     del frame  # the writer holds it until it is written: the queue bounds the memory
-                    clock.frame_done(frame_gpu_ms=sum(timings[-1].values()))
+                    for i in _ready(job, k, writes, window):
+                        neighbours = {d: window[i + 1 if d == "forward" else i - 1] for d in flow_directions(job, i)}
+                        with clock.writing():
+                            finished(writer.submit(i, partial(write_frame, job, i, window[i], record, neighbours)))
+                        clock.frame_done(frame_gpu_ms=sum(window[i].timings.values()))
+                    keep = k - 1 if FLOW_AUX in job.aux else k + 1  # the frame before k: k + 1's backward flow
+                    for j in [j for j in window if j < keep]:
+                        del window[j]
                     if bar is not None:
                         bar.set_postfix_str(clock.describe(), refresh=False)
                     check_interrupt()
@@ -604,6 +651,15 @@ def render_frames(renderer: Renderer, job: CaptureJob, indices: list[int], progr
                      stereo=renderer.settings.stereo,
                      stereo_counts=renderer.stereo_counts(),  # the last frame's reused pixels or holes
                      pipeline=clock.summary(writer, job.png_compression))
+
+
+def _ready(job: CaptureJob, k: int, writes: set, window: dict) -> list[int]:
+    """The frames to write once frame `k` is rendered: `k` itself, or with flow the frame before
+    it (whose next frame `k` is) and `k` if it is the sequence's last."""
+    if FLOW_AUX not in job.aux:
+        return [k] if k in writes else []
+    ready = [k - 1] if k - 1 in writes and k - 1 in window else []
+    return ready + ([k] if k in writes and k == len(job.poses) - 1 else [])
 
 
 def summarize(job: CaptureJob, gl: str, meaningful: bool, files, timings, ran, unavailable, **counts) -> dict:

@@ -27,3 +27,11 @@ def aux_file(job, index: int, eye: str, name: str) -> Path:
         return file_name(job, index, eye, "color", "exr")
     exr = job.format == "exr" and name not in INTEGER_AUX
     return file_name(job, index, eye, name, "exr" if exr else "npy")
+
+
+def flow_file(job, index: int, eye: str, direction: str, mask: bool = False) -> Path:
+    """Where frame `index`'s flow to the next ("forward") or previous ("backward") frame goes (app/flow.py):
+    float (dx, dy) as EXR with format exr, else NPY; with `mask`, its validity mask (bool NPY)."""
+    if mask:
+        return file_name(job, index, eye, f"flow_{direction}_valid", "npy")
+    return file_name(job, index, eye, f"flow_{direction}", "exr" if job.format == "exr" else "npy")

@@ -29,7 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from ..frame.cameras.rig import Pose, StereoRig, _check_pose, check_camera_positions
-from .capture_files import aux_file, file_name
+from .capture_files import aux_file, file_name, flow_file
+from .flow import DIRECTIONS, FLOW_AUX, STATIC_SCENE_NOTE, flow_directions
 from ..frame.cameras.pinhole import MAX_TANGENT, MIN_PIXEL_TANGENT
 from ..util.inputs import read_json
 from ..gl.limits import MAX_CAMERA_COORDINATE, check_range
@@ -38,8 +39,9 @@ from ..util.output import atomic_write_bytes
 POSE_KEYS = ("transform_matrix", "position", "rotation", "target", "up")
 INTRINSIC_KEYS = ("fov_y", "camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
 # What transforms.json files carry besides poses and intrinsics: read past, never used.
+FLOW_KEYS = tuple(f"flow_{d}{m}_file_path" for d in DIRECTIONS for m in ("", "_valid"))  # --aux flow's files
 PASSED_KEYS = ("file_path", "depth_file_path", "camera_file_path", "mask_path", "colmap_im_id", "name",
-               "camera_angle_y")
+               "camera_angle_y", *FLOW_KEYS)
 MAX_VIEWS = 1_000_000
 CONVENTION = ("OpenGL camera axes: +X right, +Y up, looking down -Z; camera_to_world maps camera to world "
               "coordinates; pixel rows top-down (cy from the top); depth files hold linear view depth "
@@ -362,8 +364,14 @@ def transforms(job) -> dict:
                      **{k: v for k, v in cam.items() if k not in RECORD_ONLY}}
             if "depth" in job.aux:
                 frame["depth_file_path"] = f"./{aux_file(job, i, eye, 'depth').name}"
+            if FLOW_AUX in job.aux:  # null: no flow that way (the first frame's backward, the last's forward)
+                has = flow_directions(job, i)
+                for d in DIRECTIONS:
+                    frame[f"flow_{d}_file_path"] = f"./{flow_file(job, i, eye, d).name}" if d in has else None
+                    frame[f"flow_{d}_valid_file_path"] = \
+                        f"./{flow_file(job, i, eye, d, mask=True).name}" if d in has else None
             frames.append(frame)
-    own = [k for k in frames[0] if k not in ("file_path", "transform_matrix", "depth_file_path")]
+    own = [k for k in frames[0] if k not in ("file_path", "transform_matrix", "depth_file_path", *FLOW_KEYS)]
     # A value every frame shares goes to the top only, the others stay in each frame: nerfstudio
     # takes a top-level intrinsic for every frame, and camera_model from the top alone.
     top = {k: frames[0][k] for k in own if all(f[k] == frames[0][k] for f in frames)}
@@ -372,8 +380,15 @@ def transforms(job) -> dict:
     for f in frames:
         for k in top:
             del f[k]
+    if FLOW_AUX in job.aux:
+        top["flow"] = FLOW_NOTE
     return {**top, "frames": frames}
 
+
+FLOW_NOTE = ("optical flow in pixels (dx right, dy down; pixel (x, y) shows what pixel (x + dx, y + dy) of the "
+             "other frame shows), forward to the next frame's same eye, backward to the previous; NaN where "
+             "invalid (no surface, outside the other image or occluded there), *_valid_file_path the bool mask; "
+             "null: no such frame; " + STATIC_SCENE_NOTE)
 
 RECORD_ONLY = ("camera_to_world", "near", "far")  # camera_record's keys transforms.json leaves out
 
