@@ -36,7 +36,9 @@ def add_parser(sub) -> None:
     c.add_argument("--out", default="out", help="output folder (default ./out)")
     c.add_argument("--prefix", type=prefix, default="frame", help="file name prefix (default 'frame')")
     c.add_argument("--view", choices=VIEWS, default="color", help="colour or a G-buffer debug view")
-    c.add_argument("--aux", help=f"extra channels as .npy, comma-separated: {','.join(AUX_CHANNELS)}")
+    c.add_argument("--aux", help=f"extra channels as .npy, comma-separated: {','.join(AUX_CHANNELS)}, flow (a "
+                                 f"sequence's forward and backward optical flow in pixels; a static scene, a pinhole "
+                                 f"camera)")
     c.add_argument("--format", choices=FORMATS, default="png",
                    help=f"exr: also the linear HDR colour as PREFIX_EYE.exr beside the PNG, and the float aux "
                         f"channels as .exr instead of .npy (integer ones stay .npy); needs {EXR_EXTRA}. npy: the "
