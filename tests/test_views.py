@@ -174,3 +174,27 @@ def test_sphere_views_around_an_object_keep_the_sphere_through_the_camera():
     poses, _ = views_for("sphere:8", cube, rig)
     distance = np.linalg.norm(rig.pose.position - cube.center)
     np.testing.assert_allclose([np.linalg.norm(p.position - cube.center) for p in poses], distance)
+
+
+def test_transforms_names_each_material_id_so_masks_can_be_read_per_material(tmp_path):
+    """With --aux material, each frame lists its material-ID image and the top maps the IDs to the
+    scene's material names: the mask of a material is `ids == k`, and its pixels are the ones whose
+    triangle (the triangle aux) belongs to that material in the loaded scene."""
+    from rayvr.scene.loader import load
+
+    run = rayvr("capture", "--views", "sphere:2", "--size", "24x16", "--aux", "material,triangle",
+                "--out", str(tmp_path), "-q")
+    assert run.returncode == 0, run.stderr
+    t = json.loads((tmp_path / "transforms.json").read_text())
+    scene = load(None)
+    names = {int(k): v for k, v in t["materials"].items() if k != "background"}
+    assert names == dict(enumerate(scene.material_names()))
+    seen = set()
+    for frame in t["frames"]:
+        ids = np.load(tmp_path / frame["material_file_path"])
+        tris = np.load(tmp_path / f"{frame['file_path']}_triangle.npy")
+        hit = tris != t["materials"]["background"]
+        assert hit.any() and ((ids == t["materials"]["background"]) == ~hit).all()
+        np.testing.assert_array_equal(ids[hit], scene.triangle_material[tris[hit]])
+        seen |= {names[k] for k in np.unique(ids[hit])}
+    assert {"floor", "walls"} <= seen

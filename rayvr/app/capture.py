@@ -571,7 +571,7 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True, on_f
     if FLOW_AUX in job.aux:  # the flow files of each frame, listed (a multi-view job's caller writes it too)
         from .views import write_transforms
 
-        write_transforms(job)
+        write_transforms(job, renderer.scene.material_names())
     return summary
 
 

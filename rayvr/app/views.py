@@ -35,12 +35,13 @@ from ..frame.cameras.pinhole import MAX_TANGENT, MIN_PIXEL_TANGENT
 from ..util.inputs import read_json
 from ..gl.limits import MAX_CAMERA_COORDINATE, check_range
 from ..util.output import atomic_write_bytes
+from ..gl.gpu_layout import NO_HIT
 
 POSE_KEYS = ("transform_matrix", "position", "rotation", "target", "up")
 INTRINSIC_KEYS = ("fov_y", "camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
 # What transforms.json files carry besides poses and intrinsics: read past, never used.
 FLOW_KEYS = tuple(f"flow_{d}{m}_file_path" for d in DIRECTIONS for m in ("", "_valid"))  # --aux flow's files
-PASSED_KEYS = ("file_path", "depth_file_path", "camera_file_path", "mask_path", "colmap_im_id", "name",
+PASSED_KEYS = ("file_path", "depth_file_path", "material_file_path", "camera_file_path", "mask_path", "colmap_im_id", "name",
                "camera_angle_y", *FLOW_KEYS)
 MAX_VIEWS = 1_000_000
 CONVENTION = ("OpenGL camera axes: +X right, +Y up, looking down -Z; camera_to_world maps camera to world "
@@ -352,8 +353,11 @@ def camera_json(eye) -> bytes:
     return json.dumps(camera_record(eye), indent=1, allow_nan=False).encode()
 
 
-def transforms(job) -> dict:
-    """transforms.json for a capture job (rayvr.app.capture.CaptureJob): one frame per eye image."""
+def transforms(job, material_names=None) -> dict:
+    """transforms.json for a capture job (rayvr.app.capture.CaptureJob): one frame per eye image.
+    With the `material` aux, each frame names its material-ID image (`material_file_path`) and
+    the top its IDs' material names (`materials`, from `material_names`: the scene's), so a mask
+    of material k is `ids == k`."""
     frames = []
     for i in range(len(job.poses)):
         rig = job.frame_rig(i)
@@ -364,6 +368,8 @@ def transforms(job) -> dict:
                      **{k: v for k, v in cam.items() if k not in RECORD_ONLY}}
             if "depth" in job.aux:
                 frame["depth_file_path"] = f"./{aux_file(job, i, eye, 'depth').name}"
+            if "material" in job.aux:
+                frame["material_file_path"] = f"./{aux_file(job, i, eye, 'material').name}"
             if FLOW_AUX in job.aux:  # null: no flow that way (the first frame's backward, the last's forward)
                 has = flow_directions(job, i)
                 for d in DIRECTIONS:
@@ -371,7 +377,8 @@ def transforms(job) -> dict:
                     frame[f"flow_{d}_valid_file_path"] = \
                         f"./{flow_file(job, i, eye, d, mask=True).name}" if d in has else None
             frames.append(frame)
-    own = [k for k in frames[0] if k not in ("file_path", "transform_matrix", "depth_file_path", *FLOW_KEYS)]
+    own = [k for k in frames[0] if k not in ("file_path", "transform_matrix", "depth_file_path", "material_file_path",
+                                             *FLOW_KEYS)]
     # A value every frame shares goes to the top only, the others stay in each frame: nerfstudio
     # takes a top-level intrinsic for every frame, and camera_model from the top alone.
     top = {k: frames[0][k] for k in own if all(f[k] == frames[0][k] for f in frames)}
@@ -382,6 +389,8 @@ def transforms(job) -> dict:
             del f[k]
     if FLOW_AUX in job.aux:
         top["flow"] = FLOW_NOTE
+    if "material" in job.aux and material_names is not None:
+        top["materials"] = {"background": int(NO_HIT), **{str(k): name for k, name in enumerate(material_names)}}
     return {**top, "frames": frames}
 
 
@@ -393,7 +402,7 @@ FLOW_NOTE = ("optical flow in pixels (dx right, dy down; pixel (x, y) shows what
 RECORD_ONLY = ("camera_to_world", "near", "far")  # camera_record's keys transforms.json leaves out
 
 
-def write_transforms(job) -> Path:
+def write_transforms(job, material_names=None) -> Path:
     p = job.out_dir / "transforms.json"
-    atomic_write_bytes(p, json.dumps(transforms(job), indent=1, allow_nan=False).encode())
+    atomic_write_bytes(p, json.dumps(transforms(job, material_names), indent=1, allow_nan=False).encode())
     return p

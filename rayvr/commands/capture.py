@@ -220,7 +220,7 @@ def cmd_capture(args) -> int:
             if args.views:
                 from ..app.views import write_transforms
 
-                write_transforms(job)
+                write_transforms(job, r.scene.material_names())
     print_capture(args, summary, summary_path, r.scene.summary())
     return 0
 
@@ -251,7 +251,7 @@ def capture_on_workers(args, aux, settings, inputs, given) -> int:
         if args.views:
             from ..app.views import write_transforms
 
-            write_transforms(job)
+            write_transforms(job, scene.material_names())
     print_capture(args, summary, summary_path, scene.summary())
     missing = summary["missing_frames"]
     if missing:
