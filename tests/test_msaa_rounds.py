@@ -65,7 +65,7 @@ def test_msaa_frames_do_not_depend_on_when_the_round_count_is_known(gl, room, co
     settings = RenderSettings(msaa=8, share_channel_shading=case == "shared chromatic")
     (ref, ref_rounds, _), (late, late_rounds, late_w), (skip, skip_rounds, skip_w) = frames(
         gl, room, count_poll, settings, [("wait", False), ("never", True), ("wait", True)], camera, materials)
-    slots = primary_rays.msaa_slots(FramePlan(frozenset(), samples=8))
+    slots = primary_rays.msaa_slots(FramePlan(frozenset(), subsamples=8))
     assert len(ref_rounds) == (3 if case == "chromatic" else 1)
     for recorded, needed in ref_rounds:
         assert recorded == needed >= 2  # edges: several triangles in some pixels
@@ -98,9 +98,9 @@ def test_ssr_frames_keep_empty_slots_as_background(gl, room, count_poll):
     """ssr traces the round's whole depth pyramid: empty slots are not skipped there (another
     pixel's G-buffer is read), rounds past the count still are; frames identical early or late."""
     cfg = parse_config({"materials": {"floor": {"effect": "ssr"}}}, "<msaa ssr test>")
-    plan = FramePlan(frozenset({"ssr"}), samples=4)
+    plan = FramePlan(frozenset({"ssr"}), subsamples=4)
     assert not primary_rays.skips_empty_slots(plan)
-    assert primary_rays.skips_empty_slots(FramePlan(frozenset({"glossy", "shadows"}), samples=4))
+    assert primary_rays.skips_empty_slots(FramePlan(frozenset({"glossy", "shadows"}), subsamples=4))
     (ref, ref_rounds, _), (late, late_rounds, _) = frames(gl, room, count_poll, RenderSettings(msaa=4),
                                                           [("wait", True), ("never", True)], materials=cfg)
     assert late_rounds[0][0] == 4 and ref_rounds[0][0] == ref_rounds[0][1]

@@ -184,7 +184,7 @@ def test_rayvr_options_lists_every_render_setting(capsys):
     assert [e["name"] for e in entries] == [f.name for f in dataclasses.fields(RenderSettings) if f.name != "more"]
     by_name = {e["name"]: e for e in entries}
     assert by_name["exposure"]["allowed"] == "(0, 1e+06]" and by_name["exposure"]["owner"] == "rayvr.render_options.tonemap"
-    assert by_name["msaa"]["plan_field"] == "samples" and by_name["msaa"]["flag"] == "--msaa"
+    assert by_name["msaa"]["plan_field"] == "subsamples" and by_name["msaa"]["flag"] == "--msaa"
     assert by_name["ambient"]["flag"] == "--ambient" and by_name["ambient"]["scope"] == "material"
     assert by_name["accumulate"]["flag"] is None  # an option no command offers as a flag
     assert main(["options", "nope"]) == 2

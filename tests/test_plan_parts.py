@@ -102,3 +102,9 @@ def test_eyes_is_the_plans_count_of_views_and_layers_its_old_name(gl):
         with pytest.warns(DeprecationWarning, match="use eyes"):
             plan = r.plan(layers=1)
     assert plan.eyes == 1 and plan.layers == 1
+
+
+def test_subsamples_are_a_samples_sub_rays_and_samples_their_old_name(gl):
+    with Renderer(None, gl=gl, settings=RenderSettings(msaa=4)) as r:
+        plan = r.plan()
+    assert plan.subsamples == 4 and plan.samples == 4 and plan.sampled

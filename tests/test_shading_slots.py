@@ -29,7 +29,7 @@ def frame(gl, room, rig, slots, **settings):
         r.gl.ctx.finish()
         rounds = len([k for k in r.read_round_ms(fc).get("sample_accumulate", [])])
         out = r.render(rig)
-        n = r.plan(camera=rig.camera).samples
+        n = r.plan(camera=rig.camera).subsamples
         hits = np.frombuffer(r.resource("msaa_hits").read(), np.uint32)
     lists = hits.reshape(-1, 2, rig.size[1], rig.size[0], 4)
     counts = (lists[0, ..., 2] >> 8) & 255  # the pixel's kept triangles (GL rows, bottom-up)

@@ -48,8 +48,8 @@ class FramePlan:
     layer_mode: str = "vertex"  # how the G-buffer reaches its layers: vertex | geometry | multiview | passes
     primary: str = "raster"  # primary visibility: "raster" (visibility pass) or "rays" (BVH)
     camera: str = DEFAULT_CAMERA_MODEL  # camera model (rayvr/frame/cameras/), its name
-    samples: int = 1  # sub-rays per camera sample (frame/cameras/sampling.py SAMPLE_COUNTS)
-    shading: str = "msaa"  # with samples > 1: "msaa" shades once per distinct triangle, "ssaa" every sub-ray
+    subsamples: int = 1  # sub-rays per camera sample: MSAA/SSAA (frame/cameras/sampling.py SAMPLE_COUNTS)
+    shading: str = "msaa"  # with subsamples > 1: "msaa" shades once per distinct triangle, "ssaa" every sub-ray
     channels: int = 1  # colour channel sets of the camera model (cast and shaded one after another)
     reconstruct: bool = False  # the camera's samples are sparse: filled in for display (foveated)
     stereo: str = "dual"  # how the second eye is made: "dual" renders both fully
@@ -87,12 +87,17 @@ class FramePlan:
     def sampled(self) -> bool:
         """The frame's colour is made of several rounds of samples, or of sparse samples: it is
         accumulated (frame/passes/sample_accumulate.py) and resolved for display (sample_resolve.py)."""
-        return self.samples > 1 or self.channels > 1 or self.reconstruct
+        return self.subsamples > 1 or self.channels > 1 or self.reconstruct
 
     @property
     def layers(self) -> int:
         """The old name of `eyes` (the G-buffer's array layers are the eyes)."""
         return self.eyes
+
+    @property
+    def samples(self) -> int:
+        """The old name of `subsamples` (a pixel's samples are `spp`, its sub-rays these)."""
+        return self.subsamples
 
     def part(self, name: str, default=None):
         """A plan field by name: rayvr's own, or a plugin's from `extra`."""

@@ -48,9 +48,9 @@ def stereo_plan(ask, plan) -> None:
     """How the second eye is made; warp renders one central view (one layer, its own output) with
     the depth layers it asks for."""
     stereo = effective_mode(ask.settings.stereo, ask.eyes, ask.camera)
-    if stereo != "dual" and plan["samples"] > 1:  # their passes read one G-buffer, not a frame of rounds
+    if stereo != "dual" and plan["subsamples"] > 1:  # their passes read one G-buffer, not a frame of rounds
         raise PlanRefusal(f"stereo mode {stereo!r} reprojects one sample per pixel: it cannot take "
-                          f"{plan['samples']} sub-rays a sample", "use", ("stereo", "dual"))
+                          f"{plan['subsamples']} sub-rays a sample", "use", ("stereo", "dual"))
     warp = stereo == "warp"
     plan.update(stereo=stereo, eyes=1 if warp else ask.eyes, output=WARP_OUTPUT if warp else "ldr",
                 depth_layers=max(ask.depth_layers, ask.settings.warp_layers if warp else 1))

@@ -7,7 +7,7 @@ SAMPLE_COUNTS = (1, 4, 8, 16, 32)  # sub-rays per sample rayvr offers (--msaa); 
 
 MSAA = declare(Option("msaa", int, 1, "sub-rays per sample (anti-aliasing; casts primary rays): shading once per "
                       "pixel per distinct triangle, or per sub-ray with --ssaa", scope="plan", choices=SAMPLE_COUNTS,
-                      label="sub-ray count", plan_field="samples", commands=("capture", "preview", "info", "bench")))
+                      label="sub-ray count", plan_field="subsamples", commands=("capture", "preview", "info", "bench")))
 
 SSAA = declare(Option("ssaa", bool, False, "shade every sub-ray of --msaa N (supersampling)", scope="plan",
                       plan_field="shading", commands=("capture", "preview", "info", "bench")))

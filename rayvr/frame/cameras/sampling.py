@@ -60,5 +60,5 @@ def subsamples(n: int) -> tuple[np.ndarray, np.ndarray]:
 @plan_part("sampling")
 def sampling_plan(ask, plan) -> None:
     """Sub-rays per sample, and whether each is shaded (supersampling) or each distinct triangle."""
-    plan["samples"] = ask.settings.msaa
+    plan["subsamples"] = ask.settings.msaa
     plan["shading"] = "ssaa" if ask.settings.ssaa and ask.settings.msaa > 1 else "msaa"

@@ -46,7 +46,7 @@ def camera_defines(plan) -> dict:
     from ..cameras import CAMERA_MODELS
 
     # with shared channel shading the three colour channel sets are sub-rays too (CHANNEL_SAMPLES)
-    return {**CAMERA_MODELS[plan.camera].defines(), "CAMERA_SUBSAMPLES": plan.samples,
+    return {**CAMERA_MODELS[plan.camera].defines(), "CAMERA_SUBSAMPLES": plan.subsamples,
             "CHANNEL_SAMPLES": plan.channels if plan.share_channels else 1}
 
 

@@ -251,7 +251,7 @@ def primary_plan(ask, plan) -> None:
         {"tile_pixels": TILE_PIXELS, "tile_entries": TILE_ENTRIES, "block_tiles": BLOCK_TILES[0]}
     plan.update(primary=primary, tile_culling=culled, tile_lists=tile_list_bound(st, camera.name) if culled else 0,
                 block_culling=blocks, **shape,
-                share_channels=primary == "rays" and shares_channels(st, camera, plan["samples"], ask.effects, ask.view))
+                share_channels=primary == "rays" and shares_channels(st, camera, plan["subsamples"], ask.effects, ask.view))
 
 
 # tile_samples.comp's workgroup memory: each pixel's sub-rays' hits (8 bytes a sub-ray) and the load of
@@ -414,7 +414,7 @@ def frame_blocks(sizing, tile: tuple[int, int], side: int) -> int:
 def subrays(plan: FramePlan) -> int:
     """The sub-rays a sample casts (glsl/common/camera.glsl CAMERA_SUBRAYS): its footprint's, times
     three colour channel sets cast together with shared channel shading."""
-    return plan.samples * (SHARED_SETS if plan.share_channels else 1)
+    return plan.subsamples * (SHARED_SETS if plan.share_channels else 1)
 
 
 def msaa_slots(plan: FramePlan) -> int:
@@ -430,7 +430,7 @@ def merges_surfaces(plan: FramePlan) -> bool:
 def uses_msaa(plan: FramePlan) -> bool:
     """Whether the frame traces every sub-ray of a sample and shades each distinct triangle once: MSAA,
     and shared channel shading (its channel sets are sub-rays)."""
-    return (plan.samples > 1 and plan.shading == "msaa") or plan.share_channels
+    return (plan.subsamples > 1 and plan.shading == "msaa") or plan.share_channels
 
 
 def skips_empty_slots(plan: FramePlan) -> bool:
@@ -470,7 +470,7 @@ class PrimaryRaysPass(Pass):
     def why(self, plan: FramePlan) -> str | None:
         if plan.primary != "rays":
             return None
-        sub = f", {plan.samples} sub-rays per sample ({plan.shading})" if plan.samples > 1 else ""
+        sub = f", {plan.subsamples} sub-rays per sample ({plan.shading})" if plan.subsamples > 1 else ""
         sub += f", its {plan.channels} colour channel sets cast together (shared shading)" if plan.share_channels else ""
         shape = "x".join(map(str, plan.tile_pixels))
         tiles = (f", tile frustum culling ({shape}-pixel tiles, {plan.tile_entries} entries, bvh2)"
@@ -510,7 +510,7 @@ class PrimaryRaysPass(Pass):
     def setup(self, gl, plan: FramePlan) -> None:
         # the primary rays' BVH layout; tile entry lists name binary child pairs
         self.layout = "bvh2" if plan.tile_culling else plan.traversal[0]
-        self.block = msaa_block(plan.samples)
+        self.block = msaa_block(plan.subsamples)
         tiles = {**tile_defines(plan), "TILE_ENTRIES_BINDING": SSBO["tile_entries"],
                  "TILE_PLANES_BINDING": SSBO["tile_planes"]} if plan.tile_culling else {}
         lists = {"TILE_TRIS": plan.tile_lists, "TILE_TRIS_BINDING": SSBO["tile_tris"]} if plan.tile_lists else {}
@@ -575,7 +575,7 @@ class PrimaryRaysPass(Pass):
             self.cull_tiles(fc)
         if not self.msaa:
             if rnd.first:  # SSAA: one round per sub-ray; 1x: one
-                rnd.start(fc.plan.samples)
+                rnd.start(fc.plan.subsamples)
             for program in [self.programs[0], *self.sample_tests()]:
                 program["subsample"].value = rnd.slot
             fc.stage("cast", lambda: (self.dispatch_sample_tests(fc), dispatch_per_pixel(fc, self.programs[0])))

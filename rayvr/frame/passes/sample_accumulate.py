@@ -16,8 +16,8 @@ SAMPLE_SUM = Texture("rgba32f")
 
 def sampling_reason(plan: FramePlan) -> str:
     parts = []
-    if plan.samples > 1:
-        parts.append(f"{plan.samples} sub-rays per sample, {plan.shading}")
+    if plan.subsamples > 1:
+        parts.append(f"{plan.subsamples} sub-rays per sample, {plan.shading}")
     if plan.channels > 1:
         parts.append(f"{plan.channels} colour channel sets ({plan.camera} camera)")
     if plan.reconstruct:
