@@ -197,5 +197,7 @@ def test_graph_prunes_what_the_scene_does_not_need():
     rays = re.findall(r"(?m)^\s+\d+\. (\S+)", _graph("--materials", "raster.toml", "--graph", "--primary", "rays",
                                                         "--size", "64x48"))
     assert rays == ["bvh", "primary_rays", "gbuffer", "shade", "tonemap"], rays
-    dot = _graph("--materials", room, "--graph", "dot")
-    assert dot.startswith("digraph") and '"res:hdr" -> "tonemap"' in dot and "compose" in dot
+    dot = _graph("--materials", room, "--graph", "dot")  # a capture's graph: denoised before the tonemap
+    assert dot.startswith("digraph") and '"res:hdr_denoised" -> "tonemap"' in dot and "compose" in dot
+    raw = _graph("--materials", room, "--graph", "dot", "--no-denoise")
+    assert '"res:hdr" -> "tonemap"' in raw and "denoise" not in raw
