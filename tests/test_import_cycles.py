@@ -44,7 +44,7 @@ LAYERS = (
      "rayvr.app.capture",
      "rayvr.quality.metrics", "rayvr.quality.reference_images", "rayvr.quality.measure", "rayvr.quality.budget",
      "rayvr.quality.frame_knobs", "rayvr.quality.frame_budget", "rayvr.quality.tonemap", "rayvr.quality.metric_pool",
-     "rayvr.quality.rungs",
+     "rayvr.quality.rungs", "rayvr.quality.motion_error",
      "rayvr.scene.config_toml",
      "rayvr.app.cluster", "rayvr.app.preview", "rayvr.app.hud"),
     (BENCH,),
