@@ -198,3 +198,22 @@ def test_transforms_names_each_material_id_so_masks_can_be_read_per_material(tmp
         np.testing.assert_array_equal(ids[hit], scene.triangle_material[tris[hit]])
         seen |= {names[k] for k in np.unique(ids[hit])}
     assert {"floor", "walls"} <= seen
+
+
+def test_distance_is_the_depth_along_each_pixels_ray(tmp_path):
+    """--aux distance: the other depth convention. Through transforms.json's pinhole intrinsics alone,
+    a pixel's distance is its linear depth times the length of its ray (x_n, y_n, 1), and 0 where
+    the depth says no surface."""
+    run = rayvr("capture", "--views", "sphere:2", "--size", "24x16", "--aux", "depth,distance",
+                "--out", str(tmp_path), "-q")
+    assert run.returncode == 0, run.stderr
+    t = json.loads((tmp_path / "transforms.json").read_text())
+    for frame in t["frames"]:
+        k = {key: frame.get(key, t.get(key)) for key in ("fl_x", "fl_y", "cx", "cy")}
+        depth = np.load(tmp_path / frame["depth_file_path"])
+        distance = np.load(tmp_path / frame["distance_file_path"])
+        v, u = np.mgrid[0:depth.shape[0], 0:depth.shape[1]]
+        ray = np.sqrt(((u + 0.5 - k["cx"]) / k["fl_x"]) ** 2 + ((v + 0.5 - k["cy"]) / k["fl_y"]) ** 2 + 1.0)
+        hit = depth > 0
+        assert hit.mean() > 0.5 and (distance[~hit] == 0).all()
+        np.testing.assert_allclose(distance[hit], depth[hit] * ray[hit], rtol=1e-4)

@@ -87,9 +87,11 @@ class CaptureJob:
 
     @property
     def render_aux(self) -> tuple:
-        """The aux channels to read back: output_aux, flow (app/flow.py) made from the position."""
-        aux = tuple(a for a in self.output_aux if a != FLOW_AUX)
-        return aux + ("position",) if FLOW_AUX in self.aux and "position" not in aux else aux
+        """The aux channels to read back: output_aux; flow (app/flow.py) and distance are made from
+        the position."""
+        aux = tuple(a for a in self.output_aux if a not in DERIVED_AUX)
+        derived = any(a in self.aux for a in DERIVED_AUX)
+        return aux + ("position",) if derived and "position" not in aux else aux
 
     @property
     def writes_transforms(self) -> bool:
@@ -123,12 +125,24 @@ def poses_for(rig: StereoRig, scene, frames: int | None = None, path: str | None
     return poses
 
 
+# The distance from the eye to each pixel's surface, the other depth convention beside the `depth`
+# aux's (linear view depth along -Z for a planar camera): float32, 0 where no surface is.
+DISTANCE_AUX = "distance"
+DERIVED_AUX = (FLOW_AUX, DISTANCE_AUX)  # made here from the position, not read back themselves
+
+
+def ray_distance(position, eye_position, depth) -> np.ndarray:
+    """|position - eye| of an eye image's pixels (world), 0 where `depth` says no surface."""
+    d = np.linalg.norm(np.asarray(position, np.float64) - np.asarray(eye_position, np.float64), axis=-1)
+    return np.where(np.asarray(depth) > 0, d, 0.0).astype(np.float32)
+
+
 def frame_files(job: CaptureJob, index: int) -> list[Path]:
     """Every file frame `index` of `job` writes: the frame is complete on disk when all exist."""
     out = []
     for eye in job.eye_names:
         out.append(color_file(job, index, eye))
-        out += [aux_file(job, index, eye, name) for name in job.output_aux if name != FLOW_AUX]
+        out += [aux_file(job, index, eye, name) for name in job.output_aux if name != FLOW_AUX]  # distance too
         for direction in flow_directions(job, index):
             out += [flow_file(job, index, eye, direction), flow_file(job, index, eye, direction, mask=True)]
         if job.cameras:
@@ -154,9 +168,12 @@ def write_frame(job: CaptureJob, index: int, frame: Frame, record: str | None = 
         else:
             write_png(p, img.color, job.png_compression)
         written.append(p)
-        for name, arr in img.aux.items():
+        aux = dict(img.aux)
+        if DISTANCE_AUX in job.aux:
+            aux[DISTANCE_AUX] = ray_distance(aux["position"], job.frame_rig(index).eye(eye).position, img.depth)
+        for name, arr in aux.items():
             if name not in job.output_aux:
-                continue  # read back only to make another channel (flow's position)
+                continue  # read back only to make another channel (flow's and distance's position)
             p = aux_file(job, index, eye, name)
             if p.suffix == ".npy":
                 write_npy(p, arr)

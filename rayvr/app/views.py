@@ -41,7 +41,7 @@ POSE_KEYS = ("transform_matrix", "position", "rotation", "target", "up")
 INTRINSIC_KEYS = ("fov_y", "camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
 # What transforms.json files carry besides poses and intrinsics: read past, never used.
 FLOW_KEYS = tuple(f"flow_{d}{m}_file_path" for d in DIRECTIONS for m in ("", "_valid"))  # --aux flow's files
-PASSED_KEYS = ("file_path", "depth_file_path", "material_file_path", "camera_file_path", "mask_path", "colmap_im_id", "name",
+PASSED_KEYS = ("file_path", "depth_file_path", "material_file_path", "distance_file_path", "camera_file_path", "mask_path", "colmap_im_id", "name",
                "camera_angle_y", *FLOW_KEYS)
 MAX_VIEWS = 1_000_000
 CONVENTION = ("OpenGL camera axes: +X right, +Y up, looking down -Z; camera_to_world maps camera to world "
@@ -370,6 +370,8 @@ def transforms(job, material_names=None) -> dict:
                 frame["depth_file_path"] = f"./{aux_file(job, i, eye, 'depth').name}"
             if "material" in job.aux:
                 frame["material_file_path"] = f"./{aux_file(job, i, eye, 'material').name}"
+            if "distance" in job.aux:  # the other depth convention: the distance along each pixel's ray
+                frame["distance_file_path"] = f"./{aux_file(job, i, eye, 'distance').name}"
             if FLOW_AUX in job.aux:  # null: no flow that way (the first frame's backward, the last's forward)
                 has = flow_directions(job, i)
                 for d in DIRECTIONS:
@@ -378,7 +380,7 @@ def transforms(job, material_names=None) -> dict:
                         f"./{flow_file(job, i, eye, d, mask=True).name}" if d in has else None
             frames.append(frame)
     own = [k for k in frames[0] if k not in ("file_path", "transform_matrix", "depth_file_path", "material_file_path",
-                                             *FLOW_KEYS)]
+                                             "distance_file_path", *FLOW_KEYS)]
     # A value every frame shares goes to the top only, the others stay in each frame: nerfstudio
     # takes a top-level intrinsic for every frame, and camera_model from the top alone.
     top = {k: frames[0][k] for k in own if all(f[k] == frames[0][k] for f in frames)}

@@ -36,7 +36,8 @@ def add_parser(sub) -> None:
     c.add_argument("--out", default="out", help="output folder (default ./out)")
     c.add_argument("--prefix", type=prefix, default="frame", help="file name prefix (default 'frame')")
     c.add_argument("--view", choices=VIEWS, default="color", help="colour or a G-buffer debug view")
-    c.add_argument("--aux", help=f"extra channels as .npy, comma-separated: {','.join(AUX_CHANNELS)}, flow (a "
+    c.add_argument("--aux", help=f"extra channels as .npy, comma-separated: {','.join(AUX_CHANNELS)}, distance "
+                                 f"(from the eye along each pixel's ray: depth's other convention), flow (a "
                                  f"sequence's forward and backward optical flow in pixels; a static scene, a pinhole "
                                  f"camera)")
     c.add_argument("--format", choices=FORMATS, default="png",
