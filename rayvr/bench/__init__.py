@@ -221,6 +221,14 @@ def _lights(args, out, camera_from_args):
                reference_frames=2 if args.quick else 8, backend=args.backend, pose_seed=args.pose_seed)
 
 
+def _motion(args, out, camera_from_args):
+    from . import motion
+
+    motion.run(out, size=(32, 24) if args.quick else args.size, scenes=_scenes(args),
+               seconds=0.03 if args.quick else motion.SECONDS, reference_spp=4 if args.quick else motion.REFERENCE_SPP,
+               pose_seed=args.pose_seed, backend=args.backend)
+
+
 def _crosscheck(args, out, camera_from_args):
     from . import mitsuba_ref
 
@@ -257,6 +265,8 @@ AREAS: dict[str, Area] = {
     "peers": Area("frames/s against pyrender", _peers),
     "tradeoff": Area("every knob's GPU ms vs error against the reference", _tradeoff, FLIP, workers="one"),
     "budget": Area("effects per material chosen under --budget-ms", _budget, FLIP, workers="one"),
+    "motion": Area("the trade along head trajectories (slow looks, fast turns, walks, glances at 90 and 120 Hz): "
+                   "per-frame FLIP against each frame's reference, flicker, GPU ms", _motion, FLIP),
     "crosscheck": Area("the reference vs Mitsuba 3 on the Cornell boxes", _crosscheck, ("mitsuba",) + FLIP),
     "workers": Area("frames/s of a capture path in one process and on --workers N,M Ray workers", _workers,
                     workers="list"),
