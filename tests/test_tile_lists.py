@@ -34,10 +34,10 @@ CASES = {
 }
 
 
-def render(r, rig, samples, lists, ssaa=False):
+def render(r, rig, samples, lists, ssaa=False, merge="triangle"):
     """(triangle IDs, depth, colour of both eyes, the frame's list words (tiles, bound + 1, 2) or None)."""
     kw = dict(tile_culling=True, tile_lists=lists, **SHAPE) if lists else dict(tile_culling=False)
-    r.settings = RenderSettings(primary="rays", msaa=samples, ssaa=ssaa, **kw)
+    r.settings = RenderSettings(primary="rays", msaa=samples, ssaa=ssaa, shading_merge=merge, **kw)
     f = r.render(rig, aux=("triangle",))
     words = None
     if lists:
@@ -61,6 +61,21 @@ def test_tile_lists_give_the_per_ray_frame(room, case):
     counts = words[:, 0, 0]
     listed = (counts > 0) & (counts != TILE_OVERFLOW)
     assert listed.mean() >= 0.3, f"{case}: tiles should be cast from their lists, counts {counts}"
+
+
+@pytest.mark.parametrize("case", ["pinhole 16x msaa", "distorted chromatic 4x"])
+def test_tile_lists_merge_by_surface_as_the_per_ray_trace_does(room, case):
+    """shading_merge "surface": tile_samples.comp's sequential merge of a listed tile's pixels and
+    primary.comp's parallel one give the same frame, and it differs from the merge by triangle."""
+    camera, samples, fov = CASES[case]
+    rig = camera_rig(room, camera, fov)
+    tri, depth, color, _ = render(room, rig, samples, 0, merge="surface")
+    tri_l, depth_l, color_l, words = render(room, rig, samples, 256, merge="surface")
+    assert np.array_equal(tri, tri_l) and np.array_equal(depth, depth_l) and np.array_equal(color, color_l)
+    counts = words[:, 0, 0]
+    assert ((counts > 0) & (counts != TILE_OVERFLOW)).mean() >= 0.3  # most tiles cast from their lists
+    _, _, by_triangle, _ = render(room, rig, samples, 256)
+    assert not np.array_equal(color_l, by_triangle)  # the sphere's triangles in a pixel merged
 
 
 @pytest.mark.parametrize("case", ["pinhole 16x msaa", "distorted chromatic 4x", "dof 4x at 0.5"])
