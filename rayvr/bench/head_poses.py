@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..frame.cameras.rig import Pose
-from ..scene.content import content_triangles, draw_points, triangles
+from ..scene.content import content_triangles, draw_points
 
 POSE_SEED = 22  # the default seed: fixed, so runs on different days time the same heads
 MAX_PITCH_DEG = 20.0  # a seated or standing user looks about this far up or down while moving the head
@@ -159,22 +159,21 @@ def _random_pose(rng, bounds: dict, index: int) -> HeadPose:
 
 
 class _Gaze:
-    """What a scene's content poses draw from: its content triangles (area-weighted) and its BVH
-    (accel/scene.py kept_scene_bvh: the renderer's, built once a process) to cast the sight line."""
+    """What a scene's content poses draw from: its content triangles (area-weighted), and its
+    SceneView (app/viewpoint.py: the renderer's BVH, built once a process) to cast the sight line."""
 
     def __init__(self, scene, name: str):
-        from ..accel.scene import kept_scene_bvh
+        from ..app.viewpoint import SceneView
 
-        tri, normal, area = triangles(scene)
+        self.view = SceneView(scene)
         ok = content_triangles(scene)
         if not ok.any():
             raise ValueError(f"scene {name!r} has no content to gaze at: every triangle is its shell "
                              f"(walls, floors, ceilings) or emissive")
         self.ids = np.flatnonzero(ok)
-        self.cdf = np.cumsum(area[self.ids])
+        self.cdf = np.cumsum(self.view.area[self.ids])
         self.cdf /= self.cdf[-1]
-        self.tri, self.normal, self.origin = tri, normal, np.asarray(scene.origin, dtype=np.float64)
-        self.bvh = kept_scene_bvh(scene, "sah")
+        self.tri, self.normal = self.view.tri, self.view.normal
 
     def points(self, rng, n: int) -> tuple[np.ndarray, np.ndarray]:
         """(triangle ids, points) of `n` points drawn uniformly over the content's area."""
@@ -182,11 +181,9 @@ class _Gaze:
 
     def visible(self, heads: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Whether the first surface on the ray from each head towards its point is the point's."""
-        from ..accel.bvh import trace_reference
-
         d = points - heads
         dist = np.linalg.norm(d, axis=1)
-        _, t, _, _ = trace_reference(self.bvh, heads - self.origin, d / dist[:, None])
+        _, t = self.view.cast(heads, d / dist[:, None])
         return t >= dist - VISIBLE_SLACK_M
 
 
