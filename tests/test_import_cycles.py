@@ -29,11 +29,11 @@ BENCH_USERS = {"rayvr.commands.bench"}
 LAYERS = (
     # the packages: their __init__ imports nothing
     ("rayvr.gl", "rayvr.util", "rayvr.scene", "rayvr.frame", "rayvr.reference", "rayvr.quality", "rayvr.app"),
-    ("rayvr.gl.glsl_constants", "rayvr.options"),
+    ("rayvr.gl.glsl_constants", "rayvr.options", "rayvr.util.digest"),
     ("rayvr.gl.gpu_layout",),
     ("rayvr.frame.effect_registry", "rayvr.frame.cameras", "rayvr.gl.shaders", "rayvr.gl.limits", "rayvr.util.inputs",
      "rayvr.frame.pcg", "rayvr.gl.timing", "rayvr.util.signals", "rayvr.util.extras", "rayvr.util.output",
-     "rayvr.frame.cameras.rig", "rayvr.scene.loader", "rayvr.scene.light_selection", "rayvr.frame.stereo", "rayvr.gl.context",
+     "rayvr.frame.cameras.rig", "rayvr.scene.loader", "rayvr.scene.light_selection", "rayvr.scene.surfaces", "rayvr.frame.stereo", "rayvr.gl.context",
      "rayvr.frame.accumulation", "rayvr.render_options"),
     ("rayvr.settings",),  # the render options collected: nothing heavy (test_settings_import_nothing_heavy)
     ("rayvr.accel", "rayvr.frame.gbuffer", "rayvr.frame.graph"),

@@ -19,6 +19,7 @@ from collections import OrderedDict
 import numpy as np
 
 from . import bvh_cache
+from ..util.digest import arrays_digest
 from .bvh import BUILDS, Bvh, build_bvh
 from .gpu import GpuBvh
 
@@ -42,12 +43,7 @@ def build_scene_bvh(scene, build: str = "sah", progress: bool = True) -> Bvh:
 
 def geometry_digest(vertices, indices) -> str:
     """A digest of the triangles (positions and indices, with their dtypes and shapes)."""
-    h = hashlib.blake2b(digest_size=16)
-    for a in (vertices, indices):
-        a = np.ascontiguousarray(a)
-        h.update(f"{a.dtype.str}{a.shape}".encode())
-        h.update(memoryview(a).cast("B"))
-    return h.hexdigest()
+    return arrays_digest(vertices, indices)
 
 
 def cache_key(digest: str, build: str) -> str:

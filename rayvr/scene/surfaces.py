@@ -11,11 +11,12 @@ the merge itself, not here. Computed from the geometry as loaded: a mesh animate
 keeps the surfaces of its first pose."""
 from __future__ import annotations
 
-import hashlib
 import math
 from collections import OrderedDict
 
 import numpy as np
+
+from ..util.digest import arrays_digest
 
 # The crease angle below which two triangles across an edge are one smooth surface (the common
 # auto-smooth default of modelling tools; a 64-segment sphere's neighbours differ by 5.6 degrees).
@@ -23,15 +24,6 @@ SMOOTH_ANGLE_DEG = 30.0
 SAME_NORMAL_DEG = 1.0  # two shading normals at one welded vertex this close are one smooth normal
 KEPT = 4  # surfaces of the last few geometries (benchmarks make a Renderer per variant of one scene)
 _kept: OrderedDict = OrderedDict()
-
-
-def _digest(*arrays) -> str:
-    h = hashlib.blake2b(digest_size=16)
-    for a in arrays:
-        a = np.ascontiguousarray(a)
-        h.update(f"{a.dtype.str}{a.shape}".encode())
-        h.update(memoryview(a).cast("B"))
-    return h.hexdigest()
 
 
 def edge_neighbours(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
@@ -84,7 +76,7 @@ def surface_groups(positions: np.ndarray, indices: np.ndarray, triangle_material
     indices = np.asarray(indices).reshape(-1, 3)
     if len(indices) == 0:
         return np.zeros(0, np.uint32)
-    key = _digest(positions, indices, triangle_material, np.zeros(0) if normals is None else normals,
+    key = arrays_digest(positions, indices, triangle_material, np.zeros(0) if normals is None else normals,
                   np.float64(max_angle_deg))
     if key in _kept:
         _kept.move_to_end(key)
