@@ -219,7 +219,7 @@ class PlanRefusal(ValueError):
     it: the API's message names them as keywords (tile_culling=False), `in_flags()` as the command
     line spells them (--no-tile-culling), so the core never names a flag."""
 
-    def __init__(self, reason: str, advice: str, *options: tuple):
+    def __init__(self, reason: str, advice: str = "", *options: tuple):
         self.reason, self.advice, self.options = reason, advice, options
         words = " and ".join(f"{name}={value!r}" for name, value in options)
         super().__init__(f"{reason}: {advice} {words}" if options else reason)

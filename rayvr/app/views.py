@@ -379,8 +379,8 @@ def transforms(job, material_names=None) -> dict:
                     frame[f"flow_{d}_valid_file_path"] = \
                         f"./{flow_file(job, i, eye, d, mask=True).name}" if d in has else None
             frames.append(frame)
-    own = [k for k in frames[0] if k not in ("file_path", "transform_matrix", "depth_file_path", "material_file_path",
-                                             "distance_file_path", *FLOW_KEYS)]
+    # each frame's own files (file_path, depth_file_path, the flow's, ...) and pose never go to the top
+    own = [k for k in frames[0] if k != "transform_matrix" and not k.endswith("file_path")]
     # A value every frame shares goes to the top only, the others stay in each frame: nerfstudio
     # takes a top-level intrinsic for every frame, and camera_model from the top alone.
     top = {k: frames[0][k] for k in own if all(f[k] == frames[0][k] for f in frames)}

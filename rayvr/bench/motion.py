@@ -24,7 +24,7 @@ import numpy as np
 from ..gl.context import create_context
 from ..quality.metrics import flip
 from ..quality.motion_error import flicker
-from ..renderer import Renderer, RenderSettings
+from ..renderer import Renderer
 from .head_poses import POSE_SEED
 from .report import device_meta, write_report
 from .scenes import bench_scenes
@@ -44,34 +44,36 @@ def _both(frame) -> np.ndarray:
 def trajectory_rows(r: Renderer, rig, name: str, traj, variants: dict, reference_spp: int, progress=True) -> list:
     """One row per variant for trajectory `traj` of scene `name` through `rig`'s eyes and camera."""
     base = r.settings
-    r.settings = RenderSettings(**{**base.to_dict(), "seed": REFERENCE_SEED})
-    rigs = [replace(rig, pose=p) for p in traj.poses]
-    refs = [_both(r.render(q, spp=reference_spp)) for q in rigs]
-    r.settings = RenderSettings(**{**base.to_dict(), "seed": FLOOR_SEED})
-    floor = flip(refs[0], _both(r.render(rigs[0], spp=reference_spp)), float_encoding="srgb")
     rows = []
-    for label, fields in variants.items():
-        settings = {k: v for k, v in fields.items() if k != "spp"}  # spp: samples a frame, not a setting
-        r.settings = RenderSettings(**{**base.to_dict(), "seed": 0, **settings})
-        frames, ms = [], []
-        for q in rigs:
-            f = r.render(q, spp=fields.get("spp", 1))
-            frames.append(_both(f))
-            ms.append(sum(f.timings.values()) if f.timings else float("nan"))
-        flips = np.array([flip(a, b, float_encoding="srgb") for a, b in zip(refs, frames)])
-        flick = flicker(refs, frames, float_encoding="srgb")
-        rows.append({"scene": name, "trajectory": traj.kind, "rate_hz": traj.rate_hz, "anchor": traj.anchor.to_dict(),
-                     "frames": len(frames), "seconds": traj.times[-1], "variant": label, "settings": fields,
-                     "mean_flip": float(flips.mean()), "worst_flip": float(flips.max()),
-                     "worst_frame": int(flips.argmax()), "flicker": float(flick.mean()),
-                     "worst_flicker": float(flick.max()), "noise_floor_flip": floor,
-                     "mean_ms": float(np.nanmean(ms)) if np.isfinite(ms).any() else None,
-                     "worst_ms": float(np.nanmax(ms)) if np.isfinite(ms).any() else None})
-        if progress:
-            row = rows[-1]
-            print(f"  {name:8s} {traj.label:36s} {label:16s} FLIP {row['mean_flip']:.4f} (worst {row['worst_flip']:.4f},"
-                  f" floor {floor:.4f}), flicker {row['flicker']:.4f}")
-    r.settings = base
+    try:
+        r.settings = replace(base, seed=REFERENCE_SEED)
+        rigs = [replace(rig, pose=p) for p in traj.poses]
+        refs = [_both(r.render(q, spp=reference_spp)) for q in rigs]
+        r.settings = replace(base, seed=FLOOR_SEED)
+        floor = flip(refs[0], _both(r.render(rigs[0], spp=reference_spp)), float_encoding="srgb")
+        for label, fields in variants.items():
+            # spp: the samples a frame accumulates, not a setting
+            r.settings = replace(base, **{"seed": 0, **{k: v for k, v in fields.items() if k != "spp"}})
+            frames, ms = [], []
+            for q in rigs:
+                f = r.render(q, spp=fields.get("spp", 1))
+                frames.append(_both(f))
+                ms.append(sum(f.timings.values()) if f.timings else float("nan"))
+            flips = np.array([flip(a, b, float_encoding="srgb") for a, b in zip(refs, frames)])
+            flick = flicker(refs, frames, float_encoding="srgb")
+            timed = np.isfinite(ms).any()
+            rows.append({"scene": name, "trajectory": traj.kind, "rate_hz": traj.rate_hz,
+                         "anchor": traj.anchor.to_dict(), "frames": len(frames), "seconds": traj.times[-1],
+                         "variant": label, "settings": fields, "mean_flip": float(flips.mean()),
+                         "worst_flip": float(flips.max()), "worst_frame": int(flips.argmax()),
+                         "flicker": float(flick.mean()), "worst_flicker": float(flick.max()),
+                         "noise_floor_flip": floor, "mean_ms": float(np.nanmean(ms)) if timed else None,
+                         "worst_ms": float(np.nanmax(ms)) if timed else None})
+            if progress:
+                print(f"  {name:8s} {traj.label:36s} {label:16s} FLIP {flips.mean():.4f} (worst {flips.max():.4f},"
+                      f" floor {floor:.4f}), flicker {flick.mean():.4f}")
+    finally:
+        r.settings = base
     return rows
 
 

@@ -165,8 +165,7 @@ def from_path(path, rate_hz: float) -> Trajectory:
     """A recorded camera path (the preview's P, rayvr/frame/cameras/rig.py save_path) as a
     trajectory: its poses one a frame at `rate_hz`."""
     poses = load_path(path)
-    return Trajectory("recorded", float(rate_hz), tuple(poses), tuple(float(x) for x in _times(
-        (len(poses) - 1) / float(rate_hz), rate_hz)))
+    return Trajectory("recorded", float(rate_hz), tuple(poses), tuple(k / float(rate_hz) for k in range(len(poses))))
 
 
 def angular_speeds_deg_s(traj: Trajectory) -> np.ndarray:

@@ -58,7 +58,7 @@ def screen_space_plan(ask, plan) -> None:
     """No field: a frame whose effects trace the screen refuses a camera without the pinhole's depth."""
     refusal = screen_space_refusal(ask.effects, ask.camera.name)
     if refusal:
-        raise PlanRefusal(refusal, "leave out")
+        raise PlanRefusal(refusal)  # the reason says what to change
 
 
 def set_tree_uniforms(program, size, eyes: int) -> None:
