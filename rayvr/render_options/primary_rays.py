@@ -22,8 +22,6 @@ TILE_CULLING = declare(Option("tile_culling", bool, None, "ray-cast primary visi
                               "culling); bench primary: each rays row without and with it",
                               scope="plan", plan_field="tile_culling", auto=True,
                               commands=("capture", "preview", "info", "bench")))
-
-
 BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary visibility with tile culling first "
                                "cuts the BVH per block of tiles (--block-tiles; HVVR's block beams: a frustum over "
                                "the tiles' frusta), and each tile's cut starts from its block's entries instead of "
@@ -37,11 +35,8 @@ BLOCK_CULLING = declare(Option("block_culling", bool, None, "ray-cast primary vi
 # 256 invocations), a power of two on each side so the MSAA trace's blocks (msaa_block) lie in one; a
 # cut tests its entries one an invocation, so a bound is at most a tile's pixels and a block's tiles.
 TILE_SIZES = ("8x8", "16x8", "16x16")
-
 TILE_ENTRY_BOUNDS = (8, 16, 32, 64)
-
 BLOCK_SIDES = (4, 8, 16)  # a block of N x N tiles
-
 
 TILE_SIZE_OPTION = declare(Option("tile_size", str, None, "ray-cast primary visibility with tile culling: a tile's "
                            "pixels (w x h), one frustum and entry list each; auto: the measured choice "
@@ -65,7 +60,6 @@ BLOCK_TILES_OPTION = declare(Option("block_tiles", int, None, "ray-cast primary 
                                     metavar="N", commands=("capture", "preview", "info", "bench")))
 
 TILE_LIST_BOUNDS = (16, 32, 64, 128, 256, 512, 1024)  # triangles a tile's list may hold (a power of two: its sort)
-
 TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibility tests each tile's rays "
                             "against the tile's own list of at most N triangles (those of its frustum, nearest "
                             "first, from workgroup memory; the same hits, exact); a tile with more walks the BVH "
@@ -73,7 +67,6 @@ TILE_LISTS = declare(Option("tile_lists", int, None, "ray-cast primary visibilit
                             scope="plan", plan_field="tile_lists", choices=(0,) + TILE_LIST_BOUNDS, auto=True,
                             implies=(("tile_culling", True),), label="tile list bound", metavar="N",
                             commands=("capture", "preview", "info", "bench")))
-
 
 SHARE_CHANNELS = declare(Option("share_channel_shading", bool, None, "a chromatic camera (three colour channel "
                                 "sets) casts its sets together as sub-rays of each sample and shades a pixel once "
@@ -83,7 +76,6 @@ SHARE_CHANNELS = declare(Option("share_channel_shading", bool, None, "a chromati
                                 "up to --msaa 8, where it measured faster",
                                 scope="plan", plan_field="share_channels", auto=True,
                                 commands=("capture", "preview", "info", "bench")))
-
 
 SHADING_SLOTS = declare(Option("shading_slots", int, MAX_SLOTS, "MSAA for rays and shared channel shading: "
                                "a pixel shades at most its N most covered distinct triangles, the rounds the "
