@@ -142,7 +142,7 @@ def frame_files(job: CaptureJob, index: int) -> list[Path]:
     out = []
     for eye in job.eye_names:
         out.append(color_file(job, index, eye))
-        out += [aux_file(job, index, eye, name) for name in job.output_aux if name != FLOW_AUX]  # distance too
+        out += [aux_file(job, index, eye, name) for name in job.output_aux if name != FLOW_AUX]  # (distance's too)
         for direction in flow_directions(job, index):
             out += [flow_file(job, index, eye, direction), flow_file(job, index, eye, direction, mask=True)]
         if job.cameras:
@@ -585,7 +585,7 @@ def run_capture(renderer: Renderer, job: CaptureJob, progress: bool = True, on_f
     indices = [i for i in range(len(job.poses)) if i not in folder.done]
     summary = render_frames(renderer, job, indices, progress, on_frame, record=folder.digest,
                             skipped=len(folder.done))
-    if FLOW_AUX in job.aux:  # the flow files of each frame, listed (a multi-view job's caller writes it too)
+    if job.writes_transforms:  # the views' cameras, the flow files of each frame
         from .views import write_transforms
 
         write_transforms(job, renderer.scene.material_names())

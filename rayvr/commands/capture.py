@@ -217,11 +217,7 @@ def cmd_capture(args) -> int:
             summary = run_capture(r, job, progress=not args.quiet, folder=folder)
             if pick is not None:
                 summary["budget"] = pick
-            summary_path = write_summary(job, summary)
-            if args.views:
-                from ..app.views import write_transforms
-
-                write_transforms(job, r.scene.material_names())
+            summary_path = write_summary(job, summary)  # (run_capture wrote transforms.json)
     print_capture(args, summary, summary_path, r.scene.summary())
     return 0
 
@@ -249,7 +245,7 @@ def capture_on_workers(args, aux, settings, inputs, given) -> int:
         summary = run_capture_distributed(cluster, job, progress=not args.quiet, chunk=args.chunk,
                                           crash_file=os.environ.get("RAYVR_TEST_CRASH_ONCE"), folder=folder)
         summary_path = write_summary(job, summary)
-        if args.views:
+        if job.writes_transforms:  # the workers render and write the frames; the listing is written here
             from ..app.views import write_transforms
 
             write_transforms(job, scene.material_names())
