@@ -5,13 +5,16 @@ and Sponza (hybrid) through the distorted chromatic camera at 4x MSAA, on bench 
 variant (merge by triangle with 8 slots, the default, and with 4 and 3; by surface with 8, 4 and 2 slots) the
 rounds, the GPU timer sum (median of FRAMES, default 8, after warm-up; 0: not timed, for a CPU) and mean FLIP of both eyes against a
 converged frame: every sub-ray shaded with the colour channels apart (--ssaa, no shared channel
-shading: the frame MSAA approximates), REF_SPP samples (default 64), its own seed."""
+shading: the frame MSAA approximates), REF_SPP samples (default 64), its own seed. Each pose first
+prints what the frame shows (bench vr's effect share: the share of its pixels per effect); REF_SPP 0
+prints only that."""
 import sys
 
 import numpy as np
 
 from rayvr.bench import vr
-from rayvr.bench.vr import CAMERA_CONFIGS, bench_scenes, draw_poses, materials_config
+from rayvr.bench.report import share_text
+from rayvr.bench.vr import CAMERA_CONFIGS, bench_scenes, draw_poses, frame_share, materials_config
 from rayvr.frame.cameras.rig import StereoRig
 from rayvr.gl.context import create_context
 from rayvr.quality.metrics import flip
@@ -43,6 +46,10 @@ for scene_name, config in (("default", "room"), ("sponza", "shadows")):
         r.set_materials(mats)
         for head in heads:
             rig = StereoRig(head.pose, ipd=view.ipd, fov_y=fov or view.fov_y, near=view.near, size=size, camera=model)
+            r.settings = RenderSettings(primary=primary, msaa=4)
+            print(f"{name} pose {head.index} ({head.kind}) shows {share_text(frame_share(r, rig, mats))}", flush=True)
+            if not ref_spp:
+                continue
             r.settings = RenderSettings(primary=primary, msaa=4, ssaa=True, share_channel_shading=False, seed=1000)
             reference = both(r.render(rig, spp=ref_spp))
             for merge, slots in VARIANTS:
